@@ -1,0 +1,76 @@
+"""Shared by the benchmark scripts: machine facts, medians, and writing one section of RESULTS.md."""
+from __future__ import annotations
+
+import os
+import platform
+import re
+import statistics
+import subprocess
+import sys
+import time
+from importlib import metadata
+from pathlib import Path
+from typing import Callable, Iterable
+
+RESULTS = Path(__file__).resolve().parent / "RESULTS.md"
+HEADER = "# Benchmark results\n\nEach section is written by the script it names; re-run it to refresh that section.\n"
+
+
+def machine() -> str:
+    """One line describing the machine and the versions that matter."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    versions = []
+    for dist in ("duckdb", "sqlglot", "pyarrow", "trino", "fastapi", "uvicorn"):
+        try:
+            versions.append(f"{dist} {metadata.version(dist)}")
+        except metadata.PackageNotFoundError:
+            pass
+    return f"{cpu}, {os.cpu_count()} cores; Python {platform.python_version()}; " + ", ".join(versions)
+
+
+def median_of(runs: int, fn: Callable[[], float]) -> tuple[float, list[float]]:
+    """Call `fn` (which returns one measured figure) `runs` times; the median and all figures."""
+    figures = [fn() for _ in range(runs)]
+    return statistics.median(figures), figures
+
+
+def timed(fn: Callable[[], object]) -> float:
+    """Seconds one call of `fn` takes."""
+    start = time.perf_counter()
+    fn()
+    return time.perf_counter() - start
+
+
+def git_revision() -> str:
+    try:
+        return subprocess.check_output(["git", "rev-parse", "--short", "HEAD"], cwd=RESULTS.parent, text=True).strip()
+    except (OSError, subprocess.CalledProcessError):
+        return "unknown"
+
+
+def write_section(title: str, command: str, lines: Iterable[str]) -> None:
+    """Replace (or append) the section `## title` of RESULTS.md with the given Markdown lines."""
+    body = "\n".join(
+        [
+            f"## {title}",
+            "",
+            f"- command: `{command}`",
+            f"- machine: {machine()}",
+            f"- revision: {git_revision()}, {time.strftime('%Y-%m-%d %H:%M', time.localtime())}",
+            "",
+            *lines,
+            "",
+        ]
+    )
+    text = RESULTS.read_text() if RESULTS.exists() else HEADER
+    pattern = re.compile(rf"^## {re.escape(title)}\n.*?(?=^## |\Z)", re.S | re.M)
+    text = pattern.sub(lambda _: body + "\n", text) if pattern.search(text) else text.rstrip("\n") + "\n\n" + body
+    RESULTS.write_text(text)
+    print(body, file=sys.stdout)

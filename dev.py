@@ -1,0 +1,70 @@
+#!/usr/bin/env python3
+"""Set up and run lakegate on a fresh machine that has only python3.
+
+    python3 dev.py demo [ARGS...]   create .venv, install lakegate, run `lakegate demo`
+    python3 dev.py test [ARGS...]   create .venv, install lakegate[test], run the test suite
+    python3 dev.py bench NAME       run bench/NAME.py (results go to bench/RESULTS.md)
+    python3 dev.py lakegate ARGS    run any lakegate command inside .venv
+
+The virtual environment is reinstalled only when pyproject.toml changes.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+import subprocess
+import sys
+import venv
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent
+VENV = ROOT / ".venv"
+BIN = VENV / ("Scripts" if os.name == "nt" else "bin")
+PY = BIN / "python"
+
+
+def _run(cmd: list[str]) -> int:
+    return subprocess.call([str(c) for c in cmd], cwd=ROOT)
+
+
+def ensure_venv(extras: str = "test") -> None:
+    """Create .venv and install the project into it (editable) if not done yet."""
+    stamp = VENV / ".lakegate-installed"
+    digest = hashlib.sha256((ROOT / "pyproject.toml").read_bytes() + extras.encode()).hexdigest()
+    if stamp.exists() and stamp.read_text() == digest and PY.exists():
+        return
+    if not PY.exists():
+        print(f"creating {VENV} ...", flush=True)
+        venv.EnvBuilder(with_pip=True).create(VENV)
+    print("installing lakegate and its dependencies into .venv ...", flush=True)
+    quiet = ["-q"] if os.environ.get("CI") or not sys.stdout.isatty() else []
+    rc = _run([PY, "-m", "pip", "install", *quiet, "--disable-pip-version-check", "-e", f".[{extras}]"])
+    if rc:
+        sys.exit(rc)
+    stamp.write_text(digest)
+
+
+def main(argv: list[str]) -> int:
+    if not argv or argv[0] in {"-h", "--help", "help"}:
+        print(__doc__)
+        return 0
+    command, rest = argv[0], argv[1:]
+    ensure_venv()
+    if command == "demo":
+        return _run([BIN / "lakegate", "demo", *rest])
+    if command == "test":
+        workers = [] if any(a.startswith("-n") for a in rest) else ["-n", "2"]
+        return _run([PY, "-m", "pytest", *workers, *rest])
+    if command == "bench":
+        if not rest:
+            print("usage: python3 dev.py bench NAME [ARGS...]  (NAME is a file in bench/)")
+            return 2
+        return _run([PY, ROOT / "bench" / f"{rest[0]}.py", *rest[1:]])
+    if command == "lakegate":
+        return _run([BIN / "lakegate", *rest])
+    print(f"unknown command {command!r}\n{__doc__}", file=sys.stderr)
+    return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

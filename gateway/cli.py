@@ -1,0 +1,51 @@
+"""The `lakegate` command line.
+
+Each command lives in its own module under `lakegate.gateway` that defines
+`add_parser(subparsers)`; the parser it adds sets `func(args) -> int`. Errors meant
+for the user are raised as `UserError` and printed as one line, without a traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+#: Modules that each contribute one command (or a command group).
+COMMAND_MODULES = (
+    "config_command",
+    "ingest_command",
+    "query_command",
+)
+
+
+class UserError(Exception):
+    """An error caused by the user's input; printed as `lakegate: <message>`, exit code 1."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="lakegate",
+        description="A Trino-compatible SQL gateway over a Parquet data lake of robot test data.",
+    )
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
+    subparsers.required = True
+    for name in COMMAND_MODULES:
+        importlib.import_module(f"lakegate.gateway.{name}").add_parser(subparsers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except UserError as exc:
+        print(f"lakegate: {exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("lakegate: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,176 @@
+"""Topic field types: their names in the config, Arrow and Trino types, and value checks.
+
+One table of types serves the Emitter (validation before writing), ingestion
+(validation and Arrow conversion) and the catalog (Trino column types).
+"""
+from __future__ import annotations
+
+import json
+import math
+from numbers import Integral, Real
+from typing import Any
+
+import pyarrow as pa
+
+#: Field type names accepted in a topic schema, with aliases resolved.
+FIELD_TYPES = ("int", "float", "boolean", "string", "status", "image", "video", "string[]", "metric[]")
+TYPE_ALIASES = {"bigint": "int"}
+
+#: Kinds of attached metric in a `metric[]` field, and the keys a metric object may have.
+METRIC_KINDS = ("scalar", "text", "image", "plotly")
+METRIC_REQUIRED_KEYS = ("name", "type", "value")
+METRIC_OPTIONAL_KEYS = ("description", "status")
+
+METRIC_STRUCT = pa.struct(
+    [
+        ("name", pa.string()),
+        ("description", pa.string()),
+        ("status", pa.string()),
+        ("type", pa.string()),
+        ("value", pa.string()),
+    ]
+)
+
+_ARROW = {
+    "int": pa.int64(),
+    "float": pa.float64(),
+    "boolean": pa.bool_(),
+    "string": pa.string(),
+    "status": pa.string(),
+    "image": pa.string(),
+    "video": pa.string(),
+    "string[]": pa.list_(pa.string()),
+    "metric[]": pa.list_(METRIC_STRUCT),
+}
+
+_TRINO = {
+    "int": "bigint",
+    "float": "double",
+    "boolean": "boolean",
+    "string": "varchar",
+    "status": "varchar",
+    "image": "varchar",
+    "video": "varchar",
+    "string[]": "array(varchar)",
+    "metric[]": "array(row(name varchar, description varchar, status varchar, type varchar, value varchar))",
+}
+
+
+class FieldError(ValueError):
+    """A value does not fit its field type; the message says what was expected and got."""
+
+
+def canonical_type(name: str) -> str | None:
+    """The canonical field type for a config type name, or None when unknown."""
+    name = TYPE_ALIASES.get(name, name)
+    return name if name in _ARROW else None
+
+
+def arrow_type(field_type: str) -> pa.DataType:
+    """The Arrow type a field of this type is stored as in Parquet."""
+    return _ARROW[field_type]
+
+
+def trino_type(field_type: str) -> str:
+    """The Trino type name under which queries see a field of this type."""
+    return _TRINO[field_type]
+
+
+def _describe(value: Any) -> str:
+    text = repr(value)
+    if len(text) > 60:
+        text = text[:57] + "..."
+    return f"{type(value).__name__} {text}"
+
+
+def _as_str_list(value: Any) -> list[str]:
+    if hasattr(value, "tolist") and not isinstance(value, (str, bytes)):
+        value = value.tolist()
+    if not isinstance(value, (list, tuple)):
+        raise FieldError(f"expected a list of strings, got {_describe(value)}")
+    for i, item in enumerate(value):
+        if not isinstance(item, str):
+            raise FieldError(f"expected a list of strings, got {_describe(item)} at position {i}")
+    return list(value)
+
+
+def _metric_value_text(kind: str, value: Any) -> str:
+    if kind in ("scalar", "text"):
+        if isinstance(value, bool) or not isinstance(value, (str, Real)):
+            raise FieldError(f"metric of type {kind} needs a string or number value, got {_describe(value)}")
+        return value if isinstance(value, str) else json.dumps(value.item() if hasattr(value, "item") else value)
+    if kind == "image":
+        return json.dumps(_as_str_list([value] if isinstance(value, str) else value))
+    # plotly: a JSON text (fig.to_json()) or the decoded object
+    if isinstance(value, str):
+        try:
+            json.loads(value)
+        except ValueError as exc:
+            raise FieldError(f"metric of type plotly needs a JSON text, got invalid JSON ({exc})") from None
+        return value
+    if isinstance(value, dict):
+        return json.dumps(value, allow_nan=False)
+    raise FieldError(f"metric of type plotly needs a JSON text or object, got {_describe(value)}")
+
+
+def _metric(item: Any, index: int) -> dict[str, str | None]:
+    where = f"metric {index}"
+    if not isinstance(item, dict):
+        raise FieldError(f"{where}: expected an object, got {_describe(item)}")
+    missing = [k for k in METRIC_REQUIRED_KEYS if k not in item]
+    if missing:
+        raise FieldError(f"{where}: missing key(s) {', '.join(missing)}")
+    extra = sorted(set(item) - set(METRIC_REQUIRED_KEYS) - set(METRIC_OPTIONAL_KEYS))
+    if extra:
+        raise FieldError(f"{where}: unknown key(s) {', '.join(extra)}")
+    for key in ("name", "type", *METRIC_OPTIONAL_KEYS):
+        if key in item and item[key] is not None and not isinstance(item[key], str):
+            raise FieldError(f"{where}: {key} must be a string, got {_describe(item[key])}")
+    kind = item["type"]
+    if kind not in METRIC_KINDS:
+        raise FieldError(f"{where}: type must be one of {', '.join(METRIC_KINDS)}, got {kind!r}")
+    return {
+        "name": item["name"],
+        "description": item.get("description"),
+        "status": item.get("status"),
+        "type": kind,
+        "value": _metric_value_text(kind, item["value"]),
+    }
+
+
+def check_value(field_type: str, value: Any) -> Any:
+    """Return `value` as stored for `field_type` (numpy scalars become Python ones), or raise FieldError.
+
+    Rules: int takes integers (not bool); float takes integers or finite floats (not
+    bool); boolean only bool; string/status/image/video a str; string[] a list of str;
+    metric[] a list of metric objects (name, type scalar|text|image|plotly, value,
+    optional description and status). None is never accepted.
+    """
+    if field_type == "int":
+        if isinstance(value, bool) or not isinstance(value, Integral):
+            raise FieldError(f"expected int, got {_describe(value)}")
+        return int(value)
+    if field_type == "float":
+        if isinstance(value, bool) or not isinstance(value, Real) or type(value).__name__ == "bool_":
+            raise FieldError(f"expected float, got {_describe(value)}")
+        number = float(value)
+        if not math.isfinite(number):
+            raise FieldError(f"expected a finite float, got {number!r}")
+        return number
+    if field_type == "boolean":
+        if isinstance(value, bool):
+            return value
+        if type(value).__name__ == "bool_":
+            return bool(value)
+        raise FieldError(f"expected boolean, got {_describe(value)}")
+    if field_type in ("string", "status", "image", "video"):
+        if not isinstance(value, str):
+            raise FieldError(f"expected {field_type} (a string), got {_describe(value)}")
+        return value
+    if field_type == "string[]":
+        return _as_str_list(value)
+    if field_type == "metric[]":
+        if not isinstance(value, (list, tuple)):
+            raise FieldError(f"expected a list of metric objects, got {_describe(value)}")
+        return [_metric(item, i) for i, item in enumerate(value)]
+    raise FieldError(f"unknown field type {field_type!r}")

@@ -1,0 +1,223 @@
+"""HTML for rendered metrics: one metric as a page or fragment, or a report of many metrics.
+
+Pages work offline: plotly.js comes from the installed plotly package and is embedded at
+most once per page, images are embedded as data URIs, and nothing is loaded from the
+network. Tables are HTML tables (readable with many columns, copyable); charts are
+Plotly figures drawn by `Plotly.newPlot`.
+"""
+from __future__ import annotations
+
+import base64
+import functools
+import html
+import json
+import uuid
+from pathlib import Path
+
+from plotly.offline import get_plotlyjs
+
+from lakegate.gateway.templates import Rendered, display_value, image_mime
+
+#: Badge colours of metric statuses.
+STATUS_COLOURS = {
+    "PASSED": "#2e7d32",
+    "WARNING": "#e08e00",
+    "BLOCKER": "#c62828",
+    "ERROR": "#6a1b9a",
+    "NOT_RUN": "#757575",
+}
+#: Rows of a table template shown in HTML; the full result stays in `Rendered.table`.
+MAX_TABLE_ROWS = 2000
+#: Larger image files are not embedded (the page would become unwieldy).
+MAX_IMAGE_BYTES = 20 * 1024 * 1024
+
+_CSS = """
+body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 0 auto; max-width: 1200px;
+       padding: 1rem 2rem; color: #1b1b1b; }
+h1 { margin-bottom: .3rem; }
+.lg-summary span { margin-right: .8rem; }
+.lg-metric { border: 1px solid #ddd; border-radius: 6px; padding: .6rem 1rem; margin: 1rem 0; }
+.lg-metric h3 { margin: .2rem 0; }
+.lg-badge { display: inline-block; color: #fff; border-radius: 4px; padding: 0 .45rem; font-size: .8rem;
+            font-weight: 600; vertical-align: middle; margin-left: .5rem; }
+.lg-meta { color: #555; font-size: .9rem; margin: .2rem 0; }
+.lg-scalar { font-size: 2rem; font-weight: 600; margin: .4rem 0; }
+.lg-error { background: #fdecea; color: #8a1c1c; padding: .5rem; white-space: pre-wrap; }
+.lg-problems { color: #8a5a00; }
+.lg-table-wrap { max-height: 32rem; overflow: auto; }
+.lg-table { border-collapse: collapse; font-size: .9rem; }
+.lg-table th, .lg-table td { border: 1px solid #ddd; padding: .2rem .5rem; text-align: left; vertical-align: top; }
+.lg-table th { background: #f3f5f8; position: sticky; top: 0; }
+.lg-images figure { display: inline-block; margin: .3rem; }
+.lg-images img { max-width: 100%; max-height: 480px; }
+"""
+
+
+@functools.cache
+def _plotlyjs() -> str:
+    return get_plotlyjs()
+
+
+def figure_html(
+    rendered: Rendered, *, title: str, include_plotlyjs: str | bool = True, full_html: bool = True
+) -> str:
+    """One rendered metric as HTML under a heading `title`.
+
+    `include_plotlyjs`: True embeds plotly.js (only when the metric has a chart), False
+    leaves it to the page, a string is a local script URL (e.g. "/static/plotly.min.js");
+    network URLs and "cdn" are refused. `full_html=False` returns a fragment for a page.
+    """
+    body = f"<h1>{html.escape(title)}</h1>\n" + _metric_body(rendered, f"lg-{uuid.uuid4().hex[:12]}")
+    script = _plotly_script(include_plotlyjs) if _has_chart(rendered) else ""
+    if not full_html:
+        return script + body
+    return _page(title, script, body)
+
+
+def report_html(title: str, sections: list[tuple[str, list[tuple[str, Rendered | None, dict]]]]) -> str:
+    """One offline page showing many metrics, grouped in titled sections.
+
+    Each metric is (name, rendered or None when it has no result, info) where info may hold
+    "status" (PASSED, WARNING, BLOCKER, ERROR or NOT_RUN), "description", "units" and "error".
+    """
+    counts: dict[str, int] = {}
+    parts: list[str] = []
+    figure_number = 0
+    for section_title, metrics in sections:
+        parts.append(f"<section>\n<h2>{html.escape(section_title)}</h2>")
+        for name, rendered, info in metrics:
+            status = info.get("status")
+            if status is not None:
+                counts[status] = counts.get(status, 0) + 1
+            figure_number += 1
+            parts.append(_metric_article(name, rendered, info, f"lg-figure-{figure_number}"))
+        parts.append("</section>")
+    summary = " ".join(
+        f'<span>{_badge(status)} {count}</span>' for status, count in sorted(counts.items(), key=_status_order)
+    )
+    charts = any(_has_chart(rendered) for _, metrics in sections for _, rendered, _ in metrics if rendered)
+    body = f"<h1>{html.escape(title)}</h1>\n<p class=\"lg-summary\">{summary}</p>\n" + "\n".join(parts)
+    return _page(title, _plotly_script(True) if charts else "", body)
+
+
+def _status_order(item: tuple[str, int]) -> int:
+    return list(STATUS_COLOURS).index(item[0])
+
+
+def _page(title: str, head_script: str, body: str) -> str:
+    return (
+        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
+        f"<title>{html.escape(title)}</title>\n<style>{_CSS}</style>\n{head_script}</head>\n"
+        f"<body>\n{body}\n</body>\n</html>\n"
+    )
+
+
+def _plotly_script(include_plotlyjs: str | bool) -> str:
+    if include_plotlyjs is True:
+        return f'<script type="text/javascript">{_plotlyjs()}</script>\n'
+    if include_plotlyjs is False:
+        return ""
+    if include_plotlyjs == "cdn" or "://" in include_plotlyjs or include_plotlyjs.startswith("//"):
+        raise ValueError(
+            f"include_plotlyjs={include_plotlyjs!r} would load plotly.js from the network; "
+            f"pass True to embed it or a local script path"
+        )
+    return f'<script src="{html.escape(include_plotlyjs)}"></script>\n'
+
+
+def _badge(status: str) -> str:
+    colour = STATUS_COLOURS.get(status)
+    if colour is None:
+        raise ValueError(f"unknown metric status {status!r} (expected one of {', '.join(STATUS_COLOURS)})")
+    return f'<span class="lg-badge" style="background:{colour}">{html.escape(status)}</span>'
+
+
+def _metric_article(name: str, rendered: Rendered | None, info: dict, div_id: str) -> str:
+    status = info.get("status")
+    parts = [f'<article class="lg-metric">\n<h3>{html.escape(name)}{_badge(status) if status else ""}</h3>']
+    if info.get("description"):
+        parts.append(f'<p class="lg-meta">{html.escape(info["description"])}</p>')
+    if info.get("units"):
+        parts.append(f'<p class="lg-meta">Units: {html.escape(info["units"])}</p>')
+    if info.get("error"):
+        parts.append(f'<pre class="lg-error">{html.escape(str(info["error"]))}</pre>')
+    if rendered is not None:
+        parts.append(_metric_body(rendered, div_id))
+    parts.append("</article>")
+    return "\n".join(parts)
+
+
+def _has_chart(rendered: Rendered) -> bool:
+    return rendered.figure is not None and rendered.template != "table"
+
+
+def _metric_body(rendered: Rendered, div_id: str) -> str:
+    """The result itself: a chart, a table, a scalar or images, then any problems."""
+    problems = list(rendered.problems)
+    if rendered.template == "table" and rendered.table is not None:
+        body = _table(rendered)
+    elif _has_chart(rendered):
+        body = _chart(rendered.figure, div_id)
+    elif rendered.template == "image":
+        body, image_problems = _images(rendered.images)
+        problems += image_problems
+    else:
+        body = f'<div class="lg-scalar">{html.escape(rendered.text)}</div>'
+    if problems:
+        items = "".join(f"<li>{html.escape(p)}</li>" for p in problems)
+        body += f'\n<ul class="lg-problems">{items}</ul>'
+    return body
+
+
+def _script_json(value: object) -> str:
+    """JSON that is safe inside a <script> element (no "</script>", no HTML comment openers)."""
+    text = json.dumps(value, allow_nan=False, separators=(",", ":"), ensure_ascii=False)
+    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
+
+
+def _chart(figure: dict, div_id: str) -> str:
+    height = figure.get("layout", {}).get("height", 420)
+    return (
+        f'<div id="{div_id}" style="height:{int(height)}px"></div>\n'
+        f'<script>Plotly.newPlot("{div_id}", {_script_json(figure.get("data", []))}, '
+        f'{_script_json(figure.get("layout", {}))}, {{"responsive": true, "displaylogo": false}});</script>'
+    )
+
+
+def _table(rendered: Rendered) -> str:
+    columns, rows = rendered.table["columns"], rendered.table["rows"]
+    head = "".join(f"<th>{html.escape(str(c))}</th>" for c in columns)
+    body = "".join(
+        "<tr>" + "".join(f"<td>{html.escape(display_value(v))}</td>" for v in row) + "</tr>"
+        for row in rows[:MAX_TABLE_ROWS]
+    )
+    more = ""
+    if len(rows) > MAX_TABLE_ROWS:
+        more = f'<p class="lg-meta">Showing the first {MAX_TABLE_ROWS} of {len(rows)} rows.</p>'
+    return f'<div class="lg-table-wrap"><table class="lg-table"><thead><tr>{head}</tr></thead>' \
+           f"<tbody>{body}</tbody></table></div>{more}"
+
+
+def _images(paths: list[str]) -> tuple[str, list[str]]:
+    figures: list[str] = []
+    problems: list[str] = []
+    for name in paths:
+        path = Path(name)
+        try:
+            size = path.stat().st_size
+            mime = image_mime(path)
+        except OSError as exc:
+            problems.append(f"{path.name}: cannot be read ({exc.strerror})")
+            continue
+        if mime is None:
+            problems.append(f"{path.name}: not a PNG, GIF or JPEG image")
+            continue
+        if size > MAX_IMAGE_BYTES:
+            problems.append(f"{path.name}: {size} bytes, too large to embed (limit {MAX_IMAGE_BYTES})")
+            continue
+        data = base64.b64encode(path.read_bytes()).decode("ascii")
+        caption = html.escape(path.name)
+        figures.append(
+            f'<figure><img src="data:{mime};base64,{data}" alt="{caption}"><figcaption>{caption}</figcaption></figure>'
+        )
+    return f'<div class="lg-images">{"".join(figures)}</div>', problems

@@ -1,0 +1,558 @@
+"""Metric templates: a query result rendered as a Plotly figure, a table, a scalar or images.
+
+`render` first checks that the result has the shape its template needs and raises a
+`TemplateError` naming the metric, the template and what it got. It is pure: no
+database, no lake, no network. Figures are plain JSON-safe dicts in Plotly's figure
+format (`{"data": [...], "layout": {...}}`), built directly rather than through
+`plotly.graph_objects`, which is several times slower on 100k-point traces; the tests
+check them against Plotly's schema. The HTML pages are made in `figures_html`.
+"""
+from __future__ import annotations
+
+import datetime as dt
+import math
+import zlib
+from dataclasses import dataclass, field
+from decimal import Decimal
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+#: Templates this module renders.
+TEMPLATES = ("line", "bar", "table", "scalar", "image", "state_timeline", "histogram", "pie")
+#: Templates the config accepts that have no renderer yet.
+UNSUPPORTED_TEMPLATES = ("video", "artifact")
+
+#: Colours of states in a state timeline; a state's colour is PALETTE[crc32(name) % len].
+PALETTE = (
+    "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
+    "#bcbd22", "#17becf", "#393b79", "#ad494a", "#637939", "#7b4173", "#3182bd", "#e6550d",
+)
+
+_IMAGE_MAGIC = (
+    (b"\x89PNG\r\n\x1a\n", "image/png"),
+    (b"GIF87a", "image/gif"),
+    (b"GIF89a", "image/gif"),
+    (b"\xff\xd8\xff", "image/jpeg"),
+)
+_EPOCH = dt.datetime(1970, 1, 1)
+
+
+@dataclass
+class Rendered:
+    """One metric's result as its template shows it."""
+
+    template: str
+    #: Plotly figure as a JSON-safe dict; None for scalar and image results.
+    figure: dict | None = None
+    #: {"columns": [...], "rows": [[...]]} with JSON-safe cells: the table template's
+    #: result, a state timeline's segments, an image list's files.
+    table: dict | None = None
+    #: The scalar template's value as the query returned it (numpy types made Python).
+    scalar: Any = None
+    #: One-line human summary, e.g. "12.5 s" or "2 series, 300 points".
+    text: str = ""
+    #: Image template: resolved paths of the image files found.
+    images: list[str] = field(default_factory=list)
+    #: Non-fatal issues, e.g. missing image files or values that cannot be drawn.
+    problems: list[str] = field(default_factory=list)
+
+
+class TemplateError(ValueError):
+    """The result does not fit the template; the message names the metric, the template and what it got."""
+
+
+def render(
+    metric_name: str,
+    template: str,
+    columns: list[tuple[str, str]],
+    rows: list[tuple],
+    *,
+    units: str | None = None,
+    logs_dir: Path | None = None,
+    template_type: str = "system",
+) -> Rendered:
+    """Render a query result (`columns` as (name, Trino type) pairs, `rows` of Python values).
+
+    `units` are shown after a scalar; `logs_dir` is where the image template finds files.
+    """
+    if template_type != "system":
+        raise TemplateError(
+            f"metric {metric_name!r}: template_type {template_type!r} is not supported yet "
+            f"(only 'system' templates are)"
+        )
+    if template in UNSUPPORTED_TEMPLATES:
+        raise TemplateError(f"metric {metric_name!r}: template {template!r} is not supported yet")
+    if template not in TEMPLATES:
+        raise TemplateError(
+            f"metric {metric_name!r}: unknown template {template!r} (expected one of {', '.join(TEMPLATES)})"
+        )
+    result = _Result(metric_name, template, columns, rows)
+    if template == "scalar":
+        return _scalar(result, units)
+    if template == "image":
+        return _image(result, logs_dir)
+    return _CHARTS[template](result)
+
+
+def state_colour(state: str) -> str:
+    """The colour of a state in every state timeline: stable across metrics, runs and processes."""
+    return PALETTE[zlib.crc32(state.encode("utf-8")) % len(PALETTE)]
+
+
+def image_mime(path: Path) -> str | None:
+    """The MIME type of a PNG, GIF or JPEG file, from its first bytes; None for anything else."""
+    with open(path, "rb") as f:
+        head = f.read(8)
+    return next((mime for magic, mime in _IMAGE_MAGIC if head.startswith(magic)), None)
+
+
+def format_number(value: int | float | Decimal) -> str:
+    """A number for people: integers in full, others rounded to 6 significant digits
+    but never losing integer digits below 1e15 (12.500000000001 -> "12.5", 1234567.8 -> "1234568")."""
+    if isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_)):
+        return str(int(value))
+    if isinstance(value, np.floating):
+        value = float(value)
+    if math.isnan(value):
+        return "NaN"
+    if math.isinf(value):
+        return "Infinity" if value > 0 else "-Infinity"
+    if value == 0:
+        return "0"
+    magnitude = abs(value)
+    if magnitude >= 1e15 or magnitude < 1e-4:
+        return f"{value:.6g}"
+    digits = max(0, 6 - (math.floor(math.log10(magnitude)) + 1))
+    text = f"{value:.{digits}f}"
+    return text.rstrip("0").rstrip(".") if "." in text else text
+
+
+def display_value(value: Any) -> str:
+    """A result value as a table cell or label shows it (Trino CLI style: NULL, true, [a, b])."""
+    if value is None:
+        return "NULL"
+    if isinstance(value, (bool, np.bool_)):
+        return "true" if value else "false"
+    if isinstance(value, (int, float, Decimal, np.integer, np.floating)):
+        return format_number(value)
+    if isinstance(value, str):
+        return value
+    if isinstance(value, (dt.date, dt.time)):
+        return value.isoformat(sep=" ") if isinstance(value, dt.datetime) else value.isoformat()
+    if isinstance(value, (bytes, bytearray, memoryview)):
+        return bytes(value).hex(" ")
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return "[" + ", ".join(display_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{display_value(k)}={display_value(v)}" for k, v in value.items()) + "}"
+    return str(value)
+
+
+def json_value(value: Any) -> Any:
+    """A result value as JSON, the way Trino's client protocol sends it: exact decimals and
+    NaN / Infinity as strings, temporal values as ISO text, arrays as lists, rows as objects."""
+    if value is None or isinstance(value, (bool, str)):
+        return value
+    if isinstance(value, np.generic):
+        return json_value(value.item())
+    if isinstance(value, int):
+        return value
+    if isinstance(value, float):
+        return value if math.isfinite(value) else format_number(value)
+    if isinstance(value, Decimal):
+        return str(value)
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [json_value(v) for v in value]
+    if isinstance(value, dict):
+        return {str(k): json_value(v) for k, v in value.items()}
+    return display_value(value)
+
+
+class _Result:
+    """A query result being rendered by one template, with the checks templates share."""
+
+    def __init__(self, metric: str, template: str, columns: list[tuple[str, str]], rows: list[tuple]):
+        self.metric = metric
+        self.template = template
+        self.names = [name for name, _ in columns]
+        self.types = [type_name for _, type_name in columns]
+        self.rows = rows
+        for number, row in enumerate(rows, 1):
+            if len(row) != len(columns):
+                raise self.error(f"got row {number} with {len(row)} values for {len(columns)} columns")
+
+    def error(self, what: str) -> TemplateError:
+        return TemplateError(f"metric {self.metric!r}: template {self.template!r} {what}")
+
+    def need_columns(self, counts: tuple[int, ...], shape: str) -> None:
+        """Fail unless the result has one of `counts` columns; `shape` names them, e.g. "[series, x, y]"."""
+        if len(self.names) in counts:
+            return
+        if len(counts) == 1:
+            wanted = f"exactly {counts[0]} column{'s' if counts[0] != 1 else ''}"
+        else:
+            wanted = " or ".join(map(str, counts)) + " columns"
+        raise self.error(f"needs {wanted} {shape}, got {len(self.names)} ({', '.join(self.names)})")
+
+    def numbers(self, column: int, wanted: str) -> tuple[list[int | float | None], list[str]]:
+        """The column's values as plottable numbers, NULL as None, and problems: NaN and
+        infinities (JSON has neither) are not drawn. Fails naming the row on a non-number."""
+        values: list[int | float | None] = []
+        undrawable = 0
+        for number, row in enumerate(self.rows, 1):
+            value = row[column]
+            if type(value) is not float:  # the common case first: this runs for every point
+                value = _number(value)
+                if value is _NOT_A_NUMBER:
+                    raise self.bad_value(number, column, wanted)
+            if type(value) is float and not math.isfinite(value):
+                value = None
+                undrawable += 1
+            values.append(value)
+        problems = []
+        if undrawable:
+            problems.append(
+                f"{_plural(undrawable, 'value')} of \"{self.names[column]}\" "
+                f"{'is' if undrawable == 1 else 'are'} NaN or infinite and not drawn"
+            )
+        return values, problems
+
+    def bad_value(self, row_number: int, column: int, wanted: str) -> TemplateError:
+        value = self.rows[row_number - 1][column]
+        got = "NULL" if value is None else f"{value!r} ({self.types[column]})"
+        return self.error(
+            f"needs {wanted} in column {column + 1} \"{self.names[column]}\", but row {row_number} has {got}"
+        )
+
+
+_NOT_A_NUMBER = object()
+
+
+def _number(value: Any) -> Any:
+    """int or float for a number, None for NULL, _NOT_A_NUMBER for anything else (booleans too)."""
+    if value is None:
+        return None
+    if isinstance(value, (bool, np.bool_)):
+        return _NOT_A_NUMBER
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, Decimal, np.floating)):
+        return float(value)
+    return _NOT_A_NUMBER
+
+
+def _plot_time(value: dt.date) -> str:
+    """A date or timestamp as Plotly's date axis reads it (wall-clock time, zone dropped)."""
+    if isinstance(value, dt.datetime):
+        return value.replace(tzinfo=None).isoformat(sep=" ")
+    return value.isoformat()
+
+
+def _plural(count: int, word: str, plural: str | None = None) -> str:
+    return f"{count} {word if count == 1 else (plural or word + 's')}"
+
+
+def _layout(x_title: str | None = None, y_title: str | None = None, **extra: Any) -> dict:
+    layout: dict[str, Any] = {"margin": {"l": 60, "r": 20, "t": 30, "b": 50}}
+    if x_title is not None:
+        layout["xaxis"] = {"title": {"text": x_title}}
+    if y_title is not None:
+        layout["yaxis"] = {"title": {"text": y_title}}
+    layout.update(extra)
+    return layout
+
+
+def _series(result: _Result, column: int | None) -> dict[str, list[int]]:
+    """Row indexes per distinct series label, in first-appearance order (one series when column is None)."""
+    if column is None:
+        return {"": list(range(len(result.rows)))}
+    groups: dict[str, list[int]] = {}
+    label = _labeller()
+    for index, row in enumerate(result.rows):
+        groups.setdefault(label(row[column]), []).append(index)
+    return groups
+
+
+def _labeller() -> Callable[[Any], str]:
+    """`display_value` remembering its answers: series and state names repeat on every row."""
+    labels: dict[tuple[type, Any], str] = {}
+
+    def label(value: Any) -> str:
+        try:
+            return labels[type(value), value]
+        except KeyError:
+            text = labels[type(value), value] = display_value(value)
+            return text
+        except TypeError:  # unhashable, e.g. an array
+            return display_value(value)
+
+    return label
+
+
+def _line(result: _Result) -> Rendered:
+    result.need_columns((3,), "[series, x, y]")
+    ys, problems = result.numbers(2, "numeric y values")
+    dates = any(isinstance(row[1], dt.date) for row in result.rows)
+    if dates:
+        xs: list[Any] = [_plot_time(row[1]) if isinstance(row[1], dt.date) else None for row in result.rows]
+        for number, row in enumerate(result.rows, 1):
+            if row[1] is not None and not isinstance(row[1], dt.date):
+                raise result.bad_value(number, 1, "numeric or timestamp x values")
+    else:
+        xs, x_problems = result.numbers(1, "numeric or timestamp x values")
+        problems += x_problems
+    traces = []
+    for name, indexes in _series(result, 0).items():
+        traces.append({
+            "type": "scatter",
+            "mode": "lines" if len(indexes) > 1 else "markers",
+            "name": name,
+            "x": [xs[i] for i in indexes],
+            "y": [ys[i] for i in indexes],
+        })
+    layout = _layout(result.names[1], result.names[2], hovermode="closest")
+    if dates:
+        layout["xaxis"]["type"] = "date"
+    return Rendered(
+        template="line",
+        figure={"data": traces, "layout": layout},
+        text=f"{_plural(len(traces), 'series', 'series')}, {_plural(len(result.rows), 'point')}",
+        problems=problems,
+    )
+
+
+def _bar(result: _Result) -> Rendered:
+    result.need_columns((3,), "[series, x, y]")
+    ys, problems = result.numbers(2, "numeric y values")
+    raw_x = [row[1] for row in result.rows]
+    categorical = any(v is not None and _number(v) is _NOT_A_NUMBER and not isinstance(v, dt.date) for v in raw_x)
+    if categorical:
+        xs: list[Any] = [display_value(v) for v in raw_x]
+    elif any(isinstance(v, dt.date) for v in raw_x):
+        xs = [None if v is None else _plot_time(v) for v in raw_x]
+    else:
+        xs, x_problems = result.numbers(1, "x values")
+        problems += x_problems
+    traces = [
+        {"type": "bar", "name": name, "x": [xs[i] for i in indexes], "y": [ys[i] for i in indexes]}
+        for name, indexes in _series(result, 0).items()
+    ]
+    layout = _layout(result.names[1], result.names[2], barmode="group")
+    if categorical:
+        layout["xaxis"]["type"] = "category"
+    return Rendered(
+        template="bar",
+        figure={"data": traces, "layout": layout},
+        text=f"{_plural(len(traces), 'series', 'series')}, {_plural(len(result.rows), 'bar')}",
+        problems=problems,
+    )
+
+
+def _table(result: _Result) -> Rendered:
+    if not result.names:
+        raise result.error("needs at least 1 column, got 0")
+    cells = [[display_value(row[c]) for row in result.rows] for c in range(len(result.names))]
+    figure = {
+        "data": [{
+            "type": "table",
+            "header": {"values": list(result.names), "align": "left"},
+            "cells": {"values": cells, "align": "left"},
+        }],
+        "layout": _layout(),
+    }
+    return Rendered(
+        template="table",
+        figure=figure,
+        table={"columns": list(result.names), "rows": [[json_value(v) for v in row] for row in result.rows]},
+        text=f"{_plural(len(result.rows), 'row')}, {_plural(len(result.names), 'column')}",
+    )
+
+
+def _scalar(result: _Result, units: str | None) -> Rendered:
+    if not result.names:
+        raise result.error("needs at least 1 column, got 0")
+    if not result.rows:
+        raise result.error(f"needs 1 row, but the query returned no rows (columns: {', '.join(result.names)})")
+    value = result.rows[0][0]
+    if isinstance(value, np.generic):
+        value = value.item()
+    problems = []
+    if len(result.rows) > 1 or len(result.names) > 1:
+        problems.append(
+            f"the query returned {_plural(len(result.rows), 'row')} and {_plural(len(result.names), 'column')}; "
+            f"only the first value is shown"
+        )
+    text = display_value(value)
+    return Rendered(
+        template="scalar", scalar=value, text=f"{text} {units}" if units else text, problems=problems
+    )
+
+
+def _image(result: _Result, logs_dir: Path | None) -> Rendered:
+    result.need_columns((1,), "[image file name]")
+    root = logs_dir.resolve() if logs_dir is not None else None
+    images: list[str] = []
+    problems: list[str] = []
+    rows: list[list[str | None]] = []
+    for number, (name,) in enumerate(result.rows, 1):
+        if name is None:
+            problems.append(f"row {number}: NULL file name")
+            rows.append([None, None])
+            continue
+        if not isinstance(name, str):
+            raise result.bad_value(number, 0, "image file names")
+        found = None
+        if root is None:
+            problems.append(f"{name}: no log directory to look in")
+        else:
+            path = (root / name).resolve()
+            if not path.is_relative_to(root):
+                problems.append(f"{name}: outside the job's logs ({root})")
+            elif not path.is_file():
+                problems.append(f"{name}: missing from the job's logs ({root})")
+            elif image_mime(path) is None:
+                problems.append(f"{name}: not a PNG, GIF or JPEG image")
+            else:
+                found = str(path)
+                images.append(found)
+        rows.append([name, found])
+    text = _plural(len(images), "image")
+    if problems:
+        text += f", {_plural(len(problems), 'problem')}"
+    return Rendered(
+        template="image",
+        table={"columns": [result.names[0], "path"], "rows": rows},
+        text=text,
+        images=images,
+        problems=problems,
+    )
+
+
+def _nanoseconds(value: Any) -> int | float | None:
+    """A timestamp as nanoseconds: integers as they are, timestamps from the Unix epoch (naive = UTC)."""
+    if isinstance(value, dt.datetime):
+        if value.tzinfo is not None:
+            value = value.astimezone(dt.timezone.utc).replace(tzinfo=None)
+        return (value - _EPOCH) // dt.timedelta(microseconds=1) * 1000
+    number = _number(value)
+    if number is None or number is _NOT_A_NUMBER or not math.isfinite(number):
+        return None
+    return number
+
+
+def _state_timeline(result: _Result) -> Rendered:
+    result.need_columns((3,), "[system, timestamp, state]")
+    samples: dict[str, list[tuple[int | float, str]]] = {}
+    label = _labeller()
+    for number, (system, timestamp, state) in enumerate(result.rows, 1):
+        ns = timestamp if type(timestamp) is int else _nanoseconds(timestamp)
+        if ns is None:
+            raise result.bad_value(number, 1, "timestamps in nanoseconds")
+        samples.setdefault(label(system), []).append((ns, label(state)))
+    if not samples:
+        figure = {"data": [], "layout": _layout("Elapsed time (s)", result.names[0])}
+        return Rendered(
+            template="state_timeline",
+            figure=figure,
+            table={"columns": [result.names[0], "state", "start (s)", "end (s)"], "rows": []},
+            text="no states",
+        )
+    first = min(ns for points in samples.values() for ns, _ in points)
+    last = max(ns for points in samples.values() for ns, _ in points)
+    segments: list[list[Any]] = []  # [system, state, start s, end s]
+    for system, points in samples.items():
+        points.sort(key=lambda point: point[0])
+        run_start, run_state = points[0]
+        for ns, state in points[1:]:
+            if state != run_state:
+                segments.append([system, run_state, (run_start - first) / 1e9, (ns - first) / 1e9])
+                run_start, run_state = ns, state
+        segments.append([system, run_state, (run_start - first) / 1e9, (last - first) / 1e9])
+    span = (last - first) / 1e9
+    min_width = span / 200 if span > 0 else 1.0  # a state seen only at the very end stays visible
+    traces: dict[str, dict] = {}
+    for system, state, start, end in segments:
+        trace = traces.setdefault(state, {
+            "type": "bar",
+            "orientation": "h",
+            "name": state,
+            "marker": {"color": state_colour(state)},
+            "y": [], "x": [], "base": [], "customdata": [],
+            "hovertemplate": "%{y}: %{fullData.name}<br>%{customdata[0]:.3f} s to %{customdata[1]:.3f} s<extra></extra>",
+        })
+        trace["y"].append(system)
+        trace["base"].append(start)
+        trace["x"].append(max(end - start, min_width))
+        trace["customdata"].append([start, end])
+    systems = list(samples)
+    layout = _layout(
+        "Elapsed time (s)",
+        result.names[0],
+        barmode="overlay",
+        height=140 + 50 * len(systems),
+        legend={"title": {"text": result.names[2]}},
+    )
+    layout["yaxis"].update(type="category", categoryorder="array", categoryarray=systems, autorange="reversed")
+    return Rendered(
+        template="state_timeline",
+        figure={"data": list(traces.values()), "layout": layout},
+        table={"columns": [result.names[0], "state", "start (s)", "end (s)"], "rows": segments},
+        text=f"{_plural(len(systems), 'system')}, {_plural(len(segments), 'segment')}, {_plural(len(traces), 'state')}",
+    )
+
+
+def _histogram(result: _Result) -> Rendered:
+    result.need_columns((1, 2), "[value] or [value, series]")
+    values, problems = result.numbers(0, "numeric values")
+    with_series = len(result.names) == 2
+    groups = _series(result, 1 if with_series else None)
+    traces = []
+    for name, indexes in groups.items():
+        trace = {"type": "histogram", "x": [values[i] for i in indexes]}
+        if with_series:
+            trace.update(name=name, opacity=0.6)
+        traces.append(trace)
+    counted = sum(1 for value in values if value is not None)
+    nulls = sum(1 for row in result.rows if row[0] is None)
+    if nulls:
+        problems.append(f"{_plural(nulls, 'NULL value')} not counted")
+    return Rendered(
+        template="histogram",
+        figure={"data": traces, "layout": _layout(result.names[0], "Count", barmode="overlay")},
+        text=_plural(counted, "value") + (f" in {_plural(len(groups), 'series', 'series')}" if with_series else ""),
+        problems=problems,
+    )
+
+
+def _pie(result: _Result) -> Rendered:
+    result.need_columns((2,), "[label, value]")
+    labels: list[str] = []
+    values: list[int | float] = []
+    problems: list[str] = []
+    for number, (label, raw) in enumerate(result.rows, 1):
+        value = _number(raw)
+        if value is None:
+            problems.append(f"row {number}: NULL value, slice {display_value(label)!r} left out")
+            continue
+        if value is _NOT_A_NUMBER or not math.isfinite(value) or value < 0:
+            raise result.bad_value(number, 1, "non-negative numeric values")
+        labels.append(display_value(label))
+        values.append(value)
+    figure = {
+        "data": [{"type": "pie", "labels": labels, "values": values, "sort": False, "name": result.names[1]}],
+        "layout": _layout(),
+    }
+    return Rendered(template="pie", figure=figure, text=_plural(len(labels), "slice"), problems=problems)
+
+
+#: Renderers of the templates that need nothing but the result.
+_CHARTS: dict[str, Callable[[_Result], Rendered]] = {
+    "line": _line,
+    "bar": _bar,
+    "table": _table,
+    "state_timeline": _state_timeline,
+    "histogram": _histogram,
+    "pie": _pie,
+}

@@ -48,4 +48,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # Run the imported module's main, so `UserError` is the class the command modules raise.
+    from lakegate.gateway.cli import main as _main
+
+    sys.exit(_main())

@@ -2,27 +2,36 @@
 
 `load_config(paths)` reads one or several files, checks them and merges them; every
 problem found is collected into one `ConfigError` whose `problems` each name the
-file, the YAML line and column, and what was expected.
+file, the YAML line and column, and what was expected. The keys each section allows
+are described once in `config_schema` (which also yields the JSON Schema); the YAML
+walking lives in `config_yaml`.
 """
 from __future__ import annotations
 
+import re
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from lakegate.lake.config_schema import FILE, SET_METRIC_TYPES
+from lakegate.lake.config_yaml import Entry, FileReader, Named, RawProblem, did_you_mean
+
 DEFAULT_CONFIG_PATH = Path(".resim/metrics/config.resim.yaml")
+#: Where `find_default_config` looks, relative to a folder, in this order.
+DEFAULT_CONFIG_PATHS = (DEFAULT_CONFIG_PATH, DEFAULT_CONFIG_PATH.with_suffix(".yml"))
 
 
 @dataclass(frozen=True)
 class Location:
-    """Where something was written: file and 1-based YAML line and column."""
+    """Where something was written: file and 1-based YAML line and column (0: the whole file)."""
 
     path: str
     line: int
     column: int
 
     def __str__(self) -> str:
-        return f"{self.path}:{self.line}:{self.column}"
+        return f"{self.path}:{self.line}:{self.column}" if self.line else self.path
 
 
 @dataclass(frozen=True)
@@ -58,6 +67,7 @@ class StatusCheck:
     block: Any
     warn: Any = None
     location: Location | None = None
+    query_location: Location | None = None  # where the query_string value starts
 
 
 @dataclass
@@ -74,6 +84,7 @@ class Metric:
     status: StatusCheck | None = None
     skip_if_no_data: bool = False
     location: Location | None = None
+    query_location: Location | None = None  # where the query_string value starts
 
 
 @dataclass
@@ -92,3 +103,191 @@ class Config:
     dashboards: dict[str, Any] = field(default_factory=dict)
     global_settings: dict[str, Any] = field(default_factory=dict)
     paths: list[str] = field(default_factory=list)
+
+    def metrics_in_set(self, name: str) -> list[Metric]:
+        """The metrics of set `name`, in the set's order; KeyError naming the known sets if none."""
+        metrics_set = self.metrics_sets.get(name)
+        if metrics_set is None:
+            known = ", ".join(repr(n) for n in self.metrics_sets) or "none"
+            raise KeyError(f"no metrics set {name!r}{did_you_mean(name, self.metrics_sets)}; known sets: {known}")
+        return [self.metrics[m] for m in metrics_set.metrics]
+
+    def summary(self) -> str:
+        """`10 topics, 14 metrics, 1 metrics set` (and dashboards, when there are any)."""
+        parts = [_count(len(self.topics), "topic"), _count(len(self.metrics), "metric"),
+                 _count(len(self.metrics_sets), "metrics set", "metrics sets")]
+        if self.dashboards:
+            parts.append(_count(len(self.dashboards), "dashboard"))
+        return ", ".join(parts)
+
+
+def _count(n: int, one: str, many: str | None = None) -> str:
+    return f"{n} {one if n == 1 else many or one + 's'}"
+
+
+def find_default_config(start: Path | None = None) -> Path | None:
+    """The first `.resim/metrics/config.resim.yaml` (or `.yml`) in `start` (default: the
+    current directory) or one of its parents, or None."""
+    folder = Path(start if start is not None else Path.cwd()).resolve()
+    for candidate_folder in (folder, *folder.parents):
+        for relative in DEFAULT_CONFIG_PATHS:
+            if (candidate_folder / relative).is_file():
+                return candidate_folder / relative
+    return None
+
+
+# Strings, quoted identifiers and comments of Trino SQL: a `?` inside them is no parameter.
+_SQL_NOT_CODE = re.compile(r"""'(?:[^']|'')*'|"(?:[^"]|"")*"|--[^\n]*|/\*.*?\*/""", re.S)
+
+
+def count_placeholders(sql: str) -> int:
+    """The number of `?` parameters in Trino SQL (outside literals, quoted names and comments).
+
+    Raises ValueError for an unterminated string literal, quoted identifier or comment.
+    """
+    code = _SQL_NOT_CODE.sub(" ", sql)
+    for opener, what in (("'", "string literal"), ('"', "quoted identifier"), ("/*", "comment")):
+        if opener in code:
+            raise ValueError(f"unterminated {what}")
+    return code.count("?")
+
+
+def load_config(paths: str | Path | Sequence[str | Path]) -> Config:
+    """Load, check and merge config files; raise ConfigError listing every problem found."""
+    path_list = [paths] if isinstance(paths, (str, Path)) else list(paths)
+    if not path_list:
+        raise ValueError("load_config needs at least one config file")
+    raw: list[RawProblem] = []
+    builder = _Builder(Config(paths=[str(p) for p in path_list]), raw)
+    for path in path_list:
+        reader = FileReader(str(path), raw)
+        root = reader.compose()
+        if root is not None:
+            builder.add_file(reader, reader.section(root, FILE, "the config file", root))
+    builder.check_sets()
+    if raw:
+        # an aliased node is checked everywhere it is used: report each problem once
+        order = {str(p): i for i, p in enumerate(path_list)}
+        unique = sorted(dict.fromkeys(raw), key=lambda p: (order.get(p[0], 0), p[1], p[2]))
+        raise ConfigError([Problem(Location(p, line, column), message) for p, line, column, message in unique])
+    return builder.config
+
+
+class _Builder:
+    """Turns the checked entries of each file into one Config, checking names across files."""
+
+    def __init__(self, config: Config, problems: list[RawProblem]):
+        self.config = config
+        self.problems = problems
+        self._topic_names: dict[str, Topic] = {}  # lower-case name -> topic
+        self._set_items: list[tuple[MetricsSet, list[tuple[str, Location]]]] = []
+        self._data_locations: dict[tuple[str, Any], Location] = {}  # (section, key) -> where defined
+
+    def _error(self, location: Location, message: str) -> None:
+        self.problems.append((location.path, location.line, location.column, message))
+
+    def add_file(self, reader: FileReader, entries: dict[str, Entry]) -> None:
+        def at(node: Any) -> Location:
+            return Location(reader.path, *reader.position(node))
+
+        for named in _value(entries, "topics", []):
+            self._add_topic(Topic(named.name, _value(named.entries, "schema", {}),
+                                  _value(named.entries, "event", False), at(named.key)))
+        for named in _value(entries, "metrics", []):
+            self._add("metric", self.config.metrics, self._metric(named, at))
+        for named in _value(entries, "metrics sets", []):
+            items = _value(named.entries, "metrics", [])
+            metrics_set = MetricsSet(named.name, [name for name, _ in items], at(named.key))
+            if self._add("metrics set", self.config.metrics_sets, metrics_set):
+                self._set_items.append((metrics_set, [(name, at(node)) for name, node in items]))
+        for key, target in (("dashboards", self.config.dashboards), ("global", self.config.global_settings)):
+            if key in entries:
+                self._merge_data(key, entries[key], target, reader, at)
+
+    def _add_topic(self, topic: Topic) -> None:
+        assert topic.location is not None
+        other = self._topic_names.get(topic.name.lower())
+        if other is not None and other.name != topic.name:
+            self._error(topic.location, f"topic '{topic.name}' differs only in letter case from topic "
+                                        f"'{other.name}' ({other.location}); SQL table names ignore case")
+        elif self._add("topic", self.config.topics, topic):
+            self._topic_names[topic.name.lower()] = topic
+
+    def _add(self, noun: str, into: dict[str, Any], thing: Any) -> bool:
+        """Add a named thing unless another file defined it already (then report both places)."""
+        if thing.name in into:
+            self._error(thing.location, f"{noun} '{thing.name}' is already defined at {into[thing.name].location}")
+            return False
+        into[thing.name] = thing
+        return True
+
+    def _metric(self, named: Named, at: Callable[[Any], Location]) -> Metric:
+        e = named.entries
+        metric = Metric(
+            name=named.name,
+            type=_value(e, "type", "test"),
+            query_string=_value(e, "query_string", ""),
+            description=_value(e, "description", ""),
+            template_type=_value(e, "template_type", "system"),
+            template=_value(e, "template", None),
+            template_file=_value(e, "template_file", None),
+            template_settings=_value(e, "template_settings", {}),
+            units=_value(e, "units", None),
+            skip_if_no_data=_value(e, "skip_if_no_data", False),
+            location=at(named.key),
+            query_location=at(e["query_string"].node) if "query_string" in e else None,
+        )
+        if "status" in e:
+            s = e["status"].value
+            query = s.get("query_string")
+            metric.status = StatusCheck(
+                query_string=_value(s, "query_string", ""),
+                block=_value(s, "block", None),
+                warn=_value(s, "warn", None),
+                location=at(e["status"].node),
+                query_location=at(query.node) if query else None,
+            )
+            if query is not None:
+                self._check_status_query(metric.name, query.value, at(query.node))
+        return metric
+
+    def _check_status_query(self, metric: str, sql: str, location: Location) -> None:
+        try:
+            count = count_placeholders(sql)
+        except ValueError as exc:
+            self._error(location, f"status query_string of metric '{metric}' has an {exc}")
+            return
+        if count != 1:
+            self._error(location, f"status query_string of metric '{metric}' must have exactly one ? "
+                                  f"placeholder (replaced by the block and warn thresholds), found {count}")
+
+    def _merge_data(self, section: str, entry: Entry, into: dict[str, Any], reader: FileReader,
+                    at: Callable[[Any], Location]) -> None:
+        """Merge a plain-data section; a key another file defined already is an error."""
+        key_nodes = reader.plain_keys(entry.node) if entry.value else {}
+        for name, value in entry.value.items():
+            location = at(key_nodes.get(name, entry.node))
+            if name in into:
+                self._error(location, f"'{name}' in {section} is already defined at "
+                                      f"{self._data_locations[section, name]}")
+            else:
+                into[name] = value
+                self._data_locations[section, name] = location
+
+    def check_sets(self) -> None:
+        """Every name in a metrics set must be a test or batch metric of the merged config."""
+        metrics = self.config.metrics
+        for metrics_set, items in self._set_items:
+            for name, location in items:
+                metric = metrics.get(name)
+                if metric is None:
+                    self._error(location, f"metrics set '{metrics_set.name}' names unknown metric "
+                                          f"'{name}'{did_you_mean(name, metrics)}")
+                elif metric.type not in SET_METRIC_TYPES:
+                    self._error(location, f"metrics set '{metrics_set.name}' names metric '{name}' of type "
+                                          f"{metric.type}; a metrics set holds only test and batch metrics")
+
+
+def _value(entries: dict[str, Entry], key: str, default: Any) -> Any:
+    entry = entries.get(key)
+    return default if entry is None else entry.value

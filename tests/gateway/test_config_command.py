@@ -1,0 +1,102 @@
+"""`lakegate config check|schema`, run as a real subprocess."""
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import jsonschema
+import yaml
+
+FIXTURE = Path(__file__).resolve().parents[2] / "fixtures" / "config.resim.yaml"
+LAKEGATE = Path(sys.executable).parent / "lakegate"
+
+
+def lakegate(*args: str | Path, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([str(LAKEGATE), *map(str, args)], capture_output=True, text=True, cwd=cwd, timeout=60)
+
+
+def test_check_valid_fixture_prints_a_summary():
+    result = lakegate("config", "check", FIXTURE)
+    assert (result.returncode, result.stderr) == (0, "")
+    assert result.stdout == f"ok: 10 topics, 14 metrics, 1 metrics set ({FIXTURE})\n"
+
+
+def test_check_prints_every_problem_with_its_place(tmp_path):
+    bad = tmp_path / "bad.resim.yaml"
+    bad.write_text(
+        "version: 1\n"
+        "topics:\n"
+        "  nav/odom: {schema: {x: flaot}}\n"
+        "metrics:\n"
+        "  M: {type: test, description: d, querystring: SELECT 1, template: line}\n"
+        "metrics sets:\n"
+        "  S: {metrics: [Missing]}\n"
+    )
+    result = lakegate("config", "check", bad)
+    assert result.returncode == 1
+    assert result.stdout.splitlines() == [
+        f"{bad}:3:3: topic 'nav/odom' contains '/', which topic names may not",
+        f"{bad}:3:26: unknown field type 'flaot' for field 'x' of topic 'nav/odom' (did you mean 'float'?); "
+        "expected one of int, float, boolean, string, status, image, video, string[], metric[], bigint",
+        f"{bad}:5:3: missing required key 'query_string' in metric 'M'",
+        f"{bad}:5:35: unknown key 'querystring' in metric 'M' (did you mean 'query_string'?)",
+        f"{bad}:7:17: metrics set 'S' names unknown metric 'Missing'",
+    ]
+
+
+def test_check_merges_several_files(tmp_path):
+    extra = tmp_path / "extra.resim.yaml"
+    extra.write_text(
+        "version: 1\n"
+        "metrics:\n"
+        "  Mean Speed: {type: batch, description: d, query_string: SELECT AVG(speed) FROM robot_speed, template: scalar}\n"
+        "metrics sets:\n"
+        "  Extra: {metrics: [Mean Speed, Robot Speed]}\n"
+    )
+    result = lakegate("config", "check", FIXTURE, extra)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert result.stdout == f"ok: 10 topics, 15 metrics, 2 metrics sets ({FIXTURE}, {extra})\n"
+
+    result = lakegate("config", "check", FIXTURE, FIXTURE)
+    assert result.returncode == 1
+    assert f"{FIXTURE}:7:3: topic 'odom_linear_velocity' is already defined at {FIXTURE}:7:3" in result.stdout
+
+
+def test_check_finds_the_default_config(tmp_path):
+    result = lakegate("config", "check", cwd=tmp_path)
+    assert result.returncode == 1 and result.stdout == ""
+    assert result.stderr.startswith("lakegate: no config file given and no .resim/metrics/config.resim.yaml")
+
+    default = tmp_path / ".resim" / "metrics" / "config.resim.yml"
+    default.parent.mkdir(parents=True)
+    default.write_text("version: 1\ntopics: {speed: {schema: {v: float}}}\n")
+    (tmp_path / "sub").mkdir()
+    result = lakegate("config", "check", cwd=tmp_path / "sub")
+    assert (result.returncode, result.stdout) == (0, f"ok: 1 topic, 0 metrics, 0 metrics sets ({default})\n")
+
+
+def test_schema_to_stdout_and_file_validates_configs(tmp_path):
+    result = lakegate("config", "schema")
+    assert result.returncode == 0, result.stderr
+    schema = json.loads(result.stdout)
+    assert schema["$schema"] == "https://json-schema.org/draft/2020-12/schema"
+    jsonschema.Draft202012Validator.check_schema(schema)
+
+    out = tmp_path / "config.schema.json"
+    result = lakegate("config", "schema", "-o", out)
+    assert (result.returncode, result.stdout) == (0, "")
+    assert json.loads(out.read_text()) == schema
+
+    validator = jsonschema.Draft202012Validator(schema)
+    assert validator.is_valid(yaml.safe_load(FIXTURE.read_text()))
+    assert not validator.is_valid({"version": 1, "topics": {"nav/odom": {"schema": {"x": "float"}}}})
+    assert not validator.is_valid({"version": 1, "metrics": {"M": {"type": "test", "description": "d",
+                                                                   "querystring": "SELECT 1", "template": "line"}}})
+
+
+def test_schema_unwritable_output_is_a_user_error(tmp_path):
+    result = lakegate("config", "schema", "-o", tmp_path / "no" / "such" / "dir.json")
+    assert result.returncode == 1
+    assert result.stderr.startswith("lakegate: cannot write ") and "Traceback" not in result.stderr

@@ -1,0 +1,666 @@
+"""The config model: loading, every error with its line and column, merging, the JSON Schema."""
+from __future__ import annotations
+
+import textwrap
+from pathlib import Path
+
+import jsonschema
+import pytest
+import yaml
+
+from lakegate.lake.config import (
+    ConfigError,
+    Location,
+    count_placeholders,
+    find_default_config,
+    load_config,
+)
+from lakegate.lake.config_schema import json_schema
+
+FIXTURE = Path(__file__).resolve().parents[2] / "fixtures" / "config.resim.yaml"
+
+HEADER = "version: 1\n"
+
+
+def write(folder: Path, text: str, name: str = "config.resim.yaml") -> Path:
+    path = folder / name
+    path.write_text(textwrap.dedent(text).lstrip("\n"), encoding="utf-8")
+    return path
+
+
+def errors(path: Path | list[Path]) -> list[tuple[int, int, str]]:
+    """(line, column, message) of every problem; fails when the config loads."""
+    with pytest.raises(ConfigError) as caught:
+        load_config(path)
+    return [(p.location.line, p.location.column, p.message) for p in caught.value.problems]
+
+
+def one_error(folder: Path, text: str) -> tuple[int, int, str]:
+    found = errors(write(folder, text))
+    assert len(found) == 1, found
+    return found[0]
+
+
+def line_of(path: Path, text: str) -> int:
+    """1-based number of the first line of `path` that is exactly `text`."""
+    return path.read_text().splitlines().index(text) + 1
+
+
+# -- the valid example -----------------------------------------------------------------
+
+
+def test_fixture_loads_topics_metrics_and_set():
+    config = load_config(FIXTURE)
+    assert list(config.topics) == [
+        "odom_linear_velocity", "goal_distance", "pose_difference", "covariance_accuracy", "time_to_goal",
+        "goal_status", "camera_gif", "robot_speed", "drone_speed", "goal_reached",
+    ]
+    assert config.topics["odom_linear_velocity"].fields == {"x": "float", "y": "float", "z": "float"}
+    assert config.topics["covariance_accuracy"].fields["within_1_sigma"] == "int"
+    assert config.topics["camera_gif"].fields == {"filename": "image"}
+    goal = config.topics["goal_reached"]
+    assert goal.event and not config.topics["goal_status"].event
+    assert goal.fields == {"name": "string", "description": "string", "status": "status",
+                           "tags": "string[]", "metrics": "metric[]"}
+    assert goal.location == Location(str(FIXTURE), line_of(FIXTURE, "  goal_reached:"), 3)
+
+    assert len(config.metrics) == 14
+    speed = config.metrics["Robot Speed"]
+    assert (speed.type, speed.template_type, speed.template, speed.status) == ("test", "system", "line", None)
+    assert speed.query_string.startswith("SELECT\n  'Speed',") and "FROM odom_linear_velocity;" in speed.query_string
+    assert speed.location == Location(str(FIXTURE), line_of(FIXTURE, "  Robot Speed:"), 3)
+    assert speed.query_location is not None and speed.query_location.line == speed.location.line + 3
+
+    to_goal = config.metrics["Time to reach final goal"]
+    assert to_goal.units == "s" and to_goal.template == "scalar"
+    assert to_goal.status is not None
+    assert to_goal.status.query_string == "SELECT '1' FROM time_to_goal HAVING COUNT(*) < ?"
+    assert (to_goal.status.block, to_goal.status.warn) == (3, None)
+    job_error = config.metrics["Maximum Localization Error (job)"].status
+    assert job_error is not None and (job_error.block, job_error.warn) == (1.0, 0.5)
+    assert config.metrics["Average Speed"].type == "batch"
+    assert config.metrics["Job Outcomes"].template == "pie"
+
+    assert list(config.metrics_sets) == ["Nav Metrics"]
+    names = config.metrics_sets["Nav Metrics"].metrics
+    assert len(names) == 14 and names[:2] == ["Robot Speed", "Time to reach final goal"]
+    assert [m.name for m in config.metrics_in_set("Nav Metrics")] == names
+    assert config.paths == [str(FIXTURE)]
+    assert config.summary() == "10 topics, 14 metrics, 1 metrics set"
+
+
+def test_metrics_in_set_unknown_name_lists_known_sets():
+    config = load_config(FIXTURE)
+    with pytest.raises(KeyError) as caught:
+        config.metrics_in_set("Nav metrics")
+    assert caught.value.args[0] == "no metrics set 'Nav metrics' (did you mean 'Nav Metrics'?); known sets: 'Nav Metrics'"
+
+
+def test_only_version_is_required_and_empty_sections_are_fine(tmp_path):
+    config = load_config(write(tmp_path, HEADER))
+    assert (config.topics, config.metrics, config.metrics_sets, config.dashboards) == ({}, {}, {}, {})
+    config = load_config(write(tmp_path, "version: 1\ntopics:\nmetrics:\nmetrics sets:\ndashboards:\nglobal:\n"))
+    assert config.summary() == "0 topics, 0 metrics, 0 metrics sets"
+
+
+def test_bigint_is_int_and_every_field_type_loads(tmp_path):
+    config = load_config(write(tmp_path, """
+        version: 1
+        topics:
+          t:
+            schema: {a: int, b: bigint, c: float, d: boolean, e: string, f: status, g: image, h: video,
+                     i: "string[]", j: "metric[]"}
+    """))
+    assert config.topics["t"].fields == {
+        "a": "int", "b": "int", "c": "float", "d": "boolean", "e": "string", "f": "status", "g": "image",
+        "h": "video", "i": "string[]", "j": "metric[]",
+    }
+
+
+def test_real_world_extras_load(tmp_path):
+    config = load_config(write(tmp_path, """
+        version: 1
+        global:
+          refresh_s: 30
+          owner: nav-team
+        topics:
+          speed: {schema: {v: float}}
+        metrics:
+          Hist:   {type: test,  description: d, query_string: SELECT v FROM speed, template: histogram}
+          Share:  {type: batch, description: d, query_string: SELECT 1, template: pie, skip_if_no_data: true}
+          Clip:   {type: test,  description: d, query_string: SELECT 'a.mp4', template: video}
+          Log:    {type: test,  description: d, query_string: SELECT 'log.txt', template: artifact}
+          Board:  {type: dashboard, description: d, query_string: SELECT 1, template: line}
+          Weekly:
+            type: report
+            description: d
+            query_string: SELECT 1
+            template_type: custom
+            template_file: templates/weekly.json
+            template_settings:
+              colors: [red, blue]
+              legend: {show: false}
+        dashboards:
+          Overview:
+            metrics: [Board]
+            layout: {columns: 2}
+    """))
+    assert {m.name: m.template for m in config.metrics.values() if m.template} == {
+        "Hist": "histogram", "Share": "pie", "Clip": "video", "Log": "artifact", "Board": "line"}
+    assert config.metrics["Share"].skip_if_no_data and not config.metrics["Hist"].skip_if_no_data
+    weekly = config.metrics["Weekly"]
+    assert (weekly.type, weekly.template_type, weekly.template_file) == ("report", "custom", "templates/weekly.json")
+    assert weekly.template_settings == {"colors": ["red", "blue"], "legend": {"show": False}}
+    assert config.metrics["Board"].type == "dashboard"
+    assert config.dashboards == {"Overview": {"metrics": ["Board"], "layout": {"columns": 2}}}
+    assert config.global_settings == {"refresh_s": 30, "owner": "nav-team"}
+    assert config.summary() == "1 topic, 6 metrics, 0 metrics sets, 1 dashboard"
+
+
+def test_yaml_anchors_and_merge_keys(tmp_path):
+    config = load_config(write(tmp_path, """
+        version: 1
+        metrics:
+          Base: &base
+            type: test
+            description: shared
+            query_string: SELECT 1
+            template: scalar
+            template_settings: &settings {digits: 2}
+          Derived:
+            <<: *base
+            description: own
+            template_settings: *settings
+    """))
+    derived = config.metrics["Derived"]
+    assert (derived.type, derived.description, derived.template) == ("test", "own", "scalar")
+    assert derived.template_settings == {"digits": 2}
+
+
+# -- errors: each names line, column and what was expected ----------------------------
+
+
+def test_version_required_and_must_be_1(tmp_path):
+    assert one_error(tmp_path, "topics: {}\n") == (1, 1, "missing required key 'version' in the config file")
+    assert one_error(tmp_path, "version: 2\n") == (1, 10, "version must be 1, got integer 2")
+    assert one_error(tmp_path, "version: '1'\n") == (1, 10, "version must be 1, got string '1'")
+
+
+def test_unknown_keys_everywhere_with_did_you_mean(tmp_path):
+    found = errors(write(tmp_path, """
+        version: 1
+        topcs: {}
+        topics:
+          t:
+            shema: {x: float}
+            schema: {x: float}
+        metrics:
+          X:
+            type: test
+            description: d
+            querystring: SELECT 1
+            query_string: SELECT 1
+            template: line
+            status: {query_string: 'SELECT ?', block: 1, blok: 2}
+        metrics sets:
+          S: {metric: [X], metrics: [X]}
+    """))
+    assert found == [
+        (2, 1, "unknown key 'topcs' in the config file (did you mean 'topics'?)"),
+        (5, 5, "unknown key 'shema' in topic 't' (did you mean 'schema'?)"),
+        (11, 5, "unknown key 'querystring' in metric 'X' (did you mean 'query_string'?)"),
+        (14, 50, "unknown key 'blok' in status of metric 'X' (did you mean 'block'?)"),
+        (16, 7, "unknown key 'metric' in metrics set 'S' (did you mean 'metrics'?)"),
+    ]
+
+
+def test_unknown_key_without_a_close_match_has_no_suggestion(tmp_path):
+    assert one_error(tmp_path, "version: 1\nzzz: 1\n") == (2, 1, "unknown key 'zzz' in the config file")
+
+
+def test_unknown_field_type_with_did_you_mean(tmp_path):
+    assert one_error(tmp_path, """
+        version: 1
+        topics:
+          odom:
+            schema:
+              x: flaot
+    """) == (5, 10, "unknown field type 'flaot' for field 'x' of topic 'odom' (did you mean 'float'?); "
+                    "expected one of int, float, boolean, string, status, image, video, string[], metric[], bigint")
+    assert one_error(tmp_path, "version: 1\ntopics: {t: {schema: {x: }}}\n") == (
+        2, 25, "field 'x' of topic 't' needs a type, got nothing (null); expected one of int, float, boolean, "
+               "string, status, image, video, string[], metric[], bigint")
+
+
+@pytest.mark.parametrize(("name", "message"), [
+    ("nav/odom", "topic 'nav/odom' contains '/', which topic names may not"),
+    ('""', "topic '' has an empty name"),
+    ("_private", "topic '_private' starts with '_' or '.', which topic names may not"),
+    (".hidden", "topic '.hidden' starts with '_' or '.', which topic names may not"),
+    ('"tab\\there"', "topic 'tab\there' contains a control character"),
+    ("metadata", "topic 'metadata' is a reserved table name (metadata, events, metric_results)"),
+    ("Events", "topic 'Events' is a reserved table name (metadata, events, metric_results)"),
+    ("metric_results", "topic 'metric_results' is a reserved table name (metadata, events, metric_results)"),
+])
+def test_bad_topic_names(tmp_path, name, message):
+    assert one_error(tmp_path, f"version: 1\ntopics:\n  {name}:\n    schema: {{x: float}}\n") == (3, 3, message)
+
+
+def test_bad_field_names(tmp_path):
+    assert errors(write(tmp_path, """
+        version: 1
+        topics:
+          pose:
+            schema:
+              x: float
+              X: float
+              timestamp: int
+              Job_ID: string
+              on: boolean
+    """)) == [
+        (6, 7, "field 'X' of topic 'pose' differs only in letter case from field 'x' (at line 5, column 7); "
+               "SQL column names ignore case"),
+        (7, 7, "field 'timestamp' of topic 'pose' is a column every topic row already has "
+               "(timestamp, batch_id, job_id, experience_name, build_version)"),
+        (8, 7, "field 'Job_ID' of topic 'pose' is a column every topic row already has "
+               "(timestamp, batch_id, job_id, experience_name, build_version)"),
+        (9, 7, "field 'on' in topic 'pose' is read by YAML as a boolean, not a string; quote it"),
+    ]
+
+
+def test_topic_names_differing_only_in_case(tmp_path):
+    assert one_error(tmp_path, "version: 1\ntopics:\n  speed: {schema: {}}\n  Speed: {schema: {}}\n") == (
+        4, 3, f"topic 'Speed' differs only in letter case from topic 'speed' ({tmp_path / 'config.resim.yaml'}:3:3); "
+              "SQL table names ignore case")
+
+
+METRIC_WITH_STATUS = """
+    version: 1
+    metrics:
+      M:
+        type: test
+        description: d
+        query_string: SELECT 1
+        template: scalar
+        status:
+          query_string: {query}
+          block: 3
+"""
+
+
+@pytest.mark.parametrize(("query", "found"), [
+    ("SELECT 1 FROM t", 0),
+    ("SELECT 1 FROM t WHERE a > ? AND b < ?", 2),
+    ("SELECT '?' FROM t WHERE \"a?\" > 1 -- ?", 0),
+    ("SELECT 1 /* ? */ FROM t", 0),
+])
+def test_status_query_needs_exactly_one_placeholder(tmp_path, query, found):
+    text = METRIC_WITH_STATUS.replace("{query}", yaml.safe_dump(query).splitlines()[0])
+    assert one_error(tmp_path, text) == (
+        9, 21, f"status query_string of metric 'M' must have exactly one ? placeholder "
+               f"(replaced by the block and warn thresholds), found {found}")
+
+
+def test_status_query_with_one_placeholder_beside_quoted_ones_is_fine(tmp_path):
+    query = """SELECT 'it''s ?' AS "who?" FROM t -- why?\n/* ? */ HAVING COUNT(*) < ?"""
+    config = load_config(write(tmp_path, METRIC_WITH_STATUS.replace("{query}", yaml.safe_dump(query).strip())))
+    assert config.metrics["M"].status.query_string == query
+
+
+def test_status_query_unterminated_literal(tmp_path):
+    text = METRIC_WITH_STATUS.replace("{query}", "\"SELECT 'abc FROM t WHERE x < ?\"")
+    assert one_error(tmp_path, text) == (9, 21, "status query_string of metric 'M' has an unterminated string literal")
+
+
+def test_count_placeholders():
+    assert count_placeholders("SELECT ?") == 1
+    assert count_placeholders("SELECT '?''?', \"?\"\"?\", ? -- ?\n, ? /* ?\n? */") == 2
+    for sql, what in [("SELECT 'a", "string literal"), ('SELECT "a', "quoted identifier"), ("SELECT /* a", "comment")]:
+        with pytest.raises(ValueError, match=f"unterminated {what}"):
+            count_placeholders(sql)
+
+
+def test_status_without_block(tmp_path):
+    text = METRIC_WITH_STATUS.replace("{query}", "SELECT 1 FROM t HAVING COUNT(*) < ?").replace("      block: 3\n", "")
+    assert one_error(tmp_path, text) == (8, 5, "missing required key 'block' in status of metric 'M'")
+
+
+def test_status_must_be_a_mapping_and_thresholds_scalars(tmp_path):
+    assert errors(write(tmp_path, """
+        version: 1
+        metrics:
+          A: {type: test, description: d, query_string: SELECT 1, template: scalar, status: block}
+          B: {type: test, description: d, query_string: SELECT 1, template: scalar,
+              status: {query_string: 'SELECT ?', block: [1], warn: true}}
+    """)) == [
+        (3, 85, "status of metric 'A' must be a mapping, got string 'block'"),
+        (5, 49, "'block' in status of metric 'B' must be a number or a string, got a list"),
+        (5, 60, "'warn' in status of metric 'B' must be a number or a string, got boolean true"),
+    ]
+
+
+def test_metrics_set_errors(tmp_path):
+    assert errors(write(tmp_path, """
+        version: 1
+        metrics:
+          Robot Speed: {type: test, description: d, query_string: SELECT 1, template: line}
+          Board: {type: dashboard, description: d, query_string: SELECT 1, template: line}
+          Weekly: {type: report, description: d, query_string: SELECT 1, template: table}
+        metrics sets:
+          S:
+            metrics:
+              - Robot Sped
+              - Robot Speed
+              - Robot Speed
+              - Board
+              - Weekly
+              - Nothing Like It
+    """)) == [
+        (9, 9, "metrics set 'S' names unknown metric 'Robot Sped' (did you mean 'Robot Speed'?)"),
+        (11, 9, "duplicate metric 'Robot Speed' in metrics set 'S' (first at line 10, column 9)"),
+        (12, 9, "metrics set 'S' names metric 'Board' of type dashboard; a metrics set holds only test and batch metrics"),
+        (13, 9, "metrics set 'S' names metric 'Weekly' of type report; a metrics set holds only test and batch metrics"),
+        (14, 9, "metrics set 'S' names unknown metric 'Nothing Like It'"),
+    ]
+
+
+def test_missing_and_empty_query_string(tmp_path):
+    assert errors(write(tmp_path, """
+        version: 1
+        metrics:
+          A:
+            type: test
+            description: d
+            template: line
+          B: {type: test, description: d, query_string: "  ", template: line}
+    """)) == [
+        (3, 3, "missing required key 'query_string' in metric 'A'"),
+        (7, 49, "'query_string' in metric 'B' must not be empty"),
+    ]
+
+
+def test_wrong_value_types(tmp_path):
+    assert errors(write(tmp_path, """
+        version: 1
+        topics:
+          a:
+            event: yes-please
+            schema: [x, y]
+          b: just a string
+        metrics:
+          M:
+            type: tset
+            description: 2024
+            query_string: SELECT 1
+            template: line
+            units: [m]
+            template_settings: [1]
+            skip_if_no_data: "false"
+        metrics sets:
+          S: {metrics: Robot Speed}
+    """)) == [
+        (4, 12, "'event' in topic 'a' must be a boolean (true or false), got string 'yes-please'"),
+        (5, 13, "'schema' in topic 'a' must be a mapping of field names to types, got a list"),
+        (6, 6, "topic 'b' must be a mapping, got string 'just a string'"),
+        (9, 11, "unknown type 'tset' in metric 'M' (did you mean 'test'?); expected one of test, batch, dashboard, report"),
+        (10, 18, "'description' in metric 'M' must be a string, got integer 2024 (quote it)"),
+        (13, 12, "'units' in metric 'M' must be a string, got a list"),
+        (14, 24, "'template_settings' in metric 'M' must be a mapping, got a list"),
+        (15, 22, "'skip_if_no_data' in metric 'M' must be a boolean (true or false), got string 'false'"),
+        (17, 16, "'metrics' in metrics set 'S' must be a list of metric names, got string 'Robot Speed'"),
+    ]
+
+
+def test_template_rules(tmp_path):
+    assert errors(write(tmp_path, """
+        version: 1
+        metrics:
+          NoTemplate: {type: test, description: d, query_string: SELECT 1}
+          NoFile: {type: test, description: d, query_string: SELECT 1, template_type: custom}
+          FileWithSystem: {type: test, description: d, query_string: SELECT 1, template: line, template_file: t.json}
+          BadKind: {type: test, description: d, query_string: SELECT 1, template_type: sytem}
+    """)) == [
+        (3, 3, "missing key 'template' in metric 'NoTemplate', needed with template_type: system"),
+        (4, 3, "missing key 'template_file' in metric 'NoFile', needed with template_type: custom"),
+        (5, 103, "'template_file' in metric 'FileWithSystem' is not used with template_type: system"),
+        (6, 80, "unknown template_type 'sytem' in metric 'BadKind' (did you mean 'system'?); expected one of system, custom"),
+    ]
+
+
+def test_duplicate_keys_are_detected(tmp_path):
+    assert errors(write(tmp_path, """
+        version: 1
+        topics:
+          t:
+            schema:
+              x: float
+              x: int
+        metrics:
+          M:
+            type: test
+            description: d
+            query_string: SELECT 1
+            query_string: SELECT 2
+            template: line
+            template_settings: {a: 1, a: 2}
+          M:
+            type: batch
+        topics: {}
+    """)) == [
+        (6, 7, "duplicate field 'x' in topic 't' (first at line 5, column 7)"),
+        (12, 5, "duplicate key 'query_string' in metric 'M' (first at line 11, column 5)"),
+        (14, 31, "duplicate key 'a' in template_settings of metric 'M' (first at line 14, column 25)"),
+        (15, 3, "duplicate metric 'M' (first at line 8, column 3)"),
+        (17, 1, "duplicate key 'topics' in the config file (first at line 2, column 1)"),
+    ]
+
+
+def test_invalid_yaml_reports_the_parser_position(tmp_path):
+    line, column, message = one_error(tmp_path, "version: 1\ntopics:\n  t: {schema: {x: float}\nmetrics: {}\n")
+    assert (line, column) == (4, 1)
+    assert message.startswith("invalid YAML: expected ',' or '}', but got '<scalar>'")
+    assert message.endswith("(while parsing a flow mapping, line 3, column 6)")
+    line, column, message = one_error(tmp_path, "version: 1\ntopics:\n\tt: {}\n")
+    assert (line, column) == (3, 1) and "found character '\\t' that cannot start any token" in message
+
+
+def test_yaml_edge_cases(tmp_path):
+    assert errors(write(tmp_path, """
+        version: 1
+        topics:
+          1: {schema: {}}
+          t:
+            <<: 5
+            schema: {}
+        dashboards: &d {loop: *d}
+    """)) == [
+        (3, 3, "topic '1' is read by YAML as an integer, not a string; quote it"),
+        (5, 9, "'<<' can only merge mappings, got integer 5"),
+        (7, 13, "recursive alias in dashboards of the config file"),
+    ]
+
+
+def test_file_level_problems(tmp_path):
+    assert one_error(tmp_path, "# nothing here\n") == (
+        1, 1, "the file is empty; expected a mapping starting with 'version: 1'")
+    assert one_error(tmp_path, "- version: 1\n") == (1, 1, "the config file must be a mapping, got a list")
+    missing = tmp_path / "missing.yaml"
+    [(line, column, message)] = errors(missing)
+    assert (line, column) == (0, 0) and message.startswith("cannot read the file: [Errno 2]")
+    with pytest.raises(ConfigError) as caught:
+        load_config(missing)
+    assert str(caught.value).startswith(f"{missing}: cannot read the file")
+
+
+def test_all_errors_are_reported_at_once(tmp_path):
+    path = write(tmp_path, """
+        version: 1
+        topics:
+          a/b: {schema: {x: flaot}}
+        metrics:
+          M: {type: test, description: d, querystring: SELECT 1, template: line}
+        metrics sets:
+          S: {metrics: [Missing]}
+    """)
+    with pytest.raises(ConfigError) as caught:
+        load_config(path)
+    text = str(caught.value).splitlines()
+    assert len(text) == 5
+    assert all(line.startswith(f"{path}:") for line in text)
+    assert text[0] == f"{path}:3:3: topic 'a/b' contains '/', which topic names may not"
+
+
+# -- several files ---------------------------------------------------------------------
+
+
+def test_merge_two_files(tmp_path):
+    topics = write(tmp_path, """
+        version: 1
+        topics:
+          speed: {schema: {v: float}}
+    """, "topics.resim.yaml")
+    metrics = write(tmp_path, """
+        version: 1
+        metrics:
+          Top Speed: {type: test, description: d, query_string: SELECT MAX(v) FROM speed, template: scalar}
+        metrics sets:
+          Fast: {metrics: [Top Speed]}
+    """, "metrics.resim.yaml")
+    config = load_config([topics, str(metrics)])
+    assert list(config.topics) == ["speed"] and list(config.metrics) == ["Top Speed"]
+    assert config.paths == [str(topics), str(metrics)]
+    assert config.topics["speed"].location == Location(str(topics), 3, 3)
+    assert config.metrics["Top Speed"].location == Location(str(metrics), 3, 3)
+    assert [m.name for m in config.metrics_in_set("Fast")] == ["Top Speed"]
+
+
+def test_merge_duplicates_name_both_files(tmp_path):
+    first = write(tmp_path, """
+        version: 1
+        topics:
+          speed: {schema: {v: float}}
+        metrics:
+          M: {type: test, description: d, query_string: SELECT 1, template: line}
+        metrics sets:
+          S: {metrics: [M]}
+        dashboards:
+          D: {}
+    """, "a.resim.yaml")
+    second = write(tmp_path, """
+        version: 1
+        metrics sets:
+          S: {metrics: []}
+        metrics:
+          M: {type: batch, description: d, query_string: SELECT 2, template: line}
+        topics:
+          speed: {schema: {v: int}}
+          SPEED: {schema: {v: int}}
+        dashboards:
+          D: {}
+    """, "b.resim.yaml")
+    with pytest.raises(ConfigError) as caught:
+        load_config([first, second])
+    assert [str(p) for p in caught.value.problems] == [
+        f"{second}:3:3: metrics set 'S' is already defined at {first}:7:3",
+        f"{second}:5:3: metric 'M' is already defined at {first}:5:3",
+        f"{second}:7:3: topic 'speed' is already defined at {first}:3:3",
+        f"{second}:8:3: topic 'SPEED' differs only in letter case from topic 'speed' ({first}:3:3); "
+        "SQL table names ignore case",
+        f"{second}:10:3: 'D' in dashboards is already defined at {first}:9:3",
+    ]
+
+
+def test_load_config_needs_a_path():
+    with pytest.raises(ValueError, match="at least one config file"):
+        load_config([])
+
+
+# -- finding the default config ----------------------------------------------------------
+
+
+def test_find_default_config(tmp_path):
+    assert find_default_config(tmp_path) is None
+    (tmp_path / ".resim/metrics").mkdir(parents=True)
+    yml = tmp_path / ".resim/metrics/config.resim.yml"
+    yml.write_text(HEADER)
+    nested = tmp_path / "src/robot"
+    nested.mkdir(parents=True)
+    assert find_default_config(nested) == yml.resolve()
+    yaml_path = tmp_path / ".resim/metrics/config.resim.yaml"
+    yaml_path.write_text(HEADER)
+    assert find_default_config(tmp_path) == yaml_path.resolve()
+
+
+def test_find_default_config_defaults_to_cwd(tmp_path, monkeypatch):
+    (tmp_path / ".resim/metrics").mkdir(parents=True)
+    path = tmp_path / ".resim/metrics/config.resim.yaml"
+    path.write_text(HEADER)
+    monkeypatch.chdir(tmp_path)
+    assert find_default_config() == path.resolve()
+
+
+# -- the JSON Schema agrees with the loader ----------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def validator() -> jsonschema.Draft202012Validator:
+    schema = json_schema()
+    jsonschema.Draft202012Validator.check_schema(schema)
+    return jsonschema.Draft202012Validator(schema)
+
+
+def test_fixture_is_valid_under_the_json_schema(validator):
+    assert list(validator.iter_errors(yaml.safe_load(FIXTURE.read_text()))) == []
+
+
+M = "{type: test, description: d, query_string: SELECT 1, template: line"
+
+# Each config is judged the same by the loader and the JSON Schema (True: valid).
+AGREEMENT = [
+    (True, "version: 1\n"),
+    (True, "version: 1\ntopics:\nmetrics:\nmetrics sets:\n"),
+    (True, "version: 1\ntopics: {t: {event: true, schema: {a: bigint, b: 'string[]'}}}\n"),
+    (True, f"version: 1\nmetrics: {{M: {M}, status: {{query_string: 'SELECT ?', block: 1.5, warn: abc}}}}}}\n"),
+    (True, f"version: 1\nmetrics: {{M: {M}, skip_if_no_data: true, template_settings: {{a: 1}}, units: s}}}}\n"),
+    (True, "version: 1\nmetrics: {M: {type: report, description: d, query_string: x, template_type: custom, "
+           "template_file: f.json}}\n"),
+    (True, "version: 1\ndashboards: {D: {any: [thing]}}\nglobal: {x: 1}\n"),
+    (False, "topics: {}\n"),
+    (False, "version: 2\n"),
+    (False, "version: 1\nextra: 1\n"),
+    (False, "version: 1\ntopics: {a/b: {schema: {}}}\n"),
+    (False, "version: 1\ntopics: {_a: {schema: {}}}\n"),
+    (False, "version: 1\ntopics: {METADATA: {schema: {}}}\n"),
+    (False, "version: 1\ntopics: {t: {}}\n"),
+    (False, "version: 1\ntopics: {t: {schema: {x: flaot}}}\n"),
+    (False, "version: 1\ntopics: {t: {schema: {timestamp: int}}}\n"),
+    (False, "version: 1\ntopics: {t: {event: yes-please, schema: {}}}\n"),
+    (False, "version: 1\ntopics: {t: {schema: [x]}}\n"),
+    (False, f"version: 1\nmetrics: {{M: {M}, querystring: x}}}}\n"),
+    (False, "version: 1\nmetrics: {M: {type: test, description: d, template: line}}\n"),
+    (False, "version: 1\nmetrics: {M: {type: test, description: d, query_string: ' ', template: line}}\n"),
+    (False, f"version: 1\nmetrics: {{M: {M}, status: {{query_string: 'SELECT ?'}}}}}}\n"),
+    (False, f"version: 1\nmetrics: {{M: {M}, status: {{query_string: 'SELECT ?', block: true}}}}}}\n"),
+    (False, "version: 1\nmetrics: {M: {type: test, description: d, query_string: x}}\n"),
+    (False, "version: 1\nmetrics: {M: {type: test, description: d, query_string: x, template_type: custom}}\n"),
+    (False, f"version: 1\nmetrics: {{M: {M}, template_file: f.json}}}}\n"),
+    (False, "version: 1\nmetrics: {M: {type: tset, description: d, query_string: x, template: line}}\n"),
+    (False, "version: 1\nmetrics: {M: {type: test, description: d, query_string: x, template: lines}}\n"),
+    (False, f"version: 1\nmetrics: {{M: {M}, skip_if_no_data: 'no'}}}}\n"),
+    (False, f"version: 1\nmetrics: {{M: {M}}}}}\nmetrics sets: {{S: {{metrics: [M, M]}}}}\n"),
+    (False, "version: 1\nmetrics sets: {S: {metrics: Robot Speed}}\n"),
+    (False, "version: 1\nmetrics sets: {S: {}}\n"),
+    (False, "version: 1\ndashboards: [a]\n"),
+]
+
+
+@pytest.mark.parametrize(("valid", "text"), AGREEMENT)
+def test_loader_and_json_schema_agree(tmp_path, validator, valid, text):
+    path = write(tmp_path, text)
+    try:
+        load_config(path)
+        loader_valid = True
+    except ConfigError:
+        loader_valid = False
+    schema_valid = validator.is_valid(yaml.safe_load(text))
+    assert (loader_valid, schema_valid) == (valid, valid)

@@ -56,6 +56,9 @@ _TRINO = {
 }
 
 
+INT64_MIN, INT64_MAX = -(2**63), 2**63 - 1
+
+
 class FieldError(ValueError):
     """A value does not fit its field type; the message says what was expected and got."""
 
@@ -149,11 +152,17 @@ def check_value(field_type: str, value: Any) -> Any:
     if field_type == "int":
         if isinstance(value, bool) or not isinstance(value, Integral):
             raise FieldError(f"expected int, got {_describe(value)}")
-        return int(value)
+        number = int(value)
+        if not INT64_MIN <= number <= INT64_MAX:
+            raise FieldError(f"int out of the 64-bit range: {number}")
+        return number
     if field_type == "float":
         if isinstance(value, bool) or not isinstance(value, Real) or type(value).__name__ == "bool_":
             raise FieldError(f"expected float, got {_describe(value)}")
-        number = float(value)
+        try:
+            number = float(value)
+        except OverflowError:
+            raise FieldError(f"float out of range: {_describe(value)}") from None
         if not math.isfinite(number):
             raise FieldError(f"expected a finite float, got {number!r}")
         return number

@@ -1,0 +1,502 @@
+"""The Emitter: writes typed records to an emissions file (JSON lines), validated against the config.
+
+Drop-in for the reference `resim.metrics.python.emissions.Emitter` (same constructor plus
+`flush_interval`, same method names and parameters, `ReSimValidationError` as an alias of
+`ValidationError`), with these differences:
+
+- every line is standard JSON (no NaN/Infinity tokens) and carries a timestamp: a missing,
+  non-integer, negative or > 2**63-1 timestamp raises `ValidationError` (the reference writes
+  a line without timestamp, which the lake cannot store as a BIGINT row);
+- validation follows `lakegate.lake.types.check_value` (the same rules ingestion applies),
+  including the contents of `metric[]` values, and rejects NaN/inf in float fields;
+- one Emitter may be shared by many threads, and lines are buffered and written in chunks
+  (see `Emitter` for the flush policy; `flush()` writes now);
+- emitting on a closed Emitter raises ValueError (the reference silently appends to its
+  default path).
+
+As in the reference, `emit()` and `emit_series()` on an event topic write plain rows
+(no `"event": true`); only `emit_event()` marks a line as an event, and with a config it
+must name an event topic.
+"""
+from __future__ import annotations
+
+import atexit
+import difflib
+import json
+import os
+import threading
+import warnings
+import weakref
+from collections import deque
+from collections.abc import Iterable, Mapping
+from json.encoder import encode_basestring_ascii as _json_str
+from pathlib import Path
+from types import TracebackType
+from typing import Any, Callable
+
+from lakegate.lake.config import Topic, load_config
+from lakegate.lake.types import check_value
+
+DEFAULT_OUTPUT_PATH = Path("/tmp/resim/outputs/emissions.resim.jsonl")
+DEFAULT_FLUSH_INTERVAL = 0.5  # seconds
+MAX_TIMESTAMP = 2**63 - 1  # timestamps are BIGINT nanoseconds
+_CHUNK_LINES = 8192  # this many queued lines wake the flusher thread to write them
+_MAX_QUEUED = 8 * _CHUNK_LINES  # past this the emitting thread writes itself (the flusher is behind)
+
+
+class ValidationError(ValueError, TypeError):
+    """An emission does not fit its topic; the message names topic, field and (series) index.
+
+    Also a TypeError, like the reference's `ReSimValidationError`, so code written for the
+    reference catches it unchanged.
+    """
+
+    def __init__(self, reason: str, *, topic: Any = None, field: str | None = None, index: int | None = None):
+        self.reason, self.topic, self.field, self.index = reason, topic, field, index
+        where = []
+        if topic is not None:
+            where.append(f"topic {topic!r}")
+        if field is not None:
+            where.append(f"field {field!r}")
+        if index is not None:
+            where.append(f"index {index}")
+        super().__init__(f"{', '.join(where)}: {reason}" if where else reason)
+
+    def at(self, index: int) -> ValidationError:
+        """The same error located at position `index` of a series."""
+        return ValidationError(self.reason, topic=self.topic, field=self.field, index=index)
+
+
+#: The reference's name for the error, for drop-in compatibility.
+ReSimValidationError = ValidationError
+
+
+def _plain(value: Any) -> Any:
+    """json.dumps `default`: numpy scalars and arrays become Python values."""
+    tolist = getattr(value, "tolist", None)
+    if tolist is None:
+        raise TypeError(f"{type(value).__name__} is not JSON serializable")
+    return tolist()
+
+
+def _dumps(value: Any) -> str:
+    """Standard JSON text for a Python value (numpy accepted; NaN/inf rejected with ValueError)."""
+    return json.dumps(value, allow_nan=False, default=_plain)
+
+
+def _describe(value: Any) -> str:
+    text = repr(value)
+    return f"{type(value).__name__} {text if len(text) <= 60 else text[:57] + '...'}"
+
+
+def _check_timestamp(topic: Any, timestamp: Any) -> int:
+    """The timestamp as an int in [0, 2**63), or ValidationError."""
+    if timestamp is None:
+        raise ValidationError("a timestamp (int nanoseconds >= 0) is required", topic=topic)
+    try:
+        value = check_value("int", timestamp)
+    except ValueError:
+        reason = f"timestamp must be an int (nanoseconds), got {_describe(timestamp)}"
+        raise ValidationError(reason, topic=topic) from None
+    if not 0 <= value <= MAX_TIMESTAMP:
+        raise ValidationError(f"timestamp must be between 0 and 2**63-1 nanoseconds, got {value}", topic=topic)
+    return value
+
+
+def _checked(topic: str, field: str, field_type: str, value: Any) -> Any:
+    """`check_value(field_type, value)`, its errors as ValidationError naming topic and field."""
+    try:
+        return check_value(field_type, value)
+    except (ValueError, TypeError, OverflowError) as exc:
+        raise ValidationError(str(exc), topic=topic, field=field) from None
+
+
+def _json_text(topic: str, field: str, field_type: str, value: Any) -> str:
+    """JSON text of a `string[]` or `metric[]` value, checked by `check_value`."""
+    stored = _checked(topic, field, field_type, value)
+    try:
+        # metric[] is written as given: check_value's normal form is for storage, not re-reading.
+        return _dumps(value if field_type == "metric[]" else stored)
+    except (ValueError, TypeError) as exc:
+        raise ValidationError(f"not standard JSON: {exc}", topic=topic, field=field) from None
+
+
+# Per field type: the test under which `check_value` certainly accepts the value @ as it is
+# (else @ is replaced by check_value's result, or its error raised, so accept/reject is always
+# check_value's decision), and the f-string expression of its JSON text.
+_FAST = {
+    "float": ("type(@) is float and -1e999 < @ < 1e999", "{@!r}"),  # 1e999 is inf; NaN compares false
+    "int": ("type(@) is int and -0x8000000000000000 <= @ <= 0x7FFFFFFFFFFFFFFF", "{@!r}"),
+    "boolean": ("@ is True or @ is False", '{"true" if @ else "false"}'),
+    "string": ("type(@) is str", "{_json_str(@)}"),
+}
+_FAST.update({t: _FAST["string"] for t in ("status", "image", "video")})
+_PLAIN_END = '}, "$data": '
+_EVENT_END = ', "event": true}, "$data": '
+
+
+def _literal(text: str) -> str:
+    """ASCII JSON text as the literal part of a generated f-string in single quotes."""
+    return text.replace("\\", "\\\\").replace("'", "\\'").replace("{", "{{").replace("}", "}}")
+
+
+class _Codec:
+    """A topic compiled into two functions that validate records and return their JSON lines.
+
+    `line(data, timestamp, end)` takes one record as a dict; `series(end, timestamps, *columns)`
+    takes one list per field, in schema order, and returns the list of lines (an error names
+    the index). `end` closes `$metadata`: `_PLAIN_END` or `_EVENT_END`. The code is generated
+    (as dataclasses do) so that the common case runs without per-field loops or calls.
+    """
+
+    __slots__ = ("topic", "fields", "line", "series")
+
+    def __init__(self, topic: Topic):
+        self.topic = topic
+        self.fields = tuple(topic.fields)
+        self.line, self.series = self._compile()
+
+    def _record(self, indent: str) -> list[str]:
+        """Source lines that check `ts` and `v0`, `v1`, ... and build the JSON line `text`."""
+        names = [f"v{i}" for i in range(len(self.fields))]
+        checks = ["if type(ts) is not int or not 0 <= ts <= 0x7FFFFFFFFFFFFFFF: ts = _check_timestamp(TOPIC, ts)"]
+        template = _literal(f'{{"$metadata": {{"topic": {_json_str(self.topic.name)}, "timestamp": ') + "{ts}{end}{{"
+        for i, (name, field_type) in enumerate(self.topic.fields.items()):
+            v = names[i]
+            if field_type in _FAST:
+                test, text = (part.replace("@", v) for part in _FAST[field_type])
+                checks.append(f"if not ({test}): {v} = _checked(TOPIC, {name!r}, {field_type!r}, {v})")
+            else:
+                checks.append(f"{v} = _json_text(TOPIC, {name!r}, {field_type!r}, {v})")
+                text = "{" + v + "}"
+            template += _literal(("" if i == 0 else ", ") + _json_str(name) + ": ") + text
+        checks.append(f"text = f'{template}}}}}}}}}\\n'")
+        return [indent + check for check in checks]
+
+    def _compile(self) -> tuple[Callable[..., str], Callable[..., list[str]]]:
+        names = "".join(f"v{i}, " for i in range(len(self.fields)))
+        columns = "".join(f"c{i}, " for i in range(len(self.fields)))
+        get = f"{names}= {''.join(f'data[{f!r}], ' for f in self.fields)}" if names else "pass"
+        unpack = f"{names}= _fields_of(data)" if names else "_fields_of(data)"
+        source = [
+            "def line(data, ts, end=PLAIN_END):",
+            f"    if type(data) is dict and len(data) == {len(self.fields)}:",
+            "        try:",
+            f"            {get}",
+            "        except KeyError:",
+            f"            {unpack}",
+            "    else:",
+            f"        {unpack}",
+            *self._record("    "),
+            "    return text",
+            f"def series(end, stamps, {columns}):",
+            "    lines = []",
+            "    append = lines.append",
+            "    try:",
+            f"        for ts, {names}in zip(stamps, {columns}):",
+            *self._record("            "),
+            "            append(text)",
+            "    except ValidationError as exc:",
+            "        raise exc.at(len(lines)) from None",
+            "    return lines",
+        ]
+        namespace: dict[str, Any] = {
+            "_json_str": _json_str, "_checked": _checked, "_json_text": _json_text, "ValidationError": ValidationError,
+            "_check_timestamp": _check_timestamp, "_fields_of": self.fields_of, "TOPIC": self.topic.name,
+            "PLAIN_END": _PLAIN_END,
+        }
+        exec("\n".join(source), namespace)  # noqa: S102 - names are repr()'d, texts escaped by _literal
+        return namespace["line"], namespace["series"]
+
+    def fields_of(self, data: Any) -> list[Any]:
+        """The values of `data` in schema order, or ValidationError for a non-mapping or wrong keys."""
+        if not isinstance(data, Mapping):
+            raise ValidationError(f"data must be a dict of field values, got {_describe(data)}", topic=self.topic.name)
+        check_field_names(self.topic, data.keys())
+        return [data[name] for name in self.fields]
+
+
+def check_field_names(topic: Topic, names: Iterable[Any]) -> None:
+    """ValidationError naming the first missing or unknown field of `topic`, if any."""
+    names = list(names)
+    declared = f"the topic has {', '.join(map(repr, topic.fields))}" if topic.fields else "the topic has no fields"
+    missing = [f for f in topic.fields if f not in names]
+    if missing:
+        raise ValidationError(f"missing field(s) {', '.join(map(repr, missing))}; {declared}",
+                              topic=topic.name, field=missing[0])
+    extra = [n for n in names if n not in topic.fields]
+    if extra:
+        hint = difflib.get_close_matches(str(extra[0]), list(topic.fields), n=1)
+        raise ValidationError(f"unknown field(s) {', '.join(map(repr, extra))}; "
+                              + (f"did you mean {hint[0]!r}?" if hint else declared),
+                              topic=topic.name, field=str(extra[0]))
+
+
+def _plain_data_json(topic: Any, data: Any) -> str:
+    """`$data` JSON text without a config: any JSON-able dict (numpy accepted), standard JSON only."""
+    if not isinstance(topic, str) or not topic:
+        raise ValidationError(f"topic must be a non-empty string, got {_describe(topic)}")
+    if not isinstance(data, Mapping):
+        raise ValidationError(f"data must be a dict of field values, got {_describe(data)}", topic=topic)
+    try:
+        return _dumps(dict(data))
+    except (ValueError, TypeError) as exc:
+        error = exc
+    for name, value in data.items():  # find the field to blame
+        if not isinstance(name, str):
+            raise ValidationError(f"field names must be strings, got {_describe(name)}", topic=topic)
+        try:
+            _dumps(value)
+        except (ValueError, TypeError) as exc:
+            error = exc
+            break
+    else:
+        name = None
+    reason = str(error)
+    if reason.startswith("Out of range float values"):
+        reason = "NaN and infinity are not standard JSON"
+    raise ValidationError(f"not standard JSON: {reason}", topic=topic, field=name)
+
+
+def _as_column(topic: str, field: str, values: Any) -> list[Any]:
+    if isinstance(values, list):
+        return values
+    if isinstance(values, (tuple, range)):
+        return list(values)
+    tolist = getattr(values, "tolist", None)  # numpy arrays
+    column = tolist() if tolist is not None else None
+    if not isinstance(column, list):
+        raise ValidationError(f"emit_series needs a list or 1-D array per field, got {_describe(values)}",
+                              topic=topic, field=field)
+    return column
+
+
+#: Emitters not yet closed, flushed and closed at interpreter exit (weakly held: GC still works).
+_LIVE: weakref.WeakSet[Emitter] = weakref.WeakSet()
+
+
+class Emitter:
+    """Writes emissions as JSON lines to `output_path`, validated when a config is given.
+
+    `config_path` is one path or a list of paths to config files (`load_config` merges them).
+    As in the reference, files that do not exist are skipped with a warning, and validation
+    is off when none exists or the merged config declares no topics; an invalid config
+    raises `ConfigError`. Lines are appended to `output_path` (parent folders are created).
+
+    Flush policy: validated lines are queued in memory and appended to the file in
+    whole-line chunks, in emission order, by a daemon flusher thread every `flush_interval`
+    seconds and as soon as 8192 lines are queued (by the emitting thread itself if 65536 are
+    waiting), and on `flush()`, `close()`, garbage collection and interpreter exit (atexit).
+    So a crash of the emitting process, even SIGKILL, loses at most the lines of the last
+    `flush_interval`; a record with an error raises before anything of it is queued (for
+    `emit_series`, before any of its records is). Data is handed to the OS, not synced to
+    disk: a machine crash may lose more.
+
+    Threads: one Emitter may be shared; lines of different threads never interleave and each
+    thread's lines keep their order (the queue's appends are atomic; one lock orders the
+    writes). Close it only after the emitting threads are done: a line emitted while
+    `close()` runs may be lost. In a forked child, the lines queued before the fork are
+    left to the parent to write; the child writes its own.
+    """
+
+    def __init__(
+        self,
+        config_path: str | os.PathLike[str] | Iterable[str | os.PathLike[str]] | None = None,
+        output_path: str | os.PathLike[str] = DEFAULT_OUTPUT_PATH,
+        flush_interval: float = DEFAULT_FLUSH_INTERVAL,
+    ):
+        if not flush_interval > 0:
+            raise ValueError(f"flush_interval must be > 0 seconds, got {flush_interval!r}")
+        self._closed = True  # until the file is open, so that __del__ and close() are no-ops
+        if config_path is None:
+            self.config_paths: list[Path] = []
+        elif isinstance(config_path, (str, os.PathLike)):
+            self.config_paths = [Path(config_path)]
+        else:
+            self.config_paths = [Path(p) for p in config_path]
+        self.output_path = Path(output_path)
+        self.flush_interval = float(flush_interval)
+        self.topics: dict[str, Topic] = self._load_topics()
+        self.validation_enabled = bool(self.topics)
+        self._codecs = {name: _Codec(topic) for name, topic in self.topics.items()}
+        self._lines = {name: codec.line for name, codec in self._codecs.items()}
+        self.output_path.parent.mkdir(parents=True, exist_ok=True)
+        self._file = open(self.output_path, "ab")
+        self._closed = False
+        self._start()
+        _LIVE.add(self)
+
+    def _load_topics(self) -> dict[str, Topic]:
+        present = []
+        for path in self.config_paths:
+            if path.is_file():
+                present.append(path)
+            else:
+                warnings.warn(f"metrics config {path} not found: emissions are not validated against it", stacklevel=3)
+        return load_config(present).topics if present else {}
+
+    def _start(self) -> None:
+        """Fresh queue, lock and flusher thread (at construction, and in a forked child)."""
+        self._queue: deque[str] = deque()  # appends and pops are atomic: emitting threads take no lock
+        self._write_lock = threading.Lock()  # held while lines are taken and written: keeps their order
+        self._wake = threading.Event()  # set: the flusher thread should write now (or stop, once closed)
+        threading.Thread(
+            target=_flush_periodically, args=(weakref.ref(self), self._wake, self.flush_interval),
+            name=f"emitter-flush {self.output_path.name}", daemon=True,
+        ).start()
+
+    # --- emitting -----------------------------------------------------------------------
+
+    def emit(self, topic_name: str, data: dict[str, Any], timestamp: int | None = None) -> None:
+        """Emit one record of `topic_name` at `timestamp` (int nanoseconds, required)."""
+        encode = self._lines.get(topic_name)
+        if encode is not None:
+            line = encode(data, timestamp)
+        else:
+            line = self._unvalidated_line(topic_name, data, timestamp, _PLAIN_END)
+        if self._closed:
+            raise ValueError("emit on a closed Emitter")
+        queue = self._queue
+        queue.append(line)
+        if len(queue) >= _CHUNK_LINES:
+            self._chunk_ready()
+
+    def emit_event(self, topic_name: str, data: dict[str, Any], timestamp: int) -> None:
+        """Emit one event (a line with `"event": true`); with a config, the topic must be an event topic."""
+        codec = self._codecs.get(topic_name)
+        if codec is not None:
+            if not codec.topic.event:
+                raise ValidationError("not an event topic (add `event: true` to it, or use emit())", topic=topic_name)
+            line = codec.line(data, timestamp, _EVENT_END)
+        else:
+            line = self._unvalidated_line(topic_name, data, timestamp, _EVENT_END)
+        self._append([line])
+
+    def emit_series(self, topic_name: str, data: dict[str, list[Any]], timestamps: Iterable[int] | None = None) -> None:
+        """Emit one record per position of the equally long lists (or 1-D arrays) in `data`.
+
+        Equivalent to `emit(topic_name, {k: v[i] for k, v in data.items()}, timestamps[i])`
+        for each i, except that nothing is written unless every record is valid.
+        """
+        if timestamps is None:
+            raise ValidationError("emit_series needs timestamps (int nanoseconds >= 0), one per value",
+                                  topic=topic_name)
+        if not isinstance(data, Mapping):
+            raise ValidationError(f"data must be a dict of lists, got {_describe(data)}", topic=topic_name)
+        columns = {name: _as_column(topic_name, name, values) for name, values in data.items()}
+        stamps = _as_column(topic_name, "timestamps", timestamps)
+        wrong = [name for name, column in columns.items() if len(column) != len(stamps)]
+        if wrong:
+            shown = ", ".join(f"{name!r}: {len(column)}" for name, column in columns.items())
+            raise ValidationError(f"series differ in length: {len(stamps)} timestamps, {shown}",
+                                  topic=topic_name, field=wrong[0])
+        codec = self._codecs.get(topic_name)
+        if codec is not None:
+            check_field_names(codec.topic, columns)
+            lines = codec.series(_PLAIN_END, stamps, *(columns[name] for name in codec.fields))
+        else:
+            lines = []
+            try:
+                for i, stamp in enumerate(stamps):
+                    record = {name: column[i] for name, column in columns.items()}
+                    lines.append(self._unvalidated_line(topic_name, record, stamp, _PLAIN_END))
+            except ValidationError as exc:
+                raise exc.at(len(lines)) from None
+        self._append(lines)
+
+    def _unvalidated_line(self, topic_name: Any, data: Any, timestamp: Any, end: str) -> str:
+        if self.validation_enabled:
+            hint = difflib.get_close_matches(str(topic_name), list(self.topics), n=1)
+            known = f"did you mean {hint[0]!r}?" if hint else f"the config declares {', '.join(map(repr, self.topics))}"
+            raise ValidationError(f"unknown topic; {known}", topic=topic_name)
+        body = _plain_data_json(topic_name, data)
+        timestamp = _check_timestamp(topic_name, timestamp)
+        return f'{{"$metadata": {{"topic": {_json_str(topic_name)}, "timestamp": {timestamp}{end}{body}}}\n'
+
+    # --- buffering and writing ----------------------------------------------------------
+
+    def _append(self, lines: list[str]) -> None:
+        if self._closed:
+            raise ValueError("emit on a closed Emitter")
+        self._queue.extend(lines)
+        if len(self._queue) >= _CHUNK_LINES:
+            self._chunk_ready()
+
+    def _chunk_ready(self) -> None:
+        """Have a full chunk written: by the flusher thread (file writes release the GIL, so
+        emitting goes on meanwhile), or right here when the flusher is far behind."""
+        if len(self._queue) >= _MAX_QUEUED:
+            self.flush()
+        elif not self._wake.is_set():
+            self._wake.set()
+
+    def _take(self) -> bytes:
+        """Remove the queued lines (oldest first), as bytes to write; call with _write_lock held."""
+        queue = self._queue
+        return "".join([queue.popleft() for _ in range(len(queue))]).encode()
+
+    def flush(self) -> None:
+        """Append every queued line to the file now."""
+        with self._write_lock:
+            if not self._closed and self._queue:
+                self._file.write(self._take())
+                self._file.flush()
+
+    def close(self) -> None:
+        """Write the queued lines and close the file; later calls do nothing."""
+        with self._write_lock:
+            if self._closed:
+                return
+            self._closed = True
+            self._wake.set()
+            try:
+                self._file.write(self._take())
+            finally:
+                self._file.close()
+        _LIVE.discard(self)
+
+    def _after_fork_in_child(self) -> None:
+        if not self._closed:
+            self._start()  # the parent writes what was buffered before the fork
+
+    def __enter__(self) -> Emitter:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
+
+    def __del__(self) -> None:
+        try:
+            self.close()
+        except Exception:  # noqa: BLE001 - nothing can be reported from a finalizer
+            pass
+
+
+def _flush_periodically(ref: weakref.ref[Emitter], wake: threading.Event, interval: float) -> None:
+    """The flusher thread: flush every `interval` seconds and when woken, until closed or garbage-collected."""
+    while True:
+        wake.wait(interval)
+        wake.clear()
+        emitter = ref()
+        if emitter is None or emitter._closed:
+            return
+        try:
+            emitter.flush()
+        except OSError as exc:  # e.g. disk full: the lines of that chunk are lost
+            warnings.warn(f"emitter could not write {emitter.output_path}: {exc}", RuntimeWarning, stacklevel=1)
+        del emitter
+
+
+@atexit.register
+def _close_all_at_exit() -> None:
+    for emitter in list(_LIVE):
+        emitter.close()
+
+
+def _restart_in_forked_child() -> None:
+    for emitter in list(_LIVE):
+        emitter._after_fork_in_child()
+
+
+os.register_at_fork(after_in_child=_restart_in_forked_child)

@@ -1,0 +1,252 @@
+"""Where things live in the lake, and how files appear there atomically.
+
+Layout (see DESIGN.md, "Lake on disk")::
+
+    <lake>/<branch-dir>/<table>/batch_id=<B>/job_id=<J>/data.parquet   topics, metadata, events
+    <lake>/<branch-dir>/_configs/v000001/...                           the branch's config versions
+    <lake>/<branch-dir>/_quarantine/<B>/<J>.jsonl                      bad lines kept by --skip-bad-lines
+    <lake>/<branch-dir>/_staging/...                                   scratch space of running writers
+
+A branch name is encoded into exactly one safe path segment (`encode_branch`), reversibly.
+Batch ids, job ids and table names are used as they are, so they are checked
+(`check_segment`): readers glob `<table>/batch_id=*/job_id=*/*.parquet` and parse Hive
+partitions, which rules out `/`, glob characters, `=`, `%` (Hive values are URL-decoded)
+and `\\`. Writers prepare files under `_staging/` and `publish` them with `os.replace`,
+so a reader never sees half a file, and a killed writer leaves only scratch behind.
+"""
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+import shutil
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - not on POSIX
+    fcntl = None  # type: ignore[assignment]
+
+#: The file name of every table's data file inside its job partition.
+DATA_FILE = "data.parquet"
+METADATA_TABLE = "metadata"
+EVENTS_TABLE = "events"
+STAGING = "_staging"
+CONFIGS = "_configs"
+QUARANTINE = "_quarantine"
+#: Names a topic may not have, because the branch directory uses them.
+RESERVED_TABLES = frozenset({METADATA_TABLE, EVENTS_TABLE})
+
+_SAFE = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_.")
+_MAX_SEGMENT = 240  # bytes; file systems allow 255
+_FORBIDDEN = {
+    "/": "'/'", "\\": "'\\'", "=": "'='", "%": "'%'",
+    "*": "a glob character '*'", "?": "a glob character '?'", "[": "a glob character '['",
+    "]": "a glob character ']'", "{": "a glob character '{'", "}": "a glob character '}'",
+}
+
+
+class LakePathError(ValueError):
+    """A name that cannot be stored in the lake; the message says which and why."""
+
+
+def encode_branch(name: str) -> str:
+    """The directory name of branch `name`: one path segment, reversible with `decode_branch`.
+
+    Letters, digits, `-`, `_` and `.` are kept (except a leading `.` or `_`); every other
+    byte of the UTF-8 text becomes `%XX`. So `feature/x` -> `feature%2Fx`, `..` -> `%2E.`.
+    """
+    if not isinstance(name, str) or not name:
+        raise LakePathError("a branch name must be a non-empty string")
+    try:
+        data = name.encode("utf-8")
+    except UnicodeEncodeError:
+        raise LakePathError(f"branch name {name!r} is not valid Unicode text") from None
+    parts = []
+    for i, byte in enumerate(data):
+        char = chr(byte)
+        if char in _SAFE and not (i == 0 and char in "._"):
+            parts.append(char)
+        else:
+            parts.append(f"%{byte:02X}")
+    segment = "".join(parts)
+    if len(segment) > _MAX_SEGMENT:
+        raise LakePathError(f"branch name {name[:40]!r}... is too long for the lake ({len(segment)} bytes encoded, at most {_MAX_SEGMENT})")
+    return segment
+
+
+def decode_branch(segment: str) -> str:
+    """The branch name of a directory made by `encode_branch`; LakePathError for anything else."""
+    data = bytearray()
+    i = 0
+    while i < len(segment):
+        char = segment[i]
+        if char == "%" and _is_hex(segment[i + 1:i + 3]):
+            data.append(int(segment[i + 1:i + 3], 16))
+            i += 3
+        elif char in _SAFE:
+            data.append(ord(char))
+            i += 1
+        else:
+            raise LakePathError(f"{segment!r} is not an encoded branch name")
+    try:
+        name = data.decode("utf-8")
+    except UnicodeDecodeError:
+        raise LakePathError(f"{segment!r} is not an encoded branch name") from None
+    if not name or encode_branch(name) != segment:
+        raise LakePathError(f"{segment!r} is not an encoded branch name")
+    return name
+
+
+def _is_hex(text: str) -> bool:
+    return len(text) == 2 and all(c in "0123456789ABCDEF" for c in text)
+
+
+def check_segment(value: str, what: str) -> str:
+    """Return `value` if it can name a directory of the lake as it is, else LakePathError.
+
+    `what` names the value in the message (`batch id`, `job id`, `topic name`).
+    """
+    if not isinstance(value, str) or not value:
+        raise LakePathError(f"{what} must be a non-empty string, got {value!r}")
+    if value in (".", ".."):
+        raise LakePathError(f"{what} {value!r} is not allowed")
+    for char in value:
+        if char in _FORBIDDEN:
+            raise LakePathError(f"{what} {value!r} contains {_FORBIDDEN[char]}, which the lake's paths cannot hold")
+        if ord(char) < 0x20 or ord(char) == 0x7F:
+            raise LakePathError(f"{what} {value!r} contains a control character")
+    if value == "__HIVE_DEFAULT_PARTITION__":
+        raise LakePathError(f"{what} {value!r} is reserved by Hive for NULL")
+    if len(value.encode("utf-8", "surrogatepass")) > _MAX_SEGMENT:
+        raise LakePathError(f"{what} {value[:40]!r}... is too long (at most {_MAX_SEGMENT} bytes)")
+    return value
+
+
+def check_table_name(name: str) -> str:
+    """A topic name that can be a table directory: a safe segment, not reserved, no leading `_`/`.`."""
+    check_segment(name, "topic name")
+    if name in RESERVED_TABLES:
+        raise LakePathError(f"topic name {name!r} is reserved for the lake's own {name!r} table")
+    if name[0] in "_.":
+        raise LakePathError(f"topic name {name!r} cannot start with {name[0]!r} in the lake")
+    return name
+
+
+def branch_dir(lake: Path, branch: str) -> Path:
+    return Path(lake) / encode_branch(branch)
+
+
+def table_dir(lake: Path, branch: str, table: str) -> Path:
+    return branch_dir(lake, branch) / table
+
+
+def partition_dir(lake: Path, branch: str, table: str, batch_id: str, job_id: str) -> Path:
+    """`<lake>/<branch-dir>/<table>/batch_id=<B>/job_id=<J>` (ids checked)."""
+    check_segment(batch_id, "batch id")
+    check_segment(job_id, "job id")
+    return table_dir(lake, branch, table) / f"batch_id={batch_id}" / f"job_id={job_id}"
+
+
+def data_file(lake: Path, branch: str, table: str, batch_id: str, job_id: str) -> Path:
+    """The one Parquet file of `table` for one job."""
+    return partition_dir(lake, branch, table, batch_id, job_id) / DATA_FILE
+
+
+def table_glob(lake: Path, branch: str, table: str) -> str:
+    """The glob that matches every data file of `table` on `branch` (and nothing in `_staging`)."""
+    return str(table_dir(lake, branch, table) / "batch_id=*" / "job_id=*" / "*.parquet")
+
+
+def data_files(lake: Path, branch: str, table: str) -> Iterator[Path]:
+    """The data files of `table` on `branch` (those `table_glob` matches), lazily."""
+    return table_dir(lake, branch, table).glob("batch_id=*/job_id=*/*.parquet")
+
+
+def configs_dir(lake: Path, branch: str) -> Path:
+    return branch_dir(lake, branch) / CONFIGS
+
+
+def quarantine_file(lake: Path, branch: str, batch_id: str, job_id: str) -> Path:
+    """Where the bad lines of a job ingested with --skip-bad-lines are kept."""
+    check_segment(batch_id, "batch id")
+    check_segment(job_id, "job id")
+    return branch_dir(lake, branch) / QUARANTINE / batch_id / f"{job_id}.jsonl"
+
+
+def partition_value(directory: Path, key: str) -> str | None:
+    """`B` for a directory named `<key>=B`, else None."""
+    prefix = f"{key}="
+    return directory.name[len(prefix):] if directory.name.startswith(prefix) else None
+
+
+def publish(source: Path, target: Path) -> None:
+    """Move a finished file into place atomically (replacing any older version)."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    os.replace(source, target)
+
+
+def remove_published(target: Path) -> None:
+    """Remove a published data file and the partition directories it leaves empty."""
+    with contextlib.suppress(FileNotFoundError):
+        target.unlink()
+    for directory in (target.parent, target.parent.parent):
+        try:
+            directory.rmdir()
+        except OSError:
+            break
+
+
+@contextlib.contextmanager
+def staging(lake: Path, branch: str) -> Iterator[Path]:
+    """A fresh scratch directory under `<branch-dir>/_staging/`, removed afterwards.
+
+    Scratch left behind by writers that died (their process is gone) is removed first.
+    """
+    root = branch_dir(lake, branch) / STAGING
+    root.mkdir(parents=True, exist_ok=True)
+    _remove_abandoned(root)
+    directory = root / f"{os.getpid()}-{uuid.uuid4().hex}"
+    directory.mkdir()
+    try:
+        yield directory
+    finally:
+        shutil.rmtree(directory, ignore_errors=True)
+
+
+def _remove_abandoned(root: Path) -> None:
+    for entry in root.iterdir():
+        pid_text = entry.name.split("-", 1)[0]
+        if not entry.is_dir() or not pid_text.isdigit():
+            continue
+        try:
+            os.kill(int(pid_text), 0)
+        except ProcessLookupError:
+            shutil.rmtree(entry, ignore_errors=True)
+        except OSError:
+            pass
+
+
+@contextlib.contextmanager
+def job_lock(lake: Path, branch: str, batch_id: str, job_id: str) -> Iterator[None]:
+    """Hold an exclusive lock on one job, so two writers of the same job take turns.
+
+    Jobs share 64 lock files by hash, so the lock files never pile up (two writers of
+    different jobs rarely wait for each other, and never for long).
+    """
+    check_segment(batch_id, "batch id")
+    check_segment(job_id, "job id")
+    locks = branch_dir(lake, branch) / STAGING / "locks"
+    locks.mkdir(parents=True, exist_ok=True)
+    stripe = hashlib.sha1(f"{batch_id}\0{job_id}".encode()).digest()[0] % 64
+    path = locks / f"{stripe:02d}.lock"
+    with open(path, "a") as handle:
+        if fcntl is not None:
+            fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            if fcntl is not None:
+                fcntl.flock(handle, fcntl.LOCK_UN)

@@ -1,0 +1,151 @@
+"""Config versions of a branch: every config used to ingest into it, numbered, never dropped.
+
+`<lake>/<branch-dir>/_configs/v000001/` holds the source files of one version (in merge
+order, as `00-<name>`, `01-<name>` ...) and `manifest.json` (original paths, content hash,
+time). A version appears by renaming a finished directory into place, so readers never
+see half of one and two writers never share a number. The newest version is `current()`;
+the catalog uses it (and older versions, for topics no longer declared) to know every
+table's columns.
+"""
+from __future__ import annotations
+
+import datetime as dt
+import hashlib
+import json
+import os
+import shutil
+import uuid
+from pathlib import Path
+from typing import Sequence
+
+from lakegate.lake import paths
+from lakegate.lake.config import Config, load_config
+
+_PREFIX = "v"
+MANIFEST = "manifest.json"
+
+
+class BranchConfigs:
+    """The config versions of one branch of a lake."""
+
+    def __init__(self, lake: Path, branch: str):
+        self.lake = Path(lake)
+        self.branch = branch
+        self.root = paths.configs_dir(self.lake, branch)
+
+    def versions(self) -> list[int]:
+        """Every stored version number, oldest first."""
+        if not self.root.is_dir():
+            return []
+        found = []
+        for entry in self.root.iterdir():
+            number = entry.name[len(_PREFIX):]
+            if entry.name.startswith(_PREFIX) and number.isdigit() and (entry / MANIFEST).is_file():
+                found.append(int(number))
+        return sorted(found)
+
+    def current_version(self) -> int | None:
+        versions = self.versions()
+        return versions[-1] if versions else None
+
+    def current(self) -> Config | None:
+        """The newest stored config, or None when the branch has none."""
+        version = self.current_version()
+        return None if version is None else self.load(version)
+
+    def files(self, version: int) -> list[Path]:
+        """The stored source files of `version`, in merge order."""
+        directory = self._dir(version)
+        manifest = json.loads((directory / MANIFEST).read_text())
+        return [directory / name for name in manifest["files"]]
+
+    def load(self, version: int) -> Config:
+        """The config of `version` (KeyError if there is no such version)."""
+        if not (self._dir(version) / MANIFEST).is_file():
+            raise KeyError(f"branch {self.branch!r} has no config version {version}")
+        return load_config(self.files(version))
+
+    def store(self, sources: Sequence[str | Path]) -> int:
+        """Store config source files as a new version and return its number.
+
+        If the newest version has the same files (same contents, same order), its number is
+        returned and nothing is stored.
+        """
+        contents = [(Path(p).name, Path(p).read_bytes()) for p in sources]
+        if not contents:
+            raise ValueError("a config version needs at least one file")
+        digest = _digest(contents)
+        latest = self.current_version()
+        if latest is not None and self._manifest(latest).get("sha256") == digest:
+            return latest
+        self.root.mkdir(parents=True, exist_ok=True)
+        scratch = self.root / f"_new-{os.getpid()}-{uuid.uuid4().hex}"
+        scratch.mkdir()
+        try:
+            names = [f"{i:02d}-{name}" for i, (name, _) in enumerate(contents)]
+            for name, (_, data) in zip(names, contents):
+                (scratch / name).write_bytes(data)
+            manifest = {
+                "files": names,
+                "sources": [str(Path(p).resolve()) for p in sources],
+                "sha256": digest,
+                "stored_at": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
+            }
+            (scratch / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
+            number = (latest or 0) + 1
+            while True:
+                try:
+                    os.rename(scratch, self._dir(number))
+                    return number
+                except OSError:
+                    if not self._dir(number).exists():
+                        raise
+                    if self._manifest(number).get("sha256") == digest and number == self.current_version():
+                        return number  # another writer stored the same config just now
+                    number += 1
+        finally:
+            shutil.rmtree(scratch, ignore_errors=True)
+
+    def store_config(self, config: Config) -> int:
+        """Store `config` by its source files, or (when built in memory) as YAML of its topics."""
+        if config.paths and all(Path(p).is_file() for p in config.paths):
+            return self.store(config.paths)
+        self.root.mkdir(parents=True, exist_ok=True)
+        generated = self.root / f"_gen-{os.getpid()}-{uuid.uuid4().hex}" / "config.resim.yaml"
+        generated.parent.mkdir()
+        try:
+            generated.write_text(topics_yaml(config))
+            return self.store([generated])
+        finally:
+            shutil.rmtree(generated.parent, ignore_errors=True)
+
+    def _dir(self, version: int) -> Path:
+        return self.root / f"{_PREFIX}{version:06d}"
+
+    def _manifest(self, version: int) -> dict:
+        try:
+            return json.loads((self._dir(version) / MANIFEST).read_text())
+        except (OSError, ValueError):
+            return {}
+
+
+def _digest(contents: list[tuple[str, bytes]]) -> str:
+    digest = hashlib.sha256()
+    for _, data in contents:
+        digest.update(len(data).to_bytes(8, "big"))
+        digest.update(data)
+    return digest.hexdigest()
+
+
+def topics_yaml(config: Config) -> str:
+    """A config file declaring just the topics of `config` (for configs built in code)."""
+    lines = ["# generated by lakegate from a config built in code: topics only", "version: 1", "topics:"]
+    if not config.topics:
+        lines[-1] = "topics: {}"
+    for topic in config.topics.values():
+        lines.append(f"  {json.dumps(topic.name)}:")
+        if topic.event:
+            lines.append("    event: true")
+        schema = ", ".join(f"{json.dumps(name)}: {json.dumps(kind)}" for name, kind in topic.fields.items())
+        lines.append(f"    schema: {{{schema}}}")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,137 @@
+"""Lake layout: branch-name encoding, id checks, atomic publish, staging and locks."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import duckdb
+import pyarrow as pa
+import pyarrow.parquet as pq
+import pytest
+
+from lakegate.lake import paths
+
+HOSTILE = [
+    "main", "feature/x", "feature/x/y", "..", ".", "...", ".hidden", "_staging", "_configs", "a b", "ünïcödé/枝",
+    "a%2Fb", "%", "a=b", "*", "a?b", "[x]", "{a,b}", "back\\slash", "quote'\"", "tab\tnew\nline", "emoji 🚀",
+    "-dash", "UPPER", "x" * 70, "nul\x00byte", "C:\\path", "~user", "$HOME", "a;rm -rf /",
+]
+
+
+@pytest.mark.parametrize("name", HOSTILE)
+def test_branch_names_encode_to_one_safe_segment_and_back(name, tmp_path):
+    segment = paths.encode_branch(name)
+    assert paths.decode_branch(segment) == name
+    assert "/" not in segment and "\\" not in segment and "\x00" not in segment
+    assert segment not in (".", "..") and not segment.startswith((".", "_"))
+    assert not set(segment) & set("*?[]{}=")
+    # it is really one directory that DuckDB's glob finds again
+    directory = tmp_path / segment
+    directory.mkdir()
+    assert [p.name for p in tmp_path.iterdir()] == [segment]
+
+
+def test_branch_encoding_is_injective_on_lookalikes():
+    names = ["a/b", "a%2Fb", "a%252Fb", "a_b", "_a", "%5Fa", ".a", "%2Ea"]
+    assert len({paths.encode_branch(n) for n in names}) == len(names)
+
+
+@pytest.mark.parametrize("segment", ["", "a/b", "..", "%2", "%zz", "a b", "%5Fa%", "_x", ".x", "%61"])
+def test_decode_refuses_what_encode_never_makes(segment):
+    with pytest.raises(paths.LakePathError):
+        paths.decode_branch(segment)
+
+
+def test_branch_name_errors():
+    with pytest.raises(paths.LakePathError, match="non-empty"):
+        paths.encode_branch("")
+    with pytest.raises(paths.LakePathError, match="too long"):
+        paths.encode_branch("é" * 200)
+
+
+@pytest.mark.parametrize("value, fragment", [
+    ("", "non-empty"), (".", "not allowed"), ("..", "not allowed"), ("a/b", "'/'"), ("a*", "glob character '\\*'"),
+    ("a?", "glob"), ("[a]", "glob"), ("{a}", "glob"), ("a=b", "'='"), ("a%20b", "'%'"), ("a\\b", "'\\\\'"),
+    ("a\nb", "control character"), ("__HIVE_DEFAULT_PARTITION__", "reserved"),
+])
+def test_bad_ids_are_refused_with_a_clear_message(value, fragment):
+    with pytest.raises(paths.LakePathError, match=fragment) as caught:
+        paths.check_segment(value, "batch id")
+    assert "batch id" in str(caught.value)
+
+
+@pytest.mark.parametrize("value", ["b1", "0f8c2a1e-1111-4c4c-9d9d-123456789abc", "it's", "a b", "ünï", "007", "NULL", "x:y"])
+def test_ids_that_are_allowed_read_back_exactly_as_hive_partitions(value, tmp_path):
+    target = paths.data_file(tmp_path, "main", "t", value, value)
+    target.parent.mkdir(parents=True)
+    pq.write_table(pa.table({"v": [1]}), target)
+    glob = paths.table_glob(tmp_path, "main", "t").replace("'", "''")
+    row = duckdb.connect().execute(f"SELECT batch_id, job_id FROM read_parquet('{glob}', hive_partitioning = true, "
+                                   "hive_types = {'batch_id': VARCHAR, 'job_id': VARCHAR})").fetchone()
+    assert row == (value, value)
+
+
+def test_table_names_that_would_collide_are_refused():
+    for name in ("metadata", "events", "_x", ".x", "a=b", "a*b"):
+        with pytest.raises(paths.LakePathError):
+            paths.check_table_name(name)
+    assert paths.check_table_name("odom_linear_velocity") == "odom_linear_velocity"
+
+
+def test_layout(tmp_path):
+    assert paths.data_file(tmp_path, "feature/x", "odom", "b1", "j1") == \
+        tmp_path / "feature%2Fx" / "odom" / "batch_id=b1" / "job_id=j1" / "data.parquet"
+    assert paths.table_glob(tmp_path, "main", "odom") == str(tmp_path / "main" / "odom" / "batch_id=*" / "job_id=*" / "*.parquet")
+    assert paths.quarantine_file(tmp_path, "main", "b1", "j1") == tmp_path / "main" / "_quarantine" / "b1" / "j1.jsonl"
+
+
+def test_publish_replaces_atomically_and_remove_cleans_empty_partitions(tmp_path):
+    target = paths.data_file(tmp_path, "main", "t", "b", "j")
+    first = tmp_path / "first"
+    first.write_text("one")
+    paths.publish(first, target)
+    second = tmp_path / "second"
+    second.write_text("two")
+    paths.publish(second, target)
+    assert target.read_text() == "two" and not first.exists() and not second.exists()
+    paths.remove_published(target)
+    assert not (tmp_path / "main" / "t" / "batch_id=b").exists()
+    assert (tmp_path / "main" / "t").is_dir()
+    paths.remove_published(target)  # already gone: no error
+
+
+def test_staging_is_removed_afterwards_and_abandoned_scratch_is_cleaned(tmp_path):
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
+    abandoned = paths.branch_dir(tmp_path, "main") / paths.STAGING / f"{dead.stdout.strip()}-0123"
+    abandoned.mkdir(parents=True)
+    (abandoned / "half.parquet").write_bytes(b"PAR1")
+    alive = paths.branch_dir(tmp_path, "main") / paths.STAGING / f"{os.getpid()}-other"
+    alive.mkdir()
+    with paths.staging(tmp_path, "main") as scratch:
+        assert scratch.is_dir() and scratch.parent.name == paths.STAGING
+        assert not abandoned.exists()
+        assert alive.exists()  # our own process is alive: not touched
+    assert not scratch.exists()
+    # nothing staged is ever matched by a table glob
+    assert not list(Path(tmp_path).glob("main/*/batch_id=*/job_id=*/*.parquet"))
+
+
+def test_job_lock_serialises_writers_of_one_job(tmp_path):
+    script = (
+        "import sys, time; from pathlib import Path; from lakegate.lake import paths\n"
+        "with paths.job_lock(Path(sys.argv[1]), 'main', 'b', 'j'):\n"
+        "    print('locked', flush=True); time.sleep(1.0)\n"
+    )
+    holder = subprocess.Popen([sys.executable, "-c", script, str(tmp_path)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "locked"
+        waiter = subprocess.run(
+            [sys.executable, "-c", "import sys, time; from pathlib import Path; from lakegate.lake import paths\n"
+             "start = time.monotonic()\n"
+             "with paths.job_lock(Path(sys.argv[1]), 'main', 'b', 'j'): print(time.monotonic() - start)",
+             str(tmp_path)], capture_output=True, text=True, check=True)
+        assert float(waiter.stdout) > 0.3  # it had to wait for the holder
+    finally:
+        holder.wait()

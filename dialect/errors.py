@@ -1,6 +1,8 @@
 """The one error type of the dialect layer, carrying Trino's error name and the SQL position."""
 from __future__ import annotations
 
+import re
+
 #: Trino's standard error codes (io.trino.spi.StandardErrorCode) for the names this layer raises.
 ERROR_CODES = {
     "GENERIC_USER_ERROR": 0,
@@ -12,12 +14,27 @@ ERROR_CODES = {
     "DIVISION_BY_ZERO": 8,
     "INVALID_CAST_ARGUMENT": 9,
     "NOT_SUPPORTED": 13,
-    "INVALID_PARAMETER_USAGE": 23,
+    "NUMERIC_VALUE_OUT_OF_RANGE": 19,
+    "SUBQUERY_MULTIPLE_ROWS": 28,
+    "QUERY_TEXT_TOO_LARGE": 35,
     "SCHEMA_NOT_FOUND": 45,
     "TABLE_NOT_FOUND": 46,
     "COLUMN_NOT_FOUND": 47,
-    "AMBIGUOUS_NAME": 48,
+    "DUPLICATE_NAMED_QUERY": 53,
     "TYPE_MISMATCH": 58,
+    "INVALID_LITERAL": 59,
+    "MISMATCHED_COLUMN_ALIASES": 61,
+    "AMBIGUOUS_NAME": 62,
+    "INVALID_COLUMN_REFERENCE": 63,
+    "MISSING_OVER": 66,
+    "FUNCTION_NOT_WINDOW": 71,
+    "FUNCTION_NOT_AGGREGATE": 72,
+    "EXPRESSION_NOT_AGGREGATE": 73,
+    "INVALID_PARAMETER_USAGE": 80,
+    "NULL_TREATMENT_NOT_ALLOWED": 83,
+    "USER_CANCELED": 3,
+    "GENERIC_INTERNAL_ERROR": 65536,
+    "EXCEEDED_GLOBAL_MEMORY_LIMIT": 131073,
 }
 
 
@@ -41,3 +58,33 @@ class DialectError(ValueError):
     @property
     def error_code(self) -> int:
         return ERROR_CODES.get(self.error_name, 0)
+
+
+#: Run-time failures of translated SQL, recognised by DuckDB's message text (the translation raises
+#: Trino's own messages with DuckDB's error()), mapped to Trino error names.
+_RUNTIME = (
+    ("Division by zero", "DIVISION_BY_ZERO"),
+    ("Array subscript", "INVALID_FUNCTION_ARGUMENT"),
+    ("SQL array indices start at 1", "INVALID_FUNCTION_ARGUMENT"),
+    ("Cannot cast ", "INVALID_CAST_ARGUMENT"),
+    ("out of range", "NUMERIC_VALUE_OUT_OF_RANGE"),
+    ("Conversion Error", "INVALID_CAST_ARGUMENT"),
+    ("Out of Range Error", "NUMERIC_VALUE_OUT_OF_RANGE"),
+    ("Overflow", "NUMERIC_VALUE_OUT_OF_RANGE"),
+    ("More than one row returned by a subquery", "SUBQUERY_MULTIPLE_ROWS"),
+    ("Invalid Input Error", "INVALID_FUNCTION_ARGUMENT"),
+)
+
+
+def runtime_error(message: str) -> DialectError:
+    """The DialectError for a DuckDB error raised while running translated SQL: Trino's error name
+    and message (DuckDB's 'Invalid Input Error: ' prefix removed). No position: Trino reports none
+    for run-time failures either."""
+    first = message.strip().splitlines()[0] if message.strip() else message
+    named = re.match(r"(?:[A-Za-z ]+ Error: )?([A-Z][A-Z_]+): (.*)", first)
+    if named and named.group(1) in ERROR_CODES:
+        return DialectError(named.group(2), error_name=named.group(1))
+    name = next((n for marker, n in _RUNTIME if marker in first), "GENERIC_USER_ERROR")
+    text = first.split(": ", 1)[1] if first.startswith(("Invalid Input Error: ", "Conversion Error: ",
+                                                          "Out of Range Error: ")) else first
+    return DialectError(text, error_name=name)

@@ -1,0 +1,1180 @@
+"""Name resolution and Trino type inference over a parsed Trino query.
+
+`analyze(tree, schema, sql)` walks the whole tree once: it resolves every table and column
+against the schema (CTEs, derived tables, VALUES, UNNEST, joins, correlated subqueries, lambda
+parameters), expands `*`, computes the Trino type of every expression (stored in `node.meta["t"]`)
+and the output columns of every query, and rejects what Trino would reject (unknown names, type
+mismatches) or what lakegate cannot answer identically (unsupported syntax and functions), always
+with the position in the original SQL text. The generator in `translate.py` then reads the types.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from typing import Callable, NoReturn
+
+from sqlglot import exp
+
+from lakegate.dialect import trino_types as tt
+from lakegate.dialect.errors import DialectError
+from lakegate.dialect.trino_types import TType
+
+#: Output column of a query: (Trino name or None when anonymous, name in the DuckDB SQL, type).
+OutCol = tuple["str | None", str, TType]
+
+
+def position(node: exp.Expression, sql: str) -> tuple[int | None, int | None]:
+    """1-based (line, column) of `node` in the original SQL text, from the token offsets sqlglot
+    keeps on identifiers, literals and function names (the leftmost one inside `node`)."""
+    start = None
+    for sub in node.walk():
+        meta = sub._meta
+        if meta and "start" in meta and (start is None or meta["start"] < start):
+            start = meta["start"]
+    if start is None:
+        parent = node.parent
+        return position(parent, sql) if parent is not None else (None, None)
+    line = sql.count("\n", 0, start) + 1
+    return line, start - (sql.rfind("\n", 0, start) + 1) + 1
+
+
+@dataclass
+class Source:
+    """One relation in a FROM clause: its qualifier in the DuckDB SQL and its columns."""
+
+    name: str | None                     # Trino name to qualify with (alias or table name), lower case
+    qualifier: str                       # identifier used in the DuckDB SQL
+    columns: list[OutCol]
+
+    def find(self, name: str) -> list[OutCol]:
+        return [c for c in self.columns if c[0] is not None and c[0].lower() == name]
+
+
+@dataclass
+class Scope:
+    """The names visible to an expression: FROM sources, then enclosing queries' (correlation)."""
+
+    sources: list[Source] = field(default_factory=list)
+    outer: "Scope | None" = None
+    ctes: dict[str, list[OutCol]] = field(default_factory=dict)
+    outputs: list[OutCol] | None = None   # select outputs, visible in ORDER BY
+
+    def cte(self, name: str) -> list[OutCol] | None:
+        scope: Scope | None = self
+        while scope is not None:
+            if name in scope.ctes:
+                return scope.ctes[name]
+            scope = scope.outer
+        return None
+
+
+def ttype(node: exp.Expression) -> TType:
+    """The Trino type the analysis attached to an expression."""
+    return node.meta["t"]
+
+
+def _set(node: exp.Expression, t: TType) -> TType:
+    node.meta["t"] = t
+    return t
+
+
+class Call:
+    """What a function's type rule sees: the call, its arguments and their types."""
+
+    def __init__(self, analyzer: "Analyzer", node: exp.Expression, name: str, args: list[exp.Expression],
+                 scope: Scope, env: dict[str, TType]):
+        self.analyzer, self.node, self.name, self.args = analyzer, node, name, args
+        self.scope, self.env = scope, env
+        self.types: list[TType | None] = [
+            None if isinstance(a, (exp.Lambda, exp.Star)) else analyzer.expr(a, scope, env) for a in args]
+
+    def lam(self, index: int, params: list[TType]) -> TType:
+        """Type the lambda at argument `index` with the given parameter types; its body's type."""
+        node = self.args[index] if index < len(self.args) else None
+        if not isinstance(node, exp.Lambda):
+            self.mismatch()
+        names = [p.name.lower() for p in node.expressions]
+        if len(names) != len(params):
+            self.fail(f"Expected a lambda that takes {len(params)} argument(s) but got {len(names)}")
+        node.meta["params"] = dict(zip(names, params))
+        return _set(node, self.analyzer.expr(node.this, self.scope, {**self.env, **dict(zip(names, params))}))
+
+    def fail(self, message: str, error_name: str = "TYPE_MISMATCH") -> NoReturn:
+        self.analyzer.fail(message, self.node, error_name)
+
+    def mismatch(self) -> NoReturn:
+        types = ", ".join("function" if t is None else str(t) for t in self.types)
+        self.fail(f"Unexpected parameters ({types}) for function {self.name}", "FUNCTION_NOT_FOUND")
+
+    def literal(self, index: int) -> exp.Literal | None:
+        """The argument at `index` when it is a literal (a parameter bound as a literal counts)."""
+        node = self.args[index]
+        while isinstance(node, exp.Paren):
+            node = node.this
+        if isinstance(node, exp.Neg) and isinstance(node.this, exp.Literal) and not node.this.is_string:
+            return exp.Literal.number("-" + node.this.name)
+        return node if isinstance(node, exp.Literal) else None
+
+
+_COMPARISONS = (exp.EQ, exp.NEQ, exp.GT, exp.GTE, exp.LT, exp.LTE, exp.NullSafeEQ, exp.NullSafeNEQ)
+_ARITHMETIC = {exp.Add: "+", exp.Sub: "-", exp.Mul: "*", exp.Div: "/", exp.Mod: "%"}
+_UNORDERABLE = ("json", "map", "varbinary", "unknown")
+
+
+class Analyzer:
+    """One analysis of one statement (not reused: it keeps the SQL text and a counter)."""
+
+    def __init__(self, schema: dict[str, list[tuple[str, TType]]], sql: str):
+        from lakegate.dialect import functions  # the registry types its calls through Call
+        self.functions = functions
+        self.schema = schema
+        self.sql = sql
+        self._alias_counter = 0
+
+    # --- errors ---------------------------------------------------------------------------------
+    def fail(self, message: str, node: exp.Expression, error_name: str = "NOT_SUPPORTED") -> NoReturn:
+        line, column = position(node, self.sql)
+        raise DialectError(message, line=line, column=column, error_name=error_name)
+
+    def unsupported(self, what: str, node: exp.Expression) -> NoReturn:
+        self.fail(f"unsupported in lakegate: {what}", node, "NOT_SUPPORTED")
+
+    def fresh_alias(self) -> str:
+        self._alias_counter += 1
+        return f"_q{self._alias_counter}"
+
+    # --- queries --------------------------------------------------------------------------------
+    def query(self, node: exp.Expression, outer: Scope | None) -> list[OutCol]:
+        """Analyze a query (SELECT, set operation, VALUES, parenthesized query); its output columns."""
+        if isinstance(node, exp.Subquery) and not node.alias:
+            cols = self.query(node.this, outer)
+            self._modifiers(node, cols, outer)
+            return cols
+        if isinstance(node, exp.Select):
+            return self.select(node, outer)
+        if isinstance(node, exp.SetOperation):
+            return self.set_operation(node, outer)
+        if isinstance(node, exp.Values):
+            return self.values(node, outer)
+        self.unsupported(f"statement {node.key.upper()}", node)
+
+    def _with(self, node: exp.Expression, outer: Scope | None) -> Scope:
+        scope = Scope(outer=outer)
+        with_ = node.args.get("with_")
+        if with_ is not None:
+            if with_.args.get("recursive"):
+                self.unsupported("WITH RECURSIVE", with_)
+            for cte in with_.expressions:
+                cols = self.query(cte.this, scope)
+                names = [c.name for c in cte.args["alias"].columns] if cte.args["alias"].columns else None
+                if names:
+                    if len(names) != len(cols):
+                        self.fail(f"WITH query name {cte.alias} specifies {len(names)} column names, "
+                                  f"but the query has {len(cols)}", cte, "MISMATCHED_COLUMN_ALIASES")
+                    cols = [(_ident_name(i), _ident_name(i), c[2]) for i, c in zip(cte.args["alias"].columns, cols)]
+                scope.ctes[cte.alias.lower()] = cols
+        return scope
+
+    def select(self, node: exp.Select, outer: Scope | None) -> list[OutCol]:
+        for key in ("qualify", "laterals", "connect", "pivots", "prewhere", "sample", "distribute", "sort",
+                    "cluster", "into", "locks", "settings", "format", "options", "match", "exclude", "for_"):
+            if node.args.get(key):
+                self.unsupported(key.upper().rstrip("_"), node.args[key] if isinstance(node.args[key], exp.Expression) else node)
+        scope = self._with(node, outer)
+        from_ = node.args.get("from_")
+        if from_ is not None:
+            self.relation(from_.this, scope)
+        for join in node.args.get("joins") or []:
+            self.join(join, scope)
+        where = node.args.get("where")
+        if where is not None:
+            self.condition(where.this, scope, "WHERE")
+        outputs = self.projection(node, scope)
+        group = node.args.get("group")
+        if group is not None:
+            self.group(group, node, scope)
+        having = node.args.get("having")
+        if having is not None:
+            self.condition(having.this, scope, "HAVING")
+        for window in node.args.get("windows") or []:
+            self.unsupported("named WINDOW clause", window)
+        distinct = node.args.get("distinct")
+        if distinct is not None and distinct.args.get("on"):
+            self.unsupported("DISTINCT ON", distinct)
+        node.meta["outputs"] = outputs
+        self._modifiers(node, outputs, scope)
+        self.check_grouping(node, scope)
+        return outputs
+
+    def check_grouping(self, node: exp.Select, scope: Scope) -> None:
+        """In an aggregation, every column outside an aggregate must be a GROUP BY key, as Trino
+        requires (DuckDB would say so too, but not in Trino's words)."""
+        group = node.args.get("group")
+        having = node.args.get("having")
+        items = [i.this if isinstance(i, exp.Alias) else i for i in node.expressions]
+        checked = items + ([having.this] if having is not None else [])
+        if group is None and not any(self._aggregate_inside(i) for i in checked):
+            return
+        keys = []
+        for key in (group.expressions if group is not None else []):
+            if isinstance(key, exp.Literal) and not key.is_string:
+                keys.append(items[int(key.name) - 1])
+            else:
+                keys.append(key)
+        qualifiers = {s.qualifier for s in scope.sources}
+        for item in checked:
+            self._grouped(item, keys, qualifiers)
+
+    def _aggregate_inside(self, node: exp.Expression) -> bool:
+        if isinstance(node, (exp.Subquery, exp.Exists, exp.Window)):
+            return False
+        spec = node.meta.get("spec") if isinstance(node, exp.Anonymous) and node._meta else None
+        if spec is not None and spec.kind == "aggregate":
+            return True
+        return any(self._aggregate_inside(child) for child in node.iter_expressions())
+
+    def _grouped(self, node: exp.Expression, keys: list, qualifiers: set) -> None:
+        if any(node == key for key in keys):
+            return
+        if isinstance(node, exp.Anonymous) and node._meta and node.meta.get("spec") is not None \
+                and node.meta["spec"].kind != "scalar":
+            return
+        if isinstance(node, (exp.Window, exp.Subquery, exp.Exists, exp.Lambda, exp.Filter)):
+            return
+        if isinstance(node, exp.Column) and node._meta and node.meta.get("ref") is not None:
+            if node.meta["ref"][0] in qualifiers and not node.meta.get("lambda"):
+                self.fail(f"'{node.sql(dialect='trino')}' must be an aggregate expression or appear in GROUP BY clause",
+                          node, "EXPRESSION_NOT_AGGREGATE")
+            return
+        for child in node.iter_expressions():
+            self._grouped(child, keys, qualifiers)
+
+    def _modifiers(self, node: exp.Expression, outputs: list[OutCol], scope: Scope | None) -> None:
+        order = node.args.get("order")
+        if order is not None:
+            order_scope = scope if scope is not None else Scope()
+            order_scope = Scope(order_scope.sources, order_scope.outer, order_scope.ctes, outputs)
+            for ordered in order.expressions:
+                self.order_item(ordered, outputs, order_scope)
+        for key in ("limit", "offset"):
+            clause = node.args.get(key)
+            if clause is None:
+                continue
+            if isinstance(clause, exp.Fetch):
+                count = clause.args.get("count")
+                if clause.args.get("with_ties") or clause.args.get("percent"):
+                    self.unsupported("FETCH ... WITH TIES", clause)
+            else:
+                count = clause.expression
+            if count is not None and not (isinstance(count, exp.Literal) and not count.is_string
+                                          and count.name.isdigit()):
+                if not (isinstance(count, exp.Var) and count.name.upper() == "ALL"):
+                    self.fail(f"{key.upper()} must be a non-negative integer literal", clause, "TYPE_MISMATCH")
+
+    def order_item(self, ordered: exp.Ordered, outputs: list[OutCol], scope: Scope) -> None:
+        target = ordered.this
+        if isinstance(target, exp.Literal) and not target.is_string:
+            index = int(target.name) if target.name.isdigit() else 0
+            if not 1 <= index <= len(outputs):
+                self.fail(f"ORDER BY position {target.name} is not in select list", target, "INVALID_COLUMN_REFERENCE")
+            t = outputs[index - 1][2]
+        else:
+            t = self.expr(target, scope, {})
+        if t.base in _UNORDERABLE:
+            self.fail(f"Type {t} is not orderable, and therefore cannot be used in ORDER BY", target, "TYPE_MISMATCH")
+
+    def projection(self, node: exp.Select, scope: Scope) -> list[OutCol]:
+        items: list[exp.Expression] = []
+        for item in node.expressions:
+            star = item if isinstance(item, exp.Star) else (
+                item if isinstance(item, exp.Column) and isinstance(item.this, exp.Star) else None)
+            if star is None:
+                items.append(item)
+                continue
+            items.extend(self.expand_star(star, scope))
+        node.set("expressions", items)
+        outputs = []
+        for index, item in enumerate(items):
+            target = item.this if isinstance(item, exp.Alias) else item
+            t = self.expr(target, scope, {})
+            if isinstance(item, exp.Alias):
+                name = _ident_name(item.args["alias"])
+            elif isinstance(item, exp.Column):
+                name = item.meta["ref"][1] if item.meta.get("resolved") else item.parts[-1].name
+            elif isinstance(item, exp.Dot):
+                name = item.name
+            else:
+                name = None
+            outputs.append((name, name if name is not None else f"_col{index}", t))
+            item.meta["t"] = t
+        return outputs
+
+    def expand_star(self, star: exp.Expression, scope: Scope) -> list[exp.Expression]:
+        if isinstance(star, exp.Column):
+            wanted = star.table.lower()
+            sources = [s for s in scope.sources if s.name == wanted]
+            if not sources:
+                self.fail(f"Table '{star.table}' not found in FROM clause", star, "TABLE_NOT_FOUND")
+        else:
+            if star.args.get("except_") or star.args.get("replace") or star.args.get("rename"):
+                self.unsupported("SELECT * EXCEPT / REPLACE", star)
+            sources = scope.sources
+            if not sources:
+                self.fail("SELECT * not allowed in queries without FROM clause", star, "COLUMN_NOT_FOUND")
+        expanded: list[exp.Expression] = []
+        for source in sources:
+            for col in source.columns:
+                ref = exp.column(exp.to_identifier(col[1], quoted=True), table=exp.to_identifier(source.qualifier, quoted=True))
+                alias = f"_col{len(expanded)}" if col[0] is None else col[0]
+                expanded.append(exp.Alias(this=ref, alias=exp.to_identifier(alias, quoted=True)))
+                ref.meta["ref"] = (source.qualifier, col[1], ())
+                _set(ref, col[2])
+                ref.meta["resolved"] = True
+        return expanded
+
+    def group(self, group: exp.Group, select: exp.Select, scope: Scope) -> None:
+        if group.args.get("all"):
+            self.unsupported("GROUP BY ALL", group)
+        for key in ("grouping_sets", "cube", "rollup", "totals"):
+            for item in group.args.get(key) or []:
+                self.unsupported(f"GROUP BY {key.upper().replace('_', ' ')}", item if isinstance(item, exp.Expression) else group)
+        for item in group.expressions:
+            if isinstance(item, (exp.Rollup, exp.Cube, exp.GroupingSets)):
+                self.unsupported(f"GROUP BY {item.key.upper()}", item)
+            if isinstance(item, exp.Literal) and not item.is_string:
+                index = int(item.name) if item.name.isdigit() else 0
+                if not 1 <= index <= len(select.expressions):
+                    self.fail(f"GROUP BY position {item.name} is not in select list", item, "INVALID_COLUMN_REFERENCE")
+                continue
+            self.expr(item, scope, {})
+
+    def condition(self, node: exp.Expression, scope: Scope, clause: str) -> None:
+        t = self.expr(node, scope, {})
+        if t.base not in ("boolean", "unknown"):
+            self.fail(f"{clause} clause must evaluate to a boolean: actual type {t}", node, "TYPE_MISMATCH")
+
+    def set_operation(self, node: exp.SetOperation, outer: Scope | None) -> list[OutCol]:
+        scope = self._with(node, outer)
+        branches = []
+        for branch in (node.this, node.expression):
+            branches.append(self.query(branch, scope))
+        left, right = branches
+        if len(left) != len(right):
+            self.fail(f"{node.key.upper()} query has different number of fields: {len(left)}, {len(right)}", node,
+                      "TYPE_MISMATCH")
+        outputs = []
+        for index, (a, b) in enumerate(zip(left, right)):
+            common = tt.common_super_type(a[2], b[2])
+            if common is None:
+                self.fail(f"column {index + 1} in {node.key.upper()} query has incompatible types: {a[2]}, {b[2]}",
+                          node, "TYPE_MISMATCH")
+            outputs.append((a[0], a[1], common))
+        if node.args.get("distinct") or isinstance(node, (exp.Intersect, exp.Except)):
+            for col in outputs:
+                if col[2].base in _UNORDERABLE[:3]:
+                    self.fail(f"Type {col[2]} is not comparable, and therefore cannot be used in {node.key.upper()}",
+                              node, "TYPE_MISMATCH")
+        node.meta["outputs"] = outputs
+        self._modifiers(node, outputs, Scope(outer=scope))
+        return outputs
+
+    def values(self, node: exp.Values, outer: Scope | None) -> list[OutCol]:
+        scope = Scope(outer=outer)
+        rows = []
+        for row in node.expressions:
+            cells = row.expressions if isinstance(row, exp.Tuple) else [row]
+            rows.append([self.expr(c, scope, {}) for c in cells])
+        width = len(rows[0])
+        if any(len(r) != width for r in rows):
+            self.fail("Values rows have mismatched sizes", node, "TYPE_MISMATCH")
+        types = []
+        for index in range(width):
+            common = tt.common_super_type_of([r[index] for r in rows])
+            if common is None:
+                self.fail(f"Values rows have mismatched types: {', '.join(str(r[index]) for r in rows)}", node,
+                          "TYPE_MISMATCH")
+            types.append(common)
+        node.meta["types"] = types
+        return [(None, f"_col{i}", t) for i, t in enumerate(types)]
+
+    # --- FROM -----------------------------------------------------------------------------------
+    def relation(self, node: exp.Expression, scope: Scope, lateral_scope: Scope | None = None) -> None:
+        """Add the relation `node` (table, derived table, VALUES, UNNEST) to `scope.sources`."""
+        alias = node.args.get("alias")
+        alias_name = alias.name.lower() if alias is not None and alias.name else None
+        column_names = [_ident_name(c) for c in alias.columns] if alias is not None and alias.columns else None
+        if isinstance(node, exp.Table):
+            if isinstance(node.this, (exp.Anonymous, exp.Func)):
+                self.unsupported(f"table function '{node.this.name if isinstance(node.this, exp.Anonymous) else node.this.key}'", node)
+            if node.args.get("joins") or node.args.get("pivots") or node.args.get("sample"):
+                self.unsupported("table sampling or pivot", node)
+            name = node.name.lower()
+            parts = [p.name.lower() for p in (node.args.get("catalog"), node.args.get("db")) if p is not None]
+            cte = scope.cte(name) if not parts else None
+            if cte is not None:
+                cols = cte
+            else:
+                key = ".".join(parts + [name])
+                if key not in self.schema:
+                    self.fail(f"Table '{key}' does not exist", node, "TABLE_NOT_FOUND")
+                cols = [(c, c, t) for c, t in self.schema[key]]
+            qualifier = alias_name or name
+            if alias is None:
+                node.set("alias", exp.TableAlias(this=exp.to_identifier(qualifier, quoted=True)))
+        elif isinstance(node, exp.Subquery):
+            cols = self.query(node.this, lateral_scope or scope.outer)
+            self._modifiers(node, cols, scope)
+            qualifier = alias_name or self.fresh_alias()
+            if alias is None:
+                node.set("alias", exp.TableAlias(this=exp.to_identifier(qualifier, quoted=True)))
+        elif isinstance(node, exp.Values):
+            cols = self.values(node, lateral_scope or scope.outer)
+            qualifier = alias_name or self.fresh_alias()
+            if alias is None or not alias.columns:
+                node.set("alias", exp.TableAlias(this=exp.to_identifier(qualifier, quoted=True),
+                                                  columns=[exp.to_identifier(c[1], quoted=True) for c in cols]))
+        elif isinstance(node, exp.Unnest):
+            cols = self.unnest(node, scope, column_names)
+            qualifier = alias_name or self.fresh_alias()
+            node.meta["qualifier"] = qualifier
+            column_names = None
+        elif isinstance(node, exp.Lateral):
+            if not isinstance(node.this, exp.Subquery):
+                self.unsupported("LATERAL", node)
+            cols = self.query(node.this.this, scope)
+            qualifier = alias_name or self.fresh_alias()
+            if alias is None:
+                node.set("alias", exp.TableAlias(this=exp.to_identifier(qualifier, quoted=True)))
+        else:
+            self.unsupported(f"FROM item {node.key.upper()}", node)
+        if column_names is not None:
+            if len(column_names) != len(cols):
+                self.fail(f"Column alias list has {len(column_names)} entries but '{qualifier}' has {len(cols)} columns "
+                          "available", alias, "MISMATCHED_COLUMN_ALIASES")
+            cols = [(n, n, c[2]) for n, c in zip(column_names, cols)]
+        source = Source(alias_name or (node.name.lower() if isinstance(node, exp.Table) else None), qualifier, cols)
+        if any(s.name is not None and s.name == source.name for s in scope.sources):
+            self.fail(f"Duplicate relation name '{source.name}' in FROM clause", node, "DUPLICATE_NAMED_QUERY")
+        scope.sources.append(source)
+
+    def unnest(self, node: exp.Unnest, scope: Scope, names: list[str] | None) -> list[OutCol]:
+        lateral = Scope(scope.sources, scope.outer, scope.ctes)
+        offset = node.args.get("offset")
+        if isinstance(offset, exp.Identifier) and names is not None:
+            names = names + [_ident_name(offset)]
+        cols: list[OutCol] = []
+        element_columns = []
+        for arg in node.expressions:
+            t = self.expr(arg, lateral, {})
+            if t.base == "array":
+                element = t.element
+                if element.base == "row":
+                    fields = [(n, f) for n, f in element.args]
+                    element_columns.append(fields)
+                    cols.extend((n, n or "", f) for n, f in fields)
+                else:
+                    element_columns.append([(None, element)])
+                    cols.append((None, "", element))
+            elif t.base == "map":
+                element_columns.append([(None, t.args[0]), (None, t.args[1])])
+                cols.extend([(None, "", t.args[0]), (None, "", t.args[1])])
+            else:
+                self.fail(f"Cannot unnest type: {t}", arg, "TYPE_MISMATCH")
+        if node.args.get("offset"):
+            cols.append((None, "", tt.BIGINT))
+        if names is not None:
+            if len(names) != len(cols):
+                self.fail(f"Column alias list has {len(names)} entries but UNNEST has {len(cols)} columns available",
+                          node.args["alias"], "MISMATCHED_COLUMN_ALIASES")
+            cols = [(n, n, c[2]) for n, c in zip(names, cols)]
+        else:
+            cols = [(c[0], c[0] or f"_col{i}", c[2]) for i, c in enumerate(cols)]
+        node.meta["elements"] = element_columns
+        node.meta["names"] = [c[1] for c in cols]
+        return cols
+
+    def join(self, join: exp.Join, scope: Scope) -> None:
+        kind = (join.args.get("kind") or "").upper()
+        if kind in ("SEMI", "ANTI", "ASOF", "POSITIONAL") or join.args.get("method") or join.args.get("match_condition"):
+            self.unsupported(f"{kind or join.args.get('method')} JOIN", join)
+        self.relation(join.this, scope, lateral_scope=scope if isinstance(join.this, (exp.Unnest, exp.Lateral)) else None)
+        on = join.args.get("on")
+        if on is not None:
+            self.condition(on, scope, "JOIN ON")
+        using = join.args.get("using")
+        if using:
+            left = scope.sources[:-1]
+            right = scope.sources[-1]
+            for ident in using:
+                name = ident.name.lower()
+                found_right = right.find(name)
+                found_left = [c for s in left for c in s.find(name)]
+                if not found_right or not found_left:
+                    self.fail(f"Column '{ident.name}' is missing from {'right' if not found_right else 'left'} side of join",
+                              ident, "COLUMN_NOT_FOUND")
+                if tt.common_super_type(found_left[0][2], found_right[0][2]) is None:
+                    self.fail(f"Column types of '{ident.name}' in USING do not match", ident, "TYPE_MISMATCH")
+
+    # --- expressions ----------------------------------------------------------------------------
+    def expr(self, node: exp.Expression, scope: Scope, env: dict[str, TType]) -> TType:
+        """The Trino type of expression `node` (stored on it), analyzing its children."""
+        handler = _HANDLERS.get(type(node))
+        if handler is None:
+            self.unsupported(_describe(node), node)
+        return _set(node, handler(self, node, scope, env))
+
+    def column(self, node: exp.Column, scope: Scope, env: dict[str, TType]) -> TType:
+        if node.meta.get("resolved"):
+            return ttype(node)
+        parts = [p.name for p in node.parts]
+        quoted = [p.quoted for p in node.parts]
+        lower = [p.lower() for p in parts]
+        # lambda parameter with field access: x.name
+        if lower[0] in env:
+            t = env[lower[0]]
+            node.meta["ref"] = (None, lower[0], ())
+            node.meta["lambda"] = True
+            return self._fields(node, t, parts[1:], quoted[1:])
+        if scope.outputs is not None and len(parts) == 1:
+            # ORDER BY sees the select's output names first
+            matches = [c for c in scope.outputs if c[0] is not None and c[0].lower() == lower[0]]
+            if len(matches) == 1:
+                node.meta["ref"] = (None, matches[0][1], ())
+                node.meta["output"] = True
+                return matches[0][2]
+        search: Scope | None = scope
+        while search is not None:
+            # [schema.]table.column[.field ...] or column[.field ...]: the longest qualifier wins
+            for split in range(min(len(parts) - 1, 2), -1, -1):
+                sources = [s for s in search.sources if s.name == lower[split - 1]] if split else search.sources
+                matches = [(s, c) for s in sources for c in s.find(lower[split])]
+                if len(matches) > 1:
+                    self.fail(f"Column '{parts[split]}' is ambiguous", node, "AMBIGUOUS_NAME")
+                if matches:
+                    source, col = matches[0]
+                    node.meta["ref"] = (source.qualifier, col[1], ())
+                    return self._fields(node, col[2], parts[split + 1:], quoted[split + 1:])
+            search = search.outer
+        self.fail(f"Column '{'.'.join(parts)}' cannot be resolved", node, "COLUMN_NOT_FOUND")
+
+    def _fields(self, node: exp.Expression, t: TType, fields: list[str], quoted: list[bool]) -> TType:
+        path = []
+        for name, q in zip(fields, quoted):
+            t, real = self.field(t, name, q, node)
+            path.append(real)
+        ref = node.meta["ref"]
+        node.meta["ref"] = (ref[0], ref[1], tuple(path))
+        return t
+
+    def field(self, t: TType, name: str, quoted: bool, node: exp.Expression) -> tuple[TType, str]:
+        if t.base != "row":
+            self.fail(f"Expression of type {t} is not a row; cannot dereference '{name}'", node, "TYPE_MISMATCH")
+        for field_name, field_type in t.args:
+            if field_name is not None and field_name.lower() == name.lower():
+                return field_type, field_name
+        self.fail(f"Column '{name}' cannot be resolved", node, "COLUMN_NOT_FOUND")
+
+    def function(self, node: exp.Anonymous, scope: Scope, env: dict[str, TType], window: bool = False) -> TType:
+        name = node.name.lower()
+        spec = self.functions.SUPPORTED.get(name)
+        if spec is None:
+            if name in self.functions.REJECTED:
+                self.fail(f"unsupported in lakegate: function '{name}': {self.functions.REJECTED[name]}", node,
+                          "NOT_SUPPORTED")
+            self.fail(f"Function '{name}' not registered", node, "FUNCTION_NOT_FOUND")
+        if spec.kind == "window" and not window:
+            self.fail(f"Window function {name} requires an OVER clause", node, "MISSING_OVER")
+        args = list(node.expressions)
+        if len(args) == 1 and isinstance(args[0], exp.Distinct):
+            if spec.kind != "aggregate":
+                self.fail(f"DISTINCT is not supported for non-aggregation functions", node, "FUNCTION_NOT_AGGREGATE")
+            node.meta["distinct"] = True
+            args = list(args[0].expressions)
+        if args and isinstance(args[0], exp.Order):
+            if spec.kind != "aggregate":
+                self.fail("ORDER BY is only allowed in aggregation functions", node, "FUNCTION_NOT_AGGREGATE")
+            order = args[0]
+            node.meta["order"] = order
+            args = [order.this] + args[1:]
+            for ordered in order.expressions:
+                self.expr(ordered.this, scope, env)
+        if any(isinstance(a, exp.Star) for a in args) and name != "count":
+            self.fail(f"'*' is only allowed in count(*)", node, "SYNTAX_ERROR")
+        node.meta["args"] = args
+        node.meta["spec"] = spec
+        return spec.infer(Call(self, node, name, args, scope, env))
+
+
+def _ident_name(ident: exp.Expression) -> str:
+    """Trino's output name for an identifier: as written, quoted or not (names are matched without
+    regard to case)."""
+    return ident.name
+
+
+def _describe(node: exp.Expression) -> str:
+    if isinstance(node, exp.Func):
+        return f"function '{node.sql_name().lower()}'"
+    return f"syntax {node.key.upper()}"
+
+
+# --- expression handlers ---------------------------------------------------------------------------
+Handler = Callable[[Analyzer, exp.Expression, Scope, dict], TType]
+_HANDLERS: dict[type, Handler] = {}
+
+
+def handles(*types: type) -> Callable[[Handler], Handler]:
+    def register(fn: Handler) -> Handler:
+        for t in types:
+            _HANDLERS[t] = fn
+        return fn
+    return register
+
+
+@handles(exp.Column)
+def _column(a: Analyzer, node, scope, env):
+    return a.column(node, scope, env)
+
+
+@handles(exp.Identifier)
+def _identifier(a: Analyzer, node, scope, env):
+    name = node.name.lower()
+    if name in env:
+        node.meta["lambda"] = True
+        return env[name]
+    column = exp.Column(this=node.copy())
+    node.replace(column)
+    return a.expr(column, scope, env)
+
+
+@handles(exp.Dot)
+def _dot(a: Analyzer, node, scope, env):
+    t = a.expr(node.this, scope, env)
+    if not isinstance(node.expression, exp.Identifier):
+        a.unsupported("dereference", node)
+    result, real = a.field(t, node.expression.name, node.expression.quoted, node)
+    node.meta["field"] = real
+    return result
+
+
+@handles(exp.Literal)
+def _literal(a: Analyzer, node: exp.Literal, scope, env):
+    text = node.name
+    if node.is_string:
+        return tt.varchar(len(text))
+    try:
+        if "e" in text.lower():
+            return tt.DOUBLE
+        if "." in text:
+            return tt.decimal_literal_type(text)
+        return tt.integer_literal_type(text)
+    except ValueError as error:
+        a.fail(str(error), node, "INVALID_LITERAL")
+
+
+@handles(exp.Null)
+def _null(a, node, scope, env):
+    return tt.UNKNOWN
+
+
+@handles(exp.Boolean)
+def _boolean(a, node, scope, env):
+    return tt.BOOLEAN
+
+
+@handles(exp.Paren)
+def _paren(a: Analyzer, node, scope, env):
+    return a.expr(node.this, scope, env)
+
+
+@handles(exp.Neg)
+def _neg(a: Analyzer, node, scope, env):
+    t = a.expr(node.this, scope, env)
+    if not (t.is_numeric or t.base in ("interval_ds", "interval_ym", "unknown")):
+        a.fail(f"Cannot negate {t}", node, "TYPE_MISMATCH")
+    return t
+
+
+@handles(exp.Not)
+def _not(a: Analyzer, node, scope, env):
+    t = a.expr(node.this, scope, env)
+    if t.base not in ("boolean", "unknown"):
+        a.fail(f"Value of logical NOT expression must evaluate to a boolean (actual: {t})", node, "TYPE_MISMATCH")
+    return tt.BOOLEAN
+
+
+@handles(exp.And, exp.Or)
+def _logical(a: Analyzer, node, scope, env):
+    for side in (node.this, node.expression):
+        t = a.expr(side, scope, env)
+        if t.base not in ("boolean", "unknown"):
+            a.fail(f"{node.key.upper()} operand must evaluate to a boolean (actual: {t})", side, "TYPE_MISMATCH")
+    return tt.BOOLEAN
+
+
+def _comparable(a: Analyzer, node, left: TType, right: TType, op: str) -> TType:
+    common = tt.common_super_type(left, right)
+    if common is None:
+        a.fail(f"Cannot apply operator: {left} {op} {right}", node, "TYPE_MISMATCH")
+    return common
+
+
+_OPS = {exp.EQ: "=", exp.NEQ: "<>", exp.GT: ">", exp.GTE: ">=", exp.LT: "<", exp.LTE: "<=",
+        exp.NullSafeEQ: "IS NOT DISTINCT FROM", exp.NullSafeNEQ: "IS DISTINCT FROM"}
+
+
+@handles(*_COMPARISONS)
+def _comparison(a: Analyzer, node, scope, env):
+    if isinstance(node.expression, (exp.Any, exp.All)):
+        left = a.expr(node.this, scope, env)
+        sub = node.expression.this
+        query = sub.this if isinstance(sub, exp.Subquery) else sub
+        if not isinstance(query, exp.Query):
+            a.unsupported(f"{node.expression.key.upper()} with a non-subquery", node.expression)
+        cols = a.query(query, scope)
+        if len(cols) != 1:
+            a.fail("Multiple columns returned by subquery are not yet supported", sub, "NOT_SUPPORTED")
+        _comparable(a, node, left, cols[0][2], _OPS[type(node)])
+        node.meta["compare"] = tt.common_super_type(left, cols[0][2])
+        return tt.BOOLEAN
+    left, right = a.expr(node.this, scope, env), a.expr(node.expression, scope, env)
+    common = _comparable(a, node, left, right, _OPS[type(node)])
+    if common.base in ("json", "varbinary") or (common.base == "map" and type(node) not in (exp.EQ, exp.NEQ)):
+        a.fail(f"Cannot apply operator: {left} {_OPS[type(node)]} {right}", node, "TYPE_MISMATCH")
+    node.meta["compare"] = common
+    return tt.BOOLEAN
+
+
+@handles(exp.Is)
+def _is(a: Analyzer, node, scope, env):
+    a.expr(node.this, scope, env)
+    if not isinstance(node.expression, exp.Null):
+        a.unsupported("IS TRUE / IS FALSE", node)
+    return tt.BOOLEAN
+
+
+@handles(exp.In)
+def _in(a: Analyzer, node, scope, env):
+    left = a.expr(node.this, scope, env)
+    if node.args.get("query") is not None:
+        query = node.args["query"]
+        cols = a.query(query.this if isinstance(query, exp.Subquery) else query, scope)
+        if len(cols) != 1:
+            a.fail("Multiple columns returned by subquery are not yet supported", query, "NOT_SUPPORTED")
+        common = _comparable(a, node, left, cols[0][2], "IN")
+    else:
+        if node.args.get("unnest") or node.args.get("field"):
+            a.unsupported("IN UNNEST", node)
+        common = left
+        for item in node.expressions:
+            common = _comparable(a, item, common, a.expr(item, scope, env), "IN")
+    node.meta["compare"] = common
+    return tt.BOOLEAN
+
+
+@handles(exp.Between)
+def _between(a: Analyzer, node, scope, env):
+    value = a.expr(node.this, scope, env)
+    low, high = a.expr(node.args["low"], scope, env), a.expr(node.args["high"], scope, env)
+    common = _comparable(a, node, _comparable(a, node, value, low, "BETWEEN"), high, "BETWEEN")
+    node.meta["compare"] = common
+    return tt.BOOLEAN
+
+
+@handles(exp.Like)
+def _like(a: Analyzer, node, scope, env):
+    for side in (node.this, node.expression):
+        t = a.expr(side, scope, env)
+        if t.base not in ("varchar", "char", "unknown"):
+            a.fail(f"Left side of LIKE expression must evaluate to a varchar (actual: {t})", side, "TYPE_MISMATCH")
+    return tt.BOOLEAN
+
+
+@handles(exp.Escape)
+def _escape(a: Analyzer, node, scope, env):
+    if not isinstance(node.this, exp.Like):
+        a.unsupported("ESCAPE", node)
+    escape = node.expression
+    if not (isinstance(escape, exp.Literal) and escape.is_string and len(escape.name) == 1):
+        a.fail("Escape string must be a single character", escape, "INVALID_FUNCTION_ARGUMENT")
+    a.expr(node.this, scope, env)
+    return tt.BOOLEAN
+
+
+@handles(*_ARITHMETIC)
+def _arithmetic(a: Analyzer, node, scope, env):
+    op = _ARITHMETIC[type(node)]
+    left, right = a.expr(node.this, scope, env), a.expr(node.expression, scope, env)
+    result = tt.arithmetic_type(op, left, right)
+    if result is None:
+        result = _temporal_arithmetic(op, left, right)
+    if result is None:
+        a.fail(f"Cannot apply operator: {left} {op} {right}", node, "TYPE_MISMATCH")
+    return result
+
+
+def _temporal_arithmetic(op: str, left: TType, right: TType) -> TType | None:
+    intervals = ("interval_ds", "interval_ym")
+    if op in "+-" and left.base in ("date", "timestamp", "timestamp_tz") and right.base in intervals:
+        if left.base == "date" and right.base == "interval_ds":
+            return left
+        return left
+    if op == "+" and right.base in ("date", "timestamp", "timestamp_tz") and left.base in intervals:
+        return right
+    if op in "+-" and left.base == right.base and left.base in intervals:
+        return left
+    if op == "-" and left.base == right.base and left.base in ("timestamp", "timestamp_tz"):
+        return tt.INTERVAL_DS
+    return None
+
+
+@handles(exp.DPipe)
+def _dpipe(a: Analyzer, node, scope, env):
+    left, right = a.expr(node.this, scope, env), a.expr(node.expression, scope, env)
+    if left.base == "array" or right.base == "array":
+        if left.base == right.base == "array":
+            element = tt.common_super_type(left.element, right.element)
+        elif left.base == "array":
+            element = tt.common_super_type(left.element, right)
+        else:
+            element = tt.common_super_type(left, right.element)
+        if element is None:
+            a.fail(f"Cannot apply operator: {left} || {right}", node, "TYPE_MISMATCH")
+        node.meta["array"] = True
+        return tt.array(element)
+    for t in (left, right):
+        if t.base not in ("varchar", "char", "unknown"):
+            a.fail(f"Cannot apply operator: {left} || {right}", node, "TYPE_MISMATCH")
+    return tt.VARCHAR  # Trino's variadic concat returns unbounded varchar
+
+
+@handles(exp.Case)
+def _case(a: Analyzer, node, scope, env):
+    operand = node.args.get("this")
+    operand_type = a.expr(operand, scope, env) if operand is not None else None
+    results = []
+    for branch in node.args.get("ifs") or []:
+        cond = a.expr(branch.this, scope, env)
+        if operand_type is not None:
+            _comparable(a, branch.this, operand_type, cond, "=")
+        elif cond.base not in ("boolean", "unknown"):
+            a.fail(f"CASE WHEN clause must evaluate to a boolean (actual: {cond})", branch.this, "TYPE_MISMATCH")
+        results.append(_set(branch, a.expr(branch.args["true"], scope, env)))
+    default = node.args.get("default")
+    if default is not None:
+        results.append(a.expr(default, scope, env))
+    common = tt.common_super_type_of(results)
+    if common is None:
+        a.fail(f"All CASE results must be the same type or coercible to a common type: "
+               f"{', '.join(map(str, results))}", node, "TYPE_MISMATCH")
+    return common
+
+
+@handles(exp.If)
+def _if(a: Analyzer, node, scope, env):
+    cond = a.expr(node.this, scope, env)
+    if cond.base not in ("boolean", "unknown"):
+        a.fail(f"IF condition must evaluate to a boolean (actual: {cond})", node.this, "TYPE_MISMATCH")
+    results = [a.expr(node.args["true"], scope, env)]
+    if node.args.get("false") is not None:
+        results.append(a.expr(node.args["false"], scope, env))
+    common = tt.common_super_type_of(results)
+    if common is None:
+        a.fail(f"Result types for IF must be the same or coercible to a common type: "
+               f"{', '.join(map(str, results))}", node, "TYPE_MISMATCH")
+    return common
+
+
+def _typed_literal(a: Analyzer, node: exp.Cast) -> bool:
+    """Whether a Cast is Trino's typed literal (`DECIMAL '1.50'`, `TIMESTAMP '...'`): sqlglot parses
+    both the same way; the source text tells them apart."""
+    literal = node.this
+    if not (isinstance(node, exp.Cast) and isinstance(literal, exp.Literal) and literal.is_string and literal._meta):
+        return False
+    before = a.sql[:literal._meta.get("start", 0)].rstrip()
+    return bool(before) and (before[-1].isalnum() or before[-1] in ")_")
+
+
+@handles(exp.Cast, exp.TryCast)
+def _cast(a: Analyzer, node, scope, env):
+    source = a.expr(node.this, scope, env)
+    try:
+        target = tt.from_datatype(node.args["to"])
+    except ValueError as error:
+        a.unsupported(f"cast to {error}", node)
+    if _typed_literal(a, node):
+        text = node.this.name.strip()
+        if target.is_decimal:
+            try:
+                target = tt.decimal_literal_type(text)
+            except ValueError:
+                a.fail(f"'{text}' is not a valid decimal literal", node, "INVALID_LITERAL")
+        elif target.base == "timestamp" and re.search(r"[0-9]:[0-9]{2}(:[0-9]{2}([.][0-9]*)?)?\s*([A-Za-z]|[+-][0-9])", text):
+            a.unsupported("timestamp literal with a time zone", node)
+    if target.base in ("char", "time", "time_tz", "uuid", "varbinary", "json", "map"):
+        a.unsupported(f"cast to {target}", node)
+    if not castable(source, target):
+        a.fail(f"Cannot cast {source} to {target}", node, "TYPE_MISMATCH")
+    node.meta["from"] = source
+    return target
+
+
+def castable(source: TType, target: TType) -> bool:
+    """Whether Trino has a CAST from `source` to `target` (the subset lakegate translates)."""
+    if source == target or source.is_unknown:
+        return True
+    scalar = ("boolean", "varchar")
+    if source.is_numeric or source.base in scalar:
+        if target.is_numeric or target.base in scalar:
+            return True
+    if source.base in ("varchar", "date", "timestamp", "timestamp_tz") and \
+            target.base in ("varchar", "date", "timestamp", "timestamp_tz"):
+        return True
+    if source.base == target.base == "array":
+        return castable(source.element, target.element)
+    if source.base == target.base == "row" and len(source.args) == len(target.args):
+        return all(castable(s[1], t[1]) for s, t in zip(source.args, target.args))
+    return False
+
+
+@handles(exp.Bracket)
+def _bracket(a: Analyzer, node, scope, env):
+    container = a.expr(node.this, scope, env)
+    if len(node.expressions) != 1:
+        a.unsupported("slice subscript", node)
+    index = a.expr(node.expressions[0], scope, env)
+    if container.base == "array":
+        if not (index.is_integral or index.is_unknown):
+            a.fail(f"Cannot use {index} for subscript of {container}", node, "TYPE_MISMATCH")
+        return container.element
+    if container.base == "map":
+        if tt.common_super_type(container.args[0], index) is None:
+            a.fail(f"Cannot use {index} for subscript of {container}", node, "TYPE_MISMATCH")
+        return container.args[1]
+    if container.base == "row":
+        a.unsupported("row subscript (use the field name)", node)
+    a.fail(f"Cannot use subscript on {container}", node, "TYPE_MISMATCH")
+
+
+@handles(exp.Array)
+def _array(a: Analyzer, node, scope, env):
+    types = [a.expr(e, scope, env) for e in node.expressions]
+    element = tt.common_super_type_of(types)
+    if element is None:
+        a.fail(f"All ARRAY elements must be the same type: {', '.join(map(str, types))}", node, "TYPE_MISMATCH")
+    return tt.array(element)
+
+
+@handles(exp.Tuple)
+def _tuple(a: Analyzer, node, scope, env):
+    return tt.row([(None, a.expr(e, scope, env)) for e in node.expressions])
+
+
+@handles(exp.Interval)
+def _interval(a: Analyzer, node, scope, env):
+    unit = node.args.get("unit")
+    value = node.this
+    if not (isinstance(value, exp.Literal) and value.is_string) or unit is None:
+        a.unsupported("interval syntax (use INTERVAL '3' DAY)", node)
+    unit_name = unit.name.upper()
+    if unit_name not in ("YEAR", "MONTH", "DAY", "HOUR", "MINUTE", "SECOND"):
+        a.unsupported(f"interval unit {unit_name}", node)
+    text = value.name.strip()
+    if not _is_number(text.lstrip("+-")) or ("." in text and unit_name != "SECOND"):
+        a.unsupported(f"interval literal '{text}' {unit_name}", node)
+    return tt.INTERVAL_YM if unit_name in ("YEAR", "MONTH") else tt.INTERVAL_DS
+
+
+def _is_number(text: str) -> bool:
+    head, _, tail = text.partition(".")
+    return head.isdigit() and (tail == "" or tail.isdigit())
+
+
+@handles(exp.CurrentTimestamp)
+def _current_timestamp(a, node, scope, env):
+    if node.this is not None:
+        a.unsupported("current_timestamp(p)", node)
+    return tt.timestamp(3, with_time_zone=True)
+
+
+@handles(exp.CurrentDate)
+def _current_date(a, node, scope, env):
+    return tt.DATE
+
+
+@handles(exp.Localtimestamp)
+def _localtimestamp(a, node, scope, env):
+    return tt.timestamp(3)
+
+
+@handles(exp.Extract)
+def _extract(a: Analyzer, node, scope, env):
+    unit = node.this.name.upper()
+    t = a.expr(node.expression, scope, env)
+    allowed = {"YEAR", "QUARTER", "MONTH", "WEEK", "DAY", "DAY_OF_MONTH", "DAY_OF_WEEK", "DOW", "DAY_OF_YEAR", "DOY",
+               "YEAR_OF_WEEK", "YOW", "HOUR", "MINUTE", "SECOND"}
+    if unit not in allowed:
+        a.unsupported(f"EXTRACT({unit} FROM ...)", node)
+    if t.base not in ("date", "timestamp", "timestamp_tz", "unknown"):
+        a.fail(f"Cannot extract {unit} from {t}", node, "TYPE_MISMATCH")
+    if t.base == "date" and unit in ("HOUR", "MINUTE", "SECOND"):
+        a.fail(f"Cannot extract {unit} from {t}", node, "TYPE_MISMATCH")
+    return tt.BIGINT
+
+
+@handles(exp.Subquery)
+def _scalar_subquery(a: Analyzer, node, scope, env):
+    cols = a.query(node.this, scope)
+    a._modifiers(node, cols, scope)
+    if len(cols) != 1:
+        a.fail("Multiple columns returned by subquery are not yet supported", node, "NOT_SUPPORTED")
+    return cols[0][2]
+
+
+@handles(exp.Exists)
+def _exists(a: Analyzer, node, scope, env):
+    a.query(node.this, scope)
+    return tt.BOOLEAN
+
+
+@handles(exp.Anonymous)
+def _anonymous(a: Analyzer, node, scope, env):
+    return a.function(node, scope, env)
+
+
+@handles(exp.Filter)
+def _filter(a: Analyzer, node, scope, env):
+    inner = node.this
+    if not isinstance(inner, exp.Anonymous):
+        a.unsupported("FILTER on this expression", node)
+    t = a.expr(inner, scope, env)
+    if inner.meta["spec"].kind != "aggregate":
+        a.fail("FILTER is only valid for aggregation functions", node, "FUNCTION_NOT_AGGREGATE")
+    a.condition(node.expression.this, scope, "FILTER")
+    inner.meta["filter"] = node.expression.this
+    return t
+
+
+@handles(exp.Window)
+def _window(a: Analyzer, node, scope, env):
+    if node.args.get("alias") is not None and node.this is None:
+        a.unsupported("named window", node)
+    inner = node.this
+    nulls = None
+    if isinstance(inner, (exp.IgnoreNulls, exp.RespectNulls)):
+        nulls = "IGNORE NULLS" if isinstance(inner, exp.IgnoreNulls) else "RESPECT NULLS"
+        inner = inner.this
+    filter_node = None
+    if isinstance(inner, exp.Filter):
+        filter_node = inner
+        inner = inner.this
+    if not isinstance(inner, exp.Anonymous):
+        a.unsupported("window over this expression", node)
+    t = a.function(inner, scope, env, window=True)
+    _set(inner, t)
+    if inner.meta["spec"].kind == "scalar":
+        a.fail(f"Not a window function: {inner.name.lower()}", inner, "FUNCTION_NOT_WINDOW")
+    if filter_node is not None:
+        a.condition(filter_node.expression.this, scope, "FILTER")
+        inner.meta["filter"] = filter_node.expression.this
+    if nulls is not None:
+        if inner.name.lower() not in ("lag", "lead", "first_value", "last_value", "nth_value"):
+            a.fail(f"{nulls} is not allowed for {inner.name.lower()}", node, "NULL_TREATMENT_NOT_ALLOWED")
+        inner.meta["nulls"] = nulls
+    for part in node.args.get("partition_by") or []:
+        a.expr(part, scope, env)
+    order = node.args.get("order")
+    if order is not None:
+        for ordered in order.expressions:
+            a.expr(ordered.this, scope, env)
+    spec = node.args.get("spec")
+    if spec is not None:
+        if spec.args.get("exclude"):
+            a.unsupported("window frame EXCLUDE", spec)
+        if spec.args.get("kind", "").upper() == "GROUPS":
+            a.unsupported("GROUPS window frame", spec)
+        for key in ("start", "end"):
+            bound = spec.args.get(key)
+            if isinstance(bound, exp.Expression):
+                bound_type = a.expr(bound, scope, env)
+                if spec.args.get("kind", "").upper() == "RANGE" and not isinstance(bound, exp.Literal):
+                    a.unsupported("RANGE frame with an expression offset", spec)
+                if spec.args.get("kind", "").upper() == "RANGE":
+                    a.unsupported("RANGE frame with an offset", spec)
+                if not bound_type.is_integral:
+                    a.fail(f"Window frame offset must be an integer: {bound_type}", bound, "TYPE_MISMATCH")
+    inner.meta["over"] = node
+    return t
+
+
+@handles(exp.GroupConcat)
+def _listagg(a: Analyzer, node, scope, env):
+    if node.args.get("on_overflow") is not None:
+        a.unsupported("listagg ON OVERFLOW", node)
+    args = [node.this] + ([node.args["separator"]] if node.args.get("separator") is not None else [])
+    call = exp.Anonymous(this="listagg", expressions=args)
+    call.meta.update({k: v for k, v in (node._meta or {}).items() if k in ("line", "col", "start", "end")})
+    node.replace(call)
+    return _set(call, a.function(call, scope, env))
+
+
+@handles(exp.Lambda)
+def _lambda(a: Analyzer, node, scope, env):
+    a.fail("Lambda expression is only allowed as a function argument", node, "SYNTAX_ERROR")
+
+
+@handles(exp.Placeholder, exp.Parameter)
+def _placeholder(a: Analyzer, node, scope, env):
+    a.fail("Incorrect number of parameters: the query has more '?' than values given", node,
+           "INVALID_PARAMETER_USAGE")
+
+
+@handles(exp.AtTimeZone)
+def _at_time_zone(a: Analyzer, node, scope, env):
+    t = a.expr(node.this, scope, env)
+    zone = node.args.get("zone")
+    if not (isinstance(zone, exp.Literal) and zone.is_string):
+        a.unsupported("AT TIME ZONE with a non-literal zone", node)
+    if t.base not in ("timestamp", "timestamp_tz"):
+        a.fail(f"Type of value must be a time or timestamp with or without time zone (actual {t})", node,
+               "TYPE_MISMATCH")
+    a.expr(zone, scope, env)
+    return tt.timestamp(t.args[0], with_time_zone=True)
+
+
+@handles(exp.Substring)
+def _substring(a: Analyzer, node, scope, env):
+    t = a.expr(node.this, scope, env)
+    for key in ("start", "length"):
+        arg = node.args.get(key)
+        if arg is not None and not (a.expr(arg, scope, env).is_integral or ttype(arg).is_unknown):
+            a.fail(f"Unexpected parameters for function substr", node, "FUNCTION_NOT_FOUND")
+    if t.base not in ("varchar", "unknown"):
+        a.fail(f"Unexpected parameters ({t}) for function substr", node, "FUNCTION_NOT_FOUND")
+    return t if t.base == "varchar" else tt.VARCHAR
+
+
+@handles(exp.Trim)
+def _trim(a: Analyzer, node, scope, env):
+    t = a.expr(node.this, scope, env)
+    chars = node.args.get("expression")
+    if chars is not None:
+        a.expr(chars, scope, env)
+    if t.base not in ("varchar", "unknown"):
+        a.fail(f"Unexpected parameters ({t}) for function trim", node, "FUNCTION_NOT_FOUND")
+    return t if t.base == "varchar" else tt.VARCHAR
+
+
+@handles(exp.StrPosition)
+def _position(a: Analyzer, node, scope, env):
+    for key in ("this", "substr"):
+        t = a.expr(node.args[key], scope, env)
+        if t.base not in ("varchar", "unknown"):
+            a.fail(f"Unexpected parameters for function strpos", node, "FUNCTION_NOT_FOUND")
+    if node.args.get("position") is not None or node.args.get("occurrence") is not None:
+        a.unsupported("position with a start", node)
+    return tt.BIGINT
+
+
+def analyze(tree: exp.Expression, schema: dict[str, list[tuple[str, TType]]], sql: str) -> list[OutCol]:
+    """Resolve names and infer Trino types over the statement `tree`; its output columns."""
+    return Analyzer(schema, sql).query(tree, None)

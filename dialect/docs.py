@@ -1,0 +1,392 @@
+"""Generate docs/functions.md: which Trino functions and operators lakegate answers, from the function
+registry (`lakegate.dialect.functions`) and the conformance cases (tests/dialect/cases/*.yaml).
+
+    python -m lakegate.dialect.docs           # write docs/functions.md
+    python -m lakegate.dialect.docs --check   # exit 1 if docs/functions.md is stale
+
+The case files are also loaded from here by the conformance runner (`load_cases`), so the runner and
+the page read them the same way.
+"""
+from __future__ import annotations
+
+import argparse
+import logging
+import re
+import sys
+from collections import defaultdict
+from dataclasses import dataclass
+from pathlib import Path
+
+import sqlglot
+import yaml
+from sqlglot import exp
+from sqlglot.dialects.trino import Trino
+from sqlglot.tokens import TokenType
+
+REPO = Path(__file__).resolve().parent.parent
+CASES_DIR = REPO / "tests" / "dialect" / "cases"
+OUTPUT = REPO / "docs" / "functions.md"
+
+_CASE_KEYS = {"name", "sql", "columns", "rows", "error", "message", "line", "column", "ordered",
+              "tolerance", "note"}
+_FILE_KEYS = {"family", "title", "description", "cases"}
+
+
+class CaseFileError(ValueError):
+    """A case file is malformed (the message names the file and the case)."""
+
+
+@dataclass(frozen=True)
+class Case:
+    """One conformance case: a Trino query and the answer Trino gives (result or error)."""
+
+    family: str
+    name: str
+    sql: str
+    columns: tuple[tuple[str, str], ...] | None = None   # (output name, Trino type) per column
+    rows: tuple[tuple, ...] | None = None                # values in the client-protocol JSON encoding
+    errors: tuple[str, ...] = ()                         # accepted Trino error names
+    message: str | None = None                           # substring of the error message
+    line: int | None = None
+    column: int | None = None
+    ordered: bool | None = None                          # None: ordered iff a top-level ORDER BY
+    tolerance: float | None = None
+    note: str | None = None
+
+    @property
+    def id(self) -> str:
+        return f"{self.family}/{self.name}"
+
+
+@dataclass(frozen=True)
+class Family:
+    """One case file: a function family with its cases."""
+
+    name: str
+    title: str
+    description: str
+    cases: tuple[Case, ...]
+
+
+def parse_column(spec: str) -> tuple[str, str]:
+    """`'name type'` or `'"quoted name" type'` -> (name, type)."""
+    spec = spec.strip()
+    if spec.startswith('"'):
+        match = re.match(r'"((?:[^"]|"")*)"\s+(.+)$', spec)
+        if not match:
+            raise ValueError(f"bad column spec {spec!r}")
+        return match.group(1).replace('""', '"'), match.group(2).strip()
+    name, _, type_name = spec.partition(" ")
+    if not type_name.strip():
+        raise ValueError(f"column spec {spec!r} has no type")
+    return name, type_name.strip()
+
+
+def _case(family: str, raw: dict, where: str) -> Case:
+    unknown = set(raw) - _CASE_KEYS
+    if unknown:
+        raise CaseFileError(f"{where}: unknown keys {sorted(unknown)}")
+    if not isinstance(raw.get("name"), str) or not isinstance(raw.get("sql"), str):
+        raise CaseFileError(f"{where}: a case needs a name and an sql text")
+    has_result = "rows" in raw or "columns" in raw
+    if has_result == ("error" in raw):
+        raise CaseFileError(f"{where}: give either columns and rows, or error")
+    columns = rows = None
+    if has_result:
+        if "rows" not in raw or "columns" not in raw:
+            raise CaseFileError(f"{where}: a result needs both columns and rows")
+        try:
+            columns = tuple(parse_column(c) for c in raw["columns"])
+        except (ValueError, AttributeError) as e:
+            raise CaseFileError(f"{where}: {e}") from None
+        rows = tuple(tuple(r) for r in raw["rows"])
+        for row in rows:
+            if len(row) != len(columns):
+                raise CaseFileError(f"{where}: row {list(row)} does not have {len(columns)} values")
+    errors = raw.get("error", ())
+    errors = (errors,) if isinstance(errors, str) else tuple(errors)
+    return Case(family=family, name=raw["name"], sql=raw["sql"], columns=columns, rows=rows,
+                errors=errors, message=raw.get("message"), line=raw.get("line"),
+                column=raw.get("column"), ordered=raw.get("ordered"),
+                tolerance=float(raw["tolerance"]) if "tolerance" in raw else None,
+                note=raw.get("note"))
+
+
+def load_family(path: Path) -> Family:
+    data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    if not isinstance(data, dict) or set(data) - _FILE_KEYS or "family" not in data:
+        raise CaseFileError(f"{path.name}: expected keys {sorted(_FILE_KEYS)}")
+    family = data["family"]
+    cases, seen = [], set()
+    for index, raw in enumerate(data.get("cases") or []):
+        where = f"{path.name}: case {index + 1} ({raw.get('name', '?') if isinstance(raw, dict) else '?'})"
+        if not isinstance(raw, dict):
+            raise CaseFileError(f"{where}: a case is a mapping")
+        case = _case(family, raw, where)
+        if case.name in seen:
+            raise CaseFileError(f"{where}: duplicate case name")
+        seen.add(case.name)
+        cases.append(case)
+    return Family(family, data.get("title", family), " ".join(str(data.get("description", "")).split()),
+                  tuple(cases))
+
+
+def load_families(directory: Path = CASES_DIR) -> list[Family]:
+    """Every case file in `directory`, in file-name order."""
+    return [load_family(path) for path in sorted(directory.glob("*.yaml"))]
+
+
+def load_cases(directory: Path = CASES_DIR) -> list[Case]:
+    """Every conformance case, family by family."""
+    return [case for family in load_families(directory) for case in family.cases]
+
+
+# --- which functions and operators a query uses ---------------------------------------------------
+_NOT_NAMES = {TokenType.STRING, TokenType.NUMBER, TokenType.IDENTIFIER, TokenType.L_PAREN,
+              TokenType.R_PAREN, TokenType.L_BRACKET, TokenType.R_BRACKET, TokenType.COMMA}
+
+
+def called_names(sql: str) -> set[str]:
+    """Lower-cased names written as calls (`name(`) in `sql`, from sqlglot's Trino tokenizer; a name
+    after `)` (FILTER, OVER) or `.` is not a call."""
+    try:
+        tokens = Trino().tokenize(sql)
+    except sqlglot.errors.TokenError:
+        return set()
+    names = set()
+    for prev, tok, nxt in zip([None, *tokens], tokens, [*tokens[1:], None]):
+        if nxt is None or nxt.token_type != TokenType.L_PAREN or tok.token_type in _NOT_NAMES:
+            continue
+        if prev is not None and prev.token_type in (TokenType.R_PAREN, TokenType.DOT):
+            continue
+        names.add(tok.text.lower())
+    return names
+
+
+#: Operators and syntax, with the sqlglot node classes that stand for them in a parsed query.
+OPERATORS: dict[str, tuple[type, ...]] = {
+    "+ - * / (arithmetic)": (exp.Add, exp.Sub, exp.Mul, exp.Div),
+    "% (modulus)": (exp.Mod,),
+    "- (negation)": (exp.Neg,),
+    "= <> < <= > >=": (exp.EQ, exp.NEQ, exp.LT, exp.LTE, exp.GT, exp.GTE),
+    "IS [NOT] DISTINCT FROM": (exp.NullSafeEQ, exp.NullSafeNEQ),
+    "IS [NOT] NULL": (exp.Is,),
+    "BETWEEN": (exp.Between,),
+    "IN": (exp.In,),
+    "LIKE [ESCAPE]": (exp.Like, exp.Escape),
+    "AND / OR / NOT": (exp.And, exp.Or, exp.Not),
+    "|| (concatenation)": (exp.DPipe,),
+    "CASE": (exp.Case,),
+    "ARRAY[...] constructor": (exp.Array,),
+    "[] (subscript)": (exp.Bracket,),
+    "-> (lambda)": (exp.Lambda,),
+    "INTERVAL literal": (exp.Interval,),
+    "AT TIME ZONE": (exp.AtTimeZone,),
+    "OVER (window)": (exp.Window,),
+    "FILTER (WHERE ...) on aggregates": (exp.Filter,),
+    "UNION / EXCEPT / INTERSECT": (exp.Union, exp.Except, exp.Intersect),
+    "VALUES": (exp.Values,),
+    "WITH (common table expressions)": (exp.With,),
+    "JOIN": (exp.Join,),
+    "UNNEST [WITH ORDINALITY]": (exp.Unnest,),
+    "EXISTS": (exp.Exists,),
+    "ALL / ANY subquery comparison": (exp.All, exp.Any),
+    "LIMIT / OFFSET / FETCH": (exp.Limit, exp.Offset, exp.Fetch),
+    "GROUP BY / HAVING": (exp.Group, exp.Having),
+}
+
+
+def used_operators(sql: str) -> set[str]:
+    """The OPERATORS labels whose node classes appear in the parsed query (none if it does not parse)."""
+    logger = logging.getLogger("sqlglot")
+    level = logger.level
+    logger.setLevel(logging.ERROR)  # no "falling back to parsing as a Command" warnings
+    try:
+        trees = sqlglot.parse(sql, read="trino")
+    except sqlglot.errors.SqlglotError:
+        return set()
+    finally:
+        logger.setLevel(level)
+    kinds = {type(node) for tree in trees if tree is not None for node in tree.walk()}
+    return {label for label, classes in OPERATORS.items() if kinds.intersection(classes)}
+
+
+# --- Trino's function catalogue ----------------------------------------------------------------------
+#: Major Trino functions per family (from Trino's function reference), so that functions lakegate
+#: neither translates nor explicitly rejects are listed too. The registry's family wins when a
+#: function is registered.
+CATALOGUE: dict[str, str] = {
+    "math": "abs acos asin atan atan2 cbrt ceil ceiling cos cosh cosine_similarity degrees e exp floor "
+            "from_base infinity is_finite is_infinite is_nan ln log log10 log2 mod nan pi pow power "
+            "radians rand random round sign sin sinh sqrt tan tanh to_base truncate width_bucket "
+            "beta_cdf inverse_beta_cdf normal_cdf inverse_normal_cdf wilson_interval_lower "
+            "wilson_interval_upper bit_count bitwise_and bitwise_not bitwise_or bitwise_xor "
+            "bitwise_left_shift bitwise_right_shift bitwise_right_shift_arithmetic",
+    "comparison": "greatest least",
+    "conditional": "coalesce if nullif try",
+    "conversion": "cast try_cast typeof format format_number parse_data_size",
+    "string": "chr codepoint concat concat_ws hamming_distance length levenshtein_distance lower lpad "
+              "ltrim luhn_check normalize position replace reverse rpad rtrim soundex split split_part "
+              "split_to_map split_to_multimap starts_with strpos substr substring translate trim upper "
+              "word_stem to_utf8 from_utf8 url_extract_fragment url_extract_host url_extract_parameter "
+              "url_extract_path url_extract_port url_extract_protocol url_extract_query url_encode "
+              "url_decode md5 sha1 sha256 sha512 to_hex from_hex to_base64 from_base64 crc32 xxhash64",
+    "regexp": "regexp_count regexp_extract regexp_extract_all regexp_like regexp_position "
+              "regexp_replace regexp_split",
+    "json": "is_json_scalar json_array_contains json_array_get json_array_length json_extract "
+            "json_extract_scalar json_format json_parse json_size json_exists json_query json_value "
+            "json_object json_array",
+    "datetime": "current_date current_time current_timestamp current_timezone date date_add date_diff "
+                "date_format date_parse date_trunc day day_of_month day_of_week day_of_year dow doy "
+                "extract format_datetime from_iso8601_date from_iso8601_timestamp from_unixtime "
+                "from_unixtime_nanos hour human_readable_seconds last_day_of_month localtime "
+                "localtimestamp millisecond minute month now parse_datetime parse_duration quarter "
+                "second timezone_hour timezone_minute to_iso8601 to_milliseconds to_unixtime week "
+                "week_of_year with_timezone at_timezone year year_of_week yow",
+    "array": "all_match any_match array_distinct array_except array_histogram array_intersect "
+             "array_join array_max array_min array_position array_remove array_sort array_union "
+             "arrays_overlap cardinality combinations contains contains_sequence element_at filter "
+             "flatten ngrams none_match reduce repeat reverse sequence shuffle slice transform "
+             "trim_array zip zip_with",
+    "map": "map map_concat map_entries map_filter map_from_entries map_keys map_values map_zip_with "
+           "multimap_from_entries transform_keys transform_values",
+    "aggregate": "any_value approx_distinct approx_most_frequent approx_percentile approx_set arbitrary "
+                 "array_agg avg bitwise_and_agg bitwise_or_agg bool_and bool_or checksum corr count "
+                 "count_if covar_pop covar_samp every geometric_mean histogram kurtosis listagg map_agg "
+                 "map_union max max_by min min_by multimap_agg numeric_histogram reduce_agg "
+                 "regr_intercept regr_slope skewness stddev stddev_pop stddev_samp sum var_pop var_samp "
+                 "variance",
+    "window": "cume_dist dense_rank first_value lag last_value lead nth_value ntile percent_rank rank "
+              "row_number",
+}
+
+_FAMILY_TITLES = {
+    "math": "Mathematical functions", "comparison": "Comparison functions",
+    "conditional": "Conditional expressions", "conversion": "Conversion functions",
+    "string": "String functions", "regexp": "Regular expression functions", "json": "JSON functions",
+    "datetime": "Date and time functions", "array": "Array functions and lambdas",
+    "map": "Map functions", "aggregate": "Aggregate functions", "window": "Window functions",
+}
+
+
+def _catalogue_family() -> dict[str, str]:
+    return {name: family for family, names in CATALOGUE.items() for name in names.split()}
+
+
+def _cell(text: str) -> str:
+    return " ".join(str(text).split()).replace("|", "\\|")
+
+
+def generate(families: list[Family], supported: dict, rejected: dict[str, str]) -> str:
+    """The Markdown of docs/functions.md for these case families and this registry."""
+    cases = [case for family in families for case in family.cases]
+    calls = defaultdict(int)
+    operators = defaultdict(int)
+    for case in cases:
+        for name in called_names(case.sql):
+            calls[name] += 1
+        for label in used_operators(case.sql):
+            operators[label] += 1
+
+    family_of = _catalogue_family()
+    for name, spec in supported.items():
+        family_of[name] = spec.family
+    for name in rejected:
+        family_of.setdefault(name, "other")
+    by_family = defaultdict(list)
+    for name, family in family_of.items():
+        by_family[family].append(name)
+
+    out = [
+        "# Trino functions and operators in lakegate",
+        "",
+        "<!-- Generated by `python -m lakegate.dialect.docs` from lakegate.dialect.functions and "
+        "tests/dialect/cases/*.yaml. Do not edit by hand. -->",
+        "",
+        "lakegate answers Trino-dialect SQL with DuckDB. A query either answers exactly as Trino "
+        "would (same values, same result types) or is refused with an error that names the "
+        "unsupported construct and its position. This page lists what is translated.",
+        "",
+        "How to read the tables:",
+        "",
+        "- **supported**: translated so that it answers as Trino does; the signature is Trino's.",
+        "- **rejected (reason)**: refused before execution with an error naming the function "
+        "(`NOT_SUPPORTED`); the reason says why.",
+        "- **rejected (not implemented)**: a Trino function that lakegate does not know; a query "
+        "using it is refused (`FUNCTION_NOT_FOUND`).",
+        "- **cases**: how many conformance cases (`tests/dialect/cases/*.yaml`) call the function; "
+        "each case is a Trino query with the result (values and types) or error Trino gives, run "
+        "end to end through translation and DuckDB. Functions are found with sqlglot's Trino "
+        "tokenizer (a name followed by `(`), operators by parsing the query.",
+        "",
+        f"## Conformance cases ({len(cases)})",
+        "",
+        "| family | cases | what it pins |",
+        "|---|---:|---|",
+    ]
+    for family in families:
+        out.append(f"| {family.name} | {len(family.cases)} | {_cell(family.title)}: "
+                   f"{_cell(family.description)} |")
+
+    counts = {"supported": 0, "rejected": 0, "not implemented": 0}
+    sections = []
+    order = [f for f in CATALOGUE if f in by_family] + sorted(set(by_family) - set(CATALOGUE))
+    for family in order:
+        sections += ["", f"## {_FAMILY_TITLES.get(family, family.capitalize())} (`{family}`)", "",
+                     "| function | status | cases | signature / notes |", "|---|---|---:|---|"]
+        for name in sorted(by_family[family]):
+            if name in supported:
+                spec = supported[name]
+                status, detail = "supported", " ".join(
+                    part for part in (f"`{spec.signature}`" if spec.signature else "",
+                                      _cell(spec.notes)) if part)
+                counts["supported"] += 1
+            elif name in rejected:
+                status, detail = f"rejected ({_cell(rejected[name])})", ""
+                counts["rejected"] += 1
+            else:
+                status, detail = "rejected (not implemented)", ""
+                counts["not implemented"] += 1
+            sections.append(f"| `{name}` | {status} | {calls.get(name, 0)} | {detail} |")
+
+    out += ["", f"Functions: {counts['supported']} supported, {counts['rejected']} rejected with a "
+            f"reason, {counts['not implemented']} not implemented."]
+    out += sections
+    out += ["", "## Operators and syntax", "",
+            "Handled by the translator itself rather than the function registry; their Trino "
+            "semantics are pinned by the cases counted here.", "",
+            "| operator / construct | cases |", "|---|---:|"]
+    out += [f"| {_cell(label)} | {operators.get(label, 0)} |" for label in OPERATORS]
+    return "\n".join(out) + "\n"
+
+
+def render_current(cases_dir: Path = CASES_DIR) -> str:
+    """generate() with the installed registry and the case files in `cases_dir`."""
+    from lakegate.dialect import functions  # imported here: the registry is optional for load_cases
+
+    return generate(load_families(cases_dir), functions.SUPPORTED, functions.REJECTED)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m lakegate.dialect.docs", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--check", action="store_true",
+                        help="do not write; exit 1 if the file differs from what would be generated")
+    parser.add_argument("--cases", type=Path, default=CASES_DIR, help="directory of the case files")
+    parser.add_argument("--output", type=Path, default=OUTPUT, help="the Markdown file to write or check")
+    args = parser.parse_args(argv)
+    text = render_current(args.cases)
+    if args.check:
+        current = args.output.read_text(encoding="utf-8") if args.output.exists() else None
+        if current != text:
+            print(f"{args.output} is stale: run `python -m lakegate.dialect.docs`", file=sys.stderr)
+            return 1
+        print(f"{args.output} is up to date")
+        return 0
+    args.output.parent.mkdir(parents=True, exist_ok=True)
+    args.output.write_text(text, encoding="utf-8")
+    print(f"wrote {args.output}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

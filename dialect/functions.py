@@ -1,0 +1,1918 @@
+"""The function registry: every Trino function lakegate translates, with its family, Trino
+signature, result type rule and DuckDB translation (`SUPPORTED`), and the well-known Trino
+functions it refuses, with the reason (`REJECTED`). docs/functions.md is generated from these.
+
+A call's result type comes from `FunctionSpec.infer(call)` (see `analyze.Call`), which also rejects
+argument types Trino would reject; `FunctionSpec.render(writer, node, args)` writes the DuckDB SQL.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import Callable
+
+from sqlglot import exp
+
+from lakegate.dialect import trino_types as tt
+from lakegate.dialect import transforms as tf
+from lakegate.dialect.analyze import Call, ttype
+from lakegate.dialect.trino_types import TType
+
+Render = Callable[["tf.Writer", exp.Expression, list], str]
+
+
+@dataclass(frozen=True)
+class FunctionSpec:
+    """One supported Trino function."""
+
+    name: str
+    family: str
+    signature: str                      # as Trino documents it, e.g. "cardinality(array(E)) -> bigint"
+    kind: str                           # scalar | aggregate | window
+    infer: Callable[[Call], TType]
+    render: Render
+    notes: str = ""
+
+
+SUPPORTED: dict[str, FunctionSpec] = {}
+
+
+def register(name: str, family: str, signature: str, infer: Callable[[Call], TType], render: Render,
+             kind: str = "scalar", notes: str = "", aliases: tuple[str, ...] = ()) -> None:
+    for alias in (name, *aliases):
+        SUPPORTED[alias] = FunctionSpec(alias, family, signature, kind, infer, render, notes)
+
+
+# --- argument checks -----------------------------------------------------------------------------
+_KINDS: dict[str, Callable[[TType], bool]] = {
+    "any": lambda t: True,
+    "number": lambda t: t.is_numeric or t.is_unknown,
+    "integral": lambda t: t.is_integral or t.is_unknown,
+    "approx": lambda t: t.is_numeric or t.is_unknown,
+    "string": lambda t: t.base in ("varchar", "unknown"),
+    "boolean": lambda t: t.base in ("boolean", "unknown"),
+    "array": lambda t: t.base in ("array", "unknown"),
+    "temporal": lambda t: t.base in ("date", "timestamp", "timestamp_tz", "unknown"),
+    "orderable": lambda t: t.base not in ("map", "json", "varbinary"),
+    "json": lambda t: t.base in ("varchar", "json", "unknown"),
+}
+
+
+def need(call: Call, *kinds: str, optional: int = 0) -> list[TType]:
+    """Check the call's arity (len(kinds), the last `optional` may be left out) and argument kinds."""
+    count = len(call.args)
+    if not len(kinds) - optional <= count <= len(kinds):
+        call.mismatch()
+    for t, kind in zip(call.types, kinds):
+        if t is None or not _KINDS[kind](t):
+            call.mismatch()
+    return call.types  # type: ignore[return-value]
+
+
+def fixed(result: TType, *kinds: str, optional: int = 0) -> Callable[[Call], TType]:
+    def infer(call: Call) -> TType:
+        need(call, *kinds, optional=optional)
+        return result
+    return infer
+
+
+def same(*kinds: str, optional: int = 0) -> Callable[[Call], TType]:
+    """Result type is the first argument's type (NULL literal: unknown)."""
+    def infer(call: Call) -> TType:
+        return need(call, *kinds, optional=optional)[0]
+    return infer
+
+
+def as_double(*kinds: str) -> Callable[[Call], TType]:
+    return fixed(tt.DOUBLE, *kinds)
+
+
+def common(call: Call, types: list[TType] | None = None) -> TType:
+    result = tt.common_super_type_of(types if types is not None else call.types)
+    if result is None:
+        call.mismatch()
+    return result
+
+
+def literal_int(call: Call, index: int) -> int | None:
+    lit = call.literal(index)
+    if lit is None or lit.is_string:
+        return None
+    try:
+        return int(lit.name)
+    except ValueError:
+        return None
+
+
+def literal_str(call: Call, index: int) -> str | None:
+    lit = call.literal(index)
+    return lit.name if lit is not None and lit.is_string else None
+
+
+# --- rendering helpers ---------------------------------------------------------------------------
+def sqls(g, args) -> list[str]:
+    return [g.sql(a) for a in args]
+
+
+def call_as(duck: str, cast_result: bool = False) -> Render:
+    """DuckDB function `duck` with the same arguments (cast to the Trino result type if asked)."""
+    def render(g, node, args):
+        sql = f"{duck}({', '.join(sqls(g, args))})"
+        return tf.cast(sql, ttype(node)) if cast_result else sql
+    return render
+
+
+def agg_as(duck: str, cast_result: bool = True) -> Render:
+    def render(g, node, args):
+        sql = g.agg(node, duck, ["*" if isinstance(a, exp.Star) else g.sql(a) for a in args])
+        return tf.cast(sql, ttype(node)) if cast_result else sql
+    return render
+
+
+def null_if_any_null(g, args, sql: str) -> str:
+    """`sql`, or NULL when any argument is NULL (DuckDB's variadic functions skip NULLs)."""
+    checks = " OR ".join(f"({g.sql(a)}) IS NULL" for a in args if not isinstance(a, exp.Literal))
+    return f"CASE WHEN {checks} THEN NULL ELSE {sql} END" if checks else sql
+
+
+# === aggregate ====================================================================================
+def _sum(call: Call) -> TType:
+    (t,) = need(call, "number")
+    if t.is_integral or t.is_unknown:
+        return tt.BIGINT
+    if t.is_decimal:
+        return tt.decimal(38, t.args[1])
+    return t
+
+
+def _avg(call: Call) -> TType:
+    (t,) = need(call, "number")
+    if t.is_decimal or t.base == "real":
+        return t
+    return tt.DOUBLE
+
+
+def _render_avg(g, node, args) -> str:
+    t = ttype(node)
+    if not t.is_decimal:
+        return tf.cast(g.agg(node, "avg", [g.sql(args[0])]), t)
+    scale = t.args[1]
+    total = g.agg(node, "sum", [g.sql(args[0])])
+    count = g.agg(node, "count", [g.sql(args[0])])
+    numerator = f"CAST({total} * {tf.ten(scale)} AS HUGEINT)" if scale else f"CAST({total} AS HUGEINT)"
+    return f"CASE WHEN {count} = 0 THEN NULL ELSE {tf.rounded_quotient(g, numerator, count, t)} END"
+
+
+def _minmax(call: Call) -> TType:
+    if len(call.args) == 2:
+        t, n = need(call, "orderable", "integral")
+        return tt.array(t)
+    (t,) = need(call, "orderable")
+    if t.base == "row" or t.base == "array":
+        call.fail(f"min/max over {t} is not supported in lakegate", "NOT_SUPPORTED")
+    return t
+
+
+def _by(call: Call) -> TType:
+    if len(call.args) == 3:
+        call.fail("max_by/min_by with a count is not supported in lakegate", "NOT_SUPPORTED")
+    x, y = need(call, "any", "orderable")
+    return x
+
+
+def _array_agg(call: Call) -> TType:
+    (t,) = need(call, "any")
+    return tt.array(t)
+
+
+def _approx_percentile(call: Call) -> TType:
+    if len(call.args) != 2:
+        call.fail("approx_percentile with weights or accuracy is not supported in lakegate", "NOT_SUPPORTED")
+    x, p = call.types
+    if x is None or not (x.is_integral or x.is_approx or x.is_unknown):
+        call.mismatch()
+    if p is not None and p.base == "array":
+        return tt.array(tt.BIGINT if x.is_integral else x)
+    if p is None or not (p.is_numeric or p.is_unknown):
+        call.mismatch()
+    return tt.BIGINT if x.is_integral else x
+
+
+def _render_approx_percentile(g, node, args) -> str:
+    t = ttype(node)
+    return tf.cast(g.agg(node, "quantile_disc", [g.sql(args[0]), g.sql(args[1])]), t)
+
+
+register("count", "aggregate", "count(*) -> bigint; count(x) -> bigint",
+         lambda c: tt.BIGINT if len(c.args) <= 1 else c.mismatch(), agg_as("count"), kind="aggregate")
+register("count_if", "aggregate", "count_if(boolean) -> bigint", fixed(tt.BIGINT, "boolean"), agg_as("count_if"),
+         kind="aggregate")
+def _render_sum(g, node, args) -> str:
+    t = ttype(node)
+    total = g.agg(node, "sum", [g.sql(args[0])])
+    if t.is_integral:
+        return tf.checked_integer(g, total, t, tf.string("bigint addition overflow"))
+    return tf.cast(total, t)
+
+
+register("sum", "aggregate", "sum(x) -> bigint for integers, decimal(38,s) for decimal(p,s), same for real/double",
+         _sum, _render_sum, kind="aggregate",
+         notes="DuckDB sums integers as HUGEINT; the result is cast to bigint and fails on overflow like Trino.")
+register("avg", "aggregate", "avg(x) -> double for integers, decimal(p,s) for decimal(p,s), real/double",
+         _avg, _render_avg, kind="aggregate",
+         notes="avg(decimal(p,s)) is computed exactly and rounded HALF_UP to scale s, as Trino does.")
+register("min", "aggregate", "min(x) -> same; min(x, n) -> array", _minmax, agg_as("min"), kind="aggregate")
+register("max", "aggregate", "max(x) -> same; max(x, n) -> array", _minmax, agg_as("max"), kind="aggregate")
+register("arbitrary", "aggregate", "arbitrary(x) -> same", same("any"), agg_as("any_value"), kind="aggregate",
+         aliases=("any_value",))
+register("max_by", "aggregate", "max_by(x, y) -> type of x", _by, agg_as("arg_max_null"), kind="aggregate")
+register("min_by", "aggregate", "min_by(x, y) -> type of x", _by, agg_as("arg_min_null"), kind="aggregate")
+register("array_agg", "aggregate", "array_agg(x) -> array(x)", _array_agg, agg_as("list", cast_result=False),
+         kind="aggregate")
+register("approx_distinct", "aggregate", "approx_distinct(x) -> bigint",
+         lambda c: tt.BIGINT if len(c.args) in (1, 2) and c.types[0] is not None else c.mismatch(),
+         lambda g, node, args: tf.cast(f"count(DISTINCT {g.sql(args[0])})" if not node.meta.get("over") else
+                                       g.agg(node, "count", [f"DISTINCT {g.sql(args[0])}"]), tt.BIGINT),
+         kind="aggregate",
+         notes="Returns the exact distinct count, which is within Trino's documented standard error (2.3%).")
+register("approx_percentile", "aggregate", "approx_percentile(x, percentage) -> same as x; "
+         "approx_percentile(x, array(double)) -> array", _approx_percentile, _render_approx_percentile,
+         kind="aggregate",
+         notes="Returns the exact nearest-rank value (DuckDB quantile_disc), which is within Trino's documented "
+               "approximation error; weighted and accuracy variants are rejected.")
+register("bool_and", "aggregate", "bool_and(boolean) -> boolean", fixed(tt.BOOLEAN, "boolean"),
+         agg_as("bool_and", cast_result=False), kind="aggregate", aliases=("every",))
+register("bool_or", "aggregate", "bool_or(boolean) -> boolean", fixed(tt.BOOLEAN, "boolean"),
+         agg_as("bool_or", cast_result=False), kind="aggregate")
+for _name, _duck in (("stddev", "stddev_samp"), ("stddev_samp", "stddev_samp"), ("stddev_pop", "stddev_pop"),
+                     ("variance", "var_samp"), ("var_samp", "var_samp"), ("var_pop", "var_pop")):
+    register(_name, "aggregate", f"{_name}(x) -> double", as_double("number"), agg_as(_duck), kind="aggregate")
+for _name in ("corr", "covar_samp", "covar_pop", "regr_slope", "regr_intercept"):
+    register(_name, "aggregate", f"{_name}(y, x) -> double", as_double("number", "number"), agg_as(_name),
+             kind="aggregate")
+register("listagg", "aggregate", "listagg(x, separator) WITHIN GROUP (ORDER BY ...) -> varchar",
+         lambda c: tt.VARCHAR if len(c.args) in (1, 2) and all(t is not None and t.base in ("varchar", "unknown")
+                                                                for t in c.types) else c.mismatch(),
+         lambda g, node, args: g.agg(node, "string_agg", [g.sql(args[0]), g.sql(args[1]) if len(args) > 1 else "''"]),
+         kind="aggregate", notes="ON OVERFLOW clauses are not translated (no length limit applies).")
+register("geometric_mean", "aggregate", "geometric_mean(x) -> double", as_double("number"),
+         agg_as("geometric_mean"), kind="aggregate")
+
+
+# === window =======================================================================================
+def _lag(call: Call) -> TType:
+    types = need(call, "any", "integral", "any", optional=2)
+    if len(types) == 3 and tt.common_super_type(types[0], types[2]) is None:
+        call.mismatch()
+    return common(call, [types[0], types[2]]) if len(types) == 3 else types[0]
+
+
+def _render_lag(g, node, args) -> str:
+    t = ttype(node)
+    parts = [g.coerce(args[0], t)] + [g.sql(a) for a in args[1:2]] + [g.coerce(a, t) for a in args[2:]]
+    return g.agg(node, node.name.lower(), parts)
+
+
+for _name in ("row_number", "rank", "dense_rank"):
+    register(_name, "window", f"{_name}() -> bigint", fixed(tt.BIGINT), agg_as(_name), kind="window")
+register("ntile", "window", "ntile(n) -> bigint", fixed(tt.BIGINT, "integral"), agg_as("ntile"), kind="window")
+register("percent_rank", "window", "percent_rank() -> double", fixed(tt.DOUBLE), agg_as("percent_rank"),
+         kind="window")
+register("cume_dist", "window", "cume_dist() -> double", fixed(tt.DOUBLE), agg_as("cume_dist"), kind="window")
+register("lag", "window", "lag(x[, offset[, default]]) -> same", _lag, _render_lag, kind="window")
+register("lead", "window", "lead(x[, offset[, default]]) -> same", _lag, _render_lag, kind="window")
+register("first_value", "window", "first_value(x) -> same", same("any"), agg_as("first_value", False),
+         kind="window")
+register("last_value", "window", "last_value(x) -> same", same("any"), agg_as("last_value", False), kind="window")
+register("nth_value", "window", "nth_value(x, offset) -> same", same("any", "integral"),
+         agg_as("nth_value", False), kind="window")
+
+
+# === conditional ==================================================================================
+def _coalesce(call: Call) -> TType:
+    if not call.args or None in call.types:
+        call.mismatch()
+    return common(call)
+
+
+def _render_coalesce(g, node, args) -> str:
+    t = ttype(node)
+    return f"coalesce({', '.join(g.coerce(a, t) for a in args)})"
+
+
+def _nullif(call: Call) -> TType:
+    a, b = need(call, "any", "any")
+    if tt.common_super_type(a, b) is None:
+        call.mismatch()
+    return a
+
+
+def _greatest(call: Call) -> TType:
+    if not call.args or None in call.types:
+        call.mismatch()
+    t = common(call)
+    if t.base in ("map", "json", "varbinary", "row", "array", "boolean"):
+        call.mismatch()
+    return t
+
+
+def _render_greatest(g, node, args) -> str:
+    t = ttype(node)
+    name = node.name.lower()
+    return null_if_any_null(g, args, f"{name}({', '.join(g.coerce(a, t) for a in args)})")
+
+
+def _render_typeof(g, node, args) -> str:
+    name = tf.string(str(ttype(args[0])))
+    aggregate = any(isinstance(n, exp.Anonymous) and n.meta.get("spec") is not None and n.meta["spec"].kind != "scalar"
+                    for n in args[0].walk())
+    # the argument stays in the query when it holds an aggregate, so the query stays an aggregation
+    return f"CASE WHEN ({g.sql(args[0])}) IS NULL THEN {name} ELSE {name} END" if aggregate else name
+
+
+def _render_try(g, node, args) -> str:
+    g.in_try += 1
+    try:
+        sql = g.sql(args[0])
+    finally:
+        g.in_try -= 1
+    return tf.try_wrap(sql)
+
+
+register("coalesce", "conditional", "coalesce(value1, value2[, ...]) -> common type", _coalesce, _render_coalesce)
+register("nullif", "conditional", "nullif(value1, value2) -> type of value1", _nullif, call_as("nullif"))
+register("greatest", "conditional", "greatest(value1, value2, ...) -> common type", _greatest, _render_greatest,
+         notes="NULL when any argument is NULL, as in Trino (DuckDB ignores NULLs).")
+register("least", "conditional", "least(value1, value2, ...) -> common type", _greatest, _render_greatest,
+         notes="NULL when any argument is NULL, as in Trino (DuckDB ignores NULLs).")
+register("try", "conditional", "try(expression) -> same", same("any"), _render_try,
+         notes="NULL instead of failing on division by zero, invalid casts, out-of-range subscripts and "
+               "invalid function arguments.")
+register("typeof", "conditional", "typeof(expression) -> varchar",
+         lambda c: tt.VARCHAR if len(c.args) == 1 and c.types[0] is not None else c.mismatch(),
+         lambda g, node, args: _render_typeof(g, node, args),
+         notes="The Trino type name, computed when the query is translated.")
+
+
+# === conversion ===================================================================================
+def _format(call: Call) -> TType:
+    if not call.args or call.types[0] is None or call.types[0].base not in ("varchar",):
+        call.mismatch()
+    if literal_str(call, 0) is None:
+        call.fail("format() needs a literal format string in lakegate", "NOT_SUPPORTED")
+    if None in call.types:
+        call.mismatch()
+    _format_parts(call, literal_str(call, 0), call.types[1:])
+    return tt.VARCHAR
+
+
+_SPEC = re.compile(r"%(?:(\d+)\$)?([-#+ 0,(<]*)?(\d+)?(?:\.(\d+))?([tT][a-zA-Z]|[a-zA-Z%])")
+
+
+def _format_parts(call: Call | None, fmt: str, types: list[TType]) -> list:
+    """Split a Java format string into literal text and (arg index, flags, width, precision,
+    conversion) items, checking each against its argument's type."""
+    parts: list = []
+    position = 0
+    next_arg = 0
+    for match in _SPEC.finditer(fmt):
+        if match.start() > position:
+            parts.append(fmt[position:match.start()])
+        position = match.end()
+        index, flags, width, precision, conversion = match.groups()
+        flags = flags or ""
+        column = match.start() + 1
+        if conversion == "%":
+            parts.append("%")
+            continue
+        if conversion == "n":
+            parts.append("\n")
+            continue
+
+        def reject(why: str):
+            if call is not None:
+                call.fail(f"unsupported in lakegate: format specifier '{match.group(0)}' at position {column} "
+                          f"of the format string: {why}", "NOT_SUPPORTED")
+            raise ValueError(why)
+
+        if conversion not in "sdfxXe":
+            reject("only %s, %d, %f, %e, %x, %% and %n are translated")
+        if set(flags) - set("-0,") or ("0" in flags and conversion == "s") or ("," in flags and conversion not in "df"):
+            reject("only the '-', '0' and ',' (with %d / %f) flags are translated")
+        if precision is not None and conversion not in "fe":
+            reject("a precision is only translated for %f and %e")
+        if "-" in flags and width is None:
+            reject("'-' needs a width")
+        arg = int(index) - 1 if index else next_arg
+        if not index:
+            next_arg += 1
+        if arg >= len(types):
+            if call is not None:
+                call.fail(f"Invalid format string: {fmt} (MissingFormatArgument: Format specifier "
+                          f"'{match.group(0)}')", "INVALID_FUNCTION_ARGUMENT")
+            raise ValueError("missing argument")
+        t = types[arg]
+        if conversion in "dxX" and not (t.is_integral or t.is_unknown):
+            reject(f"%{conversion} needs an integer argument, got {t}")
+        if conversion == "f" and not (t.is_decimal or t.is_approx or t.is_unknown):
+            reject(f"%f needs a decimal or floating point argument, got {t}")
+        if conversion == "e" and not (t.is_approx or t.is_unknown):
+            reject(f"%e is translated for double and real arguments, got {t}")
+        if conversion == "e" and (flags or width):
+            reject("flags and widths are not translated for %e")
+        if conversion == "s" and not (t.base in ("varchar", "boolean", "unknown") or t.is_integral or t.is_approx
+                                      or t.base == "date"):
+            reject(f"%s of {t} is not translated")
+        parts.append((arg, flags, int(width) if width else None, int(precision) if precision else None, conversion))
+    if position < len(fmt):
+        tail = fmt[position:]
+        if "%" in tail:
+            if call is not None:
+                call.fail(f"Invalid format string: {fmt} (UnknownFormatConversion)", "INVALID_FUNCTION_ARGUMENT")
+            raise ValueError("dangling %")
+        parts.append(tail)
+    return parts
+
+
+def _render_format(g, node, args) -> str:
+    fmt = args[0].name
+    values = args[1:]
+    pieces = []
+    for part in _format_parts(None, fmt, [ttype(a) for a in values]):
+        if isinstance(part, str):
+            pieces.append(tf.string(part))
+            continue
+        arg, flags, width, precision, conversion = part
+        value = values[arg]
+        t = ttype(value)
+        sql = g.sql(value)
+        if conversion == "s":
+            text = java_string(sql, t)
+        elif conversion == "d":
+            text = f"CAST(CAST({sql} AS BIGINT) AS VARCHAR)"
+        elif conversion in "xX":
+            text = f"printf('%{conversion}', CAST({sql} AS BIGINT))"
+        elif conversion == "e":
+            text = java_scientific(sql, 6 if precision is None else precision)
+        else:
+            text = java_fixed(sql, t, 6 if precision is None else precision)
+        if "," in flags:
+            text = group_thousands(text)
+        if width:
+            if "-" in flags:
+                text = f"rpad({text}, CAST(greatest({width}, length({text})) AS INTEGER), ' ')"
+            elif "0" in flags:
+                text = (f"CASE WHEN starts_with({text}, '-') THEN '-' || lpad(substr({text}, 2), "
+                        f"CAST(greatest({width} - 1, length({text}) - 1) AS INTEGER), '0') ELSE "
+                        f"lpad({text}, CAST(greatest({width}, length({text})) AS INTEGER), '0') END")
+            else:
+                text = f"lpad({text}, CAST(greatest({width}, length({text})) AS INTEGER), ' ')"
+        pieces.append(f"coalesce({text}, 'null')")
+    return "(" + " || ".join(pieces) + ")" if pieces else "''"
+
+
+def group_thousands(text: str) -> str:
+    """Digits of the integer part of a number text grouped by commas (Java's ',' flag, en-US)."""
+    sign = f"CASE WHEN starts_with({text}, '-') THEN '-' ELSE '' END"
+    number = f"ltrim({text}, '-')"
+    whole = f"split_part({number}, '.', 1)"
+    fraction = f"CASE WHEN contains({number}, '.') THEN '.' || split_part({number}, '.', 2) ELSE '' END"
+    reversed_whole = f"reverse({whole})"
+    chunks = (f"array_to_string(list_transform(range(0, length({whole}), 3), lambda \"_i\": "
+              f"substr({reversed_whole}, CAST(\"_i\" + 1 AS BIGINT), 3)), ',')")
+    return f"CASE WHEN {text} IS NULL THEN NULL ELSE {sign} || reverse({chunks}) || {fraction} END"
+
+
+def java_string(sql: str, t: TType) -> str:
+    """String.valueOf of the Java value Trino's format() passes for a SQL value."""
+    if t.base == "double":
+        return java_double(sql)
+    if t.base == "real":
+        return java_double(sql, "FLOAT")
+    return f"CAST({sql} AS VARCHAR)"
+
+
+def java_double(sql: str, duck: str = "DOUBLE") -> str:
+    """Java's Double.toString: plain digits with at least one decimal for 1e-3 <= |x| < 1e7, else
+    computerized scientific notation (1.0E10), from the shortest round-trip digits."""
+    value = f"CAST({sql} AS {duck})"
+    text = f"CAST(abs({value}) AS VARCHAR)"
+    digits = f"regexp_replace(replace(split_part({text}, 'e', 1), '.', ''), '^0+|0+$', '', 'g')"
+    exponent = f"CAST(split_part(format('{{:.16e}}', CAST(abs({value}) AS DOUBLE)), 'e', 2) AS INTEGER)"
+    scientific = f"left({digits}, 1) || '.' || coalesce(nullif(substr({digits}, 2), ''), '0') || 'E' || CAST({exponent} AS VARCHAR)"
+    plain_big = (f"rpad({digits}, CAST(greatest({exponent} + 1, length({digits})) AS INTEGER), '0')[1:{exponent} + 1] || '.' || "
+                 f"coalesce(nullif(substr({digits}, {exponent} + 2), ''), '0')")
+    plain_small = f"'0.' || repeat('0', -{exponent} - 1) || {digits}"
+    return (f"CASE WHEN isnan({value}) THEN 'NaN' WHEN isinf({value}) THEN CASE WHEN {value} > 0 THEN 'Infinity' "
+            f"ELSE '-Infinity' END WHEN {value} = 0 THEN CASE WHEN starts_with(CAST({value} AS VARCHAR), '-') "
+            f"THEN '-0.0' ELSE '0.0' END ELSE CASE WHEN {value} < 0 THEN '-' ELSE '' END || CASE "
+            f"WHEN abs({value}) >= 1e-3 AND abs({value}) < 1e7 THEN CASE WHEN {exponent} >= 0 THEN {plain_big} "
+            f"ELSE {plain_small} END ELSE {scientific} END END")
+
+
+def _shortest_digits(value: str) -> tuple[str, str]:
+    """SQL for the shortest round-trip digits (no leading or trailing zeros) of a non-zero double
+    and its decimal exponent."""
+    text = f"CAST(abs({value}) AS VARCHAR)"
+    digits = f"regexp_replace(replace(split_part({text}, 'e', 1), '.', ''), '^0+|0+$', '', 'g')"
+    exponent = f"CAST(split_part(format('{{:.16e}}', abs({value})), 'e', 2) AS INTEGER)"
+    return digits, exponent
+
+
+def java_scientific(sql: str, precision: int) -> str:
+    """Java's %.Ne: the shortest digits rounded HALF_UP to N decimals, exponent with a sign and at
+    least two digits (1.234568e+04)."""
+    value = f"CAST({sql} AS DOUBLE)"
+    digits, exponent = _shortest_digits(value)
+    mantissa = f"CAST(left({digits}, 1) || '.' || coalesce(nullif(substr({digits}, 2), ''), '0') AS DECIMAL(38,30))"
+    rounded = f"CAST({mantissa} AS DECIMAL({precision + 2},{precision}))"
+    carry = f"CASE WHEN {rounded} >= 10 THEN 1 ELSE 0 END"
+    shown = (f"CASE WHEN {rounded} >= 10 THEN CAST(CAST(1 AS DECIMAL({precision + 2},{precision})) AS VARCHAR) "
+             f"ELSE CAST({rounded} AS VARCHAR) END")
+    if precision == 0:
+        shown = f"split_part({shown}, '.', 1)"
+    power = f"{exponent} + {carry}"
+    suffix = (f"'e' || CASE WHEN {power} < 0 THEN '-' ELSE '+' END || lpad(CAST(abs({power}) AS VARCHAR), 2, '0')")
+    zero = "0" + ("." + "0" * precision if precision else "") + "e+00"
+    return (f"CASE WHEN isnan({value}) THEN 'NaN' WHEN isinf({value}) THEN CASE WHEN {value} > 0 THEN 'Infinity' "
+            f"ELSE '-Infinity' END WHEN {value} = 0 THEN CASE WHEN starts_with(CAST({value} AS VARCHAR), '-') "
+            f"THEN '-{zero}' ELSE '{zero}' END ELSE CASE WHEN {value} < 0 THEN '-' ELSE '' END || {shown} || "
+            f"{suffix} END")
+
+
+def java_fixed(sql: str, t: TType, precision: int) -> str:
+    """Java's %.Nf: HALF_UP rounding of the decimal value (of the shortest digits for doubles)."""
+    if precision > 30:
+        raise ValueError("precision too large")
+    if t.is_decimal:
+        digits = t.args[0] - t.args[1] + precision
+        value = f"CAST({sql} AS DECIMAL({min(38, max(digits, precision + 1))},{precision}))"
+        return f"CAST({value} AS VARCHAR)" if precision else f"CAST(CAST({sql} AS DECIMAL(38,0)) AS VARCHAR)"
+    value = f"CAST({sql} AS DOUBLE)"
+    rounded = f"CAST(CAST(CAST({value} AS VARCHAR) AS DECIMAL(38,{precision})) AS VARCHAR)"
+    rounded = f"regexp_replace({rounded}, '^(-?)[.]', '\\10.')"
+    return (f"CASE WHEN isnan({value}) THEN 'NaN' WHEN isinf({value}) THEN CASE WHEN {value} > 0 THEN 'Infinity' "
+            f"ELSE '-Infinity' END ELSE {rounded} END")
+
+
+register("format", "conversion", "format(format, args...) -> varchar", _format, _render_format,
+         notes="Java format specifiers %s, %d, %f / %.Nf and %e (HALF_UP), %x, %%, %n with '-' / '0' flags and widths; "
+               "other specifiers are rejected with their position.")
+
+
+# === math =========================================================================================
+def _abs(call: Call) -> TType:
+    (t,) = need(call, "number")
+    return t
+
+
+def _round(call: Call) -> TType:
+    types = need(call, "number", "integral", optional=1)
+    t = types[0]
+    if t.is_decimal:
+        p, s = t.args
+        if len(types) == 2:
+            return tt.decimal(min(38, p + 1), s)
+        return tt.decimal(p - s + min(s, 1), 0)
+    return t
+
+
+def _render_round(g, node, args) -> str:
+    t = ttype(node)
+    source = ttype(args[0])
+    value = g.sql(args[0])
+    digits = g.sql(args[1]) if len(args) == 2 else "0"
+    if source.is_decimal:
+        # DuckDB rounds decimals HALF_UP but narrows the scale: widen back to Trino's type
+        return tf.cast(f"round({value}, {digits})", t) if len(args) == 2 else tf.cast(f"round({value})", t)
+    if source.is_integral:
+        if len(args) == 1:
+            return value
+        return tf.cast(f"round(CAST({value} AS DECIMAL(38,0)), {digits})", t)
+    if source.base == "real":
+        return tf.cast(f"round(CAST({value} AS DOUBLE), {digits})", t)
+    return f"CASE WHEN isnan({value}) OR isinf({value}) THEN {value} ELSE round({value}, {digits}) END"
+
+
+def _ceil_floor(call: Call) -> TType:
+    (t,) = need(call, "number")
+    if t.is_decimal:
+        p, s = t.args
+        return tt.decimal(p - s + min(s, 1), 0)
+    return t
+
+
+def _truncate(call: Call) -> TType:
+    (t,) = need(call, "number")
+    if t.is_decimal:
+        p, s = t.args
+        return tt.decimal(max(1, p - s), 0)
+    return t
+
+
+def _sign(call: Call) -> TType:
+    (t,) = need(call, "number")
+    return tt.decimal(1, 0) if t.is_decimal else t
+
+
+def _mod(call: Call) -> TType:
+    a, b = need(call, "number", "number")
+    result = tt.arithmetic_type("%", a, b)
+    if result is None:
+        call.mismatch()
+    return result
+
+
+def _render_mod(g, node, args) -> str:
+    t = ttype(node)
+    left, right = g.sql(args[0]), g.sql(args[1])
+    if t.is_approx:
+        return tf.cast(f"CASE WHEN {right} = 0 THEN CAST('NaN' AS DOUBLE) ELSE fmod({left}, {right}) END", t)
+    return tf.cast(f"({left} % {tf.nonzero(g, right)})", t)
+
+
+def double_fn(duck: str) -> Render:
+    """A DuckDB math function over the argument as double (DuckDB, like Java, gives NaN / Infinity
+    outside the domain)."""
+    def render(g, node, args):
+        return f"{duck}({', '.join(f'CAST({g.sql(a)} AS DOUBLE)' for a in args)})"
+    return render
+
+
+def _random(call: Call) -> TType:
+    if not call.args:
+        return tt.DOUBLE
+    types = need(call, "integral", "integral", optional=1)
+    return tt.common_super_type_of([t for t in types])
+
+
+def _render_random(g, node, args) -> str:
+    if not args:
+        return "random()"
+    t = ttype(node)
+    low, high = ("0", g.sql(args[0])) if len(args) == 1 else (g.sql(args[0]), g.sql(args[1]))
+    return tf.cast(f"CASE WHEN ({high}) <= ({low}) THEN {g.fail(tf.string('bound must be greater than origin'))} "
+                   f"ELSE ({low}) + CAST(floor(random() * (({high}) - ({low}))) AS BIGINT) END", t)
+
+
+register("abs", "math", "abs(x) -> same", _abs, call_as("abs", cast_result=True))
+register("ceiling", "math", "ceiling(x) -> same (decimal(p-s+min(s,1),0) for decimals)", _ceil_floor,
+         call_as("ceil", cast_result=True), aliases=("ceil",))
+register("floor", "math", "floor(x) -> same (decimal(p-s+min(s,1),0) for decimals)", _ceil_floor,
+         call_as("floor", cast_result=True))
+register("round", "math", "round(x[, d]) -> same (decimal(p+1,s) with d for decimal(p,s))", _round, _render_round,
+         notes="HALF_UP; the result keeps Trino's type, e.g. round(decimal(6,2), 1) is decimal(7,2).")
+register("truncate", "math", "truncate(x) -> same (decimal(p-s,0) for decimals)", _truncate,
+         call_as("trunc", cast_result=True))
+register("sign", "math", "sign(x) -> same", _sign, call_as("sign", cast_result=True))
+register("mod", "math", "mod(n, m) -> same as n % m", _mod, _render_mod)
+register("sqrt", "math", "sqrt(x) -> double", as_double("number"), double_fn("sqrt"))
+register("cbrt", "math", "cbrt(x) -> double", as_double("number"),
+         lambda g, node, args: (lambda x: f"CASE WHEN round(cbrt({x})) * round(cbrt({x})) * round(cbrt({x})) = {x} "
+                                          f"THEN round(cbrt({x})) ELSE cbrt({x}) END")(f"CAST({g.sql(args[0])} AS DOUBLE)"),
+         notes="Exact for perfect cubes, like Java's Math.cbrt.")
+register("exp", "math", "exp(x) -> double", as_double("number"), double_fn("exp"))
+register("ln", "math", "ln(x) -> double", as_double("number"), double_fn("ln"))
+register("log2", "math", "log2(x) -> double", as_double("number"), double_fn("log2"))
+register("log10", "math", "log10(x) -> double", as_double("number"), double_fn("log10"))
+register("log", "math", "log(b, x) -> double", as_double("number", "number"),
+         lambda g, node, args: f"(ln(CAST({g.sql(args[1])} AS DOUBLE)) / ln(CAST({g.sql(args[0])} AS DOUBLE)))")
+register("power", "math", "power(x, p) -> double", as_double("number", "number"),
+         lambda g, node, args: f"pow(CAST({g.sql(args[0])} AS DOUBLE), CAST({g.sql(args[1])} AS DOUBLE))",
+         aliases=("pow",))
+for _name in ("sin", "cos", "tan", "atan", "sinh", "cosh", "tanh", "degrees", "radians"):
+    register(_name, "math", f"{_name}(x) -> double", as_double("number"), double_fn(_name))
+for _name in ("asin", "acos"):
+    register(_name, "math", f"{_name}(x) -> double", as_double("number"), double_fn(_name))
+register("atan2", "math", "atan2(y, x) -> double", as_double("number", "number"),
+         lambda g, node, args: f"atan2(CAST({g.sql(args[0])} AS DOUBLE), CAST({g.sql(args[1])} AS DOUBLE))")
+register("pi", "math", "pi() -> double", fixed(tt.DOUBLE), lambda g, node, args: "pi()")
+register("e", "math", "e() -> double", fixed(tt.DOUBLE), lambda g, node, args: "exp(1)")
+register("infinity", "math", "infinity() -> double", fixed(tt.DOUBLE),
+         lambda g, node, args: "CAST('Infinity' AS DOUBLE)")
+register("nan", "math", "nan() -> double", fixed(tt.DOUBLE), lambda g, node, args: "CAST('NaN' AS DOUBLE)")
+register("is_nan", "math", "is_nan(x) -> boolean", fixed(tt.BOOLEAN, "approx"),
+         lambda g, node, args: f"isnan(CAST({g.sql(args[0])} AS DOUBLE))")
+register("is_finite", "math", "is_finite(x) -> boolean", fixed(tt.BOOLEAN, "approx"),
+         lambda g, node, args: f"isfinite(CAST({g.sql(args[0])} AS DOUBLE))")
+register("is_infinite", "math", "is_infinite(x) -> boolean", fixed(tt.BOOLEAN, "approx"),
+         lambda g, node, args: f"isinf(CAST({g.sql(args[0])} AS DOUBLE))")
+register("random", "math", "random() -> double; random(n) / random(m, n) -> same as n", _random, _render_random,
+         aliases=("rand",))
+
+
+# === string =======================================================================================
+def _string_same(call: Call) -> TType:
+    (t,) = need(call, "string")
+    return t if t.base == "varchar" else tt.VARCHAR
+
+
+def _concat(call: Call) -> TType:
+    if not call.args or None in call.types:
+        call.mismatch()
+    if any(t.base == "array" for t in call.types):
+        element = None
+        for t in call.types:
+            inner = t.element if t.base == "array" else t
+            element = inner if element is None else tt.common_super_type(element, inner)
+            if element is None:
+                call.mismatch()
+        call.node.meta["array"] = True
+        return tt.array(element)
+    for t in call.types:
+        if t.base not in ("varchar", "unknown"):
+            call.mismatch()
+    return tt.VARCHAR
+
+
+def _render_concat(g, node, args) -> str:
+    if not node.meta.get("array"):
+        return "(" + " || ".join(g.sql(a) for a in args) + ")"
+    t = ttype(node)
+    pieces = []
+    for a in args:
+        pieces.append(g.coerce(a, t) if ttype(a).base == "array" else f"[{g.coerce(a, t.element)}]")
+    return null_if_any_null(g, [a for a in args if ttype(a).base == "array"],
+                            "flatten([" + ", ".join(pieces) + "])")
+
+
+def _replace(call: Call) -> TType:
+    types = need(call, "string", "string", "string", optional=1)
+    length = tt.varchar_length(types[0]) if types[0].base == "varchar" else None
+    if len(types) == 2 or length is None:
+        return types[0] if len(types) == 2 and types[0].base == "varchar" else tt.VARCHAR
+    to_length = tt.varchar_length(types[2]) if types[2].base == "varchar" else None
+    if to_length is None:
+        return tt.VARCHAR
+    return tt.varchar(length + to_length * (length + 1))
+
+
+def _render_replace(g, node, args) -> str:
+    value, search = g.sql(args[0]), g.sql(args[1])
+    target = g.sql(args[2]) if len(args) == 3 else "''"
+    if isinstance(args[1], exp.Literal) and args[1].name:
+        return f"replace({value}, {search}, {target})"
+    empty = f"regexp_replace({value}, '', replace({target}, '\\', '\\\\'), 'g')"
+    return f"CASE WHEN {search} = '' THEN {empty} ELSE replace({value}, {search}, {target}) END"
+
+
+def _split(call: Call) -> TType:
+    types = need(call, "string", "string", "integral", optional=1)
+    return tt.array(types[0] if types[0].base == "varchar" else tt.VARCHAR)
+
+
+def _render_split(g, node, args) -> str:
+    value, delim = g.sql(args[0]), g.sql(args[1])
+    sql = f"string_split({value}, {delim})"
+    if len(args) == 3:
+        limit = g.sql(args[2])
+        sql = (f"CASE WHEN ({limit}) <= 0 THEN {g.fail(tf.string('Limit must be positive'))} "
+               f"WHEN len({sql}) <= ({limit}) THEN {sql} ELSE list_append({sql}[1:({limit}) - 1], "
+               f"array_to_string({sql}[({limit}):], {delim})) END")
+    if isinstance(args[1], exp.Literal) and args[1].name:
+        return sql
+    return f"CASE WHEN {delim} = '' THEN {g.fail(tf.string('The delimiter may not be the empty string'))} ELSE {sql} END"
+
+
+def _render_split_part(g, node, args) -> str:
+    value, delim, index = sqls(g, args)
+    parts = f"string_split({value}, {delim})"
+    return (f"CASE WHEN ({index}) <= 0 THEN {g.fail(tf.string('Index must be greater than zero'))} "
+            f"WHEN {delim} = '' THEN {g.fail(tf.string('The delimiter may not be the empty string'))} "
+            f"WHEN len({parts}) < ({index}) THEN NULL ELSE {parts}[{index}] END")
+
+
+def _pad(call: Call) -> TType:
+    need(call, "string", "integral", "string")
+    return tt.VARCHAR
+
+
+def _render_pad(g, node, args) -> str:
+    value, size, pad = sqls(g, args)
+    name = node.name.lower()
+    return (f"CASE WHEN ({size}) < 0 THEN {g.fail(tf.string('Target length must be in the range [0..2147483647]'))} "
+            f"WHEN {pad} = '' AND length({value}) < ({size}) THEN "
+            f"{g.fail(tf.string('Padding string must not be empty'))} ELSE {name}({value}, CAST({size} AS INTEGER), {pad}) END")
+
+
+def _strpos(call: Call) -> TType:
+    if len(call.args) == 3:
+        call.fail("strpos with an instance is not supported in lakegate", "NOT_SUPPORTED")
+    need(call, "string", "string")
+    return tt.BIGINT
+
+
+def _substr(call: Call) -> TType:
+    types = need(call, "string", "integral", "integral", optional=1)
+    return types[0] if types[0].base == "varchar" else tt.VARCHAR
+
+
+def _render_substr(g, node, args) -> str:
+    sub = exp.Substring(this=args[0], start=args[1], length=args[2] if len(args) == 3 else None)
+    return tf.substring_from(g, sub)
+
+
+def _render_trim(name: str) -> Render:
+    def render(g, node, args):
+        chars = g.sql(args[1]) if len(args) == 2 else tf.string(tf.WHITESPACE)
+        return f"{name}({g.sql(args[0])}, {chars})"
+    return render
+
+
+register("length", "string", "length(string) -> bigint", fixed(tt.BIGINT, "string"),
+         lambda g, node, args: f"CAST(length({g.sql(args[0])}) AS BIGINT)")
+register("lower", "string", "lower(string) -> varchar", _string_same, call_as("lower"))
+register("upper", "string", "upper(string) -> varchar", _string_same, call_as("upper"))
+register("trim", "string", "trim(string) -> varchar", _string_same, _render_trim("trim"))
+register("ltrim", "string", "ltrim(string) -> varchar", _string_same, _render_trim("ltrim"))
+register("rtrim", "string", "rtrim(string) -> varchar", _string_same, _render_trim("rtrim"))
+register("substr", "string", "substr(string, start[, length]) -> varchar", _substr, _render_substr,
+         aliases=("substring",))
+register("replace", "string", "replace(string, search[, replace]) -> varchar", _replace, _render_replace)
+register("strpos", "string", "strpos(string, substring) -> bigint", _strpos,
+         lambda g, node, args: f"CAST(strpos({g.sql(args[0])}, {g.sql(args[1])}) AS BIGINT)")
+register("starts_with", "string", "starts_with(string, prefix) -> boolean", fixed(tt.BOOLEAN, "string", "string"),
+         call_as("starts_with"))
+register("concat", "string", "concat(string1, ..., stringN) -> varchar; concat(array1, ..., arrayN) -> array",
+         _concat, _render_concat, notes="NULL when any argument is NULL, as in Trino (DuckDB's concat skips NULLs).")
+register("concat_ws", "string", "concat_ws(separator, string1, ...) -> varchar",
+         lambda c: tt.VARCHAR if len(c.args) >= 2 and all(t is not None and t.base in ("varchar", "unknown")
+                                                             for t in c.types) else c.mismatch(),
+         call_as("concat_ws"))
+register("lpad", "string", "lpad(string, size, padstring) -> varchar", _pad, _render_pad)
+register("rpad", "string", "rpad(string, size, padstring) -> varchar", _pad, _render_pad)
+register("split", "string", "split(string, delimiter[, limit]) -> array(varchar)", _split, _render_split)
+register("split_part", "string", "split_part(string, delimiter, index) -> varchar",
+         lambda c: need(c, "string", "string", "integral")[0] if c.types and c.types[0] is not None
+         and c.types[0].base == "varchar" else fixed(tt.VARCHAR, "string", "string", "integral")(c),
+         _render_split_part, notes="NULL when the index is beyond the last field, as in Trino (DuckDB gives '').")
+register("chr", "string", "chr(n) -> varchar(1)", fixed(tt.varchar(1), "integral"), call_as("chr"))
+register("codepoint", "string", "codepoint(string) -> integer", fixed(tt.INTEGER, "string"),
+         lambda g, node, args: f"CAST(unicode({g.sql(args[0])}) AS INTEGER)")
+register("levenshtein_distance", "string", "levenshtein_distance(string1, string2) -> bigint",
+         fixed(tt.BIGINT, "string", "string"), call_as("levenshtein", cast_result=True))
+register("hamming_distance", "string", "hamming_distance(string1, string2) -> bigint",
+         fixed(tt.BIGINT, "string", "string"), call_as("hamming", cast_result=True))
+register("translate", "string", "translate(source, from, to) -> varchar", fixed(tt.VARCHAR, "string", "string", "string"),
+         call_as("translate"))
+
+
+# --- regular expressions -------------------------------------------------------------------------
+def _regexp(call: Call, result: TType, arity: tuple[int, ...], *kinds: str) -> TType:
+    if len(call.args) not in arity:
+        call.mismatch()
+    need(call, *kinds, optional=len(kinds) - len(call.args))
+    pattern = literal_str(call, 1)
+    if pattern is not None:
+        java_only = re.search(r"\(\?<[=!]|\(\?[=!>]|\\[1-9]|[*+?}]\+|\\[zZGhHvRXk]|\\p\{(?:java|Is)", pattern)
+        if java_only:
+            call.fail(f"unsupported in lakegate: regular expression construct '{java_only.group(0)}' "
+                      "(lakegate uses RE2, which has no lookaround, backreferences or possessive quantifiers)",
+                      "NOT_SUPPORTED")
+        try:
+            re.compile(pattern)
+        except re.error as error:
+            if any(word in str(error) for word in ("missing", "unbalanced", "unterminated", "nothing to repeat",
+                                                   "multiple repeat", "bad character range")):
+                call.fail(f"invalid regular expression '{pattern}': {error}", "INVALID_FUNCTION_ARGUMENT")
+    source = call.types[0]
+    text = source if source is not None and source.base == "varchar" else tt.VARCHAR
+    return {"same": text, "array": tt.array(text)}.get(result, result) if isinstance(result, str) else result
+
+
+def capturing_groups(pattern: str) -> list[tuple[str, bool]]:
+    """Each capturing group of a regular expression: (body, optional), optional when the group
+    may not take part in a match (quantified by ?, * or {0,...}, or inside an alternation)."""
+    groups: list[tuple[str, bool]] = []
+    stack: list[tuple[bool, int, int]] = []      # (capturing, body start, index in groups)
+    alternation_depths: set[int] = set()
+    i = 0
+    while i < len(pattern):
+        ch = pattern[i]
+        if ch == "\\":
+            i += 2
+            continue
+        if ch == "[":
+            i += 1
+            if i < len(pattern) and pattern[i] == "^":
+                i += 1
+            if i < len(pattern) and pattern[i] == "]":
+                i += 1
+            while i < len(pattern) and pattern[i] != "]":
+                i += 2 if pattern[i] == "\\" else 1
+        elif ch == "(":
+            named = pattern.startswith("(?P<", i) or (pattern.startswith("(?<", i) and pattern[i + 3:i + 4] not in "=!")
+            capturing = not pattern.startswith("(?", i) or named
+            start = pattern.index(">", i) + 1 if named else (i + 1 if capturing else pattern.find(":", i) + 1 or i + 2)
+            if capturing:
+                groups.append(("", False))
+            stack.append((capturing, start, len(groups) - 1))
+        elif ch == "|":
+            alternation_depths.add(len(stack))
+        elif ch == ")" and stack:
+            capturing, start, index = stack.pop()
+            if capturing:
+                rest = pattern[i + 1:]
+                optional = rest.startswith(("?", "*", "{0")) or any(d <= len(stack) for d in alternation_depths)
+                groups[index] = (pattern[start:i], optional)
+        i += 1
+    return groups
+
+
+def _group_semantics(call: Call, group_index: int) -> None:
+    """Record how DuckDB's '' for a group maps to Trino's answer; reject what cannot be told apart."""
+    pattern = literal_str(call, 1)
+    group = literal_int(call, 2) if len(call.args) > group_index else 0
+    if group is None:
+        if pattern is None or capturing_groups(pattern):
+            call.fail("regexp group must be a literal integer in lakegate", "NOT_SUPPORTED")
+        return
+    if pattern is None:
+        if group:
+            call.fail("regexp pattern must be a literal string to extract a group in lakegate", "NOT_SUPPORTED")
+        return
+    groups = capturing_groups(pattern)
+    if group < 0 or group > len(groups):
+        call.fail(f"Pattern has {len(groups)} groups. Cannot access group {group}", "INVALID_FUNCTION_ARGUMENT")
+    if group and groups[group - 1][1]:
+        body = groups[group - 1][0]
+        try:
+            can_be_empty = re.fullmatch(f"(?:{body})", "") is not None
+        except re.error:
+            can_be_empty = True
+        if can_be_empty:
+            call.fail(f"unsupported in lakegate: regexp group {group} is optional and can match the empty string, "
+                      "so a missing group cannot be told from an empty one", "NOT_SUPPORTED")
+        call.node.meta["null_if_empty"] = True
+
+
+def _regexp_extract(call: Call) -> TType:
+    result = _regexp(call, "same", (2, 3), "string", "string", "integral")
+    _group_semantics(call, 2)
+    return result
+
+
+def _regexp_extract_all(call: Call) -> TType:
+    result = _regexp(call, "array", (2, 3), "string", "string", "integral")
+    _group_semantics(call, 2)
+    return result
+
+
+def _group(g, args, index: int) -> str:
+    return g.sql(args[index]) if len(args) > index else "0"
+
+
+def _render_regexp_extract(g, node, args) -> str:
+    value, pattern = g.sql(args[0]), g.sql(args[1])
+    extracted = f"regexp_extract({value}, {pattern}, {_group(g, args, 2)})"
+    if node.meta.get("null_if_empty"):
+        extracted = f"nullif({extracted}, '')"
+    return f"CASE WHEN regexp_matches({value}, {pattern}) THEN {extracted} END"
+
+
+def _render_regexp_extract_all(g, node, args) -> str:
+    sql = f"regexp_extract_all({g.sql(args[0])}, {g.sql(args[1])}, {_group(g, args, 2)})"
+    if node.meta.get("null_if_empty"):
+        sql = f"list_transform({sql}, lambda \"_e\": nullif(\"_e\", ''))"
+    return sql
+
+
+def _regexp_replacement(text: str) -> str:
+    """A Java replacement string ($1, \\$) as an RE2 rewrite string (\\1, $)."""
+    out = []
+    i = 0
+    while i < len(text):
+        ch = text[i]
+        if ch == "\\" and i + 1 < len(text):
+            nxt = text[i + 1]
+            out.append("\\\\" if nxt == "\\" else nxt)
+            i += 2
+            continue
+        if ch == "$":
+            m = re.match(r"\$(\d)", text[i:])
+            if not m:
+                raise ValueError("named group reference")
+            out.append("\\" + m.group(1))
+            i += 2
+            continue
+        out.append("\\\\" if ch == "\\" else ch)
+        i += 1
+    return "".join(out)
+
+
+def _regexp_replace(call: Call) -> TType:
+    _regexp(call, tt.VARCHAR, (2, 3), "string", "string", "string")
+    x = tt.varchar_length(call.types[0]) if call.types[0].base == "varchar" else None
+    if len(call.args) == 3:
+        replacement = literal_str(call, 2)
+        if replacement is None:
+            call.fail("regexp_replace needs a literal replacement string in lakegate", "NOT_SUPPORTED")
+        try:
+            _regexp_replacement(replacement)
+        except ValueError:
+            call.fail("unsupported in lakegate: named group references in the regexp_replace replacement",
+                      "NOT_SUPPORTED")
+    if x is None:
+        return tt.VARCHAR
+    if len(call.args) == 2:
+        return call.types[0]
+    y = tt.varchar_length(call.types[2]) if call.types[2].base == "varchar" else None
+    if y is None:
+        return tt.VARCHAR
+    return tt.varchar(min(2147483647, x + max(x * y // 2, 0) * (x + 1)))
+
+
+def _render_regexp_replace(g, node, args) -> str:
+    value, pattern = g.sql(args[0]), g.sql(args[1])
+    replacement = tf.string(_regexp_replacement(args[2].name)) if len(args) == 3 else "''"
+    return f"regexp_replace({value}, {pattern}, {replacement}, 'g')"
+
+
+register("regexp_like", "regexp", "regexp_like(string, pattern) -> boolean",
+         lambda c: _regexp(c, tt.BOOLEAN, (2,), "string", "string"), call_as("regexp_matches"),
+         notes="Patterns run on RE2; Java-only constructs (lookaround, backreferences) are rejected.")
+register("regexp_extract", "regexp", "regexp_extract(string, pattern[, group]) -> varchar",
+         _regexp_extract, _render_regexp_extract,
+         notes="NULL when the pattern does not match or the group takes no part, as in Trino (DuckDB gives ''); "
+               "an optional group that can match '' is rejected.")
+register("regexp_extract_all", "regexp", "regexp_extract_all(string, pattern[, group]) -> array(varchar)",
+         _regexp_extract_all, _render_regexp_extract_all)
+register("regexp_replace", "regexp", "regexp_replace(string, pattern[, replacement]) -> varchar", _regexp_replace,
+         _render_regexp_replace, notes="Replaces every match; Java's $1 group references are translated.")
+register("regexp_split", "regexp", "regexp_split(string, pattern) -> array(varchar)",
+         lambda c: _regexp(c, "array", (2,), "string", "string"), call_as("regexp_split_to_array"))
+register("regexp_count", "regexp", "regexp_count(string, pattern) -> bigint",
+         lambda c: _regexp(c, tt.BIGINT, (2,), "string", "string"),
+         lambda g, node, args: f"CAST(len(regexp_extract_all({g.sql(args[0])}, {g.sql(args[1])})) AS BIGINT)")
+
+
+# --- JSON ----------------------------------------------------------------------------------------
+_EXACT_NUMBER_TARGETS = {exp.DataType.Type.TINYINT, exp.DataType.Type.SMALLINT, exp.DataType.Type.INT,
+                         exp.DataType.Type.BIGINT, exp.DataType.Type.FLOAT, exp.DataType.Type.DOUBLE}
+
+
+def _render_json_extract_scalar(g, node, args) -> str:
+    """Trino returns a number's text as written; DuckDB re-prints numbers it parsed (2.50 -> 2.5,
+    1e3 -> 1000.0, -0 -> 0). Where that can differ, refuse at run time (also inside try: Trino
+    would answer there, so NULL would be a silently different answer)."""
+    value, path = g.sql(args[0]), g.sql(args[1])
+    kind, text = f"json_type({value}, {path})", f"json_extract_string({value}, {path})"
+    parent = node.parent
+    if isinstance(parent, (exp.Cast, exp.TryCast)) and parent.to.this in _EXACT_NUMBER_TARGETS:
+        # Any spelling of a number casts to the same integer (or the same error) and the same double.
+        return (f"CASE WHEN NOT json_valid({value}) THEN NULL WHEN {kind} IN ('OBJECT', 'ARRAY') THEN NULL "
+                f"ELSE {text} END")
+    refuse = tf.string("NOT_SUPPORTED: json_extract_scalar of a non-integer (or negative zero) JSON number "
+                       "is not supported: its text as written is not kept")
+    return (f"CASE WHEN NOT json_valid({value}) THEN NULL WHEN {kind} IN ('OBJECT', 'ARRAY') THEN NULL "
+            f"WHEN {kind} = 'DOUBLE' OR ({kind} = 'BIGINT' AND {text} = '0' AND contains({value}, '-0')) "
+            f"THEN error({refuse}) ELSE {text} END")
+
+
+def _json_path(call: Call) -> TType:
+    need(call, "json", "string")
+    path = literal_str(call, 1)
+    if path is None or not re.fullmatch(r"\$((\.[A-Za-z_][A-Za-z0-9_]*)|(\[\d+\])|(\[\"[^\"]*\"\]))*", path):
+        call.fail("unsupported in lakegate: JSON path other than a literal $.key / [index] path", "NOT_SUPPORTED")
+    source = call.types[0]
+    return source if source.base == "varchar" else tt.VARCHAR
+
+
+register("is_json_scalar", "json", "is_json_scalar(json) -> boolean", fixed(tt.BOOLEAN, "json"),
+         lambda g, node, args: (f"CASE WHEN NOT json_valid({g.sql(args[0])}) THEN "
+                                f"{g.fail(tf.string('Invalid JSON value: ') + ' || ' + g.sql(args[0]))} "
+                                f"ELSE json_type({g.sql(args[0])}) NOT IN ('OBJECT', 'ARRAY') END"))
+register("json_extract_scalar", "json", "json_extract_scalar(json, json_path) -> varchar", _json_path,
+         _render_json_extract_scalar,
+         notes="NULL for objects, arrays, missing keys and invalid JSON text, as in Trino. A non-integer "
+               "number is refused at run time (NOT_SUPPORTED): Trino returns its text as written "
+               "(2.50), which DuckDB does not keep.")
+
+
+# === array ========================================================================================
+def _array_arg(call: Call, index: int = 0) -> TType:
+    t = call.types[index]
+    if t is None or t.base not in ("array", "unknown"):
+        call.mismatch()
+    return t if t.base == "array" else tt.array(tt.UNKNOWN)
+
+
+def _cardinality(call: Call) -> TType:
+    if len(call.args) != 1:
+        call.mismatch()
+    t = call.types[0]
+    if t is None or t.base not in ("array", "map", "unknown"):
+        call.mismatch()
+    return tt.BIGINT
+
+
+def _contains(call: Call) -> TType:
+    need(call, "array", "any")
+    element = _array_arg(call).element
+    if tt.common_super_type(element, call.types[1]) is None:
+        call.mismatch()
+    return tt.BOOLEAN
+
+
+def _render_contains(g, node, args) -> str:
+    arr, value = g.sql(args[0]), g.sql(args[1])
+    return (f"CASE WHEN ({value}) IS NULL OR ({arr}) IS NULL THEN NULL WHEN list_contains({arr}, {value}) THEN true "
+            f"WHEN list_count({arr}) < len({arr}) THEN NULL ELSE false END")
+
+
+def _array_position(call: Call) -> TType:
+    _contains(call)
+    return tt.BIGINT
+
+
+def _render_array_position(g, node, args) -> str:
+    arr, value = g.sql(args[0]), g.sql(args[1])
+    return (f"CASE WHEN ({arr}) IS NULL OR ({value}) IS NULL THEN NULL "
+            f"ELSE CAST(coalesce(list_position({arr}, {value}), 0) AS BIGINT) END")
+
+
+def _array_join(call: Call) -> TType:
+    types = need(call, "array", "string", "string", optional=1)
+    element = _array_arg(call).element
+    if element.base in ("array", "map", "row", "json"):
+        call.mismatch()
+    return tt.VARCHAR
+
+
+def _render_array_join(g, node, args) -> str:
+    arr, delim = g.sql(args[0]), g.sql(args[1])
+    element = ttype(args[0]).element if ttype(args[0]).base == "array" else tt.UNKNOWN
+    text = tf.varchar_of(g, '"_e"', element)
+    if len(args) == 3:
+        text = f"coalesce({text}, {g.sql(args[2])})"
+    items = arr if text == '"_e"' else f"list_transform({arr}, lambda \"_e\": {text})"
+    return f"array_to_string({items}, {delim})"
+
+
+def _array_sort(call: Call) -> TType:
+    if not 1 <= len(call.args) <= 2:
+        call.mismatch()
+    arr = _array_arg(call)
+    if arr.element.base in ("map", "json"):
+        call.mismatch()
+    if len(call.args) == 2:
+        if not call.lam(1, [arr.element, arr.element]).is_integral:
+            call.mismatch()
+        call.node.meta["sort_key"] = _comparator_key(call)
+    return arr
+
+
+_RELATIONS = {exp.LT: "<", exp.LTE: "<=", exp.GT: ">", exp.GTE: ">=", exp.EQ: "=", exp.NEQ: "<>"}
+_FLIP = {"<": ">", "<=": ">=", ">": "<", ">=": "<=", "=": "=", "<>": "<>"}
+_HOLDS = {"<": {"lt"}, "<=": {"lt", "eq"}, ">": {"gt"}, ">=": {"gt", "eq"}, "=": {"eq"}, "<>": {"lt", "gt"}}
+
+
+def _unparen(node):
+    while isinstance(node, exp.Paren):
+        node = node.this
+    return node
+
+
+def _uses(node: exp.Expression, name: str) -> bool:
+    return any(isinstance(n, (exp.Identifier, exp.Column)) and n._meta and n.meta.get("lambda")
+               and n.name.lower() == name for n in node.walk())
+
+
+def _renamed(node: exp.Expression, old: str, new: str) -> exp.Expression:
+    copy = node.copy()
+    for n in copy.walk():
+        if isinstance(n, exp.Identifier) and n.name.lower() == old:
+            n.set("this", new)
+    return copy
+
+
+def _comparator_key(call: Call) -> tuple[exp.Expression, bool]:
+    """The sort key and direction of a comparator lambda that compares one expression of x with
+    the same expression of y (IF / CASE returning -1, 0, 1); anything else is rejected."""
+    lam = call.args[1]
+    x, y = (p.name.lower() for p in lam.expressions)
+
+    def reject():
+        call.fail("unsupported in lakegate: array_sort comparator other than IF/CASE comparisons of one "
+                  "expression of x with the same expression of y returning -1, 0, 1", "NOT_SUPPORTED")
+
+    branches, body = [], _unparen(lam.this)
+    while True:
+        if isinstance(body, exp.If):
+            branches.append((body.this, body.args.get("true")))
+            body = _unparen(body.args.get("false"))
+        elif isinstance(body, exp.Case) and body.args.get("this") is None:
+            branches.extend((b.this, b.args.get("true")) for b in body.args.get("ifs") or [])
+            body = _unparen(body.args.get("default"))
+        else:
+            break
+    default, key, relations = body, None, []
+    for cond, _ in branches:
+        cond = _unparen(cond)
+        if type(cond) not in _RELATIONS:
+            reject()
+        left, right, rel = _unparen(cond.this), _unparen(cond.expression), _RELATIONS[type(cond)]
+        if _uses(left, y) and _uses(right, x):
+            left, right, rel = right, left, _FLIP[rel]
+        if _uses(left, y) or _uses(right, x) or not _uses(left, x) or _renamed(right, y, x) != left:
+            reject()
+        if key is not None and left != key:
+            reject()
+        key = left
+        relations.append(rel)
+
+    def value(node):
+        node = _unparen(node) if node is not None else None
+        literal = node.this if isinstance(node, exp.Neg) else node
+        if not isinstance(literal, exp.Literal) or literal.is_string or not literal.name.isdigit():
+            reject()
+        return -int(literal.name) if isinstance(node, exp.Neg) else int(literal.name)
+
+    outcome = []
+    for order in ("lt", "eq", "gt"):
+        chosen = next((result for rel, (_, result) in zip(relations, branches) if order in _HOLDS[rel]), default)
+        number = value(chosen)
+        outcome.append((number > 0) - (number < 0))
+    if key is None or tuple(outcome) not in ((-1, 0, 1), (1, 0, -1)):
+        reject()
+    return key, tuple(outcome) == (1, 0, -1)
+
+
+def _render_array_sort(g, node, args) -> str:
+    arr = g.sql(args[0])
+    if len(args) == 1:
+        return f"list_sort({arr}, 'ASC', 'NULLS LAST')"
+    key, descending = node.meta["sort_key"]
+    x = tf.quote(args[1].expressions[0].name.lower())
+    position = '-"_i"' if descending else '"_i"'
+    keyed = f"list_transform({arr}, lambda {x}, \"_i\": struct_pack(k := {g.sql(key)}, i := {position}, v := {x}))"
+    direction = "'DESC'" if descending else "'ASC'"
+    return f"list_transform(list_sort({keyed}, {direction}), lambda \"_s\": struct_extract(\"_s\", 'v'))"
+
+
+def _array_distinct(call: Call) -> TType:
+    need(call, "array")
+    return _array_arg(call)
+
+
+def _render_array_distinct(g, node, args) -> str:
+    arr = g.sql(args[0])
+    return (f"list_transform(list_filter(list_zip({arr}, range(1, len({arr}) + 1)), "
+            f"lambda \"_p\": list_position({arr}, struct_extract(\"_p\", 1)) = struct_extract(\"_p\", 2)), "
+            f"lambda \"_p\": struct_extract(\"_p\", 1))")
+
+
+def _array_minmax(call: Call) -> TType:
+    need(call, "array")
+    element = _array_arg(call).element
+    if element.base in ("map", "json", "row", "array"):
+        call.mismatch()
+    return element
+
+
+def _render_array_minmax(g, node, args) -> str:
+    arr = g.sql(args[0])
+    name = "list_max" if node.name.lower() == "array_max" else "list_min"
+    return f"CASE WHEN list_count({arr}) < len({arr}) THEN NULL ELSE {name}({arr}) END"
+
+
+def _element_at(call: Call) -> TType:
+    t = call.types[0] if call.types else None
+    if len(call.args) != 2 or t is None:
+        call.mismatch()
+    if t.base == "map":
+        if tt.common_super_type(t.args[0], call.types[1]) is None:
+            call.mismatch()
+        return t.args[1]
+    need(call, "array", "integral")
+    return _array_arg(call).element
+
+
+def _render_element_at(g, node, args) -> str:
+    container, index = g.sql(args[0]), g.sql(args[1])
+    if ttype(args[0]).base == "map":
+        return f"map_extract_value({container}, {g.coerce(args[1], ttype(args[0]).args[0])})"
+    if isinstance(args[1], exp.Literal) and args[1].name != "0":
+        return f"list_extract({container}, {index})"
+    return (f"CASE WHEN ({index}) = 0 THEN {g.fail(tf.string('SQL array indices start at 1'))} "
+            f"ELSE list_extract({container}, {index}) END")
+
+
+def _filter(call: Call) -> TType:
+    arr = _array_arg(call)
+    if len(call.args) != 2:
+        call.mismatch()
+    if call.lam(1, [arr.element]).base not in ("boolean", "unknown"):
+        call.mismatch()
+    return arr
+
+
+def _transform(call: Call) -> TType:
+    arr = _array_arg(call)
+    if len(call.args) != 2:
+        call.mismatch()
+    return tt.array(call.lam(1, [arr.element]))
+
+
+def _render_lambda_call(duck: str) -> Render:
+    def render(g, node, args):
+        return f"{duck}({g.sql(args[0])}, {g.lambda_(args[1])})"
+    return render
+
+
+def _reduce(call: Call) -> TType:
+    if len(call.args) != 4 or call.types[1] is None:
+        call.mismatch()
+    arr = _array_arg(call)
+    state = call.types[1]
+    for _ in range(4):
+        result = call.lam(2, [state, arr.element])
+        widened = tt.common_super_type(state, result)
+        if widened is None:
+            call.mismatch()
+        if widened == state:
+            break
+        state = widened
+    call.node.meta["state"] = state
+    return call.lam(3, [state])
+
+
+def _render_reduce(g, node, args) -> str:
+    arr = g.sql(args[0])
+    state = node.meta["state"]
+    merge, output = args[2], args[3]
+    folded = f"list_reduce({arr}, {g.lambda_(merge)}, {g.coerce(args[1], state)})"
+    out_param = output.expressions[0].name.lower()
+    applied = f"list_transform([{folded}], lambda {tf.quote(out_param)}: {g.sql(output.this)})[1]"
+    return f"CASE WHEN ({arr}) IS NULL THEN NULL ELSE {applied} END"
+
+
+def _match(call: Call) -> TType:
+    arr = _array_arg(call)
+    if len(call.args) != 2 or call.lam(1, [arr.element]).base not in ("boolean", "unknown"):
+        call.mismatch()
+    return tt.BOOLEAN
+
+
+def _render_match(g, node, args) -> str:
+    arr = g.sql(args[0])
+    flags = f"list_transform({arr}, {g.lambda_(args[1])})"
+    name = node.name.lower()
+    has_null = f"list_count({flags}) < len({flags})"
+    if name == "any_match":
+        return (f"CASE WHEN ({arr}) IS NULL THEN NULL WHEN list_contains({flags}, true) THEN true "
+                f"WHEN {has_null} THEN NULL ELSE false END")
+    if name == "all_match":
+        return (f"CASE WHEN ({arr}) IS NULL THEN NULL WHEN list_contains({flags}, false) THEN false "
+                f"WHEN {has_null} THEN NULL ELSE true END")
+    return (f"CASE WHEN ({arr}) IS NULL THEN NULL WHEN list_contains({flags}, true) THEN false "
+            f"WHEN {has_null} THEN NULL ELSE true END")
+
+
+def _zip_with(call: Call) -> TType:
+    if len(call.args) != 3:
+        call.mismatch()
+    a, b = _array_arg(call, 0), _array_arg(call, 1)
+    return tt.array(call.lam(2, [a.element, b.element]))
+
+
+def _render_zip_with(g, node, args) -> str:
+    a, b = g.sql(args[0]), g.sql(args[1])
+    fn = args[2]
+    x, y = (p.name.lower() for p in fn.expressions)
+    body = g.sql(fn.this)
+    pair = '"_z"'
+    inner = (f"list_transform([struct_extract({pair}, 1)], lambda {tf.quote(x)}: "
+             f"list_transform([struct_extract({pair}, 2)], lambda {tf.quote(y)}: {body})[1])[1]")
+    return (f"CASE WHEN ({a}) IS NULL OR ({b}) IS NULL THEN NULL "
+            f"ELSE list_transform(list_zip({a}, {b}), lambda {pair}: {inner}) END")
+
+
+def _sequence(call: Call) -> TType:
+    types = need(call, "integral", "integral", "integral", optional=1)
+    return tt.array(tt.BIGINT)
+
+
+def _render_sequence(g, node, args) -> str:
+    start, stop = g.sql(args[0]), g.sql(args[1])
+    step = g.sql(args[2]) if len(args) == 3 else f"CASE WHEN ({stop}) >= ({start}) THEN 1 ELSE -1 END"
+    count = f"(({stop}) - ({start})) // ({step}) + 1"
+    return (f"CASE WHEN ({step}) = 0 THEN {g.fail(tf.string('step must not be zero'))} "
+            f"WHEN ({step}) > 0 AND ({start}) > ({stop}) THEN "
+            f"{g.fail(tf.string('sequence stop value should be greater than or equal to start value if step is greater than zero otherwise stop should be less than or equal to start'))} "
+            f"WHEN ({step}) < 0 AND ({start}) < ({stop}) THEN "
+            f"{g.fail(tf.string('sequence stop value should be greater than or equal to start value if step is greater than zero otherwise stop should be less than or equal to start'))} "
+            f"WHEN {count} > 10000 THEN {g.fail(tf.string('result of sequence function must not have more than 10000 entries'))} "
+            f"ELSE CAST(generate_series(CAST({start} AS BIGINT), CAST({stop} AS BIGINT), CAST({step} AS BIGINT)) AS BIGINT[]) END")
+
+
+def _slice(call: Call) -> TType:
+    need(call, "array", "integral", "integral")
+    return _array_arg(call)
+
+
+def _render_slice(g, node, args) -> str:
+    arr, start, length = sqls(g, args)
+    begin = f"CASE WHEN ({start}) > 0 THEN ({start}) ELSE len({arr}) + ({start}) + 1 END"
+    return (f"CASE WHEN ({start}) = 0 THEN {g.fail(tf.string('SQL array indices start at 1'))} "
+            f"WHEN ({length}) < 0 THEN {g.fail(tf.string('length must be greater than or equal to 0'))} "
+            f"WHEN ({start}) < 0 AND -({start}) > len({arr}) THEN list_slice({arr}, 1, 0) "
+            f"ELSE list_slice({arr}, {begin}, {begin} + ({length}) - 1) END")
+
+
+def _flatten(call: Call) -> TType:
+    need(call, "array")
+    arr = _array_arg(call)
+    if arr.element.base not in ("array", "unknown"):
+        call.mismatch()
+    return arr.element if arr.element.base == "array" else arr
+
+
+def _reverse(call: Call) -> TType:
+    (t,) = need(call, "any")
+    if t.base == "array":
+        return t
+    if t.base in ("varchar", "unknown"):
+        return t if t.base == "varchar" else tt.VARCHAR
+    call.mismatch()
+
+
+def _render_reverse(g, node, args) -> str:
+    value = g.sql(args[0])
+    return f"list_reverse({value})" if ttype(node).base == "array" else f"reverse({value})"
+
+
+def _array_remove(call: Call) -> TType:
+    _contains(call)
+    return _array_arg(call)
+
+
+def _render_array_remove(g, node, args) -> str:
+    arr, value = g.sql(args[0]), g.sql(args[1])
+    return (f"CASE WHEN ({value}) IS NULL THEN NULL ELSE list_filter({arr}, lambda \"_e\": "
+            f"\"_e\" IS NULL OR \"_e\" <> {value}) END")
+
+
+def _arrays_overlap(call: Call) -> TType:
+    need(call, "array", "array")
+    if tt.common_super_type(_array_arg(call, 0), _array_arg(call, 1)) is None:
+        call.mismatch()
+    return tt.BOOLEAN
+
+
+def _render_arrays_overlap(g, node, args) -> str:
+    a, b = g.sql(args[0]), g.sql(args[1])
+    return (f"CASE WHEN ({a}) IS NULL OR ({b}) IS NULL THEN NULL WHEN list_has_any({a}, {b}) THEN true "
+            f"WHEN len({a}) > 0 AND len({b}) > 0 AND (list_count({a}) < len({a}) OR list_count({b}) < len({b})) "
+            f"THEN NULL ELSE false END")
+
+
+def _repeat(call: Call) -> TType:
+    types = need(call, "any", "integral")
+    return tt.array(types[0])
+
+
+def _render_repeat(g, node, args) -> str:
+    value, count = g.sql(args[0]), g.sql(args[1])
+    return (f"CASE WHEN ({count}) < 0 THEN {g.fail(tf.string('count argument of repeat function must be greater than or equal to 0'))} "
+            f"WHEN ({count}) > 10000 THEN {g.fail(tf.string('count argument of repeat function must be less than or equal to 10000'))} "
+            f"ELSE list_transform(range(CAST({count} AS BIGINT)), lambda \"_i\": {value}) END")
+
+
+def _map(call: Call) -> TType:
+    if not call.args:
+        return tt.map_of(tt.UNKNOWN, tt.UNKNOWN)
+    need(call, "array", "array")
+    keys, values = _array_arg(call, 0), _array_arg(call, 1)
+    if keys.element.base in ("map", "json"):
+        call.mismatch()
+    return tt.map_of(keys.element, values.element)
+
+
+def _render_map(g, node, args) -> str:
+    if not args:
+        return "map()"
+    keys, values = g.sql(args[0]), g.sql(args[1])
+    return (f"CASE WHEN len({keys}) <> len({values}) THEN "
+            f"{g.fail(tf.string('Key and value arrays must be the same length'))} "
+            f"WHEN list_count({keys}) < len({keys}) THEN {g.fail(tf.string('map key cannot be null'))} "
+            f"WHEN len(list_distinct({keys})) < len({keys}) THEN "
+            f"{g.fail(tf.string('Duplicate map keys are not allowed'))} ELSE map({keys}, {values}) END")
+
+
+def _map_part(call: Call) -> TType:
+    (t,) = need(call, "any")
+    if t.base != "map":
+        call.mismatch()
+    return tt.array(t.args[0] if call.name == "map_keys" else t.args[1])
+
+
+register("map", "map", "map(array(K), array(V)) -> map(K, V)", _map, _render_map,
+         notes="Duplicate or NULL keys fail as in Trino.")
+register("map_keys", "map", "map_keys(map(K, V)) -> array(K)", _map_part, call_as("map_keys"))
+register("map_values", "map", "map_values(map(K, V)) -> array(V)", _map_part, call_as("map_values"))
+register("cardinality", "array", "cardinality(array) -> bigint; cardinality(map) -> bigint", _cardinality,
+         lambda g, node, args: f"CAST({'cardinality' if ttype(args[0]).base == 'map' else 'len'}({g.sql(args[0])}) AS BIGINT)")
+register("contains", "array", "contains(array, element) -> boolean", _contains, _render_contains,
+         notes="NULL when the element is absent and the array holds a NULL, as in Trino.")
+register("array_position", "array", "array_position(array, element) -> bigint", _array_position,
+         _render_array_position, notes="0 when absent, as in Trino (DuckDB gives NULL).")
+register("array_join", "array", "array_join(array, delimiter[, null_replacement]) -> varchar", _array_join,
+         _render_array_join, notes="Elements render as CAST(... AS VARCHAR) does in Trino; NULLs are skipped.")
+register("array_sort", "array", "array_sort(array[, function(T, T, integer)]) -> array", _array_sort,
+         _render_array_sort, notes="NULLs last. A comparator is translated when it compares one expression of x "
+                                   "with the same expression of y (a sort key, ascending or descending, stable); "
+                                   "other comparators are rejected.")
+register("array_distinct", "array", "array_distinct(array) -> array", _array_distinct, _render_array_distinct,
+         notes="Keeps the first occurrence of each value in order, as in Trino.")
+register("array_max", "array", "array_max(array) -> element", _array_minmax, _render_array_minmax)
+register("array_min", "array", "array_min(array) -> element", _array_minmax, _render_array_minmax)
+register("element_at", "array", "element_at(array, index) -> element; element_at(map, key) -> value", _element_at,
+         _render_element_at, notes="NULL beyond the end; negative indexes count from the end.")
+register("filter", "array", "filter(array, function(T, boolean)) -> array", _filter,
+         _render_lambda_call("list_filter"))
+register("transform", "array", "transform(array, function(T, U)) -> array(U)", _transform,
+         _render_lambda_call("list_transform"))
+register("reduce", "array", "reduce(array, initialState, inputFunction, outputFunction) -> R", _reduce,
+         _render_reduce, notes="The output function is applied to the final state.")
+register("any_match", "array", "any_match(array, function(T, boolean)) -> boolean", _match, _render_match)
+register("all_match", "array", "all_match(array, function(T, boolean)) -> boolean", _match, _render_match)
+register("none_match", "array", "none_match(array, function(T, boolean)) -> boolean", _match, _render_match)
+register("zip_with", "array", "zip_with(array(T), array(U), function(T, U, R)) -> array(R)", _zip_with,
+         _render_zip_with, notes="The shorter array is padded with NULLs, as in Trino.")
+register("sequence", "array", "sequence(start, stop[, step]) -> array(bigint)", _sequence, _render_sequence)
+register("slice", "array", "slice(array, start, length) -> array", _slice, _render_slice)
+register("flatten", "array", "flatten(array(array(T))) -> array(T)", _flatten, call_as("flatten"))
+register("reverse", "array", "reverse(array) -> array; reverse(string) -> varchar", _reverse, _render_reverse)
+register("array_remove", "array", "array_remove(array, element) -> array", _array_remove, _render_array_remove)
+register("arrays_overlap", "array", "arrays_overlap(array, array) -> boolean", _arrays_overlap,
+         _render_arrays_overlap)
+register("repeat", "array", "repeat(element, count) -> array", _repeat, _render_repeat)
+register("row", "conditional", "row(value1, ...) -> row",
+         lambda c: tt.row([(None, t) for t in c.types]) if c.types and None not in c.types else c.mismatch(),
+         lambda g, node, args: f"row({', '.join(sqls(g, args))})")
+
+
+# === date and time ================================================================================
+_UNITS = ("millisecond", "second", "minute", "hour", "day", "week", "month", "quarter", "year")
+_DATE_UNITS = ("day", "week", "month", "quarter", "year")
+
+
+def _unit(call: Call, index: int, temporal: TType) -> str:
+    unit = literal_str(call, index)
+    if unit is None:
+        call.fail("the unit must be a literal string in lakegate", "NOT_SUPPORTED")
+    unit = unit.lower()
+    allowed = _DATE_UNITS if temporal.base == "date" else _UNITS
+    if unit not in allowed:
+        call.fail(f"'{unit}' is not a valid {temporal} field", "INVALID_FUNCTION_ARGUMENT")
+    return unit
+
+
+def _date_diff(call: Call) -> TType:
+    types = need(call, "string", "temporal", "temporal")
+    common_type = tt.common_super_type(types[1], types[2])
+    if common_type is None:
+        call.mismatch()
+    _unit(call, 0, common_type)
+    return tt.BIGINT
+
+
+def _render_date_diff(g, node, args) -> str:
+    unit = args[0].name.lower()
+    a, b = g.sql(args[1]), g.sql(args[2])
+    if ttype(args[1]).base == "timestamp_tz" or ttype(args[2]).base == "timestamp_tz":
+        a, b = f"timezone('UTC', {a})", f"timezone('UTC', {b})"
+    return f"CAST(date_sub({tf.string(unit)}, {a}, {b}) AS BIGINT)"
+
+
+def _date_add(call: Call) -> TType:
+    types = need(call, "string", "integral", "temporal")
+    _unit(call, 0, types[2])
+    return types[2]
+
+
+_INTERVAL_OF = {"millisecond": "to_milliseconds", "second": "to_seconds", "minute": "to_minutes",
+                "hour": "to_hours", "day": "to_days", "week": "to_weeks", "month": "to_months",
+                "quarter": None, "year": "to_years"}
+
+
+def _render_date_add(g, node, args) -> str:
+    unit = args[0].name.lower()
+    amount, value = g.sql(args[1]), g.sql(args[2])
+    interval = f"to_months(3 * CAST({amount} AS INTEGER))" if unit == "quarter" else \
+        f"{_INTERVAL_OF[unit]}(CAST({amount} AS {'INTEGER' if unit in ('month', 'year', 'week', 'day') else 'BIGINT'}))"
+    return tf.cast(f"({value} + {interval})", ttype(node))
+
+
+def _date_trunc(call: Call) -> TType:
+    types = need(call, "string", "temporal")
+    _unit(call, 0, types[1])
+    return types[1]
+
+
+def _render_date_trunc(g, node, args) -> str:
+    unit, value = args[0].name.lower(), g.sql(args[1])
+    t = ttype(node)
+    if t.base == "timestamp_tz":
+        return f"timezone('UTC', date_trunc({tf.string(unit)}, timezone('UTC', {value})))"
+    return tf.cast(f"date_trunc({tf.string(unit)}, {value})", t)
+
+
+#: MySQL date_format specifiers Trino supports, as DuckDB strftime specifiers.
+MYSQL_FORMAT = {"a": "%a", "b": "%b", "c": "%-m", "d": "%d", "e": "%-d", "f": "%f", "H": "%H", "h": "%I",
+                "I": "%I", "i": "%M", "j": "%j", "k": "%-H", "l": "%-I", "M": "%B", "m": "%m", "p": "%p",
+                "r": "%I:%M:%S %p", "S": "%S", "s": "%S", "T": "%H:%M:%S", "W": "%A", "Y": "%Y", "y": "%y",
+                "%": "%%"}
+
+
+def mysql_to_strftime(fmt: str) -> str:
+    """Translate a MySQL-style format (Trino's date_format / date_parse) to strftime; ValueError
+    naming the first specifier that has no exact equivalent."""
+    out = []
+    i = 0
+    while i < len(fmt):
+        ch = fmt[i]
+        if ch == "%" and i + 1 < len(fmt):
+            spec = fmt[i + 1]
+            if spec not in MYSQL_FORMAT:
+                raise ValueError(f"%{spec}")
+            out.append(MYSQL_FORMAT[spec])
+            i += 2
+            continue
+        out.append("%%" if ch == "%" else ch)
+        i += 1
+    return "".join(out)
+
+
+def _date_format(call: Call) -> TType:
+    need(call, "temporal", "string")
+    fmt = literal_str(call, 1)
+    if fmt is None:
+        call.fail("date_format needs a literal format in lakegate", "NOT_SUPPORTED")
+    try:
+        mysql_to_strftime(fmt)
+    except ValueError as error:
+        call.fail(f"unsupported in lakegate: date_format specifier '{error}'", "NOT_SUPPORTED")
+    return tt.VARCHAR
+
+
+def _render_date_format(g, node, args) -> str:
+    value = g.sql(args[0])
+    if ttype(args[0]).base == "timestamp_tz":
+        value = f"timezone('UTC', {value})"
+    return f"strftime({value}, {tf.string(mysql_to_strftime(args[1].name))})"
+
+
+def _date_parse(call: Call) -> TType:
+    need(call, "string", "string")
+    fmt = literal_str(call, 1)
+    if fmt is None:
+        call.fail("date_parse needs a literal format in lakegate", "NOT_SUPPORTED")
+    try:
+        mysql_to_strftime(fmt)
+    except ValueError as error:
+        call.fail(f"unsupported in lakegate: date_parse specifier '{error}'", "NOT_SUPPORTED")
+    return tt.timestamp(3)
+
+
+def _render_date_parse(g, node, args) -> str:
+    fmt = tf.string(mysql_to_strftime(args[1].name))
+    return f"CAST(strptime({g.sql(args[0])}, {fmt}) AS TIMESTAMP)"
+
+
+def _from_unixtime(call: Call) -> TType:
+    if len(call.args) != 1:
+        call.fail("from_unixtime with a time zone is not supported in lakegate", "NOT_SUPPORTED")
+    need(call, "number")
+    return tt.timestamp(3, with_time_zone=True)
+
+
+def _render_from_unixtime(g, node, args) -> str:
+    millis = f"CAST(round(CAST({g.sql(args[0])} AS DOUBLE) * 1000) AS BIGINT)"
+    return f"timezone('UTC', epoch_ms({millis}))"
+
+
+def _to_unixtime(call: Call) -> TType:
+    types = need(call, "temporal")
+    if types[0].base == "date":
+        call.mismatch()
+    return tt.DOUBLE
+
+
+def _render_to_unixtime(g, node, args) -> str:
+    return f"epoch({g.sql(args[0])})"
+
+
+def _field(call: Call) -> TType:
+    types = need(call, "temporal")
+    name = call.name
+    if types[0].base == "date" and name in ("hour", "minute", "second", "millisecond"):
+        call.mismatch()
+    return tt.BIGINT
+
+
+_FIELD_OF = {"year": "year", "quarter": "quarter", "month": "month", "week": "week", "week_of_year": "week",
+             "day": "day", "day_of_month": "day", "day_of_week": "isodow", "dow": "isodow", "day_of_year": "doy",
+             "doy": "doy", "year_of_week": "isoyear", "yow": "isoyear", "hour": "hour", "minute": "minute",
+             "second": "second", "millisecond": "millisecond"}
+
+
+def _render_field(g, node, args) -> str:
+    value = g.sql(args[0])
+    if ttype(args[0]).base == "timestamp_tz":
+        value = f"timezone('UTC', {value})"
+    name = node.name.lower()
+    part = _FIELD_OF[name]
+    if name == "millisecond":
+        return f"CAST(date_part('millisecond', {value}) % 1000 AS BIGINT)"
+    return f"CAST(date_part({tf.string(part)}, {value}) AS BIGINT)"
+
+
+register("date_diff", "datetime", "date_diff(unit, timestamp1, timestamp2) -> bigint", _date_diff,
+         _render_date_diff, notes="Counts whole units between the values, as Trino does (DuckDB's date_diff counts "
+                                  "boundaries; lakegate uses date_sub).")
+register("date_add", "datetime", "date_add(unit, value, timestamp) -> same as timestamp", _date_add,
+         _render_date_add)
+register("date_trunc", "datetime", "date_trunc(unit, x) -> same as x", _date_trunc, _render_date_trunc)
+register("date_format", "datetime", "date_format(timestamp, format) -> varchar", _date_format,
+         _render_date_format, notes="MySQL-style specifiers with an exact strftime equivalent; others are rejected.")
+register("date_parse", "datetime", "date_parse(string, format) -> timestamp(3)", _date_parse, _render_date_parse)
+register("from_unixtime", "datetime", "from_unixtime(unixtime) -> timestamp(3) with time zone", _from_unixtime,
+         _render_from_unixtime, notes="In the session time zone, which is UTC in lakegate.")
+register("to_unixtime", "datetime", "to_unixtime(timestamp) -> double", _to_unixtime, _render_to_unixtime)
+register("now", "datetime", "now() -> timestamp(3) with time zone", fixed(tt.timestamp(3, True)),
+         lambda g, node, args: "date_trunc('millisecond', current_timestamp)")
+register("current_timezone", "datetime", "current_timezone() -> varchar", fixed(tt.VARCHAR),
+         lambda g, node, args: "'UTC'")
+register("date", "datetime", "date(x) -> date",
+         lambda c: tt.DATE if len(c.args) == 1 and c.types[0] is not None and c.types[0].base in
+         ("varchar", "timestamp", "timestamp_tz", "date", "unknown") else c.mismatch(),
+         lambda g, node, args: tf.cast_value(g, g.sql(args[0]), ttype(args[0]), tt.DATE))
+register("last_day_of_month", "datetime", "last_day_of_month(x) -> date", fixed(tt.DATE, "temporal"),
+         lambda g, node, args: f"last_day({g.sql(args[0])})")
+for _name in _FIELD_OF:
+    register(_name, "datetime", f"{_name}(x) -> bigint", _field, _render_field)
+
+
+# === rejected =====================================================================================
+_GEO = ("ST_Area ST_AsBinary ST_AsText ST_Boundary ST_Buffer ST_Centroid ST_Contains ST_ConvexHull ST_CoordDim "
+        "ST_Crosses ST_Difference ST_Dimension ST_Disjoint ST_Distance ST_EndPoint ST_Envelope ST_Equals "
+        "ST_ExteriorRing ST_GeometryFromText ST_GeomFromBinary ST_Intersection ST_Intersects ST_IsClosed "
+        "ST_IsEmpty ST_IsRing ST_IsSimple ST_IsValid ST_Length ST_LineFromText ST_LineString ST_MultiPoint "
+        "ST_NumPoints ST_Overlaps ST_Point ST_PointN ST_Points ST_Polygon ST_Relate ST_StartPoint ST_Touches "
+        "ST_Union ST_Within ST_X ST_Y ST_XMax ST_XMin ST_YMax ST_YMin bing_tile bing_tile_at bing_tile_quadkey "
+        "great_circle_distance geometry_union spatial_partitioning to_spherical_geography to_geometry").split()
+
+REJECTED: dict[str, str] = {
+    **{name.lower(): "geospatial functions are not available in lakegate" for name in _GEO},
+    "ngrams": "array n-gram function not translated",
+    "combinations": "array combinations function not translated",
+    "shuffle": "random permutation not translated",
+    "array_union": "set semantics (order, NULL handling) not translated exactly",
+    "array_intersect": "set semantics (order, NULL handling) not translated exactly",
+    "array_except": "set semantics (order, NULL handling) not translated exactly",
+    "array_histogram": "map result type not supported",
+    "trim_array": "not translated",
+    "zip": "row field naming of the result not translated",
+    "transform_keys": "map functions are not supported (no map columns in the lake)",
+    "transform_values": "map functions are not supported (no map columns in the lake)",
+    "map_filter": "map functions are not supported (no map columns in the lake)",
+    "map_concat": "map functions are not supported (no map columns in the lake)",
+    "map_entries": "map functions are not supported (no map columns in the lake)",
+    "map_from_entries": "map functions are not supported (no map columns in the lake)",
+    "map_zip_with": "map functions are not supported (no map columns in the lake)",
+    "multimap_from_entries": "map functions are not supported (no map columns in the lake)",
+    "histogram": "map result type not supported",
+    "map_agg": "map result type not supported",
+    "multimap_agg": "map result type not supported",
+    "map_union": "map result type not supported",
+    "approx_most_frequent": "map result type not supported",
+    "numeric_histogram": "map result type not supported",
+    "checksum": "Trino's xxhash64-based checksum cannot be reproduced",
+    "kurtosis": "Trino's estimator not verified against DuckDB's",
+    "skewness": "Trino's estimator not verified against DuckDB's",
+    "entropy": "not translated",
+    "reduce_agg": "lambda aggregation not translated",
+    "bitwise_and_agg": "not translated",
+    "bitwise_or_agg": "not translated",
+    "bitwise_xor_agg": "not translated",
+    "max_by_n": "not translated",
+    "approx_set": "HyperLogLog state functions are not available",
+    "empty_approx_set": "HyperLogLog state functions are not available",
+    "merge": "HyperLogLog / qdigest / tdigest state functions are not available",
+    "cardinality_hll": "HyperLogLog state functions are not available",
+    "qdigest_agg": "qdigest state functions are not available",
+    "tdigest_agg": "tdigest state functions are not available",
+    "value_at_quantile": "qdigest / tdigest state functions are not available",
+    "values_at_quantiles": "qdigest / tdigest state functions are not available",
+    "quantile_at_value": "qdigest / tdigest state functions are not available",
+    "make_set_digest": "setdigest state functions are not available",
+    "merge_set_digest": "setdigest state functions are not available",
+    "intersection_cardinality": "setdigest state functions are not available",
+    "jaccard_index": "setdigest state functions are not available",
+    "hash_counts": "setdigest state functions are not available",
+    "learn_classifier": "machine learning functions are not available",
+    "learn_regressor": "machine learning functions are not available",
+    "learn_libsvm_classifier": "machine learning functions are not available",
+    "learn_libsvm_regressor": "machine learning functions are not available",
+    "classify": "machine learning functions are not available",
+    "regress": "machine learning functions are not available",
+    "features": "machine learning functions are not available",
+    "evaluate_classifier_predictions": "machine learning functions are not available",
+    "json_extract": "the JSON type is not supported; use json_extract_scalar",
+    "json_parse": "the JSON type is not supported",
+    "json_format": "the JSON type is not supported",
+    "json_size": "the JSON type is not supported",
+    "json_array_length": "the JSON type is not supported",
+    "json_array_get": "the JSON type is not supported",
+    "json_array_contains": "the JSON type is not supported",
+    "json_query": "SQL/JSON path functions are not translated",
+    "json_value": "SQL/JSON path functions are not translated",
+    "json_exists": "SQL/JSON path functions are not translated",
+    "json_object": "SQL/JSON functions are not translated",
+    "json_array": "SQL/JSON functions are not translated",
+    "format_datetime": "Joda-Time patterns are not translated; use date_format",
+    "parse_datetime": "Joda-Time patterns are not translated; use date_parse",
+    "with_timezone": "time zones other than UTC are not supported",
+    "at_timezone": "time zones other than UTC are not supported",
+    "from_unixtime_nanos": "DuckDB has no nanosecond timestamp with time zone",
+    "from_iso8601_timestamp": "not translated",
+    "from_iso8601_date": "not translated",
+    "to_iso8601": "not translated",
+    "human_readable_seconds": "not translated",
+    "timezone_hour": "time zones other than UTC are not supported",
+    "timezone_minute": "time zones other than UTC are not supported",
+    "to_milliseconds": "interval functions not translated",
+    "parse_duration": "not translated",
+    "format_number": "not translated",
+    "parse_data_size": "not translated",
+    "normalize": "Unicode normalization not translated",
+    "to_utf8": "the varbinary type is not supported",
+    "from_utf8": "the varbinary type is not supported",
+    "to_base64": "the varbinary type is not supported",
+    "from_base64": "the varbinary type is not supported",
+    "to_hex": "the varbinary type is not supported",
+    "from_hex": "the varbinary type is not supported",
+    "md5": "the varbinary type is not supported",
+    "sha1": "the varbinary type is not supported",
+    "sha256": "the varbinary type is not supported",
+    "sha512": "the varbinary type is not supported",
+    "xxhash64": "the varbinary type is not supported",
+    "murmur3": "the varbinary type is not supported",
+    "crc32": "the varbinary type is not supported",
+    "hmac_sha256": "the varbinary type is not supported",
+    "spooky_hash_v2_32": "the varbinary type is not supported",
+    "to_big_endian_64": "the varbinary type is not supported",
+    "bit_count": "bitwise functions not translated",
+    "bitwise_and": "bitwise functions not translated",
+    "bitwise_or": "bitwise functions not translated",
+    "bitwise_xor": "bitwise functions not translated",
+    "bitwise_not": "bitwise functions not translated",
+    "bitwise_left_shift": "bitwise functions not translated",
+    "bitwise_right_shift": "bitwise functions not translated",
+    "url_extract_host": "URL functions not translated",
+    "url_extract_path": "URL functions not translated",
+    "url_extract_parameter": "URL functions not translated",
+    "url_extract_protocol": "URL functions not translated",
+    "url_extract_port": "URL functions not translated",
+    "url_extract_query": "URL functions not translated",
+    "url_extract_fragment": "URL functions not translated",
+    "url_encode": "URL functions not translated",
+    "url_decode": "URL functions not translated",
+    "word_stem": "language stemming not translated",
+    "soundex": "not translated",
+    "luhn_check": "not translated",
+    "regexp_position": "not translated",
+    "to_char": "Teradata functions are not available",
+    "to_date": "Teradata functions are not available",
+    "to_timestamp": "Teradata functions are not available",
+    "uuid": "random UUIDs not translated",
+    "color": "color functions are not available",
+    "bar": "color functions are not available",
+    "render": "color functions are not available",
+    "rgb": "color functions are not available",
+    "beta_cdf": "statistical distribution functions not translated",
+    "inverse_beta_cdf": "statistical distribution functions not translated",
+    "normal_cdf": "statistical distribution functions not translated",
+    "inverse_normal_cdf": "statistical distribution functions not translated",
+    "wilson_interval_lower": "not translated",
+    "wilson_interval_upper": "not translated",
+    "cosine_similarity": "not translated",
+    "width_bucket": "not translated",
+    "from_base": "not translated",
+    "to_base": "not translated",
+    "truncate_n": "not translated",
+    "version": "answered by the SQL endpoint, not the dialect layer",
+    "current_user": "not translated",
+    "current_catalog": "not translated",
+    "current_schema": "not translated",
+    "sequence_timestamp": "not translated",
+    "ip_prefix": "IP address functions are not available",
+    "contains_sequence": "not translated",
+    "array_has_duplicates": "not translated",
+    "array_duplicates": "not translated",
+    "remove_nulls": "not translated",
+    "array_frequency": "not translated",
+    "array_cum_sum": "not translated",
+}

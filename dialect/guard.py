@@ -1,0 +1,293 @@
+"""The read-only guard: only queries reach DuckDB.
+
+`check_text` runs on the raw text before parsing (encoding, size, nesting depth, statement kind,
+one statement only); `check` runs on the parsed Trino AST (no writes, no file or DuckDB-internal
+functions, no table functions but UNNEST). `classify` tells the server which kind of statement a
+text is: 'query', 'show', 'describe', 'explain', 'session' (SET SESSION, USE, PREPARE, EXECUTE,
+START TRANSACTION, ... which the server answers itself), 'call', or 'other' (refused).
+"""
+from __future__ import annotations
+
+import re
+
+from sqlglot import exp
+from sqlglot.dialects.trino import Trino
+from sqlglot.errors import TokenError
+from sqlglot.tokens import TokenType
+
+from lakegate.dialect.errors import DialectError
+
+#: Largest query text accepted, in UTF-8 bytes (Trino's default `query.max-length` is 1,000,000).
+MAX_TEXT_BYTES = 1_000_000
+#: Deepest nesting of brackets accepted; sqlglot's recursive parser fails at about 45 levels under
+#: Python's default recursion limit.
+MAX_NESTING = 32
+
+_QUERY_WORDS = {"SELECT", "WITH", "VALUES", "TABLE"}
+_SESSION_WORDS = {"USE", "PREPARE", "EXECUTE", "DEALLOCATE", "COMMIT", "ROLLBACK"}
+_SESSION_SET = {"SESSION", "TIME", "PATH", "ROLE"}  # SET SESSION / SET TIME ZONE / SET PATH / SET ROLE
+#: First words of statements that change something or reach outside the lake: refused by name.
+_REFUSED_WORDS = {
+    "INSERT", "UPDATE", "DELETE", "MERGE", "TRUNCATE", "CREATE", "DROP", "ALTER", "COMMENT", "GRANT",
+    "REVOKE", "DENY", "ANALYZE", "VACUUM", "CHECKPOINT", "FORCE", "REFRESH", "COPY", "ATTACH", "DETACH",
+    "INSTALL", "LOAD", "UNLOAD", "PRAGMA", "EXPORT", "IMPORT", "SET", "RESET", "BEGIN", "END", "ABORT",
+    "SUMMARIZE", "PIVOT", "UNPIVOT", "FROM",
+}
+#: Second words that belong to a statement's name in messages (CREATE TABLE, SET SESSION, ...).
+_NAME_WORDS = {"TABLE", "VIEW", "SCHEMA", "DATABASE", "MACRO", "FUNCTION", "SEQUENCE", "INDEX", "TYPE", "SECRET",
+               "MATERIALIZED", "OR", "TEMP", "TEMPORARY", "ROLE", "SESSION", "TRANSACTION", "TIME", "PATH",
+               "CHECKPOINT", "TABLES", "SCHEMAS", "CATALOGS", "COLUMNS", "FUNCTIONS", "STATS", "GRANTS",
+               "INPUT", "OUTPUT", "IMMEDIATE", "PREPARE", "VARIABLE", "EXTENSIONS"}
+
+#: Statement node types that are never a query.
+_STATEMENT_NODES = tuple(getattr(exp, name) for name in (
+    "Insert", "Update", "Delete", "Merge", "Create", "Drop", "Alter", "Copy", "Command", "Set", "Pragma",
+    "Use", "Transaction", "Commit", "Rollback", "Attach", "Detach", "Install", "LoadData", "Export", "Into",
+    "Grant", "Revoke", "TruncateTable", "Analyze", "Summarize", "Refresh", "Comment", "Cache", "Uncache",
+    "Declare") if hasattr(exp, name))
+
+#: DuckDB functions that read files, run SQL, or expose settings and internals; refused anywhere.
+_DENIED_FUNCTIONS = {
+    "glob", "sniff_csv", "query", "query_table", "getenv", "current_setting", "getvariable", "set_variable",
+    "which_secret", "load_aws_credentials", "json_execute_serialized_sql", "json_serialize_sql",
+    "json_deserialize_sql", "json_serialize_plan", "checkpoint", "force_checkpoint", "enable_logging",
+    "disable_logging", "truncate_duckdb_logs", "sql_auto_complete", "test_all_types", "summary", "st_read",
+}
+_DENIED_PREFIXES = ("read_", "parquet_", "duckdb_", "pragma_", "sqlite_", "postgres_", "mysql_", "iceberg_",
+                    "delta_", "ducklake_", "arrow_scan", "pandas_", "python_")
+
+_SKIP = re.compile(r"(?:\s+|--[^\n]*(?:\n|$)|/\*.*?\*/|\()*", re.S)
+_WORD = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+_EXPLAIN_OPTIONS = re.compile(r"\s*\(\s*(?:TYPE|FORMAT)\b[^)]*\)", re.I)
+
+
+def _where(sql: str, offset: int) -> tuple[int, int]:
+    """1-based line and column of a character offset in `sql`."""
+    line = sql.count("\n", 0, offset) + 1
+    return line, offset - (sql.rfind("\n", 0, offset) + 1) + 1
+
+
+def _node_where(node: exp.Expression) -> tuple[int | None, int | None]:
+    """Line and column where a parsed node starts, from the first position sqlglot recorded in it."""
+    for child in node.walk(bfs=False):
+        meta = child.meta if child._meta else None
+        if meta and "line" in meta and "col" in meta:
+            width = meta.get("end", 0) - meta.get("start", 0)
+            return meta["line"], max(1, meta["col"] - width)
+    return None, None
+
+
+def _words(sql: str, offset: int, count: int) -> list[tuple[str, int]]:
+    """Up to `count` leading words from `offset`, skipping blanks, comments and opening parentheses."""
+    words = []
+    while len(words) < count:
+        offset = _SKIP.match(sql, offset).end()
+        match = _WORD.match(sql, offset)
+        if not match:
+            break
+        words.append((match.group().upper(), match.start()))
+        offset = match.end()
+    return words
+
+
+def _statement(sql: str, offset: int = 0) -> tuple[str, str, int]:
+    """(kind, statement name, offset of its first word) of the statement starting at `offset`."""
+    words = _words(sql, offset, 2)
+    if not words:
+        return "other", "", offset
+    first, start = words[0]
+    second = words[1][0] if len(words) > 1 else ""
+    name = f"{first} {second}" if second in _NAME_WORDS else first
+    name = "SET TIME ZONE" if name == "SET TIME" else name
+    if first in _QUERY_WORDS:
+        return "query", first, start
+    if first == "SHOW":
+        return "show", name, start
+    if first in ("DESCRIBE", "DESC"):
+        return "describe", name, start
+    if first == "EXPLAIN":
+        rest, _ = _explain_parts(sql, start)
+        kind, inner, inner_start = _statement(sql, rest)
+        if kind != "query":
+            return "other", f"EXPLAIN {inner}".strip(), inner_start
+        return "explain", "EXPLAIN", start
+    if first in _SESSION_WORDS or (first == "START" and second == "TRANSACTION") or \
+            (first == "SET" and second in _SESSION_SET) or (first == "RESET" and second == "SESSION"):
+        return "session", name, start
+    if first == "CALL":
+        return "call", name, start
+    if first in _REFUSED_WORDS:
+        return "other", name, start
+    return "unknown", name, start
+
+
+def classify(sql: str) -> str:
+    """The kind of statement `sql` is: 'query', 'show', 'describe', 'explain', 'session', 'call' or 'other'."""
+    kind = _statement(sql)[0]
+    return "other" if kind == "unknown" else kind
+
+
+def _explain_parts(sql: str, start: int) -> tuple[int, bool]:
+    """For `EXPLAIN [ANALYZE] [VERBOSE] [(options)] statement` at `start`: where the statement
+    begins and whether it is EXPLAIN ANALYZE."""
+    rest, analyze = start + len("EXPLAIN"), False
+    for word, at in _words(sql, rest, 2):
+        if word not in ("ANALYZE", "VERBOSE"):
+            break
+        analyze |= word == "ANALYZE"
+        rest = at + len(word)
+    options = _EXPLAIN_OPTIONS.match(sql, rest)
+    return (options.end() if options else rest), analyze
+
+
+def explained_query(sql: str) -> tuple[str, bool]:
+    """For an EXPLAIN statement: the text of the query it explains and whether it is EXPLAIN ANALYZE."""
+    kind, _, start = _statement(sql)
+    if kind != "explain":
+        raise DialectError("not an EXPLAIN of a query", error_name="GENERIC_USER_ERROR")
+    rest, analyze = _explain_parts(sql, start)
+    return sql[rest:].strip(), analyze
+
+
+def _refuse_statement(kind: str, name: str, sql: str, start: int) -> None:
+    line, column = _where(sql, start)
+    if kind == "session":
+        raise DialectError(f"{name} is a session statement, handled by the server, not a query",
+                           line=line, column=column, error_name="NOT_SUPPORTED")
+    raise DialectError(f"Access Denied: {name} statements are not allowed: lakegate serves the lake read-only "
+                       "and runs queries only (SELECT, WITH, VALUES, SHOW, DESCRIBE, EXPLAIN)",
+                       line=line, column=column, error_name="PERMISSION_DENIED")
+
+
+def _check_nesting(sql: str) -> None:
+    if sql.count("(") + sql.count("[") <= MAX_NESTING:
+        return
+    depth, i, n = 0, 0, len(sql)
+    closing = {"'": "'", '"': '"'}
+    while i < n:
+        char = sql[i]
+        if char in "([":
+            depth += 1
+            if depth > MAX_NESTING:
+                line, column = _where(sql, i)
+                raise DialectError(f"unsupported in lakegate: brackets nested more than {MAX_NESTING} levels deep",
+                                   line=line, column=column, error_name="NOT_SUPPORTED")
+        elif char in ")]":
+            depth -= 1
+        elif char in closing:
+            end = sql.find(closing[char], i + 1)
+            while end != -1 and sql.startswith(closing[char] * 2, end):
+                end = sql.find(closing[char], end + 2)
+            i = n if end == -1 else end
+        elif sql.startswith("--", i):
+            end = sql.find("\n", i)
+            i = n if end == -1 else end
+        elif sql.startswith("/*", i):
+            end = sql.find("*/", i + 2)
+            i = n if end == -1 else end + 1
+        i += 1
+
+
+def _check_single_statement(sql: str) -> None:
+    if ";" not in sql.rstrip().rstrip(";"):
+        return
+    try:
+        tokens = Trino().tokenize(sql)
+    except TokenError:
+        return  # the parser reports the syntax error with its position
+    for token, following in zip(tokens, tokens[1:]):
+        if token.token_type == TokenType.SEMICOLON and following.token_type != TokenType.SEMICOLON:
+            line, column = following.line, max(1, following.col - len(following.text) + 1)
+            raise DialectError("Access Denied: multiple statements in one query text are not allowed",
+                               line=line, column=column, error_name="PERMISSION_DENIED")
+
+
+def check_text(sql: str | bytes) -> str:
+    """Check a query text before parsing and return it as `str`.
+
+    Refuses invalid UTF-8, NUL characters, texts over MAX_TEXT_BYTES, brackets nested deeper than
+    MAX_NESTING, more than one statement, and every statement that is not a query (SHOW, DESCRIBE
+    and EXPLAIN of a query pass; session statements get NOT_SUPPORTED, the rest PERMISSION_DENIED).
+    """
+    if isinstance(sql, (bytes, bytearray)):
+        try:
+            sql = bytes(sql).decode("utf-8")
+        except UnicodeDecodeError as error:
+            good = bytes(sql[:error.start]).decode("utf-8")
+            line, column = _where(good, len(good))
+            raise DialectError(f"the query text is not valid UTF-8 (byte {error.start})",
+                               line=line, column=column, error_name="SYNTAX_ERROR") from None
+    try:
+        size = len(sql.encode("utf-8"))
+    except UnicodeEncodeError as error:
+        line, column = _where(sql, error.start)
+        raise DialectError("the query text is not valid Unicode (a lone surrogate character)",
+                           line=line, column=column, error_name="SYNTAX_ERROR") from None
+    if size > MAX_TEXT_BYTES:
+        raise DialectError(f"Query text length ({size}) exceeds the maximum length ({MAX_TEXT_BYTES})",
+                           error_name="QUERY_TEXT_TOO_LARGE")
+    nul = sql.find("\x00")
+    if nul >= 0:
+        line, column = _where(sql, nul)
+        raise DialectError("the query text contains a NUL character", line=line, column=column,
+                           error_name="SYNTAX_ERROR")
+    _check_nesting(sql)
+    kind, name, start = _statement(sql)
+    if kind == "other" and name == "FROM":
+        line, column = _where(sql, start)
+        raise DialectError("syntax error: a query starts with SELECT, WITH, VALUES or TABLE, not FROM",
+                           line=line, column=column, error_name="SYNTAX_ERROR")
+    if kind in ("session", "call", "other"):
+        _refuse_statement(kind, name, sql, start)
+    _check_single_statement(sql)
+    return sql
+
+
+def _function_name(node: exp.Expression) -> str:
+    if isinstance(node, exp.Anonymous):
+        return str(node.name).lower()
+    return node.sql_name().lower() if isinstance(node, exp.Func) else ""
+
+
+def _denied(name: str) -> bool:
+    return name in _DENIED_FUNCTIONS or name.startswith(_DENIED_PREFIXES)
+
+
+def _fail(message: str, node: exp.Expression, error_name: str = "PERMISSION_DENIED") -> None:
+    line, column = _node_where(node)
+    raise DialectError(message, line=line, column=column, error_name=error_name)
+
+
+def check(expression: exp.Expression) -> None:
+    """Refuse a parsed statement unless it is a read-only query over tables, UNNEST and Trino functions.
+
+    Refused: any statement that is not SELECT / WITH / VALUES / set operation (writes, DDL, COPY,
+    ATTACH, SET, PRAGMA, ... by name), DuckDB's file, SQL-running and internals functions
+    (read_csv, read_parquet, glob, query, getenv, duckdb_settings, ...) anywhere in the query, and
+    every table function except UNNEST (`FROM read_csv('x')`, `FROM TABLE(...)`).
+    """
+    if isinstance(expression, (exp.Describe, exp.Show)):
+        return
+    if not isinstance(expression, (exp.Query, exp.Values)):
+        kind, name, _ = _statement(expression.sql(dialect="trino"))
+        if kind in ("show", "describe", "explain"):
+            return
+        if not isinstance(expression, exp.Command):  # the statement's node names it (WITH ... INSERT: INSERT)
+            name = expression.key.upper()
+        _refuse_statement("session" if kind == "session" else "other", name, "", 0)
+    for node in expression.walk():
+        if isinstance(node, _STATEMENT_NODES):
+            _fail(f"Access Denied: {node.key.upper()} is not allowed inside a query", node)
+        elif isinstance(node, (exp.Table, exp.Lateral)):
+            source = node.this
+            if isinstance(source, exp.Func) and not isinstance(source, exp.Unnest):
+                name = _function_name(source)
+                label = "TABLE(...)" if name == "table" else f"'{name}'"
+                _fail(f"Access Denied: table function {label} is not allowed (only UNNEST and tables of the lake)",
+                      source)
+            if isinstance(node, exp.Table) and any(sep in node.name for sep in "/\\"):
+                _fail(f"Access Denied: reading files is not allowed: '{node.name}'", node)
+        elif isinstance(node, exp.Func):
+            name = _function_name(node)
+            if _denied(name):
+                _fail(f"Access Denied: function '{name}' is not allowed (it reads files or DuckDB internals)", node)

@@ -1,0 +1,110 @@
+"""Scopes: restrict every lake table a query reads to one batch or one job (DESIGN.md, "Scopes").
+
+The rewrite works on the Trino AST, so its result serves both backends: each reference to a lake
+table becomes a filtered derived table with the reference's alias,
+
+    FROM odom o   ->   FROM (SELECT * FROM odom WHERE batch_id = 'B' AND job_id = 'J') AS o
+
+in every part of the query (joins, subqueries, set operations, CTE bodies), except where a CTE
+of the same name is visible: a CTE shadows a table in the rest of its WITH (later CTEs and the
+query body, including nested subqueries), not in its own body or earlier CTEs, unless the WITH is
+RECURSIVE. Names compare case-insensitively, as Trino's do.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterable
+
+from sqlglot import exp
+
+from lakegate.dialect import guard
+
+
+@dataclass(frozen=True)
+class Scope:
+    """Which rows of the lake a query sees: one batch, one job of it, or everything (both None)."""
+
+    batch_id: str | None = None
+    job_id: str | None = None
+
+    def conditions(self) -> list[tuple[str, str]]:
+        """(column, value) pairs every lake row in scope satisfies."""
+        return [(column, value) for column, value in (("batch_id", self.batch_id), ("job_id", self.job_id))
+                if value is not None]
+
+
+def _references(expression: exp.Expression, tables: set[str]) -> list[exp.Table]:
+    """The Table nodes that name a lake table and are not shadowed by a visible CTE (iterative, so
+    deep queries cannot exhaust the Python stack)."""
+    found = []
+    stack: list[tuple[exp.Expression, frozenset[str]]] = [(expression, frozenset())]
+    while stack:
+        node, visible = stack.pop()
+        with_ = node.args.get("with_")
+        if isinstance(with_, exp.With):
+            ctes = list(with_.expressions)
+            names = [cte.alias_or_name.lower() for cte in ctes]
+            if with_.args.get("recursive"):
+                visible = visible | set(names)
+                stack.extend((cte.this, visible) for cte in ctes)
+            else:
+                for cte, name in zip(ctes, names):
+                    stack.append((cte.this, visible))
+                    visible = visible | {name}
+        if isinstance(node, exp.Table):
+            name = node.name.lower()
+            qualified = bool(node.args.get("db"))
+            if isinstance(node.this, exp.Identifier) and name in tables and (qualified or name not in visible):
+                found.append(node)
+            continue
+        for key, value in node.args.items():
+            if key == "with_":
+                continue
+            for child in value if isinstance(value, list) else (value,):
+                if isinstance(child, exp.Expression):
+                    stack.append((child, visible))
+    return found
+
+
+def _filtered(table: exp.Table, scope: Scope) -> exp.Subquery:
+    source = table.copy()
+    source.set("alias", None)
+    condition = exp.and_(*(exp.EQ(this=exp.column(column), expression=exp.Literal.string(value))
+                           for column, value in scope.conditions()), copy=False)
+    select = exp.Select(expressions=[exp.Star()], from_=exp.From(this=source), where=exp.Where(this=condition))
+    alias = table.args.get("alias")
+    if alias is None:
+        alias = exp.TableAlias(this=exp.Identifier(this=table.name, quoted=table.this.args.get("quoted", False)))
+    return exp.Subquery(this=select, alias=alias.copy())
+
+
+def restrict(expression: exp.Expression, scope: Scope, tables: Iterable[str]) -> exp.Expression:
+    """Rewrite (in place, and return) `expression` so that every lake table in `tables` it reads
+    shows only the rows of `scope`. Values are string literal nodes, never pasted text."""
+    if not scope.conditions():
+        return expression
+    names = {t.lower() for t in tables}
+    for table in _references(expression, names):
+        table.replace(_filtered(table, scope))
+    return expression
+
+
+def scoped_trino_sql(sql: str, scope: Scope, tables: Iterable[str]) -> str:
+    """The Trino SQL of one query restricted to `scope`, for a backend that forwards to Trino.
+
+    The text goes through the same checks as any query (text checks, parse, read-only guard); an
+    EXPLAIN is scoped inside, SHOW and DESCRIBE (which read no rows) are returned as they are.
+    Raises DialectError on a refused or invalid query.
+    """
+    from lakegate.dialect.translate import LakegateTrino, parse  # translate imports this module
+
+    sql = guard.check_text(sql)
+    kind = guard.classify(sql)
+    if kind == "explain":
+        query, analyze = guard.explained_query(sql)
+        return ("EXPLAIN ANALYZE " if analyze else "EXPLAIN ") + scoped_trino_sql(query, scope, tables)
+    tree = parse(sql)
+    guard.check(tree)
+    if kind in ("show", "describe"):
+        return sql
+    return restrict(tree, scope, tables).sql(dialect=LakegateTrino)

@@ -1,0 +1,202 @@
+"""The dialect layer's entry point: one Trino-dialect SQL text in, one DuckDB SQL text out (or a
+DialectError naming the construct and its position), cached.
+
+Pipeline: text checks -> parse (sqlglot, Trino) -> one statement -> read-only guard -> scope
+rewrite -> `?` parameters -> Trino SQL for forwarding -> name resolution and Trino type inference
+(`analyze`) -> DuckDB SQL by the named transforms (`transforms`).
+"""
+from __future__ import annotations
+
+import threading
+from collections import OrderedDict
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Mapping, Sequence
+
+import sqlglot
+from sqlglot import exp
+from sqlglot.dialects.trino import Trino
+from sqlglot.errors import ParseError, TokenError
+from sqlglot.tokens import TokenType
+
+from lakegate.dialect import guard, params as parameters
+from lakegate.dialect import scope as scoping
+from lakegate.dialect import trino_types as tt
+from lakegate.dialect.analyze import analyze
+from lakegate.dialect.errors import DialectError
+from lakegate.dialect.transforms import Writer, finalize, hoist_derived_order
+
+if TYPE_CHECKING:
+    from lakegate.dialect.scope import Scope
+
+#: Number of translations kept in the cache.
+CACHE_SIZE = 1024
+
+
+@dataclass(frozen=True)
+class Translation:
+    """One translated query."""
+
+    duckdb_sql: str                       # one DuckDB statement
+    trino_sql: str                        # the scoped, parameter-bound query in Trino dialect
+    columns: tuple[tuple[str, str], ...]  # output (name, Trino type name)
+
+
+class _Parser(Trino.Parser):
+    # Every `name(...)` call parses as a plain function call, so that the registry in
+    # functions.py decides what each Trino function means (sqlglot's own function classes would
+    # carry other dialects' semantics into the translation).
+    FUNCTIONS: dict = {}
+    # Keep only the special call syntaxes Trino has (CAST(x AS t), EXTRACT(f FROM x), ...).
+    FUNCTION_PARSERS = {name: parser for name, parser in Trino.Parser.FUNCTION_PARSERS.items()
+                        if name in ("CAST", "TRY_CAST", "EXTRACT", "POSITION", "SUBSTRING", "TRIM", "LISTAGG",
+                                    "JSON_OBJECT", "JSON_QUERY", "JSON_VALUE", "JSON_TABLE")}
+
+
+class LakegateTrino(Trino):
+    """Trino as sqlglot reads it, with function calls left uninterpreted."""
+
+    INDEX_OFFSET = 0
+    Parser = _Parser
+
+
+_cache: OrderedDict = OrderedDict()
+_schemas: OrderedDict = OrderedDict()
+_lock = threading.Lock()
+
+
+def translate(sql: str, schema: Mapping[str, Mapping[str, str]], *, scope: "Scope | None" = None,
+              params: Sequence[object] = (), schema_version: object = None) -> Translation:
+    """Translate one Trino query over `schema` (table -> column -> Trino type name) to DuckDB.
+
+    `scope` restricts every table to a batch or job, `params` bind the `?` placeholders, and
+    `schema_version` (any hashable) identifies the schema for the cache; without it the schema's
+    content is hashed. Raises DialectError with Trino's error name and the position in `sql`.
+    """
+    schema_key = schema_version if schema_version is not None else _schema_key(schema)
+    key = (sql, schema_key, _hashable(scope), _params_key(params))
+    with _lock:
+        hit = _cache.get(key)
+        if hit is not None:
+            _cache.move_to_end(key)
+            return hit
+    result = _translate(sql, schema, schema_key, scope, params)
+    with _lock:
+        _cache[key] = result
+        if len(_cache) > CACHE_SIZE:
+            _cache.popitem(last=False)
+    return result
+
+
+def clear_cache() -> None:
+    """Forget every cached translation."""
+    with _lock:
+        _cache.clear()
+        _schemas.clear()
+
+
+def _schema_key(schema: Mapping[str, Mapping[str, str]]) -> tuple:
+    return tuple((table, tuple(columns.items())) for table, columns in schema.items())
+
+
+def _hashable(value: object) -> object:
+    try:
+        hash(value)
+        return value
+    except TypeError:
+        return repr(value)
+
+
+def _params_key(params: Sequence[object]) -> tuple:
+    try:
+        hash(tuple(params))
+        return tuple((type(p), p) for p in params)
+    except TypeError:
+        return tuple((type(p), repr(p)) for p in params)
+
+
+def _typed_schema(schema: Mapping[str, Mapping[str, str]], key: object) -> dict[str, list[tuple[str, tt.TType]]]:
+    with _lock:
+        typed = _schemas.get(key)
+    if typed is not None:
+        return typed
+    typed = {}
+    for table, columns in schema.items():
+        cols = []
+        for name, type_name in columns.items():
+            try:
+                cols.append((name, tt.parse_type(type_name)))
+            except ValueError:
+                raise DialectError(f"column '{name}' of table '{table}' has an unknown type '{type_name}'",
+                                   error_name="GENERIC_USER_ERROR") from None
+        typed[table.lower()] = cols
+    with _lock:
+        _schemas[key] = typed
+        if len(_schemas) > 64:
+            _schemas.popitem(last=False)
+    return typed
+
+
+def parse(sql: str) -> exp.Expression:
+    """Parse exactly one Trino statement (a trailing `;` is allowed)."""
+    try:
+        statements = [s for s in sqlglot.parse(sql, dialect=LakegateTrino)
+                      if s is not None and not isinstance(s, exp.Semicolon)]  # `; -- comment` is no statement
+    except ParseError as error:
+        detail = error.errors[0] if error.errors else {}
+        message = detail.get("description") or str(error).splitlines()[0]
+        line, column = detail.get("line"), detail.get("col")
+        token = detail.get("highlight") or ""
+        if line is not None and column is not None and token:
+            column = max(1, column - len(token) + 1)
+        raise DialectError(f"syntax error: {message}", line=line, column=column, error_name="SYNTAX_ERROR") from None
+    except TokenError as error:
+        raise DialectError(f"syntax error: {error}", error_name="SYNTAX_ERROR") from None
+    except RecursionError:
+        raise DialectError("syntax error: the query is nested too deeply", error_name="SYNTAX_ERROR") from None
+    if "::" in sql:
+        for token in LakegateTrino().tokenize(sql):
+            if token.token_type == TokenType.DCOLON:
+                raise DialectError("syntax error: '::' casts are not Trino syntax (use CAST(x AS type))",
+                                   line=token.line, column=max(1, token.col - 1), error_name="SYNTAX_ERROR")
+    if not statements:
+        raise DialectError("syntax error: empty query", line=1, column=1, error_name="SYNTAX_ERROR")
+    if len(statements) > 1:
+        raise DialectError("syntax error: only one statement is allowed", error_name="SYNTAX_ERROR")
+    return statements[0]
+
+
+def _translate(sql: str, schema: Mapping[str, Mapping[str, str]], schema_key: object, scope: "Scope | None",
+               params: Sequence[object]) -> Translation:
+    sql = guard.check_text(sql)
+    tree = parse(sql)
+    guard.check(tree)
+    if scope is not None:
+        tree = scoping.restrict(tree, scope, tables=set(schema))
+    tree = parameters.bind(tree, params)
+    rewritten = scope is not None or bool(params) or ";" in sql  # Trino refuses a trailing ';'
+    if isinstance(tree, exp.Values):
+        rewritten = True
+        tree = exp.select("*").from_(exp.Subquery(this=tree, alias=exp.TableAlias(
+            this=exp.to_identifier("_values"),
+            columns=[exp.to_identifier(f"_col{i}") for i in range(len(tree.expressions[0].expressions)
+                                                                   if isinstance(tree.expressions[0], exp.Tuple)
+                                                                   else 1)])))
+    if not isinstance(tree, exp.Query):
+        raise DialectError(f"unsupported in lakegate: statement {tree.key.upper()} (only queries are translated)",
+                           line=1, column=1, error_name="NOT_SUPPORTED")
+    rewritten |= hoist_derived_order(tree)
+    # the text as given is the Trino SQL unless a rewrite changed the tree (regenerating costs ~1 ms)
+    trino_sql = tree.sql(dialect=LakegateTrino) if rewritten else sql.strip()
+    try:
+        outputs = analyze(tree, _typed_schema(schema, schema_key), sql)
+    except RecursionError:
+        raise DialectError("unsupported in lakegate: the query is nested too deeply",
+                           error_name="NOT_SUPPORTED") from None
+    finalize(tree, outputs)
+    try:
+        duckdb_sql = Writer().generate(tree, copy=False)
+    except RecursionError:
+        raise DialectError("unsupported in lakegate: the query is nested too deeply",
+                           error_name="NOT_SUPPORTED") from None
+    columns = tuple((name if name is not None else f"_col{i}", str(t)) for i, (name, _, t) in enumerate(outputs))
+    return Translation(duckdb_sql=duckdb_sql, trino_sql=trino_sql, columns=columns)

@@ -1,0 +1,109 @@
+"""`lakegate query`: run one Trino-dialect query on the embedded DuckDB backend and print the result."""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+from pathlib import Path
+from typing import Any, TextIO
+
+from lakegate.dialect.errors import DialectError
+from lakegate.dialect.scope import Scope
+from lakegate.gateway.backend import DuckDBBackend, QueryResult
+from lakegate.gateway.cli import UserError
+from lakegate.gateway.trino_values import encode_rows
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "query", help="run one Trino-dialect SQL query on the lake and print the result",
+        description="Run one Trino-dialect SQL query through lakegate's dialect layer on the embedded DuckDB "
+                    "backend and print the result. Without --lake only constant queries work (SELECT 1 + 1).")
+    parser.add_argument("sql", metavar="SQL", help="the query, in Trino's SQL dialect ('-' reads it from standard input)")
+    parser.add_argument("--lake", type=Path, metavar="DIR",
+                        help="the lake's directory (omit it for queries that read no table)")
+    parser.add_argument("--branch", default="main", metavar="B", help="the branch to query (default: main)")
+    parser.add_argument("--format", choices=("table", "json", "csv"), default="table",
+                        help="output: aligned columns (table, the default), JSON with the Trino protocol's "
+                             "value encoding (json), or RFC 4180 CSV with a header (csv)")
+    parser.add_argument("--explain", action="store_true",
+                        help="print the DuckDB SQL the query translates to instead of running it")
+    parser.add_argument("--batch", metavar="ID", help="restrict every table to the rows of this batch")
+    parser.add_argument("--job", metavar="ID", help="restrict every table to the rows of this job")
+    parser.set_defaults(func=query_command)
+
+
+def _where(error: DialectError) -> str:
+    if error.line is not None and error.column is not None:
+        return f"line {error.line}, column {error.column}: {error.message}"
+    return error.message
+
+
+def query_command(args: argparse.Namespace) -> int:
+    sql = sys.stdin.read() if args.sql == "-" else args.sql
+    if args.lake is not None and not args.lake.is_dir():
+        raise UserError(f"no lake at {args.lake} (not a directory)")
+    scope = Scope(batch_id=args.batch, job_id=args.job) if args.batch or args.job else None
+    backend = DuckDBBackend(args.lake)
+    try:
+        if args.explain:
+            print(backend.translate(sql, branch=args.branch, scope=scope).duckdb_sql)
+            return 0
+        result = backend.execute(sql, branch=args.branch, scope=scope)
+        {"table": write_table, "json": write_json, "csv": write_csv}[args.format](result, sys.stdout)
+    except DialectError as error:
+        raise UserError(_where(error)) from None
+    finally:
+        backend.close()
+    return 0
+
+
+def _encoded_rows(result: QueryResult):
+    for batch in result.batches:
+        yield from encode_rows(result.columns, batch)
+
+
+def _text(value: Any, null: str) -> str:
+    if value is None:
+        return null
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (list, dict)):
+        return json.dumps(value, ensure_ascii=False)
+    return str(value)
+
+
+def write_json(result: QueryResult, out: TextIO) -> None:
+    """`{"columns": [{"name", "type"}], "rows": [[...]]}`, values encoded as the Trino protocol does."""
+    columns = json.dumps([{"name": name, "type": trino_type} for name, trino_type in result.columns],
+                         ensure_ascii=False)
+    out.write(f'{{"columns": {columns}, "rows": [')
+    for i, row in enumerate(_encoded_rows(result)):
+        out.write(("," if i else "") + "\n  " + json.dumps(row, ensure_ascii=False, allow_nan=False))
+    out.write("\n]}\n")
+
+
+def write_csv(result: QueryResult, out: TextIO) -> None:
+    """RFC 4180 CSV (CRLF line ends) with a header row; NULL is an empty field."""
+    writer = csv.writer(out, lineterminator="\r\n")
+    writer.writerow([name for name, _ in result.columns])
+    for row in _encoded_rows(result):
+        writer.writerow([_text(value, "") for value in row])
+
+
+def write_table(result: QueryResult, out: TextIO) -> None:
+    """Aligned columns under a header, numbers right-aligned, NULL as `NULL`, then the row count."""
+    names = [name for name, _ in result.columns]
+    numeric = [t.split("(")[0] in ("tinyint", "smallint", "integer", "bigint", "real", "double", "decimal")
+               for _, t in result.columns]
+    rows = [[_text(value, "NULL").split("\n") for value in row] for row in _encoded_rows(result)]
+    widths = [max([len(name), *(len(line) for row in rows for line in row[i])]) for i, name in enumerate(names)]
+    out.write(" " + " | ".join(name.center(w) for name, w in zip(names, widths)).rstrip() + "\n")
+    out.write("-" + "-+-".join("-" * w for w in widths) + "-\n")
+    for row in rows:
+        for k in range(max(len(lines) for lines in row)):
+            cells = [lines[k] if k < len(lines) else "" for lines in row]
+            cells = [v.rjust(w) if right else v.ljust(w) for v, w, right in zip(cells, widths, numeric)]
+            out.write(" " + " | ".join(cells).rstrip() + "\n")
+    out.write(f"({len(rows)} row{'' if len(rows) == 1 else 's'})\n")

@@ -1,0 +1,317 @@
+"""Trino client-protocol encoding of result types and values (notes/trino-protocol.md, sections 5-6).
+
+`type_signature` turns a Trino type name into the `typeSignature` tree clients read; `encoder`
+gives the JSON encoding of one Python value of a type; `encode_rows` encodes a whole Arrow record
+batch column by column, with Arrow's vectorised casts for the common types (the server's hot path).
+"""
+from __future__ import annotations
+
+import base64
+import datetime as dt
+import math
+import uuid
+from decimal import Decimal
+from functools import lru_cache
+from typing import Any, Callable, Sequence
+
+import pyarrow as pa
+import pyarrow.compute as pc
+
+from lakegate.dialect.trino_types import MAX_VARCHAR, TType, parse_type
+
+Encoder = Callable[[Any], Any]
+
+_RAW_TYPES = {"timestamp_tz": "timestamp with time zone", "time_tz": "time with time zone",
+              "interval_ds": "interval day to second", "interval_ym": "interval year to month"}
+_UTC_NAMES = {"UTC", "Etc/UTC", "Etc/UCT", "UCT", "Etc/Universal", "Universal", "Etc/Zulu", "Zulu", "Z",
+              "GMT", "Etc/GMT", "+00:00", "+0000"}
+
+
+def _long(value: int) -> dict:
+    return {"kind": "LONG", "value": value}
+
+
+def _signature(t: TType) -> dict:
+    base, args = t.base, t.args
+    raw = _RAW_TYPES.get(base, base)
+    if base == "varchar":
+        arguments = [_long(args[0] if args else MAX_VARCHAR)]
+    elif base in ("char", "decimal", "timestamp", "timestamp_tz", "time", "time_tz"):
+        arguments = [_long(a) for a in args]
+    elif base in ("array", "map"):
+        arguments = [{"kind": "TYPE", "value": _signature(a)} for a in args]
+    elif base == "row":
+        arguments = []
+        for name, field in args:
+            value = {"typeSignature": _signature(field)}
+            if name is not None:
+                value["fieldName"] = {"name": name}
+            arguments.append({"kind": "NAMED_TYPE", "value": value})
+    else:
+        arguments = []
+    return {"rawType": raw, "arguments": arguments}
+
+
+def type_signature(trino_type: str) -> dict:
+    """The client protocol's `typeSignature` of a Trino type name (`varchar` carries its length
+    2147483647, `decimal(p,s)` both numbers, `timestamp(p)` its precision, nested types their
+    element, key/value or named field signatures). ValueError for an unknown type name."""
+    return _signature(parse_type(trino_type))
+
+
+# --- per-value encoders --------------------------------------------------------------------------
+
+def _double(value: Any) -> Any:
+    if value is None or math.isfinite(value):
+        return value
+    return "NaN" if value != value else ("Infinity" if value > 0 else "-Infinity")
+
+
+def _decimal(scale: int) -> Encoder:
+    quantum = Decimal(1).scaleb(-scale)
+
+    def encode(value: Any) -> Any:
+        if value is None:
+            return None
+        number = value if isinstance(value, Decimal) else Decimal(value)
+        if number.as_tuple().exponent != -scale:
+            number = number.quantize(quantum)
+        return format(number, "f")
+    return encode
+
+
+def _fraction(micros: int, nanos: int, precision: int) -> str:
+    if precision == 0:
+        return ""
+    digits = f"{micros:06d}{nanos:03d}"
+    return "." + digits[:precision] if precision <= 9 else "." + digits + "0" * (precision - 9)
+
+
+def _zone(value: dt.datetime | dt.time) -> str:
+    tz = value.tzinfo
+    key = getattr(tz, "key", None) or getattr(tz, "zone", None)
+    if key:
+        return "UTC" if key in _UTC_NAMES else key
+    offset = value.utcoffset() or dt.timedelta(0)
+    minutes = int(offset.total_seconds() // 60)
+    if minutes == 0:
+        return "UTC"
+    return f"{'+' if minutes >= 0 else '-'}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
+
+
+def _offset(value: dt.time | dt.datetime) -> str:
+    minutes = int((value.utcoffset() or dt.timedelta(0)).total_seconds() // 60)
+    return f"{'+' if minutes >= 0 else '-'}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
+
+
+def _timestamp(precision: int, with_zone: bool) -> Encoder:
+    def encode(value: Any) -> Any:
+        if value is None:
+            return None
+        text = value.strftime("%Y-%m-%d %H:%M:%S") + _fraction(value.microsecond, getattr(value, "nanosecond", 0),
+                                                                 precision)
+        return f"{text} {_zone(value)}" if with_zone else text
+    return encode
+
+
+def _time(precision: int, with_zone: bool) -> Encoder:
+    def encode(value: Any) -> Any:
+        if value is None:
+            return None
+        text = value.strftime("%H:%M:%S") + _fraction(value.microsecond, 0, precision)
+        return text + _offset(value) if with_zone else text
+    return encode
+
+
+def _interval_day_to_second(value: Any) -> Any:
+    if value is None:
+        return None
+    if isinstance(value, dt.timedelta):
+        micros = (value.days * 86_400 + value.seconds) * 1_000_000 + value.microseconds
+    else:  # Arrow's MonthDayNano
+        micros = (value.months * 30 + value.days) * 86_400_000_000 + value.nanoseconds // 1000
+    sign = "-" if micros < 0 else ""
+    seconds, micros = divmod(abs(micros), 1_000_000)
+    days, seconds = divmod(seconds, 86_400)
+    return f"{sign}{days} {seconds // 3600:02d}:{seconds // 60 % 60:02d}:{seconds % 60:02d}.{micros // 1000:03d}"
+
+
+def _interval_year_to_month(value: Any) -> Any:
+    if value is None:
+        return None
+    months = value.months if hasattr(value, "months") else int(value)
+    sign = "-" if months < 0 else ""
+    return f"{sign}{abs(months) // 12}-{abs(months) % 12}"
+
+
+def _varbinary(value: Any) -> Any:
+    return None if value is None else base64.b64encode(bytes(value)).decode("ascii")
+
+
+def _uuid(value: Any) -> Any:
+    if value is None or isinstance(value, str):
+        return value
+    return str(uuid.UUID(bytes=bytes(value)) if isinstance(value, (bytes, bytearray)) else value)
+
+
+def _date(value: Any) -> Any:
+    return None if value is None else value.isoformat()
+
+
+def _identity(value: Any) -> Any:
+    return value
+
+
+def _map_key(key: Any) -> str:
+    if isinstance(key, bool):
+        return "true" if key else "false"
+    return key if isinstance(key, str) else str(key)
+
+
+def _make_encoder(t: TType) -> Encoder:
+    base, args = t.base, t.args
+    if base in ("real", "double"):
+        return _double
+    if base == "decimal":
+        return _decimal(args[1])
+    if base in ("timestamp", "timestamp_tz"):
+        return _timestamp(args[0], base == "timestamp_tz")
+    if base in ("time", "time_tz"):
+        return _time(args[0], base == "time_tz")
+    if base == "date":
+        return _date
+    if base == "varbinary":
+        return _varbinary
+    if base == "uuid":
+        return _uuid
+    if base == "interval_ds":
+        return _interval_day_to_second
+    if base == "interval_ym":
+        return _interval_year_to_month
+    if base == "array":
+        element = _make_encoder(args[0])
+        if element is _identity:
+            return _identity
+        return lambda value: None if value is None else [element(v) for v in value]
+    if base == "map":
+        key_encoder, value_encoder = _make_encoder(args[0]), _make_encoder(args[1])
+
+        def encode_map(value: Any) -> Any:
+            if value is None:
+                return None
+            pairs = value.items() if isinstance(value, dict) else value
+            return {_map_key(key_encoder(k)): value_encoder(v) for k, v in pairs}
+        return encode_map
+    if base == "row":
+        fields = [_make_encoder(field) for _, field in args]
+
+        def encode_row(value: Any) -> Any:
+            if value is None:
+                return None
+            values = value.values() if isinstance(value, dict) else value
+            return [encode(v) for encode, v in zip(fields, values)]
+        return encode_row
+    return _identity  # boolean, integers, varchar, char, json, unknown
+
+
+@lru_cache(maxsize=512)
+def encoder(trino_type: str) -> Encoder:
+    """The function that encodes one Python value of `trino_type` (None -> None) for a client:
+    decimals as strings with the type's scale, non-finite doubles as "NaN"/"Infinity"/"-Infinity",
+    timestamps with exactly p fraction digits (and the zone), dates ISO, varbinary base64, uuid
+    text, arrays as lists, maps as objects with string keys, rows as lists of field values."""
+    return _make_encoder(parse_type(trino_type))
+
+
+# --- whole record batches ------------------------------------------------------------------------
+
+def _fit_fraction(texts: list, precision: int) -> list:
+    """Make every `...HH:MM:SS[.fff...]` text carry exactly `precision` fraction digits."""
+    out = []
+    for text in texts:
+        if text is None:
+            out.append(None)
+            continue
+        head, _, fraction = text.partition(".")
+        fraction = (fraction + "0" * precision)[:precision]
+        out.append(f"{head}.{fraction}" if precision else head)
+    return out
+
+
+#: Arrow time units whose text form has exactly p fraction digits.
+_UNITS = {0: "s", 3: "ms", 6: "us", 9: "ns"}
+
+
+def _temporal_texts(column: pa.Array, precision: int, to_text: Callable[[pa.Array], pa.Array],
+                    suffix: str = "") -> list:
+    """Timestamps or times as text with exactly `precision` fraction digits (then `suffix`): by Arrow,
+    after a cast to the unit with that many digits (which truncates: the SQL already rounded), when
+    there is one."""
+    unit = _UNITS.get(precision)
+    if unit is None:
+        texts = _fit_fraction(to_text(column).to_pylist(), precision)
+        return [None if text is None else text + suffix for text in texts] if suffix else texts
+    if column.type.unit != unit:
+        if pa.types.is_timestamp(column.type):
+            target = pa.timestamp(unit, column.type.tz)
+        else:
+            target = pa.time32(unit) if unit in ("s", "ms") else pa.time64(unit)
+        column = column.cast(target, safe=False)
+    texts = to_text(column)
+    if suffix:
+        texts = pc.binary_join_element_wise(texts, pa.scalar(suffix), "")
+    return texts.to_pylist()
+
+
+def _as_string(column: pa.Array) -> pa.Array:
+    return column.cast(pa.string())
+
+
+def _zone_name(arrow_zone: str) -> str:
+    return "UTC" if arrow_zone in _UTC_NAMES else arrow_zone
+
+
+def _column(t: TType, column: pa.Array) -> list:
+    """One column of a batch as encoded values, vectorised where Arrow can do it exactly."""
+    arrow_type = column.type
+    base = t.base
+    if t.is_integral and not pa.types.is_integer(arrow_type):  # e.g. a HUGEINT arriving as decimal
+        return [None if v is None else int(v) for v in column.to_pylist()]
+    if base in ("real", "double") and pa.types.is_floating(arrow_type):
+        values = column.to_pylist()
+        if pc.all(pc.is_finite(column)).as_py() is not False:
+            return values
+        return [_double(v) for v in values]
+    if base == "decimal" and pa.types.is_decimal(arrow_type) and arrow_type.scale == t.args[1]:
+        texts = column.cast(pa.string())
+        if not pc.any(pc.match_substring(texts, "E")).as_py():
+            return texts.to_pylist()
+        return [format(Decimal(s), "f") if s is not None and "E" in s else s for s in texts.to_pylist()]
+    if base == "timestamp" and pa.types.is_timestamp(arrow_type) and arrow_type.tz is None:
+        return _temporal_texts(column, t.args[0], _as_string)
+    if base == "timestamp_tz" and pa.types.is_timestamp(arrow_type) and arrow_type.tz is not None:
+        return _temporal_texts(column, t.args[0], lambda c: pc.strftime(c, format="%Y-%m-%d %H:%M:%S"),
+                               " " + _zone_name(arrow_type.tz))
+    if base == "date" and pa.types.is_date(arrow_type):
+        return column.cast(pa.string()).to_pylist()
+    if base == "time" and pa.types.is_time(arrow_type):
+        return _temporal_texts(column, t.args[0], _as_string)
+    encode = encoder(str(t))
+    values = column.to_pylist()
+    return values if encode is _identity else [encode(v) for v in values]
+
+
+@lru_cache(maxsize=512)
+def _parsed(trino_type: str) -> TType:
+    return parse_type(trino_type)
+
+
+def encode_rows(columns: Sequence[tuple[str, str]], batch: pa.RecordBatch) -> list[list]:
+    """The rows of `batch` as the client protocol's `data`: a list of rows, each a list of the
+    encoded values of `columns` ((name, Trino type) in the batch's column order)."""
+    if batch.num_columns != len(columns):
+        raise ValueError(f"the batch has {batch.num_columns} columns, the result {len(columns)}")
+    encoded = [_column(_parsed(trino_type), batch.column(i)) for i, (_, trino_type) in enumerate(columns)]
+    if len(encoded) == 1:
+        return [[v] for v in encoded[0]]
+    return [list(row) for row in zip(*encoded)]

@@ -1,0 +1,67 @@
+"""docs/functions.md is generated from the function registry and the conformance cases, and the
+committed file is up to date."""
+from __future__ import annotations
+
+import importlib.util
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from lakegate.dialect import docs
+
+REPO = Path(__file__).resolve().parents[2]
+
+needs_registry = pytest.mark.skipif(importlib.util.find_spec("lakegate.dialect.functions") is None,
+                                    reason="lakegate.dialect.functions (the registry) is not written yet")
+
+
+@needs_registry
+def test_committed_functions_doc_is_up_to_date():
+    result = subprocess.run([sys.executable, "-m", "lakegate.dialect.docs", "--check"], cwd=REPO,
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr + "\nregenerate with: python -m lakegate.dialect.docs"
+
+
+@needs_registry
+def test_check_fails_on_a_stale_file(tmp_path):
+    stale = tmp_path / "functions.md"
+    stale.write_text("# an old page\n", encoding="utf-8")
+    result = subprocess.run([sys.executable, "-m", "lakegate.dialect.docs", "--check", "--output", str(stale)],
+                            cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 1
+    assert "stale" in result.stderr
+
+
+class _Spec:
+    def __init__(self, family: str, signature: str, notes: str = ""):
+        self.family, self.signature, self.notes = family, signature, notes
+
+
+def test_generate_lists_statuses_and_counts_calls(tmp_path):
+    (tmp_path / "demo.yaml").write_text(
+        "family: demo\ntitle: Demo\ndescription: two cases\ncases:\n"
+        "  - name: one\n    sql: SELECT cardinality(ARRAY[1]), ngrams(x, 2) FROM t\n    error: NOT_SUPPORTED\n"
+        "  - name: two\n    sql: SELECT CARDINALITY(a) FILTER (WHERE b) FROM t AS v(a)\n"
+        "    columns: [_col0 bigint]\n    rows: [[1]]\n", encoding="utf-8")
+    text = docs.generate(docs.load_families(tmp_path),
+                         {"cardinality": _Spec("array", "cardinality(array(E)) -> bigint", "1-based")},
+                         {"ngrams": "not translated"})
+    assert "| `cardinality` | supported | 2 | `cardinality(array(E)) -> bigint` 1-based |" in text
+    assert "| `ngrams` | rejected (not translated) | 1 |" in text
+    assert "| `zip_with` | rejected (not implemented) | 0 |" in text
+    assert "| `filter` | rejected (not implemented) | 0 |" in text  # FILTER (WHERE ...) is not a call
+    assert "| demo | 2 | Demo: two cases |" in text
+
+
+def test_called_names_uses_tokens_not_strings():
+    sql = "SELECT upper('lower(x)'), t.\"count\"(1), sum(x) OVER (ORDER BY y) FROM t AS v(c)"
+    assert docs.called_names(sql) == {"upper", "sum", "v"}
+
+
+def test_malformed_case_file_is_reported(tmp_path):
+    (tmp_path / "bad.yaml").write_text(
+        "family: bad\ncases:\n  - name: x\n    sql: SELECT 1\n    rows: [[1]]\n", encoding="utf-8")
+    with pytest.raises(docs.CaseFileError, match="bad.yaml: case 1 \\(x\\)"):
+        docs.load_families(tmp_path)

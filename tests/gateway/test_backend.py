@@ -1,0 +1,271 @@
+"""The embedded DuckDB backend over a real lake (ingested Parquet): translated queries streamed as
+Arrow batches with Trino column types, scopes, parameters, SHOW / DESCRIBE / EXPLAIN, cancelation,
+refreshed views, and the locked-down connection: hostile input is refused and the lake unchanged."""
+from __future__ import annotations
+
+import hashlib
+import json
+import threading
+import time
+from pathlib import Path
+
+import duckdb
+import pyarrow as pa
+import pytest
+
+from lakegate.dialect.errors import DialectError
+from lakegate.dialect.scope import Scope
+from lakegate.gateway.backend import DuckDBBackend
+from lakegate.lake.config import load_config
+from lakegate.lake.ingest import ingest_job
+
+CONFIG = """\
+version: 1
+topics:
+  odom:
+    schema: {x: float, y: float}
+  time_to_goal:
+    schema: {goal_name: string, time_s: float}
+  never_emitted:
+    schema: {n: int}
+"""
+#: (batch, job, rows per topic): j1 and j2 in batch b1, j3 in b2; odom x = 0, 1, 2, ...
+JOBS = [("b1", "j1", 3), ("b1", "j2", 2), ("b2", "j3", 4)]
+
+
+def line(topic: str, timestamp: int, data: dict) -> str:
+    return json.dumps({"$metadata": {"topic": topic, "timestamp": timestamp}, "$data": data}) + "\n"
+
+
+def build_lake(root: Path, jobs=JOBS, config_text: str = CONFIG) -> Path:
+    lake = root / "lake"
+    config_file = root / "config.resim.yaml"
+    config_file.write_text(config_text)
+    config = load_config([config_file])
+    for batch, job, n in jobs:
+        emissions = root / f"{job}.jsonl"
+        emissions.write_text("".join(line("odom", i * 10**9, {"x": float(i), "y": 1.0}) for i in range(n)) +
+                             "".join(line("time_to_goal", i, {"goal_name": f"g{i}", "time_s": 1.5 * i}) for i in range(n)))
+        ingest_job(lake, "main", batch, job, [emissions], config=config, metadata={"experience_name": f"exp {job}"})
+    return lake
+
+
+def snapshot(root: Path) -> dict[str, tuple[int, int, str]]:
+    """Every file under `root`: size, modification time and content digest."""
+    return {str(p.relative_to(root)): (p.stat().st_size, p.stat().st_mtime_ns, hashlib.sha256(p.read_bytes()).hexdigest())
+            for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+@pytest.fixture(scope="module")
+def lake(tmp_path_factory) -> Path:
+    return build_lake(tmp_path_factory.mktemp("backend"))
+
+
+@pytest.fixture(scope="module")
+def backend(lake):
+    backend = DuckDBBackend(lake, memory_limit="512MB", threads=2)
+    yield backend
+    backend.close()
+
+
+def refused(backend, sql, **kwargs) -> DialectError:
+    with pytest.raises(DialectError) as caught:
+        backend.execute(sql, **kwargs).rows()
+    return caught.value
+
+
+def test_a_query_streams_arrow_batches_with_trino_column_types(backend):
+    result = backend.execute("SELECT job_id, count(*) AS n, avg(x), sum(timestamp) / 1E9 AS s "
+                             "FROM odom GROUP BY 1 ORDER BY 1")
+    assert result.columns == [("job_id", "varchar"), ("n", "bigint"), ("_col2", "double"), ("s", "double")]
+    batches = list(result.batches)
+    assert batches and all(isinstance(b, pa.RecordBatch) for b in batches)
+    assert pa.Table.from_batches(batches).to_pylist() == [
+        {"job_id": "j1", "n": 3, "_col2": 1.0, "s": 3.0},
+        {"job_id": "j2", "n": 2, "_col2": 0.5, "s": 1.0},
+        {"job_id": "j3", "n": 4, "_col2": 1.5, "s": 6.0}]
+
+
+def test_the_schema_is_the_catalogs(backend):
+    schema = backend.schema("main")
+    assert set(schema) == {"odom", "time_to_goal", "never_emitted", "events", "metadata"}
+    assert schema["odom"]["x"] == "double" and schema["odom"]["timestamp"] == "bigint"
+    assert backend.execute("SELECT count(*) FROM never_emitted").rows() == [(0,)]
+
+
+def test_scopes_restrict_every_table(backend):
+    sql = ("SELECT m.experience_name, count(*) FROM odom o JOIN metadata m ON o.job_id = m.job_id "
+           "GROUP BY 1 ORDER BY 1")
+    assert backend.execute(sql, scope=Scope(batch_id="b1", job_id="j2")).rows() == [("exp j2", 2)]
+    assert backend.execute(sql, scope=Scope(batch_id="b1")).rows() == [("exp j1", 3), ("exp j2", 2)]
+    assert backend.execute(sql).rows() == [("exp j1", 3), ("exp j2", 2), ("exp j3", 4)]
+
+
+@pytest.mark.parametrize("threshold, blocks", [(3, False), (3.5, True), (4, True)])
+def test_status_check_parameters(backend, threshold, blocks):
+    result = backend.execute("SELECT '1' FROM time_to_goal HAVING COUNT(*) < ?", scope=Scope(job_id="j1"),
+                             params=[threshold])
+    assert result.rows() == ([("1",)] if blocks else [])
+
+
+def test_constant_queries_need_no_lake():
+    backend = DuckDBBackend(None)
+    try:
+        assert backend.schema("main") == {}
+        assert backend.execute("SELECT 5 / 2, typeof(5 / 2)").rows() == [(2, "integer")]
+        assert refused(backend, "SELECT * FROM odom").error_name == "TABLE_NOT_FOUND"
+    finally:
+        backend.close()
+
+
+def test_an_unknown_branch_is_a_clear_error(backend):
+    error = refused(backend, "SELECT 1", branch="nope")
+    assert error.error_name == "SCHEMA_NOT_FOUND" and "branches: main" in error.message
+
+
+def test_show_and_describe(backend):
+    assert backend.execute("SHOW TABLES").rows() == [("events",), ("metadata",), ("never_emitted",), ("odom",),
+                                                     ("time_to_goal",)]
+    result = backend.execute("SHOW TABLES FROM lakegate.main LIKE 'o%'")
+    assert result.columns == [("Table", "varchar")] and result.rows() == [("odom",)]
+    result = backend.execute("DESCRIBE odom")
+    assert result.columns == [("Column", "varchar"), ("Type", "varchar"), ("Extra", "varchar"), ("Comment", "varchar")]
+    assert result.rows()[:3] == [("timestamp", "bigint", "", ""), ("x", "double", "", ""), ("y", "double", "", "")]
+    assert backend.execute("SHOW COLUMNS FROM main.odom LIKE '%\\_id' ESCAPE '\\'").rows() == [
+        ("batch_id", "varchar", "", ""), ("job_id", "varchar", "", "")]
+    assert backend.execute("SHOW SCHEMAS").rows() == [("main",)]
+    assert backend.execute("SHOW CATALOGS").rows() == [("lakegate",)]
+    assert refused(backend, "DESCRIBE nothing").error_name == "TABLE_NOT_FOUND"
+    assert refused(backend, "SHOW FUNCTIONS").error_name == "NOT_SUPPORTED"
+
+
+def test_explain_shows_duckdbs_plan_of_the_translation(backend):
+    result = backend.execute("EXPLAIN SELECT count(*) FROM odom")
+    assert result.columns == [("Query Plan", "varchar")]
+    assert "READ_PARQUET" in result.rows()[0][0]
+    assert "Total Time" in backend.execute("EXPLAIN ANALYZE SELECT count(*) FROM odom").rows()[0][0]
+    error = refused(backend, "EXPLAIN SELECT nope FROM odom")
+    assert error.error_name == "COLUMN_NOT_FOUND" and (error.line, error.column) == (1, 16)
+
+
+def test_runtime_errors_carry_trinos_error_names(backend):
+    assert refused(backend, "SELECT timestamp / 0 FROM odom").error_name == "DIVISION_BY_ZERO"
+    assert refused(backend, "SELECT ARRAY[1, 2][5]").error_name == "INVALID_FUNCTION_ARGUMENT"
+
+
+def test_cancel_interrupts_a_running_query(backend):
+    result = backend.execute("SELECT count(*) FROM UNNEST(sequence(1, 10000)) AS a(x) "
+                             "CROSS JOIN UNNEST(sequence(1, 10000)) AS b(y) CROSS JOIN UNNEST(sequence(1, 10000)) AS c(z)")
+    threading.Timer(0.2, result.cancel).start()
+    started = time.monotonic()
+    with pytest.raises(DialectError) as caught:
+        result.rows()
+    assert caught.value.error_name == "USER_CANCELED" and caught.value.error_code == 3
+    assert time.monotonic() - started < 30
+    assert backend.execute("SELECT count(*) FROM odom").rows() == [(9,)]  # the backend goes on
+
+
+def test_queries_run_concurrently(backend):
+    results: dict[int, list] = {}
+
+    def query(i: int) -> None:
+        results[i] = backend.execute("SELECT count(*) FROM odom WHERE x >= ?", params=[i]).rows()
+
+    def same_query(i: int) -> None:  # one text: one cached DuckDB statement shared by the threads
+        results[10 + i] = [backend.execute("SELECT count(*), sum(x) FROM odom").rows() for _ in range(20)]
+
+    threads = [threading.Thread(target=query, args=(i,)) for i in range(4)]
+    threads += [threading.Thread(target=same_query, args=(i,)) for i in range(3)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert {k: v for k, v in results.items() if k < 10} == {0: [(9,)], 1: [(6,)], 2: [(3,)], 3: [(1,)]}
+    assert all(results[10 + i] == [[(9, 10.0)]] * 20 for i in range(3))
+
+
+def test_views_follow_new_topics_and_jobs(tmp_path):
+    lake = build_lake(tmp_path, jobs=[("b1", "j1", 2)])
+    backend = DuckDBBackend(lake)
+    try:
+        assert backend.execute("SELECT count(*) FROM odom").rows() == [(2,)]
+        build_lake(tmp_path, jobs=[("b1", "j2", 3)], config_text=CONFIG + "  speed:\n    schema: {v: float}\n")
+        assert backend.execute("SELECT count(*) FROM odom").rows() == [(5,)]
+        assert backend.execute("SELECT count(*) FROM speed").rows() == [(0,)]
+    finally:
+        backend.close()
+
+
+def test_the_duckdb_connection_is_locked_down(backend, lake, tmp_path):
+    con = backend.connection("main")
+    try:
+        settings = dict(con.execute("SELECT name, value FROM duckdb_settings() WHERE name IN "
+                                    "('enable_external_access', 'lock_configuration', 'autoload_known_extensions', "
+                                    "'autoinstall_known_extensions')").fetchall())
+        assert settings == {"enable_external_access": "false", "lock_configuration": "true",
+                            "autoload_known_extensions": "false", "autoinstall_known_extensions": "false"}
+        outside = tmp_path / "out.csv"
+        for sql, error in [
+            ("SELECT * FROM read_csv('/etc/passwd')", duckdb.PermissionException),
+            ("SELECT * FROM read_text('/etc/hostname')", duckdb.PermissionException),
+            (f"COPY (SELECT 1) TO '{outside}'", duckdb.PermissionException),
+            (f"ATTACH '{tmp_path / 'other.duckdb'}' AS other", duckdb.PermissionException),
+            ("SET threads = 8", duckdb.InvalidInputException),
+            ("SET enable_external_access = true", duckdb.InvalidInputException),
+            ("RESET lock_configuration", duckdb.InvalidInputException),
+            ("INSTALL httpfs", duckdb.PermissionException),
+            ("LOAD httpfs", duckdb.PermissionException),
+        ]:
+            with pytest.raises(error):
+                con.execute(sql)
+        assert not outside.exists() and not (tmp_path / "other.duckdb").exists()
+        # the lake itself stays readable
+        assert con.execute("SELECT count(*) FROM odom").fetchone() == (9,)
+    finally:
+        con.close()
+
+
+@pytest.mark.parametrize("sql", [
+    "SELECT * FROM read_csv('/etc/passwd')",
+    "SELECT * FROM read_text('{lake}/main/odom/batch_id=b1/job_id=j1/data.parquet')",
+    "SELECT * FROM read_parquet('{lake}/main/odom/*/*/*.parquet')",
+    "SELECT * FROM '{lake}/main/odom/batch_id=b1/job_id=j1/data.parquet'",
+    "SELECT * FROM glob('{lake}/*')",
+    "COPY odom TO '{lake}/main/odom/batch_id=b1/job_id=j1/data.parquet' (FORMAT parquet)",
+    "COPY (SELECT 1) TO '{lake}/evil.csv'",
+    "INSERT INTO odom SELECT * FROM odom",
+    "DELETE FROM odom",
+    "DROP VIEW odom",
+    "CREATE OR REPLACE VIEW odom AS SELECT 1 AS x",
+    "ATTACH '{lake}/evil.duckdb' AS evil",
+    "EXPORT DATABASE '{lake}/dump'",
+    "SET allowed_directories = ['/']",
+    "SET enable_external_access = true",
+    "PRAGMA threads = 1",
+    "INSTALL httpfs",
+    "SELECT 1; COPY (SELECT 1) TO '{lake}/evil.csv'",
+    "SELECT count(*) FROM odom; DROP VIEW odom",
+    "SELECT " + "(" * 499_990 + "1" + ")" * 499_990,
+    b"SELECT '\xc3\x28' FROM odom",
+    "SELECT 'a\x00' FROM odom",
+])
+def test_hostile_input_is_refused_and_the_lake_unchanged(backend, lake, sql):
+    before = snapshot(lake)
+    text = sql.replace(b"{lake}", str(lake).encode()) if isinstance(sql, bytes) else sql.replace("{lake}", str(lake))
+    error = refused(backend, text)
+    assert error.error_name in ("PERMISSION_DENIED", "SYNTAX_ERROR", "NOT_SUPPORTED", "TABLE_NOT_FOUND")
+    assert error.message
+    assert snapshot(lake) == before
+    assert backend.execute("SELECT count(*) FROM odom").rows() == [(9,)]
+
+
+def test_only_one_select_reaches_duckdb(backend):
+    con = backend.connection("main")
+    try:
+        for text in ("COPY (SELECT 1) TO 'x.csv'", "SELECT 1; SELECT 2", "CREATE VIEW v AS SELECT 1"):
+            with pytest.raises(DialectError) as caught:
+                backend._single_select(con, text)
+            assert caught.value.error_name == "GENERIC_INTERNAL_ERROR"
+        assert backend._single_select(con, "SELECT 1").type == duckdb.StatementType.SELECT
+    finally:
+        con.close()

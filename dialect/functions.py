@@ -205,7 +205,12 @@ def _render_approx_percentile(g, node, args) -> str:
 
 register("count", "aggregate", "count(*) -> bigint; count(x) -> bigint",
          lambda c: tt.BIGINT if len(c.args) <= 1 else c.mismatch(), agg_as("count"), kind="aggregate")
-register("count_if", "aggregate", "count_if(boolean) -> bigint", fixed(tt.BIGINT, "boolean"), agg_as("count_if"),
+def _render_count_if(g, node, args) -> str:
+    """DuckDB's count_if is NULL over no rows or only NULLs; Trino's is 0."""
+    return f"COALESCE({g.agg(node, 'count_if', [g.sql(args[0])])}, 0)::BIGINT"
+
+
+register("count_if", "aggregate", "count_if(boolean) -> bigint", fixed(tt.BIGINT, "boolean"), _render_count_if,
          kind="aggregate")
 def _render_sum(g, node, args) -> str:
     t = ttype(node)

@@ -7,7 +7,10 @@ table's Parquet files (Hive partitions `batch_id`/`job_id` read as VARCHAR, neve
 auto-cast) with the columns of `schema` in order; a table without files is an empty
 SELECT with the same columns and types. Columns that a topic gained or changed across
 config versions are read with `union_by_name` and cast to the current type (NULL in
-files written before the column existed).
+files written before the column existed); other tables are read without it (their files all
+have the same columns, and DuckDB would otherwise read every file's footer at each query).
+`metric_results` (evaluated metrics, one file per batch, written by the metrics engine) is a
+table once the branch has any.
 """
 from __future__ import annotations
 
@@ -46,6 +49,27 @@ _EVENTS_COLUMNS = [
     ("metrics", trino_type("metric[]")),
     *[(c, "varchar") for c in JOB_COLUMNS],
     *[(c, "varchar") for c in PARTITIONS],
+]
+#: Columns of `metric_results`: one row per evaluated metric (job_id NULL for batch metrics).
+METRIC_RESULTS_COLUMNS = [
+    ("batch_id", "varchar"),
+    ("job_id", "varchar"),
+    ("metric_name", "varchar"),
+    ("metric_type", "varchar"),
+    ("template", "varchar"),
+    ("status", "varchar"),
+    ("scalar_value", "double"),
+    ("value_text", "varchar"),
+    ("units", "varchar"),
+    ("figure_json", "varchar"),
+    ("details_json", "varchar"),
+    ("error_message", "varchar"),
+    ("error_line", "bigint"),
+    ("error_column", "bigint"),
+    ("error_location", "varchar"),
+    ("metrics_set", "varchar"),
+    ("config_version", "bigint"),
+    ("evaluated_at", "timestamp(3)"),
 ]
 
 
@@ -150,6 +174,8 @@ class Catalog:
         specs.sort(key=lambda s: s.name not in current)  # current topics first, in config order
         specs.append(_Spec(paths.EVENTS_TABLE, "events", list(_EVENTS_COLUMNS)))
         specs.append(_Spec(paths.METADATA_TABLE, "metadata", list(METADATA_COLUMNS)))
+        if self._has_files(branch, paths.METRIC_RESULTS_TABLE):
+            specs.append(_Spec(paths.METRIC_RESULTS_TABLE, "metric_results", list(METRIC_RESULTS_COLUMNS)))
         return specs
 
     def _has_files(self, branch: str, table: str) -> bool:
@@ -184,9 +210,10 @@ class Catalog:
                     columns = ", ".join(f"CAST(NULL AS {DUCKDB_TYPES[t]}) AS {_quote_ident(c)}" for c, t in spec.columns)
                     views[spec.name] = f"SELECT {columns} WHERE false"
                     continue
+                hive_types = ", ".join(f"'{key}': VARCHAR" for key in paths.partition_keys(spec.name))
                 source = (f"read_parquet({_quote_text(paths.table_glob(self.lake, branch, spec.name))}, "
-                          "hive_partitioning = true, hive_types = {'batch_id': VARCHAR, 'job_id': VARCHAR}, "
-                          "union_by_name = true)")
+                          f"hive_partitioning = true, hive_types = {{{hive_types}}}"
+                          f"{', union_by_name = true' if spec.varied else ''})")
                 present = None
                 if spec.varied:
                     con = con or duckdb.connect()

@@ -3,6 +3,8 @@
 Layout (see DESIGN.md, "Lake on disk")::
 
     <lake>/<branch-dir>/<table>/batch_id=<B>/job_id=<J>/data.parquet   topics, metadata, events
+    <lake>/<branch-dir>/metric_results/batch_id=<B>/data.parquet       evaluated metrics (one file per batch)
+    <lake>/<branch-dir>/_logs/<B>/<J>/...                              job log files (images the metrics show)
     <lake>/<branch-dir>/_configs/v000001/...                           the branch's config versions
     <lake>/<branch-dir>/_quarantine/<B>/<J>.jsonl                      bad lines kept by --skip-bad-lines
     <lake>/<branch-dir>/_staging/...                                   scratch space of running writers
@@ -33,11 +35,16 @@ except ImportError:  # pragma: no cover - not on POSIX
 DATA_FILE = "data.parquet"
 METADATA_TABLE = "metadata"
 EVENTS_TABLE = "events"
+#: Evaluated metrics: one file per batch (job_id is a column, NULL for batch metrics).
+METRIC_RESULTS_TABLE = "metric_results"
 STAGING = "_staging"
 CONFIGS = "_configs"
 QUARANTINE = "_quarantine"
+LOGS = "_logs"
 #: Names a topic may not have, because the branch directory uses them.
-RESERVED_TABLES = frozenset({METADATA_TABLE, EVENTS_TABLE})
+RESERVED_TABLES = frozenset({METADATA_TABLE, EVENTS_TABLE, METRIC_RESULTS_TABLE})
+#: Tables partitioned by batch only (`<table>/batch_id=<B>/data.parquet`).
+BATCH_TABLES = frozenset({METRIC_RESULTS_TABLE})
 
 _SAFE = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_.")
 _MAX_SEGMENT = 240  # bytes; file systems allow 255
@@ -155,14 +162,29 @@ def data_file(lake: Path, branch: str, table: str, batch_id: str, job_id: str) -
     return partition_dir(lake, branch, table, batch_id, job_id) / DATA_FILE
 
 
+def batch_file(lake: Path, branch: str, table: str, batch_id: str) -> Path:
+    """The one Parquet file of a batch-partitioned table (`BATCH_TABLES`) for one batch."""
+    check_segment(batch_id, "batch id")
+    return table_dir(lake, branch, table) / f"batch_id={batch_id}" / DATA_FILE
+
+
+def partition_keys(table: str) -> tuple[str, ...]:
+    """The Hive partition keys of `table`'s directories."""
+    return ("batch_id",) if table in BATCH_TABLES else ("batch_id", "job_id")
+
+
+def _file_pattern(table: str) -> str:
+    return "/".join([*(f"{key}=*" for key in partition_keys(table)), "*.parquet"])
+
+
 def table_glob(lake: Path, branch: str, table: str) -> str:
     """The glob that matches every data file of `table` on `branch` (and nothing in `_staging`)."""
-    return str(table_dir(lake, branch, table) / "batch_id=*" / "job_id=*" / "*.parquet")
+    return str(table_dir(lake, branch, table) / _file_pattern(table))
 
 
 def data_files(lake: Path, branch: str, table: str) -> Iterator[Path]:
     """The data files of `table` on `branch` (those `table_glob` matches), lazily."""
-    return table_dir(lake, branch, table).glob("batch_id=*/job_id=*/*.parquet")
+    return table_dir(lake, branch, table).glob(_file_pattern(table))
 
 
 def configs_dir(lake: Path, branch: str) -> Path:
@@ -174,6 +196,13 @@ def quarantine_file(lake: Path, branch: str, batch_id: str, job_id: str) -> Path
     check_segment(batch_id, "batch id")
     check_segment(job_id, "job id")
     return branch_dir(lake, branch) / QUARANTINE / batch_id / f"{job_id}.jsonl"
+
+
+def logs_dir(lake: Path, branch: str, batch_id: str, job_id: str) -> Path:
+    """Where a job's log files (e.g. the images its metrics show) are kept."""
+    check_segment(batch_id, "batch id")
+    check_segment(job_id, "job id")
+    return branch_dir(lake, branch) / LOGS / batch_id / job_id
 
 
 def partition_value(directory: Path, key: str) -> str | None:

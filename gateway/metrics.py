@@ -1,0 +1,508 @@
+"""The metrics engine: evaluate a metrics set on a batch of the lake, judge statuses, store the results.
+
+How a batch is evaluated (`MetricsEngine.evaluate_batch`):
+
+1. Every `type: test` metric runs once per job of the batch, restricted to that job
+   (`Scope(batch_id, job_id)`: it never sees another job's rows). Jobs are evaluated on a few
+   threads, each query on its own cursor; the scope stays per job.
+2. A job's `job_metrics_status` is the worst status of its test metrics; its
+   `job_conflated_status` is ERROR when its `job_status` is FAILED, else its metrics status
+   (so a metric ERROR makes the job ERROR: its pass/fail could not be decided). Both are
+   written to the job's `metadata` row before any batch metric runs, so batch metrics can
+   count them (`count_if(job_conflated_status = 'PASSED')`).
+3. Every `type: batch` metric runs once, restricted to the batch (`Scope(batch_id)`).
+4. The batch's `batch_metrics_status` is the worst of its batch metrics; its overall
+   `status` folds in every job: the worst of the batch metrics and the jobs' conflated statuses.
+5. The results replace the batch's rows of the `metric_results` table (`results`).
+
+Statuses, from best to worst: PASSED < WARNING < BLOCKER < ERROR; NOT_RUN (skipped or not
+supported) counts for nothing. One metric:
+
+* the query fails (refused, invalid, or fails while running): ERROR with the message and
+  the position (line, column) in the query, and in the config file when it can be mapped
+  exactly (e.g. `config.resim.yaml:57:9`); the rest of the set still runs;
+* the result does not fit the template: ERROR with the template's message;
+* no rows and `skip_if_no_data: true`: NOT_RUN;
+* `type: dashboard | report`, `template_type: custom` and the templates `video` and
+  `artifact` are not supported yet: NOT_RUN with that reason (they never fail a batch);
+* otherwise the status check, if any: the status query runs with `block` bound to its one
+  `?` (a typed query parameter, never pasted text); any row means BLOCKER; else with `warn`
+  (when given): any row means WARNING; else PASSED. No status check: PASSED.
+
+Events (`JobOutcome.events`, `job_events`): the rows of the `events` table for one job (topics
+with `event: true`), with their attached metrics parsed (image lists and Plotly JSON).
+"""
+from __future__ import annotations
+
+import contextlib
+import datetime as dt
+import functools
+import json
+import sys
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass, field
+from decimal import Decimal
+from pathlib import Path
+from typing import Any, Callable, Sequence
+
+import numpy as np
+from tqdm import tqdm
+
+from lakegate.dialect.errors import DialectError
+from lakegate.dialect.scope import Scope
+from lakegate.gateway.backend import Backend, DuckDBBackend
+from lakegate.gateway.results import ResultsWriter
+from lakegate.gateway.templates import UNSUPPORTED_TEMPLATES, Rendered, TemplateError, json_value, render
+from lakegate.lake import paths
+from lakegate.lake.config import Config, Location, Metric
+from lakegate.lake.metadata import update_metadata_row
+
+PASSED, WARNING, BLOCKER, ERROR, NOT_RUN = "PASSED", "WARNING", "BLOCKER", "ERROR", "NOT_RUN"
+#: Statuses from best to worst; NOT_RUN is below all and never makes anything worse.
+SEVERITY = {NOT_RUN: 0, PASSED: 1, WARNING: 2, BLOCKER: 3, ERROR: 4}
+#: Metric types evaluated (others are reported NOT_RUN).
+EVALUATED_TYPES = ("test", "batch")
+
+
+def worst(statuses: Sequence[str] | Any) -> str:
+    """The worst of some statuses; PASSED when there are none (or only NOT_RUN)."""
+    found = max(statuses, key=SEVERITY.__getitem__, default=PASSED)
+    return PASSED if found == NOT_RUN else found
+
+
+def conflated_status(job_status: str | None, metrics_status: str) -> str:
+    """A job's combined status: ERROR for a FAILED job, else its metrics status."""
+    return ERROR if (job_status or "").upper() == "FAILED" else metrics_status
+
+
+# -- results ------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class MetricError:
+    """Why a metric errored (or was not run): the message and, for query errors, where.
+
+    `line`/`column` are 1-based in the query text; `location` is the same place in the
+    config file when it maps exactly. `query` says which query failed: "query" or "status query".
+    """
+
+    message: str
+    line: int | None = None
+    column: int | None = None
+    location: Location | None = None
+    query: str | None = None
+
+    def __str__(self) -> str:
+        what = f"{self.query}: " if self.query else ""
+        if self.location is not None:
+            return f"{self.location}: {what}{self.message}"
+        if self.line is not None and self.column is not None:
+            return f"{what}line {self.line}:{self.column}: {self.message}"
+        return f"{what}{self.message}"
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"message": self.message, "query": self.query, "line": self.line, "column": self.column,
+                "location": None if self.location is None else str(self.location)}
+
+
+@dataclass
+class MetricResult:
+    """One metric evaluated on one job (test metrics) or on the whole batch (job_id None)."""
+
+    metric: str
+    metric_type: str
+    template: str | None
+    batch_id: str
+    job_id: str | None
+    status: str
+    rendered: Rendered | None = None
+    error: MetricError | None = None
+    units: str | None = None
+    description: str = ""
+    seconds: float = 0.0
+
+    @property
+    def scalar_value(self) -> float | None:
+        """A scalar template's numeric value as a double (None for anything else)."""
+        if self.rendered is None or self.rendered.template != "scalar":
+            return None
+        value = self.rendered.scalar
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, Decimal, np.number)):
+            return None
+        return float(value)
+
+    @property
+    def value_text(self) -> str | None:
+        """The rendered value in words, e.g. "42.98 s" or "2 series, 300 points"."""
+        return None if self.rendered is None else self.rendered.text
+
+    def as_dict(self) -> dict[str, Any]:
+        """JSON-ready: batch, job, metric, type, template, status, scalar value, value, error."""
+        scalar = self.scalar_value
+        return {
+            "batch_id": self.batch_id, "job_id": self.job_id, "metric": self.metric, "type": self.metric_type,
+            "template": self.template, "status": self.status,
+            "scalar_value": None if scalar is None else json_value(scalar), "value": self.value_text,
+            "units": self.units, "problems": list(self.rendered.problems) if self.rendered else [],
+            "error": None if self.error is None else self.error.as_dict(),
+        }
+
+
+@dataclass(frozen=True)
+class EventMetric:
+    """A metric attached to an event: `value` is text (scalar, text), a list of file names
+    (image) or a Plotly figure dict (plotly)."""
+
+    name: str
+    type: str
+    value: Any
+    description: str | None = None
+    status: str | None = None
+
+
+@dataclass(frozen=True)
+class Event:
+    """One event of a job (a row of the `events` table)."""
+
+    timestamp: int  # nanoseconds
+    topic: str
+    name: str | None
+    description: str | None
+    status: str | None
+    tags: list[str]
+    metrics: list[EventMetric]
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"timestamp": self.timestamp, "topic": self.topic, "name": self.name,
+                "description": self.description, "status": self.status, "tags": list(self.tags),
+                "metrics": [{"name": m.name, "type": m.type, "value": m.value, "description": m.description,
+                             "status": m.status} for m in self.metrics]}
+
+
+@dataclass
+class JobOutcome:
+    """One job of an evaluated batch: its statuses, test metric results and events."""
+
+    job_id: str
+    experience_name: str | None
+    job_status: str | None
+    metrics_status: str
+    conflated_status: str
+    results: list[MetricResult]
+    events: list[Event] = field(default_factory=list)
+    logs_dir: Path | None = None  # the job's log files, where image file names are found
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"job_id": self.job_id, "experience_name": self.experience_name, "job_status": self.job_status,
+                "job_metrics_status": self.metrics_status, "job_conflated_status": self.conflated_status,
+                "events": [e.as_dict() for e in self.events]}
+
+
+@dataclass
+class BatchEvaluation:
+    """Everything one evaluation of a batch produced."""
+
+    branch: str
+    batch_id: str
+    metrics_set: str | None
+    config_version: int | None
+    evaluated_at: dt.datetime  # UTC, naive
+    jobs: list[JobOutcome]
+    batch_results: list[MetricResult]
+    seconds: float = 0.0
+
+    @property
+    def batch_metrics_status(self) -> str:
+        """The worst status of the batch metrics."""
+        return worst(r.status for r in self.batch_results)
+
+    @property
+    def status(self) -> str:
+        """The batch's overall status: the worst of its batch metrics and its jobs' conflated statuses."""
+        return worst([self.batch_metrics_status, *(job.conflated_status for job in self.jobs)])
+
+    def results(self) -> list[MetricResult]:
+        """Every evaluated metric: each job's test metrics (jobs in order), then the batch metrics."""
+        return [r for job in self.jobs for r in job.results] + self.batch_results
+
+    def count(self, status: str) -> int:
+        """How many metric results have `status`."""
+        return sum(1 for r in self.results() if r.status == status)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "branch": self.branch, "batch_id": self.batch_id, "metrics_set": self.metrics_set,
+            "config_version": self.config_version, "evaluated_at": self.evaluated_at.isoformat() + "Z",
+            "status": self.status, "batch_metrics_status": self.batch_metrics_status,
+            "jobs": [job.as_dict() for job in self.jobs],
+            "metrics": [r.as_dict() for r in self.results()],
+        }
+
+
+# -- config helpers -----------------------------------------------------------------------------
+
+
+def select_metrics(config: Config, metrics_set: str | None = None, *, all_metrics: bool = False) -> list[Metric]:
+    """The metrics of `metrics_set` (KeyError naming the known sets if unknown), or every metric
+    of the config with `all_metrics`."""
+    if all_metrics:
+        return list(config.metrics.values())
+    if metrics_set is None:
+        raise ValueError("name a metrics set, or ask for all metrics")
+    return config.metrics_in_set(metrics_set)
+
+
+def unsupported_reason(metric: Metric) -> str | None:
+    """Why a metric cannot be evaluated yet, or None when it can."""
+    if metric.type not in EVALUATED_TYPES:
+        return f"metric type '{metric.type}' is not supported yet (only test and batch metrics are evaluated)"
+    if metric.template_type != "system":
+        return f"template_type '{metric.template_type}' is not supported yet (only system templates are)"
+    if metric.template in UNSUPPORTED_TEMPLATES:
+        return f"template '{metric.template}' is not supported yet"
+    return None
+
+
+@functools.lru_cache(maxsize=32)
+def _file_lines(path: str, stamp: float) -> tuple[str, ...]:
+    return tuple(Path(path).read_text(encoding="utf-8").splitlines())
+
+
+def config_position(start: Location | None, sql: str, line: int | None, column: int | None) -> Location | None:
+    """Where (line, column) of a query is in the config file, given where its value starts.
+
+    Exact for literal block scalars (`query_string: |`) and single-line values; None when the
+    YAML folds or escapes the text so that no exact position exists (or the file changed).
+    """
+    if start is None or not start.line or line is None or column is None:
+        return None
+    try:
+        lines = _file_lines(start.path, Path(start.path).stat().st_mtime)
+        head = lines[start.line - 1][start.column - 1:]
+        wanted = sql.splitlines()[line - 1]
+    except (OSError, UnicodeDecodeError, IndexError):
+        return None
+    if head.startswith("|"):
+        first = next((text for text in lines[start.line:] if text.strip()), None)
+        if first is None or start.line + line > len(lines):
+            return None
+        indent = len(first) - len(first.lstrip(" "))
+        found = Location(start.path, start.line + line, indent + column)
+        exact = lines[found.line - 1][indent:] == wanted
+    elif line == 1 and not head.startswith(">"):
+        quoted = head.startswith(("'", '"'))
+        found = Location(start.path, start.line, start.column + quoted + column - 1)
+        exact = head[quoted:].startswith(wanted)
+    else:
+        return None
+    return found if exact else None  # escapes, folding or an edited file: no exact position
+
+
+# -- the engine ---------------------------------------------------------------------------------
+
+
+class MetricsEngine:
+    """Evaluates metrics on the lake at `lake` through `backend` (default: embedded DuckDB).
+
+    `threads` jobs are evaluated at once. The engine writes to the lake (metadata statuses and
+    `metric_results`) directly; queries go through the backend only.
+    """
+
+    def __init__(self, lake: Path, backend: Backend | None = None, *, threads: int = 2):
+        self.lake = Path(lake)
+        self._own_backend = backend is None
+        self.backend: Backend = backend if backend is not None else DuckDBBackend(self.lake)
+        self.threads = max(1, threads)
+
+    def close(self) -> None:
+        """Close the backend if the engine made it."""
+        if self._own_backend and hasattr(self.backend, "close"):
+            self.backend.close()
+
+    def __enter__(self) -> "MetricsEngine":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # -- one metric -----------------------------------------------------------------------------
+
+    def evaluate(self, metric: Metric, branch: str, scope: Scope, *, logs_dir: Path | None = None) -> MetricResult:
+        """Evaluate one metric in one scope: run its query, render it, judge its status."""
+        started = time.perf_counter()
+        result = MetricResult(metric=metric.name, metric_type=metric.type, template=metric.template,
+                              batch_id=scope.batch_id or "", job_id=scope.job_id, status=PASSED,
+                              units=metric.units, description=metric.description)
+        reason = unsupported_reason(metric)
+        if reason is not None:
+            result.status, result.error = NOT_RUN, MetricError(reason)
+        else:
+            self._run(metric, branch, scope, logs_dir, result)
+        result.seconds = time.perf_counter() - started
+        return result
+
+    def _run(self, metric: Metric, branch: str, scope: Scope, logs_dir: Path | None, result: MetricResult) -> None:
+        try:
+            answer = self.backend.execute(metric.query_string, branch=branch, scope=scope)
+            rows = answer.rows()
+        except DialectError as error:
+            result.status, result.error = ERROR, _query_error(error, metric.query_string, metric.query_location, "query")
+            return
+        if not rows and metric.skip_if_no_data:
+            result.status = NOT_RUN
+            result.error = MetricError("skipped: the query returned no rows (skip_if_no_data)")
+            return
+        try:
+            result.rendered = render(metric.name, metric.template or "", answer.columns, rows, units=metric.units,
+                                     logs_dir=logs_dir, template_type=metric.template_type)
+        except TemplateError as error:
+            result.status, result.error = ERROR, MetricError(str(error), query="template")
+            return
+        if metric.status is not None:
+            check = metric.status
+            try:
+                if self._any_rows(check.query_string, branch, scope, check.block):
+                    result.status = BLOCKER
+                elif check.warn is not None and self._any_rows(check.query_string, branch, scope, check.warn):
+                    result.status = WARNING
+            except DialectError as error:
+                result.status = ERROR
+                result.error = _query_error(error, check.query_string, check.query_location, "status query")
+
+    def _any_rows(self, sql: str, branch: str, scope: Scope, threshold: Any) -> bool:
+        answer = self.backend.execute(sql, branch=branch, scope=scope, params=(threshold,))
+        found = False
+        for batch in answer.batches:  # read to the end: the cursor closes when the stream is done
+            found = found or batch.num_rows > 0
+        return found
+
+    # -- jobs and events ------------------------------------------------------------------------
+
+    def jobs(self, branch: str, batch_id: str) -> list[tuple[str, str | None, str | None]]:
+        """(job_id, experience_name, job_status) of every job of a batch, by start time."""
+        answer = self.backend.execute(
+            "SELECT job_id, experience_name, job_status FROM metadata ORDER BY time, job_id",
+            branch=branch, scope=Scope(batch_id=batch_id))
+        return [(job_id, experience, status) for job_id, experience, status in answer.rows()]
+
+    def job_events(self, branch: str, batch_id: str, job_id: str) -> list[Event]:
+        """The events of one job, by time (then name)."""
+        return self._events(branch, Scope(batch_id=batch_id, job_id=job_id)).get(job_id, [])
+
+    def _events(self, branch: str, scope: Scope) -> dict[str, list[Event]]:
+        """Job id -> its events in `scope`, by time (then name)."""
+        answer = self.backend.execute(
+            "SELECT job_id, timestamp, topic, name, description, status, tags, metrics FROM events "
+            "ORDER BY job_id, timestamp, name", branch=branch, scope=scope)
+        events: dict[str, list[Event]] = {}
+        for job_id, timestamp, topic, name, description, status, tags, metrics in answer.rows():
+            events.setdefault(job_id, []).append(Event(timestamp, topic, name, description, status, list(tags or []),
+                                                       [_event_metric(m) for m in metrics or []]))
+        return events
+
+    def logs_dir(self, branch: str, batch_id: str, job_id: str) -> Path | None:
+        """The job's log files in the lake (`<branch>/_logs/<batch>/<job>/`), if there are any."""
+        directory = paths.logs_dir(self.lake, branch, batch_id, job_id)
+        return directory if directory.is_dir() else None
+
+    # -- a batch --------------------------------------------------------------------------------
+
+    def evaluate_batch(self, branch: str, batch_id: str, metrics: Sequence[Metric], *,
+                       metrics_set: str | None = None, config_version: int | None = None,
+                       progress: bool = False, store: bool = True, keep_figures: bool = True) -> BatchEvaluation:
+        """Evaluate `metrics` on every job of a batch and on the batch (see the module docstring).
+
+        Writes the jobs' statuses to their metadata rows and, with `store`, replaces the batch's
+        rows of `metric_results` (written job by job while the others are evaluated). Without
+        `keep_figures`, each job's Plotly figures are dropped from the returned results once
+        stored (they can be large). LookupError when the batch has no jobs.
+        """
+        started = time.perf_counter()
+        evaluated_at = dt.datetime.now(dt.timezone.utc).replace(tzinfo=None)
+        jobs = self.jobs(branch, batch_id)
+        if not jobs:
+            raise LookupError(f"batch {batch_id!r} has no jobs on branch {branch!r}")
+        test_metrics = [m for m in metrics if m.type == "test"]
+        batch_metrics = [m for m in metrics if m.type != "test"]
+        lock = threading.Lock()
+
+        def advance() -> None:
+            with lock:
+                bar.update(1)
+
+        def one_job(job: tuple[str, str | None, str | None]) -> JobOutcome:
+            return self._evaluate_job(branch, batch_id, job, test_metrics, advance)
+
+        def done(results: list[MetricResult]) -> None:
+            if writer is not None:
+                writer.write(results)
+            if not keep_figures:
+                for result in results:
+                    if result.rendered is not None:
+                        result.rendered.figure = None
+
+        with contextlib.ExitStack() as stack:
+            bar = stack.enter_context(tqdm(total=len(jobs) * len(test_metrics) + len(batch_metrics),
+                                           desc="evaluating metrics", unit="metric", disable=not progress,
+                                           file=sys.stderr, leave=False))
+            writer = stack.enter_context(ResultsWriter(
+                self.lake, branch, batch_id, metrics_set=metrics_set, config_version=config_version,
+                evaluated_at=evaluated_at)) if store else None
+            pool = stack.enter_context(ThreadPoolExecutor(self.threads, thread_name_prefix="lakegate-metrics"))
+            stack.callback(pool.shutdown, cancel_futures=True)  # on an error, start no further job
+            outcomes = []
+            for outcome in pool.map(one_job, jobs):  # in job order, as they finish
+                done(outcome.results)
+                outcomes.append(outcome)
+            batch_results = []
+            for metric in batch_metrics:
+                batch_results.append(self.evaluate(metric, branch, Scope(batch_id=batch_id)))
+                advance()
+            done(batch_results)
+            if writer is not None:
+                writer.commit()
+        events = self._events(branch, Scope(batch_id=batch_id))
+        for outcome in outcomes:
+            outcome.events = events.get(outcome.job_id, [])
+        evaluation = BatchEvaluation(branch=branch, batch_id=batch_id, metrics_set=metrics_set,
+                                     config_version=config_version, evaluated_at=evaluated_at, jobs=outcomes,
+                                     batch_results=batch_results)
+        evaluation.seconds = time.perf_counter() - started
+        return evaluation
+
+    def _evaluate_job(self, branch: str, batch_id: str, job: tuple[str, str | None, str | None],
+                      metrics: Sequence[Metric], advance: Callable[[], None]) -> JobOutcome:
+        job_id, experience, job_status = job
+        scope = Scope(batch_id=batch_id, job_id=job_id)
+        logs = self.logs_dir(branch, batch_id, job_id)
+        job_results = []
+        for metric in metrics:
+            job_results.append(self.evaluate(metric, branch, scope, logs_dir=logs))
+            advance()
+        metrics_status = worst(r.status for r in job_results)
+        conflated = conflated_status(job_status, metrics_status)
+        update_metadata_row(self.lake, branch, batch_id, job_id, job_metrics_status=metrics_status,
+                            job_conflated_status=conflated)
+        return JobOutcome(job_id=job_id, experience_name=experience, job_status=job_status,
+                          metrics_status=metrics_status, conflated_status=conflated, results=job_results,
+                          logs_dir=logs)
+
+
+def _query_error(error: DialectError, sql: str, start: Location | None, which: str) -> MetricError:
+    return MetricError(error.message, error.line, error.column,
+                       config_position(start, sql, error.line, error.column), which)
+
+
+def _event_metric(item: dict[str, Any]) -> EventMetric:
+    kind, value = item.get("type"), item.get("value")
+    if kind in ("image", "plotly") and isinstance(value, str):
+        try:
+            value = json.loads(value)
+        except ValueError:
+            pass  # shown as the text it is
+    if kind == "image" and isinstance(value, str):
+        value = [value]
+    return EventMetric(name=item.get("name") or "", type=kind or "", value=value,
+                       description=item.get("description"), status=item.get("status"))

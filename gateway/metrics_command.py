@@ -1,0 +1,229 @@
+"""`lakegate metrics sync` (store a branch's config) and `lakegate metrics run` (evaluate a stored batch).
+
+Exit codes of `metrics run`: 0 when nothing blocks (warnings allowed); 2 when at least one
+metric is a BLOCKER; 3 when none blocks but a metric errored or a job failed (ERROR); 1 for
+usage and config errors (nothing evaluated). Malformed command lines are argparse's: usage
+on standard error and exit code 2, like any argparse program.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Sequence
+
+from lakegate.dialect.errors import DialectError
+from lakegate.gateway.backends_cli import add_backend_arguments, backend_from_args
+from lakegate.gateway.cli import UserError
+from lakegate.gateway.metrics import (BLOCKER, ERROR, SEVERITY, BatchEvaluation, MetricResult, MetricsEngine,
+                                      select_metrics)
+from lakegate.gateway.report import job_title, write_report
+from lakegate.gateway.templates import display_value
+from lakegate.lake.catalog import Catalog
+from lakegate.lake.config import Config, ConfigError, find_default_config, load_config
+from lakegate.lake.paths import LakePathError
+from lakegate.lake.registry import BranchConfigs
+
+EXIT_OK, EXIT_USAGE, EXIT_BLOCKER, EXIT_ERROR = 0, 1, 2, 3
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    metrics = subparsers.add_parser("metrics", help="store a branch's metrics config, evaluate metrics on a batch",
+                                    description="Store a branch's metrics config, or evaluate a metrics set on a "
+                                                "batch that is in the lake.")
+    commands = metrics.add_subparsers(dest="metrics_command", metavar="SUBCOMMAND")
+    commands.required = True
+
+    sync = commands.add_parser(
+        "sync", help="store a config as the branch's current metrics config",
+        description="Check a config file and store it as the branch's current config (earlier versions are "
+                    "kept). Later runs and ingests on the branch use it. Prints the version number.")
+    _lake_and_branch(sync)
+    sync.add_argument("--metrics-config-path", action="append", type=Path, metavar="P", dest="config_paths",
+                      help="the config file (repeat to merge several; default: .resim/metrics/config.resim.yaml "
+                           "in this folder or a parent)")
+    sync.set_defaults(func=sync_command)
+
+    run = commands.add_parser(
+        "run", help="evaluate a metrics set on a batch in the lake",
+        description="Evaluate a metrics set on a batch already in the lake (no re-ingesting): test metrics on "
+                    "each job, then batch metrics; write the jobs' statuses to their metadata and the results "
+                    "to the metric_results table (replacing the batch's earlier results). Exit code: 0 nothing "
+                    "blocks (warnings allowed), 2 a metric is a BLOCKER, 3 a metric errored or a job failed "
+                    "(and nothing blocks), 1 usage or config error.")
+    _lake_and_branch(run)
+    run.add_argument("--batch", required=True, metavar="ID", help="the batch to evaluate")
+    which = run.add_mutually_exclusive_group(required=True)
+    which.add_argument("--metrics-set", metavar="S", help="the metrics set to evaluate (a name from 'metrics sets')")
+    which.add_argument("--all-metrics", action="store_true",
+                       help="evaluate every metric of the config (for configs without metrics sets)")
+    run.add_argument("--metrics-config-path", action="append", type=Path, metavar="P", dest="config_paths",
+                     help="evaluate this config instead of the branch's stored one (repeat to merge several)")
+    run.add_argument("--format", choices=("table", "json"), default="table",
+                     help="output: a table of job x metric -> status and value (default), or JSON with every "
+                          "evaluated metric (batch, job, metric, type, template, status, scalar value, error "
+                          "with line and column)")
+    run.add_argument("--report", type=Path, metavar="FILE.html",
+                     help="also write an offline HTML report with every figure to this file")
+    add_backend_arguments(run)
+    run.add_argument("--threads", type=int, default=2, metavar="N", help="jobs evaluated at once (default 2)")
+    run.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
+                     help="show a progress bar on standard error (default: when it is a terminal)")
+    run.set_defaults(func=run_command)
+
+    from lakegate.gateway.debug_command import add_debug_parser  # `metrics debug` lives in its own module
+    add_debug_parser(commands)
+
+
+def _lake_and_branch(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--lake", required=True, type=Path, metavar="DIR", help="the lake's directory")
+    parser.add_argument("--branch", required=True, metavar="B", help="the branch (any name)")
+
+
+def print_config_problems(error: ConfigError) -> None:
+    print(f"lakegate: the config has {len(error.problems)} problem(s):", file=sys.stderr)
+    for problem in error.problems:
+        print(f"  {problem}", file=sys.stderr)
+
+
+def _config_paths(given: Sequence[Path] | None) -> list[Path]:
+    paths = list(given or [])
+    if not paths:
+        found = find_default_config()
+        if found is None:
+            raise UserError("no config: pass --metrics-config-path (no .resim/metrics/config.resim.yaml here)")
+        paths = [found]
+    for path in paths:
+        if not path.is_file():
+            raise UserError(f"config file {str(path)!r} does not exist")
+    return paths
+
+
+def sync_command(args: argparse.Namespace) -> int:
+    paths = _config_paths(args.config_paths)
+    try:
+        config = load_config(paths)
+        registry = BranchConfigs(args.lake, args.branch)
+        before = registry.current_version()
+        version = registry.store(paths)
+    except ConfigError as error:
+        print_config_problems(error)
+        return EXIT_USAGE
+    except (LakePathError, OSError) as error:
+        raise UserError(str(error)) from None
+    state = "unchanged: the same as" if version == before else "stored as"
+    print(f"branch {args.branch!r}: config {state} version {version} ({config.summary()})")
+    return EXIT_OK
+
+
+def _run_config(args: argparse.Namespace) -> tuple[Config, int | None]:
+    """The config to evaluate and its stored version (None for a config given by path)."""
+    if args.config_paths:
+        return load_config(_config_paths(args.config_paths)), None
+    registry = BranchConfigs(args.lake, args.branch)
+    version = registry.current_version()
+    if version is None:
+        raise UserError(f"branch {args.branch!r} has no stored config: run 'lakegate metrics sync' or pass "
+                        "--metrics-config-path")
+    return registry.load(version), version
+
+
+def exit_code(evaluation: BatchEvaluation) -> int:
+    """2 if any metric blocks, else 3 if anything errored (a metric or a failed job), else 0."""
+    if any(r.status == BLOCKER for r in evaluation.results()):
+        return EXIT_BLOCKER
+    return EXIT_ERROR if evaluation.status == ERROR else EXIT_OK
+
+
+def run_command(args: argparse.Namespace) -> int:
+    if not args.lake.is_dir():
+        raise UserError(f"no lake at {str(args.lake)!r}")
+    catalog = Catalog(args.lake)
+    try:
+        if args.branch not in catalog.branches():
+            known = ", ".join(repr(b) for b in catalog.branches()) or "none"
+            raise UserError(f"no branch {args.branch!r} in {args.lake} (branches: {known})")
+        config, version = _run_config(args)
+        metrics = select_metrics(config, args.metrics_set, all_metrics=args.all_metrics)
+        batches = catalog.batches(args.branch)
+    except ConfigError as error:
+        print_config_problems(error)
+        return EXIT_USAGE
+    except KeyError as error:
+        raise UserError(str(error.args[0])) from None
+    except LakePathError as error:
+        raise UserError(str(error)) from None
+    if args.batch not in batches:
+        raise UserError(f"no batch {args.batch!r} on branch {args.branch!r} (batches: "
+                        f"{', '.join(repr(b) for b in batches) or 'none'})")
+    progress = sys.stderr.isatty() if args.progress is None else args.progress
+    backend = backend_from_args(args, args.lake)
+    try:
+        evaluation = MetricsEngine(args.lake, backend, threads=args.threads).evaluate_batch(
+            args.branch, args.batch, metrics, metrics_set=args.metrics_set, config_version=version,
+            progress=progress, keep_figures=args.report is not None)
+    except DialectError as error:
+        raise UserError(str(error)) from None
+    finally:
+        backend.close()
+    if args.format == "json":
+        json.dump(evaluation.as_dict(), sys.stdout, ensure_ascii=False, indent=2)
+        sys.stdout.write("\n")
+    else:
+        print(format_table(evaluation))
+    if args.report is not None:
+        path = write_report(evaluation, args.report)
+        print(f"report: {path.resolve()}", file=sys.stderr if args.format == "json" else sys.stdout)
+    return exit_code(evaluation)
+
+
+#: Small tables and pies are shown in full in the results table (`label: value; ...`).
+INLINE_ROWS = 6
+
+
+def _value(result: MetricResult) -> str:
+    if result.error is not None:
+        return str(result.error)
+    rendered = result.rendered
+    text = result.value_text or ""
+    if rendered is not None and rendered.template == "table" and rendered.table is not None:
+        columns, rows = rendered.table["columns"], rendered.table["rows"]
+        if len(columns) == 2 and 0 < len(rows) <= INLINE_ROWS:
+            text = "; ".join(f"{display_value(k)}: {display_value(v)}" for k, v in rows)
+    elif rendered is not None and rendered.template == "pie" and rendered.figure is not None:
+        pie = rendered.figure["data"][0]
+        if 0 < len(pie["labels"]) <= INLINE_ROWS:
+            text = "; ".join(f"{label}: {display_value(v)}" for label, v in zip(pie["labels"], pie["values"]))
+    if result.rendered is not None and result.rendered.problems:
+        text += f" ({'; '.join(result.rendered.problems)})"
+    return text
+
+
+def format_table(evaluation: BatchEvaluation) -> str:
+    """The results as aligned text: one row per job x metric (status and value), then the batch metrics."""
+    rows: list[tuple[str, str, str, str]] = []
+    for job in evaluation.jobs:
+        label = f"{job_title(job)} {job.conflated_status}"
+        for i, result in enumerate(job.results):
+            rows.append((label if i == 0 else "", result.status, result.metric, _value(result)))
+        if not job.results:
+            rows.append((label, "", "(no test metrics)", ""))
+    for i, result in enumerate(evaluation.batch_results):
+        rows.append((f"batch {evaluation.batch_metrics_status}" if i == 0 else "", result.status, result.metric,
+                     _value(result)))
+    header = ("JOB", "STATUS", "METRIC", "VALUE")
+    widths = [max(len(row[i]) for row in [header, *rows]) for i in range(3)]
+    lines = ["  ".join(cell.ljust(width) for cell, width in zip(row[:3], widths)) + "  " + row[3]
+             for row in [header, *rows]]
+    counts: dict[str, int] = {}
+    for job in evaluation.jobs:
+        counts[job.conflated_status] = counts.get(job.conflated_status, 0) + 1
+    jobs = ", ".join(f"{counts[status]} {status}" for status in sorted(counts, key=SEVERITY.__getitem__))
+    metric_set = f"metrics set {evaluation.metrics_set!r}" if evaluation.metrics_set else "all metrics"
+    version = f"config version {evaluation.config_version}" if evaluation.config_version else "config not stored"
+    lines.append("")
+    lines.append(f"batch {evaluation.batch_id!r} on branch {evaluation.branch!r}: {evaluation.status} "
+                 f"({len(evaluation.jobs)} jobs: {jobs}; {len(evaluation.results())} metric results; "
+                 f"{metric_set}, {version}; {evaluation.seconds:.1f} s)")
+    return "\n".join(line.rstrip() for line in lines)

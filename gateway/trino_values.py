@@ -306,12 +306,17 @@ def _parsed(trino_type: str) -> TType:
     return parse_type(trino_type)
 
 
+def encode_columns(columns: Sequence[tuple[str, str]], batch: pa.RecordBatch) -> list[list]:
+    """The encoded values of `batch` column by column (`encode_rows` gives them as rows)."""
+    if batch.num_columns != len(columns):
+        raise ValueError(f"the batch has {batch.num_columns} columns, the result {len(columns)}")
+    return [_column(_parsed(trino_type), batch.column(i)) for i, (_, trino_type) in enumerate(columns)]
+
+
 def encode_rows(columns: Sequence[tuple[str, str]], batch: pa.RecordBatch) -> list[list]:
     """The rows of `batch` as the client protocol's `data`: a list of rows, each a list of the
     encoded values of `columns` ((name, Trino type) in the batch's column order)."""
-    if batch.num_columns != len(columns):
-        raise ValueError(f"the batch has {batch.num_columns} columns, the result {len(columns)}")
-    encoded = [_column(_parsed(trino_type), batch.column(i)) for i, (_, trino_type) in enumerate(columns)]
+    encoded = encode_columns(columns, batch)
     if len(encoded) == 1:
         return [[v] for v in encoded[0]]
     return [list(row) for row in zip(*encoded)]

@@ -1,0 +1,161 @@
+"""`lakegate serve`: the lake as a Trino-compatible SQL endpoint (the Trino HTTP client protocol).
+
+It listens on 127.0.0.1 by default. Listening on any other address needs `--users FILE` (HTTP
+Basic against bcrypt hashes) and `--tls-cert/--tls-key`: the trino client sends passwords only
+over https, and a lake open to the network needs both. On loopback, `--users` works without TLS
+(clients then need `http_scheme='http'` and, for the trino client, `allow_insecure_auth=True`).
+Once listening it prints one line, `lakegate: serving <lake> at <url> ...`, to standard output.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import signal
+import socket
+import ssl
+import sys
+from pathlib import Path
+
+from lakegate.gateway.auth import Users, UsersFileError, check_listen
+from lakegate.gateway.cli import UserError
+from lakegate.gateway.limits import Limits
+
+_DEFAULTS = Limits()
+
+
+def _positive(kind: type):
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+        if value <= 0:
+            raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+        return value
+    return parse
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser(
+        "serve", help="serve the lake over the Trino client protocol (trino, SQLAlchemy, pandas, BI tools)",
+        description="Serve the lake as a read-only, Trino-compatible SQL endpoint: catalog 'lake' (see --catalog) "
+                    "with one schema per branch, information_schema and the system catalog. Connect with "
+                    "e.g. trino.dbapi.connect(host='127.0.0.1', port=8080, user='me', catalog='lake', "
+                    "schema='main') or the URL trino://me@127.0.0.1:8080/lake/main.")
+    parser.add_argument("--lake", type=Path, required=True, metavar="DIR", help="the lake's directory")
+    parser.add_argument("--host", default="127.0.0.1",
+                        help="address to listen on (default 127.0.0.1; any other needs --users and TLS)")
+    parser.add_argument("--port", type=int, default=8080, help="port to listen on (default 8080; 0 picks a free one)")
+    parser.add_argument("--catalog", default="lake", help="the lake's catalog name (default: lake)")
+    parser.add_argument("--users", type=Path, metavar="FILE",
+                        help="require HTTP Basic authentication against this file of 'user:bcrypt-hash' lines")
+    parser.add_argument("--tls-cert", type=Path, metavar="FILE", help="serve https with this PEM certificate (chain)")
+    parser.add_argument("--tls-key", type=Path, metavar="FILE", help="the PEM private key of --tls-cert")
+    parser.add_argument("--query-timeout", type=_positive(float), default=_DEFAULTS.query_timeout, metavar="S",
+                        help=f"seconds a query may run before it fails with EXCEEDED_TIME_LIMIT "
+                             f"(default {_DEFAULTS.query_timeout:g})")
+    parser.add_argument("--max-rows", type=_positive(int), default=_DEFAULTS.max_rows, metavar="N",
+                        help=f"rows a result may have (default {_DEFAULTS.max_rows})")
+    parser.add_argument("--memory-limit", default="2GB", metavar="SIZE",
+                        help="DuckDB memory limit per branch database, e.g. 2GB or 512MB (default 2GB); a query "
+                             "that needs more fails with EXCEEDED_GLOBAL_MEMORY_LIMIT")
+    parser.add_argument("--threads", type=_positive(int), default=os.cpu_count() or 1, metavar="N",
+                        help="DuckDB threads per branch database (default: the number of CPUs)")
+    parser.add_argument("--max-concurrent-queries", type=_positive(int), default=_DEFAULTS.max_concurrent_queries,
+                        metavar="N", help=f"queries that run at once; more wait in a queue "
+                                          f"(default {_DEFAULTS.max_concurrent_queries})")
+    parser.add_argument("--max-queued-queries", type=_positive(int), default=_DEFAULTS.max_queued_queries,
+                        metavar="N", help=f"queries that may wait; more fail with QUERY_QUEUE_FULL "
+                                          f"(default {_DEFAULTS.max_queued_queries})")
+    parser.set_defaults(func=serve_command)
+
+
+def _interrupt(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt
+
+
+def _listen(host: str, port: int) -> socket.socket:
+    try:
+        family, kind, proto, _, address = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)[0]
+        sock = socket.socket(family, kind, proto)
+    except OSError as error:
+        raise UserError(f"cannot listen on {host}:{port}: {error}") from None
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.bind(address)
+        sock.listen(2048)
+    except OSError as error:
+        sock.close()
+        raise UserError(f"cannot listen on {host}:{port}: {error.strerror or error}") from None
+    return sock
+
+
+def _check_options(args: argparse.Namespace) -> Users | None:
+    import duckdb
+
+    if not args.lake.is_dir():
+        raise UserError(f"no lake at {args.lake} (not a directory)")
+    if not re.fullmatch(r"[a-z_][a-z0-9_]*", args.catalog) or args.catalog == "system":
+        raise UserError(f"--catalog {args.catalog!r}: a catalog name is a lower-case identifier other than 'system'")
+    if (args.tls_cert is None) != (args.tls_key is None):
+        raise UserError("--tls-cert and --tls-key go together")
+    if args.tls_cert is not None:
+        try:
+            ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER).load_cert_chain(args.tls_cert, args.tls_key)
+        except (OSError, ssl.SSLError) as error:
+            raise UserError(f"cannot use the TLS certificate {args.tls_cert} with key {args.tls_key}: {error}") from None
+    try:
+        duckdb.connect(config={"memory_limit": args.memory_limit}).close()
+    except duckdb.Error as error:
+        raise UserError(f"--memory-limit {args.memory_limit!r} is not a size DuckDB accepts: {error}") from None
+    try:
+        users = Users.load(args.users) if args.users is not None else None
+    except UsersFileError as error:
+        raise UserError(str(error)) from None
+    try:
+        check_listen(args.host, users=users is not None, tls=args.tls_cert is not None)
+    except ValueError as error:
+        raise UserError(str(error)) from None
+    return users
+
+
+def serve_command(args: argparse.Namespace) -> int:
+    import uvicorn  # the server's imports cost every other command their start-up time: load them here
+
+    from lakegate.gateway.backend import DuckDBBackend
+    from lakegate.gateway.dashboard import DashboardState, dashboard_router
+    from lakegate.gateway.server import create_app
+
+    users = _check_options(args)
+    limits = Limits(query_timeout=args.query_timeout, max_rows=args.max_rows,
+                    max_concurrent_queries=args.max_concurrent_queries, max_queued_queries=args.max_queued_queries)
+    sock = _listen(args.host, args.port)
+    backend = DuckDBBackend(args.lake, memory_limit=args.memory_limit, threads=args.threads)
+    dashboard = DashboardState(args.lake, backend)
+    try:
+        app = create_app(backend, catalog_name=args.catalog, limits=limits, users=users,
+                         dashboard_router=dashboard_router(dashboard))
+        config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="on",
+                                timeout_graceful_shutdown=5,
+                                ssl_certfile=str(args.tls_cert) if args.tls_cert else None,
+                                ssl_keyfile=str(args.tls_key) if args.tls_key else None)
+        host, port = sock.getsockname()[:2]
+        shown = f"[{host}]" if ":" in host else host
+        scheme = "https" if args.tls_cert else "http"
+        print(f"lakegate: serving {args.lake.resolve()} at {scheme}://{shown}:{port} (catalog {args.catalog}); "
+              "Ctrl-C stops", flush=True)
+        # uvicorn shuts down gracefully on SIGINT / SIGTERM, then raises the signal again: both end here
+        previous = signal.signal(signal.SIGTERM, _interrupt)
+        try:
+            uvicorn.Server(config).run(sockets=[sock])
+        except KeyboardInterrupt:
+            pass
+        finally:
+            signal.signal(signal.SIGTERM, previous)
+    finally:
+        dashboard.close()
+        backend.close()
+        sock.close()
+    print("lakegate: stopped", file=sys.stderr, flush=True)
+    return 0

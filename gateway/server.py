@@ -1,0 +1,631 @@
+"""The SQL endpoint: Trino's HTTP client protocol (FastAPI) over a backend, and the life of its queries.
+
+`POST /v1/statement` answers at once: session statements and CALL with their result, every other
+statement with a QUEUED document whose `nextUri` the client follows while a worker thread runs the
+statement. The worker turns the result's Arrow record batches into pages of JSON rows (about
+`Limits.page_bytes` each) and hands them over through a small buffer, so a result is never held
+whole: a slow client makes the worker wait. `GET nextUri` returns the next page (waiting up to
+`Limits.wait` for it); the same URI again returns the same document. `DELETE nextUri` or
+`DELETE /v1/query/{id}` cancel (the DuckDB work is interrupted). A reaper enforces the time limit,
+fails queries whose client went away, and forgets finished queries.
+
+Routes: /v1/statement, /v1/statement/executing/{id}/{slug}/{token} (GET, HEAD, DELETE),
+/v1/query/{id} (GET, DELETE), /v1/info, /v1/info/state. With `users`, every route but /v1/info
+needs HTTP Basic credentials.
+"""
+from __future__ import annotations
+
+import asyncio
+import logging
+import secrets
+import threading
+import time
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import asynccontextmanager
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from typing import Callable, Iterator, Sequence
+
+import orjson
+import pyarrow as pa
+from fastapi import APIRouter, Depends, FastAPI, HTTPException, Request
+from fastapi.responses import PlainTextResponse, Response
+from starlette.background import BackgroundTask
+from starlette.concurrency import run_in_threadpool
+
+from lakegate.dialect import guard
+from lakegate.dialect.errors import DialectError
+from lakegate.gateway import session as sessions
+from lakegate.gateway.auth import Users, basic_credentials
+from lakegate.gateway.backend import Backend, QueryResult
+from lakegate.gateway.limits import Limits
+from lakegate.gateway.protocol import (Failure, Progress, QueryIds, columns_document, info_document,
+                                       results_document)
+from lakegate.gateway.session import Answer, Session
+from lakegate.gateway.statements import Planner, static_result
+from lakegate.gateway.system_tables import Metadata
+from lakegate.gateway.trino_values import encode_columns, encode_rows
+
+log = logging.getLogger("lakegate.server")
+
+#: Pages a worker may have ready before it waits for the client.
+BUFFERED_PAGES = 2
+#: Rows in a query's first page (later pages are sized to about Limits.page_bytes).
+FIRST_PAGE_ROWS = 1024
+MAX_PAGE_ROWS = 65_536
+#: The largest page that may also be a query's last document (larger ones get a last document of
+#: their own, so that a finished query keeps little for a retried request).
+FINAL_PAGE_BYTES = 65_536
+#: How often the reaper looks at the queries.
+REAP_INTERVAL = 0.25
+JSON = "application/json"
+
+
+@dataclass
+class _Page:
+    data: bytes  # the JSON array of rows
+    rows: int
+
+
+class _Stopped(Exception):
+    """The query ended (canceled, failed or timed out) while its worker was still producing."""
+
+
+def _now() -> datetime:
+    return datetime.now(timezone.utc)
+
+
+def _resolve(future: asyncio.Future) -> None:
+    if not future.done():
+        future.set_result(None)
+
+
+def _wake(waiters: list[asyncio.Future]) -> None:
+    for future in waiters:
+        try:
+            future.get_loop().call_soon_threadsafe(_resolve, future)
+        except RuntimeError:
+            pass  # the event loop is closed: nobody waits any more
+
+
+class Query:
+    """One statement: its state, the pages its worker produced, and the documents served so far."""
+
+    def __init__(self, query_id: str, sql: str, session: Session, dequeued: Callable[[], None] = lambda: None):
+        self.id, self.sql, self.session = query_id, sql, session
+        self._dequeued = dequeued  # called once, when the query leaves the queue (runs or fails)
+        self.slug = secrets.token_hex(8)
+        self.lock = threading.Lock()
+        self._space = threading.Condition(self.lock)
+        self._pages: deque[_Page] = deque()
+        self._waiters: list[asyncio.Future] = []
+        self._version = 0
+        self._result: QueryResult | None = None
+        self._fetching = asyncio.Lock()
+        self.columns: list[dict] | None = None
+        self.failure: Failure | None = None
+        self.started = False
+        self.working = False       # a worker runs the statement
+        self.done = False          # the worker produced everything, or the query failed
+        self.final = False         # the last document was served
+        self.rows = 0
+        self.bytes = 0
+        self.created = _now()
+        self.started_at: datetime | None = None
+        self.ended: datetime | None = None
+        self._clock = {"created": time.monotonic(), "started": None, "ended": None}
+        self.last_access = time.monotonic()
+        self.token = 0
+        self.body = b""
+
+    # -- the worker's side ----------------------------------------------------------------
+
+    def _changed(self) -> list[asyncio.Future]:
+        """Record a change (lock held) and return the waiters to wake."""
+        self._version += 1
+        waiters, self._waiters = self._waiters, []
+        self._space.notify_all()
+        return waiters
+
+    def begin(self) -> bool:
+        """Mark the query running; False when it already ended while queued."""
+        with self.lock:
+            if self.done:
+                return False
+            self.started = True
+            self.started_at = _now()
+            self._clock["started"] = time.monotonic()
+            waiters = self._changed()
+        _wake(waiters)
+        self._dequeued()
+        return True
+
+    def attach(self, result: QueryResult) -> None:
+        """Keep the running result (to cancel it) and its columns."""
+        columns = columns_document(result.columns)
+        with self.lock:
+            self._result = result
+            self.columns = columns
+            stopped = self.done
+            waiters = self._changed()
+        _wake(waiters)
+        if stopped:
+            result.cancel()
+            raise _Stopped
+
+    def put(self, page: _Page, *, last: bool = False) -> None:
+        """Hand one page to the client, waiting while the buffer is full (`last`: the query's work
+        is done with it); _Stopped when the query ended."""
+        with self.lock:
+            while len(self._pages) >= BUFFERED_PAGES and not self.done:
+                self._space.wait()
+            if self.done:
+                raise _Stopped
+            self._pages.append(page)
+            self.rows += page.rows
+            self.bytes += len(page.data)
+            if last:
+                self.done = True
+                self._ended()
+            waiters = self._changed()
+        _wake(waiters)
+
+    def finish(self) -> None:
+        """The worker produced every page."""
+        with self.lock:
+            if self.done:
+                return
+            self.done = True
+            self._ended()
+            waiters = self._changed()
+        _wake(waiters)
+
+    def _ended(self) -> None:
+        self.ended = _now()
+        self._clock["ended"] = time.monotonic()
+
+    def fail(self, failure: Failure) -> bool:
+        """End the query with `failure` (pages not yet read are dropped) and interrupt its work.
+        False when it had already failed or its last document was served."""
+        with self.lock:
+            if self.failure is not None or self.final:
+                return False
+            self.failure = failure
+            self._pages.clear()
+            if not self.done:
+                self.done = True
+                self._ended()
+            waiters = self._changed()
+            result, queued = self._result, not self.started
+        _wake(waiters)
+        if queued:
+            self._dequeued()
+        if result is not None:
+            result.cancel()
+        return True
+
+    @property
+    def running(self) -> bool:
+        return self.started and not self.done
+
+    def interrupt(self) -> None:
+        """Interrupt the query's DuckDB work again (an interrupt that arrives just before DuckDB
+        starts is lost; the reaper repeats it while a failed query's worker still runs)."""
+        with self.lock:
+            result = self._result
+        if result is not None:
+            result.cancel()
+
+    def elapsed(self, what: str = "created") -> float:
+        since = self._clock[what]
+        return 0.0 if since is None else (self._clock["ended"] or time.monotonic()) - since
+
+    # -- the client's side -----------------------------------------------------------------
+
+    def state(self) -> str:
+        if self.failure is not None:
+            return "FAILED"
+        if self.final:
+            return "FINISHED"
+        if not self.started:
+            return "QUEUED"
+        return "FINISHING" if self.done else "RUNNING"
+
+    def queued_seconds(self) -> float:
+        return (self._clock["started"] or time.monotonic()) - self._clock["created"]
+
+    def document(self, base: str, token: int, *, data: bytes | None = None, last: bool = False) -> bytes:
+        """The QueryResults document `token` of the query's current state (`last`: no nextUri)."""
+        progress = Progress(self.state(), queued_ms=int(self.queued_seconds() * 1000),
+                            elapsed_ms=int(self.elapsed() * 1000),
+                            rows=self.rows, bytes=self.bytes)
+        next_uri = None if last else f"{base}/v1/statement/executing/{self.id}/{self.slug}/{token + 1}"
+        return results_document(query_id=self.id, info_uri=f"{base}/v1/query/{self.id}", progress=progress,
+                                next_uri=next_uri, columns=self.columns, data=data, failure=self.failure)
+
+    def first_document(self, base: str) -> bytes:
+        """The POST's reply (token 0)."""
+        with self.lock:
+            self.final = self.failure is not None
+            self.body = self.document(base, 0, last=self.final)
+        return self.body
+
+    async def fetch(self, token: int, base: str, wait: float) -> bytes | None:
+        """The document of `token`: the same bytes again for the current token, the next document
+        for the next one (waiting up to `wait` seconds for a page); None for any other token."""
+        async with self._fetching:
+            self.last_access = time.monotonic()
+            if token == self.token:
+                return self.body
+            if token != self.token + 1 or self.final:
+                return None
+            body = await self._next(base, token, wait)
+            self.token, self.body = token, body
+            self.last_access = time.monotonic()
+            return body
+
+    async def _next(self, base: str, token: int, wait: float) -> bytes:
+        deadline = time.monotonic() + wait
+        while True:
+            with self.lock:
+                page = self._pages.popleft() if self._pages else None
+                if page is not None:
+                    self._space.notify_all()
+                    last = self.done and not self._pages and self.failure is None and \
+                        len(page.data) <= FINAL_PAGE_BYTES
+                    self.final = last
+                    return self.document(base, token, data=page.data, last=last)
+                version, done = self._version, self.done
+            if done:
+                return self._last(base, token)
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                with self.lock:
+                    return self.document(base, token)
+            await self._changes(version, remaining)
+
+    def _last(self, base: str, token: int) -> bytes:
+        with self.lock:
+            self.final = True
+            return self.document(base, token, last=True)
+
+    async def _changes(self, version: int, timeout: float) -> None:
+        """Wait until the query changes after `version`, or `timeout` seconds."""
+        future = asyncio.get_running_loop().create_future()
+        with self.lock:
+            if self._version != version:
+                return
+            self._waiters.append(future)
+        try:
+            await asyncio.wait_for(future, timeout)
+        except asyncio.TimeoutError:
+            pass
+        finally:
+            with self.lock:
+                if future in self._waiters:
+                    self._waiters.remove(future)
+
+    def info(self) -> dict:
+        """What GET /v1/query/{id} tells about the query."""
+        info = {"queryId": self.id, "state": self.state(), "query": self.sql, "user": self.session.user,
+                "source": self.session.source, "created": self.created.isoformat(),
+                "elapsedTimeMillis": int(self.elapsed() * 1000), "processedRows": self.rows}
+        if self.failure is not None:
+            info["error"] = self.failure.document()
+        return info
+
+    def row(self) -> tuple:
+        """The query as a row of system.runtime.queries."""
+        failure = self.failure
+        return (self.id, self.state(), self.session.user, self.session.source, self.sql, None,
+                int(self.queued_seconds() * 1000),
+                0, 0, self.created, self.started_at, _now(), self.ended,
+                None if failure is None else failure.error_type,
+                None if failure is None else failure.error_name)
+
+
+def _pages(columns: Sequence[tuple[str, str]], batches: Iterator[pa.RecordBatch], limits: Limits
+           ) -> Iterator[_Page]:
+    """The result's rows as pages of JSON (sized to about limits.page_bytes); a result with more
+    than limits.max_rows rows fails."""
+    seen, chunk = 0, FIRST_PAGE_ROWS
+    for batch in batches:
+        offset = 0
+        while offset < batch.num_rows:
+            part = batch.slice(offset, chunk)
+            seen += part.num_rows
+            if seen > limits.max_rows:
+                raise DialectError(f"Query exceeded the result limit of {limits.max_rows} rows (lakegate serve "
+                                   "--max-rows): narrow it with WHERE, LIMIT or an aggregate",
+                                   error_name="GENERIC_INSUFFICIENT_RESOURCES")
+            data = orjson.dumps(list(zip(*encode_columns(columns, part))))  # rows as tuples: cheaper than lists
+            yield _Page(data, part.num_rows)
+            offset += part.num_rows
+            chunk = max(1, min(MAX_PAGE_ROWS, limits.page_bytes * part.num_rows // max(1, len(data))))
+
+
+class QueryManager:
+    """The server's queries: a pool of `max_concurrent_queries` workers, a bounded queue, and the
+    reaper that enforces the time limit, abandons queries clients left and forgets old ones."""
+
+    def __init__(self, planner: Planner, limits: Limits):
+        self.planner, self.limits = planner, limits
+        self.ids = QueryIds()
+        self._queries: dict[str, Query] = {}
+        self._lock = threading.Lock()
+        self._waiting = 0  # queries created and not yet running or failed
+        self._pool = ThreadPoolExecutor(max_workers=limits.max_concurrent_queries, thread_name_prefix="lakegate-query")
+        self._stop = threading.Event()
+        self._reaper = threading.Thread(target=self._reap, name="lakegate-reaper", daemon=True)
+        self._reaper.start()
+
+    def create(self, sql: str, session: Session) -> Query:
+        """A new query for one statement, queued (`start` hands it to a worker), or failed with
+        QUERY_QUEUE_FULL when too many wait."""
+        with self._lock:
+            full = self._waiting >= self.limits.max_queued_queries
+            self._waiting += 0 if full else 1
+        query = Query(self.ids.next(), sql, session, dequeued=(lambda: None) if full else self._dequeued)
+        with self._lock:
+            self._queries[query.id] = query
+        if full:
+            query.fail(Failure('Too many queued queries for "global"', "QUERY_QUEUE_FULL"))
+        return query
+
+    def _dequeued(self) -> None:
+        with self._lock:
+            self._waiting -= 1
+
+    def start(self, query: Query) -> None:
+        """Give a queued query to the next free worker."""
+        self._pool.submit(self._run, query)
+
+    def get(self, query_id: str) -> Query | None:
+        with self._lock:
+            return self._queries.get(query_id)
+
+    def queries(self) -> list[Query]:
+        with self._lock:
+            return list(self._queries.values())
+
+    def _run(self, query: Query) -> None:
+        if not query.begin():
+            return
+        batches = None
+        query.working = True
+        try:
+            result = self.planner.start(query.sql, query.session)
+            batches = result.batches
+            query.attach(result)
+            held = None  # each page waits for the next, so that the last one ends the query with it
+            for page in _pages(result.columns, batches, self.limits):
+                if held is not None:
+                    query.put(held)
+                held = page
+            if held is not None:
+                query.put(held, last=True)
+            else:
+                query.finish()
+        except _Stopped:
+            pass
+        except DialectError as error:
+            query.fail(Failure.of(error))
+        except Exception as error:  # a bug: the client gets GENERIC_INTERNAL_ERROR, the log the traceback
+            log.exception("query %s failed", query.id)
+            query.fail(Failure.of(error))
+        finally:
+            close = getattr(batches, "close", None)
+            if close is not None:
+                close()
+            query.working = False
+
+    def kill(self, query_id: str, message: str | None, session: Session, *, owner_only: bool) -> None:
+        """CALL system.runtime.kill_query: fail a running or queued query with ADMINISTRATIVELY_KILLED."""
+        query = self.get(query_id)
+        if query is None:
+            raise DialectError(f"Target query not found: {query_id}", error_name="NOT_FOUND")
+        if owner_only and query.session.user != session.user:
+            raise DialectError(f"Access Denied: Cannot kill query owned by {query.session.user}",
+                               error_name="PERMISSION_DENIED")
+        text = f"Query killed. Message: {message}" if message else "Query killed. No message provided."
+        if query.done or not query.fail(Failure(text, "ADMINISTRATIVELY_KILLED")):
+            raise DialectError(f"Target query is not running: {query_id}", error_name="NOT_SUPPORTED")
+
+    def _reap(self) -> None:
+        limits = self.limits
+        while not self._stop.wait(REAP_INTERVAL):
+            now = time.monotonic()
+            for query in self.queries():
+                if query.failure is not None and query.working:
+                    query.interrupt()
+                idle = now - query.last_access
+                if query.running and query.elapsed("started") > limits.query_timeout:
+                    query.fail(Failure(f"Query exceeded the maximum execution time limit of "
+                                       f"{limits.query_timeout:.2f}s", "EXCEEDED_TIME_LIMIT"))
+                elif not query.done and idle > limits.client_timeout:
+                    query.fail(Failure(f"Query {query.id} was abandoned by the client: its results have not "
+                                       f"been accessed for {limits.client_timeout:.0f}s", "ABANDONED_QUERY"))
+                if query.done and not query.working and idle > limits.retention:
+                    with self._lock:
+                        self._queries.pop(query.id, None)
+
+    def close(self) -> None:
+        """Fail every query (SERVER_SHUTTING_DOWN), stop the workers and the reaper."""
+        self._stop.set()
+        self._reaper.join()
+        queries = self.queries()
+        for query in queries:
+            query.fail(Failure("The server is shutting down", "SERVER_SHUTTING_DOWN"))
+        deadline = time.monotonic() + 10
+        while any(query.working for query in queries) and time.monotonic() < deadline:
+            time.sleep(REAP_INTERVAL)  # repeat interrupts that came before DuckDB started
+            for query in queries:
+                query.interrupt()
+        self._pool.shutdown(wait=True, cancel_futures=True)
+
+
+# --- immediate answers --------------------------------------------------------------------------
+
+def _immediate(query_id: str, base: str, answer: Answer | None = None, failure: Failure | None = None) -> bytes:
+    """The one document of a statement answered at once (session statements, CALL, refusals)."""
+    progress = Progress("FAILED" if failure is not None else "FINISHED")
+    columns = data = None
+    if answer is not None:
+        result = static_result(answer)
+        columns = columns_document(result.columns)
+        data = orjson.dumps([row for batch in result.batches for row in encode_rows(result.columns, batch)])
+    return results_document(query_id=query_id, info_uri=f"{base}/v1/query/{query_id}", progress=progress,
+                            columns=columns, data=data, failure=failure,
+                            update_type=answer.update_type if answer is not None else None)
+
+
+def _call(sql: str, session: Session, manager: QueryManager, *, owner_only: bool) -> Answer:
+    """Answer `CALL system.runtime.kill_query(...)`."""
+    query_id, message = sessions.kill_query_arguments(sql, session)
+    manager.kill(query_id, message, session, owner_only=owner_only)
+    return Answer([], [], update_type="CALL")
+
+
+# --- the app ------------------------------------------------------------------------------------
+
+class _Endpoints:
+    """The protocol's routes (plain Starlette endpoints: no per-request validation work)."""
+
+    def __init__(self, manager: QueryManager, metadata: Metadata, limits: Limits, users: Users | None):
+        self.manager, self.metadata, self.limits, self.users = manager, metadata, limits, users
+        self.started = time.monotonic()
+
+    async def user(self, request: Request) -> str | None:
+        """The authenticated user (None without a users file); HTTP 401 without valid credentials."""
+        if self.users is None:
+            return None
+        credentials = basic_credentials(request.headers.get("authorization"))
+        if credentials is not None and (self.users.remembered(*credentials) or
+                                        await run_in_threadpool(self.users.verify, *credentials)):
+            return credentials[0]
+        raise HTTPException(401, "Unauthorized: a valid user name and password are needed (HTTP Basic)",
+                            headers={"WWW-Authenticate": 'Basic realm="lakegate"'})
+
+    async def query(self, request: Request, *, slug: bool = True) -> Query | None:
+        """The query the path names, if it exists and the authenticated user may see it."""
+        user = await self.user(request)
+        params = request.path_params
+        query = self.manager.get(params["query_id"])
+        if query is None or (user is not None and query.session.user != user):
+            return None
+        return query if not slug or query.slug == params["slug"] else None
+
+    async def post_statement(self, request: Request) -> Response:
+        user = await self.user(request)
+        if user is not None and request.headers.get("x-trino-user") not in (None, user):
+            return PlainTextResponse(f"Access Denied: User {user} cannot impersonate user "
+                                     f"{request.headers['x-trino-user']}", 403)
+        try:
+            session = sessions.from_headers(request.headers, user)
+        except sessions.HeaderError as error:
+            return PlainTextResponse(str(error), 400)
+        body = await request.body()
+        if not body.strip():
+            return PlainTextResponse("SQL statement is empty", 400)
+        base = _base_url(request)
+        try:
+            sql = body.decode("utf-8")
+        except UnicodeDecodeError as error:
+            failure = Failure(f"the query text is not valid UTF-8 (byte {error.start})", "SYNTAX_ERROR")
+            return Response(_immediate(self.manager.ids.next(), base, failure=failure), media_type=JSON)
+        name = sessions.statement_name(sql)
+        if name is not None or guard.classify(sql) == "call":
+            return await self._answer(sql, session, base, is_session=name is not None)
+        query = self.manager.create(sql, session)
+
+        async def start() -> None:  # after the reply is sent: the worker does not delay it
+            self.manager.start(query)
+        return Response(query.first_document(base), media_type=JSON,
+                        background=None if query.failure is not None else BackgroundTask(start))
+
+    async def _answer(self, sql: str, session: Session, base: str, *, is_session: bool) -> Response:
+        """A session statement or CALL, answered at once."""
+        query_id = self.manager.ids.next()
+        try:
+            if is_session:
+                answer = await run_in_threadpool(sessions.answer, sql, session, self.metadata.resolve_schema)
+            else:
+                answer = await run_in_threadpool(_call, sql, session, self.manager, owner_only=self.users is not None)
+        except DialectError as error:
+            return Response(_immediate(query_id, base, failure=Failure.of(error)), media_type=JSON)
+        return Response(_immediate(query_id, base, answer), media_type=JSON, headers=dict(answer.headers))
+
+    async def get_results(self, request: Request) -> Response:
+        query = await self.query(request)
+        token = request.path_params["token"]
+        body = None if query is None else await query.fetch(token, _base_url(request), self.limits.wait)
+        if body is None:
+            return PlainTextResponse(f"Query {request.path_params['query_id']} has no document {token} "
+                                     "(unknown, finished or expired)", 404)
+        return Response(body, media_type=JSON)
+
+    async def head_results(self, request: Request) -> Response:
+        return Response(status_code=404 if await self.query(request) is None else 200)
+
+    async def delete(self, request: Request) -> Response:
+        """DELETE nextUri or /v1/query/{id}: cancel (204 also for unknown or finished queries)."""
+        query = await self.query(request, slug="slug" in request.path_params)
+        if query is not None:
+            query.fail(Failure("Query was canceled", "USER_CANCELED"))
+        return Response(status_code=204)
+
+    async def get_query(self, request: Request) -> Response:
+        query = await self.query(request, slug=False)
+        if query is None:
+            return PlainTextResponse(f"Query {request.path_params['query_id']} not found", 404)
+        return Response(orjson.dumps(query.info()), media_type=JSON)
+
+    async def get_info(self, request: Request) -> Response:
+        return Response(info_document(self.started), media_type=JSON)
+
+    async def get_state(self, request: Request) -> Response:
+        return Response(b'"ACTIVE"', media_type=JSON)
+
+
+def _base_url(request: Request) -> str:
+    return str(request.base_url).rstrip("/")
+
+
+def create_app(backend: Backend, *, catalog_name: str = "lake", limits: Limits = Limits(),
+               users: Users | None = None, dashboard_router: APIRouter | None = None) -> FastAPI:
+    """The SQL endpoint over `backend` (which must also list its branches: `backend.branches()`).
+
+    `catalog_name` is the lake's catalog; `limits` bound queries; with `users`, every request but
+    /v1/info needs HTTP Basic credentials of one of them. `dashboard_router` is included as it is,
+    behind the same authentication. `app.state` holds `manager` (QueryManager), `metadata`
+    (Metadata), `backend` and `limits`. Closing the app (lifespan shutdown) fails running queries
+    and stops the workers; the backend stays open (its owner closes it).
+    """
+    queries: list[QueryManager] = []
+    metadata = Metadata(backend, catalog=catalog_name, memory_limit=getattr(backend, "memory_limit", "1GB"),
+                        queries=lambda: [query.row() for manager in queries for query in manager.queries()])
+    manager = QueryManager(Planner(backend, metadata), limits)
+    queries.append(manager)
+
+    @asynccontextmanager
+    async def lifespan(_: FastAPI):
+        yield
+        await run_in_threadpool(manager.close)
+        metadata.close()
+
+    app = FastAPI(title="lakegate", lifespan=lifespan, docs_url=None, redoc_url=None, openapi_url=None)
+    app.state.manager, app.state.metadata, app.state.backend, app.state.limits = manager, metadata, backend, limits
+    endpoints = _Endpoints(manager, metadata, limits, users)
+    executing = "/v1/statement/executing/{query_id}/{slug}/{token:int}"
+    app.add_route("/v1/statement", endpoints.post_statement, methods=["POST"])
+    app.add_route(executing, endpoints.head_results, methods=["HEAD"])  # before GET, which also matches HEAD
+    app.add_route(executing, endpoints.get_results, methods=["GET"])
+    app.add_route(executing, endpoints.delete, methods=["DELETE"])
+    app.add_route("/v1/query/{query_id}", endpoints.get_query, methods=["GET"])
+    app.add_route("/v1/query/{query_id}", endpoints.delete, methods=["DELETE"])
+    app.add_route("/v1/info", endpoints.get_info, methods=["GET"])
+    app.add_route("/v1/info/state", endpoints.get_state, methods=["GET"])
+    if dashboard_router is not None:
+        app.include_router(dashboard_router, dependencies=[Depends(endpoints.user)])
+    return app

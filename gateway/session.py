@@ -1,0 +1,309 @@
+"""Client sessions: the `X-Trino-*` request headers read into a `Session`, and the statements that
+change a session answered with the response headers that carry the change back to the client.
+
+The server keeps no session state: catalog, schema, session properties, prepared statements and
+the transaction id live in the client, which sends them with every request (notes, sections 2-3
+and 9). Session properties `batch_id` and `job_id` narrow every lake table to one batch / job
+(DESIGN.md, "Scopes"). PREPARE is stateless: its SQL travels in `X-Trino-Added-Prepare` and comes
+back in `X-Trino-Prepared-Statement`. Transactions are accepted and do nothing (the lake is read-only).
+"""
+from __future__ import annotations
+
+import re
+import uuid
+from dataclasses import dataclass, field
+from typing import Callable, Mapping
+from urllib.parse import quote_plus, unquote_plus
+
+from sqlglot.dialects.trino import Trino
+from sqlglot.errors import TokenError
+from sqlglot.tokens import Token, TokenType
+
+from lakegate.dialect.errors import DialectError
+from lakegate.dialect.scope import Scope
+
+#: Session properties lakegate knows: name -> description (both varchar, default NULL).
+PROPERTIES = {
+    "batch_id": "Narrow every lake table to the rows of this batch",
+    "job_id": "Narrow every lake table to the rows of this job",
+}
+#: The statements `answer` handles (first words, upper case).
+STATEMENTS = ("USE", "SET SESSION", "RESET SESSION", "PREPARE", "DEALLOCATE PREPARE", "START TRANSACTION",
+              "COMMIT", "ROLLBACK")
+
+
+class HeaderError(ValueError):
+    """A request header that cannot be read (answered with HTTP 400)."""
+
+
+@dataclass
+class Session:
+    """What one request says about its client's session."""
+
+    user: str
+    catalog: str | None = None
+    schema: str | None = None
+    source: str | None = None
+    time_zone: str | None = None
+    properties: dict[str, str] = field(default_factory=dict)
+    prepared: dict[str, str] = field(default_factory=dict)
+    transaction_id: str | None = None
+
+    def scope(self) -> Scope | None:
+        """The scope the session properties give every lake table (None: the whole branch)."""
+        batch_id, job_id = self.properties.get("batch_id"), self.properties.get("job_id")
+        return Scope(batch_id, job_id) if batch_id is not None or job_id is not None else None
+
+    def prepared_statement(self, name: str) -> str:
+        """The SQL of the prepared statement `name` (from X-Trino-Prepared-Statement)."""
+        statement = self.prepared.get(name, self.prepared.get(name.lower()))
+        if statement is None:
+            raise DialectError(f"Prepared statement not found: {name}", error_name="NOT_FOUND")
+        return statement
+
+
+def _pairs(value: str | None, header: str) -> dict[str, str]:
+    """`name=url-encoded value,...` as a dict."""
+    pairs = {}
+    for item in (value or "").split(","):
+        if not item.strip():
+            continue
+        name, equals, text = item.partition("=")
+        if not equals or not name.strip():
+            raise HeaderError(f"Invalid {header} header: expected name=value, got {item.strip()!r}")
+        pairs[unquote_plus(name.strip())] = unquote_plus(text.strip())
+    return pairs
+
+
+def from_headers(headers: Mapping[str, str], user: str | None = None) -> Session:
+    """The session of a request. `user` (the authenticated user) is the session user; without it
+    X-Trino-User is. Unknown session properties are an INVALID_SESSION_PROPERTY error at query
+    time (`check_properties`); malformed headers raise HeaderError."""
+    user = user or headers.get("x-trino-user")
+    if not user:
+        raise HeaderError("User must be set (X-Trino-User header)")
+    transaction = headers.get("x-trino-transaction-id")
+    return Session(
+        user=user,
+        catalog=headers.get("x-trino-catalog") or None,
+        schema=headers.get("x-trino-schema") or None,
+        source=headers.get("x-trino-source"),
+        time_zone=headers.get("x-trino-time-zone"),
+        properties=_pairs(headers.get("x-trino-session"), "X-Trino-Session"),
+        prepared=_pairs(headers.get("x-trino-prepared-statement"), "X-Trino-Prepared-Statement"),
+        transaction_id=None if transaction in (None, "", "NONE") else transaction,
+    )
+
+
+def check_properties(session: Session) -> None:
+    """Refuse session properties lakegate does not know (as Trino refuses unknown ones)."""
+    for name in session.properties:
+        if name not in PROPERTIES:
+            raise DialectError(f"Session property '{name}' does not exist (lakegate knows {', '.join(PROPERTIES)})",
+                               error_name="INVALID_SESSION_PROPERTY")
+
+
+@dataclass
+class Answer:
+    """A statement answered at once: result columns (name, Trino type), rows, the response headers
+    that update the client's session, and Trino's updateType."""
+
+    columns: list[tuple[str, str]]
+    rows: list[tuple]
+    headers: list[tuple[str, str]] = field(default_factory=list)
+    update_type: str | None = None
+
+
+def _done(update_type: str, *headers: tuple[str, str]) -> Answer:
+    """What Trino answers to a session statement: one boolean column `result`, true."""
+    return Answer([("result", "boolean")], [(True,)], list(headers), update_type)
+
+
+# --- reading the statements ------------------------------------------------------------------
+
+class _Tokenizer(Trino.Tokenizer):
+    COMMANDS: set = set()  # read every statement token by token (sqlglot keeps the rest of some as one string)
+
+
+class _Tokens:
+    def __init__(self, sql: str):
+        self.sql = sql
+        try:
+            tokens = _Tokenizer().tokenize(sql)
+        except TokenError as error:
+            raise DialectError(f"syntax error: {error}", error_name="SYNTAX_ERROR") from None
+        while tokens and tokens[-1].token_type == TokenType.SEMICOLON:
+            tokens.pop()
+        self.tokens, self.pos = tokens, 0
+
+    def skip_words(self, count: int) -> None:
+        """Skip the tokens of the statement's first `count` words (a token may hold several)."""
+        while count > 0 and self.peek() is not None:
+            count -= len(self.peek().text.split())
+            self.pos += 1
+
+    def peek(self) -> Token | None:
+        return self.tokens[self.pos] if self.pos < len(self.tokens) else None
+
+    def word(self) -> str:
+        token = self.peek()
+        return token.text.upper() if token is not None and token.token_type != TokenType.STRING else ""
+
+    def take(self, *words: str) -> bool:
+        if self.word() in words:
+            self.pos += 1
+            return True
+        return False
+
+    def expect(self, *words: str) -> None:
+        if not self.take(*words):
+            self.fail(" or ".join(words))
+
+    def identifier(self) -> tuple[str, bool]:
+        """One name: (text, quoted); unquoted names are lower-cased, as Trino does."""
+        token = self.peek()
+        if token is None or token.token_type in (TokenType.STRING, TokenType.DOT, TokenType.EQ, TokenType.COMMA):
+            self.fail("a name")
+        self.pos += 1
+        quoted = token.token_type == TokenType.IDENTIFIER
+        return (token.text if quoted else token.text.lower()), quoted
+
+    def name(self) -> list[tuple[str, bool]]:
+        parts = [self.identifier()]
+        while self.peek() is not None and self.peek().token_type == TokenType.DOT:
+            self.pos += 1
+            parts.append(self.identifier())
+        return parts
+
+    def rest(self) -> str:
+        """The text from the current token on (without a trailing `;`)."""
+        token = self.peek()
+        if token is None:
+            self.fail("a statement")
+        end = self.tokens[-1].end + 1
+        return self.sql[token.start:end]
+
+    def end(self) -> None:
+        if self.peek() is not None:
+            self.fail("the end of the statement")
+
+    def fail(self, expected: str) -> None:
+        token = self.peek()
+        if token is None:
+            line, column, found = None, None, "the end"
+        else:
+            line, column, found = token.line, max(1, token.col - len(token.text) + 1), f"'{token.text}'"
+        raise DialectError(f"syntax error: expected {expected}, found {found}", line=line, column=column,
+                           error_name="SYNTAX_ERROR")
+
+
+_SKIP = r"(?:\s+|--[^\n]*(?:\n|$)|/\*.*?\*/)*"
+_FIRST_WORDS = re.compile(rf"{_SKIP}([A-Za-z_]+)(?:{_SKIP}([A-Za-z_]+))?", re.S)
+
+
+def statement_name(sql: str) -> str | None:
+    """Which of `STATEMENTS` `sql` is (None for any other statement)."""
+    match = _FIRST_WORDS.match(sql)
+    if match is None:
+        return None
+    first, second = match.group(1).upper(), (match.group(2) or "").upper()
+    for name in STATEMENTS:
+        words = name.split()
+        if words[0] == first and (len(words) == 1 or words[1] == second):
+            return name
+    return None
+
+
+def answer(sql: str, session: Session, resolve_schema: Callable[[str | None, tuple[str, bool]], tuple[str, str]]
+           ) -> Answer:
+    """Answer one of `STATEMENTS`. `resolve_schema(catalog, (schema, quoted))` checks a USE target
+    and returns the (catalog, schema) names to set (DialectError when either does not exist)."""
+    tokens = _Tokens(sql)
+    name = statement_name(sql)
+    tokens.skip_words(len(name.split()) if name else 0)
+    if name == "USE":
+        parts = tokens.name()
+        tokens.end()
+        if len(parts) > 2:
+            raise DialectError(f"USE takes schema or catalog.schema, not '{'.'.join(p for p, _ in parts)}'",
+                               line=1, column=5, error_name="SYNTAX_ERROR")
+        catalog = parts[0][0] if len(parts) == 2 else session.catalog
+        catalog, schema = resolve_schema(catalog, parts[-1])
+        if not schema.isascii():  # HTTP headers carry ASCII only
+            raise DialectError(f"unsupported in lakegate: USE of the schema '{schema}', whose name is not ASCII; "
+                               "qualify the table names instead", error_name="NOT_SUPPORTED")
+        return _done("USE", ("X-Trino-Set-Catalog", catalog), ("X-Trino-Set-Schema", schema))
+    if name == "SET SESSION":
+        prop = _property(tokens.name())
+        tokens.expect("=")
+        token = tokens.peek()
+        if token is None or token.token_type != TokenType.STRING or tokens.pos != len(tokens.tokens) - 1:
+            raise DialectError(f"Session property '{prop}' must be set to a varchar literal ('...')",
+                               error_name="INVALID_SESSION_PROPERTY")
+        return _done("SET SESSION", ("X-Trino-Set-Session", f"{prop}={quote_plus(token.text)}"))
+    if name == "RESET SESSION":
+        prop = _property(tokens.name())
+        tokens.end()
+        return _done("RESET SESSION", ("X-Trino-Clear-Session", prop))
+    if name == "PREPARE":
+        statement, _ = tokens.identifier()
+        tokens.expect("FROM")
+        return _done("PREPARE", ("X-Trino-Added-Prepare", f"{statement}={quote_plus(tokens.rest())}"))
+    if name == "DEALLOCATE PREPARE":
+        statement, _ = tokens.identifier()
+        tokens.end()
+        session.prepared_statement(statement)
+        return _done("DEALLOCATE", ("X-Trino-Deallocated-Prepare", statement))
+    if name == "START TRANSACTION":
+        if session.transaction_id is not None:
+            raise DialectError("Nested transactions not supported", error_name="NOT_SUPPORTED")
+        return _done("START TRANSACTION", ("X-Trino-Started-Transaction-Id", str(uuid.uuid4())))
+    if name in ("COMMIT", "ROLLBACK"):
+        tokens.take("WORK")
+        tokens.end()
+        if session.transaction_id is None:
+            raise DialectError("No transaction in progress", error_name="NOT_IN_TRANSACTION")
+        return _done(name, ("X-Trino-Clear-Transaction-Id", "true"))
+    raise DialectError("not a session statement", error_name="NOT_SUPPORTED")
+
+
+def _property(parts: list[tuple[str, bool]]) -> str:
+    name = ".".join(text for text, _ in parts)
+    if name not in PROPERTIES:
+        raise DialectError(f"Session property '{name}' does not exist (lakegate knows {', '.join(PROPERTIES)})",
+                           error_name="INVALID_SESSION_PROPERTY")
+    return name
+
+
+def kill_query_arguments(sql: str, session: Session) -> tuple[str, str | None]:
+    """(query_id, message) of `CALL system.runtime.kill_query(query_id => '...', message => '...')`
+    (arguments named or positional); PROCEDURE_NOT_FOUND for any other procedure."""
+    tokens = _Tokens(sql)
+    tokens.skip_words(1)
+    name = [text for text, _ in tokens.name()]
+    full = ([session.catalog or ""] if len(name) == 2 else []) + name
+    if [part.lower() for part in full] != ["system", "runtime", "kill_query"]:
+        raise DialectError(f"Procedure not registered: {'.'.join(name)}", error_name="PROCEDURE_NOT_FOUND")
+    tokens.expect("(")
+    names = ("query_id", "message")
+    arguments: dict[str, str | None] = {}
+    while tokens.word() != ")":
+        key = names[len(arguments)] if len(arguments) < len(names) else "?"
+        following = tokens.tokens[tokens.pos + 1] if tokens.pos + 1 < len(tokens.tokens) else None
+        if following is not None and following.text == "=>":
+            key = tokens.identifier()[0]
+            tokens.pos += 1
+        token = tokens.peek()
+        if token is None or (token.token_type != TokenType.STRING and token.text.upper() != "NULL"):
+            tokens.fail("a string literal")
+        tokens.pos += 1
+        if key not in names or key in arguments:
+            raise DialectError(f"Invalid argument for kill_query: {key}", error_name="INVALID_PROCEDURE_ARGUMENT")
+        arguments[key] = token.text if token.token_type == TokenType.STRING else None
+        if not tokens.take(","):
+            break
+    tokens.expect(")")
+    tokens.end()
+    if not arguments.get("query_id"):
+        raise DialectError("kill_query needs a query_id", error_name="INVALID_PROCEDURE_ARGUMENT")
+    return arguments["query_id"], arguments.get("message")

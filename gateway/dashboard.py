@@ -1,0 +1,236 @@
+"""The debug dashboard: one web page (gateway/static) and the JSON API behind it, as a FastAPI router.
+
+`dashboard_router(state)` serves, under `/dashboard`:
+
+    GET    /dashboard/                                   the page (plain HTML + JS, no build step)
+    GET    /dashboard/static/{file}                      its script and style; plotly.min.js from the
+                                                         installed plotly package (never a CDN)
+    GET    /dashboard/api/lake                           branches, their batches and jobs; the debug session
+    POST   /dashboard/api/sessions                       open a batch: {branch, batch, metrics_set?}
+    GET    /dashboard/api/sessions/{id}?job=J            everything shown for job J (re-reads a changed config)
+    POST   /dashboard/api/sessions/{id}/evaluate         evaluate every metric again
+    POST   /dashboard/api/sessions/{id}/metrics          add a metric {name, type, template, query_string, status ...}
+    PUT    /dashboard/api/sessions/{id}/metrics/{name}   edit a metric (e.g. {query_string}) and run it again
+    DELETE /dashboard/api/sessions/{id}/metrics/{name}   drop the session's edit (or the added metric)
+    GET    /dashboard/api/sessions/{id}/export           the session's config files as a zip
+    GET    /dashboard/api/sessions/{id}/tables?scope=&job=   tables, columns, row counts in the scope
+    POST   /dashboard/api/sessions/{id}/query            ad hoc SQL {sql, scope, job}: first 1,000 rows + total
+    GET    /dashboard/api/sessions/{id}/events?job=J     the job's events in time order with their metrics
+    GET    /dashboard/api/sessions/{id}/logs/{job}/{file}    a job's log file (the images metrics show)
+
+A session (`debug_session.DashboardSession`) is one batch seen through a config plus the edits
+made in the page. `lakegate metrics debug` opens one on its debug job; `lakegate serve` mounts
+the same router, and the page opens a session for whichever branch / batch is picked.
+"""
+from __future__ import annotations
+
+import secrets
+import threading
+from collections import OrderedDict
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+from fastapi import APIRouter, Body, HTTPException
+from fastapi.responses import FileResponse, JSONResponse, RedirectResponse, Response
+
+from lakegate.dialect.errors import DialectError
+from lakegate.gateway.backend import Backend, DuckDBBackend
+from lakegate.gateway.debug_session import BranchConfig, DashboardSession, SessionError
+from lakegate.gateway.metrics import MetricsEngine
+from lakegate.gateway.results import read_results
+from lakegate.lake.catalog import Catalog
+from lakegate.lake.paths import LakePathError
+
+STATIC = Path(__file__).resolve().parent / "static"
+#: Files of the page, by URL name.
+PAGE_FILES = {"dashboard.js": "text/javascript", "dashboard.css": "text/css"}
+#: Sessions on stored batches kept at once (the least recently opened is dropped first).
+MAX_SESSIONS = 16
+
+
+def plotly_js() -> Path:
+    """plotly.min.js of the installed plotly package."""
+    return Path(str(resources.files("plotly") / "package_data" / "plotly.min.js"))
+
+
+class DashboardState:
+    """The dashboard's sessions over one lake, queried through `backend` (default: embedded DuckDB)."""
+
+    def __init__(self, lake: Path, backend: Backend | None = None):
+        self.lake = Path(lake)
+        self._own_backend = backend is None
+        self.backend = backend if backend is not None else DuckDBBackend(self.lake)
+        self.engine = MetricsEngine(self.lake, self.backend)
+        self.catalog = Catalog(self.lake)
+        self.sessions: OrderedDict[str, DashboardSession] = OrderedDict()
+        self.debug_session: DashboardSession | None = None
+        self._lock = threading.Lock()
+
+    def close(self) -> None:
+        """Close the backend if the state made it."""
+        if self._own_backend:
+            self.backend.close()
+
+    def new_id(self) -> str:
+        return secrets.token_urlsafe(9)
+
+    def add(self, session: DashboardSession, *, debug: bool = False) -> DashboardSession:
+        with self._lock:
+            self.sessions[session.id] = session
+            if debug:
+                self.debug_session = session
+            stored = [sid for sid, s in self.sessions.items() if s is not self.debug_session]
+            for sid in stored[:max(0, len(stored) - MAX_SESSIONS)]:
+                del self.sessions[sid]
+        return session
+
+    def session(self, session_id: str) -> DashboardSession:
+        session = self.sessions.get(session_id)
+        if session is None:
+            raise HTTPException(404, f"no dashboard session {session_id!r} (it may have expired: reload the page)")
+        return session
+
+    def open_batch(self, branch: str, batch_id: str, metrics_set: str | None = None) -> DashboardSession:
+        """A session on a stored batch, seen through the branch's current config (reused when open)."""
+        with self._lock:
+            for session in self.sessions.values():
+                if (session.branch, session.batch_id) == (branch, batch_id) and not session.debug and (
+                        metrics_set is None or session.metrics_set == metrics_set):
+                    self.sessions.move_to_end(session.id)
+                    return session
+        if branch not in self.catalog.branches():
+            raise SessionError(f"no branch {branch!r} in the lake")
+        if batch_id not in self.catalog.batches(branch):
+            raise SessionError(f"no batch {batch_id!r} on branch {branch!r}")
+        source = BranchConfig(self.lake, branch)
+        if metrics_set is None:  # the set of the stored results, else the config's first set
+            sets = list(source.registry.current().metrics_sets) if source.registry.current_version() else []
+            stored = read_results(self.lake, branch, batch_id)
+            metrics_set = stored[0]["metrics_set"] if stored and stored[0]["metrics_set"] in sets else \
+                sets[0] if sets else None
+        session = DashboardSession(self.new_id(), self.engine, branch=branch, batch_id=batch_id, source=source,
+                                   metrics_set=metrics_set)
+        return self.add(session)
+
+    def listing(self) -> dict[str, Any]:
+        """Branches with their batches and jobs, and the debug session (if any)."""
+        branches = []
+        for branch in self.catalog.branches():
+            batches: dict[str, list[str]] = {}
+            for job in self.catalog.jobs(branch):
+                batches.setdefault(job.batch_id, []).append(job.job_id)
+            branches.append({"name": branch, "batches": [{"id": b, "jobs": jobs} for b, jobs in batches.items()]})
+        debug = self.debug_session
+        return {"branches": branches, "debug_session": debug.id if debug else None}
+
+
+def _bad_request(error: Exception) -> HTTPException:
+    problems = getattr(error, "problems", [])
+    return HTTPException(400, {"message": str(error), "problems": problems})
+
+
+def dashboard_router(state: DashboardState) -> APIRouter:
+    """The page and its API (see the module docstring), to mount on the gateway's app."""
+    router = APIRouter(prefix="/dashboard")
+
+    def call(function: Any, *args: Any, **kwargs: Any) -> Any:
+        try:
+            return function(*args, **kwargs)
+        except (SessionError, LakePathError, DialectError) as error:
+            raise _bad_request(error) from None
+
+    @router.get("", include_in_schema=False)
+    def page_redirect() -> RedirectResponse:
+        return RedirectResponse("/dashboard/")
+
+    @router.get("/", include_in_schema=False)
+    def page() -> FileResponse:
+        return FileResponse(STATIC / "dashboard.html", media_type="text/html",
+                            headers={"Cache-Control": "no-cache"})
+
+    @router.get("/static/{name}", include_in_schema=False)
+    def static(name: str) -> FileResponse:
+        if name == "plotly.min.js":
+            return FileResponse(plotly_js(), media_type="text/javascript",
+                                headers={"Cache-Control": "max-age=86400"})
+        if name not in PAGE_FILES:
+            raise HTTPException(404, f"no file {name!r}")
+        return FileResponse(STATIC / name, media_type=PAGE_FILES[name], headers={"Cache-Control": "no-cache"})
+
+    @router.get("/api/lake")
+    def lake() -> dict[str, Any]:
+        return call(state.listing)
+
+    @router.post("/api/sessions")
+    def open_session(body: dict[str, Any] = Body(...)) -> dict[str, Any]:
+        session = call(state.open_batch, str(body.get("branch", "")), str(body.get("batch", "")),
+                       body.get("metrics_set") or None)
+        return call(session.state, body.get("job"))
+
+    @router.get("/api/sessions/{session_id}")
+    def session_state(session_id: str, job: str | None = None) -> dict[str, Any]:
+        session = state.session(session_id)
+        call(session.refresh)
+        return call(session.state, job)
+
+    @router.post("/api/sessions/{session_id}/evaluate")
+    def evaluate(session_id: str, job: str | None = None) -> dict[str, Any]:
+        session = state.session(session_id)
+        call(session.evaluate_all)
+        return call(session.state, job)
+
+    @router.post("/api/sessions/{session_id}/metrics")
+    def add_metric(session_id: str, body: dict[str, Any] = Body(...), job: str | None = None) -> dict[str, Any]:
+        session = state.session(session_id)
+        spec = {k: v for k, v in body.items() if k != "name"}
+        call(session.add_metric, str(body.get("name") or ""), spec)
+        return call(session.state, job)
+
+    @router.put("/api/sessions/{session_id}/metrics/{name:path}")
+    def update_metric(session_id: str, name: str, body: dict[str, Any] = Body(...),
+                      job: str | None = None) -> dict[str, Any]:
+        session = state.session(session_id)
+        call(session.update_metric, name, body)
+        return call(session.state, job)
+
+    @router.delete("/api/sessions/{session_id}/metrics/{name:path}")
+    def revert_metric(session_id: str, name: str, job: str | None = None) -> dict[str, Any]:
+        session = state.session(session_id)
+        call(session.revert_metric, name)
+        return call(session.state, job)
+
+    @router.get("/api/sessions/{session_id}/export")
+    def export(session_id: str) -> Response:
+        session = state.session(session_id)
+        data = call(session.export_zip)
+        stem = Path(session.files.names[0]).name.split(".")[0] if session.files else "config"
+        return Response(data, media_type="application/zip",
+                        headers={"Content-Disposition": f'attachment; filename="{stem}-export.zip"'})
+
+    @router.get("/api/sessions/{session_id}/tables")
+    def tables(session_id: str, scope: str = "job", job: str | None = None) -> dict[str, Any]:
+        session = state.session(session_id)
+        return {"tables": call(session.tables, call(session.scope, scope, job))}
+
+    @router.post("/api/sessions/{session_id}/query")
+    def query(session_id: str, body: dict[str, Any] = Body(...)) -> JSONResponse:
+        session = state.session(session_id)
+        scope = call(session.scope, str(body.get("scope", "job")), body.get("job"))
+        return JSONResponse(call(session.query, str(body.get("sql", "")), scope))
+
+    @router.get("/api/sessions/{session_id}/events")
+    def events(session_id: str, job: str) -> dict[str, Any]:
+        session = state.session(session_id)
+        return {"events": call(session.events, job)}
+
+    @router.get("/api/sessions/{session_id}/logs/{job_id}/{name:path}")
+    def log_file(session_id: str, job_id: str, name: str) -> FileResponse:
+        session = state.session(session_id)
+        try:
+            return FileResponse(session.log_file(job_id, name))
+        except (SessionError, LakePathError) as error:
+            raise HTTPException(404, str(error)) from None
+
+    return router
+

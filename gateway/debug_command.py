@@ -1,0 +1,258 @@
+"""`lakegate metrics debug`: ingest one emissions file as a debug job and serve the dashboard on it.
+
+    lakegate metrics debug --emissions-file emissions.resim.jsonl \\
+        --metrics-config-path .resim/metrics/config.resim.yaml --metrics-set "My Metrics"
+
+The file is ingested as the only job of a new batch (`debug-<time>`) on branch `debug` of a
+scratch lake (a temporary folder, removed on exit) or of `--lake DIR`. The job's log files
+(the images image metrics name) are the `logs` folder beside the emissions file, or that folder
+itself, or `--logs-dir`. The dashboard is served on 127.0.0.1 until Ctrl+C; its URL is printed
+as `Dashboard: http://127.0.0.1:PORT/dashboard/?session=...`. When the config file changes,
+reloading the page shows the new config (and ingests the emissions again if its topics or the
+emissions file changed); edits made in the page stay layered on top.
+"""
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import os
+import shutil
+import signal
+import socket
+import sys
+import tempfile
+import uuid
+import webbrowser
+from pathlib import Path
+from typing import Any
+
+from lakegate.gateway.auth import is_loopback
+from lakegate.gateway.cli import UserError
+from lakegate.lake import paths
+from lakegate.lake.config import Config, ConfigError, find_default_config, load_config
+from lakegate.lake.ingest import IngestError, ingest_job
+from lakegate.lake.metadata import MetadataError, load_metadata_file
+from lakegate.lake.paths import LakePathError
+
+BRANCH = "debug"
+
+
+def add_debug_parser(commands: argparse._SubParsersAction) -> None:
+    """Add `debug` to the `lakegate metrics` subcommands."""
+    debug = commands.add_parser(
+        "debug", help="serve a live dashboard of a metrics set on one emissions file",
+        description="Ingest an emissions file as a debug job (into a scratch lake, or --lake) and serve the "
+                    "metrics dashboard on it: every metric of the set rendered with its status, queries "
+                    "editable and re-runnable in place, new metrics, a data explorer, the job's events, and "
+                    "'Export Config' to download the edited config. Prints the dashboard URL; Ctrl+C stops.")
+    debug.add_argument("--emissions-file", required=True, type=Path, metavar="FILE",
+                       help="the emissions file (JSON lines, as the Emitter writes them)")
+    debug.add_argument("--metrics-config-path", action="append", type=Path, metavar="P", dest="config_paths",
+                       help="the config file (repeat to merge several; default: .resim/metrics/config.resim.yaml "
+                            "in this folder or a parent); changes to it show on reload")
+    which = debug.add_mutually_exclusive_group(required=True)
+    which.add_argument("--metrics-set", metavar="S", help="the metrics set to show (a name from 'metrics sets')")
+    which.add_argument("--all-metrics", action="store_true",
+                       help="show every test and batch metric of the config (for configs without metrics sets)")
+    debug.add_argument("--logs-dir", type=Path, metavar="DIR",
+                       help="the job's log files, where image metrics find their files (default: the 'logs' "
+                            "folder beside the emissions file if there is one, else the emissions file's folder)")
+    debug.add_argument("--metadata", type=Path, metavar="FILE",
+                       help="YAML mapping of the job's metadata columns (experience_name, build_name, tags ...)")
+    debug.add_argument("--lake", type=Path, metavar="DIR",
+                       help="ingest into this lake (kept) instead of a scratch lake removed on exit")
+    debug.add_argument("--branch", default=BRANCH, metavar="B",
+                       help=f"the branch of the debug job (default {BRANCH!r})")
+    debug.add_argument("--host", default="127.0.0.1",
+                       help="the loopback address to listen on (default 127.0.0.1; the page has no authentication)")
+    debug.add_argument("--port", type=int, default=0, metavar="N", help="the port (default 0: any free port)")
+    debug.add_argument("--no-browser", action="store_true", help="do not open the dashboard in a web browser")
+    debug.set_defaults(func=debug_command)
+
+
+def _one_line(error: ConfigError) -> str:
+    more = len(error.problems) - 1
+    extra = f" (and {more} more problem{'s' if more > 1 else ''}; see 'lakegate config check')" if more else ""
+    return f"invalid config: {error.problems[0]}{extra}"
+
+
+def _config_paths(given: list[Path] | None) -> list[Path]:
+    found = list(given or [])
+    if not found:
+        default = find_default_config()
+        if default is None:
+            raise UserError("no config: pass --metrics-config-path (no .resim/metrics/config.resim.yaml here)")
+        found = [default]
+    for path in found:
+        if not path.is_file():
+            raise UserError(f"config file {str(path)!r} does not exist")
+    return [path.resolve() for path in found]
+
+
+class DebugJob:
+    """The debug job: its emissions file ingested into the lake, again whenever the file or the
+    config's topics change (`refresh`, called by the session on every reload)."""
+
+    def __init__(self, lake: Path, branch: str, emissions: Path, logs_dir: Path | None, metadata: dict[str, Any]):
+        self.lake, self.branch, self.emissions = lake, branch, emissions
+        self.logs_dir, self.metadata = logs_dir, metadata
+        self.batch_id = "debug-" + dt.datetime.now().strftime("%Y%m%d-%H%M%S") + "-" + uuid.uuid4().hex[:4]
+        self.job_id = str(uuid.uuid4())
+        self._ingested: object = None
+
+    def _stamp(self, config: Config) -> object:
+        topics = sorted((t.name, t.event, tuple(t.fields.items())) for t in config.topics.values())
+        try:
+            stat = self.emissions.stat()
+            return topics, stat.st_mtime_ns, stat.st_size
+        except OSError:
+            return topics, None, None
+
+    def ingest(self, config: Config) -> int:
+        """Ingest the emissions file (replacing the job); returns the rows written. ValueError if it fails."""
+        stamp = self._stamp(config)
+        try:
+            report = ingest_job(self.lake, self.branch, self.batch_id, self.job_id, [self.emissions], config=config,
+                                metadata=self.metadata)
+        except IngestError as error:
+            if error.problems:
+                more = error.total - 1
+                raise ValueError(f"bad emissions file: {error.problems[0]}"
+                                 + (f" (and {more} more bad line{'s' if more > 1 else ''})" if more else "")) from None
+            raise ValueError(error.summary) from None
+        except MetadataError as error:
+            raise ValueError(f"bad metadata: {error.problems[0]}") from None
+        self._ingested = stamp
+        logs = paths.logs_dir(self.lake, self.branch, self.batch_id, self.job_id)
+        if self.logs_dir is not None and not logs.exists():
+            logs.parent.mkdir(parents=True, exist_ok=True)
+            try:
+                logs.symlink_to(self.logs_dir.resolve(), target_is_directory=True)
+            except OSError:
+                shutil.copytree(self.logs_dir, logs)
+        return sum(report.rows.values())
+
+    def refresh(self, config: Config) -> bool:
+        """Ingest again if the emissions file or the config's topics changed; True if it did."""
+        if self._stamp(config) == self._ingested:
+            return False
+        self.ingest(config)
+        return True
+
+
+def _logs_dir(args: argparse.Namespace) -> Path | None:
+    if args.logs_dir is not None:
+        if not args.logs_dir.is_dir():
+            raise UserError(f"logs folder {str(args.logs_dir)!r} does not exist")
+        return args.logs_dir
+    beside = args.emissions_file.parent / "logs"
+    return beside if beside.is_dir() else args.emissions_file.parent
+
+
+def _listen(host: str, port: int) -> socket.socket:
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((host, port))
+    except OSError as error:
+        sock.close()
+        raise UserError(f"cannot listen on {host}:{port}: {error.strerror or error}") from None
+    sock.listen(128)
+    return sock
+
+
+def _can_open_browser() -> bool:
+    return sys.platform in ("darwin", "win32") or bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def debug_command(args: argparse.Namespace) -> int:
+    # the web stack is imported here, so that other commands start without it
+    from lakegate.gateway.dashboard import DashboardState, dashboard_router
+    from lakegate.gateway.debug_session import DashboardSession, FileConfig, SessionError
+    from lakegate.gateway.server import create_app
+
+    if not is_loopback(args.host):
+        raise UserError(f"refusing to serve the dashboard on {args.host}: it has no authentication; listen on a "
+                        "loopback address such as 127.0.0.1")
+    emissions = args.emissions_file
+    if not emissions.is_file():
+        raise UserError(f"emissions file {str(emissions)!r} does not exist or is not a file")
+    config_paths = _config_paths(args.config_paths)
+    try:
+        config = load_config(config_paths)
+    except ConfigError as error:
+        raise UserError(_one_line(error)) from None
+    if args.metrics_set is not None:
+        try:
+            config.metrics_in_set(args.metrics_set)
+        except KeyError as error:
+            raise UserError(str(error.args[0])) from None
+    try:
+        metadata = load_metadata_file(args.metadata) if args.metadata else {}
+    except (MetadataError, OSError) as error:
+        raise UserError(f"bad metadata file: {str(error).splitlines()[0]}") from None
+    metadata.setdefault("experience_name", emissions.resolve().parent.name or "debug")
+    logs_dir = _logs_dir(args)
+    scratch = None if args.lake is not None else Path(tempfile.mkdtemp(prefix="lakegate-debug-"))
+    lake = (args.lake if args.lake is not None else scratch / "lake").resolve()
+    sock = None
+    state = None
+    # SIGTERM ends the command as Ctrl+C does (uvicorn stops on it, then raises it again for this
+    # handler), so the scratch lake is removed either way.
+    previous = signal.signal(signal.SIGTERM, _interrupt)
+    try:
+        job = DebugJob(lake, args.branch, emissions.resolve(), logs_dir, metadata)
+        try:
+            rows = job.ingest(config)
+        except (ValueError, LakePathError) as error:
+            raise UserError(str(error)) from None
+        state = DashboardState(lake)
+        try:
+            session = DashboardSession(state.new_id(), state.engine, branch=args.branch, batch_id=job.batch_id,
+                                       source=FileConfig(config_paths), metrics_set=args.metrics_set, debug=True,
+                                       refresh_data=job.refresh)
+        except SessionError as error:
+            raise UserError(str(error.problems[0] if error.problems else error)) from None
+        state.add(session, debug=True)
+        sock = _listen(args.host, args.port)
+        host, port = sock.getsockname()[:2]
+        shown_host = f"[{host}]" if ":" in host else host
+        url = f"http://{shown_host}:{port}/dashboard/?session={session.id}"
+        results = [r for per_job in session.results.values() for r in per_job.values()]
+        counts = {s: sum(1 for r in results if r["status"] == s) for s in ("PASSED", "WARNING", "BLOCKER", "ERROR")}
+        print(f"ingested {emissions} as job {job.job_id} of batch {job.batch_id} on branch {args.branch!r} "
+              f"({rows:,} rows) in {'a scratch lake' if scratch else 'the lake'} {lake}")
+        print(f"metrics set {args.metrics_set or '(all metrics)'}: {len(results)} evaluated ("
+              + ", ".join(f"{n} {s}" for s, n in counts.items() if n) + f") in {session.seconds:.2f} s")
+        try:
+            print(f"SQL endpoint (Trino protocol): http://{shown_host}:{port} (catalog lake, schema "
+                  f"{args.branch!r})", flush=True)
+            print(f"Dashboard: {url}", flush=True)
+            print("Press Ctrl+C to stop.", flush=True)
+            if not args.no_browser and _can_open_browser():
+                webbrowser.open(url)
+            _serve(create_app(state.backend, dashboard_router=dashboard_router(state)), sock)
+        except KeyboardInterrupt:
+            pass  # Ctrl+C is how the dashboard is meant to stop
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        if sock is not None:
+            sock.close()
+        if state is not None:
+            state.close()
+        if scratch is not None:
+            shutil.rmtree(scratch, ignore_errors=True)
+    return 0
+
+
+def _serve(app: Any, sock: socket.socket) -> None:
+    """Serve `app` on an already listening socket until Ctrl+C (or SIGTERM)."""
+    import uvicorn
+
+    server = uvicorn.Server(uvicorn.Config(app, log_level="warning", access_log=False, lifespan="on"))
+    server.run(sockets=[sock])
+
+
+def _interrupt(signum: int, frame: Any) -> None:
+    raise KeyboardInterrupt

@@ -1,0 +1,717 @@
+"""A dashboard session: one batch of a lake, its config, and the metrics edited or added on top.
+
+A session looks at one batch on one branch (the `lakegate metrics debug` job's batch, or any
+stored batch under `lakegate serve`) through one config: config files on disk (`FileConfig`,
+re-read whenever a file changes) or the branch's stored config (`BranchConfig`, re-read when a
+new version is stored). Edits made in the page are kept in the session and layered on top of
+the config, so a changed file on disk and the session's edits combine; the session's config
+files are the originals with the edits applied by `ruamel.yaml` in round-trip mode (order,
+comments and quoting of everything else kept). Every edit is checked by loading the edited
+files with `load_config`, so what "Export Config" downloads always loads back.
+
+Evaluation runs the metrics set with the metrics engine (`MetricsEngine.evaluate`): test
+metrics on every job of the batch, then batch metrics. As `lakegate metrics run` does, the jobs'
+statuses are written to their metadata rows before the batch metrics run (batch metrics count
+them, e.g. `count_if(job_conflated_status = 'PASSED')`); the results themselves are not stored.
+A session on a stored batch first shows the batch's stored `metric_results` when they were
+evaluated with the same config version and metrics set (and nothing was edited), and then
+writes nothing until something is evaluated.
+"""
+from __future__ import annotations
+
+import io
+import json
+import re
+import tempfile
+import threading
+import time
+import zipfile
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ruamel.yaml import YAML
+from ruamel.yaml.comments import CommentedMap, CommentedSeq
+from ruamel.yaml.scalarstring import LiteralScalarString
+
+from lakegate.dialect.errors import DialectError
+from lakegate.dialect.scope import Scope
+from lakegate.gateway.metrics import (EVALUATED_TYPES, MetricResult, MetricsEngine, conflated_status, worst)
+from lakegate.gateway.results import read_results
+from lakegate.gateway.templates import TEMPLATES, json_value
+from lakegate.lake.config import Config, ConfigError, Metric, load_config
+from lakegate.lake.config_schema import SET_METRIC_TYPES
+from lakegate.lake.metadata import update_metadata_row
+from lakegate.lake.registry import BranchConfigs
+
+#: Rows an ad hoc query shows (the total is always counted).
+QUERY_ROWS = 1000
+#: Keys of a metric that a session may set, in the order they are written to the config.
+METRIC_KEYS = ("type", "description", "query_string", "template_type", "template", "units", "status")
+STATUS_KEYS = ("query_string", "block", "warn")
+
+
+class SessionError(ValueError):
+    """A session edit or request was refused; `problems` lists the config problems it would cause."""
+
+    def __init__(self, message: str, problems: list[str] | None = None):
+        self.problems = problems or []
+        super().__init__(message)
+
+
+# -- where the config comes from ----------------------------------------------------------------
+
+
+@dataclass
+class ConfigFiles:
+    """The config's source files at one moment: paths, names in the export, texts, stored version."""
+
+    paths: list[Path]
+    names: list[str]
+    texts: list[str]
+    version: int | None = None
+
+
+class FileConfig:
+    """Config files on disk (the debug command's `--metrics-config-path`), re-read when they change."""
+
+    def __init__(self, paths: list[Path]):
+        self.paths = [Path(p) for p in paths]
+
+    def stamp(self) -> object:
+        try:
+            return tuple((p.stat().st_mtime_ns, p.stat().st_size) for p in self.paths)
+        except OSError:
+            return None
+
+    def read(self) -> ConfigFiles:
+        return ConfigFiles(list(self.paths), [p.name for p in self.paths],
+                           [p.read_text(encoding="utf-8") for p in self.paths])
+
+
+class BranchConfig:
+    """A branch's stored config (its current version), re-read when a new version is stored."""
+
+    def __init__(self, lake: Path, branch: str):
+        self.registry = BranchConfigs(lake, branch)
+
+    def stamp(self) -> object:
+        return self.registry.current_version()
+
+    def read(self) -> ConfigFiles:
+        version = self.registry.current_version()
+        if version is None:
+            raise SessionError(f"branch {self.registry.branch!r} has no stored config "
+                               "(store one with 'lakegate metrics sync')")
+        files = self.registry.files(version)
+        names = [re.sub(r"^\d+-", "", f.name) for f in files]  # stored as 00-<name>, 01-<name> ...
+        return ConfigFiles(files, names, [f.read_text(encoding="utf-8") for f in files], version)
+
+
+# -- editing YAML, keeping the rest of the document -----------------------------------------------
+
+
+def _indentation(text: str) -> tuple[int, int]:
+    """(mapping indent, offset of a block sequence's dash under its key) as the document writes them."""
+    mapping = offset = None
+    parent: tuple[int, bool] | None = None  # (indent, ends with ':') of the previous content line
+    for line in text.splitlines():
+        stripped = line.strip()
+        if not stripped or stripped.startswith("#"):
+            continue
+        indent = len(line) - len(line.lstrip(" "))
+        if parent is not None and parent[1] and indent >= parent[0]:
+            if stripped.startswith("- ") and offset is None:
+                offset = indent - parent[0]
+            elif not stripped.startswith("-") and indent > parent[0] and mapping is None:
+                mapping = indent - parent[0]
+        if mapping is not None and offset is not None:
+            break
+        parent = (indent, stripped.split(" #")[0].endswith(":"))
+    return mapping or 2, 2 if offset is None else offset
+
+
+def _yaml(text: str) -> YAML:
+    yaml = YAML()  # round-trip mode
+    yaml.preserve_quotes = True
+    yaml.width = 4096  # never fold long lines of the original
+    mapping, offset = _indentation(text)
+    yaml.indent(mapping=mapping, sequence=offset + 2, offset=offset)
+    return yaml
+
+
+def _scalar(text: str) -> Any:
+    """A query as YAML: a literal block (`|`) when it has several lines, else a plain string."""
+    text = text.strip("\n").rstrip()
+    return LiteralScalarString(text + "\n") if "\n" in text else text
+
+
+def _node_value(key: str, value: Any) -> Any:
+    if key == "query_string":
+        return _scalar(value)
+    if key == "status":
+        status = CommentedMap()
+        for name in STATUS_KEYS:
+            if value.get(name) is not None:
+                status[name] = _scalar(value[name]) if name == "query_string" else value[name]
+        return status
+    return value
+
+
+def _set_keys(node: CommentedMap, fields: dict[str, Any]) -> None:
+    """Set (or, for None, remove) metric keys on a metric's mapping; new keys go in METRIC_KEYS order."""
+    for key in METRIC_KEYS:
+        if key not in fields:
+            continue
+        value = fields[key]
+        if value is None or (value == "" and key not in ("description", "query_string")):
+            if key in node:
+                del node[key]
+            continue
+        if key in node:
+            node[key] = _node_value(key, value)
+        else:
+            earlier = METRIC_KEYS[:METRIC_KEYS.index(key)]
+            position = max((i + 1 for i, k in enumerate(node) if k in earlier), default=0)
+            node.insert(position, key, _node_value(key, value))
+
+
+def _last_entry(node: Any) -> tuple[Any, Any] | None:
+    """The innermost last (container, key) of a mapping or list, where a trailing comment hangs."""
+    found = None
+    while isinstance(node, (CommentedMap, CommentedSeq)) and len(node):
+        key = list(node)[-1] if isinstance(node, CommentedMap) else len(node) - 1
+        found = (node, key)
+        node = node[key]
+    return found
+
+
+def _append_entry(mapping: CommentedMap, key: str, value: CommentedMap) -> None:
+    """Add `key` at the end of a block mapping, moving the comment lines that followed the last entry
+    (say a blank line and the next section's comment) after the new one."""
+    before = _last_entry(mapping)
+    if not len(mapping):
+        mapping.fa.set_block_style()
+    mapping[key] = value
+    if before is None:
+        return
+    container, last = before
+    token = container.ca.items.get(last, [None, None, None, None])[2]
+    if token is None or "\n" not in token.value:
+        return
+    own, rest = token.value.split("\n", 1)  # the end-of-line comment stays; later lines move
+    if not rest:
+        return
+    token.value = own + "\n" + ("\n" if rest.startswith("\n") else "")
+    after = _last_entry(value)
+    if after is not None:
+        moved = type(token)("\n" + rest, token.start_mark, None)
+        after[0].ca.items[after[1]] = [None, None, moved, None]
+
+
+def edited_documents(files: ConfigFiles, base: Config, edits: dict[str, dict], added: dict[str, dict],
+                     metrics_set: str | None) -> list[str]:
+    """The texts of the config files with the session's edits and added metrics applied.
+
+    Edits go to the file that defines the metric; added metrics to the file that defines the
+    metrics set (and are appended to the set), else the first file.
+    """
+    yamls = [_yaml(text) for text in files.texts]
+    docs = [yaml.load(text) if text.strip() else CommentedMap() for yaml, text in zip(yamls, files.texts)]
+    where = {str(path): i for i, path in enumerate(files.paths)}
+    for name, fields in edits.items():
+        location = base.metrics[name].location
+        doc = docs[where.get(location.path if location else "", 0)]
+        _set_keys(doc["metrics"][name], fields)
+    if added:
+        target_set = base.metrics_sets.get(metrics_set) if metrics_set else None
+        index = where.get(target_set.location.path, 0) if target_set and target_set.location else 0
+        doc = docs[index]
+        if not isinstance(doc.get("metrics"), CommentedMap):
+            position = list(doc).index("metrics sets") if "metrics sets" in doc else len(doc)
+            doc.insert(position, "metrics", CommentedMap())
+        for name, spec in added.items():
+            node = CommentedMap()
+            _set_keys(node, spec)
+            _append_entry(doc["metrics"], name, node)
+            if target_set is not None:
+                items = doc["metrics sets"][metrics_set]["metrics"]
+                if items is None:
+                    items = doc["metrics sets"][metrics_set]["metrics"] = CommentedSeq()
+                items.append(name)
+    texts = []
+    for yaml, doc in zip(yamls, docs):
+        out = io.StringIO()
+        yaml.dump(doc, out)
+        texts.append(out.getvalue())
+    return texts
+
+
+# -- results as the page shows them ---------------------------------------------------------------
+
+
+def _images(paths: list[str], root: Path | None) -> list[str]:
+    """Image paths as names inside the job's logs folder (what the logs URL serves)."""
+    names = []
+    for path in paths:
+        try:
+            names.append(str(Path(path).relative_to(root)) if root is not None else Path(path).name)
+        except ValueError:
+            names.append(Path(path).name)
+    return names
+
+
+def result_json(result: MetricResult, logs_dir: Path | None) -> dict[str, Any]:
+    """One evaluated metric for the page: status, text, figure or table or images, problems, error."""
+    rendered = result.rendered
+    out: dict[str, Any] = {"status": result.status, "text": result.value_text, "figure": None, "table": None,
+                           "images": [], "problems": [], "seconds": round(result.seconds, 4),
+                           "error": None if result.error is None else result.error.as_dict()}
+    if rendered is not None:
+        out["problems"] = list(rendered.problems)
+        if rendered.template == "table":
+            out["table"] = rendered.table
+        elif rendered.template == "image":
+            out["images"] = _images(rendered.images, logs_dir.resolve() if logs_dir else None)
+        else:
+            out["figure"] = rendered.figure
+    return out
+
+
+def stored_json(row: dict[str, Any], logs_dir: Path | None) -> dict[str, Any]:
+    """A stored `metric_results` row in the shape of `result_json`."""
+    details = json.loads(row["details_json"]) if row.get("details_json") else {}
+    template = row.get("template")
+    error = None
+    if row.get("error_message") is not None:
+        error = {"message": row["error_message"], "line": row.get("error_line"), "column": row.get("error_column"),
+                 "location": row.get("error_location"), "query": "query" if row.get("error_line") else None}
+    return {
+        "status": row["status"], "text": row.get("value_text"), "seconds": None, "error": error,
+        "figure": json.loads(row["figure_json"]) if row.get("figure_json") and template != "table" else None,
+        "table": details.get("table") if template == "table" else None,
+        "images": _images(details.get("images") or [], logs_dir.resolve() if logs_dir else None),
+        "problems": details.get("problems") or [],
+    }
+
+
+def metric_json(metric: Metric, origin: str) -> dict[str, Any]:
+    """A metric's definition for the page."""
+    status = metric.status
+    return {
+        "name": metric.name, "type": metric.type, "template": metric.template,
+        "template_type": metric.template_type, "description": metric.description, "units": metric.units,
+        "query_string": metric.query_string, "origin": origin,
+        "location": str(metric.location) if metric.location else None,
+        "status": None if status is None else {"query_string": status.query_string,
+                                               "block": json_value(status.block), "warn": json_value(status.warn)},
+    }
+
+
+# -- the session ----------------------------------------------------------------------------------
+
+
+class DashboardSession:
+    """One batch of a lake seen through a config with the session's edits (see the module docstring).
+
+    `debug`: the batch is a debug job's (its config files are watched, stored results never used).
+    `refresh_data(config)` (debug sessions) is called on every refresh with the current config and
+    returns True when it re-ingested the job (so everything is evaluated again).
+    """
+
+    def __init__(self, session_id: str, engine: MetricsEngine, *, branch: str, batch_id: str,
+                 source: FileConfig | BranchConfig, metrics_set: str | None, debug: bool = False,
+                 refresh_data: Callable[[Config], bool] | None = None):
+        self.id = session_id
+        self.engine = engine
+        self.branch, self.batch_id = branch, batch_id
+        self.source = source
+        self.metrics_set = metrics_set
+        self.debug = debug
+        self.refresh_data = refresh_data
+        self.lock = threading.RLock()
+        self.edits: dict[str, dict[str, Any]] = {}
+        self.added: dict[str, dict[str, Any]] = {}
+        self.problems: list[str] = []  # why the config on disk cannot be used (the last good one is)
+        self.notices: list[str] = []
+        self.files: ConfigFiles | None = None
+        self.base: Config | None = None  # the config as its files say
+        self.config: Config | None = None  # with the session's edits
+        self._stamp: object = object()
+        self.jobs: list[dict[str, Any]] = []
+        self.results: dict[str | None, dict[str, dict[str, Any]]] = {}  # job id (None: batch) -> metric -> result
+        self.origin = "evaluated"
+        self.evaluated_at: str | None = None
+        self.seconds = 0.0
+        with self.lock:
+            self.refresh(force=True)
+
+    # -- config ---------------------------------------------------------------------------------
+
+    def _load_base(self) -> None:
+        files = self.source.read()
+        try:
+            base = load_config(files.paths)
+        except ConfigError as error:
+            raise SessionError("the config has problems", [str(p) for p in error.problems]) from None
+        if self.metrics_set is not None and self.metrics_set not in base.metrics_sets:
+            known = ", ".join(repr(n) for n in base.metrics_sets) or "none"
+            raise SessionError(f"no metrics set {self.metrics_set!r} in the config (sets: {known})",
+                               [f"{files.paths[0]}: no metrics set {self.metrics_set!r} (sets: {known})"])
+        dropped = [name for name in self.edits if name not in base.metrics]
+        for name in dropped:
+            del self.edits[name]
+            self.notices.append(f"metric {name!r} is no longer in the config file; its session edit was dropped")
+        clashes = [name for name in self.added if name in base.metrics]
+        for name in clashes:
+            del self.added[name]
+            self.notices.append(f"metric {name!r} is now defined in the config file; the session's metric of "
+                                "that name was dropped")
+        self.config = self._with_edits(files, base, self.edits, self.added)
+        self.files, self.base = files, base
+
+    def _with_edits(self, files: ConfigFiles, base: Config, edits: dict, added: dict) -> Config:
+        """The config with `edits` and `added` applied, checked by loading the edited files."""
+        if not edits and not added:
+            return base
+        texts = edited_documents(files, base, edits, added, self.metrics_set)
+        with tempfile.TemporaryDirectory(prefix="lakegate-session-") as scratch:
+            paths = []
+            for i, (name, text) in enumerate(zip(files.names, texts)):
+                path = Path(scratch) / f"{i:02d}" / name
+                path.parent.mkdir()
+                path.write_text(text, encoding="utf-8")
+                paths.append(path)
+            try:
+                config = load_config(paths)
+            except ConfigError as error:
+                raise SessionError(error.problems[0].message,
+                                   [f"{Path(p.location.path).name}:{p.location.line}:{p.location.column}: "
+                                    f"{p.message}" for p in error.problems]) from None
+        for name, metric in config.metrics.items():
+            if name in edits or name in added:
+                metric.location = metric.query_location = None  # the text is the session's, not a file's
+                if metric.status is not None:
+                    metric.status.location = metric.status.query_location = None
+            else:
+                config.metrics[name] = base.metrics[name]
+        config.paths = [str(p) for p in files.paths]
+        return config
+
+    def origin_of(self, name: str) -> str:
+        return "added" if name in self.added else "edited" if name in self.edits else "config"
+
+    def metrics(self) -> list[Metric]:
+        """The metrics the session evaluates: the set's (with edits), or every test and batch metric."""
+        assert self.config is not None
+        if self.metrics_set is None:
+            return [m for m in self.config.metrics.values() if m.type in SET_METRIC_TYPES]
+        return self.config.metrics_in_set(self.metrics_set)
+
+    def refresh(self, *, force: bool = False) -> bool:
+        """Re-read the config when its files changed (and the data, for debug sessions); re-evaluate
+        if anything changed. Returns whether it did."""
+        with self.lock:
+            stamp = self.source.stamp()
+            changed = force or stamp != self._stamp
+            if changed:
+                self._stamp = stamp
+                try:
+                    self._load_base()
+                    self.problems = []
+                except SessionError as error:
+                    self.problems = error.problems or [str(error)]
+                    if self.config is None:
+                        raise
+                    return False
+            assert self.config is not None
+            if self.refresh_data is not None:
+                try:
+                    changed = self.refresh_data(self.base) or changed
+                except ValueError as error:
+                    self.problems = [f"cannot ingest the emissions again: {error}"]
+            if changed:
+                self.evaluate_all(use_stored=not self.debug and not self.edits and not self.added)
+            return changed
+
+    # -- evaluation -----------------------------------------------------------------------------
+
+    def _job_rows(self) -> list[dict[str, Any]]:
+        answer = self.engine.backend.execute(
+            "SELECT job_id, experience_name, job_status, job_metrics_status, job_conflated_status "
+            "FROM metadata ORDER BY time, job_id", branch=self.branch, scope=Scope(batch_id=self.batch_id))
+        keys = ("job_id", "experience_name", "job_status", "metrics_status", "conflated_status")
+        return [dict(zip(keys, row)) for row in answer.rows()]
+
+    def logs_dir(self, job_id: str | None) -> Path | None:
+        return None if job_id is None else self.engine.logs_dir(self.branch, self.batch_id, job_id)
+
+    def _evaluate(self, metric: Metric, job_id: str | None) -> dict[str, Any]:
+        logs = self.logs_dir(job_id)
+        result = self.engine.evaluate(metric, self.branch, Scope(self.batch_id, job_id), logs_dir=logs)
+        return result_json(result, logs)
+
+    def _judge(self, job: dict[str, Any]) -> None:
+        """Set a job's statuses from its test metrics and write them to its metadata row."""
+        metrics_status = worst(r["status"] for r in self.results.get(job["job_id"], {}).values())
+        conflated = conflated_status(job["job_status"], metrics_status)
+        if (metrics_status, conflated) != (job["metrics_status"], job["conflated_status"]):
+            update_metadata_row(self.engine.lake, self.branch, self.batch_id, job["job_id"],
+                                job_metrics_status=metrics_status, job_conflated_status=conflated)
+        job["metrics_status"], job["conflated_status"] = metrics_status, conflated
+
+    def evaluate_all(self, *, use_stored: bool = False) -> None:
+        """Evaluate every metric (test metrics on each job, then batch metrics), or show the batch's
+        stored results when `use_stored` and they match the config version and metrics set."""
+        with self.lock:
+            started = time.perf_counter()
+            self.jobs = self._job_rows()
+            if use_stored and self._load_stored():
+                return
+            metrics = self.metrics()
+            self.results = {}
+            for job in self.jobs:
+                self.results[job["job_id"]] = {m.name: self._evaluate(m, job["job_id"])
+                                               for m in metrics if m.type == "test"}
+                self._judge(job)
+            self.results[None] = {m.name: self._evaluate(m, None) for m in metrics if m.type != "test"}
+            self.origin, self.evaluated_at = "evaluated", time.strftime("%Y-%m-%d %H:%M:%S")
+            self.seconds = time.perf_counter() - started
+
+    def _load_stored(self) -> bool:
+        assert self.files is not None
+        rows = read_results(self.engine.lake, self.branch, self.batch_id)
+        if not rows or self.files.version is None:
+            return False
+        if any(r["config_version"] != self.files.version or r["metrics_set"] != self.metrics_set for r in rows):
+            return False
+        wanted = {m.name for m in self.metrics()}
+        if {r["metric_name"] for r in rows} != wanted:
+            return False
+        self.results = {job["job_id"]: {} for job in self.jobs}
+        self.results[None] = {}
+        for row in rows:
+            job_id = row["job_id"]
+            self.results.setdefault(job_id, {})[row["metric_name"]] = stored_json(row, self.logs_dir(job_id))
+        self.origin = "stored"
+        self.evaluated_at = str(rows[0]["evaluated_at"])[:19]
+        self.seconds = 0.0
+        return True
+
+    def _rerun(self, name: str) -> None:
+        """Evaluate one metric again wherever it applies (every job, or the batch)."""
+        assert self.config is not None
+        metric = self.config.metrics[name]
+        self.origin = "evaluated"
+        if metric.type == "test":
+            for job in self.jobs:
+                self.results.setdefault(job["job_id"], {})[name] = self._evaluate(metric, job["job_id"])
+                self._judge(job)
+        else:
+            self.results.setdefault(None, {})[name] = self._evaluate(metric, None)
+
+    # -- edits ----------------------------------------------------------------------------------
+
+    def _apply(self, edits: dict, added: dict) -> None:
+        assert self.files is not None and self.base is not None
+        self.config = self._with_edits(self.files, self.base, edits, added)
+        self.edits, self.added = edits, added
+
+    def update_metric(self, name: str, fields: dict[str, Any]) -> None:
+        """Change a metric's keys (query_string, template, status ...) in the session and run it again."""
+        fields = _clean(fields)
+        with self.lock:
+            if name in self.added:
+                self._apply(self.edits, {**self.added, name: {**self.added[name], **fields}})
+            elif self.base is not None and name in self.base.metrics:
+                self._apply({**self.edits, name: {**self.edits.get(name, {}), **fields}}, self.added)
+            else:
+                raise SessionError(f"no metric {name!r} in the session")
+            self._rerun(name)
+
+    def add_metric(self, name: str, spec: dict[str, Any]) -> None:
+        """Add a metric to the session (and to its metrics set) and evaluate it."""
+        name = (name or "").strip()
+        spec = _clean(spec)
+        with self.lock:
+            assert self.config is not None
+            if not name:
+                raise SessionError("the new metric needs a name")
+            if name in self.config.metrics:
+                raise SessionError(f"a metric named {name!r} already exists")
+            if spec.get("type") not in SET_METRIC_TYPES:
+                raise SessionError(f"the metric type must be one of {', '.join(SET_METRIC_TYPES)}")
+            spec.setdefault("description", "")
+            spec.setdefault("template_type", "system")
+            self._apply(self.edits, {**self.added, name: spec})
+            self._rerun(name)
+
+    def revert_metric(self, name: str) -> None:
+        """Drop the session's edit of a metric (back to the config file) or remove an added metric."""
+        with self.lock:
+            if name in self.added:
+                self._apply(self.edits, {k: v for k, v in self.added.items() if k != name})
+                for results in self.results.values():
+                    results.pop(name, None)
+                for job in self.jobs:
+                    self._judge(job)
+            elif name in self.edits:
+                self._apply({k: v for k, v in self.edits.items() if k != name}, self.added)
+                self._rerun(name)
+            else:
+                raise SessionError(f"metric {name!r} has no session edits")
+
+    # -- views ----------------------------------------------------------------------------------
+
+    def state(self, job_id: str | None = None) -> dict[str, Any]:
+        """Everything the page shows for one job of the batch (default: the first)."""
+        with self.lock:
+            assert self.config is not None and self.files is not None
+            job_ids = [job["job_id"] for job in self.jobs]
+            if job_id not in job_ids:
+                job_id = job_ids[0] if job_ids else None
+            metrics = self.metrics()
+            items = []
+            for metric in metrics:
+                where = job_id if metric.type == "test" else None
+                items.append({**metric_json(metric, self.origin_of(metric.name)),
+                              "result": self.results.get(where, {}).get(metric.name)})
+            test_names = [m.name for m in metrics if m.type == "test"]
+            batch_results = self.results.get(None, {})
+            batch_status = worst(r["status"] for r in batch_results.values())
+            return {
+                "id": self.id, "debug": self.debug, "branch": self.branch, "batch_id": self.batch_id,
+                "job_id": job_id, "jobs": self.jobs, "metrics_set": self.metrics_set,
+                "metrics_sets": list(self.config.metrics_sets),
+                "config": {"files": self.files.names, "paths": [str(p) for p in self.files.paths],
+                           "version": self.files.version, "problems": self.problems, "notices": self.notices,
+                           "edited": list(self.edits), "added": list(self.added)},
+                "origin": self.origin, "evaluated_at": self.evaluated_at, "seconds": round(self.seconds, 3),
+                "batch_metrics_status": batch_status,
+                "status": worst([batch_status, *(job["conflated_status"] or "PASSED" for job in self.jobs)]),
+                "metrics": items,
+                "matrix": {"metrics": test_names, "rows": [
+                    {**job, "cells": [_cell(self.results.get(job["job_id"], {}).get(n)) for n in test_names]}
+                    for job in self.jobs]},
+                "templates": list(TEMPLATES),
+                "types": list(EVALUATED_TYPES),
+            }
+
+    def documents(self) -> list[tuple[str, str]]:
+        """The session's config files (name, text): the originals with the session's edits applied."""
+        with self.lock:
+            assert self.files is not None and self.base is not None
+            if not self.edits and not self.added:
+                return list(zip(self.files.names, self.files.texts))
+            texts = edited_documents(self.files, self.base, self.edits, self.added, self.metrics_set)
+            return list(zip(self.files.names, texts))
+
+    def export_zip(self) -> bytes:
+        """A zip of the session's config files (and custom template files next to them, if any)."""
+        buffer = io.BytesIO()
+        with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
+            for name, text in self.documents():
+                archive.writestr(name, text)
+            assert self.config is not None and self.files is not None
+            folder = self.files.paths[0].parent
+            for metric in self.config.metrics.values():
+                if metric.template_file and (folder / metric.template_file).is_file():
+                    archive.write(folder / metric.template_file, metric.template_file)
+        return buffer.getvalue()
+
+    def scope(self, scope: str, job_id: str | None) -> Scope:
+        """`job` (one job of the batch), `batch` or `branch` (every batch)."""
+        if scope == "branch":
+            return Scope()
+        if scope == "batch":
+            return Scope(self.batch_id)
+        if scope == "job" and job_id in {job["job_id"] for job in self.jobs}:
+            return Scope(self.batch_id, job_id)
+        raise SessionError(f"unknown scope {scope!r} (or no job {job_id!r} in the batch)")
+
+    def tables(self, scope: Scope) -> list[dict[str, Any]]:
+        """Every table of the branch with its columns and its row count in `scope`."""
+        schema = self.engine.backend.schema(self.branch)
+        names = list(schema)
+        sql = " UNION ALL ".join(f"SELECT {i} AS n, count(*) AS c FROM \"{name.replace(chr(34), chr(34) * 2)}\""
+                                 for i, name in enumerate(names))
+        counts = dict(self.engine.backend.execute(sql, branch=self.branch, scope=scope).rows()) if names else {}
+        return [{"name": name, "columns": [{"name": c, "type": t} for c, t in schema[name].items()],
+                 "rows": counts.get(i, 0)} for i, name in enumerate(names)]
+
+    def query(self, sql: str, scope: Scope, limit: int = QUERY_ROWS) -> dict[str, Any]:
+        """An ad hoc query: the first `limit` rows and the total row count, or the error with its position."""
+        started = time.perf_counter()
+        try:
+            answer = self.engine.backend.execute(sql, branch=self.branch, scope=scope)
+            rows: list[list[Any]] = []
+            total = 0
+            for batch in answer.batches:
+                total += batch.num_rows
+                if len(rows) < limit:
+                    part = batch.slice(0, limit - len(rows))
+                    columns = [column.to_pylist() for column in part.columns]
+                    rows.extend([json_value(v) for v in row] for row in zip(*columns))
+        except DialectError as error:
+            return {"error": {"message": error.message, "line": error.line, "column": error.column,
+                              "name": error.error_name}}
+        return {"columns": [{"name": n, "type": t} for n, t in answer.columns], "rows": rows, "total": total,
+                "limit": limit, "seconds": round(time.perf_counter() - started, 4)}
+
+    def events(self, job_id: str) -> list[dict[str, Any]]:
+        """The job's events in time order, with their attached metrics."""
+        self.scope("job", job_id)  # a job of this batch
+        return [event.as_dict() for event in self.engine.job_events(self.branch, self.batch_id, job_id)]
+
+    def log_file(self, job_id: str, name: str) -> Path:
+        """A file of the job's logs (images); SessionError if it is not one."""
+        root = self.logs_dir(job_id)
+        if root is None:
+            raise SessionError(f"job {job_id!r} has no log files")
+        root = root.resolve()
+        path = (root / name).resolve()
+        if not path.is_relative_to(root) or not path.is_file():
+            raise SessionError(f"no file {name!r} in the logs of job {job_id!r}")
+        return path
+
+
+def _cell(result: dict[str, Any] | None) -> dict[str, Any] | None:
+    if result is None:
+        return None
+    return {"status": result["status"], "text": result["text"],
+            "error": result["error"]["message"] if result["error"] else None}
+
+
+def _clean(fields: dict[str, Any]) -> dict[str, Any]:
+    """Metric keys from the page: only known keys; thresholds as numbers; an empty status removed."""
+    unknown = set(fields) - set(METRIC_KEYS)
+    if unknown:
+        raise SessionError(f"unknown metric key(s): {', '.join(sorted(unknown))}")
+    out = dict(fields)
+    status = out.get("status")
+    if isinstance(status, dict):
+        if not (status.get("query_string") or "").strip():
+            out["status"] = None
+        else:
+            out["status"] = {"query_string": status["query_string"], "block": _threshold(status.get("block")),
+                             "warn": _threshold(status.get("warn"))}
+    for key in ("units", "template"):
+        if key in out and isinstance(out[key], str) and not out[key].strip():
+            out[key] = None
+    return out
+
+
+def _threshold(value: Any) -> Any:
+    """A status threshold from a form: a number when it reads as one, else the text (None when empty)."""
+    if not isinstance(value, str):
+        return value
+    text = value.strip()
+    if not text:
+        return None
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text

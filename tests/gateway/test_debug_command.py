@@ -1,0 +1,154 @@
+"""`lakegate metrics debug` as a real process: bad input refused in one line, the dashboard served,
+config changes on disk picked up, the scratch lake removed on Ctrl+C."""
+from __future__ import annotations
+
+import json
+import re
+import urllib.request
+from pathlib import Path
+
+import pyarrow.parquet as pq
+import trino
+
+from lakegate.lake import paths
+
+NAV_SET = "Nav Metrics"
+
+
+def _one_line_error(result, *words: str) -> str:
+    assert result.returncode == 1, (result.stdout, result.stderr)
+    lines = result.stderr.strip().splitlines()
+    assert len(lines) == 1, result.stderr
+    assert "Traceback" not in result.stderr
+    assert lines[0].startswith("lakegate: ")
+    for word in words:
+        assert word in lines[0], lines[0]
+    return lines[0]
+
+
+def _args(emissions: Path, config: Path, metrics_set: str = NAV_SET) -> list[str]:
+    return ["metrics", "debug", "--no-browser", "--emissions-file", str(emissions),
+            "--metrics-config-path", str(config), "--metrics-set", metrics_set]
+
+
+def test_missing_emissions_file(tmp_path: Path, nav_jobs, run_lakegate) -> None:
+    result = run_lakegate(_args(tmp_path / "nope.jsonl", nav_jobs.config), tmp_path)
+    _one_line_error(result, "emissions file", "nope.jsonl", "does not exist")
+
+
+def test_malformed_emissions_file(tmp_path: Path, nav_jobs, run_lakegate) -> None:
+    lines = nav_jobs.jobs[0].emissions_path.read_text().splitlines()
+    bad = tmp_path / "emissions.resim.jsonl"
+    bad.write_text("\n".join(lines[:3] + ['{"$metadata": {"topic": "odom_linear_velocity", "timestamp": 5}, '
+                                          '"$data": {"x": "left", "y": 1.0, "z": 0.0}}', "not json"] + lines[3:]) + "\n")
+    result = run_lakegate(_args(bad, nav_jobs.config), tmp_path)
+    line = _one_line_error(result, "bad emissions file", f"{bad}:4:", "and 1 more bad line")
+    assert "'x'" in line or "x:" in line or " x " in line  # names the bad field
+
+
+def test_invalid_config(tmp_path: Path, nav_jobs, run_lakegate) -> None:
+    config = tmp_path / "config.resim.yaml"
+    config.write_text(nav_jobs.config.read_text().replace("    template: line\n", "    template: lines\n", 1))
+    line_number = config.read_text().splitlines().index("    template: lines") + 1
+    result = run_lakegate(_args(nav_jobs.jobs[0].emissions_path, config), tmp_path)
+    _one_line_error(result, "invalid config", f"{config}:{line_number}:", "lines")
+
+
+def test_unparsable_config(tmp_path: Path, nav_jobs, run_lakegate) -> None:
+    config = tmp_path / "config.resim.yaml"
+    config.write_text("version: 1\ntopics: [\n")
+    result = run_lakegate(_args(nav_jobs.jobs[0].emissions_path, config), tmp_path)
+    _one_line_error(result, "invalid config", str(config), "YAML")
+
+
+def test_unknown_metrics_set(tmp_path: Path, nav_jobs, run_lakegate) -> None:
+    result = run_lakegate(_args(nav_jobs.jobs[0].emissions_path, nav_jobs.config, "Nav Metrix"), tmp_path)
+    _one_line_error(result, "'Nav Metrix'", "'Nav Metrics'")
+
+
+def test_missing_config_file(tmp_path: Path, nav_jobs, run_lakegate) -> None:
+    result = run_lakegate(_args(nav_jobs.jobs[0].emissions_path, tmp_path / "missing.resim.yaml"), tmp_path)
+    _one_line_error(result, "config file", "missing.resim.yaml", "does not exist")
+
+
+def _get(url: str) -> bytes:
+    with urllib.request.urlopen(url, timeout=30) as response:
+        assert response.status == 200
+        return response.read()
+
+
+def test_serves_the_dashboard_and_picks_up_config_changes(tmp_path: Path, nav_jobs, debug_processes) -> None:
+    config = tmp_path / "config.resim.yaml"
+    config.write_text(nav_jobs.config.read_text())
+    job = nav_jobs.jobs[2]  # fewer than 3 goals reached: "Time to reach final goal" blocks
+    server = debug_processes(["--emissions-file", str(job.emissions_path), "--metrics-config-path", str(config),
+                              "--metrics-set", NAV_SET], tmp_path)
+    match = re.fullmatch(r"http://127\.0\.0\.1:(\d+)/dashboard/\?session=([\w-]+)", server.url)
+    assert match, server.url
+    scratch = Path(re.search(r"in a scratch lake (\S+)", "\n".join(server.lines)).group(1))
+    assert scratch.is_dir()
+
+    page = _get(server.url).decode()
+    assert "static/dashboard.js" in page and "static/plotly.min.js" in page
+    base = server.url.split("?")[0]
+    plotly = _get(base + "static/plotly.min.js")
+    assert len(plotly) > 1_000_000 and b"plotly" in plotly[:2000].lower()
+    session = match.group(2)
+    state = json.loads(_get(f"{base}api/sessions/{session}"))
+    assert state["debug"] and state["metrics_set"] == NAV_SET
+    statuses = {m["name"]: m["result"]["status"] for m in state["metrics"]}
+    assert statuses["Time to reach final goal"] == "BLOCKER"
+    assert state["jobs"][0]["conflated_status"] == "BLOCKER"
+    assert state["jobs"][0]["experience_name"] == job.emissions_path.parent.name
+    # the image metric finds its file in the logs folder beside the emissions file
+    camera = next(m for m in state["metrics"] if m["template"] == "image")["result"]
+    assert camera["images"] == ["camera.gif"]
+    assert _get(f"{base}api/sessions/{session}/logs/{state['job_id']}/camera.gif").startswith(b"GIF8")
+
+    # the same server answers SQL over the Trino protocol, on the debug branch
+    with trino.dbapi.connect(host="127.0.0.1", port=int(match.group(1)), user="test", catalog="lake",
+                             schema="debug") as connection:
+        cursor = connection.cursor()
+        cursor.execute("SELECT count(*) FROM goal_status")
+        emitted = [json.loads(line) for line in job.emissions_path.read_text().splitlines()]
+        assert cursor.fetchall() == [[sum(1 for line in emitted if line["$metadata"]["topic"] == "goal_status")]]
+
+    # a changed config file shows on the next load; the new topic means the emissions are ingested again
+    text = config.read_text()
+    text = text.replace("description: Robot speed over time", "description: Speed of the robot, changed on disk")
+    text = text.replace("topics:\n", "topics:\n  battery:\n    schema:\n      level: float\n", 1)
+    config.write_text(text)
+    state = json.loads(_get(f"{base}api/sessions/{session}"))
+    robot = next(m for m in state["metrics"] if m["name"] == "Robot Speed")
+    assert robot["description"] == "Speed of the robot, changed on disk"
+    tables = json.loads(_get(f"{base}api/sessions/{session}/tables?scope=job&job={state['job_id']}"))["tables"]
+    assert {"name": "battery", "rows": 0} == {k: v for k, v in next(t for t in tables if t["name"] == "battery").items()
+                                              if k in ("name", "rows")}
+
+    assert server.stop() == 0
+    assert not scratch.exists(), "the scratch lake is removed on exit"
+
+
+def test_given_lake_is_kept(tmp_path: Path, nav_jobs, debug_processes) -> None:
+    lake = tmp_path / "lake"
+    server = debug_processes(["--emissions-file", str(nav_jobs.jobs[0].emissions_path), "--metrics-config-path",
+                              str(nav_jobs.config), "--metrics-set", NAV_SET, "--lake", str(lake),
+                              "--branch", "feature/dbg"], tmp_path)
+    assert server.stop() == 0
+    metadata = list(paths.data_files(lake, "feature/dbg", paths.METADATA_TABLE))
+    assert len(metadata) == 1
+    row = pq.read_table(metadata[0]).to_pylist()[0]
+    assert row["job_conflated_status"] == "PASSED"  # the debug session wrote its job's statuses
+
+
+def test_refuses_to_listen_beyond_this_machine(tmp_path: Path, nav_jobs, run_lakegate) -> None:
+    result = run_lakegate(_args(nav_jobs.jobs[0].emissions_path, nav_jobs.config) + ["--host", "0.0.0.0"], tmp_path)
+    _one_line_error(result, "refusing", "0.0.0.0", "127.0.0.1")
+
+
+def test_help_lists_every_option(tmp_path: Path, run_lakegate) -> None:
+    result = run_lakegate(["metrics", "debug", "--help"], tmp_path)
+    assert result.returncode == 0
+    for option in ("--emissions-file", "--metrics-config-path", "--metrics-set", "--port", "--lake", "--host",
+                   "--no-browser", "--logs-dir", "--metadata", "--all-metrics"):
+        assert option in result.stdout

@@ -15,6 +15,10 @@ COMMAND_MODULES = (
     "config_command",
     "ingest_command",
     "query_command",
+    "serve_command",
+    "metrics_command",
+    "demo_command",
+    "trino_ddl_command",
 )
 
 

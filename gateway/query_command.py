@@ -76,19 +76,21 @@ def _text(value: Any, null: str) -> str:
 
 def write_json(result: QueryResult, out: TextIO) -> None:
     """`{"columns": [{"name", "type"}], "rows": [[...]]}`, values encoded as the Trino protocol does."""
+    rows = list(_encoded_rows(result))  # all rows first: an error mid-way must not leave half a document
     columns = json.dumps([{"name": name, "type": trino_type} for name, trino_type in result.columns],
                          ensure_ascii=False)
     out.write(f'{{"columns": {columns}, "rows": [')
-    for i, row in enumerate(_encoded_rows(result)):
+    for i, row in enumerate(rows):
         out.write(("," if i else "") + "\n  " + json.dumps(row, ensure_ascii=False, allow_nan=False))
     out.write("\n]}\n")
 
 
 def write_csv(result: QueryResult, out: TextIO) -> None:
     """RFC 4180 CSV (CRLF line ends) with a header row; NULL is an empty field."""
+    rows = list(_encoded_rows(result))  # all rows first: an error mid-way must not leave half a file
     writer = csv.writer(out, lineterminator="\r\n")
     writer.writerow([name for name, _ in result.columns])
-    for row in _encoded_rows(result):
+    for row in rows:
         writer.writerow([_text(value, "") for value in row])
 
 

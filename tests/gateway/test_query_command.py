@@ -64,6 +64,14 @@ def test_an_error_is_one_line_with_its_position():
     assert refused.returncode == 1 and refused.stderr.startswith("lakegate: line 1, column 1: Access Denied: COPY")
 
 
+@pytest.mark.parametrize("output", ["json", "csv", "table"])
+def test_a_run_time_error_prints_no_partial_result(output):
+    done = lakegate("--format", output, "SELECT ARRAY[1, 2][5]")
+    assert done.returncode == 1
+    assert done.stdout == ""
+    assert done.stderr == "lakegate: Array subscript must be less than or equal to array length: 5 > 2\n"
+
+
 def test_explain_prints_the_duckdb_sql():
     done = lakegate("--explain", "SELECT 5 / 2")
     assert done.returncode == 0, done.stderr

@@ -233,7 +233,7 @@ def select_one(server: Server, direct: duckdb.DuckDBPyConnection) -> dict:
 
 def client_floor() -> tuple[float, float]:
     """Median seconds of `SELECT 1` through the client against STUB: rows in the POST's reply, and
-    rows after one GET (as lakegate and Trino answer)."""
+    rows after one GET (as Trino answers; lakegate answers fast queries in the POST)."""
     port = free_port()
     stub = subprocess.Popen([sys.executable, "-c", STUB, str(port)], stdout=subprocess.PIPE, text=True)
     try:
@@ -399,7 +399,8 @@ def main() -> None:
         f"- `SELECT 1`: p90 {one['p90'] * 1e3:.2f} ms; per query {one['requests']:.1f} HTTP requests, server CPU "
         f"{one['server_cpu'] * 1e3:.2f} ms, client CPU {one['client_cpu'] * 1e3:.2f} ms. The same client against "
         f"a stub server that answers at once (another process): {floor_two * 1e3:.2f} ms with POST + GET (2 "
-        f"requests, as lakegate and Trino answer), {floor_one * 1e3:.2f} ms with the rows in the POST's reply",
+        f"requests, as Trino answers), {floor_one * 1e3:.2f} ms with the rows in the POST's reply (as lakegate "
+        f"answers a fast query)",
         f"- fetch of {fetched['rows']:,} rows: server CPU {fetched['server_cpu']:.2f} s (alone it would allow "
         f"{fetched['rows'] / max(fetched['server_cpu'], 1e-9):,.0f} rows/s), client CPU {fetched['client_cpu']:.2f} s "
         f"({fetched['rows'] / max(fetched['client_cpu'], 1e-9):,.0f} rows/s: the trino client's JSON decoding and "

@@ -15,6 +15,7 @@ it, and only a single statement that DuckDB itself parses as a SELECT is ever ru
 from __future__ import annotations
 
 import hashlib
+import os
 import shutil
 import tempfile
 import threading
@@ -143,6 +144,8 @@ class DuckDBBackend:
         self.catalog = Catalog(self.lake) if self.lake is not None else None
         self.memory_limit, self.threads = memory_limit, threads
         self._branches: dict[str, _Branch] = {}
+        self._paths: dict[str, tuple[str, str]] = {}  # branch -> its directory and configs directory
+        self._listed: tuple[object, list[str]] = (None, [])  # (the lake directory's mtime, its branches)
         self._lock = threading.Lock()
         self._temp = tempfile.mkdtemp(prefix="lakegate-duckdb-")
         self._cleanup = weakref.finalize(self, shutil.rmtree, self._temp, ignore_errors=True)
@@ -150,23 +153,42 @@ class DuckDBBackend:
     # -- branches -------------------------------------------------------------------------
 
     def branches(self) -> list[str]:
-        """The branches of the lake."""
-        return self.catalog.branches() if self.catalog is not None else []
+        """The branches of the lake (listed again only when the lake directory changes)."""
+        if self.catalog is None:
+            return []
+        try:
+            stamp = os.stat(self.lake).st_mtime_ns
+        except FileNotFoundError:
+            return []
+        listed_stamp, listed = self._listed
+        if listed_stamp != stamp:
+            listed = self.catalog.branches()
+            self._listed = (stamp, listed)
+        return list(listed)
 
     def _stamp(self, branch: str) -> object:
+        """What changes when the branch's tables may have changed: the mtimes of its directory and
+        of its config registry."""
         if self.lake is None:
             return None
+        found = self._paths.get(branch)
+        if found is None:
+            try:
+                found = str(paths.branch_dir(self.lake, branch)), str(paths.configs_dir(self.lake, branch))
+            except paths.LakePathError as error:
+                raise DialectError(str(error), error_name="SCHEMA_NOT_FOUND") from None
+        directory, configs = found
         try:
-            directory = paths.branch_dir(self.lake, branch)
-        except paths.LakePathError as error:
-            raise DialectError(str(error), error_name="SCHEMA_NOT_FOUND") from None
-        try:
-            configs = paths.configs_dir(self.lake, branch)
-            return directory.stat().st_mtime_ns, configs.stat().st_mtime_ns if configs.exists() else None
+            stamp = os.stat(directory).st_mtime_ns
         except FileNotFoundError:
             known = ", ".join(self.branches()) or "none"
             raise DialectError(f"Schema '{branch}' does not exist: no branch '{branch}' in the lake {self.lake} "
                                f"(branches: {known})", error_name="SCHEMA_NOT_FOUND") from None
+        self._paths[branch] = found  # only branches that exist
+        try:
+            return stamp, os.stat(configs).st_mtime_ns
+        except FileNotFoundError:
+            return stamp, None
 
     def _connect(self) -> duckdb.DuckDBPyConnection:
         return duckdb.connect(":memory:", config={

@@ -16,3 +16,4 @@ class Limits:
     retention: float = 15.0             # a finished query is kept this long for retried requests
     page_bytes: int = 1_000_000         # target size of one page of rows
     wait: float = 1.0                   # longest a GET waits for the next page
+    answer_wait: float = 0.02           # longest a POST waits to answer a fast query (whole) in its reply

@@ -95,13 +95,16 @@ class QueryIds:
     def __init__(self) -> None:
         self._server = "".join(random.choices(string.ascii_lowercase + string.digits, k=5))
         self._counter = 0
+        self._second, self._prefix = -1, ""  # the time prefix, formatted once a second
         self._lock = threading.Lock()
 
     def next(self) -> str:
+        second = int(time.time())
         with self._lock:
             self._counter = self._counter % 99_999 + 1
-            counter = self._counter
-        return f"{datetime.now(timezone.utc):%Y%m%d_%H%M%S}_{counter:05d}_{self._server}"
+            if second != self._second:
+                self._second, self._prefix = second, f"{datetime.fromtimestamp(second, timezone.utc):%Y%m%d_%H%M%S}"
+            return f"{self._prefix}_{self._counter:05d}_{self._server}"
 
 
 def columns_document(columns: Sequence[tuple[str, str]]) -> list[dict]:

@@ -1,10 +1,13 @@
 """The SQL endpoint: Trino's HTTP client protocol (FastAPI) over a backend, and the life of its queries.
 
-`POST /v1/statement` answers at once: session statements and CALL with their result, every other
-statement with a QUEUED document whose `nextUri` the client follows while a worker thread runs the
-statement. The worker turns the result's Arrow record batches into pages of JSON rows (about
-`Limits.page_bytes` each) and hands them over through a small buffer, so a result is never held
-whole: a slow client makes the worker wait. `GET nextUri` returns the next page (waiting up to
+`POST /v1/statement` answers session statements and CALL at once with their result. Every other
+statement goes to a worker thread at once, and the POST waits a little (`Limits.answer_wait`) for it:
+a query that ends in that time with at most one small page is answered whole in the POST's reply
+(columns and rows, or its error, and no `nextUri`: one request per fast query); any other gets a
+QUEUED / RUNNING document whose `nextUri` the client follows while the worker runs. The worker
+turns the result's Arrow record batches into pages of JSON rows (about `Limits.page_bytes` each)
+and hands them over through a small buffer, so a result is never held whole: a slow client makes
+the worker wait. `GET nextUri` returns the next page (waiting up to
 `Limits.wait` for it); the same URI again returns the same document. `DELETE nextUri` or
 `DELETE /v1/query/{id}` cancel (the DuckDB work is interrupted). A reaper enforces the time limit,
 fails queries whose client went away, and forgets finished queries.
@@ -31,7 +34,6 @@ import orjson
 import pyarrow as pa
 from fastapi import APIRouter, Depends, FastAPI, HTTPException, Request
 from fastapi.responses import PlainTextResponse, Response
-from starlette.background import BackgroundTask
 from starlette.concurrency import run_in_threadpool
 
 from lakegate.dialect import guard
@@ -133,11 +135,9 @@ class Query:
         with self.lock:
             if self.done:
                 return False
-            self.started = True
+            self.started = True  # no waiter to wake: clients wait for pages or the end
             self.started_at = _now()
             self._clock["started"] = time.monotonic()
-            waiters = self._changed()
-        _wake(waiters)
         self._dequeued()
         return True
 
@@ -148,8 +148,6 @@ class Query:
             self._result = result
             self.columns = columns
             stopped = self.done
-            waiters = self._changed()
-        _wake(waiters)
         if stopped:
             result.cancel()
             raise _Stopped
@@ -245,11 +243,33 @@ class Query:
                                 next_uri=next_uri, columns=self.columns, data=data, failure=self.failure)
 
     def first_document(self, base: str) -> bytes:
-        """The POST's reply (token 0)."""
+        """The POST's reply (token 0) of the query as it is: the last document when the query ended
+        with at most one small page (its rows, if any, are in it), else one with the nextUri."""
         with self.lock:
-            self.final = self.failure is not None
-            self.body = self.document(base, 0, last=self.final)
+            whole = self.failure is not None or (self.done and self._fits())
+            page = self._pages.popleft() if whole and self._pages else None
+            self.final = whole
+            self.body = self.document(base, 0, data=None if page is None else page.data, last=whole)
         return self.body
+
+    async def answer(self, base: str, wait: float) -> bytes:
+        """The POST's reply, after waiting up to `wait` seconds for the query to end (`first_document`)."""
+        deadline = time.monotonic() + wait
+        async with self._fetching:
+            while True:
+                with self.lock:  # decided: the query ended, or has more rows than one reply holds
+                    if self.done or not self._fits():
+                        break
+                    version = self._version
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    break
+                await self._changes(version, remaining)
+            return self.first_document(base)
+
+    def _fits(self) -> bool:
+        """Whether the pages ready fit in one last document: at most one, and small (lock held)."""
+        return len(self._pages) <= 1 and all(len(page.data) <= FINAL_PAGE_BYTES for page in self._pages)
 
     async def fetch(self, token: int, base: str, wait: float) -> bytes | None:
         """The document of `token`: the same bytes again for the current token, the next document
@@ -538,11 +558,10 @@ class _Endpoints:
         if name is not None or guard.classify(sql) == "call":
             return await self._answer(sql, session, base, is_session=name is not None)
         query = self.manager.create(sql, session)
-
-        async def start() -> None:  # after the reply is sent: the worker does not delay it
-            self.manager.start(query)
-        return Response(query.first_document(base), media_type=JSON,
-                        background=None if query.failure is not None else BackgroundTask(start))
+        if query.failure is not None:  # refused (queue full)
+            return Response(query.first_document(base), media_type=JSON)
+        self.manager.start(query)
+        return Response(await query.answer(base, self.limits.answer_wait), media_type=JSON)
 
     async def _answer(self, sql: str, session: Session, base: str, *, is_session: bool) -> Response:
         """A session statement or CALL, answered at once."""
@@ -589,7 +608,14 @@ class _Endpoints:
 
 
 def _base_url(request: Request) -> str:
-    return str(request.base_url).rstrip("/")
+    """The URL the client reached the server at (scheme, host and port, root path), without the
+    cost of Starlette's URL parsing."""
+    scope = request.scope
+    host = request.headers.get("host")
+    if host is None:  # HTTP/1.0 without Host: the address the server listens on
+        name, port = scope.get("server") or ("127.0.0.1", None)
+        host = name if port in (None, {"http": 80, "https": 443}.get(scope["scheme"])) else f"{name}:{port}"
+    return f"{scope['scheme']}://{host}{scope.get('root_path', '')}".rstrip("/")
 
 
 def create_app(backend: Backend, *, catalog_name: str = "lake", limits: Limits = Limits(),

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import shutil
 import threading
 import time
 from pathlib import Path
@@ -192,6 +193,22 @@ def test_views_follow_new_topics_and_jobs(tmp_path):
         build_lake(tmp_path, jobs=[("b1", "j2", 3)], config_text=CONFIG + "  speed:\n    schema: {v: float}\n")
         assert backend.execute("SELECT count(*) FROM odom").rows() == [(5,)]
         assert backend.execute("SELECT count(*) FROM speed").rows() == [(0,)]
+    finally:
+        backend.close()
+
+
+def test_branches_follow_the_lake(tmp_path):
+    lake = build_lake(tmp_path, jobs=[("b1", "j1", 2)])
+    backend = DuckDBBackend(lake)
+    try:
+        assert backend.branches() == ["main"]
+        config = load_config([tmp_path / "config.resim.yaml"])
+        ingest_job(lake, "feature/x", "b1", "j9", [tmp_path / "j1.jsonl"], config=config, metadata={})
+        assert backend.branches() == ["feature/x", "main"]  # listed again: the lake directory changed
+        assert backend.execute("SELECT count(*) FROM odom", branch="feature/x").rows() == [(2,)]
+        shutil.rmtree(lake / "feature%2Fx")
+        assert backend.branches() == ["main"]
+        assert refused(backend, "SELECT 1", branch="feature/x").error_name == "SCHEMA_NOT_FOUND"
     finally:
         backend.close()
 

@@ -57,7 +57,7 @@ def error(server, sql: str, headers: dict | None = None) -> dict:
 def test_post_answers_at_once_and_the_query_runs_in_the_background(lake_server, endless):
     first = post(lake_server, endless).json()  # would take hours: the reply cannot wait for it
     assert QUERY_ID.fullmatch(first["id"])
-    assert first["stats"]["state"] == "QUEUED" and "data" not in first
+    assert first["stats"]["state"] in ("QUEUED", "RUNNING") and "data" not in first
     assert first["nextUri"].startswith(f"{lake_server.url}/v1/statement/executing/{first['id']}/")
     assert first["infoUri"] == f"{lake_server.url}/v1/query/{first['id']}"
     second = requests.get(first["nextUri"], timeout=30).json()
@@ -73,16 +73,64 @@ def test_post_answers_at_once_and_the_query_runs_in_the_background(lake_server, 
         ("USER_CANCELED", "USER_ERROR", 3)
 
 
-def test_a_small_result_finishes_in_the_first_page(lake_server):
+def test_a_small_result_is_answered_whole_in_the_posts_reply(lake_server):
     documents, rows = run(lake_server, "SELECT 1, 'a' AS b")
-    assert len(documents) == 2  # the POST, then one page that also ends the query
-    page = documents[1]
+    assert len(documents) == 1  # the POST's reply holds the rows and ends the query
+    page = documents[0]
     assert "nextUri" not in page and page["stats"]["state"] == "FINISHED"
     assert rows == [[1, "a"]]
     assert page["columns"] == [
         {"name": "_col0", "type": "integer", "typeSignature": {"rawType": "integer", "arguments": []}},
         {"name": "b", "type": "varchar(1)",
          "typeSignature": {"rawType": "varchar", "arguments": [{"kind": "LONG", "value": 1}]}}]
+
+
+class CountingClient:
+    """A raw HTTP client that follows nextUri and counts the requests it sends."""
+
+    def __init__(self, server):
+        self.server, self.requests = server, 0
+        self.session = requests.Session()
+        self.session.hooks["response"].append(self._count)
+
+    def _count(self, response: requests.Response, *args, **kwargs) -> None:
+        self.requests += 1
+
+    def run(self, sql: str) -> list[dict]:
+        documents = [self.session.post(f"{self.server.url}/v1/statement", data=sql.encode(), headers=HEADERS,
+                                       timeout=30).json()]
+        while "nextUri" in documents[-1]:
+            documents.append(self.session.get(documents[-1]["nextUri"], timeout=30).json())
+        return documents
+
+
+def test_fast_queries_take_one_request(lake_server):
+    client = CountingClient(lake_server)
+    for _ in range(3):  # the first run of a text also translates it
+        [document] = client.run("SELECT count(*) AS n, min(batch_id) FROM metadata")
+        assert document["data"] == [[3, "b1"]] and document["stats"]["state"] == "FINISHED"
+        assert [c["name"] for c in document["columns"]] == ["n", "_col1"]
+        assert document["stats"]["processedRows"] == 1
+    [empty] = client.run("SELECT job_id FROM metadata WHERE false")  # no rows: columns and no data
+    assert "data" not in empty and [c["name"] for c in empty["columns"]] == ["job_id"]
+    [failed] = client.run("SELECT nope FROM metadata")
+    assert failed["stats"]["state"] == "FAILED" and failed["error"]["errorName"] == "COLUMN_NOT_FOUND"
+    assert client.requests == 5
+    # the query is over: DELETE of its id is a no-op, and it still tells what it was
+    assert requests.delete(f"{lake_server.url}/v1/query/{document['id']}", timeout=30).status_code == 204
+    assert requests.get(document["infoUri"], timeout=30).json()["state"] == "FINISHED"
+
+
+def test_slow_queries_and_results_of_several_pages_get_a_next_uri(lake_server, endless):
+    client = CountingClient(lake_server)
+    started = time.monotonic()
+    first = post(lake_server, endless).json()
+    assert time.monotonic() - started < 10  # the POST waits a little, not for the query
+    assert "nextUri" in first and "data" not in first and first["stats"]["state"] in ("QUEUED", "RUNNING")
+    assert requests.delete(first["nextUri"], timeout=30).status_code == 204
+    documents = client.run("SELECT x FROM UNNEST(sequence(1, 5000)) AS t(x)")  # more than one reply holds
+    assert "data" not in documents[0] and len(documents) > 2 and client.requests == len(documents)
+    assert sorted(row[0] for document in documents for row in document.get("data", [])) == list(range(1, 5001))
 
 
 def test_values_and_type_signatures_are_encoded_as_trino_does(lake_server):
@@ -137,7 +185,7 @@ def test_a_retried_get_returns_the_same_page_and_other_tokens_are_refused(lake_s
 
 
 def test_delete_and_head_of_unknown_or_finished_queries(lake_server):
-    documents, _ = run(lake_server, "SELECT 1")
+    documents, _ = run(lake_server, "SELECT x FROM UNNEST(sequence(1, 5000)) AS t(x)")  # several pages
     query_id = documents[0]["id"]
     assert requests.delete(documents[0]["nextUri"], timeout=30).status_code == 204  # finished
     assert requests.delete(f"{lake_server.url}/v1/query/{query_id}", timeout=30).status_code == 204
@@ -177,7 +225,7 @@ def test_bad_requests(lake_server):
 
 def test_a_syntax_error_has_trinos_error_fields_and_position(lake_server):
     documents, _ = run(lake_server, "SELECT 1\nFROM metadata WHERE (")
-    assert len(documents) == 2 and "nextUri" not in documents[-1]
+    assert len(documents) == 1 and "nextUri" not in documents[-1]  # failed at once: in the POST's reply
     failure = documents[-1]["error"]
     assert (failure["errorName"], failure["errorCode"], failure["errorType"]) == ("SYNTAX_ERROR", 1, "USER_ERROR")
     assert failure["errorLocation"]["lineNumber"] == 2
@@ -416,7 +464,7 @@ def test_abandoned_queries_are_canceled_and_finished_ones_forgotten(short_lived,
     server, app = short_lived
     manager = app.state.manager
     abandoned = post(server, endless).json()
-    finished = run(server, "SELECT 1")[0][0]
+    finished = run(server, "SELECT x FROM UNNEST(sequence(1, 5000)) AS t(x)")[0][0]  # several pages
     query = manager.get(abandoned["id"])
     deadline = time.monotonic() + 30
     while (query.failure is None or manager.get(finished["id"]) is not None) and time.monotonic() < deadline:

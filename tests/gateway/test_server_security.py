@@ -106,7 +106,7 @@ def _post(server, sql: str, auth=None, **headers) -> requests.Response:
                          headers={**HEADERS, **headers}, verify=getattr(server, "verify", True))
 
 
-def test_missing_or_wrong_credentials_get_401_and_no_data(auth_server):
+def test_missing_or_wrong_credentials_get_401_and_no_data(auth_server, endless):
     for auth in (None, ("alice", "wrong"), ("nobody", "wonderland"), ("alice", "")):
         response = _post(auth_server, "SELECT count(*) FROM metadata", auth=auth)
         assert response.status_code == 401, auth
@@ -114,7 +114,7 @@ def test_missing_or_wrong_credentials_get_401_and_no_data(auth_server):
         assert "data" not in response.text and "nextUri" not in response.text
     assert requests.get(f"{auth_server.url}/v1/info", timeout=30).status_code == 200  # probes need no login
 
-    first = _post(auth_server, "SELECT count(*) FROM metadata", auth=("alice", "wonderland"))
+    first = _post(auth_server, endless, auth=("alice", "wonderland"))  # still running: it has a nextUri
     assert first.status_code == 200
     next_uri = first.json()["nextUri"]
     assert requests.get(next_uri, timeout=30).status_code == 401
@@ -123,6 +123,9 @@ def test_missing_or_wrong_credentials_get_401_and_no_data(auth_server):
     assert requests.get(next_uri, auth=("bob", "builder"), timeout=30).status_code == 404
     requests.delete(next_uri, auth=("bob", "builder"), timeout=30)
     document = requests.get(next_uri, auth=("alice", "wonderland"), timeout=30).json()
+    assert "error" not in document and "nextUri" in document
+    assert requests.delete(document["nextUri"], auth=("alice", "wonderland"), timeout=30).status_code == 204
+    document = _post(auth_server, "SELECT count(*) FROM metadata", auth=("alice", "wonderland")).json()
     while "nextUri" in document:
         document = requests.get(document["nextUri"], auth=("alice", "wonderland"), timeout=30).json()
     assert document["data"] == [[3]]

@@ -257,3 +257,36 @@ def start_server(server_lake, tmp_path_factory) -> Callable[..., Server]:
 def lake_server(start_server) -> Server:
     """The shared server: default limits, 4 concurrent queries."""
     return start_server("--max-concurrent-queries", "4")
+
+
+def write_self_signed_certificate(folder: Path, name: str = "lakegate test") -> tuple[Path, Path]:
+    """A self-signed certificate for 127.0.0.1 (usable as its own CA bundle) and its key, as PEM files."""
+    import datetime as dt
+    import ipaddress
+
+    from cryptography import x509
+    from cryptography.hazmat.primitives import hashes, serialization
+    from cryptography.hazmat.primitives.asymmetric import ec
+    from cryptography.x509.oid import NameOID
+
+    key = ec.generate_private_key(ec.SECP256R1())
+    subject = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, name)])
+    now = dt.datetime.now(dt.timezone.utc)
+    cert = (x509.CertificateBuilder().subject_name(subject).issuer_name(subject).public_key(key.public_key())
+            .serial_number(x509.random_serial_number()).not_valid_before(now - dt.timedelta(days=1))
+            .not_valid_after(now + dt.timedelta(days=1))
+            .add_extension(x509.SubjectAlternativeName([x509.IPAddress(ipaddress.ip_address("127.0.0.1"))]),
+                           critical=False)
+            .add_extension(x509.BasicConstraints(ca=True, path_length=None), critical=True)
+            .sign(key, hashes.SHA256()))
+    cert_file, key_file = folder / "cert.pem", folder / "key.pem"
+    cert_file.write_bytes(cert.public_bytes(serialization.Encoding.PEM))
+    key_file.write_bytes(key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8,
+                                           serialization.NoEncryption()))
+    return cert_file, key_file
+
+
+@pytest.fixture(scope="session")
+def make_certificate() -> Callable[..., tuple[Path, Path]]:
+    """`write_self_signed_certificate(folder, name)`, for the TLS tests."""
+    return write_self_signed_certificate

@@ -7,9 +7,7 @@ DuckDB backend, and password authentication over TLS reaches the server."""
 from __future__ import annotations
 
 import argparse
-import datetime as dt
 import gc
-import ipaddress
 import json
 import math
 import re
@@ -23,10 +21,6 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 import requests
-from cryptography import x509
-from cryptography.hazmat.primitives import hashes, serialization
-from cryptography.hazmat.primitives.asymmetric import ec
-from cryptography.x509.oid import NameOID
 
 from lakegate.dialect.errors import ERROR_CODES, DialectError
 from lakegate.dialect.scope import Scope
@@ -363,24 +357,13 @@ def test_without_exact_positions_the_query_is_regenerated_and_errors_carry_none(
     assert forwarded.user_position(1, 10) == (None, None)
 
 
-def test_a_password_goes_over_tls_to_the_cluster(server_lake, tmp_path, monkeypatch):
+def test_a_password_goes_over_tls_to_the_cluster(server_lake, tmp_path, monkeypatch, make_certificate):
     """`lakegate serve --users --tls-cert` as the cluster: HTTP Basic over https, with the server's
     self-signed certificate as the CA bundle (which wins over REQUESTS_CA_BUNDLE, unlike in a plain
     requests session); a wrong password is a clear error."""
     monkeypatch.setenv("REQUESTS_CA_BUNDLE", requests_ca_bundle())
-    key = ec.generate_private_key(ec.SECP256R1())
-    name = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, "lakegate forwarding test")])
-    now = dt.datetime.now(dt.timezone.utc)
-    cert = (x509.CertificateBuilder().subject_name(name).issuer_name(name).public_key(key.public_key())
-            .serial_number(x509.random_serial_number()).not_valid_before(now - dt.timedelta(days=1))
-            .not_valid_after(now + dt.timedelta(days=1))
-            .add_extension(x509.SubjectAlternativeName([x509.IPAddress(ipaddress.ip_address("127.0.0.1"))]),
-                           critical=False)
-            .add_extension(x509.BasicConstraints(ca=True, path_length=None), critical=True).sign(key, hashes.SHA256()))
-    cert_file, key_file, users = tmp_path / "cert.pem", tmp_path / "key.pem", tmp_path / "users.txt"
-    cert_file.write_bytes(cert.public_bytes(serialization.Encoding.PEM))
-    key_file.write_bytes(key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8,
-                                           serialization.NoEncryption()))
+    cert_file, key_file = make_certificate(tmp_path, "lakegate forwarding test")
+    users = tmp_path / "users.txt"
     users.write_text(f"alice:{bcrypt.hashpw(b'wonderland', bcrypt.gensalt(4)).decode()}\n")
     process, url = start_server(server_lake, tmp_path / "serve.log", "--users", str(users), "--tls-cert", str(cert_file),
                                 "--tls-key", str(key_file))

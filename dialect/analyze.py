@@ -587,7 +587,7 @@ class Analyzer:
         args = list(node.expressions)
         if len(args) == 1 and isinstance(args[0], exp.Distinct):
             if spec.kind != "aggregate":
-                self.fail(f"DISTINCT is not supported for non-aggregation functions", node, "FUNCTION_NOT_AGGREGATE")
+                self.fail("DISTINCT is not supported for non-aggregation functions", node, "FUNCTION_NOT_AGGREGATE")
             node.meta["distinct"] = True
             args = list(args[0].expressions)
         if args and isinstance(args[0], exp.Order):
@@ -599,7 +599,7 @@ class Analyzer:
             for ordered in order.expressions:
                 self.expr(ordered.this, scope, env)
         if any(isinstance(a, exp.Star) for a in args) and name != "count":
-            self.fail(f"'*' is only allowed in count(*)", node, "SYNTAX_ERROR")
+            self.fail("'*' is only allowed in count(*)", node, "SYNTAX_ERROR")
         node.meta["args"] = args
         node.meta["spec"] = spec
         return spec.infer(Call(self, node, name, args, scope, env))
@@ -1147,7 +1147,7 @@ def _substring(a: Analyzer, node, scope, env):
     for key in ("start", "length"):
         arg = node.args.get(key)
         if arg is not None and not (a.expr(arg, scope, env).is_integral or ttype(arg).is_unknown):
-            a.fail(f"Unexpected parameters for function substr", node, "FUNCTION_NOT_FOUND")
+            a.fail("Unexpected parameters for function substr", node, "FUNCTION_NOT_FOUND")
     if t.base not in ("varchar", "unknown"):
         a.fail(f"Unexpected parameters ({t}) for function substr", node, "FUNCTION_NOT_FOUND")
     return t if t.base == "varchar" else tt.VARCHAR
@@ -1169,7 +1169,7 @@ def _position(a: Analyzer, node, scope, env):
     for key in ("this", "substr"):
         t = a.expr(node.args[key], scope, env)
         if t.base not in ("varchar", "unknown"):
-            a.fail(f"Unexpected parameters for function strpos", node, "FUNCTION_NOT_FOUND")
+            a.fail("Unexpected parameters for function strpos", node, "FUNCTION_NOT_FOUND")
     if node.args.get("position") is not None or node.args.get("occurrence") is not None:
         a.unsupported("position with a start", node)
     return tt.BIGINT

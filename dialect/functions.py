@@ -1137,7 +1137,7 @@ def _render_array_position(g, node, args) -> str:
 
 
 def _array_join(call: Call) -> TType:
-    types = need(call, "array", "string", "string", optional=1)
+    need(call, "array", "string", "string", optional=1)
     element = _array_arg(call).element
     if element.base in ("array", "map", "row", "json"):
         call.mismatch()
@@ -1394,7 +1394,7 @@ def _render_zip_with(g, node, args) -> str:
 
 
 def _sequence(call: Call) -> TType:
-    types = need(call, "integral", "integral", "integral", optional=1)
+    need(call, "integral", "integral", "integral", optional=1)
     return tt.array(tt.BIGINT)
 
 

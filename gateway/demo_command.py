@@ -84,7 +84,7 @@ def demo_command(args: argparse.Namespace) -> int:
     print(format_table(evaluation))
 
     report_path = write_report(evaluation, lake / "report.html")
-    _step(f"5/5 wrote the report with every figure")
+    _step("5/5 wrote the report with every figure")
     print(f"\nreport: {report_path}")
     print(f"lake:   {lake}  (branch {BRANCH!r}, batch {BATCH!r}; done in {time.perf_counter() - started:.1f} s)")
     print("\nnext:")

@@ -19,13 +19,11 @@ import os
 import random
 import shutil
 import statistics
-import subprocess
 import sys
-import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from results import write_section  # noqa: E402
+from results import run_python, run_times, write_section  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 WORK = ROOT / "bench" / ".work" / "ingest"
@@ -117,26 +115,11 @@ def emissions(lines: int) -> Path:
     return path
 
 
-def run(code: str, *args: str) -> dict:
-    """Run `code` in a fresh interpreter; its JSON output plus wall time and peak RSS (MB)."""
-    start = time.perf_counter()
-    process = subprocess.Popen([sys.executable, "-c", code, *args], stdout=subprocess.PIPE, text=True)
-    output = process.stdout.read()
-    _, status, usage = os.wait4(process.pid, 0)
-    wall = time.perf_counter() - start
-    process.stdout.close()
-    if status != 0:
-        raise SystemExit(f"benchmark subprocess failed (status {status})")
-    result = json.loads(output)
-    result.update(wall=wall, rss_mb=usage.ru_maxrss / 1024, cpu=usage.ru_utime + usage.ru_stime)
-    return result
-
-
 def ours(path: Path) -> dict:
     lake = WORK / "lake"
     shutil.rmtree(lake, ignore_errors=True)
     try:
-        return run(OURS, str(lake), str(path), str(CONFIG))
+        return run_python(OURS, str(lake), str(path), str(CONFIG))
     finally:
         shutil.rmtree(lake, ignore_errors=True)
 
@@ -144,13 +127,9 @@ def ours(path: Path) -> dict:
 def baseline(path: Path) -> dict:
     target = WORK / "duckdb.parquet"
     try:
-        return run(BASELINE, str(path), str(target))
+        return run_python(BASELINE, str(path), str(target))
     finally:
         target.unlink(missing_ok=True)
-
-
-def _times(results: list[dict]) -> str:
-    return ", ".join(f"{r['seconds']:.2f}" for r in results)
 
 
 def main() -> int:
@@ -196,7 +175,7 @@ def main() -> int:
         f"- ratio lakegate / DuckDB: **{ratio:.2f}x** (goal >= {GOAL}x): {'met' if ratio >= GOAL else 'NOT met'}",
         f"- memory: peak RSS {rss['lakegate']:.0f} MB for {size_mb:.0f} MB of input, {small_rss:.0f} MB for a third "
         f"of it: {'bounded (streaming)' if bounded else 'NOT bounded'}",
-        f"- all runs (s): lakegate {_times(runs['lakegate'])}; DuckDB {_times(runs['duckdb'])}; "
+        f"- all runs (s): lakegate {run_times(runs['lakegate'])}; DuckDB {run_times(runs['duckdb'])}; "
         f"load average at the end {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores",
     ]
     write_section("Ingest", "python3 dev.py bench ingest", lines)

@@ -25,13 +25,12 @@ import json
 import os
 import shutil
 import statistics
-import subprocess
 import sys
 import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from results import write_section  # noqa: E402
+from results import run_python, run_times, write_section  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 WORK = ROOT / "bench" / ".work" / "metrics"
@@ -143,24 +142,6 @@ def prepare(jobs: int, rows_per_job: int) -> tuple[Path, int]:
     return lake, total
 
 
-def run(code: str, *args: str) -> dict:
-    """Run `code` in a fresh interpreter; its JSON output plus wall time and CPU seconds."""
-    start = time.perf_counter()
-    process = subprocess.Popen([sys.executable, "-c", code, *args], stdout=subprocess.PIPE, text=True)
-    output = process.stdout.read()
-    _, status, usage = os.wait4(process.pid, 0)
-    process.stdout.close()
-    if status != 0:
-        raise SystemExit(f"benchmark subprocess failed (status {status})")
-    result = json.loads(output)
-    result.update(wall=time.perf_counter() - start, cpu=usage.ru_utime + usage.ru_stime)
-    return result
-
-
-def _times(results: list[dict]) -> str:
-    return ", ".join(f"{r['seconds']:.2f}" for r in results)
-
-
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--jobs", type=int, default=100, help="jobs in the batch (default 100)")
@@ -172,7 +153,7 @@ def main() -> int:
     runs: dict[str, list[dict]] = {"lakegate": [], "baseline": []}
     for i in range(args.runs):
         for name, code in (("baseline", BASELINE), ("lakegate", OURS)):
-            result = run(code, str(lake), names, BATCH)
+            result = run_python(code, str(lake), names, BATCH)
             runs[name].append(result)
             print(f"run {i + 1}: {name:<8} {result['seconds']:.2f} s, {result['jobs'] / result['seconds']:.1f} jobs/s, "
                   f"peak RSS {result['rss_mb']:.0f} MB", flush=True)
@@ -211,7 +192,7 @@ def main() -> int:
         f"{os.cpu_count()} idle cores. Most of the bare DuckDB time is binding: each scoped table reference "
         "lists and filters every job partition of the branch (about 10 ms per reference at 100 jobs)",
         f"- job statuses: {ours[0]['statuses']}",
-        f"- all runs (s): lakegate {_times(ours)}; baseline {_times(runs['baseline'])}; load average at the end "
+        f"- all runs (s): lakegate {run_times(ours)}; baseline {run_times(runs['baseline'])}; load average at the end "
         f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores",
     ]
     write_section("Metrics", "python3 dev.py bench metrics", lines)

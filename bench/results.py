@@ -1,6 +1,7 @@
 """Shared by the benchmark scripts: machine facts, medians, and writing one section of RESULTS.md."""
 from __future__ import annotations
 
+import json
 import os
 import platform
 import re
@@ -46,6 +47,28 @@ def timed(fn: Callable[[], object]) -> float:
     start = time.perf_counter()
     fn()
     return time.perf_counter() - start
+
+
+def run_python(code: str, *args: str) -> dict:
+    """Run `code` in a fresh interpreter; the JSON it prints, plus `wall` and `cpu` seconds and
+    `rss_mb` (peak RSS, unless the code reported its own)."""
+    start = time.perf_counter()
+    process = subprocess.Popen([sys.executable, "-c", code, *args], stdout=subprocess.PIPE, text=True)
+    output = process.stdout.read()
+    _, status, usage = os.wait4(process.pid, 0)
+    wall = time.perf_counter() - start
+    process.stdout.close()
+    if status != 0:
+        raise SystemExit(f"benchmark subprocess failed (status {status})")
+    result = json.loads(output)
+    result.update(wall=wall, cpu=usage.ru_utime + usage.ru_stime)
+    result.setdefault("rss_mb", usage.ru_maxrss / 1024)
+    return result
+
+
+def run_times(results: Iterable[dict]) -> str:
+    """The `seconds` of each run, for a results line."""
+    return ", ".join(f"{r['seconds']:.2f}" for r in results)
 
 
 def git_revision() -> str:

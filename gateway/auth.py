@@ -4,7 +4,9 @@ authentication, and the rules for where the server may listen.
 The users file has one `user:bcrypt-hash` per line (blank lines and `#` comments allowed); make a
 hash with `python -c "import bcrypt; print(bcrypt.hashpw(b'secret', bcrypt.gensalt()).decode())"`.
 A successful check is remembered (as a SHA-256 digest of user and password) so that the bcrypt
-cost is paid once per client, not on every page request.
+cost is paid once per client, not on every page request. An unknown user costs a bcrypt check too
+(against a dummy hash), so that answer times do not tell which users exist; a password over 72
+bytes (bcrypt's limit) never matches. `LoginFailures` makes a client wait after repeated failures.
 """
 from __future__ import annotations
 
@@ -12,7 +14,10 @@ import base64
 import binascii
 import hashlib
 import ipaddress
+import math
+import secrets
 import threading
+import time
 from collections import OrderedDict
 from pathlib import Path
 
@@ -21,6 +26,8 @@ import bcrypt
 #: Remembered successful logins.
 CACHE_SIZE = 1024
 _BCRYPT_PREFIXES = ("$2a$", "$2b$", "$2y$")
+#: The longest password bcrypt checks (bcrypt 5 refuses longer ones; older versions truncated them).
+MAX_PASSWORD_BYTES = 72
 
 
 class UsersFileError(ValueError):
@@ -32,6 +39,8 @@ class Users:
 
     def __init__(self, hashes: dict[str, bytes]):
         self._hashes = hashes
+        cost = max(int(hashed[4:6]) for hashed in hashes.values())  # $2b$12$...: the slowest stored cost
+        self._dummy = bcrypt.hashpw(secrets.token_bytes(16), bcrypt.gensalt(cost))
         self._verified: OrderedDict[bytes, None] = OrderedDict()
         self._lock = threading.Lock()
 
@@ -75,21 +84,58 @@ class Users:
             return key is not None and key in self._verified
 
     def verify(self, user: str, password: str) -> bool:
-        """Whether `password` is `user`'s (bcrypt: slow the first time, remembered after)."""
+        """Whether `password` is `user`'s (bcrypt: slow the first time, remembered after; as slow
+        for an unknown user)."""
         key = self._key(user, password)
-        if key is None:
-            return False
         with self._lock:
-            if key in self._verified:
+            if key is not None and key in self._verified:
                 self._verified.move_to_end(key)
                 return True
-        if not bcrypt.checkpw(password.encode("utf-8", "surrogatepass"), self._hashes[user]):
+        secret = password.encode("utf-8", "surrogatepass")
+        hashed = self._hashes.get(user, self._dummy)
+        matches = bcrypt.checkpw(secret[:MAX_PASSWORD_BYTES], hashed)  # the same work for any name or length
+        if key is None or not matches or len(secret) > MAX_PASSWORD_BYTES:
             return False
         with self._lock:
             self._verified[key] = None
             if len(self._verified) > CACHE_SIZE:
                 self._verified.popitem(last=False)
         return True
+
+
+class LoginFailures:
+    """Failed logins per (client address, user name): after FREE_FAILURES in a row, the next
+    attempt must wait 1 s, then 2, 4 ... up to MAX_WAIT seconds after the last one. A login that
+    succeeds resets the count. Attempts count when they start, so parallel guesses count too."""
+
+    FREE_FAILURES = 5
+    MAX_WAIT = 60
+    MAX_CLIENTS = 10_000  # the least recently failing are forgotten beyond this
+
+    def __init__(self) -> None:
+        self._failures: OrderedDict[tuple[str, str], tuple[int, float]] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def wait(self, client: str, user: str) -> int:
+        """Seconds the client must still wait before trying `user` again (0: it may try now)."""
+        with self._lock:
+            count, last = self._failures.get((client, user), (0, 0.0))
+        if count < self.FREE_FAILURES:
+            return 0
+        delay = min(2 ** (count - self.FREE_FAILURES), self.MAX_WAIT)
+        return math.ceil(max(0.0, last + delay - time.monotonic()))
+
+    def attempt(self, client: str, user: str) -> None:
+        """An attempt starts: it counts as a failure until it `succeeded`."""
+        with self._lock:
+            count, _ = self._failures.pop((client, user), (0, 0.0))
+            self._failures[(client, user)] = (count + 1, time.monotonic())
+            if len(self._failures) > self.MAX_CLIENTS:
+                self._failures.popitem(last=False)
+
+    def succeeded(self, client: str, user: str) -> None:
+        with self._lock:
+            self._failures.pop((client, user), None)
 
 
 def basic_credentials(header: str | None) -> tuple[str, str] | None:

@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from lakegate.gateway.auth import is_loopback
-from lakegate.gateway.cli import UserError
+from lakegate.gateway.cli import UserError, port_number
 from lakegate.lake import paths
 from lakegate.lake.config import Config, ConfigError, find_default_config, load_config
 from lakegate.lake.ingest import IngestError, ingest_job
@@ -65,7 +65,7 @@ def add_debug_parser(commands: argparse._SubParsersAction) -> None:
                        help=f"the branch of the debug job (default {BRANCH!r})")
     debug.add_argument("--host", default="127.0.0.1",
                        help="the loopback address to listen on (default 127.0.0.1; the page has no authentication)")
-    debug.add_argument("--port", type=int, default=0, metavar="N", help="the port (default 0: any free port)")
+    debug.add_argument("--port", type=port_number, default=0, metavar="N", help="the port (default 0: any free port)")
     debug.add_argument("--no-browser", action="store_true", help="do not open the dashboard in a web browser")
     debug.set_defaults(func=debug_command)
 
@@ -250,7 +250,10 @@ def _serve(app: Any, sock: socket.socket) -> None:
     """Serve `app` on an already listening socket until Ctrl+C (or SIGTERM)."""
     import uvicorn
 
-    server = uvicorn.Server(uvicorn.Config(app, log_level="warning", access_log=False, lifespan="on"))
+    from lakegate.gateway.http_limits import server_config
+    from lakegate.gateway.limits import Limits
+
+    server = uvicorn.Server(server_config(app, Limits()))
     server.run(sockets=[sock])
 
 

@@ -17,3 +17,8 @@ class Limits:
     page_bytes: int = 1_000_000         # target size of one page of rows
     wait: float = 1.0                   # longest a GET waits for the next page
     answer_wait: float = 0.02           # longest a POST waits to answer a fast query (whole) in its reply
+    max_body: int = 1_000_000           # bytes of a request body (Trino's query.max-length); more: HTTP 413
+    max_header_bytes: int = 65_536      # bytes of a request's line and headers; more: HTTP 431
+    request_timeout: float = 30.0       # seconds a request's headers and body may take to arrive; then 408
+    keep_alive: int = 5                 # seconds an idle keep-alive connection stays open
+    max_connections: int = 1000         # open connections; more are answered 503 and closed

@@ -18,7 +18,7 @@ import sys
 from pathlib import Path
 
 from lakegate.gateway.auth import Users, UsersFileError, check_listen
-from lakegate.gateway.cli import UserError
+from lakegate.gateway.cli import UserError, port_number
 from lakegate.gateway.limits import Limits
 
 _DEFAULTS = Limits()
@@ -46,7 +46,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--lake", type=Path, required=True, metavar="DIR", help="the lake's directory")
     parser.add_argument("--host", default="127.0.0.1",
                         help="address to listen on (default 127.0.0.1; any other needs --users and TLS)")
-    parser.add_argument("--port", type=int, default=8080, help="port to listen on (default 8080; 0 picks a free one)")
+    parser.add_argument("--port", type=port_number, default=8080, help="port to listen on (default 8080; 0 picks a free one)")
     parser.add_argument("--catalog", default="lake", help="the lake's catalog name (default: lake)")
     parser.add_argument("--users", type=Path, metavar="FILE",
                         help="require HTTP Basic authentication against this file of 'user:bcrypt-hash' lines")
@@ -68,6 +68,18 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--max-queued-queries", type=_positive(int), default=_DEFAULTS.max_queued_queries,
                         metavar="N", help=f"queries that may wait; more fail with QUERY_QUEUE_FULL "
                                           f"(default {_DEFAULTS.max_queued_queries})")
+    parser.add_argument("--max-body", type=_positive(int), default=_DEFAULTS.max_body, metavar="BYTES",
+                        help=f"bytes a request body may have; a larger one gets HTTP 413, for /v1/statement with "
+                             f"QUERY_TEXT_TOO_LARGE (default {_DEFAULTS.max_body:,}, Trino's query.max-length)")
+    parser.add_argument("--max-header-bytes", type=_positive(int), default=_DEFAULTS.max_header_bytes,
+                        metavar="BYTES", help=f"bytes a request's line and headers may have; more get HTTP 431 "
+                                              f"(default {_DEFAULTS.max_header_bytes:,})")
+    parser.add_argument("--request-timeout", type=_positive(float), default=_DEFAULTS.request_timeout, metavar="S",
+                        help=f"seconds a request's headers and body may take to arrive; a slower one gets HTTP 408 "
+                             f"and its connection is closed (default {_DEFAULTS.request_timeout:g})")
+    parser.add_argument("--max-connections", type=_positive(int), default=_DEFAULTS.max_connections, metavar="N",
+                        help=f"open connections; more are answered HTTP 503 and closed "
+                             f"(default {_DEFAULTS.max_connections})")
     parser.set_defaults(func=serve_command)
 
 
@@ -125,21 +137,23 @@ def serve_command(args: argparse.Namespace) -> int:
 
     from lakegate.gateway.backend import DuckDBBackend
     from lakegate.gateway.dashboard import DashboardState, dashboard_router
+    from lakegate.gateway.http_limits import server_config
     from lakegate.gateway.server import create_app
 
     users = _check_options(args)
     limits = Limits(query_timeout=args.query_timeout, max_rows=args.max_rows,
-                    max_concurrent_queries=args.max_concurrent_queries, max_queued_queries=args.max_queued_queries)
+                    max_concurrent_queries=args.max_concurrent_queries, max_queued_queries=args.max_queued_queries,
+                    max_body=args.max_body, max_header_bytes=args.max_header_bytes,
+                    request_timeout=args.request_timeout, max_connections=args.max_connections)
     sock = _listen(args.host, args.port)
     backend = DuckDBBackend(args.lake, memory_limit=args.memory_limit, threads=args.threads)
     dashboard = DashboardState(args.lake, backend)
     try:
         app = create_app(backend, catalog_name=args.catalog, limits=limits, users=users,
                          dashboard_router=dashboard_router(dashboard))
-        config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="on",
-                                timeout_graceful_shutdown=5,
-                                ssl_certfile=str(args.tls_cert) if args.tls_cert else None,
-                                ssl_keyfile=str(args.tls_key) if args.tls_key else None)
+        config = server_config(app, limits, timeout_graceful_shutdown=5,
+                               ssl_certfile=str(args.tls_cert) if args.tls_cert else None,
+                               ssl_keyfile=str(args.tls_key) if args.tls_key else None)
         host, port = sock.getsockname()[:2]
         shown = f"[{host}]" if ":" in host else host
         scheme = "https" if args.tls_cert else "http"

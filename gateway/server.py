@@ -13,8 +13,8 @@ the worker wait. `GET nextUri` returns the next page (waiting up to
 fails queries whose client went away, and forgets finished queries.
 
 Routes: /v1/statement, /v1/statement/executing/{id}/{slug}/{token} (GET, HEAD, DELETE),
-/v1/query/{id} (GET, DELETE), /v1/info, /v1/info/state. With `users`, every route but /v1/info
-needs HTTP Basic credentials.
+/v1/query/{id} (GET, DELETE), /v1/info, /v1/info/state. With `users`, every route but /v1/info and
+/v1/info/state needs HTTP Basic credentials (checked by `http_limits.Guard` before a body is read).
 """
 from __future__ import annotations
 
@@ -32,15 +32,16 @@ from typing import Callable, Iterator, Sequence
 
 import orjson
 import pyarrow as pa
-from fastapi import APIRouter, Depends, FastAPI, HTTPException, Request
+from fastapi import APIRouter, FastAPI, Request
 from fastapi.responses import PlainTextResponse, Response
 from starlette.concurrency import run_in_threadpool
 
 from lakegate.dialect import guard
 from lakegate.dialect.errors import DialectError
 from lakegate.gateway import session as sessions
-from lakegate.gateway.auth import Users, basic_credentials
+from lakegate.gateway.auth import Users
 from lakegate.gateway.backend import Backend, QueryResult
+from lakegate.gateway.http_limits import Guard, authenticated_user
 from lakegate.gateway.limits import Limits
 from lakegate.gateway.protocol import (Failure, Progress, QueryIds, columns_document, info_document,
                                        results_document)
@@ -516,20 +517,9 @@ class _Endpoints:
         self.manager, self.metadata, self.limits, self.users = manager, metadata, limits, users
         self.started = time.monotonic()
 
-    async def user(self, request: Request) -> str | None:
-        """The authenticated user (None without a users file); HTTP 401 without valid credentials."""
-        if self.users is None:
-            return None
-        credentials = basic_credentials(request.headers.get("authorization"))
-        if credentials is not None and (self.users.remembered(*credentials) or
-                                        await run_in_threadpool(self.users.verify, *credentials)):
-            return credentials[0]
-        raise HTTPException(401, "Unauthorized: a valid user name and password are needed (HTTP Basic)",
-                            headers={"WWW-Authenticate": 'Basic realm="lakegate"'})
-
     async def query(self, request: Request, *, slug: bool = True) -> Query | None:
         """The query the path names, if it exists and the authenticated user may see it."""
-        user = await self.user(request)
+        user = authenticated_user(request.scope)
         params = request.path_params
         query = self.manager.get(params["query_id"])
         if query is None or (user is not None and query.session.user != user):
@@ -537,7 +527,7 @@ class _Endpoints:
         return query if not slug or query.slug == params["slug"] else None
 
     async def post_statement(self, request: Request) -> Response:
-        user = await self.user(request)
+        user = authenticated_user(request.scope)
         if user is not None and request.headers.get("x-trino-user") not in (None, user):
             return PlainTextResponse(f"Access Denied: User {user} cannot impersonate user "
                                      f"{request.headers['x-trino-user']}", 403)
@@ -622,15 +612,16 @@ def create_app(backend: Backend, *, catalog_name: str = "lake", limits: Limits =
                users: Users | None = None, dashboard_router: APIRouter | None = None) -> FastAPI:
     """The SQL endpoint over `backend` (which must also list its branches: `backend.branches()`).
 
-    `catalog_name` is the lake's catalog; `limits` bound queries; with `users`, every request but
-    /v1/info needs HTTP Basic credentials of one of them. `dashboard_router` is included as it is,
-    behind the same authentication. `app.state` holds `manager` (QueryManager), `metadata`
+    `catalog_name` is the lake's catalog; `limits` bound queries and requests (`http_limits.Guard`);
+    with `users`, every request but /v1/info and /v1/info/state needs HTTP Basic credentials of one
+    of them. `dashboard_router` is included as it is, behind the same guard. `app.state` holds `manager` (QueryManager), `metadata`
     (Metadata), `backend` and `limits`. Closing the app (lifespan shutdown) fails running queries
     and stops the workers; the backend stays open (its owner closes it).
     """
     queries: list[QueryManager] = []
     metadata = Metadata(backend, catalog=catalog_name, memory_limit=getattr(backend, "memory_limit", "1GB"),
-                        queries=lambda: [query.row() for manager in queries for query in manager.queries()])
+                        queries=lambda user: [query.row() for manager in queries for query in manager.queries()
+                                              if users is None or query.session.user == user])
     manager = QueryManager(Planner(backend, metadata), limits)
     queries.append(manager)
 
@@ -653,5 +644,11 @@ def create_app(backend: Backend, *, catalog_name: str = "lake", limits: Limits =
     app.add_route("/v1/info", endpoints.get_info, methods=["GET"])
     app.add_route("/v1/info/state", endpoints.get_state, methods=["GET"])
     if dashboard_router is not None:
-        app.include_router(dashboard_router, dependencies=[Depends(endpoints.user)])
+        app.include_router(dashboard_router)
+
+    def statement_error(scope: dict, message: str) -> bytes:
+        failure = Failure(message, "QUERY_TEXT_TOO_LARGE")
+        return _immediate(manager.ids.next(), _base_url(Request(scope)), failure=failure)
+
+    app.add_middleware(Guard, limits=limits, users=users, statement_error=statement_error)
     return app

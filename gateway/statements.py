@@ -184,7 +184,7 @@ class Planner:
         if kind == "explain":
             raise DialectError("unsupported in lakegate: EXPLAIN of a query over system tables",
                                line=1, column=1, error_name="NOT_SUPPORTED")
-        return self.metadata.run(plan.sql, plan.system, params)
+        return self.metadata.run(plan.sql, plan.system, params, user=session.user)
 
     def _default_branch(self, session: Session) -> str | None:
         """Where a query that reads no table runs: the session's branch, else any branch (None: the

@@ -102,10 +102,11 @@ class TableRef:
 
 class Metadata:
     """The catalogs, schemas and tables the server shows over `backend` (its branches and schemas),
-    and the system tables. `queries` lists the server's queries as rows of system.runtime.queries."""
+    and the system tables. `queries(user)` lists the server's queries that `user` (the session's
+    user) may see, as rows of system.runtime.queries."""
 
     def __init__(self, backend: Backend, *, catalog: str = "lake",
-                 queries: Callable[[], list[tuple]] = list, memory_limit: str = "1GB"):
+                 queries: Callable[[str | None], list[tuple]] = lambda user: [], memory_limit: str = "1GB"):
         self.backend, self.catalog, self.queries = backend, catalog, queries
         self._db = duckdb.connect(":memory:", config={
             "threads": 1, "memory_limit": memory_limit, "autoinstall_known_extensions": False,
@@ -193,8 +194,8 @@ class Metadata:
                 for table, columns in self.tables(catalog, schema).items():
                     yield catalog, schema, table, columns
 
-    def rows(self, ref: TableRef) -> list[tuple]:
-        """The rows of a system table."""
+    def rows(self, ref: TableRef, user: str | None = None) -> list[tuple]:
+        """The rows of a system table, as `user` sees them."""
         catalog, schema, table = ref.catalog, ref.schema, ref.table
         if schema == INFORMATION_SCHEMA:
             if table == "schemata":
@@ -223,27 +224,29 @@ class Metadata:
         if (schema, table) == ("metadata", "table_comments"):
             return [(c, s, t, None) for c, s, t, _ in self._all_tables(everything)]
         if (schema, table) == ("runtime", "queries"):
-            return self.queries()
+            return self.queries(user)
         raise DialectError(f"Table '{ref}' does not exist", error_name="TABLE_NOT_FOUND")
 
-    def arrow(self, ref: TableRef) -> pa.Table:
+    def arrow(self, ref: TableRef, user: str | None = None) -> pa.Table:
         columns = self.tables(ref.catalog, ref.schema)[ref.table]
-        rows = self.rows(ref)
+        rows = self.rows(ref, user)
         return pa.table({name: pa.array([row[i] for row in rows], _ARROW[trino_type])
                          for i, (name, trino_type) in enumerate(columns)})
 
     # -- queries over system tables -------------------------------------------------------
 
-    def run(self, sql: str, refs: Sequence[TableRef], params: Sequence[object] = ()) -> QueryResult:
+    def run(self, sql: str, refs: Sequence[TableRef], params: Sequence[object] = (),
+            user: str | None = None) -> QueryResult:
         """Start one Trino query whose (unqualified) table names are the `refs`' table names, over
-        those system tables. Raises DialectError; the result streams and can be canceled."""
+        those system tables as `user` sees them. Raises DialectError; the result streams and can be
+        canceled."""
         schema = {ref.table: dict(self.tables(ref.catalog, ref.schema)[ref.table]) for ref in refs}
         translation = translate(sql, schema, params=params)
         with self._lock:
             cursor = self._db.cursor()
         try:
             for ref in refs:
-                cursor.register(ref.table, self.arrow(ref))
+                cursor.register(ref.table, self.arrow(ref, user))
             relation = cursor.sql(translation.duckdb_sql)
         except BaseException as error:
             cursor.close()

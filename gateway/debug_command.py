@@ -65,7 +65,8 @@ def add_debug_parser(commands: argparse._SubParsersAction) -> None:
                        help=f"the branch of the debug job (default {BRANCH!r})")
     debug.add_argument("--host", default="127.0.0.1",
                        help="the loopback address to listen on (default 127.0.0.1; the page has no authentication)")
-    debug.add_argument("--port", type=port_number, default=0, metavar="N", help="the port (default 0: any free port)")
+    debug.add_argument("--port", type=port_number, default=0, metavar="N",
+                       help="the port (default 0: any free port)")
     debug.add_argument("--no-browser", action="store_true", help="do not open the dashboard in a web browser")
     debug.set_defaults(func=debug_command)
 

@@ -46,7 +46,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--lake", type=Path, required=True, metavar="DIR", help="the lake's directory")
     parser.add_argument("--host", default="127.0.0.1",
                         help="address to listen on (default 127.0.0.1; any other needs --users and TLS)")
-    parser.add_argument("--port", type=port_number, default=8080, help="port to listen on (default 8080; 0 picks a free one)")
+    parser.add_argument("--port", type=port_number, default=8080,
+                        help="port to listen on (default 8080; 0 picks a free one)")
     parser.add_argument("--catalog", default="lake", help="the lake's catalog name (default: lake)")
     parser.add_argument("--users", type=Path, metavar="FILE",
                         help="require HTTP Basic authentication against this file of 'user:bcrypt-hash' lines")

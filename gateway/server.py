@@ -614,8 +614,8 @@ def create_app(backend: Backend, *, catalog_name: str = "lake", limits: Limits =
 
     `catalog_name` is the lake's catalog; `limits` bound queries and requests (`http_limits.Guard`);
     with `users`, every request but /v1/info and /v1/info/state needs HTTP Basic credentials of one
-    of them. `dashboard_router` is included as it is, behind the same guard. `app.state` holds `manager` (QueryManager), `metadata`
-    (Metadata), `backend` and `limits`. Closing the app (lifespan shutdown) fails running queries
+    of them. `dashboard_router` is included as it is, behind the same guard. `app.state` holds
+    `manager` (QueryManager), `metadata` (Metadata), `backend` and `limits`. Closing the app (lifespan shutdown) fails running queries
     and stops the workers; the backend stays open (its owner closes it).
     """
     queries: list[QueryManager] = []

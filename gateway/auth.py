@@ -104,38 +104,50 @@ class Users:
 
 
 class LoginFailures:
-    """Failed logins per (client address, user name): after FREE_FAILURES in a row, the next
-    attempt must wait 1 s, then 2, 4 ... up to MAX_WAIT seconds after the last one. A login that
-    succeeds resets the count. Attempts count when they start, so parallel guesses count too."""
+    """Failed logins per client address and user name, and per client address (any user name):
+    after FREE_FAILURES in a row for one user (CLIENT_FREE_FAILURES over all user names), the client
+    must wait 1 s after its last attempt, then 2, 4 ... up to MAX_WAIT seconds, before it may try
+    again. A login that succeeds takes its attempt back; counts are forgotten FORGET seconds after
+    their last attempt. Attempts count when they start, so parallel guesses count too."""
 
     FREE_FAILURES = 5
+    CLIENT_FREE_FAILURES = 20
     MAX_WAIT = 60
-    MAX_CLIENTS = 10_000  # the least recently failing are forgotten beyond this
+    FORGET = 900
+    MAX_KEYS = 10_000  # the least recently tried are forgotten beyond this
 
     def __init__(self) -> None:
-        self._failures: OrderedDict[tuple[str, str], tuple[int, float]] = OrderedDict()
+        self._failures: OrderedDict[tuple[str, str | None], tuple[int, float]] = OrderedDict()
         self._lock = threading.Lock()
 
     def wait(self, client: str, user: str) -> int:
         """Seconds the client must still wait before trying `user` again (0: it may try now)."""
+        now = time.monotonic()
         with self._lock:
-            count, last = self._failures.get((client, user), (0, 0.0))
-        if count < self.FREE_FAILURES:
+            return max(self._wait((client, user), self.FREE_FAILURES, now),
+                       self._wait((client, None), self.CLIENT_FREE_FAILURES, now))
+
+    def _wait(self, key: tuple[str, str | None], free: int, now: float) -> int:
+        count, last = self._failures.get(key, (0, 0.0))
+        if count < free or now - last > self.FORGET:
             return 0
-        delay = min(2 ** (count - self.FREE_FAILURES), self.MAX_WAIT)
-        return math.ceil(max(0.0, last + delay - time.monotonic()))
+        return math.ceil(max(0.0, last + min(2 ** (count - free), self.MAX_WAIT) - now))
 
     def attempt(self, client: str, user: str) -> None:
         """An attempt starts: it counts as a failure until it `succeeded`."""
+        now = time.monotonic()
         with self._lock:
-            count, _ = self._failures.pop((client, user), (0, 0.0))
-            self._failures[(client, user)] = (count + 1, time.monotonic())
-            if len(self._failures) > self.MAX_CLIENTS:
+            for key in ((client, user), (client, None)):
+                count, last = self._failures.pop(key, (0, 0.0))
+                self._failures[key] = (1 if now - last > self.FORGET else count + 1, now)
+            while len(self._failures) > self.MAX_KEYS:
                 self._failures.popitem(last=False)
 
     def succeeded(self, client: str, user: str) -> None:
         with self._lock:
             self._failures.pop((client, user), None)
+            count, last = self._failures.get((client, None), (1, 0.0))
+            self._failures[(client, None)] = (count - 1, last)
 
 
 def basic_credentials(header: str | None) -> tuple[str, str] | None:

@@ -273,6 +273,15 @@ def test_repeated_failed_logins_back_off_with_429(start_server, tmp_path):
     assert requests.get(url, auth=("alice", "guess"), timeout=30).status_code == 401  # the count started again
 
 
+def test_guessing_user_names_backs_off_too(start_server, tmp_path):
+    server = start_server("--users", str(users_file(tmp_path)))
+    url = f"{server.url}/v1/query/none"
+    for i in range(20):  # 20 failures from one client, each for another name
+        assert requests.get(url, auth=(f"name{i}", "guess"), timeout=30).status_code == 401
+    assert requests.get(url, auth=("name20", "guess"), timeout=30).status_code == 429
+    assert requests.get(url, auth=("bob", "builder"), timeout=30).status_code == 429  # this client waits
+
+
 def test_server_state_is_public_as_in_trino(auth_server):
     """Trino's ServerInfoResource marks GET /v1/info and GET /v1/info/state @ResourceSecurity(PUBLIC)
     (core/trino-main/src/main/java/io/trino/server/ServerInfoResource.java); the rest needs a login."""

@@ -67,7 +67,7 @@ class Guard:
         length = _content_length(scope)
         if length is not None and length > self.limits.max_body:
             return await self._too_large(scope, send, length)
-        await self._run(scope, receive, send)
+        await self._run(scope, receive, send, length)
 
     async def _login(self, scope: Scope, send: Send) -> bool:
         """Authenticate the request (its user goes to scope["state"]); else answer 401 or 429."""
@@ -101,12 +101,12 @@ class Guard:
             message = f"Request body too large: {size} bytes, the limit is {limit} (lakegate serve --max-body)"
             await _respond(send, 413, message.encode())
 
-    async def _run(self, scope: Scope, receive: Receive, send: Send) -> None:
+    async def _run(self, scope: Scope, receive: Receive, send: Send, length: int | None) -> None:
         """Run the app, counting the body's bytes as it reads them: past the limit it gets
         http.disconnect, and the client 413. An answer given before the body was read whole closes
         the connection (so that the rest is not read either)."""
         received, refused, started = 0, False, False
-        unread = (_content_length(scope) or 0) > 0 or _header(scope, b"transfer-encoding") is not None
+        unread = (length or 0) > 0 or _header(scope, b"transfer-encoding") is not None
 
         async def counted() -> dict:
             nonlocal received, refused, unread

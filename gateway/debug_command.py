@@ -5,8 +5,10 @@
 
 The file is ingested as the only job of a new batch (`debug-<time>`) on branch `debug` of a
 scratch lake (a temporary folder, removed on exit) or of `--lake DIR`. The job's log files
-(the images image metrics name) are the `logs` folder beside the emissions file, or that folder
-itself, or `--logs-dir`. The dashboard is served on 127.0.0.1 until Ctrl+C; its URL is printed
+(the images image metrics name) are `--logs-dir`, else the `logs` folder beside the emissions
+file, else only the files beside it that the emissions name in `image` fields and image event
+metrics (copied into the lake: the rest of that folder is never served). The dashboard is served
+on 127.0.0.1 (Host and Origin checked, see `host_check`) until Ctrl+C; its URL is printed
 as `Dashboard: http://127.0.0.1:PORT/dashboard/?session=...`. When the config file changes,
 reloading the page shows the new config (and ingests the emissions again if its topics or the
 emissions file changed); edits made in the page stay layered on top.
@@ -15,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
+import json
 import os
 import shutil
 import signal
@@ -54,9 +57,10 @@ def add_debug_parser(commands: argparse._SubParsersAction) -> None:
     which.add_argument("--metrics-set", metavar="S", help="the metrics set to show (a name from 'metrics sets')")
     which.add_argument("--all-metrics", action="store_true",
                        help="show every test and batch metric of the config (for configs without metrics sets)")
-    debug.add_argument("--logs-dir", type=Path, metavar="DIR",
+    debug.add_argument("--logs-dir", "--logs", type=Path, metavar="DIR",
                        help="the job's log files, where image metrics find their files (default: the 'logs' "
-                            "folder beside the emissions file if there is one, else the emissions file's folder)")
+                            "folder beside the emissions file if there is one, else only the files beside it "
+                            "that the emissions name in image fields)")
     debug.add_argument("--metadata", type=Path, metavar="FILE",
                        help="YAML mapping of the job's metadata columns (experience_name, build_name, tags ...)")
     debug.add_argument("--lake", type=Path, metavar="DIR",
@@ -89,9 +93,42 @@ def _config_paths(given: list[Path] | None) -> list[Path]:
     return [path.resolve() for path in found]
 
 
+def referenced_files(emissions: Path, config: Config) -> set[str]:
+    """The file names the emissions give in `image` fields and in image metrics of events."""
+    images = {t.name: [f for f, kind in t.fields.items() if kind == "image"] for t in config.topics.values()}
+    metrics = {t.name: [f for f, kind in t.fields.items() if kind == "metric[]"] for t in config.topics.values()}
+    names: set[str] = set()
+    with emissions.open(encoding="utf-8", errors="replace") as lines:
+        for line in lines:
+            try:
+                record = json.loads(line)
+                topic, data = record["$metadata"]["topic"], record["$data"]
+                names.update(data[f] for f in images.get(topic, ()) if isinstance(data.get(f), str))
+                for item in (m for f in metrics.get(topic, ()) for m in data.get(f) or ()):
+                    if item.get("type") == "image":
+                        value = item.get("value")
+                        names.update(v for v in (value if isinstance(value, list) else [value]) if isinstance(v, str))
+            except (ValueError, TypeError, KeyError, AttributeError):
+                continue  # ingest reports bad lines
+    return names
+
+
+def copy_referenced(source: Path, names: set[str], target: Path) -> None:
+    """Copy the files `names` of folder `source` (only those inside it) to `target`, replacing it."""
+    shutil.rmtree(target, ignore_errors=True)
+    target.mkdir(parents=True)
+    root = source.resolve()
+    for name in sorted(n for n in names if "\0" not in n):
+        path = (root / name).resolve()
+        if path.is_relative_to(root) and path != root and path.is_file():
+            (target / path.relative_to(root)).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(path, target / path.relative_to(root))
+
+
 class DebugJob:
     """The debug job: its emissions file ingested into the lake, again whenever the file or the
-    config's topics change (`refresh`, called by the session on every reload)."""
+    config's topics change (`refresh`, called by the session on every reload). Without `logs_dir`,
+    its logs are the files beside the emissions file that they reference (`referenced_files`)."""
 
     def __init__(self, lake: Path, branch: str, emissions: Path, logs_dir: Path | None, metadata: dict[str, Any]):
         self.lake, self.branch, self.emissions = lake, branch, emissions
@@ -124,7 +161,9 @@ class DebugJob:
             raise ValueError(f"bad metadata: {error.problems[0]}") from None
         self._ingested = stamp
         logs = paths.logs_dir(self.lake, self.branch, self.batch_id, self.job_id)
-        if self.logs_dir is not None and not logs.exists():
+        if self.logs_dir is None:
+            copy_referenced(self.emissions.parent, referenced_files(self.emissions, config), logs)
+        elif not logs.exists():
             logs.parent.mkdir(parents=True, exist_ok=True)
             try:
                 logs.symlink_to(self.logs_dir.resolve(), target_is_directory=True)
@@ -146,7 +185,7 @@ def _logs_dir(args: argparse.Namespace) -> Path | None:
             raise UserError(f"logs folder {str(args.logs_dir)!r} does not exist")
         return args.logs_dir
     beside = args.emissions_file.parent / "logs"
-    return beside if beside.is_dir() else args.emissions_file.parent
+    return beside if beside.is_dir() else None
 
 
 def _listen(host: str, port: int) -> socket.socket:

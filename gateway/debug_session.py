@@ -620,17 +620,36 @@ class DashboardSession:
             return list(zip(self.files.names, texts))
 
     def export_zip(self) -> bytes:
-        """A zip of the session's config files (and custom template files next to them, if any)."""
+        """A zip of the session's config files and the custom template files they name; SessionError
+        when a template file is not inside the config's folder (only files there are exported)."""
+        with self.lock:
+            assert self.config is not None and self.files is not None
+            templates = self._template_files(self.files.paths[0].parent.resolve())
+            documents = self.documents()
         buffer = io.BytesIO()
         with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
-            for name, text in self.documents():
+            for name, text in documents:
                 archive.writestr(name, text)
-            assert self.config is not None and self.files is not None
-            folder = self.files.paths[0].parent
-            for metric in self.config.metrics.values():
-                if metric.template_file and (folder / metric.template_file).is_file():
-                    archive.write(folder / metric.template_file, metric.template_file)
+            for name, path in templates.items():
+                archive.write(path, name)
         return buffer.getvalue()
+
+    def _template_files(self, folder: Path) -> dict[str, Path]:
+        """Name in the zip -> file of every existing `template_file`, each checked to be inside `folder`."""
+        assert self.config is not None
+        found = {}
+        for metric in self.config.metrics.values():
+            if not metric.template_file:
+                continue
+            path = None if "\0" in metric.template_file else (folder / metric.template_file).resolve()
+            if path is None or not path.is_relative_to(folder) or path == folder:
+                where = f" ({Path(metric.location.path).name}:{metric.location.line}:{metric.location.column})" \
+                    if metric.location else ""
+                raise SessionError(f"metric {metric.name!r}{where}: template_file {metric.template_file!r} is "
+                                   "outside the config's folder; only files inside it are exported")
+            if path.is_file():
+                found[path.relative_to(folder).as_posix()] = path
+        return found
 
     def scope(self, scope: str, job_id: str | None) -> Scope:
         """`job` (one job of the batch), `batch` or `branch` (every batch)."""
@@ -682,8 +701,8 @@ class DashboardSession:
         if root is None:
             raise SessionError(f"job {job_id!r} has no log files")
         root = root.resolve()
-        path = (root / name).resolve()
-        if not path.is_relative_to(root) or not path.is_file():
+        path = None if "\0" in name else (root / name).resolve()
+        if path is None or not path.is_relative_to(root) or not path.is_file():
             raise SessionError(f"no file {name!r} in the logs of job {job_id!r}")
         return path
 

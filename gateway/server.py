@@ -41,6 +41,7 @@ from lakegate.dialect.errors import DialectError
 from lakegate.gateway import session as sessions
 from lakegate.gateway.auth import Users, basic_credentials
 from lakegate.gateway.backend import Backend, QueryResult
+from lakegate.gateway.host_check import HostCheck
 from lakegate.gateway.limits import Limits
 from lakegate.gateway.protocol import (Failure, Progress, QueryIds, columns_document, info_document,
                                        results_document)
@@ -619,12 +620,14 @@ def _base_url(request: Request) -> str:
 
 
 def create_app(backend: Backend, *, catalog_name: str = "lake", limits: Limits = Limits(),
-               users: Users | None = None, dashboard_router: APIRouter | None = None) -> FastAPI:
+               users: Users | None = None, dashboard_router: APIRouter | None = None,
+               allowed_hosts: Sequence[str] = ()) -> FastAPI:
     """The SQL endpoint over `backend` (which must also list its branches: `backend.branches()`).
 
     `catalog_name` is the lake's catalog; `limits` bound queries; with `users`, every request but
     /v1/info needs HTTP Basic credentials of one of them. `dashboard_router` is included as it is,
-    behind the same authentication. `app.state` holds `manager` (QueryManager), `metadata`
+    behind the same authentication. Every request must name this server in Host (and Origin, when
+    it changes something): `host_check.HostCheck`, with `allowed_hosts` for a proxy. `app.state` holds `manager` (QueryManager), `metadata`
     (Metadata), `backend` and `limits`. Closing the app (lifespan shutdown) fails running queries
     and stops the workers; the backend stays open (its owner closes it).
     """
@@ -654,4 +657,5 @@ def create_app(backend: Backend, *, catalog_name: str = "lake", limits: Limits =
     app.add_route("/v1/info/state", endpoints.get_state, methods=["GET"])
     if dashboard_router is not None:
         app.include_router(dashboard_router, dependencies=[Depends(endpoints.user)])
+    app.add_middleware(HostCheck, allowed=allowed_hosts)
     return app

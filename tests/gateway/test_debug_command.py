@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import re
+import shutil
+import urllib.error
 import urllib.request
 from pathlib import Path
 
@@ -138,7 +140,7 @@ def test_given_lake_is_kept(tmp_path: Path, nav_jobs, debug_processes) -> None:
     metadata = list(paths.data_files(lake, "feature/dbg", paths.METADATA_TABLE))
     assert len(metadata) == 1
     row = pq.read_table(metadata[0]).to_pylist()[0]
-    assert row["job_conflated_status"] == "PASSED"  # the debug session wrote its job's statuses
+    assert row["experience_name"] and row["job_conflated_status"] is None  # the page never writes statuses
 
 
 def test_refuses_to_listen_beyond_this_machine(tmp_path: Path, nav_jobs, run_lakegate) -> None:
@@ -152,3 +154,63 @@ def test_help_lists_every_option(tmp_path: Path, run_lakegate) -> None:
     for option in ("--emissions-file", "--metrics-config-path", "--metrics-set", "--port", "--lake", "--host",
                    "--no-browser", "--logs-dir", "--metadata", "--all-metrics"):
         assert option in result.stdout
+
+
+def _status(url: str, method: str = "GET", headers: dict[str, str] | None = None, body: bytes | None = None) -> int:
+    request = urllib.request.Request(url, data=body, method=method, headers=headers or {})
+    try:
+        with urllib.request.urlopen(request, timeout=30) as response:
+            return response.status
+    except urllib.error.HTTPError as error:
+        return error.code
+
+
+def test_without_a_logs_folder_only_the_referenced_files_are_served(tmp_path: Path, nav_jobs, debug_processes) -> None:
+    """Issue 9 item 9: with no `logs/` beside the emissions file, the job's logs are only the files
+    the emissions name in image fields (a key next to it is never served); NUL in a name is a 404."""
+    job = nav_jobs.jobs[0]
+    folder = tmp_path / "run"
+    folder.mkdir()
+    shutil.copy(job.emissions_path, folder / "emissions.resim.jsonl")
+    for image in job.logs_dir.iterdir():
+        shutil.copy(image, folder / image.name)
+    (folder / ".ssh").mkdir()
+    (folder / ".ssh" / "id_rsa").write_text("-----BEGIN OPENSSH PRIVATE KEY-----\n")
+    (folder / "notes.txt").write_text("private")
+    server = debug_processes(["--emissions-file", str(folder / "emissions.resim.jsonl"), "--metrics-config-path",
+                              str(nav_jobs.config), "--metrics-set", NAV_SET], tmp_path)
+    base, session = server.url.split("?session=")
+    base = base.rstrip("/") + "/"
+    state = json.loads(_get(f"{base}api/sessions/{session}"))
+    logs = f"{base}api/sessions/{session}/logs/{state['job_id']}/"
+    camera = next(m for m in state["metrics"] if m["template"] == "image")["result"]
+    assert camera["images"] == ["camera.gif"] and _get(logs + "camera.gif").startswith(b"GIF8")
+    for name in (".ssh/id_rsa", ".ssh%2Fid_rsa", "notes.txt", "emissions.resim.jsonl", "camera.gif%00.png",
+                 "%00"):
+        assert _status(logs + name) == 404, name
+    assert _status(f"{base}api/sessions/{session}/logs/j%00b/camera.gif") in (400, 404)
+    assert session not in _get(f"{base}api/lake").decode()  # the session id is only in the printed URL
+    assert server.stop() == 0
+
+
+def test_host_and_origin_are_checked(tmp_path: Path, nav_jobs, debug_processes) -> None:
+    """Issue 9 item 9: DNS rebinding (a foreign Host) gets 421, a cross-site POST (foreign Origin) 403;
+    loopback names, the same origin and the trino client (Host 127.0.0.1:PORT) work."""
+    server = debug_processes(["--emissions-file", str(nav_jobs.jobs[0].emissions_path), "--metrics-config-path",
+                              str(nav_jobs.config), "--metrics-set", NAV_SET], tmp_path)
+    base, session = server.url.split("?session=")
+    port = int(re.search(r":(\d+)/", base).group(1))
+    api = f"{base}api/sessions/{session}"
+    assert _status(api, headers={"Host": f"rebound.example.com:{port}"}) == 421
+    assert _status(api, headers={"Host": f"127.0.0.1:{port + 1}"}) == 421
+    assert _status(api, headers={"Host": f"localhost:{port}"}) == 200
+    evaluate = (f"{api}/evaluate", "POST")
+    assert _status(*evaluate, headers={"Origin": "http://evil.example.com"}) == 403
+    assert _status(*evaluate, headers={"Origin": "null"}) == 403
+    assert _status(*evaluate, headers={"Origin": f"http://localhost:{port}"}) == 200
+    assert _status(*evaluate) == 200  # no Origin: not a browser's cross-site request
+    with trino.dbapi.connect(host="127.0.0.1", port=port, user="test", catalog="lake", schema="debug") as connection:
+        cursor = connection.cursor()
+        cursor.execute("SELECT 1")
+        assert cursor.fetchall() == [[1]]
+    assert server.stop() == 0

@@ -16,6 +16,7 @@ emissions file changed); edits made in the page stay layered on top.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime as dt
 import json
 import os
@@ -27,7 +28,7 @@ import tempfile
 import uuid
 import webbrowser
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 from lakegate.gateway.auth import is_loopback
 from lakegate.gateway.cli import UserError
@@ -38,6 +39,8 @@ from lakegate.lake.metadata import MetadataError, load_metadata_file
 from lakegate.lake.paths import LakePathError
 
 BRANCH = "debug"
+#: Seconds open requests get to finish once the server is stopped.
+SHUTDOWN_SECONDS = 3
 
 
 def add_debug_parser(commands: argparse._SubParsersAction) -> None:
@@ -237,8 +240,8 @@ def debug_command(args: argparse.Namespace) -> int:
     lake = (args.lake if args.lake is not None else scratch / "lake").resolve()
     sock = None
     state = None
-    # SIGTERM ends the command as Ctrl+C does (uvicorn stops on it, then raises it again for this
-    # handler), so the scratch lake is removed either way.
+    # SIGTERM ends the command as Ctrl+C does while the job is prepared, so the scratch lake is
+    # removed either way; once serving, both just stop the server (`_stop_on_signals`).
     previous = signal.signal(signal.SIGTERM, _interrupt)
     try:
         job = DebugJob(lake, args.branch, emissions.resolve(), logs_dir, metadata)
@@ -264,16 +267,15 @@ def debug_command(args: argparse.Namespace) -> int:
               f"({rows:,} rows) in {'a scratch lake' if scratch else 'the lake'} {lake}")
         print(f"metrics set {args.metrics_set or '(all metrics)'}: {len(results)} evaluated ("
               + ", ".join(f"{n} {s}" for s, n in counts.items() if n) + f") in {session.seconds:.2f} s")
-        try:
+        server = _server(create_app(state.backend, dashboard_router=dashboard_router(state)))
+        with _stop_on_signals(server):  # from here on Ctrl+C and SIGTERM stop the server, never interrupt
             print(f"SQL endpoint (Trino protocol): http://{shown_host}:{port} (catalog lake, schema "
                   f"{args.branch!r})", flush=True)
             print(f"Dashboard: {url}", flush=True)
             print("Press Ctrl+C to stop.", flush=True)
             if not args.no_browser and _can_open_browser():
                 webbrowser.open(url)
-            _serve(create_app(state.backend, dashboard_router=dashboard_router(state)), sock)
-        except KeyboardInterrupt:
-            pass  # Ctrl+C is how the dashboard is meant to stop
+            server.run(sockets=[sock])
     finally:
         signal.signal(signal.SIGTERM, previous)
         if sock is not None:
@@ -285,12 +287,27 @@ def debug_command(args: argparse.Namespace) -> int:
     return 0
 
 
-def _serve(app: Any, sock: socket.socket) -> None:
-    """Serve `app` on an already listening socket until Ctrl+C (or SIGTERM)."""
+def _server(app: Any) -> Any:
+    """A uvicorn server for `app` that gives open requests at most SHUTDOWN_SECONDS once stopped."""
     import uvicorn
 
-    server = uvicorn.Server(uvicorn.Config(app, log_level="warning", access_log=False, lifespan="on"))
-    server.run(sockets=[sock])
+    return uvicorn.Server(uvicorn.Config(app, log_level="warning", access_log=False, lifespan="on",
+                                         timeout_graceful_shutdown=SHUTDOWN_SECONDS))
+
+
+@contextlib.contextmanager
+def _stop_on_signals(server: Any) -> Iterator[None]:
+    """SIGINT and SIGTERM make `server` stop (uvicorn takes them over while it runs, and raises them
+    again when it has stopped: they land here too), instead of raising in the middle of whatever runs."""
+    def stop(signum: int, frame: Any) -> None:
+        server.should_exit = True
+
+    previous = {sig: signal.signal(sig, stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def _interrupt(signum: int, frame: Any) -> None:

@@ -2,17 +2,21 @@
 config changes on disk picked up, the scratch lake removed on Ctrl+C."""
 from __future__ import annotations
 
+import io
 import json
 import re
 import shutil
 import urllib.error
+import urllib.parse
 import urllib.request
+import zipfile
 from pathlib import Path
 
 import pyarrow.parquet as pq
 import trino
 
 from lakegate.lake import paths
+from lakegate.lake.config import load_config
 
 NAV_SET = "Nav Metrics"
 
@@ -213,4 +217,76 @@ def test_host_and_origin_are_checked(tmp_path: Path, nav_jobs, debug_processes) 
         cursor = connection.cursor()
         cursor.execute("SELECT 1")
         assert cursor.fetchall() == [[1]]
+    assert server.stop() == 0
+
+
+CUSTOM_METRIC = """\
+  Custom View:
+    type: test
+    description: A custom template.
+    query_string: SELECT 1
+    template_type: custom
+    template_file: {template}
+"""
+
+
+def _with_custom_metric(text: str, template: str) -> str:
+    text = text.replace("metrics:\n", "metrics:\n" + CUSTOM_METRIC.format(template=template), 1)
+    return text.replace("      - Robot Speed\n", "      - Robot Speed\n      - Custom View\n", 1)
+
+
+def test_export_keeps_to_the_config_folder(tmp_path: Path, nav_jobs, debug_processes) -> None:
+    """Issue 9 item 10: a template_file outside the config's folder is never exported (a clear 400
+    naming the metric and where it is), one inside it is; the download's file name is escaped."""
+    folder = tmp_path / "config"
+    (folder / "templates").mkdir(parents=True)
+    (folder / "templates" / "view.liquid").write_text("{{ value }}")
+    config = folder / 'we"ird é.resim.yaml'
+    config.write_text(_with_custom_metric(nav_jobs.config.read_text(), "../../../../../../../../etc/passwd"))
+    server = debug_processes(["--emissions-file", str(nav_jobs.jobs[0].emissions_path), "--metrics-config-path",
+                              str(config), "--metrics-set", NAV_SET], tmp_path)
+    base, session = server.url.split("?session=")
+    export = f"{base}api/sessions/{session}/export"
+    try:
+        urllib.request.urlopen(export, timeout=30)
+        raise AssertionError("a template file outside the config's folder was exported")
+    except urllib.error.HTTPError as error:
+        assert error.code == 400
+        message = json.loads(error.read())["detail"]["message"]
+    line = config.read_text().splitlines().index("  Custom View:") + 1
+    assert "'Custom View'" in message and f"{config.name}:{line}:" in message and "outside the config's folder" in message
+    assert str(tmp_path) not in message
+
+    config.write_text(_with_custom_metric(nav_jobs.config.read_text(), "templates/view.liquid"))
+    _get(f"{base}api/sessions/{session}")  # reloading the page picks up the changed file
+    with urllib.request.urlopen(export, timeout=30) as response:
+        disposition = response.headers["Content-Disposition"]
+        archive = zipfile.ZipFile(io.BytesIO(response.read()))
+    assert disposition == "attachment; filename=\"we_ird__-export.zip\"; filename*=UTF-8''we%22ird%20%C3%A9-export.zip"
+    assert sorted(archive.namelist()) == sorted([config.name, "templates/view.liquid"])
+    assert server.stop() == 0
+
+
+def test_exported_edits_load_back_with_the_same_values(tmp_path: Path, nav_jobs, debug_processes) -> None:
+    """The page edits YAML with ruamel (YAML 1.2) and the loader reads YAML 1.2 with the same library:
+    units "on" stays a string (YAML 1.1 reads a boolean) and "1:30" stays a string (YAML 1.1: 90)."""
+    config = tmp_path / "config.resim.yaml"
+    config.write_text(nav_jobs.config.read_text())
+    server = debug_processes(["--emissions-file", str(nav_jobs.jobs[0].emissions_path), "--metrics-config-path",
+                              str(config), "--metrics-set", NAV_SET], tmp_path)
+    base, session = server.url.split("?session=")
+    name = "Time to reach final goal"
+    edit = {"units": "on", "status": {"query_string": "SELECT 1 WHERE ? = 'never'", "block": "1:30", "warn": "yes"}}
+    request = urllib.request.Request(f"{base}api/sessions/{session}/metrics/{urllib.parse.quote(name)}",
+                                     data=json.dumps(edit).encode(), method="PUT",
+                                     headers={"Content-Type": "application/json"})
+    with urllib.request.urlopen(request, timeout=60) as response:
+        metric = next(m for m in json.loads(response.read())["metrics"] if m["name"] == name)
+    assert metric["units"] == "on" and metric["status"]["block"] == "1:30"
+    with zipfile.ZipFile(io.BytesIO(_get(f"{base}api/sessions/{session}/export"))) as archive:
+        exported = tmp_path / "exported" / config.name
+        exported.parent.mkdir()
+        exported.write_bytes(archive.read(config.name))
+    loaded = load_config([exported]).metrics[name]
+    assert (loaded.units, loaded.status.block, loaded.status.warn) == ("on", "1:30", "yes")
     assert server.stop() == 0

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import trino
 
 from lakegate.lake import paths
 from lakegate.lake.config import load_config
@@ -100,3 +101,30 @@ def test_editing_a_metric_in_the_dashboard_never_writes_the_lake(evaluated_lake:
         assert _digests(evaluated_lake) == before
     finally:
         assert server.stop() == 0
+
+
+def _status(url: str, method: str = "GET", headers: dict[str, str] | None = None, body: bytes | None = None) -> int:
+    request = urllib.request.Request(url, data=body, method=method, headers=headers or {})
+    try:
+        with urllib.request.urlopen(request, timeout=30) as response:
+            return response.status
+    except urllib.error.HTTPError as error:
+        return error.code
+
+
+def test_serve_checks_host_and_origin(start_server) -> None:
+    """Issue 9 item 9 on `serve`: a Host that does not name the server (DNS rebinding) gets 421 on every
+    route, a cross-site Origin on a POST 403; `--allowed-host` admits a proxy's name; the trino client works."""
+    server = start_server("--allowed-host", "lake.example.com")
+    for path in ("/dashboard/api/lake", "/v1/info", "/dashboard/"):
+        assert _status(server.url + path, headers={"Host": f"rebound.example.net:{server.port}"}) == 421, path
+    assert _status(server.url + "/dashboard/api/lake", headers={"Host": "lake.example.com"}) == 200
+    assert _status(server.url + "/dashboard/api/lake", headers={"Host": f"localhost:{server.port}"}) == 200
+    statement = server.url + "/v1/statement"
+    headers = {"X-Trino-User": "me", "Content-Type": "text/plain"}
+    assert _status(statement, "POST", {**headers, "Origin": "https://evil.example.org"}, b"SELECT 1") == 403
+    assert _status(statement, "POST", {**headers, "Origin": server.url}, b"SELECT 1") == 200
+    with trino.dbapi.connect(host="127.0.0.1", port=server.port, user="me", catalog="lake", schema="main") as conn:
+        cursor = conn.cursor()
+        cursor.execute("SELECT 1")
+        assert cursor.fetchall() == [[1]]

@@ -105,14 +105,15 @@ def referenced_files(emissions: Path, config: Config) -> set[str]:
         for line in lines:
             try:
                 record = json.loads(line)
-                topic, data = record["$metadata"]["topic"], record["$data"]
-                names.update(data[f] for f in images.get(topic, ()) if isinstance(data.get(f), str))
-                for item in (m for f in metrics.get(topic, ()) for m in data.get(f) or ()):
-                    if item.get("type") == "image":
-                        value = item.get("value")
-                        names.update(v for v in (value if isinstance(value, list) else [value]) if isinstance(v, str))
-            except (ValueError, TypeError, KeyError, AttributeError):
+                topic, data = record["$metadata"]["topic"], dict(record["$data"])
+            except (ValueError, TypeError, KeyError):
                 continue  # ingest reports bad lines
+            values = [data.get(f) for f in images.get(topic, ())]
+            for item in (m for f in metrics.get(topic, ()) for m in data.get(f) or () if isinstance(m, dict)):
+                if item.get("type") == "image":
+                    value = item.get("value")
+                    values.extend(value if isinstance(value, list) else [value])
+            names.update(v for v in values if isinstance(v, str))
     return names
 
 

@@ -6,6 +6,7 @@ import io
 import json
 import re
 import shutil
+import signal
 import urllib.error
 import urllib.parse
 import urllib.request
@@ -290,3 +291,18 @@ def test_exported_edits_load_back_with_the_same_values(tmp_path: Path, nav_jobs,
     loaded = load_config([exported]).metrics[name]
     assert (loaded.units, loaded.status.block, loaded.status.warn) == ("on", "1:30", "yes")
     assert server.stop() == 0
+
+
+def test_sigterm_stops_the_dashboard_cleanly(tmp_path: Path, nav_jobs, debug_processes) -> None:
+    """SIGTERM (and Ctrl+C) once the URL is printed only asks the server to stop (no KeyboardInterrupt
+    raised into whatever runs, e.g. an import or the event loop): exit 0, no traceback, scratch removed."""
+    for used in (False, True):
+        server = debug_processes(["--emissions-file", str(nav_jobs.jobs[0].emissions_path), "--metrics-config-path",
+                                  str(nav_jobs.config), "--metrics-set", NAV_SET], tmp_path)
+        scratch = Path(re.search(r"in a scratch lake (\S+)", "\n".join(server.lines)).group(1))
+        if used:  # requests leave worker threads behind, which must not keep the process alive
+            _get(server.url.replace("/dashboard/?session=", "/dashboard/api/sessions/"))
+        server.process.send_signal(signal.SIGTERM)
+        assert server.process.wait(timeout=60) == 0
+        assert not any("Traceback" in line or "Error" in line for line in server.lines), server.lines
+        assert not scratch.exists()

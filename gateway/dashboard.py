@@ -101,6 +101,10 @@ class DashboardState:
                         metrics_set is None or session.metrics_set == metrics_set):
                     self.sessions.move_to_end(session.id)
                     return session
+        debug = self.debug_session
+        if debug is not None and (debug.branch, debug.batch_id) == (branch, batch_id):
+            raise SessionError("this batch is the debug job of 'lakegate metrics debug': open the Dashboard URL it "
+                               "printed (the one with ?session=...)")
         if branch not in self.catalog.branches():
             raise SessionError(f"no branch {branch!r} in the lake")
         if batch_id not in self.catalog.batches(branch):

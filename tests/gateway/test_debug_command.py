@@ -194,7 +194,15 @@ def test_without_a_logs_folder_only_the_referenced_files_are_served(tmp_path: Pa
                  "%00"):
         assert _status(logs + name) == 404, name
     assert _status(f"{base}api/sessions/{session}/logs/j%00b/camera.gif") in (400, 404)
-    assert session not in _get(f"{base}api/lake").decode()  # the session id is only in the printed URL
+    listing = _get(f"{base}api/lake").decode()
+    assert session not in listing and state["batch_id"] in listing  # the session id is only in the printed URL
+    request = urllib.request.Request(f"{base}api/sessions", method="POST", headers={"Content-Type": "application/json"},
+                                     data=json.dumps({"branch": "debug", "batch": state["batch_id"]}).encode())
+    try:
+        urllib.request.urlopen(request, timeout=30)
+        raise AssertionError("the debug batch was opened without its session id")
+    except urllib.error.HTTPError as error:
+        assert error.code == 400 and session not in error.read().decode()
     assert server.stop() == 0
 
 

@@ -9,11 +9,15 @@ in every part of the query (joins, subqueries, set operations, CTE bodies), exce
 of the same name is visible: a CTE shadows a table in the rest of its WITH (later CTEs and the
 query body, including nested subqueries), not in its own body or earlier CTEs, unless the WITH is
 RECURSIVE. Names compare case-insensitively, as Trino's do.
+
+A scope may also carry job statuses a dashboard session computed without writing them
+(`Scope.statuses`): `metadata` then shows those statuses in place of the stored ones, so batch
+metrics that count them agree with `lakegate metrics run` while the lake stays untouched.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Iterable
+from typing import Iterable, Mapping
 
 from sqlglot import exp
 
@@ -26,6 +30,8 @@ class Scope:
 
     batch_id: str | None = None
     job_id: str | None = None
+    #: (job_id, job_metrics_status, job_conflated_status) that `metadata` shows instead of its own.
+    statuses: tuple[tuple[str, str, str], ...] = ()
 
     def conditions(self) -> list[tuple[str, str]]:
         """(column, value) pairs every lake row in scope satisfies."""
@@ -66,26 +72,46 @@ def _references(expression: exp.Expression, tables: set[str]) -> list[exp.Table]
     return found
 
 
-def _filtered(table: exp.Table, scope: Scope) -> exp.Subquery:
+def _status_overlay(columns: Iterable[str], statuses: tuple[tuple[str, str, str], ...]) -> list[exp.Expression]:
+    """`metadata`'s columns in order, its two job statuses replaced by `CASE job_id WHEN ... END`."""
+    overlaid = {"job_metrics_status": 1, "job_conflated_status": 2}
+    out: list[exp.Expression] = []
+    for column in columns:
+        if column not in overlaid:
+            out.append(exp.column(column, quoted=True))
+            continue
+        case = exp.Case(this=exp.column("job_id"), default=exp.column(column, quoted=True))
+        for status in statuses:
+            case = case.when(exp.Literal.string(status[0]), exp.Literal.string(status[overlaid[column]]), copy=False)
+        out.append(exp.alias_(case, column, quoted=True))
+    return out
+
+
+def _filtered(table: exp.Table, scope: Scope, columns: Iterable[str] | None) -> exp.Subquery:
     source = table.copy()
     source.set("alias", None)
     condition = exp.and_(*(exp.EQ(this=exp.column(column), expression=exp.Literal.string(value))
                            for column, value in scope.conditions()), copy=False)
-    select = exp.Select(expressions=[exp.Star()], from_=exp.From(this=source), where=exp.Where(this=condition))
+    overlay = scope.statuses and columns and table.name.lower() == "metadata"
+    shown = _status_overlay(columns, scope.statuses) if overlay else [exp.Star()]
+    select = exp.Select(expressions=shown, from_=exp.From(this=source), where=exp.Where(this=condition))
     alias = table.args.get("alias")
     if alias is None:
         alias = exp.TableAlias(this=exp.Identifier(this=table.name, quoted=table.this.args.get("quoted", False)))
     return exp.Subquery(this=select, alias=alias.copy())
 
 
-def restrict(expression: exp.Expression, scope: Scope, tables: Iterable[str]) -> exp.Expression:
+def restrict(expression: exp.Expression, scope: Scope,
+             tables: Iterable[str] | Mapping[str, Mapping[str, str]]) -> exp.Expression:
     """Rewrite (in place, and return) `expression` so that every lake table in `tables` it reads
-    shows only the rows of `scope`. Values are string literal nodes, never pasted text."""
+    shows only the rows of `scope`. Values are string literal nodes, never pasted text. `tables`
+    with their columns (table -> column -> type) lets `metadata` show `scope.statuses`."""
     if not scope.conditions():
         return expression
+    columns = {t.lower(): list(c) for t, c in tables.items()} if isinstance(tables, Mapping) else {}
     names = {t.lower() for t in tables}
     for table in _references(expression, names):
-        table.replace(_filtered(table, scope))
+        table.replace(_filtered(table, scope, columns.get(table.name.lower())))
     return expression
 
 

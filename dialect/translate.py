@@ -171,7 +171,7 @@ def _translate(sql: str, schema: Mapping[str, Mapping[str, str]], schema_key: ob
     tree = parse(sql)
     guard.check(tree)
     if scope is not None:
-        tree = scoping.restrict(tree, scope, tables=set(schema))
+        tree = scoping.restrict(tree, scope, tables=schema)
     tree = parameters.bind(tree, params)
     rewritten = scope is not None or bool(params) or ";" in sql  # Trino refuses a trailing ';'
     if isinstance(tree, exp.Values):

@@ -5,7 +5,7 @@
     GET    /dashboard/                                   the page (plain HTML + JS, no build step)
     GET    /dashboard/static/{file}                      its script and style; plotly.min.js from the
                                                          installed plotly package (never a CDN)
-    GET    /dashboard/api/lake                           branches, their batches and jobs; the debug session
+    GET    /dashboard/api/lake                           branches, their batches and jobs
     POST   /dashboard/api/sessions                       open a batch: {branch, batch, metrics_set?}
     GET    /dashboard/api/sessions/{id}?job=J            everything shown for job J (re-reads a changed config)
     POST   /dashboard/api/sessions/{id}/evaluate         evaluate every metric again
@@ -24,12 +24,14 @@ the same router, and the page opens a session for whichever branch / batch is pi
 """
 from __future__ import annotations
 
+import re
 import secrets
 import threading
 from collections import OrderedDict
 from importlib import resources
 from pathlib import Path
 from typing import Any
+from urllib.parse import quote
 
 from fastapi import APIRouter, Body, HTTPException
 from fastapi.responses import FileResponse, JSONResponse, RedirectResponse, Response
@@ -99,6 +101,10 @@ class DashboardState:
                         metrics_set is None or session.metrics_set == metrics_set):
                     self.sessions.move_to_end(session.id)
                     return session
+        debug = self.debug_session
+        if debug is not None and (debug.branch, debug.batch_id) == (branch, batch_id):
+            raise SessionError("this batch is the debug job of 'lakegate metrics debug': open the Dashboard URL it "
+                               "printed (the one with ?session=...)")
         if branch not in self.catalog.branches():
             raise SessionError(f"no branch {branch!r} in the lake")
         if batch_id not in self.catalog.batches(branch):
@@ -114,15 +120,21 @@ class DashboardState:
         return self.add(session)
 
     def listing(self) -> dict[str, Any]:
-        """Branches with their batches and jobs, and the debug session (if any)."""
+        """Branches with their batches and jobs (never a session id: the debug session's is in its URL)."""
         branches = []
         for branch in self.catalog.branches():
             batches: dict[str, list[str]] = {}
             for job in self.catalog.jobs(branch):
                 batches.setdefault(job.batch_id, []).append(job.job_id)
             branches.append({"name": branch, "batches": [{"id": b, "jobs": jobs} for b, jobs in batches.items()]})
-        debug = self.debug_session
-        return {"branches": branches, "debug_session": debug.id if debug else None}
+        return {"branches": branches}
+
+
+def attachment(filename: str) -> str:
+    """A Content-Disposition header value for a download named `filename` (RFC 6266): an ASCII
+    fallback with anything but letters, digits, `.`, `_` and `-` replaced, and the exact UTF-8 name."""
+    fallback = re.sub(r"[^A-Za-z0-9._-]", "_", filename)
+    return f"attachment; filename=\"{fallback}\"; filename*=UTF-8''{quote(filename, safe='')}"
 
 
 def _bad_request(error: Exception) -> HTTPException:
@@ -206,7 +218,7 @@ def dashboard_router(state: DashboardState) -> APIRouter:
         data = call(session.export_zip)
         stem = Path(session.files.names[0]).name.split(".")[0] if session.files else "config"
         return Response(data, media_type="application/zip",
-                        headers={"Content-Disposition": f'attachment; filename="{stem}-export.zip"'})
+                        headers={"Content-Disposition": attachment(f"{stem}-export.zip")})
 
     @router.get("/api/sessions/{session_id}/tables")
     def tables(session_id: str, scope: str = "job", job: str | None = None) -> dict[str, Any]:

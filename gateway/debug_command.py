@@ -5,8 +5,10 @@
 
 The file is ingested as the only job of a new batch (`debug-<time>`) on branch `debug` of a
 scratch lake (a temporary folder, removed on exit) or of `--lake DIR`. The job's log files
-(the images image metrics name) are the `logs` folder beside the emissions file, or that folder
-itself, or `--logs-dir`. The dashboard is served on 127.0.0.1 until Ctrl+C; its URL is printed
+(the images image metrics name) are `--logs-dir`, else the `logs` folder beside the emissions
+file, else only the files beside it that the emissions name in `image` fields and image event
+metrics (copied into the lake: the rest of that folder is never served). The dashboard is served
+on 127.0.0.1 (Host and Origin checked, see `host_check`) until Ctrl+C; its URL is printed
 as `Dashboard: http://127.0.0.1:PORT/dashboard/?session=...`. When the config file changes,
 reloading the page shows the new config (and ingests the emissions again if its topics or the
 emissions file changed); edits made in the page stay layered on top.
@@ -14,7 +16,9 @@ emissions file changed); edits made in the page stay layered on top.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import datetime as dt
+import json
 import os
 import shutil
 import signal
@@ -24,7 +28,7 @@ import tempfile
 import uuid
 import webbrowser
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 from lakegate.gateway.auth import is_loopback
 from lakegate.gateway.cli import UserError, port_number
@@ -35,6 +39,8 @@ from lakegate.lake.metadata import MetadataError, load_metadata_file
 from lakegate.lake.paths import LakePathError
 
 BRANCH = "debug"
+#: Seconds open requests get to finish once the server is stopped.
+SHUTDOWN_SECONDS = 3
 
 
 def add_debug_parser(commands: argparse._SubParsersAction) -> None:
@@ -54,9 +60,10 @@ def add_debug_parser(commands: argparse._SubParsersAction) -> None:
     which.add_argument("--metrics-set", metavar="S", help="the metrics set to show (a name from 'metrics sets')")
     which.add_argument("--all-metrics", action="store_true",
                        help="show every test and batch metric of the config (for configs without metrics sets)")
-    debug.add_argument("--logs-dir", type=Path, metavar="DIR",
+    debug.add_argument("--logs-dir", "--logs", type=Path, metavar="DIR",
                        help="the job's log files, where image metrics find their files (default: the 'logs' "
-                            "folder beside the emissions file if there is one, else the emissions file's folder)")
+                            "folder beside the emissions file if there is one, else only the files beside it "
+                            "that the emissions name in image fields)")
     debug.add_argument("--metadata", type=Path, metavar="FILE",
                        help="YAML mapping of the job's metadata columns (experience_name, build_name, tags ...)")
     debug.add_argument("--lake", type=Path, metavar="DIR",
@@ -90,9 +97,43 @@ def _config_paths(given: list[Path] | None) -> list[Path]:
     return [path.resolve() for path in found]
 
 
+def referenced_files(emissions: Path, config: Config) -> set[str]:
+    """The file names the emissions give in `image` fields and in image metrics of events."""
+    images = {t.name: [f for f, kind in t.fields.items() if kind == "image"] for t in config.topics.values()}
+    metrics = {t.name: [f for f, kind in t.fields.items() if kind == "metric[]"] for t in config.topics.values()}
+    names: set[str] = set()
+    with emissions.open(encoding="utf-8", errors="replace") as lines:
+        for line in lines:
+            try:
+                record = json.loads(line)
+                topic, data = record["$metadata"]["topic"], dict(record["$data"])
+            except (ValueError, TypeError, KeyError):
+                continue  # ingest reports bad lines
+            values = [data.get(f) for f in images.get(topic, ())]
+            for item in (m for f in metrics.get(topic, ()) for m in data.get(f) or () if isinstance(m, dict)):
+                if item.get("type") == "image":
+                    value = item.get("value")
+                    values.extend(value if isinstance(value, list) else [value])
+            names.update(v for v in values if isinstance(v, str))
+    return names
+
+
+def copy_referenced(source: Path, names: set[str], target: Path) -> None:
+    """Copy the files `names` of folder `source` (only those inside it) to `target`, replacing it."""
+    shutil.rmtree(target, ignore_errors=True)
+    target.mkdir(parents=True)
+    root = source.resolve()
+    for name in sorted(n for n in names if "\0" not in n):
+        path = (root / name).resolve()
+        if path.is_relative_to(root) and path != root and path.is_file():
+            (target / path.relative_to(root)).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(path, target / path.relative_to(root))
+
+
 class DebugJob:
     """The debug job: its emissions file ingested into the lake, again whenever the file or the
-    config's topics change (`refresh`, called by the session on every reload)."""
+    config's topics change (`refresh`, called by the session on every reload). Without `logs_dir`,
+    its logs are the files beside the emissions file that they reference (`referenced_files`)."""
 
     def __init__(self, lake: Path, branch: str, emissions: Path, logs_dir: Path | None, metadata: dict[str, Any]):
         self.lake, self.branch, self.emissions = lake, branch, emissions
@@ -125,7 +166,9 @@ class DebugJob:
             raise ValueError(f"bad metadata: {error.problems[0]}") from None
         self._ingested = stamp
         logs = paths.logs_dir(self.lake, self.branch, self.batch_id, self.job_id)
-        if self.logs_dir is not None and not logs.exists():
+        if self.logs_dir is None:
+            copy_referenced(self.emissions.parent, referenced_files(self.emissions, config), logs)
+        elif not logs.exists():
             logs.parent.mkdir(parents=True, exist_ok=True)
             try:
                 logs.symlink_to(self.logs_dir.resolve(), target_is_directory=True)
@@ -147,7 +190,7 @@ def _logs_dir(args: argparse.Namespace) -> Path | None:
             raise UserError(f"logs folder {str(args.logs_dir)!r} does not exist")
         return args.logs_dir
     beside = args.emissions_file.parent / "logs"
-    return beside if beside.is_dir() else args.emissions_file.parent
+    return beside if beside.is_dir() else None
 
 
 def _listen(host: str, port: int) -> socket.socket:
@@ -199,8 +242,8 @@ def debug_command(args: argparse.Namespace) -> int:
     lake = (args.lake if args.lake is not None else scratch / "lake").resolve()
     sock = None
     state = None
-    # SIGTERM ends the command as Ctrl+C does (uvicorn stops on it, then raises it again for this
-    # handler), so the scratch lake is removed either way.
+    # SIGTERM ends the command as Ctrl+C does while the job is prepared, so the scratch lake is
+    # removed either way; once serving, both just stop the server (`_stop_on_signals`).
     previous = signal.signal(signal.SIGTERM, _interrupt)
     try:
         job = DebugJob(lake, args.branch, emissions.resolve(), logs_dir, metadata)
@@ -226,16 +269,15 @@ def debug_command(args: argparse.Namespace) -> int:
               f"({rows:,} rows) in {'a scratch lake' if scratch else 'the lake'} {lake}")
         print(f"metrics set {args.metrics_set or '(all metrics)'}: {len(results)} evaluated ("
               + ", ".join(f"{n} {s}" for s, n in counts.items() if n) + f") in {session.seconds:.2f} s")
-        try:
+        server = _server(create_app(state.backend, dashboard_router=dashboard_router(state)))
+        with _stop_on_signals(server):  # from here on Ctrl+C and SIGTERM stop the server, never interrupt
             print(f"SQL endpoint (Trino protocol): http://{shown_host}:{port} (catalog lake, schema "
                   f"{args.branch!r})", flush=True)
             print(f"Dashboard: {url}", flush=True)
             print("Press Ctrl+C to stop.", flush=True)
             if not args.no_browser and _can_open_browser():
                 webbrowser.open(url)
-            _serve(create_app(state.backend, dashboard_router=dashboard_router(state)), sock)
-        except KeyboardInterrupt:
-            pass  # Ctrl+C is how the dashboard is meant to stop
+            server.run(sockets=[sock])
     finally:
         signal.signal(signal.SIGTERM, previous)
         if sock is not None:
@@ -247,15 +289,29 @@ def debug_command(args: argparse.Namespace) -> int:
     return 0
 
 
-def _serve(app: Any, sock: socket.socket) -> None:
-    """Serve `app` on an already listening socket until Ctrl+C (or SIGTERM)."""
+def _server(app: Any) -> Any:
+    """A uvicorn server for `app` that gives open requests at most SHUTDOWN_SECONDS once stopped."""
     import uvicorn
 
     from lakegate.gateway.http_limits import server_config
     from lakegate.gateway.limits import Limits
 
-    server = uvicorn.Server(server_config(app, Limits()))
-    server.run(sockets=[sock])
+    return uvicorn.Server(server_config(app, Limits(), timeout_graceful_shutdown=SHUTDOWN_SECONDS))
+
+
+@contextlib.contextmanager
+def _stop_on_signals(server: Any) -> Iterator[None]:
+    """SIGINT and SIGTERM make `server` stop (uvicorn takes them over while it runs, and raises them
+    again when it has stopped: they land here too), instead of raising in the middle of whatever runs."""
+    def stop(signum: int, frame: Any) -> None:
+        server.should_exit = True
+
+    previous = {sig: signal.signal(sig, stop) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def _interrupt(signum: int, frame: Any) -> None:

@@ -10,12 +10,13 @@ comments and quoting of everything else kept). Every edit is checked by loading 
 files with `load_config`, so what "Export Config" downloads always loads back.
 
 Evaluation runs the metrics set with the metrics engine (`MetricsEngine.evaluate`): test
-metrics on every job of the batch, then batch metrics. As `lakegate metrics run` does, the jobs'
-statuses are written to their metadata rows before the batch metrics run (batch metrics count
-them, e.g. `count_if(job_conflated_status = 'PASSED')`); the results themselves are not stored.
-A session on a stored batch first shows the batch's stored `metric_results` when they were
-evaluated with the same config version and metrics set (and nothing was edited), and then
-writes nothing until something is evaluated.
+metrics on every job of the batch, then batch metrics. A session never writes the lake: the
+jobs' statuses it computes are kept in the session and handed to the batch metrics in their
+scope (`Scope.statuses`), so a batch metric counting them (`count_if(job_conflated_status =
+'PASSED')`) sees what `lakegate metrics run` would write, while `metadata` and `metric_results`
+on disk stay as `metrics run` left them. A session on a stored batch first shows the batch's
+stored `metric_results` when they were evaluated with the same config version and metrics set
+(and nothing was edited).
 """
 from __future__ import annotations
 
@@ -42,7 +43,6 @@ from lakegate.gateway.results import read_results
 from lakegate.gateway.templates import TEMPLATES, json_value
 from lakegate.lake.config import Config, ConfigError, Metric, load_config
 from lakegate.lake.config_schema import SET_METRIC_TYPES
-from lakegate.lake.metadata import update_metadata_row
 from lakegate.lake.registry import BranchConfigs
 
 #: Rows an ad hoc query shows (the total is always counted).
@@ -449,17 +449,30 @@ class DashboardSession:
 
     def _evaluate(self, metric: Metric, job_id: str | None) -> dict[str, Any]:
         logs = self.logs_dir(job_id)
-        result = self.engine.evaluate(metric, self.branch, Scope(self.batch_id, job_id), logs_dir=logs)
+        if job_id is None:  # a batch metric sees the session's job statuses in `metadata`
+            statuses = tuple((job["job_id"], job["metrics_status"], job["conflated_status"]) for job in self.jobs)
+            scope = Scope(self.batch_id, statuses=statuses)
+        else:
+            scope = Scope(self.batch_id, job_id)
+        result = self.engine.evaluate(metric, self.branch, scope, logs_dir=logs)
         return result_json(result, logs)
 
     def _judge(self, job: dict[str, Any]) -> None:
-        """Set a job's statuses from its test metrics and write them to its metadata row."""
+        """Set a job's statuses (in the session only) from its test metrics."""
         metrics_status = worst(r["status"] for r in self.results.get(job["job_id"], {}).values())
-        conflated = conflated_status(job["job_status"], metrics_status)
-        if (metrics_status, conflated) != (job["metrics_status"], job["conflated_status"]):
-            update_metadata_row(self.engine.lake, self.branch, self.batch_id, job["job_id"],
-                                job_metrics_status=metrics_status, job_conflated_status=conflated)
-        job["metrics_status"], job["conflated_status"] = metrics_status, conflated
+        job["metrics_status"], job["conflated_status"] = metrics_status, conflated_status(job["job_status"],
+                                                                                          metrics_status)
+
+    def _rejudge(self) -> None:
+        """Judge every job again; when a status changed, evaluate the batch metrics again (they may count them)."""
+        before = [(job["metrics_status"], job["conflated_status"]) for job in self.jobs]
+        for job in self.jobs:
+            self._judge(job)
+        if before != [(job["metrics_status"], job["conflated_status"]) for job in self.jobs]:
+            batch = self.results.setdefault(None, {})
+            for metric in self.metrics():
+                if metric.type != "test":
+                    batch[metric.name] = self._evaluate(metric, None)
 
     def evaluate_all(self, *, use_stored: bool = False) -> None:
         """Evaluate every metric (test metrics on each job, then batch metrics), or show the batch's
@@ -507,7 +520,7 @@ class DashboardSession:
         if metric.type == "test":
             for job in self.jobs:
                 self.results.setdefault(job["job_id"], {})[name] = self._evaluate(metric, job["job_id"])
-                self._judge(job)
+            self._rejudge()
         else:
             self.results.setdefault(None, {})[name] = self._evaluate(metric, None)
 
@@ -554,8 +567,7 @@ class DashboardSession:
                 self._apply(self.edits, {k: v for k, v in self.added.items() if k != name})
                 for results in self.results.values():
                     results.pop(name, None)
-                for job in self.jobs:
-                    self._judge(job)
+                self._rejudge()
             elif name in self.edits:
                 self._apply({k: v for k, v in self.edits.items() if k != name}, self.added)
                 self._rerun(name)
@@ -608,17 +620,36 @@ class DashboardSession:
             return list(zip(self.files.names, texts))
 
     def export_zip(self) -> bytes:
-        """A zip of the session's config files (and custom template files next to them, if any)."""
+        """A zip of the session's config files and the custom template files they name; SessionError
+        when a template file is not inside the config's folder (only files there are exported)."""
+        with self.lock:
+            assert self.config is not None and self.files is not None
+            templates = self._template_files(self.files.paths[0].parent.resolve())
+            documents = self.documents()
         buffer = io.BytesIO()
         with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
-            for name, text in self.documents():
+            for name, text in documents:
                 archive.writestr(name, text)
-            assert self.config is not None and self.files is not None
-            folder = self.files.paths[0].parent
-            for metric in self.config.metrics.values():
-                if metric.template_file and (folder / metric.template_file).is_file():
-                    archive.write(folder / metric.template_file, metric.template_file)
+            for name, path in templates.items():
+                archive.write(path, name)
         return buffer.getvalue()
+
+    def _template_files(self, folder: Path) -> dict[str, Path]:
+        """Name in the zip -> file of every existing `template_file`, each checked to be inside `folder`."""
+        assert self.config is not None
+        found = {}
+        for metric in self.config.metrics.values():
+            if not metric.template_file:
+                continue
+            path = None if "\0" in metric.template_file else (folder / metric.template_file).resolve()
+            if path is None or not path.is_relative_to(folder) or path == folder:
+                where = f" ({Path(metric.location.path).name}:{metric.location.line}:{metric.location.column})" \
+                    if metric.location else ""
+                raise SessionError(f"metric {metric.name!r}{where}: template_file {metric.template_file!r} is "
+                                   "outside the config's folder; only files inside it are exported")
+            if path.is_file():
+                found[path.relative_to(folder).as_posix()] = path
+        return found
 
     def scope(self, scope: str, job_id: str | None) -> Scope:
         """`job` (one job of the batch), `batch` or `branch` (every batch)."""
@@ -670,8 +701,8 @@ class DashboardSession:
         if root is None:
             raise SessionError(f"job {job_id!r} has no log files")
         root = root.resolve()
-        path = (root / name).resolve()
-        if not path.is_relative_to(root) or not path.is_file():
+        path = None if "\0" in name else (root / name).resolve()
+        if path is None or not path.is_relative_to(root) or not path.is_file():
             raise SessionError(f"no file {name!r} in the logs of job {job_id!r}")
         return path
 

@@ -48,6 +48,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="address to listen on (default 127.0.0.1; any other needs --users and TLS)")
     parser.add_argument("--port", type=port_number, default=8080,
                         help="port to listen on (default 8080; 0 picks a free one)")
+    parser.add_argument("--allowed-host", action="append", default=[], metavar="NAME[:PORT]",
+                        help="a Host name clients may use besides 127.0.0.1, localhost, [::1] and the address "
+                             "connected to (e.g. a reverse proxy's name; repeatable); others get 421")
     parser.add_argument("--catalog", default="lake", help="the lake's catalog name (default: lake)")
     parser.add_argument("--users", type=Path, metavar="FILE",
                         help="require HTTP Basic authentication against this file of 'user:bcrypt-hash' lines")
@@ -151,7 +154,7 @@ def serve_command(args: argparse.Namespace) -> int:
     dashboard = DashboardState(args.lake, backend)
     try:
         app = create_app(backend, catalog_name=args.catalog, limits=limits, users=users,
-                         dashboard_router=dashboard_router(dashboard))
+                         dashboard_router=dashboard_router(dashboard), allowed_hosts=args.allowed_host)
         config = server_config(app, limits, timeout_graceful_shutdown=5,
                                ssl_certfile=str(args.tls_cert) if args.tls_cert else None,
                                ssl_keyfile=str(args.tls_key) if args.tls_key else None)

@@ -42,6 +42,7 @@ from lakegate.gateway import session as sessions
 from lakegate.gateway.auth import Users
 from lakegate.gateway.backend import Backend, QueryResult
 from lakegate.gateway.http_limits import Guard, authenticated_user
+from lakegate.gateway.host_check import HostCheck
 from lakegate.gateway.limits import Limits
 from lakegate.gateway.protocol import (Failure, Progress, QueryIds, columns_document, info_document,
                                        results_document)
@@ -609,13 +610,16 @@ def _base_url(request: Request) -> str:
 
 
 def create_app(backend: Backend, *, catalog_name: str = "lake", limits: Limits = Limits(),
-               users: Users | None = None, dashboard_router: APIRouter | None = None) -> FastAPI:
+               users: Users | None = None, dashboard_router: APIRouter | None = None,
+               allowed_hosts: Sequence[str] = ()) -> FastAPI:
     """The SQL endpoint over `backend` (which must also list its branches: `backend.branches()`).
 
     `catalog_name` is the lake's catalog; `limits` bound queries and requests (`http_limits.Guard`);
     with `users`, every request but /v1/info and /v1/info/state needs HTTP Basic credentials of one
-    of them. `dashboard_router` is included as it is, behind the same guard. `app.state` holds
-    `manager` (QueryManager), `metadata` (Metadata), `backend` and `limits`. Closing the app (lifespan shutdown) fails running queries
+    of them. `dashboard_router` is included as it is, behind the same guard. Every request must name
+    this server in Host (and Origin, when it changes something): `host_check.HostCheck`, with
+    `allowed_hosts` for a proxy. `app.state` holds `manager` (QueryManager), `metadata` (Metadata),
+    `backend` and `limits`. Closing the app (lifespan shutdown) fails running queries
     and stops the workers; the backend stays open (its owner closes it).
     """
     queries: list[QueryManager] = []
@@ -651,4 +655,5 @@ def create_app(backend: Backend, *, catalog_name: str = "lake", limits: Limits =
         return _immediate(manager.ids.next(), _base_url(Request(scope)), failure=failure)
 
     app.add_middleware(Guard, limits=limits, users=users, statement_error=statement_error)
+    app.add_middleware(HostCheck, allowed=allowed_hosts)
     return app

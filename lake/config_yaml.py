@@ -1,9 +1,10 @@
 """Walking one composed YAML file against the config description (`config_schema`).
 
-`FileReader` composes a file with PyYAML (SafeLoader) so every node keeps its line and
-column, and checks mappings against a `Section`: unknown keys (with a did-you-mean),
-missing keys, value types, duplicate keys (which PyYAML would silently drop) and names.
-Every problem is appended to a shared list; nothing here raises for bad input.
+`FileReader` composes a file with ruamel.yaml (safe, YAML 1.2: `on`, `yes` and `1:30` are
+strings) so every node keeps its line and column, and checks mappings against a `Section`:
+unknown keys (with a did-you-mean), missing keys, value types, duplicate keys and names.
+Every problem is appended to a shared list; nothing here raises for bad input. The dashboard
+edits configs with the same library (round-trip mode), so what it writes reads back the same.
 """
 from __future__ import annotations
 
@@ -12,8 +13,10 @@ import re
 from dataclasses import dataclass
 from typing import Any
 
-import yaml
-from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
+from ruamel.yaml import YAML
+from ruamel.yaml.constructor import SafeConstructor
+from ruamel.yaml.error import MarkedYAMLError
+from ruamel.yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
 from lakegate.lake.config_schema import FIELD_TYPE_NAMES, Key, NameRule, Section
 from lakegate.lake.types import canonical_type
@@ -80,7 +83,9 @@ class FileReader:
     def __init__(self, path: str, problems: list[RawProblem]):
         self.path = path
         self.problems = problems
-        self._constructor = yaml.constructor.SafeConstructor()
+        self._yaml = YAML(typ="safe", pure=True)
+        self._yaml.allow_duplicate_keys = True  # reported by `items` with both places
+        self._constructor: SafeConstructor = self._yaml.constructor
 
     # -- places and problems -------------------------------------------------------
 
@@ -106,15 +111,15 @@ class FileReader:
             self.problems.append((self.path, 0, 0, f"cannot read the file: {exc}"))
             return None
         try:
-            root = yaml.compose(text, Loader=yaml.SafeLoader)
-        except yaml.MarkedYAMLError as exc:
+            root = self._yaml.compose(text)
+        except MarkedYAMLError as exc:
             self._yaml_error(exc)
             return None
         if root is None:
             self.problems.append((self.path, 1, 1, "the file is empty; expected a mapping starting with 'version: 1'"))
         return root
 
-    def _yaml_error(self, exc: yaml.MarkedYAMLError) -> None:
+    def _yaml_error(self, exc: MarkedYAMLError) -> None:
         mark = exc.problem_mark or exc.context_mark
         message = f"invalid YAML: {exc.problem or exc.context}"
         if exc.context and exc.problem and exc.context_mark is not None:
@@ -319,7 +324,7 @@ class FileReader:
             return {}
         try:
             return self._constructor.construct_object(node, deep=True)
-        except yaml.MarkedYAMLError as exc:
+        except MarkedYAMLError as exc:
             self._yaml_error(exc)
             return {}
 

@@ -17,8 +17,8 @@ from typing import Any
 
 import pyarrow as pa
 import pyarrow.parquet as pq
-import yaml
-from yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
+from ruamel.yaml import YAML
+from ruamel.yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
 from lakegate.lake import paths
 from lakegate.lake.config_yaml import FileReader, RawProblem, describe, did_you_mean
@@ -60,7 +60,7 @@ _ARROW = {
 #: The Arrow schema of the Parquet file (all columns but the partition ones).
 FILE_SCHEMA = pa.schema([(name, _ARROW[kind]) for name, kind in COLUMNS if name not in PARTITION_COLUMNS])
 _TYPES = dict(COLUMNS)
-_YAML = yaml.constructor.SafeConstructor()
+_YAML = YAML(typ="safe", pure=True).constructor  # the config loader's library (YAML 1.2)
 
 #: Namespace of the deterministic ids (uuid5) generated for names.
 ID_NAMESPACE = uuid.UUID("6f1e7c1a-3b9d-5d43-9a57-2c1f0e6b8a41")

@@ -532,17 +532,10 @@
       app.lake = await api("GET", "/lake");
       const params = new URLSearchParams(location.search);
       app.jobId = params.get("job");
-      app.sessionId = params.get("session") || app.lake.debug_session;
+      app.sessionId = params.get("session");
       if (app.sessionId) {
-        try {
-          applyState(await api("GET", sessionPath() + jobQuery()));
-          return;
-        } catch (error) {
-          if (!app.lake.debug_session || app.sessionId === app.lake.debug_session) throw error;
-          app.sessionId = app.lake.debug_session;  // an expired session: back to the debug one
-          applyState(await api("GET", sessionPath()));
-          return;
-        }
+        applyState(await api("GET", sessionPath() + jobQuery()));
+        return;
       }
       const branch = app.lake.branches.find((b) => b.name === params.get("branch")) ||
         app.lake.branches.find((b) => b.batches.length);

@@ -22,6 +22,7 @@ from typing import Any
 import pytest
 import uvicorn
 
+from lakegate.dialect.scope import Scope
 from lakegate.gateway.dashboard import DashboardState, dashboard_router
 from lakegate.gateway.debug_command import DebugJob
 from lakegate.gateway.debug_session import DashboardSession, FileConfig
@@ -171,7 +172,7 @@ def test_statuses_follow_the_data(served, nav_jobs, tmp_path) -> None:
     assert _metric(state, "Time to reach final goal")["result"]["status"] == "BLOCKER"
     assert state["jobs"][0]["conflated_status"] == "BLOCKER" and state["status"] == "BLOCKER"
     row = read_metadata_row(served.lake, "debug", session.batch_id, state["job_id"])
-    assert row["job_conflated_status"] == "BLOCKER"
+    assert row["job_conflated_status"] is None  # the session's statuses are never written
 
 
 def test_edit_a_query_see_errors_with_position_and_revert(served, nav_jobs, tmp_path) -> None:
@@ -333,9 +334,8 @@ def test_batch_view_evaluates_then_shows_stored_results(served, nav_jobs) -> Non
     by_job = {row["job_id"]: row for row in state["matrix"]["rows"]}
     assert [by_job[j.job_id]["conflated_status"] for j in nav_jobs.jobs] == ["PASSED", "WARNING", "BLOCKER"]
     assert state["matrix"]["metrics"] == [m["name"] for m in state["metrics"] if m["type"] == "test"]
-    for job in nav_jobs.jobs:  # written before the batch metrics ran, as `lakegate metrics run` does
-        row = read_metadata_row(served.lake, BRANCH, BATCH, job.job_id)
-        assert row["job_conflated_status"] == by_job[job.job_id]["conflated_status"]
+    for job in nav_jobs.jobs:  # never written: the batch metrics see the session's statuses instead
+        assert read_metadata_row(served.lake, BRANCH, BATCH, job.job_id)["job_conflated_status"] is None
     pie = _metric(state, "Job Outcomes")["result"]["figure"]["data"][0]
     assert dict(zip(pie["labels"], pie["values"])) == {"PASSED": 1, "WARNING": 1, "BLOCKER": 1}
     other = api(served, "GET", f"sessions/{state['id']}?job={nav_jobs.jobs[2].job_id}")
@@ -375,3 +375,24 @@ def test_page_and_static_files(served) -> None:
         assert status == 200 and marker in body[:2000 if name == "plotly.min.js" else None], name
     status, _, _ = _request(served, "GET", "static/../debug_session.py")
     assert status == 404
+
+
+def test_scope_statuses_overlay_metadata_without_writing(served, nav_jobs) -> None:
+    """The session's job statuses reach batch metrics through the scope (`Scope.statuses`): `metadata`
+    keeps its columns and order, shows the given statuses for the listed jobs, its own for the others."""
+    backend = served.state.backend
+    plain = backend.execute("SELECT * FROM metadata ORDER BY job_id", branch=BRANCH, scope=Scope(BATCH))
+    first, second = sorted(j.job_id for j in nav_jobs.jobs)[:2]
+    scope = Scope(BATCH, statuses=((first, "WARNING", "ERROR"),))
+    overlaid = backend.execute("SELECT * FROM metadata ORDER BY job_id", branch=BRANCH, scope=scope)
+    assert overlaid.columns == plain.columns
+    names = [name for name, _ in plain.columns]
+    rows = {row[names.index("job_id")]: dict(zip(names, row)) for row in overlaid.rows()}
+    stored = {row[names.index("job_id")]: dict(zip(names, row)) for row in plain.rows()}
+    assert (rows[first]["job_metrics_status"], rows[first]["job_conflated_status"]) == ("WARNING", "ERROR")
+    assert rows[second] == stored[second]
+    statuses = ("job_metrics_status", "job_conflated_status")
+    assert {k: v for k, v in rows[first].items() if k not in statuses} == \
+        {k: v for k, v in stored[first].items() if k not in statuses}
+    assert read_metadata_row(served.lake, BRANCH, BATCH, first)["job_conflated_status"] == \
+        stored[first]["job_conflated_status"]

@@ -256,7 +256,7 @@ def test_bad_field_names(tmp_path):
               X: float
               timestamp: int
               Job_ID: string
-              on: boolean
+              true: boolean
     """)) == [
         (6, 7, "field 'X' of topic 'pose' differs only in letter case from field 'x' (at line 5, column 7); "
                "SQL column names ignore case"),
@@ -264,7 +264,7 @@ def test_bad_field_names(tmp_path):
                "(timestamp, batch_id, job_id, experience_name, build_version)"),
         (8, 7, "field 'Job_ID' of topic 'pose' is a column every topic row already has "
                "(timestamp, batch_id, job_id, experience_name, build_version)"),
-        (9, 7, "field 'on' in topic 'pose' is read by YAML as a boolean, not a string; quote it"),
+        (9, 7, "field 'true' in topic 'pose' is read by YAML as a boolean, not a string; quote it"),
     ]
 
 
@@ -478,6 +478,27 @@ def test_yaml_edge_cases(tmp_path):
         (5, 9, "'<<' can only merge mappings, got integer 5"),
         (7, 13, "recursive alias in dashboards of the config file"),
     ]
+
+
+def test_yaml_1_2_scalars_stay_strings(tmp_path):
+    """YAML 1.2 (ruamel.yaml, the library the dashboard edits configs with): `on`, `yes` and `1:30`
+    are strings, as they come back from an edit; YAML 1.1 would read True, True and 90."""
+    config = load_config(write(tmp_path, """
+        version: 1
+        topics:
+          t: {schema: {on: string}}
+        metrics:
+          M:
+            type: test
+            description: d
+            query_string: SELECT 1 WHERE ? = 'x'
+            template: scalar
+            units: on
+            status: {query_string: "SELECT 1 WHERE ? = 'x'", block: 1:30, warn: yes}
+    """))
+    metric = config.metrics["M"]
+    assert (metric.units, metric.status.block, metric.status.warn) == ("on", "1:30", "yes")
+    assert list(config.topics["t"].fields) == ["on"]
 
 
 def test_file_level_problems(tmp_path):

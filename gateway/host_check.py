@@ -6,8 +6,8 @@ rebinding (a name of the other site that now resolves to 127.0.0.1: its `Host` i
 So every request must name this server in `Host`:
 
 - `127.0.0.1:PORT`, `localhost:PORT`, `[::1]:PORT`, or the address the connection arrived on
-  (`ADDRESS:PORT`, e.g. the LAN address of a server bound to 0.0.0.0), where PORT is the port it
-  arrived on (without `:PORT` when that is the scheme's default port);
+  (`ADDRESS:PORT`, e.g. the LAN address of a server bound to 0.0.0.0), where PORT, if given, is the
+  port it arrived on;
 - or a name given with `--allowed-host` (for a reverse proxy): `NAME` matches it on any port,
   `NAME:PORT` only on that port.
 
@@ -24,7 +24,6 @@ from urllib.parse import urlsplit
 
 LOOPBACK_NAMES = ("127.0.0.1", "localhost", "[::1]")
 STATE_CHANGING = frozenset({"POST", "PUT", "PATCH", "DELETE"})
-DEFAULT_PORTS = {"http": 80, "https": 443}
 
 
 def _bracketed(address: str) -> str:
@@ -41,8 +40,13 @@ def _split(host: str) -> tuple[str, str | None]:
     return host[:close] + name, port if colon else None
 
 
-def host_allowed(host: str, server: tuple[str, int] | None, scheme: str, allowed: Iterable[str] = ()) -> bool:
-    """Whether a `Host` value (`name[:port]`) names this server, reached at `server` (address, port)."""
+def host_allowed(host: str, server: tuple[str, int] | None, allowed: Iterable[str] = (),
+                 default_port: int | None = None) -> bool:
+    """Whether a `Host` value (`name[:port]`) names this server, reached at `server` (address, port).
+
+    A missing port means `default_port` (an Origin's scheme default), or for a Host header the
+    connection's own port (raw HTTP/1.1 clients often omit it; the name is what defeats DNS rebinding).
+    """
     host = host.strip().lower()
     name, port = _split(host)
     for extra in allowed:
@@ -51,7 +55,10 @@ def host_allowed(host: str, server: tuple[str, int] | None, scheme: str, allowed
             return True
     if not name or server is None:
         return False
-    given = DEFAULT_PORTS.get(scheme) if port is None else int(port) if port.isdigit() else None
+    if port is None:
+        given = default_port if default_port is not None else server[1]
+    else:
+        given = int(port) if port.isdigit() else None
     return name in {*LOOPBACK_NAMES, _bracketed(server[0]).lower()} and given == server[1]
 
 
@@ -67,9 +74,9 @@ class HostCheck:
             await self.app(scope, receive, send)
             return
         headers = {key.decode("latin-1").lower(): value.decode("latin-1") for key, value in scope["headers"]}
-        server, scheme = scope.get("server"), scope.get("scheme", "http")
+        server = scope.get("server")
         host = headers.get("host", "")
-        if not host_allowed(host, server, scheme, self.allowed):
+        if not host_allowed(host, server, self.allowed):
             await _refuse(send, 421, f"Host header {host!r} does not name this server (use "
                                      f"127.0.0.1:{server[1] if server else 'PORT'} or localhost; a reverse proxy's "
                                      "name must be allowed with --allowed-host)")
@@ -77,7 +84,8 @@ class HostCheck:
         origin = headers.get("origin")
         if origin is not None and scope.get("method") in STATE_CHANGING:
             parts = urlsplit(origin)
-            if not parts.netloc or not host_allowed(parts.netloc, server, parts.scheme, self.allowed):
+            if not parts.netloc or not host_allowed(parts.netloc, server, self.allowed,
+                                                                  {"http": 80, "https": 443}.get(parts.scheme, 0)):
                 await _refuse(send, 403, f"Origin {origin!r} may not change anything here (cross-site "
                                          "requests are refused; allow a proxy's name with --allowed-host)")
                 return

@@ -39,6 +39,8 @@ from lakegate.lake.record import FileEntry, Record
 
 #: Rows per streamed record batch.
 BATCH_ROWS = 65_536
+#: How often a query starts again when a file it listed was replaced before its first row.
+RETRIES = 3
 #: Parsed DuckDB statements kept per branch (parsing costs about 0.4 ms).
 STATEMENT_CACHE = 256
 
@@ -90,6 +92,11 @@ def _failure(error: BaseException) -> DialectError:
     if isinstance(error, duckdb.OutOfMemoryException) or "Out of Memory Error" in str(error):
         return DialectError(f"Query exceeded the memory limit: {error}", error_name="EXCEEDED_GLOBAL_MEMORY_LIMIT")
     return runtime_error(str(error))
+
+
+def _where(entry: FileEntry) -> str:
+    """How a message names a file: `table T, batch B, job J`."""
+    return f"table {entry.table}, batch {entry.batch_id}" + (f", job {entry.job_id}" if entry.job_id else "")
 
 
 def _quote_ident(name: str) -> str:
@@ -147,15 +154,19 @@ class _Branch:
     statements: OrderedDict = field(default_factory=OrderedDict)  # DuckDB SQL -> its checked Statement
     files: dict[str, str] = field(default_factory=dict)  # each listed file's path -> "table T, batch B, job J"
 
-    def failure(self, error: BaseException) -> DialectError:
+    def failure(self, error: BaseException, *, vanished: bool = False) -> DialectError:
         """The DialectError for a DuckDB error: a listed file is named by its table, batch and job
-        (HIVE_BAD_DATA when it cannot be read), never by its path."""
+        (HIVE_BAD_DATA when it cannot be read, HIVE_FILE_NOT_FOUND when writers kept replacing
+        it), never by its path."""
         message = str(error)
         named = [path for path in self.files if path in message]
         if not named:
             return _failure(error)
         for path in named:
             message = message.replace(f"'{path}'", path).replace(f'"{path}"', path).replace(path, self.files[path])
+        if vanished:
+            return DialectError(f"The data of {self.files[named[0]]} was replaced while the query read it, "
+                                "again and again; run the query again", error_name="HIVE_FILE_NOT_FOUND")
         first = message.strip().splitlines()[0].split(": ", 1)[-1]
         return DialectError(f"Cannot read the Parquet file of {self.files[named[0]]}: {first}",
                             error_name="HIVE_BAD_DATA")
@@ -258,25 +269,31 @@ class DuckDBBackend:
             return state
 
     def _load_views(self, state: _Branch, branch: str, stamp: object) -> None:
+        """Replace the views by those of the record's current snapshot. A file that cannot be read
+        is left out (queries of its job fail, `Catalog.view_sql`); a file replaced meanwhile (a
+        writer committed after the snapshot was read) means a newer snapshot is taken."""
         if self.catalog is None:
             state.stamp = stamp
             return
-        snapshot = self.catalog.snapshot(branch, self._records[branch])
         root = paths.branch_dir(self.lake, branch)
-        files = {str(root / e.path): f"table {e.table}, batch {e.batch_id}" + (f", job {e.job_id}" if e.job_id else "")
-                 for e in snapshot.files}
-        state.files = {**state.files, **files}  # queries still running may name older files
-        schema = self.catalog.schema(branch, snapshot)
-        unreadable: set[str] = set()
         while True:
-            views = self.catalog.view_sql(branch, snapshot, unreadable=unreadable)
-            failed = self._swap_views(state, views)
+            snapshot = self.catalog.snapshot(branch, self._records[branch])
+            files = {str(paths.reader_path(root, e.path)): _where(e) for e in snapshot.files}
+            state.files = {**state.files, **files}  # queries still running may name older files
+            schema = self.catalog.schema(branch, snapshot)
+            unreadable: set[str] = set()
+            failed = self._swap_views(state, self.catalog.view_sql(branch, snapshot))
+            while failed is not None:
+                named = {path for path in files if path in failed}
+                if not named <= unreadable and all(os.path.exists(path) for path in named):
+                    unreadable |= named
+                    failed = self._swap_views(state, self.catalog.view_sql(branch, snapshot, unreadable=unreadable))
+                elif named:
+                    break  # a file was replaced: take a newer snapshot
+                else:
+                    raise state.failure(duckdb.Error(failed))
             if failed is None:
                 break
-            bad = {path for path in files if path in failed} - unreadable
-            if not bad:
-                raise state.failure(duckdb.Error(failed))
-            unreadable |= bad
         state.files = files
         state.schema, state.stamp = schema, (snapshot.generation, stamp[1])
         state.version = hashlib.sha1(repr(sorted((t, sorted(c.items())) for t, c in schema.items()))
@@ -333,17 +350,20 @@ class DuckDBBackend:
         if kind == "explain":
             return self._explain(guard.check_text(sql), state, scope, params)
         translation = self._translate(state, sql, scope, params)
-        run = self._start(branch, state, translation.duckdb_sql, retry=True)
+        run = self._start(branch, state, translation.duckdb_sql)
         return QueryResult(columns=list(translation.columns), batches=run.batches(),
                            duckdb_sql=translation.duckdb_sql, _cancel=run.cancel)
 
-    def _start(self, branch: str, state: _Branch, duckdb_sql: str, *, retry: bool) -> _Run:
-        """Bind the query on a new cursor. With `retry`, a query that finds a listed file gone
-        (a writer replaced it after this query's views were read) is started once more, on the
-        branch's views as they are now."""
+    def _start(self, branch: str, state: _Branch, duckdb_sql: str, retries: int = RETRIES) -> _Run:
+        """Bind the query on a new cursor. A query that finds a listed file gone before its first
+        row (a writer replaced it after the query's views were read) starts again, up to `retries`
+        times, on the branch's views as they are now."""
         def again(error: BaseException) -> _Run | None:
-            return self._start(branch, self._state(branch), duckdb_sql, retry=False) \
-                if retry and state.vanished(error) else None
+            if not state.vanished(error):
+                return None
+            if retries == 0:
+                raise state.failure(error, vanished=True)
+            return self._start(branch, self._state(branch), duckdb_sql, retries - 1)
 
         cursor = state.connection.cursor()
         try:

@@ -177,4 +177,10 @@ def ls_command(args: argparse.Namespace) -> int:
         columns = ", ".join(f"{name} {kind}" for name, kind in table.columns)
         rows = "row " if table.row_count == 1 else "rows"
         print(f"  {table.name:<{width}}  {table.kind:<8}  {table.row_count:>12,} {rows}  ({columns})")
+    unreadable = catalog.unreadable(args.branch)
+    if unreadable:
+        print(f"unreadable files ({len(unreadable)}): queries that read these jobs fail")
+        for entry, reason in unreadable:
+            job = f", job {entry.job_id}" if entry.job_id else ""
+            print(f"  table {entry.table}, batch {entry.batch_id}{job}: {reason}")
     return 0

@@ -20,6 +20,8 @@ from pathlib import Path
 from typing import Collection, NamedTuple, Sequence
 
 import duckdb
+import pyarrow as pa
+import pyarrow.parquet as pq
 
 from lakegate.lake import paths
 from lakegate.lake.config import Config, Topic
@@ -221,16 +223,16 @@ class Catalog:
     def view_sql(self, branch: str, snapshot: Snapshot | None = None,
                  unreadable: Collection[str] = ()) -> dict[str, str]:
         """Table -> a DuckDB SELECT of its rows, columns as in `schema`, over exactly the files of
-        `snapshot` (default: the record now); no file is opened to build it. The `unreadable`
-        files (absolute paths) are left out: a query that reads their job fails with HIVE_BAD_DATA
-        naming table, batch and job, and other jobs' rows are still read."""
+        `snapshot` (default: the record now, read through `paths.reader_path`); no file is opened to
+        build it. The `unreadable` files (absolute reader paths) are left out: a query that reads
+        their job fails with HIVE_BAD_DATA naming table, batch and job; other jobs still read."""
         snapshot = snapshot or self.snapshot(branch)
         root = paths.branch_dir(self.lake, branch)
         views = {}
         for spec in self._specs(branch, snapshot):
             files, bad = [], []
             for entry in snapshot.of(spec.name):
-                (bad if str(root / entry.path) in unreadable else files).append(entry)
+                (bad if str(paths.reader_path(root, entry.path)) in unreadable else files).append(entry)
             selects = [self._files_sql(spec, root, files)] if files else []
             selects += [_unreadable_sql(spec, entry) for entry in bad]
             if not selects:
@@ -242,7 +244,7 @@ class Catalog:
     @staticmethod
     def _files_sql(spec: _Spec, root: Path, files: Sequence[FileEntry]) -> str:
         hive_types = ", ".join(f"'{key}': VARCHAR" for key in paths.partition_keys(spec.name))
-        listed = ", ".join(_quote_text(str(root / entry.path)) for entry in files)
+        listed = ", ".join(_quote_text(str(paths.reader_path(root, entry.path))) for entry in files)
         source = (f"read_parquet([{listed}], hive_partitioning = true, hive_types = {{{hive_types}}}"
                   f"{', union_by_name = true' if spec.varied else ''})")
         present = None
@@ -259,6 +261,19 @@ class Catalog:
             else:
                 items.append(f"CAST(NULL AS {DUCKDB_TYPES[trino]}) AS {_quote_ident(column)}")
         return f"SELECT {', '.join(items)} FROM {source}"
+
+    def unreadable(self, branch: str) -> list[tuple[FileEntry, str]]:
+        """The branch's files whose Parquet footer cannot be read, with why (reads every footer)."""
+        root = paths.branch_dir(self.lake, branch)
+        found = []
+        for entry in self.snapshot(branch).files:
+            try:
+                pq.read_metadata(root / entry.path)
+            except FileNotFoundError:
+                found.append((entry, "the file is missing"))
+            except (OSError, pa.ArrowException):
+                found.append((entry, "the file is corrupt or not Parquet"))
+        return found
 
     def connect(self, branch: str) -> duckdb.DuckDBPyConnection:
         """An in-memory DuckDB connection with one view per table of the branch."""

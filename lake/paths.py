@@ -5,6 +5,7 @@ Layout (see DESIGN.md, "Lake on disk")::
     <lake>/<branch-dir>/<table>/batch_id=<B>/job_id=<J>/<pid>-<id>.parquet   topics, metadata, events
     <lake>/<branch-dir>/metric_results/batch_id=<B>/<pid>-<id>.parquet       evaluated metrics (per batch)
     <lake>/<branch-dir>/_lake.sqlite                                   which file is current (`lake.record`)
+    <lake>/<branch-dir>/_readers/<table>/...                           hard links lakegate's queries read
     <lake>/<branch-dir>/_logs/<B>/<J>/...                              job log files (images the metrics show)
     <lake>/<branch-dir>/_configs/v000001/...                           the branch's config versions
     <lake>/<branch-dir>/_quarantine/<B>/<J>.jsonl                      bad lines kept by --skip-bad-lines
@@ -43,6 +44,7 @@ STAGING = "_staging"
 CONFIGS = "_configs"
 QUARANTINE = "_quarantine"
 LOGS = "_logs"
+READERS = "_readers"
 #: Names a topic may not have, because the branch directory uses them.
 RESERVED_TABLES = frozenset({METADATA_TABLE, EVENTS_TABLE, METRIC_RESULTS_TABLE})
 #: Tables partitioned by batch only (`<table>/batch_id=<B>/data.parquet`).
@@ -176,6 +178,17 @@ def abandoned_files(directory: Path) -> list[Path]:
     return [file for file in directory.glob("*.parquet") if not _writer_alive(file.name.split("-", 1)[0])]
 
 
+def reader_path(branch_root: Path, relative: str) -> Path:
+    """The hard link lakegate's readers open for the published file `<branch_root>/<relative>`:
+    the same path under `<branch_root>/_readers/`.
+
+    Other readers of the lake (Trino's Hive connector, a DuckDB glob of `<table>/...`) never see
+    it; it outlives the visible name for a grace period after a writer supersedes the file, so a
+    query that listed it can still read it.
+    """
+    return branch_root / READERS / relative
+
+
 def table_names(lake: Path, branch: str) -> list[str]:
     """The table directories of a branch (not `_`/`.` ones), sorted."""
     root = branch_dir(lake, branch)
@@ -231,6 +244,21 @@ def publish(source: Path, target: Path) -> None:
     """Move a finished file into place atomically (replacing any older version)."""
     target.parent.mkdir(parents=True, exist_ok=True)
     os.replace(source, target)
+
+
+def publish_linked(source: Path, target: Path) -> None:
+    """`publish`, then add the file's reader link (`reader_path`)."""
+    publish(source, target)
+    link_reader(target)
+
+
+def link_reader(target: Path) -> None:
+    """Add the reader link of a published file (`reader_path`; the branch is its table's parent)."""
+    root = target.parents[3] if target.parent.name.startswith("job_id=") else target.parents[2]
+    link = reader_path(root, target.relative_to(root).as_posix())
+    link.parent.mkdir(parents=True, exist_ok=True)
+    with contextlib.suppress(FileExistsError):
+        os.link(target, link)
 
 
 def remove_published(target: Path) -> None:

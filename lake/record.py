@@ -29,6 +29,8 @@ import pyarrow.parquet as pq
 from lakegate.lake import paths
 
 RECORD = "_lake.sqlite"
+#: How long a superseded file stays readable by lakegate's queries that listed it (its hidden link).
+GRACE_SECONDS = 120
 #: Test hook: `<point>:<marker file>` makes a writer touch the marker and stop for a minute at that
 #: point (`added`: after its first file is published; `commit`: just before its record commit).
 PAUSE_ENV = "LAKEGATE_TEST_PAUSE"
@@ -40,6 +42,7 @@ CREATE TABLE IF NOT EXISTS files (
     table_name TEXT NOT NULL, batch_id TEXT NOT NULL, job_id TEXT NOT NULL, path TEXT NOT NULL,
     rows INTEGER NOT NULL, min_ts INTEGER, max_ts INTEGER, columns TEXT NOT NULL, commit_id INTEGER NOT NULL,
     PRIMARY KEY (table_name, batch_id, job_id));
+CREATE TABLE IF NOT EXISTS trash (path TEXT PRIMARY KEY, superseded_at REAL NOT NULL);
 """
 
 
@@ -156,7 +159,23 @@ class Record:
                 db.execute("INSERT OR REPLACE INTO files VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
                            (*entry.key, entry.path, entry.rows, entry.min_ts, entry.max_ts,
                             json.dumps(entry.columns), commit_id))
-        return sorted(old - {entry.path for entry in entries})
+            superseded = sorted(old - {entry.path for entry in entries})
+            db.executemany("INSERT OR REPLACE INTO trash VALUES (?, ?)",
+                           [(_hidden(path), time.time()) for path in superseded])
+        return superseded
+
+    def expired(self, grace: float) -> list[str]:
+        """Take the hidden links superseded more than `grace` seconds ago off the trash list."""
+        db = self._connect()
+        with _transaction(db, immediate=True):
+            limit = time.time() - grace
+            found = [r[0] for r in db.execute("SELECT path FROM trash WHERE superseded_at < ?", (limit,))]
+            db.execute("DELETE FROM trash WHERE superseded_at < ?", (limit,))
+        return found
+
+    def trashed(self) -> set[str]:
+        """The hidden links still in their grace period."""
+        return {r[0] for r in self._connect().execute("SELECT path FROM trash")}
 
     def referenced(self, batch_id: str, job_id: str = "") -> set[str]:
         """The paths the record holds for one job (or batch)."""
@@ -191,7 +210,7 @@ class Change:
     def add(self, table: str, batch_id: str, job_id: str | None, staged: Path) -> FileEntry:
         """Publish `staged` as the file of `table` for one job (job_id None: for one batch)."""
         target = paths.new_data_file(self.lake, self.branch, table, batch_id, job_id)
-        paths.publish(staged, target)
+        paths.publish_linked(staged, target)
         entry = describe_file(self.record.root, table, batch_id, job_id or "", target)
         self.entries.append(entry)
         _pause("added")
@@ -206,7 +225,9 @@ class Change:
         _pause("commit")
         try:
             superseded = self.record.commit(what, self.entries, self.dropped)
-            for relative in superseded:
+            for relative in superseded:  # gone for Trino now; lakegate's queries keep the hidden link a while
+                paths.remove_published(self.record.root / relative)
+            for relative in self.record.expired(GRACE_SECONDS):
                 paths.remove_published(self.record.root / relative)
             for batch_id, job_id in {(e.batch_id, e.job_id) for e in self.entries} | set(self.dropped):
                 self._sweep(batch_id, job_id)
@@ -216,11 +237,14 @@ class Change:
 
     def _sweep(self, batch_id: str, job_id: str) -> None:
         """Remove files of one job that no row references and no living writer is about to commit."""
-        keep = self.record.referenced(batch_id, job_id)
+        referenced = self.record.referenced(batch_id, job_id)
+        keep = referenced | {_hidden(path) for path in referenced} | self.record.trashed()
+        root = self.record.root
         for table in paths.table_names(self.lake, self.branch):
             directory = paths.partition_dir(self.lake, self.branch, table, batch_id, job_id or None)
-            for file in paths.abandoned_files(directory):
-                if file.relative_to(self.record.root).as_posix() not in keep:
+            links = root / paths.READERS / directory.relative_to(root)
+            for file in paths.abandoned_files(directory) + paths.abandoned_files(links):
+                if file.relative_to(root).as_posix() not in keep:
                     paths.remove_published(file)
 
 
@@ -242,6 +266,10 @@ def _transaction(db: sqlite3.Connection, *, immediate: bool = False) -> Iterator
     db.execute("COMMIT")
 
 
+def _hidden(relative: str) -> str:
+    return f"{paths.READERS}/{relative}"
+
+
 def _entry(row: tuple) -> FileEntry:
     table, batch_id, job_id, path, rows, low, high, columns = row
     return FileEntry(table, batch_id, job_id, path, rows, low, high, tuple(json.loads(columns)))
@@ -256,6 +284,7 @@ def _migrate(db: sqlite3.Connection, root: Path) -> None:
             batch_id = paths.partition_value(file.parent if table in paths.BATCH_TABLES else file.parent.parent,
                                              "batch_id")
             job_id = "" if table in paths.BATCH_TABLES else paths.partition_value(file.parent, "job_id")
+            paths.link_reader(file)
             try:
                 entry = describe_file(root, table, batch_id, job_id, file)
             except (OSError, ValueError):  # unreadable: recorded, so a query of it says which file

@@ -55,9 +55,10 @@ def build_lake(root: Path, jobs=JOBS, config_text: str = CONFIG) -> Path:
 
 
 def snapshot(root: Path) -> dict[str, tuple[int, int, str]]:
-    """Every file under `root`: size, modification time and content digest."""
+    """Every file under `root`: size, modification time and content digest (not the record's
+    SQLite WAL and shared-memory files, which come and go with its readers' connections)."""
     return {str(p.relative_to(root)): (p.stat().st_size, p.stat().st_mtime_ns, hashlib.sha256(p.read_bytes()).hexdigest())
-            for p in sorted(root.rglob("*")) if p.is_file()}
+            for p in sorted(root.rglob("*")) if p.is_file() and not p.name.endswith(("-wal", "-shm"))}
 
 
 @pytest.fixture(scope="module")

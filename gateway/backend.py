@@ -142,6 +142,7 @@ class _Run:
         finally:
             self.cursor.close()
         if retry is not None:
+            self.cursor = retry.cursor  # `cancel` interrupts the query's new run
             yield from retry.batches()
 
 
@@ -152,7 +153,8 @@ class _Branch:
     schema: dict[str, dict[str, str]] = field(default_factory=dict)
     version: str = ""
     statements: OrderedDict = field(default_factory=OrderedDict)  # DuckDB SQL -> its checked Statement
-    files: dict[str, str] = field(default_factory=dict)  # each listed file's path -> "table T, batch B, job J"
+    files: dict[str, str] = field(default_factory=dict)  # reader path -> "table T, batch B, job J" (last 2 loads)
+    listed: dict[str, str] = field(default_factory=dict)  # the same, of the views' files only
 
     def failure(self, error: BaseException, *, vanished: bool = False) -> DialectError:
         """The DialectError for a DuckDB error: a listed file is named by its table, batch and job
@@ -279,22 +281,21 @@ class DuckDBBackend:
         while True:
             snapshot = self.catalog.snapshot(branch, self._records[branch])
             files = {str(paths.reader_path(root, e.path)): _where(e) for e in snapshot.files}
-            state.files = {**state.files, **files}  # queries still running may name older files
+            state.files = {**state.listed, **files}  # queries still running may name the last files
             schema = self.catalog.schema(branch, snapshot)
             unreadable: set[str] = set()
             failed = self._swap_views(state, self.catalog.view_sql(branch, snapshot))
             while failed is not None:
                 named = {path for path in files if path in failed}
-                if not named <= unreadable and all(os.path.exists(path) for path in named):
-                    unreadable |= named
-                    failed = self._swap_views(state, self.catalog.view_sql(branch, snapshot, unreadable=unreadable))
-                elif named:
-                    break  # a file was replaced: take a newer snapshot
-                else:
+                if named <= unreadable:
                     raise state.failure(duckdb.Error(failed))
+                if not all(map(os.path.exists, named)) and self._records[branch].generation() != snapshot.generation:
+                    break  # a writer replaced the file: take the newer snapshot
+                unreadable |= named  # corrupt, or missing although the record holds it
+                failed = self._swap_views(state, self.catalog.view_sql(branch, snapshot, unreadable=unreadable))
             if failed is None:
                 break
-        state.files = files
+        state.files, state.listed = {**state.listed, **files}, files
         state.schema, state.stamp = schema, (snapshot.generation, stamp[1])
         state.version = hashlib.sha1(repr(sorted((t, sorted(c.items())) for t, c in schema.items()))
                                      .encode()).hexdigest()

@@ -121,7 +121,8 @@ def _unreadable_sql(spec: _Spec, entry: FileEntry) -> str:
     items = [_quote_ident(c) if c in keys else f"CAST(NULL AS {DUCKDB_TYPES[t]}) AS {_quote_ident(c)}"
              for c, t in spec.columns]
     constants = ", ".join(f"{_quote_text(value)} AS {_quote_ident(key)}" for key, value in keys.items())
-    message = _quote_text(f"HIVE_BAD_DATA: Cannot read the Parquet file of {where}: it is corrupt or not Parquet")
+    message = _quote_text(f"HIVE_BAD_DATA: Cannot read the Parquet file of {where}: it is corrupt, truncated or "
+                          "missing (ingest the job again)")
     return f"SELECT {', '.join(items)} FROM (SELECT {constants}) WHERE error({message}) IS NULL"
 
 

@@ -3,12 +3,14 @@
 `<lake>/<branch-dir>/_lake.sqlite` (SQLite, WAL) keeps one row per (table, batch, job) in `files`
 (path relative to the branch directory, row count, min/max `timestamp`, the file's columns, the
 commit that wrote it) and a `commits` log whose last id is the branch's *generation*. Writers
-put every new file in its partition directory under a fresh name (`paths.new_data_file`), then
-`Change.commit` replaces the rows of everything they rewrite in ONE transaction, bumping the
-generation, and only then deletes the superseded files. Readers take one `snapshot` per query (or
-just the `generation`, to see whether theirs is still current), so they see a job's tables all
-old or all new, and never list the tree. A writer killed before its commit leaves only files no
-row references: lakegate never reads them, and the next writer of that job removes them.
+put every new file in its partition directory under a fresh name (`paths.new_data_file`), with
+a hard link under `_readers/` (`paths.reader_path`), then `Change.commit` replaces the rows of
+everything they rewrite in ONE transaction, bumping the generation, and only then deletes the
+superseded files' visible names; their reader links stay `GRACE_SECONDS` (listed in `trash`), so
+a query that listed them still reads them. Readers take one `snapshot` per generation and read
+the reader links, so they see a job's tables all old or all new, and never list the tree. A
+writer killed before its commit leaves only files no row references: lakegate never reads them,
+and the next writer of that job removes them. See docs/lake-format.md.
 
 A lake written before the record existed (`data.parquet` files, no record) is migrated when the
 record is first opened: its files are listed once, inside the record's first write transaction.
@@ -42,6 +44,7 @@ CREATE TABLE IF NOT EXISTS files (
     table_name TEXT NOT NULL, batch_id TEXT NOT NULL, job_id TEXT NOT NULL, path TEXT NOT NULL,
     rows INTEGER NOT NULL, min_ts INTEGER, max_ts INTEGER, columns TEXT NOT NULL, commit_id INTEGER NOT NULL,
     PRIMARY KEY (table_name, batch_id, job_id));
+CREATE INDEX IF NOT EXISTS files_of_job ON files (batch_id, job_id);
 CREATE TABLE IF NOT EXISTS trash (path TEXT PRIMARY KEY, superseded_at REAL NOT NULL);
 """
 

@@ -436,3 +436,16 @@ def test_query_serve_and_lake_ls_with_a_corrupt_file(tmp_path):
     finally:
         server.terminate()
         server.wait(30)
+
+
+def test_a_file_deleted_by_hand_fails_only_its_job(tmp_path):
+    lake = build_lake(tmp_path, jobs=[("b1", "j1", 3), ("b1", "j2", 2)])
+    for file in lake.glob("**/odom/batch_id=b1/job_id=j1/*.parquet"):  # the visible file and the reader link
+        file.unlink()
+    backend = DuckDBBackend(lake, memory_limit="256MB", threads=1)
+    try:
+        assert backend.execute("SELECT count(*) FROM odom WHERE job_id = 'j2'", branch="main").rows() == [(2,)]
+        error = refused(backend, "SELECT count(*) FROM odom", branch="main")
+        assert error.error_name == "HIVE_BAD_DATA" and "table odom, batch b1, job j1" in error.message
+    finally:
+        backend.close()

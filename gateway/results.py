@@ -122,6 +122,8 @@ class ResultsWriter:
         return self._change.record.root / entry.path
 
     def close(self) -> None:
+        """Drop what was staged and not committed."""
+        self._change.discard()
         self._stack.close()
 
     def __enter__(self) -> "ResultsWriter":

@@ -228,15 +228,24 @@ class Change:
         _pause("commit")
         try:
             superseded = self.record.commit(what, self.entries, self.dropped)
-            for relative in superseded:  # gone for Trino now; lakegate's queries keep the hidden link a while
+            committed, self.entries = self.entries, []
+            for relative in superseded:  # gone for Trino now; lakegate's queries keep the reader link a while
                 paths.remove_published(self.record.root / relative)
             for relative in self.record.expired(GRACE_SECONDS):
                 paths.remove_published(self.record.root / relative)
-            for batch_id, job_id in {(e.batch_id, e.job_id) for e in self.entries} | set(self.dropped):
+            for batch_id, job_id in {(e.batch_id, e.job_id) for e in committed} | set(self.dropped):
                 self._sweep(batch_id, job_id)
         finally:
             self.record.close()
-        return [self.record.root / entry.path for entry in self.entries]
+        return [self.record.root / entry.path for entry in committed]
+
+    def discard(self) -> None:
+        """Remove the files added and not committed (a no-op after `commit`)."""
+        for entry in self.entries:
+            paths.remove_published(self.record.root / entry.path)
+            paths.remove_published(paths.reader_path(self.record.root, entry.path))
+        self.entries = []
+        self.record.close()
 
     def _sweep(self, batch_id: str, job_id: str) -> None:
         """Remove files of one job that no row references and no living writer is about to commit."""

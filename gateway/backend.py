@@ -94,11 +94,6 @@ def _failure(error: BaseException) -> DialectError:
     return runtime_error(str(error))
 
 
-def _where(entry: FileEntry) -> str:
-    """How a message names a file: `table T, batch B, job J`."""
-    return f"table {entry.table}, batch {entry.batch_id}" + (f", job {entry.job_id}" if entry.job_id else "")
-
-
 def _quote_ident(name: str) -> str:
     return '"' + name.replace('"', '""') + '"'
 
@@ -280,7 +275,7 @@ class DuckDBBackend:
         root = paths.branch_dir(self.lake, branch)
         while True:
             snapshot = self.catalog.snapshot(branch, self._records[branch])
-            files = {str(paths.reader_path(root, e.path)): _where(e) for e in snapshot.files}
+            files = {str(paths.reader_path(root, e.path)): e.where for e in snapshot.files}
             state.files = {**state.listed, **files}  # queries still running may name the last files
             schema = self.catalog.schema(branch, snapshot)
             unreadable: set[str] = set()

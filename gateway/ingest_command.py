@@ -181,6 +181,5 @@ def ls_command(args: argparse.Namespace) -> int:
     if unreadable:
         print(f"unreadable files ({len(unreadable)}): queries that read these jobs fail")
         for entry, reason in unreadable:
-            job = f", job {entry.job_id}" if entry.job_id else ""
-            print(f"  table {entry.table}, batch {entry.batch_id}{job}: {reason}")
+            print(f"  {entry.where}: {reason}")
     return 0

@@ -3,15 +3,15 @@
 The tables of a branch are the topics its configs declare (from the config registry:
 the current version's topics, then topics only older versions declare that still have
 files), `events` and `metadata`. `view_sql` gives, per table, a DuckDB SELECT over the
-table's Parquet files as the branch's record lists them (never a glob of the tree) (Hive partitions `batch_id`/`job_id` read as VARCHAR, never
-auto-cast) with the columns of `schema` in order; a table without files is an empty
-SELECT with the same columns and types. Columns that a topic gained or changed across
-config versions are read with `union_by_name` and cast to the current type (NULL in
-files written before the column existed); other tables are read without it (their files all
-have the same columns, and DuckDB would otherwise read every file's footer at each query); the
-columns each file has come from the record, so building views opens no file.
-`metric_results` (evaluated metrics, one file per batch, written by the metrics engine) is a
-table once the branch has any.
+table's Parquet files as the branch's record lists them, never a glob of the tree (Hive
+partitions `batch_id`/`job_id` read as VARCHAR, never auto-cast) with the columns of
+`schema` in order; a table without files is an empty SELECT with the same columns and
+types. Columns that a topic gained or changed across config versions are read with
+`union_by_name` and cast to the current type (NULL in files written before the column
+existed); other tables are read without it (their files all have the same columns, and
+DuckDB would otherwise read every file's footer at each query); the columns each file has
+come from the record, so building views opens no file. `metric_results` (evaluated
+metrics, one file per batch, written by the metrics engine) is a table once the branch has any.
 """
 from __future__ import annotations
 
@@ -116,12 +116,11 @@ def topic_columns(topic: Topic) -> list[tuple[str, str]]:
 
 def _unreadable_sql(spec: _Spec, entry: FileEntry) -> str:
     """A SELECT standing for an unreadable file: it raises HIVE_BAD_DATA when a query reads its job."""
-    where = f"table {entry.table}, batch {entry.batch_id}" + (f", job {entry.job_id}" if entry.job_id else "")
     keys = {"batch_id": entry.batch_id, "job_id": entry.job_id} if entry.job_id else {"batch_id": entry.batch_id}
     items = [_quote_ident(c) if c in keys else f"CAST(NULL AS {DUCKDB_TYPES[t]}) AS {_quote_ident(c)}"
              for c, t in spec.columns]
     constants = ", ".join(f"{_quote_text(value)} AS {_quote_ident(key)}" for key, value in keys.items())
-    message = _quote_text(f"HIVE_BAD_DATA: Cannot read the Parquet file of {where}: it is corrupt, truncated or "
+    message = _quote_text(f"HIVE_BAD_DATA: Cannot read the Parquet file of {entry.where}: it is corrupt, truncated or "
                           "missing (ingest the job again)")
     return f"SELECT {', '.join(items)} FROM (SELECT {constants}) WHERE error({message}) IS NULL"
 

@@ -66,6 +66,11 @@ class FileEntry:
     def key(self) -> tuple[str, str, str]:
         return self.table, self.batch_id, self.job_id
 
+    @property
+    def where(self) -> str:
+        """How messages name the file: `table T, batch B, job J` (never its path)."""
+        return f"table {self.table}, batch {self.batch_id}" + (f", job {self.job_id}" if self.job_id else "")
+
 
 @dataclass(frozen=True)
 class Snapshot:

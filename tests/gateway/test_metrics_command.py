@@ -259,7 +259,8 @@ def test_two_branches_with_different_schemas_for_one_topic(tmp_path):
 def run_process(lake: Path, batch: str, *extra, env: dict | None = None) -> subprocess.Popen:
     return subprocess.Popen([*CLI, "metrics", "run", "--lake", str(lake), "--branch", "main", "--batch", batch,
                              "--metrics-set", "Nav Metrics", "--format", "json", *map(str, extra)],
-                            env={**os.environ, **(env or {})}, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            env={**os.environ, **(env or {})}, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
 
 
 def stored_run(lake: Path, batch: str, jobs) -> tuple[dict, dict]:

@@ -13,7 +13,6 @@ from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
 from lakegate.gateway.backend import DuckDBBackend
 from lakegate.gateway.metrics import MetricsEngine
 from lakegate.gateway.results import read_results
-from lakegate.lake import paths
 from lakegate.lake.catalog import METRIC_RESULTS_COLUMNS
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job

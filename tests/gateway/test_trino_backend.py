@@ -33,7 +33,6 @@ from lakegate.gateway.results import read_results
 from lakegate.gateway import trino_backend
 from lakegate.gateway.trino_backend import RemoteQueryError, TrinoBackend, forwarded_sql
 from lakegate.gateway.trino_ddl import schema_name
-from lakegate.lake import paths
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file

@@ -38,6 +38,7 @@ from lakegate.lake import paths  # noqa: E402
 from lakegate.lake.catalog import Catalog  # noqa: E402
 from lakegate.lake.config import load_config  # noqa: E402
 from lakegate.lake.ingest import ingest_job  # noqa: E402
+from lakegate.lake.record import current_file  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 WORK = ROOT / "bench" / ".work" / "translate"
@@ -83,7 +84,7 @@ def build_lake(rows: int) -> Path:
     for i, (batch, job) in enumerate(JOBS):
         ingest_job(lake, "main", batch, job, [seed], config=config,
                    metadata={"experience_name": f"experience {i % 3}", "build_version": "1.0"})  # metadata, configs
-        target = paths.data_file(lake, "main", TOPIC, batch, job)
+        target = current_file(lake, "main", TOPIC, batch, job)
         schema = pq.read_schema(target)
         columns = {
             "timestamp": pa.array(np.arange(per_job, dtype=np.int64) * 10_000_000),

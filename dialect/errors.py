@@ -35,6 +35,8 @@ ERROR_CODES = {
     "USER_CANCELED": 3,
     "GENERIC_INTERNAL_ERROR": 65536,
     "EXCEEDED_GLOBAL_MEMORY_LIMIT": 131073,
+    "HIVE_FILE_NOT_FOUND": 16777220,  # io.trino.plugin.hive.HiveErrorCode: a listed file is gone
+    "HIVE_BAD_DATA": 16777223,  # io.trino.plugin.hive.HiveErrorCode: a data file cannot be read
 }
 
 

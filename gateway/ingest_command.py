@@ -177,4 +177,9 @@ def ls_command(args: argparse.Namespace) -> int:
         columns = ", ".join(f"{name} {kind}" for name, kind in table.columns)
         rows = "row " if table.row_count == 1 else "rows"
         print(f"  {table.name:<{width}}  {table.kind:<8}  {table.row_count:>12,} {rows}  ({columns})")
+    unreadable = catalog.unreadable(args.branch)
+    if unreadable:
+        print(f"unreadable files ({len(unreadable)}): queries that read these jobs fail")
+        for entry, reason in unreadable:
+            print(f"  {entry.where}: {reason}")
     return 0

@@ -8,12 +8,14 @@ How a batch is evaluated (`MetricsEngine.evaluate_batch`):
 2. A job's `job_metrics_status` is the worst status of its test metrics; its
    `job_conflated_status` is ERROR when its `job_status` is FAILED, else its metrics status
    (so a metric ERROR makes the job ERROR: its pass/fail could not be decided). Both are
-   written to the job's `metadata` row before any batch metric runs, so batch metrics can
-   count them (`count_if(job_conflated_status = 'PASSED')`).
+   staged as the job's new `metadata` row, which batch metrics already see (DuckDB backend),
+   so they can count them (`count_if(job_conflated_status = 'PASSED')`).
 3. Every `type: batch` metric runs once, restricted to the batch (`Scope(batch_id)`).
 4. The batch's `batch_metrics_status` is the worst of its batch metrics; its overall
    `status` folds in every job: the worst of the batch metrics and the jobs' conflated statuses.
-5. The results replace the batch's rows of the `metric_results` table (`results`).
+5. The results replace the batch's rows of the `metric_results` table, and the staged statuses
+   the jobs' metadata rows, in one commit of the branch's record (`results`), under the
+   batch's lock: two runs of a batch take turns, and a run that dies changes nothing.
 
 Statuses, from best to worst: PASSED < WARNING < BLOCKER < ERROR; NOT_RUN (skipped or not
 supported) counts for nothing. One metric:
@@ -57,7 +59,6 @@ from lakegate.gateway.results import ResultsWriter
 from lakegate.gateway.templates import UNSUPPORTED_TEMPLATES, Rendered, TemplateError, json_value, render
 from lakegate.lake import paths
 from lakegate.lake.config import Config, Location, Metric
-from lakegate.lake.metadata import update_metadata_row
 
 PASSED, WARNING, BLOCKER, ERROR, NOT_RUN = "PASSED", "WARNING", "BLOCKER", "ERROR", "NOT_RUN"
 #: Statuses from best to worst; NOT_RUN is below all and never makes anything worse.
@@ -414,16 +415,13 @@ class MetricsEngine:
                        progress: bool = False, store: bool = True, keep_figures: bool = True) -> BatchEvaluation:
         """Evaluate `metrics` on every job of a batch and on the batch (see the module docstring).
 
-        Writes the jobs' statuses to their metadata rows and, with `store`, replaces the batch's
-        rows of `metric_results` (written job by job while the others are evaluated). Without
+        With `store`, replaces the batch's rows of `metric_results` (written job by job while the
+        others are evaluated) and the jobs' statuses in their metadata rows, in one commit. Without
         `keep_figures`, each job's Plotly figures are dropped from the returned results once
         stored (they can be large). LookupError when the batch has no jobs.
         """
         started = time.perf_counter()
         evaluated_at = dt.datetime.now(dt.timezone.utc).replace(tzinfo=None)
-        jobs = self.jobs(branch, batch_id)
-        if not jobs:
-            raise LookupError(f"batch {batch_id!r} has no jobs on branch {branch!r}")
         test_metrics = [m for m in metrics if m.type == "test"]
         batch_metrics = [m for m in metrics if m.type != "test"]
         lock = threading.Lock()
@@ -444,6 +442,11 @@ class MetricsEngine:
                         result.rendered.figure = None
 
         with contextlib.ExitStack() as stack:
+            if store:  # one evaluation of a batch at a time: its statuses and results switch together
+                stack.enter_context(paths.batch_lock(self.lake, branch, batch_id))
+            jobs = self.jobs(branch, batch_id)
+            if not jobs:
+                raise LookupError(f"batch {batch_id!r} has no jobs on branch {branch!r}")
             bar = stack.enter_context(tqdm(total=len(jobs) * len(test_metrics) + len(batch_metrics),
                                            desc="evaluating metrics", unit="metric", disable=not progress,
                                            file=sys.stderr, leave=False))
@@ -456,9 +459,10 @@ class MetricsEngine:
             for outcome in pool.map(one_job, jobs):  # in job order, as they finish
                 done(outcome.results)
                 outcomes.append(outcome)
+            batch_engine = self._batch_engine(stack, writer, outcomes)
             batch_results = []
             for metric in batch_metrics:
-                batch_results.append(self.evaluate(metric, branch, Scope(batch_id=batch_id)))
+                batch_results.append(batch_engine.evaluate(metric, branch, Scope(batch_id=batch_id)))
                 advance()
             done(batch_results)
             if writer is not None:
@@ -472,6 +476,22 @@ class MetricsEngine:
         evaluation.seconds = time.perf_counter() - started
         return evaluation
 
+    def _batch_engine(self, stack: contextlib.ExitStack, writer: ResultsWriter | None,
+                      outcomes: Sequence[JobOutcome]) -> "MetricsEngine":
+        """Stage the jobs' statuses; the engine for batch metrics, which sees them before they are
+        committed with the results (DuckDB backend; another backend gets them committed first)."""
+        if writer is None:
+            return self
+        for outcome in outcomes:
+            writer.stage_statuses(outcome.job_id, job_metrics_status=outcome.metrics_status,
+                                  job_conflated_status=outcome.conflated_status)
+        if not isinstance(self.backend, DuckDBBackend):  # a Trino cluster reads only committed files
+            writer.commit_statuses()
+            return self
+        backend = self.backend.with_pending(writer.pending)
+        stack.callback(backend.close)
+        return MetricsEngine(self.lake, backend, threads=self.threads)
+
     def _evaluate_job(self, branch: str, batch_id: str, job: tuple[str, str | None, str | None],
                       metrics: Sequence[Metric], advance: Callable[[], None]) -> JobOutcome:
         job_id, experience, job_status = job
@@ -483,8 +503,6 @@ class MetricsEngine:
             advance()
         metrics_status = worst(r.status for r in job_results)
         conflated = conflated_status(job_status, metrics_status)
-        update_metadata_row(self.lake, branch, batch_id, job_id, job_metrics_status=metrics_status,
-                            job_conflated_status=conflated)
         return JobOutcome(job_id=job_id, experience_name=experience, job_status=job_status,
                           metrics_status=metrics_status, conflated_status=conflated, results=job_results,
                           logs_dir=logs)

@@ -1,9 +1,10 @@
 """Evaluated metrics in the lake: the `metric_results` table.
 
-One Parquet file per batch, `<lake>/<branch>/metric_results/batch_id=<B>/data.parquet`, one
+One Parquet file per batch, `<lake>/<branch>/metric_results/batch_id=<B>/<name>.parquet`, one
 row per evaluated metric (columns: `lakegate.lake.catalog.METRIC_RESULTS_COLUMNS`; `job_id`
-is NULL for batch metrics). Evaluating a batch again replaces its file atomically, so the
-table always holds the latest evaluation of each batch. The catalog shows it as a table of
+is NULL for batch metrics). Evaluating a batch again replaces its file and its jobs' statuses
+in one commit of the branch's record, so the table always holds the latest evaluation of each
+batch, and the statuses in `metadata` are the ones it computed. The catalog shows it as a table of
 the branch, so trends across batches and builds are one SQL query away::
 
     SELECT m.build_name, AVG(r.scalar_value)
@@ -28,6 +29,8 @@ import pyarrow.parquet as pq
 
 from lakegate.lake import paths
 from lakegate.lake.catalog import METRIC_RESULTS_COLUMNS
+from lakegate.lake.metadata import read_metadata_row, stage_metadata_row
+from lakegate.lake.record import Change, FileEntry, current_file
 
 if TYPE_CHECKING:
     from lakegate.gateway.metrics import MetricResult
@@ -72,31 +75,55 @@ def result_row(result: "MetricResult", *, metrics_set: str | None, config_versio
 
 
 class ResultsWriter:
-    """Writes the results of one evaluation of a batch as they come (one row group per `write`);
-    `commit` then replaces the batch's file atomically. Closed without `commit`, nothing changes.
+    """Writes the results of one evaluation of a batch as they come (one row group per `write`) and
+    stages the jobs' new statuses (`stage_statuses`); `commit` then switches the batch's results and
+    every staged status in ONE record commit (`lake.record`), so they always agree. Closed without
+    `commit`, nothing changes. The caller holds the batch's lock (`paths.batch_lock`).
     """
 
     def __init__(self, lake: Path, branch: str, batch_id: str, *, metrics_set: str | None,
                  config_version: int | None, evaluated_at: dt.datetime):
-        self.target = paths.batch_file(lake, branch, paths.METRIC_RESULTS_TABLE, batch_id)
+        self.lake, self.branch, self.batch_id = Path(lake), branch, batch_id
         self._row = {"metrics_set": metrics_set, "config_version": config_version, "evaluated_at": evaluated_at}
+        self._change = Change(lake, branch)
         self._stack = contextlib.ExitStack()
-        scratch = self._stack.enter_context(paths.staging(lake, branch))
-        self._staged = scratch / paths.DATA_FILE
+        self._scratch = self._stack.enter_context(paths.staging(lake, branch))
+        self._staged = self._scratch / "metric_results.parquet"
         self._writer = self._stack.enter_context(pq.ParquetWriter(self._staged, SCHEMA, compression="zstd"))
 
     def write(self, results: "Sequence[MetricResult]") -> None:
         rows = [result_row(r, **self._row) for r in results]
         self._writer.write_table(pa.Table.from_pylist(rows, schema=SCHEMA))
 
+    def stage_statuses(self, job_id: str, **statuses: str) -> None:
+        """Stage new status columns of a job's metadata row (shown with the results at `commit`)."""
+        row = read_metadata_row(self.lake, self.branch, self.batch_id, job_id)
+        if row is None:
+            raise LookupError(f"job {job_id!r} of batch {self.batch_id!r} has no metadata row any more")
+        row.update(statuses)
+        stage_metadata_row(self._change, self._scratch, self.batch_id, job_id, row)
+
+    @property
+    def pending(self) -> list[FileEntry]:
+        """The staged files so far (the new metadata rows), for a catalog that shows them early."""
+        return list(self._change.entries)
+
+    def commit_statuses(self) -> None:
+        """Commit the staged statuses now, before the results (for a backend that cannot see staged files)."""
+        self._change.commit(f"statuses {self.batch_id}")
+        self._change = Change(self.lake, self.branch)
+
     def commit(self) -> Path:
-        """Publish the written rows as the batch's results; returns the file."""
+        """Publish the written rows as the batch's results, with the staged statuses; returns the file."""
         self._writer.close()
-        paths.publish(self._staged, self.target)
+        entry = self._change.add(paths.METRIC_RESULTS_TABLE, self.batch_id, None, self._staged)
+        self._change.commit(f"metrics run {self.batch_id}")
         self.close()
-        return self.target
+        return self._change.record.root / entry.path
 
     def close(self) -> None:
+        """Drop what was staged and not committed."""
+        self._change.discard()
         self._stack.close()
 
     def __enter__(self) -> "ResultsWriter":
@@ -108,9 +135,8 @@ class ResultsWriter:
 
 def read_results(lake: Path, branch: str, batch_id: str) -> list[dict[str, Any]]:
     """The stored rows of one batch (in evaluation order), or [] when it was never evaluated."""
-    target = paths.batch_file(lake, branch, paths.METRIC_RESULTS_TABLE, batch_id)
-    try:
-        table = pq.read_table(target, schema=SCHEMA, partitioning=None)
-    except FileNotFoundError:
+    target = current_file(lake, branch, paths.METRIC_RESULTS_TABLE, batch_id)
+    if target is None:
         return []
+    table = pq.read_table(target, schema=SCHEMA, partitioning=None)
     return [{"batch_id": batch_id, **row} for row in table.to_pylist()]

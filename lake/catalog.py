@@ -3,27 +3,31 @@
 The tables of a branch are the topics its configs declare (from the config registry:
 the current version's topics, then topics only older versions declare that still have
 files), `events` and `metadata`. `view_sql` gives, per table, a DuckDB SELECT over the
-table's Parquet files (Hive partitions `batch_id`/`job_id` read as VARCHAR, never
-auto-cast) with the columns of `schema` in order; a table without files is an empty
-SELECT with the same columns and types. Columns that a topic gained or changed across
-config versions are read with `union_by_name` and cast to the current type (NULL in
-files written before the column existed); other tables are read without it (their files all
-have the same columns, and DuckDB would otherwise read every file's footer at each query).
-`metric_results` (evaluated metrics, one file per batch, written by the metrics engine) is a
-table once the branch has any.
+table's Parquet files as the branch's record lists them, never a glob of the tree (Hive
+partitions `batch_id`/`job_id` read as VARCHAR, never auto-cast) with the columns of
+`schema` in order; a table without files is an empty SELECT with the same columns and
+types. Columns that a topic gained or changed across config versions are read with
+`union_by_name` and cast to the current type (NULL in files written before the column
+existed); other tables are read without it (their files all have the same columns, and
+DuckDB would otherwise read every file's footer at each query); the columns each file has
+come from the record, so building views opens no file. `metric_results` (evaluated
+metrics, one file per batch, written by the metrics engine) is a table once the branch has any.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import NamedTuple
+from typing import Collection, NamedTuple, Sequence
 
 import duckdb
+import pyarrow as pa
+import pyarrow.parquet as pq
 
 from lakegate.lake import paths
 from lakegate.lake.config import Config, Topic
 from lakegate.lake.ingest import JOB_COLUMNS, TIMESTAMP
 from lakegate.lake.metadata import COLUMNS as METADATA_COLUMNS
+from lakegate.lake.record import FileEntry, Record, Snapshot
 from lakegate.lake.registry import BranchConfigs
 from lakegate.lake.types import trino_type
 
@@ -110,11 +114,28 @@ def topic_columns(topic: Topic) -> list[tuple[str, str]]:
             *[(c, "varchar") for c in JOB_COLUMNS], *[(c, "varchar") for c in PARTITIONS]]
 
 
-class Catalog:
-    """Reads the lake at `lake`; nothing is cached between calls except loaded config versions."""
+def _unreadable_sql(spec: _Spec, entry: FileEntry) -> str:
+    """A SELECT standing for an unreadable file: it raises HIVE_BAD_DATA when a query reads its job."""
+    keys = {"batch_id": entry.batch_id, "job_id": entry.job_id} if entry.job_id else {"batch_id": entry.batch_id}
+    items = [_quote_ident(c) if c in keys else f"CAST(NULL AS {DUCKDB_TYPES[t]}) AS {_quote_ident(c)}"
+             for c, t in spec.columns]
+    constants = ", ".join(f"{_quote_text(value)} AS {_quote_ident(key)}" for key, value in keys.items())
+    message = _quote_text(f"HIVE_BAD_DATA: Cannot read the Parquet file of {entry.where}: it is corrupt, truncated or "
+                          "missing (ingest the job again)")
+    return f"SELECT {', '.join(items)} FROM (SELECT {constants}) WHERE error({message}) IS NULL"
 
-    def __init__(self, lake: Path):
+
+class Catalog:
+    """Reads the lake at `lake`: each call reads the branch's record once (`lake.record`), or uses
+    the `snapshot` it is given; nothing is cached between calls except loaded config versions.
+
+    `pending` entries (staged, not yet committed) replace the record's files of their keys: the
+    metrics engine shows a batch's new statuses to its batch metrics before committing them.
+    """
+
+    def __init__(self, lake: Path, pending: Sequence[FileEntry] = ()):
         self.lake = Path(lake)
+        self.pending = {entry.key: entry for entry in pending}
         self._configs: dict[tuple[str, int], Config] = {}
 
     # -- listing --------------------------------------------------------------------------
@@ -132,18 +153,27 @@ class Catalog:
                     continue
         return sorted(names)
 
+    def snapshot(self, branch: str, record: Record | None = None) -> Snapshot:
+        """The branch's files now (`record`: an open record of the branch to read them from)."""
+        if record is None:
+            record = Record(self.lake, branch)
+            try:
+                found = record.snapshot()
+            finally:
+                record.close()
+        else:
+            found = record.snapshot()
+        if not self.pending:
+            return found
+        files = {entry.key: entry for entry in found.files} | self.pending
+        return Snapshot(found.generation, tuple(files.values()))
+
     def jobs(self, branch: str, batch_id: str | None = None) -> list[JobRef]:
         """The jobs (those with a metadata row) of a branch, or of one batch, sorted."""
-        root = paths.table_dir(self.lake, branch, paths.METADATA_TABLE)
         if batch_id is not None:
             paths.check_segment(batch_id, "batch id")
-        found = []
-        for batch_dir in sorted(root.glob(f"batch_id={'*' if batch_id is None else batch_id}")):
-            batch = paths.partition_value(batch_dir, "batch_id")
-            for job_dir in sorted(batch_dir.glob("job_id=*")):
-                if (job_dir / paths.DATA_FILE).is_file():
-                    found.append(JobRef(batch, paths.partition_value(job_dir, "job_id")))
-        return sorted(found)
+        return sorted(JobRef(e.batch_id, e.job_id) for e in self.snapshot(branch).of(paths.METADATA_TABLE)
+                      if batch_id is None or e.batch_id == batch_id)
 
     def batches(self, branch: str) -> list[str]:
         """The batches of a branch that have at least one job, sorted."""
@@ -157,7 +187,7 @@ class Catalog:
             self._configs[key] = BranchConfigs(self.lake, branch).load(version)
         return self._configs[key]
 
-    def _specs(self, branch: str) -> list[_Spec]:
+    def _specs(self, branch: str, snapshot: Snapshot) -> list[_Spec]:
         registry = BranchConfigs(self.lake, branch)
         versions = registry.versions()
         declared: dict[str, list[Topic]] = {}  # topic -> its declarations, newest first
@@ -165,74 +195,85 @@ class Catalog:
             for topic in self._config(branch, version).topics.values():
                 declared.setdefault(topic.name, []).append(topic)
         current = set(self._config(branch, versions[-1]).topics) if versions else set()
+        with_files = {entry.table for entry in snapshot.files}
         specs = []
         for name, topics in declared.items():
-            if name not in current and not self._has_files(branch, name):
+            if name not in current and name not in with_files:
                 continue  # dropped from the config and never written
             varied = any(t.fields != topics[0].fields for t in topics[1:])
             specs.append(_Spec(name, "topic", topic_columns(topics[0]), varied))
         specs.sort(key=lambda s: s.name not in current)  # current topics first, in config order
         specs.append(_Spec(paths.EVENTS_TABLE, "events", list(_EVENTS_COLUMNS)))
         specs.append(_Spec(paths.METADATA_TABLE, "metadata", list(METADATA_COLUMNS)))
-        if self._has_files(branch, paths.METRIC_RESULTS_TABLE):
+        if paths.METRIC_RESULTS_TABLE in with_files:
             specs.append(_Spec(paths.METRIC_RESULTS_TABLE, "metric_results", list(METRIC_RESULTS_COLUMNS)))
         return specs
 
-    def _has_files(self, branch: str, table: str) -> bool:
-        return next(paths.data_files(self.lake, branch, table), None) is not None
-
-    def schema(self, branch: str) -> dict[str, dict[str, str]]:
+    def schema(self, branch: str, snapshot: Snapshot | None = None) -> dict[str, dict[str, str]]:
         """Table -> column -> Trino type name, for every table of the branch."""
-        return {spec.name: dict(spec.columns) for spec in self._specs(branch)}
+        snapshot = snapshot or self.snapshot(branch)
+        return {spec.name: dict(spec.columns) for spec in self._specs(branch, snapshot)}
 
     def tables(self, branch: str) -> list[TableInfo]:
-        """Every table of the branch with its columns and row count."""
-        con = duckdb.connect()
-        try:
-            infos = []
-            for spec in self._specs(branch):
-                count = 0
-                if self._has_files(branch, spec.name):
-                    glob = _quote_text(paths.table_glob(self.lake, branch, spec.name))
-                    count = con.execute(f"SELECT count(*) FROM read_parquet({glob})").fetchone()[0]
-                infos.append(TableInfo(spec.name, spec.kind, list(spec.columns), count))
-            return infos
-        finally:
-            con.close()
+        """Every table of the branch with its columns and row count (from the record: no file is read)."""
+        snapshot = self.snapshot(branch)
+        return [TableInfo(spec.name, spec.kind, list(spec.columns), sum(e.rows for e in snapshot.of(spec.name)))
+                for spec in self._specs(branch, snapshot)]
 
-    def view_sql(self, branch: str) -> dict[str, str]:
-        """Table -> a DuckDB SELECT of its rows, columns as in `schema` (reflects the files at call time)."""
+    def view_sql(self, branch: str, snapshot: Snapshot | None = None,
+                 unreadable: Collection[str] = ()) -> dict[str, str]:
+        """Table -> a DuckDB SELECT of its rows, columns as in `schema`, over exactly the files of
+        `snapshot` (default: the record now, read through `paths.reader_path`); no file is opened to
+        build it. The `unreadable` files (absolute reader paths) are left out: a query that reads
+        their job fails with HIVE_BAD_DATA naming table, batch and job; other jobs still read."""
+        snapshot = snapshot or self.snapshot(branch)
+        root = paths.branch_dir(self.lake, branch)
         views = {}
-        con: duckdb.DuckDBPyConnection | None = None
-        try:
-            for spec in self._specs(branch):
-                if not self._has_files(branch, spec.name):
-                    columns = ", ".join(f"CAST(NULL AS {DUCKDB_TYPES[t]}) AS {_quote_ident(c)}" for c, t in spec.columns)
-                    views[spec.name] = f"SELECT {columns} WHERE false"
-                    continue
-                hive_types = ", ".join(f"'{key}': VARCHAR" for key in paths.partition_keys(spec.name))
-                source = (f"read_parquet({_quote_text(paths.table_glob(self.lake, branch, spec.name))}, "
-                          f"hive_partitioning = true, hive_types = {{{hive_types}}}"
-                          f"{', union_by_name = true' if spec.varied else ''})")
-                present = None
-                if spec.varied:
-                    con = con or duckdb.connect()
-                    present = {row[0] for row in con.execute(f"DESCRIBE SELECT * FROM {source}").fetchall()}
-                items = []
-                for column, trino in spec.columns:
-                    if present is None and trino != "timestamp(3)":
-                        items.append(_quote_ident(column))
-                    elif present is None:  # DuckDB reads Parquet milliseconds as TIMESTAMP (microseconds)
-                        items.append(f"CAST({_quote_ident(column)} AS TIMESTAMP_MS) AS {_quote_ident(column)}")
-                    elif column in present:
-                        items.append(f"CAST({_quote_ident(column)} AS {DUCKDB_TYPES[trino]}) AS {_quote_ident(column)}")
-                    else:
-                        items.append(f"CAST(NULL AS {DUCKDB_TYPES[trino]}) AS {_quote_ident(column)}")
-                views[spec.name] = f"SELECT {', '.join(items)} FROM {source}"
-        finally:
-            if con is not None:
-                con.close()
+        for spec in self._specs(branch, snapshot):
+            files, bad = [], []
+            for entry in snapshot.of(spec.name):
+                (bad if str(paths.reader_path(root, entry.path)) in unreadable else files).append(entry)
+            selects = [self._files_sql(spec, root, files)] if files else []
+            selects += [_unreadable_sql(spec, entry) for entry in bad]
+            if not selects:
+                columns = ", ".join(f"CAST(NULL AS {DUCKDB_TYPES[t]}) AS {_quote_ident(c)}" for c, t in spec.columns)
+                selects = [f"SELECT {columns} WHERE false"]
+            views[spec.name] = " UNION ALL ".join(selects)
         return views
+
+    @staticmethod
+    def _files_sql(spec: _Spec, root: Path, files: Sequence[FileEntry]) -> str:
+        hive_types = ", ".join(f"'{key}': VARCHAR" for key in paths.partition_keys(spec.name))
+        listed = ", ".join(_quote_text(str(paths.reader_path(root, entry.path))) for entry in files)
+        source = (f"read_parquet([{listed}], hive_partitioning = true, hive_types = {{{hive_types}}}"
+                  f"{', union_by_name = true' if spec.varied else ''})")
+        present = None
+        if spec.varied:
+            present = {column for entry in files for column in entry.columns} | set(paths.partition_keys(spec.name))
+        items = []
+        for column, trino in spec.columns:
+            if present is None and trino != "timestamp(3)":
+                items.append(_quote_ident(column))
+            elif present is None:  # DuckDB reads Parquet milliseconds as TIMESTAMP (microseconds)
+                items.append(f"CAST({_quote_ident(column)} AS TIMESTAMP_MS) AS {_quote_ident(column)}")
+            elif column in present:
+                items.append(f"CAST({_quote_ident(column)} AS {DUCKDB_TYPES[trino]}) AS {_quote_ident(column)}")
+            else:
+                items.append(f"CAST(NULL AS {DUCKDB_TYPES[trino]}) AS {_quote_ident(column)}")
+        return f"SELECT {', '.join(items)} FROM {source}"
+
+    def unreadable(self, branch: str) -> list[tuple[FileEntry, str]]:
+        """The branch's files whose Parquet footer cannot be read, with why (reads every footer)."""
+        root = paths.branch_dir(self.lake, branch)
+        found = []
+        for entry in self.snapshot(branch).files:
+            try:
+                pq.read_metadata(root / entry.path)
+            except FileNotFoundError:
+                found.append((entry, "the file is missing"))
+            except (OSError, pa.ArrowException):
+                found.append((entry, "the file is corrupt or not Parquet"))
+        return found
 
     def connect(self, branch: str) -> duckdb.DuckDBPyConnection:
         """An in-memory DuckDB connection with one view per table of the branch."""

@@ -3,7 +3,8 @@
 `ingest_job` validates every line against the branch's topics and writes one Parquet file
 per topic (columns `timestamp`, the declared fields, `experience_name`, `build_version`),
 the job's `events` and its `metadata` row, under the Hive layout of `lake.paths`. Files are
-written to `_staging/` and published by atomic rename once the whole job is good; a bad
+written to `_staging/` and, once the whole job is good, made the job's tables all at once
+by one commit of the branch's record (`lake.record`); a bad
 line fails the job (nothing written) unless `skip_bad_lines`, which keeps the good rows
 and writes the bad lines with their reasons to a quarantine file.
 
@@ -48,6 +49,7 @@ from lakegate.lake import paths
 from lakegate.lake.config import Config, Topic
 from lakegate.lake.config_yaml import did_you_mean
 from lakegate.lake.metadata import build_metadata_row, metadata_table, write_metadata_file
+from lakegate.lake.record import Change
 from lakegate.lake.registry import BranchConfigs
 from lakegate.lake.types import INT64_MAX, METRIC_STRUCT, FieldError, arrow_type, check_value
 
@@ -782,21 +784,9 @@ def ingest_job(
 
 
 def _publish(lake: Path, branch: str, batch_id: str, job_id: str, staged: dict[str, Path]) -> list[Path]:
-    """Move the staged files into place (metadata last) and remove the job's files of other tables."""
-    published = []
-    order = sorted(staged, key=lambda name: name == paths.METADATA_TABLE)
-    for name in order:
-        if name == paths.METADATA_TABLE:
-            _remove_stale(lake, branch, batch_id, job_id, keep=set(staged))
-        target = paths.data_file(lake, branch, name, batch_id, job_id)
-        paths.publish(staged[name], target)
-        published.append(target)
-    return published
-
-
-def _remove_stale(lake: Path, branch: str, batch_id: str, job_id: str, keep: set[str]) -> None:
-    root = paths.branch_dir(lake, branch)
-    for table in root.iterdir():
-        if table.name.startswith(("_", ".")) or table.name in keep or not table.is_dir():
-            continue
-        paths.remove_published(paths.data_file(lake, branch, table.name, batch_id, job_id))
+    """Make the staged files the job's tables, all at once (one record commit); the old files go."""
+    change = Change(lake, branch)
+    for name, file in staged.items():
+        change.add(name, batch_id, job_id, file)
+    change.replace_job(batch_id, job_id)
+    return change.commit(f"ingest {batch_id}/{job_id}")

@@ -5,8 +5,9 @@ names to values), flags of the command, or a dict; `build_metadata_row` fills in
 missing: ids (uuid5 of the matching name, so re-ingesting a job gives the same ids, else a
 random uuid4), `branch_name` (the branch), `job_status` ('SUCCEEDED'), and
 `job_conflated_status` ('ERROR' for a FAILED job, else NULL until metrics run).
-`write_metadata_row` replaces a job's row atomically (the metrics engine updates the
-status columns with it).
+`write_metadata_row` replaces a job's row atomically (`update_metadata_row` changes some
+columns with it); `stage_metadata_row` adds a new row to a larger record change (`metrics run`
+switches every job's statuses and the batch's results at once).
 """
 from __future__ import annotations
 
@@ -22,6 +23,7 @@ from ruamel.yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
 from lakegate.lake import paths
 from lakegate.lake.config_yaml import FileReader, RawProblem, describe, did_you_mean
+from lakegate.lake.record import Change, current_file
 
 #: (column, Trino type) in table order. batch_id and job_id live only in the partition directories.
 COLUMNS: tuple[tuple[str, str], ...] = (
@@ -259,17 +261,22 @@ def write_metadata_row(lake: Path, branch: str, batch_id: str, job_id: str, row:
     """Replace the metadata row of one job atomically; returns the data file's path.
 
     `row` has every column (batch_id/job_id may be left out; if present they must match).
+    The caller holds the job's lock (`paths.job_lock`).
     """
+    change = Change(lake, branch)
+    with paths.staging(lake, branch) as scratch:
+        stage_metadata_row(change, scratch, batch_id, job_id, row)
+    return change.commit(f"metadata {batch_id}/{job_id}")[0]
+
+
+def stage_metadata_row(change: Change, scratch: Path, batch_id: str, job_id: str, row: dict[str, Any]) -> None:
+    """Add a job's new metadata row to `change` (written via `scratch`); it shows once `change` commits."""
     for key, given in (("batch_id", batch_id), ("job_id", job_id)):
         if row.get(key, given) != given:
             raise MetadataError([f"row has {key} {row[key]!r} but is written for {key} {given!r}"])
-    target = paths.data_file(lake, branch, paths.METADATA_TABLE, batch_id, job_id)
-    table = metadata_table(row)
-    with paths.staging(lake, branch) as scratch:
-        staged = scratch / paths.DATA_FILE
-        write_metadata_file(table, staged)
-        paths.publish(staged, target)
-    return target
+    staged = scratch / "metadata.parquet"
+    write_metadata_file(metadata_table(row), staged)
+    change.add(paths.METADATA_TABLE, batch_id, job_id, staged)
 
 
 def write_metadata_file(table: pa.Table, path: Path) -> None:
@@ -278,11 +285,10 @@ def write_metadata_file(table: pa.Table, path: Path) -> None:
 
 def read_metadata_row(lake: Path, branch: str, batch_id: str, job_id: str) -> dict[str, Any] | None:
     """The metadata row of one job (every column, timestamps as naive UTC datetimes), or None."""
-    target = paths.data_file(lake, branch, paths.METADATA_TABLE, batch_id, job_id)
-    try:
-        table = pq.read_table(target, schema=FILE_SCHEMA, partitioning=None)
-    except FileNotFoundError:
+    target = current_file(lake, branch, paths.METADATA_TABLE, batch_id, job_id)
+    if target is None:
         return None
+    table = pq.read_table(target, schema=FILE_SCHEMA, partitioning=None)
     stored = table.to_pylist()[0]
     stored.update(batch_id=batch_id, job_id=job_id)
     return {name: stored.get(name) for name in COLUMN_NAMES}

@@ -2,8 +2,10 @@
 
 Layout (see DESIGN.md, "Lake on disk")::
 
-    <lake>/<branch-dir>/<table>/batch_id=<B>/job_id=<J>/data.parquet   topics, metadata, events
-    <lake>/<branch-dir>/metric_results/batch_id=<B>/data.parquet       evaluated metrics (one file per batch)
+    <lake>/<branch-dir>/<table>/batch_id=<B>/job_id=<J>/<pid>-<id>.parquet   topics, metadata, events
+    <lake>/<branch-dir>/metric_results/batch_id=<B>/<pid>-<id>.parquet       evaluated metrics (per batch)
+    <lake>/<branch-dir>/_lake.sqlite                                   which file is current (`lake.record`)
+    <lake>/<branch-dir>/_readers/<table>/...                           hard links lakegate's queries read
     <lake>/<branch-dir>/_logs/<B>/<J>/...                              job log files (images the metrics show)
     <lake>/<branch-dir>/_configs/v000001/...                           the branch's config versions
     <lake>/<branch-dir>/_quarantine/<B>/<J>.jsonl                      bad lines kept by --skip-bad-lines
@@ -13,8 +15,9 @@ A branch name is encoded into exactly one safe path segment (`encode_branch`), r
 Batch ids, job ids and table names are used as they are, so they are checked
 (`check_segment`): readers glob `<table>/batch_id=*/job_id=*/*.parquet` and parse Hive
 partitions, which rules out `/`, glob characters, `=`, `%` (Hive values are URL-decoded)
-and `\\`. Writers prepare files under `_staging/` and `publish` them with `os.replace`,
-so a reader never sees half a file, and a killed writer leaves only scratch behind.
+and `\\`. Writers prepare files under `_staging/`, `publish` each with `os.replace` under a
+fresh name (`new_data_file`, never overwriting a file a reader may use), and make them current
+in the branch's record (`lake.record`); a killed writer leaves only files no record row holds.
 """
 from __future__ import annotations
 
@@ -31,8 +34,8 @@ try:
 except ImportError:  # pragma: no cover - not on POSIX
     fcntl = None  # type: ignore[assignment]
 
-#: The file name of every table's data file inside its job partition.
-DATA_FILE = "data.parquet"
+#: The column of topic and event rows whose min/max the record keeps.
+TIMESTAMP_COLUMN = "timestamp"
 METADATA_TABLE = "metadata"
 EVENTS_TABLE = "events"
 #: Evaluated metrics: one file per batch (job_id is a column, NULL for batch metrics).
@@ -41,6 +44,7 @@ STAGING = "_staging"
 CONFIGS = "_configs"
 QUARANTINE = "_quarantine"
 LOGS = "_logs"
+READERS = "_readers"
 #: Names a topic may not have, because the branch directory uses them.
 RESERVED_TABLES = frozenset({METADATA_TABLE, EVENTS_TABLE, METRIC_RESULTS_TABLE})
 #: Tables partitioned by batch only (`<table>/batch_id=<B>/data.parquet`).
@@ -150,22 +154,47 @@ def table_dir(lake: Path, branch: str, table: str) -> Path:
     return branch_dir(lake, branch) / table
 
 
-def partition_dir(lake: Path, branch: str, table: str, batch_id: str, job_id: str) -> Path:
-    """`<lake>/<branch-dir>/<table>/batch_id=<B>/job_id=<J>` (ids checked)."""
+def partition_dir(lake: Path, branch: str, table: str, batch_id: str, job_id: str | None) -> Path:
+    """`<lake>/<branch-dir>/<table>/batch_id=<B>/job_id=<J>` (ids checked; job_id None: the batch's)."""
     check_segment(batch_id, "batch id")
-    check_segment(job_id, "job id")
-    return table_dir(lake, branch, table) / f"batch_id={batch_id}" / f"job_id={job_id}"
+    directory = table_dir(lake, branch, table) / f"batch_id={batch_id}"
+    return directory if job_id is None else directory / f"job_id={check_segment(job_id, 'job id')}"
 
 
-def data_file(lake: Path, branch: str, table: str, batch_id: str, job_id: str) -> Path:
-    """The one Parquet file of `table` for one job."""
-    return partition_dir(lake, branch, table, batch_id, job_id) / DATA_FILE
+def new_data_file(lake: Path, branch: str, table: str, batch_id: str, job_id: str | None) -> Path:
+    """A fresh file name for `table`'s rows of one job (job_id None: of one batch, `BATCH_TABLES`).
+
+    The name starts with the writer's process id, so files of writers that died are recognised.
+    """
+    if (job_id is None) != (table in BATCH_TABLES):
+        raise ValueError(f"table {table!r} is partitioned by {', '.join(partition_keys(table))}")
+    return partition_dir(lake, branch, table, batch_id, job_id) / f"{os.getpid()}-{uuid.uuid4().hex}.parquet"
 
 
-def batch_file(lake: Path, branch: str, table: str, batch_id: str) -> Path:
-    """The one Parquet file of a batch-partitioned table (`BATCH_TABLES`) for one batch."""
-    check_segment(batch_id, "batch id")
-    return table_dir(lake, branch, table) / f"batch_id={batch_id}" / DATA_FILE
+def abandoned_files(directory: Path) -> list[Path]:
+    """Parquet files in a partition directory that no living writer is about to publish."""
+    if not directory.is_dir():
+        return []
+    return [file for file in directory.glob("*.parquet") if not _writer_alive(file.name.split("-", 1)[0])]
+
+
+def reader_path(branch_root: Path, relative: str) -> Path:
+    """The hard link lakegate's readers open for the published file `<branch_root>/<relative>`:
+    the same path under `<branch_root>/_readers/`.
+
+    Other readers of the lake (Trino's Hive connector, a DuckDB glob of `<table>/...`) never see
+    it; it outlives the visible name for a grace period after a writer supersedes the file, so a
+    query that listed it can still read it.
+    """
+    return branch_root / READERS / relative
+
+
+def table_names(lake: Path, branch: str) -> list[str]:
+    """The table directories of a branch (not `_`/`.` ones), sorted."""
+    root = branch_dir(lake, branch)
+    if not root.is_dir():
+        return []
+    return sorted(entry.name for entry in root.iterdir() if entry.is_dir() and entry.name[0] not in "_.")
 
 
 def partition_keys(table: str) -> tuple[str, ...]:
@@ -217,6 +246,21 @@ def publish(source: Path, target: Path) -> None:
     os.replace(source, target)
 
 
+def publish_linked(source: Path, target: Path) -> None:
+    """`publish`, then add the file's reader link (`reader_path`)."""
+    publish(source, target)
+    link_reader(target)
+
+
+def link_reader(target: Path) -> None:
+    """Add the reader link of a published file (`reader_path`; the branch is its table's parent)."""
+    root = target.parents[3] if target.parent.name.startswith("job_id=") else target.parents[2]
+    link = reader_path(root, target.relative_to(root).as_posix())
+    link.parent.mkdir(parents=True, exist_ok=True)
+    with contextlib.suppress(FileExistsError):
+        os.link(target, link)
+
+
 def remove_published(target: Path) -> None:
     """Remove a published data file and the partition directories it leaves empty."""
     with contextlib.suppress(FileNotFoundError):
@@ -248,14 +292,21 @@ def staging(lake: Path, branch: str) -> Iterator[Path]:
 def _remove_abandoned(root: Path) -> None:
     for entry in root.iterdir():
         pid_text = entry.name.split("-", 1)[0]
-        if not entry.is_dir() or not pid_text.isdigit():
-            continue
-        try:
-            os.kill(int(pid_text), 0)
-        except ProcessLookupError:
+        if entry.is_dir() and pid_text.isdigit() and not _writer_alive(pid_text):
             shutil.rmtree(entry, ignore_errors=True)
-        except OSError:
-            pass
+
+
+def _writer_alive(pid_text: str) -> bool:
+    """Whether the process a file or directory name starts with (`<pid>-...`) still runs."""
+    if not pid_text.isdigit():
+        return False
+    try:
+        os.kill(int(pid_text), 0)
+    except ProcessLookupError:
+        return False
+    except OSError:
+        pass
+    return True
 
 
 @contextlib.contextmanager
@@ -267,11 +318,25 @@ def job_lock(lake: Path, branch: str, batch_id: str, job_id: str) -> Iterator[No
     """
     check_segment(batch_id, "batch id")
     check_segment(job_id, "job id")
+    stripe = hashlib.sha1(f"{batch_id}\0{job_id}".encode()).digest()[0] % 64
+    with _locked(lake, branch, f"{stripe:02d}.lock"):
+        yield
+
+
+@contextlib.contextmanager
+def batch_lock(lake: Path, branch: str, batch_id: str) -> Iterator[None]:
+    """Hold an exclusive lock on one batch's evaluation (`metrics run`), shared by 64 stripes like `job_lock`."""
+    check_segment(batch_id, "batch id")
+    stripe = hashlib.sha1(batch_id.encode()).digest()[0] % 64
+    with _locked(lake, branch, f"batch-{stripe:02d}.lock"):
+        yield
+
+
+@contextlib.contextmanager
+def _locked(lake: Path, branch: str, name: str) -> Iterator[None]:
     locks = branch_dir(lake, branch) / STAGING / "locks"
     locks.mkdir(parents=True, exist_ok=True)
-    stripe = hashlib.sha1(f"{batch_id}\0{job_id}".encode()).digest()[0] % 64
-    path = locks / f"{stripe:02d}.lock"
-    with open(path, "a") as handle:
+    with open(locks / name, "a") as handle:
         if fcntl is not None:
             fcntl.flock(handle, fcntl.LOCK_EX)
         try:

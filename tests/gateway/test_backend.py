@@ -6,6 +6,8 @@ from __future__ import annotations
 import hashlib
 import json
 import shutil
+import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
@@ -13,6 +15,7 @@ from pathlib import Path
 import duckdb
 import pyarrow as pa
 import pytest
+import trino
 
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
@@ -52,9 +55,10 @@ def build_lake(root: Path, jobs=JOBS, config_text: str = CONFIG) -> Path:
 
 
 def snapshot(root: Path) -> dict[str, tuple[int, int, str]]:
-    """Every file under `root`: size, modification time and content digest."""
+    """Every file under `root`: size, modification time and content digest (not the record's
+    SQLite WAL and shared-memory files, which come and go with its readers' connections)."""
     return {str(p.relative_to(root)): (p.stat().st_size, p.stat().st_mtime_ns, hashlib.sha256(p.read_bytes()).hexdigest())
-            for p in sorted(root.rglob("*")) if p.is_file()}
+            for p in sorted(root.rglob("*")) if p.is_file() and not p.name.endswith(("-wal", "-shm"))}
 
 
 @pytest.fixture(scope="module")
@@ -286,3 +290,162 @@ def test_only_one_select_reaches_duckdb(backend):
         assert backend._single_select(con, "SELECT 1").type == duckdb.StatementType.SELECT
     finally:
         con.close()
+
+
+# -- lake integrity: fresh catalogs, whole-job visibility, unreadable files -------------------
+
+REINGEST_SCRIPT = """
+import sys
+from pathlib import Path
+from lakegate.lake.config import load_config
+from lakegate.lake.ingest import ingest_job
+lake, config, emissions, runs = Path(sys.argv[1]), load_config([sys.argv[2]]), Path(sys.argv[3]), int(sys.argv[4])
+for run in range(runs):
+    ingest_job(lake, "main", "b1", "j1", [emissions], config=config, metadata={"experience_name": f"token {run}"})
+"""
+
+
+def ingest_one(root: Path, lake: Path, job: str, lines: str, name: str = "exp") -> None:
+    (root / "config.resim.yaml").write_text(CONFIG)
+    emissions = root / f"{job}-{len(lines)}.jsonl"
+    emissions.write_text(lines)
+    ingest_job(lake, "main", "b1", job, [emissions], config=load_config([root / "config.resim.yaml"]),
+               metadata={"experience_name": name})
+
+
+def test_a_query_never_sees_a_job_half_re_ingested(tmp_path):
+    """Another process re-ingests job j1 200 times (its experience name, a token present in every
+    table's rows, changes each time) while queries read all its tables in one statement: every
+    answer is one version of the job (issue 9, item 12)."""
+    lake = build_lake(tmp_path, jobs=[("b1", "j1", 3)])
+    emissions = tmp_path / "j1.jsonl"
+    process = subprocess.Popen([sys.executable, "-c", REINGEST_SCRIPT, str(lake), str(tmp_path / "config.resim.yaml"),
+                                str(emissions), "200"], stderr=subprocess.PIPE, text=True)
+    sql = ("SELECT (SELECT array_agg(DISTINCT experience_name) FROM odom), "
+           "(SELECT array_agg(DISTINCT experience_name) FROM time_to_goal), "
+           "(SELECT array_agg(experience_name) FROM metadata)")
+    answers, mixed = 0, []
+    backend = DuckDBBackend(lake, memory_limit="256MB", threads=1)
+    try:
+        deadline = time.monotonic() + 300
+        while process.poll() is None and time.monotonic() < deadline:
+            odom, goals, metadata = backend.execute(sql, branch="main").rows()[0]
+            answers += 1
+            if not (len(metadata) == 1 and odom == goals == metadata):
+                mixed.append((odom, goals, metadata))
+    finally:
+        backend.close()
+        process.kill() if process.poll() is None else None
+        process.wait()
+    assert process.returncode == 0, process.stderr.read()
+    assert answers > 20 and not mixed, (answers, mixed[:5])
+
+
+def test_a_backend_sees_files_that_appear_in_an_emptied_topic(tmp_path):
+    """A topic whose only job was re-ingested without it, then written again: the same backend
+    answers its new rows (issue 9, item 11: no stale catalog)."""
+    lake = tmp_path / "lake"
+    ingest_one(tmp_path, lake, "j1", line("odom", 1, {"x": 1.0, "y": 1.0}) +
+               line("time_to_goal", 1, {"goal_name": "g", "time_s": 1.0}))
+    ingest_one(tmp_path, lake, "j1", line("odom", 1, {"x": 1.0, "y": 1.0}))  # the topic's directory stays
+    backend = DuckDBBackend(lake, memory_limit="256MB", threads=1)
+    try:
+        assert backend.execute("SELECT count(*) FROM time_to_goal", branch="main").rows() == [(0,)]
+        ingest_one(tmp_path, lake, "j2", line("time_to_goal", 2, {"goal_name": "h", "time_s": 2.0}) * 1)
+        assert backend.execute("SELECT goal_name FROM time_to_goal", branch="main").rows() == [("h",)]
+    finally:
+        backend.close()
+
+
+def test_a_topic_dropped_by_a_re_ingest_reads_as_empty(tmp_path):
+    """The same backend, after the re-ingest that removed a topic's files: 0 rows, not an error
+    naming a server path (issue 9, item 11)."""
+    lake = tmp_path / "lake"
+    ingest_one(tmp_path, lake, "j1", line("odom", 1, {"x": 1.0, "y": 1.0}) +
+               line("time_to_goal", 1, {"goal_name": "g", "time_s": 1.0}))
+    backend = DuckDBBackend(lake, memory_limit="256MB", threads=1)
+    try:
+        assert backend.execute("SELECT count(*) FROM time_to_goal", branch="main").rows() == [(1,)]
+        ingest_one(tmp_path, lake, "j1", line("odom", 1, {"x": 1.0, "y": 1.0}))
+        assert backend.execute("SELECT count(*) FROM time_to_goal", branch="main").rows() == [(0,)]
+        assert backend.execute("SELECT count(*) FROM odom", branch="main").rows() == [(1,)]
+    finally:
+        backend.close()
+
+
+@pytest.mark.parametrize("job", ["j1", "j2"])
+def test_an_unreadable_file_fails_only_the_queries_that_read_it(tmp_path, job):
+    """One corrupt Parquet file (the first or a later one of its table): SELECT 1, other tables and
+    the table's other jobs still answer; a query that reads it fails with HIVE_BAD_DATA naming the
+    table, batch and job, never a path (Trino's Hive connector raises HIVE_BAD_DATA for a file it
+    cannot read: io.trino.plugin.hive.HiveErrorCode)."""
+    lake = build_lake(tmp_path, jobs=[("b1", "j1", 3), ("b1", "j2", 2)])
+    bad = next(lake.glob(f"main/odom/batch_id=b1/job_id={job}/*.parquet"))
+    bad.write_bytes(b"not parquet at all" * 10)
+    other = "j2" if job == "j1" else "j1"
+    backend = DuckDBBackend(lake, memory_limit="256MB", threads=1)
+    try:
+        assert backend.execute("SELECT 1", branch="main").rows() == [(1,)]
+        assert backend.execute("SELECT count(*) FROM time_to_goal", branch="main").rows() == [(5,)]
+        scoped = backend.execute("SELECT count(*) FROM odom", branch="main", scope=Scope(batch_id="b1", job_id=other))
+        assert scoped.rows() == [(3 if other == "j1" else 2,)]
+        for scope in (None, Scope(batch_id="b1", job_id=job)):
+            error = refused(backend, "SELECT count(*) FROM odom", branch="main", scope=scope)
+            assert error.error_name == "HIVE_BAD_DATA", error
+            assert f"table odom, batch b1, job {job}" in error.message and str(tmp_path) not in error.message
+    finally:
+        backend.close()
+
+
+def test_query_serve_and_lake_ls_with_a_corrupt_file(tmp_path):
+    """Real `lakegate query`, `lakegate serve` (with the trino client) and `lakegate lake ls` on a lake
+    with one corrupt file: only the queries that read it fail, with a clear message and no
+    traceback or path; `lake ls` lists the branch and reports the file as unreadable."""
+    lake = build_lake(tmp_path, jobs=[("b1", "j1", 3), ("b1", "j2", 2)])
+    next(lake.glob("main/odom/batch_id=b1/job_id=j1/*.parquet")).write_bytes(b"PAR1 truncated")
+    cli = [sys.executable, "-m", "lakegate.gateway.cli"]
+
+    def run(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run([*cli, *args], capture_output=True, text=True, timeout=120)
+
+    assert run("query", "--lake", str(lake), "SELECT 1").returncode == 0
+    assert "5" in run("query", "--lake", str(lake), "SELECT count(*) FROM time_to_goal").stdout
+    failed = run("query", "--lake", str(lake), "SELECT count(*) FROM odom")
+    assert failed.returncode == 1 and "table odom, batch b1, job j1" in failed.stderr, failed.stderr
+    assert "Traceback" not in failed.stderr and str(tmp_path) not in failed.stderr
+    listed = run("lake", "ls", "--lake", str(lake), "--branch", "main")
+    assert listed.returncode == 0 and "Traceback" not in listed.stderr, listed.stderr
+    assert "unreadable files (1)" in listed.stdout and "table odom, batch b1, job j1: " in listed.stdout
+    assert "time_to_goal" in listed.stdout
+
+    server = subprocess.Popen([*cli, "serve", "--lake", str(lake), "--port", "0"], stdout=subprocess.PIPE,
+                              stderr=subprocess.DEVNULL, text=True)
+    try:
+        line = server.stdout.readline()
+        host, port = line.split(" at ", 1)[1].split()[0].split("//", 1)[1].rstrip("/").split(":")
+        connection = trino.dbapi.connect(host=host, port=int(port), user="t", catalog="lake", schema="main")
+        cursor = connection.cursor()
+        cursor.execute("SELECT 1")
+        assert cursor.fetchall() == [[1]]
+        cursor.execute("SELECT count(*) FROM odom WHERE job_id = 'j2'")
+        assert cursor.fetchall() == [[2]]
+        with pytest.raises(trino.exceptions.TrinoQueryError) as caught:
+            cursor.execute("SELECT count(*) FROM odom")
+            cursor.fetchall()
+        assert caught.value.error_name == "HIVE_BAD_DATA" and str(tmp_path) not in caught.value.message
+    finally:
+        server.terminate()
+        server.wait(30)
+
+
+def test_a_file_deleted_by_hand_fails_only_its_job(tmp_path):
+    lake = build_lake(tmp_path, jobs=[("b1", "j1", 3), ("b1", "j2", 2)])
+    for file in lake.glob("**/odom/batch_id=b1/job_id=j1/*.parquet"):  # the visible file and the reader link
+        file.unlink()
+    backend = DuckDBBackend(lake, memory_limit="256MB", threads=1)
+    try:
+        assert backend.execute("SELECT count(*) FROM odom WHERE job_id = 'j2'", branch="main").rows() == [(2,)]
+        error = refused(backend, "SELECT count(*) FROM odom", branch="main")
+        assert error.error_name == "HIVE_BAD_DATA" and "table odom, batch b1, job j1" in error.message
+    finally:
+        backend.close()

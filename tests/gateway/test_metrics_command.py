@@ -3,14 +3,17 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
 import textwrap
+import time
 from pathlib import Path
 
 import pytest
 
 from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
+from lakegate.gateway.metrics import worst
 from lakegate.gateway.results import read_results
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
@@ -248,3 +251,70 @@ def test_two_branches_with_different_schemas_for_one_topic(tmp_path):
     average = next(m for m in json.loads(cross.stdout)["metrics"] if m["metric"] == "Average")
     assert average["status"] == "ERROR" and "avg" in average["error"]["message"].lower()
     assert read_results(lake, "main", "b") == main_before
+
+
+# -- one evaluation of a batch at a time, switched in one commit (issue 9, item 13) ----------------
+
+
+def run_process(lake: Path, batch: str, *extra, env: dict | None = None) -> subprocess.Popen:
+    return subprocess.Popen([*CLI, "metrics", "run", "--lake", str(lake), "--branch", "main", "--batch", batch,
+                             "--metrics-set", "Nav Metrics", "--format", "json", *map(str, extra)],
+                            env={**os.environ, **(env or {})}, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+
+
+def stored_run(lake: Path, batch: str, jobs) -> tuple[dict, dict]:
+    """Each job's (metrics status, conflated status) in metadata, and the worst test-metric status
+    of each job in metric_results, plus the config versions the results were made with."""
+    statuses = {}
+    for job in jobs:
+        row = read_metadata_row(lake, "main", batch, job.job_id)
+        statuses[job.job_id] = (row["job_metrics_status"], row["job_conflated_status"])
+    results = read_results(lake, "main", batch)
+    from_results = {job.job_id: worst(r["status"] for r in results if r["job_id"] == job.job_id) for job in jobs}
+    return statuses, {"results": from_results, "versions": {r["config_version"] for r in results}}
+
+
+def assert_agree(lake: Path, batch: str, jobs) -> dict:
+    statuses, results = stored_run(lake, batch, jobs)
+    assert {job: status[0] for job, status in statuses.items()} == results["results"], (statuses, results)
+    return statuses
+
+
+@pytest.mark.parametrize("point", ["added", "commit"])
+def test_a_killed_run_leaves_the_previous_run_whole(nav, tmp_path, point):
+    """kill -9 of a `metrics run` once it has staged new statuses (or just before its commit): the
+    stored statuses and metric_results are still the previous run's, and agree."""
+    lake, jobs, batch = nav
+    name = batch(f"killed-{point}")
+    first = run_process(lake, name)
+    assert first.wait(120) == 2, first.stderr.read()
+    before = stored_run(lake, name, jobs)
+    assert [s[1] for s in before[0].values()] == ["PASSED", "WARNING", "BLOCKER"]
+    marker = tmp_path / "paused"
+    killed = run_process(lake, name, "--metrics-config-path", relaxed_config(tmp_path),
+                         env={"LAKEGATE_TEST_PAUSE": f"{point}:{marker}"})
+    try:
+        deadline = time.monotonic() + 120
+        while killed.poll() is None and time.monotonic() < deadline and not marker.exists() \
+                and stored_run(lake, name, jobs)[0] == before[0]:  # a run that writes statuses early is caught too
+            time.sleep(0.01)
+        os.kill(killed.pid, signal.SIGKILL)
+    finally:
+        killed.wait(30)
+    assert killed.returncode == -signal.SIGKILL, killed.stderr.read()
+    assert stored_run(lake, name, jobs) == before
+    again = run_process(lake, name, "--metrics-config-path", relaxed_config(tmp_path))
+    assert again.wait(120) == 0, again.stderr.read()
+    assert set(assert_agree(lake, name, jobs).values()) == {("PASSED", "PASSED")}
+
+
+def test_two_concurrent_runs_of_a_batch_end_with_statuses_and_results_agreeing(nav, tmp_path):
+    lake, jobs, batch = nav
+    name = batch("concurrent")
+    strict, relaxed = run_process(lake, name), run_process(lake, name, "--metrics-config-path",
+                                                           relaxed_config(tmp_path))
+    assert strict.wait(120) == 2, strict.stderr.read()
+    assert relaxed.wait(120) == 0, relaxed.stderr.read()
+    statuses = assert_agree(lake, name, jobs)
+    assert len({s for s in statuses.values()}) in (1, 3)  # all of one run: PASSED x3, or PASSED/WARNING/BLOCKER

@@ -13,12 +13,12 @@ from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
 from lakegate.gateway.backend import DuckDBBackend
 from lakegate.gateway.metrics import MetricsEngine
 from lakegate.gateway.results import read_results
-from lakegate.lake import paths
 from lakegate.lake.catalog import METRIC_RESULTS_COLUMNS
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file
 from lakegate.lake.registry import BranchConfigs
+from lakegate.lake.record import current_file
 
 BRANCH = "main"
 #: batch -> build name of its jobs
@@ -69,7 +69,7 @@ def test_every_evaluated_metric_is_stored(lake):
     rows = read_results(lake_dir, BRANCH, "b1")
     tests = [m for m in metrics if m.type == "test"]
     assert len(rows) == 3 * len(tests) + len(metrics) - len(tests)
-    assert paths.batch_file(lake_dir, BRANCH, "metric_results", "b1").is_file()
+    assert current_file(lake_dir, BRANCH, "metric_results", "b1").is_file()
     for row in rows:
         assert set(row) == {name for name, _ in METRIC_RESULTS_COLUMNS}
         metric = config.metrics[row["metric_name"]]

@@ -33,10 +33,10 @@ from lakegate.gateway.results import read_results
 from lakegate.gateway import trino_backend
 from lakegate.gateway.trino_backend import RemoteQueryError, TrinoBackend, forwarded_sql
 from lakegate.gateway.trino_ddl import schema_name
-from lakegate.lake import paths
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file
+from lakegate.lake.record import current_file
 from lakegate.lake.registry import BranchConfigs
 
 CLI = [sys.executable, "-m", "lakegate.gateway.cli"]
@@ -113,7 +113,7 @@ def answer(backend, sql: str, **kwargs) -> tuple[list, list]:
 
 def job_rows(lake: Path, batch: str, job_id: str) -> int:
     """Rows of the topic's Parquet file of one job of main, read directly."""
-    return pq.read_metadata(paths.data_file(lake, "main", TOPIC, batch, job_id)).num_rows
+    return pq.read_metadata(current_file(lake, "main", TOPIC, batch, job_id)).num_rows
 
 
 QUERIES = [

@@ -21,6 +21,7 @@ from lakegate.lake.catalog import Catalog
 from lakegate.lake.config import Config, Topic, load_config
 from lakegate.lake.emitter import Emitter
 from lakegate.lake.ingest import IngestError, check_line, ingest_job
+from lakegate.lake.record import current_file
 from lakegate.lake.types import FieldError, check_value
 
 CONFIG = """\
@@ -146,12 +147,12 @@ def test_round_trip_of_every_field_type_through_emitter_ingest_and_duckdb(tmp_pa
 def test_parquet_files_have_the_contract_columns_and_zstd(tmp_path, config):
     emissions = write_lines(tmp_path / "e.jsonl", [odom(1), line("stop", 9, {"name": "halt", "speed": 0.5}, event=True)])
     ingest_job(tmp_path / "lake", "main", "b1", "j1", [emissions], config=config)
-    topic_file = paths.data_file(tmp_path / "lake", "main", "odom", "b1", "j1")
+    topic_file = current_file(tmp_path / "lake", "main", "odom", "b1", "j1")
     schema = pq.read_schema(topic_file)
     assert schema.names == ["timestamp", "x", "y", "z", "experience_name", "build_version"]
     assert str(schema.field("timestamp").type) == "int64"
     assert pq.ParquetFile(topic_file).metadata.row_group(0).column(1).compression == "ZSTD"
-    events_file = paths.data_file(tmp_path / "lake", "main", "events", "b1", "j1")
+    events_file = current_file(tmp_path / "lake", "main", "events", "b1", "j1")
     assert pq.read_schema(events_file).names == ["timestamp", "topic", "name", "description", "status", "tags", "metrics",
                                                  "experience_name", "build_version"]
     # an event topic without description/status/tags/metrics fields leaves them NULL in events

@@ -14,6 +14,7 @@ from lakegate.lake.metadata import (
     COLUMN_NAMES, FILE_SCHEMA, MetadataError, build_metadata_row, load_metadata_file, read_metadata_row,
     update_metadata_row, write_metadata_row,
 )
+from lakegate.lake.record import current_file
 
 
 def row_for(tmp_path, values, **kw):
@@ -124,7 +125,7 @@ def test_every_problem_is_reported(tmp_path):
 def test_write_read_and_update_a_row_atomically(tmp_path):
     row = row_for(tmp_path, {"experience_name": "sunny", "experience_tag_names": ["a"]})
     target = write_metadata_row(tmp_path, "main", "b1", "j1", row)
-    assert target == paths.data_file(tmp_path, "main", "metadata", "b1", "j1")
+    assert target == current_file(tmp_path, "main", "metadata", "b1", "j1")
     assert read_metadata_row(tmp_path, "main", "b1", "j1") == row
     updated = update_metadata_row(tmp_path, "main", "b1", "j1", job_metrics_status="PASSED", job_conflated_status="PASSED")
     assert updated["job_metrics_status"] == "PASSED" and updated["experience_name"] == "sunny"
@@ -133,7 +134,8 @@ def test_write_read_and_update_a_row_atomically(tmp_path):
     got = con.execute(f"SELECT job_id, job_conflated_status, typeof(experience_tag_names) "
                       f"FROM read_parquet('{glob}', hive_partitioning = true)").fetchall()
     assert got == [("j1", "PASSED", "VARCHAR[]")]
-    stored = pq.read_schema(target)
+    assert not target.exists()  # superseded by the update
+    stored = pq.read_schema(current_file(tmp_path, "main", "metadata", "b1", "j1"))
     assert stored.field("time").type == pa.timestamp("ms")  # Trino's Hive connector reads timestamp(3)
     assert "batch_id" not in FILE_SCHEMA.names and "job_id" not in FILE_SCHEMA.names
     assert [p.name for p in (paths.branch_dir(tmp_path, "main") / paths.STAGING).iterdir()] == ["locks"]

@@ -64,7 +64,7 @@ def test_bad_ids_are_refused_with_a_clear_message(value, fragment):
 
 @pytest.mark.parametrize("value", ["b1", "0f8c2a1e-1111-4c4c-9d9d-123456789abc", "it's", "a b", "ünï", "007", "NULL", "x:y"])
 def test_ids_that_are_allowed_read_back_exactly_as_hive_partitions(value, tmp_path):
-    target = paths.data_file(tmp_path, "main", "t", value, value)
+    target = paths.new_data_file(tmp_path, "main", "t", value, value)
     target.parent.mkdir(parents=True)
     pq.write_table(pa.table({"v": [1]}), target)
     glob = paths.table_glob(tmp_path, "main", "t").replace("'", "''")
@@ -81,14 +81,18 @@ def test_table_names_that_would_collide_are_refused():
 
 
 def test_layout(tmp_path):
-    assert paths.data_file(tmp_path, "feature/x", "odom", "b1", "j1") == \
-        tmp_path / "feature%2Fx" / "odom" / "batch_id=b1" / "job_id=j1" / "data.parquet"
+    fresh = paths.new_data_file(tmp_path, "feature/x", "odom", "b1", "j1")
+    assert fresh.parent == tmp_path / "feature%2Fx" / "odom" / "batch_id=b1" / "job_id=j1"
+    assert fresh.name.startswith(f"{os.getpid()}-") and fresh.suffix == ".parquet"
+    assert fresh != paths.new_data_file(tmp_path, "feature/x", "odom", "b1", "j1")  # never overwrites a file
+    assert paths.new_data_file(tmp_path, "main", "metric_results", "b1", None).parent == \
+        tmp_path / "main" / "metric_results" / "batch_id=b1"
     assert paths.table_glob(tmp_path, "main", "odom") == str(tmp_path / "main" / "odom" / "batch_id=*" / "job_id=*" / "*.parquet")
     assert paths.quarantine_file(tmp_path, "main", "b1", "j1") == tmp_path / "main" / "_quarantine" / "b1" / "j1.jsonl"
 
 
 def test_publish_replaces_atomically_and_remove_cleans_empty_partitions(tmp_path):
-    target = paths.data_file(tmp_path, "main", "t", "b", "j")
+    target = paths.new_data_file(tmp_path, "main", "t", "b", "j")
     first = tmp_path / "first"
     first.write_text("one")
     paths.publish(first, target)

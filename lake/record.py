@@ -1,0 +1,310 @@
+"""The branch's file record: which Parquet file holds each table's rows of each job, switched atomically.
+
+`<lake>/<branch-dir>/_lake.sqlite` (SQLite, WAL) keeps one row per (table, batch, job) in `files`
+(path relative to the branch directory, row count, min/max `timestamp`, the file's columns, the
+commit that wrote it) and a `commits` log whose last id is the branch's *generation*. Writers
+put every new file in its partition directory under a fresh name (`paths.new_data_file`), with
+a hard link under `_readers/` (`paths.reader_path`), then `Change.commit` replaces the rows of
+everything they rewrite in ONE transaction, bumping the generation, and only then deletes the
+superseded files' visible names; their reader links stay `GRACE_SECONDS` (listed in `trash`), so
+a query that listed them still reads them. Readers take one `snapshot` per generation and read
+the reader links, so they see a job's tables all old or all new, and never list the tree. A
+writer killed before its commit leaves only files no row references: lakegate never reads them,
+and the next writer of that job removes them. See docs/lake-format.md.
+
+A lake written before the record existed (`data.parquet` files, no record) is migrated when the
+record is first opened: its files are listed once, inside the record's first write transaction.
+"""
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import sqlite3
+import time
+from collections.abc import Iterable, Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import pyarrow.parquet as pq
+
+from lakegate.lake import paths
+
+RECORD = "_lake.sqlite"
+#: How long a superseded file stays readable by lakegate's queries that listed it (its hidden link).
+GRACE_SECONDS = 120
+#: Test hook: `<point>:<marker file>` makes a writer touch the marker and stop for a minute at that
+#: point (`added`: after its first file is published; `commit`: just before its record commit).
+PAUSE_ENV = "LAKEGATE_TEST_PAUSE"
+#: How long a writer or reader waits for another's transaction before giving up (ms).
+BUSY_TIMEOUT_MS = 60_000
+_SCHEMA = """
+CREATE TABLE IF NOT EXISTS commits (commit_id INTEGER PRIMARY KEY AUTOINCREMENT, what TEXT NOT NULL);
+CREATE TABLE IF NOT EXISTS files (
+    table_name TEXT NOT NULL, batch_id TEXT NOT NULL, job_id TEXT NOT NULL, path TEXT NOT NULL,
+    rows INTEGER NOT NULL, min_ts INTEGER, max_ts INTEGER, columns TEXT NOT NULL, commit_id INTEGER NOT NULL,
+    PRIMARY KEY (table_name, batch_id, job_id));
+CREATE INDEX IF NOT EXISTS files_of_job ON files (batch_id, job_id);
+CREATE TABLE IF NOT EXISTS trash (path TEXT PRIMARY KEY, superseded_at REAL NOT NULL);
+"""
+
+
+@dataclass(frozen=True)
+class FileEntry:
+    """One published file: `job_id` is '' for batch tables; `path` is relative to the branch directory."""
+
+    table: str
+    batch_id: str
+    job_id: str
+    path: str
+    rows: int
+    min_ts: int | None = None
+    max_ts: int | None = None
+    columns: tuple[str, ...] = ()
+
+    @property
+    def key(self) -> tuple[str, str, str]:
+        return self.table, self.batch_id, self.job_id
+
+    @property
+    def where(self) -> str:
+        """How messages name the file: `table T, batch B, job J` (never its path)."""
+        return f"table {self.table}, batch {self.batch_id}" + (f", job {self.job_id}" if self.job_id else "")
+
+
+@dataclass(frozen=True)
+class Snapshot:
+    """Every file of a branch at one generation."""
+
+    generation: int
+    files: tuple[FileEntry, ...]
+
+    def of(self, table: str) -> list[FileEntry]:
+        return [entry for entry in self.files if entry.table == table]
+
+
+def describe_file(root: Path, table: str, batch_id: str, job_id: str, path: Path) -> FileEntry:
+    """The record entry of a Parquet file (read from its footer) under branch directory `root`."""
+    meta = pq.read_metadata(path)
+    names = tuple(meta.schema.to_arrow_schema().names)
+    low = high = None
+    if paths.TIMESTAMP_COLUMN in names:
+        index = names.index(paths.TIMESTAMP_COLUMN)
+        for group in range(meta.num_row_groups):
+            stats = meta.row_group(group).column(index).statistics
+            if stats is not None and stats.has_min_max:
+                low = stats.min if low is None else min(low, stats.min)
+                high = stats.max if high is None else max(high, stats.max)
+    return FileEntry(table, batch_id, job_id, path.relative_to(root).as_posix(), meta.num_rows, low, high, names)
+
+
+class Record:
+    """The file record of one branch (the connection is opened lazily, and may serve several threads)."""
+
+    def __init__(self, lake: Path, branch: str):
+        self.root = paths.branch_dir(lake, branch)
+        self._db: sqlite3.Connection | None = None
+
+    def _connect(self) -> sqlite3.Connection:
+        if self._db is None:
+            self.root.mkdir(parents=True, exist_ok=True)
+            db = sqlite3.connect(self.root / RECORD, timeout=BUSY_TIMEOUT_MS / 1000, isolation_level=None,
+                                 check_same_thread=False)
+            db.execute(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
+            db.execute("PRAGMA journal_mode = WAL")
+            db.execute("PRAGMA synchronous = NORMAL")
+            with _transaction(db, immediate=True):
+                for statement in _SCHEMA.split(";")[:-1]:
+                    db.execute(statement)
+                if db.execute("SELECT count(*) FROM commits").fetchone()[0] == 0:
+                    _migrate(db, self.root)
+            self._db = db
+        return self._db
+
+    def close(self) -> None:
+        if self._db is not None:
+            self._db.close()
+            self._db = None
+
+    def generation(self) -> int:
+        """The id of the last commit (changes whenever any table of the branch changes)."""
+        return self._connect().execute("SELECT max(commit_id) FROM commits").fetchone()[0]
+
+    def snapshot(self) -> Snapshot:
+        """Every file of the branch, read in one transaction (none for a branch without a directory)."""
+        if not self.root.is_dir():
+            return Snapshot(0, ())
+        db = self._connect()
+        with _transaction(db):
+            generation = db.execute("SELECT max(commit_id) FROM commits").fetchone()[0]
+            rows = db.execute("SELECT table_name, batch_id, job_id, path, rows, min_ts, max_ts, columns FROM files "
+                              "ORDER BY table_name, batch_id, job_id").fetchall()
+        return Snapshot(generation, tuple(_entry(row) for row in rows))
+
+    def find(self, table: str, batch_id: str, job_id: str = "") -> FileEntry | None:
+        """The file of one table's job (or batch), if any."""
+        if not self.root.is_dir():
+            return None
+        row = self._connect().execute(
+            "SELECT table_name, batch_id, job_id, path, rows, min_ts, max_ts, columns FROM files "
+            "WHERE table_name = ? AND batch_id = ? AND job_id = ?", (table, batch_id, job_id)).fetchone()
+        return None if row is None else _entry(row)
+
+    def commit(self, what: str, entries: Sequence[FileEntry], drop_jobs: Iterable[tuple[str, str]] = ()) -> list[str]:
+        """One transaction: drop every table's rows of `drop_jobs` (batch, job), replace the rows of
+        `entries`' keys by them, add a commit; returns the paths no row references any more."""
+        db = self._connect()
+        with _transaction(db, immediate=True):
+            old: set[str] = set()
+            for batch_id, job_id in drop_jobs:
+                old.update(r[0] for r in db.execute("SELECT path FROM files WHERE batch_id = ? AND job_id = ?",
+                                                    (batch_id, job_id)))
+                db.execute("DELETE FROM files WHERE batch_id = ? AND job_id = ?", (batch_id, job_id))
+            commit_id = db.execute("INSERT INTO commits (what) VALUES (?)", (what,)).lastrowid
+            for entry in entries:
+                old.update(r[0] for r in db.execute("SELECT path FROM files WHERE table_name = ? AND batch_id = ? "
+                                                    "AND job_id = ?", entry.key))
+                db.execute("INSERT OR REPLACE INTO files VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                           (*entry.key, entry.path, entry.rows, entry.min_ts, entry.max_ts,
+                            json.dumps(entry.columns), commit_id))
+            superseded = sorted(old - {entry.path for entry in entries})
+            db.executemany("INSERT OR REPLACE INTO trash VALUES (?, ?)",
+                           [(_hidden(path), time.time()) for path in superseded])
+        return superseded
+
+    def expired(self, grace: float) -> list[str]:
+        """Take the hidden links superseded more than `grace` seconds ago off the trash list."""
+        db = self._connect()
+        with _transaction(db, immediate=True):
+            limit = time.time() - grace
+            found = [r[0] for r in db.execute("SELECT path FROM trash WHERE superseded_at < ?", (limit,))]
+            db.execute("DELETE FROM trash WHERE superseded_at < ?", (limit,))
+        return found
+
+    def trashed(self) -> set[str]:
+        """The hidden links still in their grace period."""
+        return {r[0] for r in self._connect().execute("SELECT path FROM trash")}
+
+    def referenced(self, batch_id: str, job_id: str = "") -> set[str]:
+        """The paths the record holds for one job (or batch)."""
+        return {r[0] for r in self._connect().execute(
+            "SELECT path FROM files WHERE batch_id = ? AND job_id = ?", (batch_id, job_id))}
+
+
+def current_file(lake: Path, branch: str, table: str, batch_id: str, job_id: str = "") -> Path | None:
+    """The file that holds `table`'s rows of one job (job_id '': of one batch) now, if any."""
+    record = Record(lake, branch)
+    try:
+        entry = record.find(table, batch_id, job_id)
+    finally:
+        record.close()
+    return None if entry is None else record.root / entry.path
+
+
+class Change:
+    """Files staged for one atomic switch of a branch's record (see the module docstring).
+
+    `add` moves a finished file into its partition under a fresh name; `commit` switches the
+    record to them in one transaction and removes what they supersede. Writers of the same job
+    must hold its `paths.job_lock` around `commit` (batch tables: the batch's lock).
+    """
+
+    def __init__(self, lake: Path, branch: str):
+        self.lake, self.branch = Path(lake), branch
+        self.record = Record(lake, branch)
+        self.entries: list[FileEntry] = []
+        self.dropped: list[tuple[str, str]] = []
+
+    def add(self, table: str, batch_id: str, job_id: str | None, staged: Path) -> FileEntry:
+        """Publish `staged` as the file of `table` for one job (job_id None: for one batch)."""
+        target = paths.new_data_file(self.lake, self.branch, table, batch_id, job_id)
+        paths.publish_linked(staged, target)
+        entry = describe_file(self.record.root, table, batch_id, job_id or "", target)
+        self.entries.append(entry)
+        _pause("added")
+        return entry
+
+    def replace_job(self, batch_id: str, job_id: str) -> None:
+        """Drop every table's file of this job that `add` does not replace."""
+        self.dropped.append((batch_id, job_id))
+
+    def commit(self, what: str) -> list[Path]:
+        """Switch the record; returns the published files."""
+        _pause("commit")
+        try:
+            superseded = self.record.commit(what, self.entries, self.dropped)
+            committed, self.entries = self.entries, []
+            for relative in superseded:  # gone for Trino now; lakegate's queries keep the reader link a while
+                paths.remove_published(self.record.root / relative)
+            for relative in self.record.expired(GRACE_SECONDS):
+                paths.remove_published(self.record.root / relative)
+            for batch_id, job_id in {(e.batch_id, e.job_id) for e in committed} | set(self.dropped):
+                self._sweep(batch_id, job_id)
+        finally:
+            self.record.close()
+        return [self.record.root / entry.path for entry in committed]
+
+    def discard(self) -> None:
+        """Remove the files added and not committed (a no-op after `commit`)."""
+        for entry in self.entries:
+            paths.remove_published(self.record.root / entry.path)
+            paths.remove_published(paths.reader_path(self.record.root, entry.path))
+        self.entries = []
+        self.record.close()
+
+    def _sweep(self, batch_id: str, job_id: str) -> None:
+        """Remove files of one job that no row references and no living writer is about to commit."""
+        referenced = self.record.referenced(batch_id, job_id)
+        keep = referenced | {_hidden(path) for path in referenced} | self.record.trashed()
+        root = self.record.root
+        for table in paths.table_names(self.lake, self.branch):
+            directory = paths.partition_dir(self.lake, self.branch, table, batch_id, job_id or None)
+            links = root / paths.READERS / directory.relative_to(root)
+            for file in paths.abandoned_files(directory) + paths.abandoned_files(links):
+                if file.relative_to(root).as_posix() not in keep:
+                    paths.remove_published(file)
+
+
+def _pause(point: str) -> None:
+    where, _, marker = os.environ.get(PAUSE_ENV, "").partition(":")
+    if where == point:
+        Path(marker).touch()
+        time.sleep(60)
+
+
+@contextlib.contextmanager
+def _transaction(db: sqlite3.Connection, *, immediate: bool = False) -> Iterator[None]:
+    db.execute("BEGIN IMMEDIATE" if immediate else "BEGIN")
+    try:
+        yield
+    except BaseException:
+        db.execute("ROLLBACK")
+        raise
+    db.execute("COMMIT")
+
+
+def _hidden(relative: str) -> str:
+    return f"{paths.READERS}/{relative}"
+
+
+def _entry(row: tuple) -> FileEntry:
+    table, batch_id, job_id, path, rows, low, high, columns = row
+    return FileEntry(table, batch_id, job_id, path, rows, low, high, tuple(json.loads(columns)))
+
+
+def _migrate(db: sqlite3.Connection, root: Path) -> None:
+    """Record the files of a lake written before the record existed (one listing of the branch)."""
+    lake, branch = root.parent, paths.decode_branch(root.name)
+    db.execute("INSERT INTO commits (what) VALUES ('create')")
+    for table in paths.table_names(lake, branch):
+        for file in paths.data_files(lake, branch, table):
+            batch_id = paths.partition_value(file.parent if table in paths.BATCH_TABLES else file.parent.parent,
+                                             "batch_id")
+            job_id = "" if table in paths.BATCH_TABLES else paths.partition_value(file.parent, "job_id")
+            paths.link_reader(file)
+            try:
+                entry = describe_file(root, table, batch_id, job_id, file)
+            except (OSError, ValueError):  # unreadable: recorded, so a query of it says which file
+                entry = FileEntry(table, batch_id, job_id, file.relative_to(root).as_posix(), 0)
+            db.execute("INSERT OR REPLACE INTO files VALUES (?, ?, ?, ?, ?, ?, ?, ?, 1)",
+                       (*entry.key, entry.path, entry.rows, entry.min_ts, entry.max_ts, json.dumps(entry.columns)))

@@ -152,21 +152,6 @@ def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
 _DECODER = json.JSONDecoder(parse_constant=_reject_constant, object_pairs_hook=_unique_keys)
 
 
-def _encodable(value: Any) -> bool:
-    """False if a string in `value` holds a lone surrogate (from a `\\ud800` escape)."""
-    if isinstance(value, str):
-        try:
-            value.encode("utf-8")
-        except UnicodeEncodeError:
-            return False
-        return True
-    if isinstance(value, dict):
-        return all(_encodable(v) for v in value.values())
-    if isinstance(value, list):
-        return all(_encodable(v) for v in value)
-    return True
-
-
 def _what(value: Any) -> str:
     text = json.dumps(value) if not isinstance(value, float) else repr(value)
     return f"{type(value).__name__} {text[:40]}{'...' if len(text) > 40 else ''}"
@@ -248,8 +233,6 @@ def _check_line(raw: bytes, topics: dict[str, Topic], unterminated: bool) -> tup
             value = check_value(field_type, data[field_name])
         except FieldError as exc:
             raise _Bad(f"topic {name!r}, field {field_name!r}: {exc}") from None
-        if "\\u" in text and not _encodable(value):
-            raise _Bad(f"topic {name!r}, field {field_name!r}: string holds an unpaired surrogate escape (\\ud800-\\udfff)")
         values.append(value)
     return name, timestamp, values
 

@@ -86,6 +86,23 @@ def _describe(value: Any) -> str:
     return f"{type(value).__name__} {text}"
 
 
+def is_utf8(text: str) -> bool:
+    """False if `text` holds a lone surrogate (U+D800-U+DFFF), which UTF-8 (and so Parquet) cannot store."""
+    if text.isascii():
+        return True
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
+
+
+def _text(value: str, where: str = "") -> str:
+    if not is_utf8(value):
+        raise FieldError(f"{where}string holds a lone surrogate (U+D800-U+DFFF), which is not valid Unicode text")
+    return value
+
+
 def _as_str_list(value: Any) -> list[str]:
     if hasattr(value, "tolist") and not isinstance(value, (str, bytes)):
         value = value.tolist()
@@ -94,6 +111,7 @@ def _as_str_list(value: Any) -> list[str]:
     for i, item in enumerate(value):
         if not isinstance(item, str):
             raise FieldError(f"expected a list of strings, got {_describe(item)} at position {i}")
+        _text(item, f"position {i}: ")
     return list(value)
 
 
@@ -132,13 +150,17 @@ def _metric(item: Any, index: int) -> dict[str, str | None]:
     kind = item["type"]
     if kind not in METRIC_KINDS:
         raise FieldError(f"{where}: type must be one of {', '.join(METRIC_KINDS)}, got {kind!r}")
-    return {
+    metric = {
         "name": item["name"],
         "description": item.get("description"),
         "status": item.get("status"),
         "type": kind,
         "value": _metric_value_text(kind, item["value"]),
     }
+    for key, text in metric.items():
+        if text is not None:
+            _text(text, f"{where}: {key}: ")
+    return metric
 
 
 def check_value(field_type: str, value: Any) -> Any:
@@ -147,7 +169,8 @@ def check_value(field_type: str, value: Any) -> Any:
     Rules: int takes integers (not bool); float takes integers or finite floats (not
     bool); boolean only bool; string/status/image/video a str; string[] a list of str;
     metric[] a list of metric objects (name, type scalar|text|image|plotly, value,
-    optional description and status). None is never accepted.
+    optional description and status). None is never accepted, nor a string holding a lone
+    surrogate (it has no UTF-8 form).
     """
     if field_type == "int":
         if isinstance(value, bool) or not isinstance(value, Integral):
@@ -175,7 +198,7 @@ def check_value(field_type: str, value: Any) -> Any:
     if field_type in ("string", "status", "image", "video"):
         if not isinstance(value, str):
             raise FieldError(f"expected {field_type} (a string), got {_describe(value)}")
-        return value
+        return _text(value)
     if field_type == "string[]":
         return _as_str_list(value)
     if field_type == "metric[]":

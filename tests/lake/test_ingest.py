@@ -185,7 +185,7 @@ BAD = [
     ('{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0,}}', "bad JSON"),
     ('{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": 1.0, "x": 2.0, "y": 2.0, "z": 3.0}}', "duplicate key 'x'"),
     (line("odom", 1, {"x": 1.0, "y": 2.0, "z": 3.0}, event=True), "topic 'odom' is not an event topic"),
-    (line("plain", 1, {"i": 1, "f": 1.0, "b": True, "s": "\ud800", "tags": []}), "unpaired surrogate"),
+    (line("plain", 1, {"i": 1, "f": 1.0, "b": True, "s": "\ud800", "tags": []}), "lone surrogate"),
     ('{"$metadata": {"topic": "odom", "timestamp": 1, "colour": "red"}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0}}',
      "unexpected key 'colour' in $metadata"),
     ('{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0}, "extra": 1}',

@@ -15,6 +15,8 @@ Drop-in for the reference `resim.metrics.python.emissions.Emitter` (same constru
   is written before it returns, so the child's lines survive `os._exit` and SIGTERM;
 - a failed write (disk full, I/O error) raises `OSError` to the caller on its next emit,
   flush or close, and never leaves part of a line in the file;
+- a line longer than 16 MiB or nested deeper than 256 levels raises `ValidationError`
+  (ingestion refuses such lines: `lakegate.lake.types.MAX_LINE_BYTES`, `MAX_JSON_DEPTH`);
 - a string holding a lone surrogate (`"\\ud800"`), in any position, raises `ValidationError`
   (UTF-8 and Parquet cannot store it);
 - emitting on a closed Emitter raises ValueError (the reference silently appends to its
@@ -43,7 +45,7 @@ from types import TracebackType
 from typing import Any, Callable
 
 from lakegate.lake.config import Topic, load_config
-from lakegate.lake.types import check_value, is_utf8
+from lakegate.lake.types import MAX_JSON_DEPTH, MAX_LINE_BYTES, check_value, is_utf8, json_too_deep
 
 DEFAULT_OUTPUT_PATH = Path("/tmp/resim/outputs/emissions.resim.jsonl")
 DEFAULT_FLUSH_INTERVAL = 0.5  # seconds
@@ -117,6 +119,8 @@ def _checked(topic: str, field: str, field_type: str, value: Any) -> Any:
         return check_value(field_type, value)
     except (ValueError, TypeError, OverflowError) as exc:
         raise ValidationError(str(exc), topic=topic, field=field) from None
+    except RecursionError:  # a metric's Plotly object nested far too deep
+        raise ValidationError(_TOO_DEEP, topic=topic, field=field) from None
 
 
 def _json_text(topic: str, field: str, field_type: str, value: Any) -> str:
@@ -124,9 +128,24 @@ def _json_text(topic: str, field: str, field_type: str, value: Any) -> str:
     stored = _checked(topic, field, field_type, value)
     try:
         # metric[] is written as given: check_value's normal form is for storage, not re-reading.
-        return _dumps(value if field_type == "metric[]" else stored)
+        text = _dumps(value if field_type == "metric[]" else stored)
     except (ValueError, TypeError) as exc:
         raise ValidationError(f"not standard JSON: {exc}", topic=topic, field=field) from None
+    except RecursionError:
+        raise ValidationError(_TOO_DEEP, topic=topic, field=field) from None
+    if json_too_deep(text, MAX_JSON_DEPTH - 2):  # the line and $data objects hold it
+        raise ValidationError(_TOO_DEEP, topic=topic, field=field)
+    return text
+
+
+_TOO_DEEP = f"nested too deep: an emissions line has at most {MAX_JSON_DEPTH} levels of arrays and objects"
+
+
+def _check_length(topic: str, line: str) -> None:
+    """ValidationError if `line` (with its newline) is longer than ingestion accepts."""
+    if len(line) > MAX_LINE_BYTES + 1:  # the text is ASCII: characters are bytes
+        raise ValidationError(f"the record's line would be {len(line) - 1:,} bytes, more than the limit of "
+                              f"{MAX_LINE_BYTES:,} bytes of an emissions line", topic=topic)
 
 
 # Per field type: the test under which `check_value` certainly accepts the value @ as it is
@@ -179,6 +198,7 @@ class _Codec:
                 text = "{" + v + "}"
             template += _literal(("" if i == 0 else ", ") + _json_str(name) + ": ") + text
         checks.append(f"text = f'{template}}}}}}}}}\\n'")
+        checks.append("if len(text) > MAX_TEXT: _check_length(TOPIC, text)")
         return [indent + check for check in checks]
 
     def _compile(self) -> tuple[Callable[..., str], Callable[..., list[str]]]:
@@ -211,7 +231,7 @@ class _Codec:
         namespace: dict[str, Any] = {
             "_json_str": _json_str, "_checked": _checked, "_json_text": _json_text, "ValidationError": ValidationError,
             "_check_timestamp": _check_timestamp, "_fields_of": self.fields_of, "TOPIC": self.topic.name,
-            "PLAIN_END": _PLAIN_END,
+            "PLAIN_END": _PLAIN_END, "MAX_TEXT": MAX_LINE_BYTES + 1, "_check_length": _check_length,
         }
         exec("\n".join(source), namespace)  # noqa: S102 - names are repr()'d, texts escaped by _literal
         return namespace["line"], namespace["series"]
@@ -248,11 +268,16 @@ def _plain_data_json(topic: Any, data: Any) -> str:
         raise ValidationError(f"data must be a dict of field values, got {_describe(data)}", topic=topic)
     try:
         text = _dumps(dict(data))
+    except RecursionError:
+        raise ValidationError(_TOO_DEEP, topic=topic) from None
+    except (ValueError, TypeError) as exc:
+        error: Exception = exc
+    else:
+        if json_too_deep(text, MAX_JSON_DEPTH - 1):  # the line's object holds it
+            raise ValidationError(_TOO_DEEP, topic=topic)
         if "\\ud" not in text or _utf8_everywhere(data):  # \\ud...: an escaped surrogate, maybe a lone one
             return text
-        error: Exception = ValueError(_LONE_SURROGATE)
-    except (ValueError, TypeError) as exc:
-        error = exc
+        error = ValueError(_LONE_SURROGATE)
     for name, value in data.items():  # find the field to blame
         if not isinstance(name, str) or not is_utf8(name):
             raise ValidationError(f"field names must be strings of valid Unicode text, got {_describe(name)}",
@@ -458,7 +483,9 @@ class Emitter:
             raise ValidationError(f"unknown topic; {known}", topic=topic_name)
         body = _plain_data_json(topic_name, data)
         timestamp = _check_timestamp(topic_name, timestamp)
-        return f'{{"$metadata": {{"topic": {_json_str(topic_name)}, "timestamp": {timestamp}{end}{body}}}\n'
+        line = f'{{"$metadata": {{"topic": {_json_str(topic_name)}, "timestamp": {timestamp}{end}{body}}}\n'
+        _check_length(topic_name, line)
+        return line
 
     # --- buffering and writing ----------------------------------------------------------
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from numbers import Integral, Real
 from typing import Any
 
@@ -57,6 +58,28 @@ _TRINO = {
 
 
 INT64_MIN, INT64_MAX = -(2**63), 2**63 - 1
+
+#: Limits of one emissions line (JSON text, newline excluded), the same for the Emitter and ingestion:
+#: a longer or deeper line is refused. Far above what real records need (a Plotly figure is ~10 deep).
+MAX_LINE_BYTES = 16 << 20
+MAX_JSON_DEPTH = 256
+# a JSON string (skipped whole), an opening bracket (group 1), or a closing one
+_JSON_NESTING = re.compile(r'"[^"\\]*(?:\\.[^"\\]*)*"|([\[{])|[\]}]')
+
+
+def json_too_deep(text: str, limit: int = MAX_JSON_DEPTH) -> bool:
+    """Whether JSON `text` nests arrays and objects deeper than `limit`, found without parsing it."""
+    if text.count("[") + text.count("{") <= limit:
+        return False
+    depth = 0
+    for token in _JSON_NESTING.finditer(text):
+        if token.group(1):
+            depth += 1
+            if depth > limit:
+                return True
+        elif token.group()[0] != '"':
+            depth -= 1
+    return False
 
 
 class FieldError(ValueError):

@@ -2,7 +2,8 @@
 
 Exit codes of `metrics run`: 0 when nothing blocks (warnings allowed); 2 when at least one
 metric is a BLOCKER; 3 when none blocks but a metric errored or a job failed (ERROR); 1 for
-usage and config errors (nothing evaluated). Malformed command lines are argparse's: usage
+usage and config errors (nothing evaluated) and when the results or the report cannot be
+written (a read-only or full disk; the lake keeps what it had). Malformed command lines are argparse's: usage
 on standard error and exit code 2, like any argparse program.
 """
 from __future__ import annotations
@@ -51,7 +52,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     "each job, then batch metrics; write the jobs' statuses to their metadata and the results "
                     "to the metric_results table (replacing the batch's earlier results). Exit code: 0 nothing "
                     "blocks (warnings allowed), 2 a metric is a BLOCKER, 3 a metric errored or a job failed "
-                    "(and nothing blocks), 1 usage or config error.")
+                    "(and nothing blocks), 1 usage or config error, or the results or report could not be written.")
     _lake_and_branch(run)
     run.add_argument("--batch", required=True, metavar="ID", help="the batch to evaluate")
     which = run.add_mutually_exclusive_group(required=True)

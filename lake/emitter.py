@@ -389,7 +389,7 @@ class Emitter:
         self._codecs = {name: _Codec(topic) for name, topic in self.topics.items()}
         self._lines = {name: codec.line for name, codec in self._codecs.items()}
         self.output_path.parent.mkdir(parents=True, exist_ok=True)
-        self._fd = os.open(self.output_path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o666)
+        self._fd = os.open(self.output_path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)  # not inherited by exec
         self._closed = False
         self._start(_CHUNK_LINES, _MAX_QUEUED)
         _LIVE.add(self)

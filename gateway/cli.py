@@ -2,13 +2,17 @@
 
 Each command lives in its own module under `lakegate.gateway` that defines
 `add_parser(subparsers)`; the parser it adds sets `func(args) -> int`. Errors meant
-for the user are raised as `UserError` and printed as one line, without a traceback.
+for the user are raised as `UserError` and printed as one line, without a traceback; so
+are the `OSError`s of files the user named (a missing folder, a full or read-only disk).
+Exit code 1 for both.
 """
 from __future__ import annotations
 
 import argparse
 import importlib
 import sys
+from pathlib import Path
+from typing import Any, Callable
 
 #: Modules that each contribute one command (or a command group).
 COMMAND_MODULES = (
@@ -37,6 +41,32 @@ def port_number(text: str) -> int:
     return number
 
 
+def positive(kind: type) -> Callable[[str], Any]:
+    """An argparse `type` that reads a `kind` (int or float) greater than 0."""
+    def parse(text: str) -> Any:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+        if not value > 0:
+            raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+        return value
+    return parse
+
+
+def os_error_text(error: OSError) -> str:
+    """An OSError in one line: why, and the file (`No space left on device: 'lake/x'`)."""
+    reason = error.strerror or str(error)
+    return f"{reason}: {str(error.filename)!r}" if error.filename is not None else reason
+
+
+def writable_lake(path: Path) -> Path:
+    """`path` as a lake to write to (it need not exist yet); UserError if it is not a folder."""
+    if path.exists() and not path.is_dir():
+        raise UserError(f"--lake {str(path)!r} is not a directory (a lake is a folder; it is created if missing)")
+    return path
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="lakegate",
@@ -56,6 +86,9 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except UserError as exc:
         print(f"lakegate: {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:
+        print(f"lakegate: {os_error_text(exc)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("lakegate: interrupted", file=sys.stderr)

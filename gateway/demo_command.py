@@ -18,6 +18,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from lakegate.fixtures.generate import generate_batch
+from lakegate.gateway.cli import writable_lake
 from lakegate.gateway.metrics import MetricsEngine
 from lakegate.gateway.metrics_command import format_table
 from lakegate.gateway.report import write_report
@@ -54,7 +55,7 @@ def _step(text: str) -> None:
 def demo_command(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     progress = sys.stderr.isatty() if args.progress is None else args.progress
-    lake = args.lake.resolve()
+    lake = writable_lake(args.lake).resolve()
     inputs = lake / INPUTS
     _step(f"1/5 generating {args.jobs} simulated navigation jobs into {inputs}")
     jobs = generate_batch(inputs, jobs=args.jobs)

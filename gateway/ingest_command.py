@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 from typing import Any, Sequence
 
-from lakegate.gateway.cli import UserError
+from lakegate.gateway.cli import UserError, writable_lake
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.config import Config, ConfigError, find_default_config, load_config
 from lakegate.lake.ingest import IngestError, IngestReport, ingest_job
@@ -14,6 +14,8 @@ from lakegate.lake.metadata import MetadataError, load_metadata_file
 from lakegate.lake.paths import LakePathError
 from lakegate.lake.registry import BranchConfigs
 
+#: The raw job statuses `--job-status` takes (the product guide's `job_status` values).
+JOB_STATUSES = ("SUCCEEDED", "FAILED")
 #: How many problems are printed before "... and N more".
 SHOWN_PROBLEMS = 20
 
@@ -41,8 +43,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     ingest.add_argument("--build-version", help="the version of the build under test")
     ingest.add_argument("--tag", action="append", dest="tags", metavar="TAG",
                         help="an experience tag name (repeatable); sets experience_tag_names")
-    ingest.add_argument("--job-status", help="the job's raw status (default SUCCEEDED; FAILED makes its "
-                                             "conflated status ERROR)")
+    ingest.add_argument("--job-status", type=str.upper, choices=JOB_STATUSES,
+                        help="the job's raw status: SUCCEEDED (the default) or FAILED (makes its conflated status "
+                             "ERROR)")
     ingest.add_argument("--skip-bad-lines", action="store_true",
                         help="write the good rows and put bad lines, with reasons, in a quarantine file")
     ingest.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
@@ -105,6 +108,7 @@ def _print_problems(title: str, problems: Sequence[str], total: int | None = Non
 
 def ingest_command(args: argparse.Namespace) -> int:
     progress = sys.stderr.isatty() if args.progress is None else args.progress
+    writable_lake(args.lake)
     try:
         config = _config(args)
         report = ingest_job(args.lake, args.branch, args.batch, args.job, args.emissions, config=config,

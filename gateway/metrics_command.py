@@ -2,7 +2,8 @@
 
 Exit codes of `metrics run`: 0 when nothing blocks (warnings allowed); 2 when at least one
 metric is a BLOCKER; 3 when none blocks but a metric errored or a job failed (ERROR); 1 for
-usage and config errors (nothing evaluated). Malformed command lines are argparse's: usage
+usage and config errors (nothing evaluated) and when the results or the report cannot be
+written (a read-only or full disk; the lake keeps what it had). Malformed command lines are argparse's: usage
 on standard error and exit code 2, like any argparse program.
 """
 from __future__ import annotations
@@ -15,7 +16,7 @@ from typing import Sequence
 
 from lakegate.dialect.errors import DialectError
 from lakegate.gateway.backends_cli import add_backend_arguments, backend_from_args
-from lakegate.gateway.cli import UserError
+from lakegate.gateway.cli import UserError, os_error_text, positive, writable_lake
 from lakegate.gateway.metrics import (BLOCKER, ERROR, SEVERITY, BatchEvaluation, MetricResult, MetricsEngine,
                                       select_metrics)
 from lakegate.gateway.report import job_title, write_report
@@ -51,7 +52,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                     "each job, then batch metrics; write the jobs' statuses to their metadata and the results "
                     "to the metric_results table (replacing the batch's earlier results). Exit code: 0 nothing "
                     "blocks (warnings allowed), 2 a metric is a BLOCKER, 3 a metric errored or a job failed "
-                    "(and nothing blocks), 1 usage or config error.")
+                    "(and nothing blocks), 1 usage or config error, or the results or report could not be written.")
     _lake_and_branch(run)
     run.add_argument("--batch", required=True, metavar="ID", help="the batch to evaluate")
     which = run.add_mutually_exclusive_group(required=True)
@@ -67,7 +68,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     run.add_argument("--report", type=Path, metavar="FILE.html",
                      help="also write an offline HTML report with every figure to this file")
     add_backend_arguments(run)
-    run.add_argument("--threads", type=int, default=2, metavar="N", help="jobs evaluated at once (default 2)")
+    run.add_argument("--threads", type=positive(int), default=2, metavar="N", help="jobs evaluated at once (default 2)")
     run.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
                      help="show a progress bar on standard error (default: when it is a terminal)")
     run.set_defaults(func=run_command)
@@ -101,6 +102,7 @@ def _config_paths(given: Sequence[Path] | None) -> list[Path]:
 
 
 def sync_command(args: argparse.Namespace) -> int:
+    writable_lake(args.lake)
     paths = _config_paths(args.config_paths)
     try:
         config = load_config(paths)
@@ -139,6 +141,8 @@ def exit_code(evaluation: BatchEvaluation) -> int:
 def run_command(args: argparse.Namespace) -> int:
     if not args.lake.is_dir():
         raise UserError(f"no lake at {str(args.lake)!r}")
+    if args.report is not None and args.report.is_dir():
+        raise UserError(f"--report {str(args.report)!r} is a directory; name the HTML file to write")
     catalog = Catalog(args.lake)
     try:
         if args.branch not in catalog.branches():
@@ -165,6 +169,8 @@ def run_command(args: argparse.Namespace) -> int:
             progress=progress, keep_figures=args.report is not None)
     except DialectError as error:
         raise UserError(str(error)) from None
+    except OSError as error:
+        raise UserError(f"cannot store the results in the lake: {os_error_text(error)}") from None
     finally:
         backend.close()
     if args.format == "json":
@@ -173,7 +179,11 @@ def run_command(args: argparse.Namespace) -> int:
     else:
         print(format_table(evaluation))
     if args.report is not None:
-        path = write_report(evaluation, args.report)
+        try:
+            path = write_report(evaluation, args.report)
+        except OSError as error:
+            raise UserError(f"cannot write the report {str(args.report)!r}: {error.strerror or error} (the "
+                            "results are stored in the lake)") from None
         print(f"report: {path.resolve()}", file=sys.stderr if args.format == "json" else sys.stdout)
     return exit_code(evaluation)
 

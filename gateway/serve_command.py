@@ -19,21 +19,10 @@ from pathlib import Path
 
 from lakegate.gateway.auth import Users, UsersFileError, check_listen
 from lakegate.gateway.cli import UserError, port_number
+from lakegate.gateway.cli import positive as _positive
 from lakegate.gateway.limits import Limits
 
 _DEFAULTS = Limits()
-
-
-def _positive(kind: type):
-    def parse(text: str):
-        try:
-            value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
-        if value <= 0:
-            raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-        return value
-    return parse
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:

@@ -14,7 +14,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from lakegate.lake.config_schema import FILE, SET_METRIC_TYPES
+from lakegate.lake import paths
+from lakegate.lake.config_schema import FILE, SET_METRIC_TYPES, TOPIC_NAME_RULES
 from lakegate.lake.config_yaml import Entry, FileReader, Named, RawProblem, did_you_mean
 
 DEFAULT_CONFIG_PATH = Path(".resim/metrics/config.resim.yaml")
@@ -206,6 +207,11 @@ class _Builder:
 
     def _add_topic(self, topic: Topic) -> None:
         assert topic.location is not None
+        if not any(re.search(rule.pattern, topic.name) for rule in TOPIC_NAME_RULES):  # else reported already
+            try:
+                paths.check_table_name(topic.name)  # what the schema's rules cannot say (its length in bytes)
+            except paths.LakePathError as exc:
+                self._error(topic.location, str(exc))
         other = self._topic_names.get(topic.name.lower())
         if other is not None and other.name != topic.name:
             self._error(topic.location, f"topic '{topic.name}' differs only in letter case from topic "

@@ -47,6 +47,8 @@ TOPIC_NAME_RULES = (
     NameRule("^[_.]", "starts with '_' or '.', which topic names may not"),
     NameRule("[\\u0000-\\u001f\\u007f]", "contains a control character"),
     NameRule(_one_of_words(RESERVED_TOPIC_NAMES), f"is a reserved table name ({', '.join(RESERVED_TOPIC_NAMES)})"),
+    # the lake's paths (lake.paths.check_table_name): Hive partitions URL-decode '%', readers glob the rest
+    NameRule("[\\\\=%*?\\[\\]{}]", "contains one of \\ = % * ? [ ] { }, which the lake's table paths cannot hold"),
 )
 FIELD_NAME_RULES = (
     NameRule("^$", "has an empty name"),

@@ -11,6 +11,14 @@ Drop-in for the reference `resim.metrics.python.emissions.Emitter` (same constru
   including the contents of `metric[]` values, and rejects NaN/inf in float fields;
 - one Emitter may be shared by many threads, and lines are buffered and written in chunks
   (see `Emitter` for the flush policy; `flush()` writes now);
+- in a forked child (`os.fork`, `multiprocessing` with the fork start method) every emit
+  is written before it returns, so the child's lines survive `os._exit` and SIGTERM;
+- a failed write (disk full, I/O error) raises `OSError` to the caller on its next emit,
+  flush or close, and never leaves part of a line in the file;
+- a line longer than 16 MiB or nested deeper than 256 levels raises `ValidationError`
+  (ingestion refuses such lines: `lakegate.lake.types.MAX_LINE_BYTES`, `MAX_JSON_DEPTH`);
+- a string holding a lone surrogate (`"\\ud800"`), in any position, raises `ValidationError`
+  (UTF-8 and Parquet cannot store it);
 - emitting on a closed Emitter raises ValueError (the reference silently appends to its
   default path).
 
@@ -21,9 +29,11 @@ must name an event topic.
 from __future__ import annotations
 
 import atexit
+import contextlib
 import difflib
 import json
 import os
+import sys
 import threading
 import warnings
 import weakref
@@ -35,7 +45,7 @@ from types import TracebackType
 from typing import Any, Callable
 
 from lakegate.lake.config import Topic, load_config
-from lakegate.lake.types import check_value
+from lakegate.lake.types import MAX_JSON_DEPTH, MAX_LINE_BYTES, check_value, is_utf8, json_too_deep
 
 DEFAULT_OUTPUT_PATH = Path("/tmp/resim/outputs/emissions.resim.jsonl")
 DEFAULT_FLUSH_INTERVAL = 0.5  # seconds
@@ -109,6 +119,8 @@ def _checked(topic: str, field: str, field_type: str, value: Any) -> Any:
         return check_value(field_type, value)
     except (ValueError, TypeError, OverflowError) as exc:
         raise ValidationError(str(exc), topic=topic, field=field) from None
+    except RecursionError:  # a metric's Plotly object nested far too deep
+        raise ValidationError(_TOO_DEEP, topic=topic, field=field) from None
 
 
 def _json_text(topic: str, field: str, field_type: str, value: Any) -> str:
@@ -116,9 +128,24 @@ def _json_text(topic: str, field: str, field_type: str, value: Any) -> str:
     stored = _checked(topic, field, field_type, value)
     try:
         # metric[] is written as given: check_value's normal form is for storage, not re-reading.
-        return _dumps(value if field_type == "metric[]" else stored)
+        text = _dumps(value if field_type == "metric[]" else stored)
     except (ValueError, TypeError) as exc:
         raise ValidationError(f"not standard JSON: {exc}", topic=topic, field=field) from None
+    except RecursionError:
+        raise ValidationError(_TOO_DEEP, topic=topic, field=field) from None
+    if json_too_deep(text, MAX_JSON_DEPTH - 2):  # the line and $data objects hold it
+        raise ValidationError(_TOO_DEEP, topic=topic, field=field)
+    return text
+
+
+_TOO_DEEP = f"nested too deep: an emissions line has at most {MAX_JSON_DEPTH} levels of arrays and objects"
+
+
+def _check_length(topic: str, line: str) -> None:
+    """ValidationError if `line` (with its newline) is longer than ingestion accepts."""
+    if len(line) > MAX_LINE_BYTES + 1:  # the text is ASCII: characters are bytes
+        raise ValidationError(f"the record's line would be {len(line) - 1:,} bytes, more than the limit of "
+                              f"{MAX_LINE_BYTES:,} bytes of an emissions line", topic=topic)
 
 
 # Per field type: the test under which `check_value` certainly accepts the value @ as it is
@@ -128,7 +155,7 @@ _FAST = {
     "float": ("type(@) is float and -1e999 < @ < 1e999", "{@!r}"),  # 1e999 is inf; NaN compares false
     "int": ("type(@) is int and -0x8000000000000000 <= @ <= 0x7FFFFFFFFFFFFFFF", "{@!r}"),
     "boolean": ("@ is True or @ is False", '{"true" if @ else "false"}'),
-    "string": ("type(@) is str", "{_json_str(@)}"),
+    "string": ("type(@) is str and @.isascii()", "{_json_str(@)}"),  # other text: check_value finds lone surrogates
 }
 _FAST.update({t: _FAST["string"] for t in ("status", "image", "video")})
 _PLAIN_END = '}, "$data": '
@@ -171,6 +198,7 @@ class _Codec:
                 text = "{" + v + "}"
             template += _literal(("" if i == 0 else ", ") + _json_str(name) + ": ") + text
         checks.append(f"text = f'{template}}}}}}}}}\\n'")
+        checks.append("if len(text) > MAX_TEXT: _check_length(TOPIC, text)")
         return [indent + check for check in checks]
 
     def _compile(self) -> tuple[Callable[..., str], Callable[..., list[str]]]:
@@ -203,7 +231,7 @@ class _Codec:
         namespace: dict[str, Any] = {
             "_json_str": _json_str, "_checked": _checked, "_json_text": _json_text, "ValidationError": ValidationError,
             "_check_timestamp": _check_timestamp, "_fields_of": self.fields_of, "TOPIC": self.topic.name,
-            "PLAIN_END": _PLAIN_END,
+            "PLAIN_END": _PLAIN_END, "MAX_TEXT": MAX_LINE_BYTES + 1, "_check_length": _check_length,
         }
         exec("\n".join(source), namespace)  # noqa: S102 - names are repr()'d, texts escaped by _literal
         return namespace["line"], namespace["series"]
@@ -234,19 +262,30 @@ def check_field_names(topic: Topic, names: Iterable[Any]) -> None:
 
 def _plain_data_json(topic: Any, data: Any) -> str:
     """`$data` JSON text without a config: any JSON-able dict (numpy accepted), standard JSON only."""
-    if not isinstance(topic, str) or not topic:
-        raise ValidationError(f"topic must be a non-empty string, got {_describe(topic)}")
+    if not isinstance(topic, str) or not topic or not is_utf8(topic):
+        raise ValidationError(f"topic must be a non-empty string of valid Unicode text, got {_describe(topic)}")
     if not isinstance(data, Mapping):
         raise ValidationError(f"data must be a dict of field values, got {_describe(data)}", topic=topic)
     try:
-        return _dumps(dict(data))
+        text = _dumps(dict(data))
+    except RecursionError:
+        raise ValidationError(_TOO_DEEP, topic=topic) from None
     except (ValueError, TypeError) as exc:
-        error = exc
+        error: Exception = exc
+    else:
+        if json_too_deep(text, MAX_JSON_DEPTH - 1):  # the line's object holds it
+            raise ValidationError(_TOO_DEEP, topic=topic)
+        if "\\ud" not in text or _utf8_everywhere(data):  # \\ud...: an escaped surrogate, maybe a lone one
+            return text
+        error = ValueError(_LONE_SURROGATE)
     for name, value in data.items():  # find the field to blame
-        if not isinstance(name, str):
-            raise ValidationError(f"field names must be strings, got {_describe(name)}", topic=topic)
+        if not isinstance(name, str) or not is_utf8(name):
+            raise ValidationError(f"field names must be strings of valid Unicode text, got {_describe(name)}",
+                                  topic=topic)
         try:
             _dumps(value)
+            if not _utf8_everywhere(value):
+                raise ValueError(_LONE_SURROGATE)
         except (ValueError, TypeError) as exc:
             error = exc
             break
@@ -255,7 +294,24 @@ def _plain_data_json(topic: Any, data: Any) -> str:
     reason = str(error)
     if reason.startswith("Out of range float values"):
         reason = "NaN and infinity are not standard JSON"
-    raise ValidationError(f"not standard JSON: {reason}", topic=topic, field=name)
+    if reason != _LONE_SURROGATE:
+        reason = f"not standard JSON: {reason}"
+    raise ValidationError(reason, topic=topic, field=name)
+
+
+_LONE_SURROGATE = "a string holds a lone surrogate (U+D800-U+DFFF), which is not valid Unicode text"
+
+
+def _utf8_everywhere(value: Any) -> bool:
+    """False if a string anywhere in `value` (dict keys included) holds a lone surrogate."""
+    if isinstance(value, str):
+        return is_utf8(value)
+    if isinstance(value, Mapping):
+        return all(_utf8_everywhere(k) and _utf8_everywhere(v) for k, v in value.items())
+    if isinstance(value, (list, tuple)):
+        return all(_utf8_everywhere(v) for v in value)
+    tolist = getattr(value, "tolist", None)  # numpy arrays of str
+    return _utf8_everywhere(tolist()) if tolist is not None and not isinstance(value, (int, float)) else True
 
 
 def _as_column(topic: str, field: str, values: Any) -> list[Any]:
@@ -292,11 +348,23 @@ class Emitter:
     `emit_series`, before any of its records is). Data is handed to the OS, not synced to
     disk: a machine crash may lose more.
 
+    Write errors (a full disk): only whole lines reach the file (after a short write the
+    partial line is cut off again); the lines not written stay queued, in order, for the
+    next flush. `flush()` and `close()` raise the `OSError`; a failure of the flusher thread
+    is raised by the next `emit`, `flush` or `close` call (an `emit` that raises it has not
+    queued its record). `close()` raises when lines remain unwritten: they are lost.
+
     Threads: one Emitter may be shared; lines of different threads never interleave and each
     thread's lines keep their order (the queue's appends are atomic; one lock orders the
     writes). Close it only after the emitting threads are done: a line emitted while
-    `close()` runs may be lost. In a forked child, the lines queued before the fork are
-    left to the parent to write; the child writes its own.
+    `close()` runs may be lost.
+
+    Forked children (`os.fork`, `multiprocessing` Process and Pool with the fork start
+    method): the lines queued before the fork are left to the parent to write; the child
+    writes its own lines to the same file (appending whole lines in one write each, so
+    lines of the processes never interleave) before each emit returns, so they survive
+    every way a child ends, `os._exit` and a Pool's SIGTERM included. No exit hook could
+    do that: `os._exit` and signals run none.
     """
 
     def __init__(
@@ -321,9 +389,9 @@ class Emitter:
         self._codecs = {name: _Codec(topic) for name, topic in self.topics.items()}
         self._lines = {name: codec.line for name, codec in self._codecs.items()}
         self.output_path.parent.mkdir(parents=True, exist_ok=True)
-        self._file = open(self.output_path, "ab")
+        self._fd = os.open(self.output_path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)  # not inherited by exec
         self._closed = False
-        self._start()
+        self._start(_CHUNK_LINES, _MAX_QUEUED)
         _LIVE.add(self)
 
     def _load_topics(self) -> dict[str, Topic]:
@@ -335,15 +403,19 @@ class Emitter:
                 warnings.warn(f"metrics config {path} not found: emissions are not validated against it", stacklevel=3)
         return load_config(present).topics if present else {}
 
-    def _start(self) -> None:
-        """Fresh queue, lock and flusher thread (at construction, and in a forked child)."""
+    def _start(self, chunk_lines: int, max_queued: int) -> None:
+        """Fresh queue and lock, and the flusher thread unless every emit writes (`max_queued` 1)."""
         self._queue: deque[str] = deque()  # appends and pops are atomic: emitting threads take no lock
         self._write_lock = threading.Lock()  # held while lines are taken and written: keeps their order
         self._wake = threading.Event()  # set: the flusher thread should write now (or stop, once closed)
-        threading.Thread(
-            target=_flush_periodically, args=(weakref.ref(self), self._wake, self.flush_interval),
-            name=f"emitter-flush {self.output_path.name}", daemon=True,
-        ).start()
+        self._chunk_lines, self._max_queued = chunk_lines, max_queued
+        self._error: OSError | None = None  # a write error of the flusher thread, not yet raised
+        self._stopped = False  # closed, or _error set: emit must look before queuing
+        if max_queued > 1:
+            threading.Thread(
+                target=_flush_periodically, args=(weakref.ref(self), self._wake, self.flush_interval),
+                name=f"emitter-flush {self.output_path.name}", daemon=True,
+            ).start()
 
     # --- emitting -----------------------------------------------------------------------
 
@@ -354,11 +426,11 @@ class Emitter:
             line = encode(data, timestamp)
         else:
             line = self._unvalidated_line(topic_name, data, timestamp, _PLAIN_END)
-        if self._closed:
-            raise ValueError("emit on a closed Emitter")
+        if self._stopped:
+            self._raise_stopped()
         queue = self._queue
         queue.append(line)
-        if len(queue) >= _CHUNK_LINES:
+        if len(queue) >= self._chunk_lines:
             self._chunk_ready()
 
     def emit_event(self, topic_name: str, data: dict[str, Any], timestamp: int) -> None:
@@ -411,53 +483,97 @@ class Emitter:
             raise ValidationError(f"unknown topic; {known}", topic=topic_name)
         body = _plain_data_json(topic_name, data)
         timestamp = _check_timestamp(topic_name, timestamp)
-        return f'{{"$metadata": {{"topic": {_json_str(topic_name)}, "timestamp": {timestamp}{end}{body}}}\n'
+        line = f'{{"$metadata": {{"topic": {_json_str(topic_name)}, "timestamp": {timestamp}{end}{body}}}\n'
+        _check_length(topic_name, line)
+        return line
 
     # --- buffering and writing ----------------------------------------------------------
 
     def _append(self, lines: list[str]) -> None:
+        if self._stopped:
+            self._raise_stopped()
+        self._queue.extend(lines)
+        if len(self._queue) >= self._chunk_lines:
+            self._chunk_ready()
+
+    def _raise_stopped(self) -> None:
+        """ValueError once closed; else the flusher thread's pending write error (raised once)."""
         if self._closed:
             raise ValueError("emit on a closed Emitter")
-        self._queue.extend(lines)
-        if len(self._queue) >= _CHUNK_LINES:
-            self._chunk_ready()
+        error, self._error, self._stopped = self._error, None, False
+        if error is not None:
+            raise error
+
+    def _fail(self, error: OSError) -> None:
+        """Keep a write error for the next emit, flush or close to raise."""
+        self._error, self._stopped = error, True
 
     def _chunk_ready(self) -> None:
         """Have a full chunk written: by the flusher thread (file writes release the GIL, so
-        emitting goes on meanwhile), or right here when the flusher is far behind."""
-        if len(self._queue) >= _MAX_QUEUED:
-            self.flush()
+        emitting goes on meanwhile), or right here when the flusher is far behind (or absent)."""
+        if len(self._queue) >= self._max_queued:
+            try:
+                self.flush()
+            except OSError as exc:
+                self._fail(exc)
         elif not self._wake.is_set():
             self._wake.set()
 
-    def _take(self) -> bytes:
-        """Remove the queued lines (oldest first), as bytes to write; call with _write_lock held."""
+    def _write_queued(self) -> None:
+        """Append the queued lines to the file; call with _write_lock held.
+
+        Only whole lines stay in the file: after a short write the partial line is cut off.
+        On OSError the lines not written go back to the front of the queue.
+        """
         queue = self._queue
-        return "".join([queue.popleft() for _ in range(len(queue))]).encode()
+        lines = [queue.popleft() for _ in range(len(queue))]
+        data = "".join(lines).encode()
+        done = 0
+        try:
+            while done < len(data):
+                done += os.write(self._fd, memoryview(data)[done:])
+        except OSError as exc:
+            partial = done - (data.rfind(b"\n", 0, done) + 1)
+            if partial:
+                with contextlib.suppress(OSError):  # with O_APPEND the file offset is where our write ended
+                    os.ftruncate(self._fd, os.lseek(self._fd, 0, os.SEEK_CUR) - partial)
+            unwritten = lines[data.count(b"\n", 0, done):]
+            queue.extendleft(reversed(unwritten))
+            raise OSError(exc.errno, f"the Emitter could not write {self.output_path}: {exc.strerror} "
+                                     f"({len(unwritten)} line(s) not written)") from exc
 
     def flush(self) -> None:
-        """Append every queued line to the file now."""
-        with self._write_lock:
-            if not self._closed and self._queue:
-                self._file.write(self._take())
-                self._file.flush()
-
-    def close(self) -> None:
-        """Write the queued lines and close the file; later calls do nothing."""
+        """Append every queued line to the file now; OSError if that fails (the lines stay queued)."""
         with self._write_lock:
             if self._closed:
                 return
-            self._closed = True
+            error, self._error, self._stopped = self._error, None, False
+            if self._queue:
+                self._write_queued()
+            elif error is not None:
+                raise error
+
+    def close(self) -> None:
+        """Write the queued lines and close the file; later calls do nothing.
+
+        OSError if lines could not be written (they are lost).
+        """
+        with self._write_lock:
+            if self._closed:
+                return
+            self._closed = self._stopped = True
             self._wake.set()
             try:
-                self._file.write(self._take())
+                if self._queue:
+                    self._write_queued()
             finally:
-                self._file.close()
-        _LIVE.discard(self)
+                self._queue.clear()
+                os.close(self._fd)
+                _LIVE.discard(self)
 
     def _after_fork_in_child(self) -> None:
         if not self._closed:
-            self._start()  # the parent writes what was buffered before the fork
+            self._start(1, 1)  # every emit writes; the parent writes what was queued before the fork
 
     def __enter__(self) -> Emitter:
         return self
@@ -483,15 +599,18 @@ def _flush_periodically(ref: weakref.ref[Emitter], wake: threading.Event, interv
             return
         try:
             emitter.flush()
-        except OSError as exc:  # e.g. disk full: the lines of that chunk are lost
-            warnings.warn(f"emitter could not write {emitter.output_path}: {exc}", RuntimeWarning, stacklevel=1)
+        except OSError as exc:  # e.g. disk full: the lines stay queued, the emitting thread gets the error
+            emitter._fail(exc)
         del emitter
 
 
 @atexit.register
 def _close_all_at_exit() -> None:
     for emitter in list(_LIVE):
-        emitter.close()
+        try:
+            emitter.close()
+        except OSError as exc:  # nobody to raise it to: say it on standard error, once, without a traceback
+            print(f"lakegate: {exc}", file=sys.stderr)
 
 
 def _restart_in_forked_child() -> None:

@@ -11,7 +11,8 @@ and writes the bad lines with their reasons to a quarantine file.
 How lines are checked (fast and exact):
 
 * Files are read in blocks of whole lines (memory stays bounded), worked on by a few
-  threads. Each line's topic is guessed from its text (`{"$metadata": {"topic": "NAME"`
+  threads. A line longer than `MAX_LINE_BYTES` (16 MiB) is refused without being held
+  whole, and one nested deeper than `MAX_JSON_DEPTH` (256) before it is parsed. Each line's topic is guessed from its text (`{"$metadata": {"topic": "NAME"`
   as the Emitter writes it, or a looser pattern), and lines are grouped by topic.
 * Lines exactly in the Emitter's layout (`{"$metadata": {"topic": T, "timestamp": DIGITS},
   "$data": {...}}`, checked with numpy on the bytes) only need their `$data` object
@@ -51,7 +52,8 @@ from lakegate.lake.config_yaml import did_you_mean
 from lakegate.lake.metadata import build_metadata_row, metadata_table, write_metadata_file
 from lakegate.lake.record import Change
 from lakegate.lake.registry import BranchConfigs
-from lakegate.lake.types import INT64_MAX, METRIC_STRUCT, FieldError, arrow_type, check_value
+from lakegate.lake.types import (INT64_MAX, MAX_JSON_DEPTH, MAX_LINE_BYTES, METRIC_STRUCT, FieldError, arrow_type,
+                                 check_value, json_too_deep)
 
 BLOCK_SIZE = 16 << 20
 #: Rows buffered per topic before they are written as (part of) a row group.
@@ -154,21 +156,6 @@ def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
 _DECODER = json.JSONDecoder(parse_constant=_reject_constant, object_pairs_hook=_unique_keys)
 
 
-def _encodable(value: Any) -> bool:
-    """False if a string in `value` holds a lone surrogate (from a `\\ud800` escape)."""
-    if isinstance(value, str):
-        try:
-            value.encode("utf-8")
-        except UnicodeEncodeError:
-            return False
-        return True
-    if isinstance(value, dict):
-        return all(_encodable(v) for v in value.values())
-    if isinstance(value, list):
-        return all(_encodable(v) for v in value)
-    return True
-
-
 def _what(value: Any) -> str:
     text = json.dumps(value) if not isinstance(value, float) else repr(value)
     return f"{type(value).__name__} {text[:40]}{'...' if len(text) > 40 else ''}"
@@ -187,13 +174,22 @@ def check_line(raw: bytes, topics: dict[str, Topic], *, unterminated: bool = Fal
         raise ValueError(str(exc)) from None
 
 
+def _too_long(size: int) -> _Bad:
+    return _Bad(f"line too long: {size:,} bytes, more than the limit of {MAX_LINE_BYTES:,} bytes of an emissions line")
+
+
 def _check_line(raw: bytes, topics: dict[str, Topic], unterminated: bool) -> tuple[str, int, list[Any]] | None:
+    if len(raw) > MAX_LINE_BYTES:
+        raise _too_long(len(raw))
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise _Bad(f"invalid UTF-8 at byte {exc.start + 1} of the line") from None
     if not text.strip(" \t\r\n"):
         return None
+    if json_too_deep(text):
+        raise _Bad(f"nested too deep: more than {MAX_JSON_DEPTH} levels of arrays and objects, the limit of an "
+                   "emissions line")
     try:
         record = _DECODER.decode(text)
     except json.JSONDecodeError as exc:
@@ -250,8 +246,6 @@ def _check_line(raw: bytes, topics: dict[str, Topic], unterminated: bool) -> tup
             value = check_value(field_type, data[field_name])
         except FieldError as exc:
             raise _Bad(f"topic {name!r}, field {field_name!r}: {exc}") from None
-        if "\\u" in text and not _encodable(value):
-            raise _Bad(f"topic {name!r}, field {field_name!r}: string holds an unpaired surrogate escape (\\ud800-\\udfff)")
         values.append(value)
     return name, timestamp, values
 
@@ -302,6 +296,7 @@ class _Block:
     data: bytes  # whole lines, each ending with a newline
     offsets: np.ndarray  # line i is data[offsets[i]:offsets[i+1]]
     unterminated: int  # line number of a last line that had no newline, else 0
+    too_long: dict[int, int] = field(default_factory=dict)  # line i -> its size, when above MAX_LINE_BYTES
 
     def line_bytes(self, i: int) -> bytes:
         """Line i of the block, without its newline."""
@@ -309,32 +304,55 @@ class _Block:
 
 
 def _blocks(path: Path) -> Iterator[_Block]:
-    size = BLOCK_SIZE
+    """The file's lines in blocks of whole lines, about BLOCK_SIZE bytes each.
+
+    A line longer than `MAX_LINE_BYTES` that would have to be held whole across blocks is
+    skipped instead: it is an empty line of the block, with its size in `too_long`.
+    """
+    max_line = MAX_LINE_BYTES
     first = 1
     rest = b""
+    skipped = 0  # bytes of an overlong line being skipped
     with open(path, "rb") as handle:
         while True:
-            chunk = handle.read(size)
+            chunk = handle.read(BLOCK_SIZE)
+            if skipped and chunk:
+                end = chunk.find(b"\n")
+                if end < 0:
+                    skipped += len(chunk)
+                    continue
+                skipped += end
+                chunk = chunk[end:]  # its newline ends the skipped line, an empty line here
             unterminated = False
             if not chunk:
-                if not rest:
+                if not rest and not skipped:
                     return
                 data, rest, unterminated = rest + b"\n", b"", True
             else:
                 data = rest + chunk if rest else chunk
                 end = data.rfind(b"\n")
                 if end < 0:
-                    rest = data
+                    rest, skipped = (b"", len(data)) if len(data) > max_line else (data, 0)
                     continue
                 data, rest = data[:end + 1], data[end + 1:]
-            array = np.frombuffer(data, np.uint8)
-            newlines = np.flatnonzero(array == 10)
-            offsets = np.empty(len(newlines) + 1, np.int64)
-            offsets[0] = 0
-            offsets[1:] = newlines + 1
-            count = len(newlines)
-            yield _Block(str(path), first, data, offsets, first + count - 1 if unterminated else 0)
-            first += count
+            block = _block(str(path), first, data, unterminated, max_line)
+            if skipped:
+                block.too_long[0], skipped = skipped, 0
+            yield block
+            first += len(block.offsets) - 1
+
+
+def _block(path: str, first: int, data: bytes, unterminated: bool, max_line: int) -> _Block:
+    """A block of the whole lines in `data` (which ends with a newline), its overlong lines noted."""
+    array = np.frombuffer(data, np.uint8)
+    newlines = np.flatnonzero(array == 10)
+    offsets = np.empty(len(newlines) + 1, np.int64)
+    offsets[0] = 0
+    offsets[1:] = newlines + 1
+    count = len(newlines)
+    sizes = np.diff(offsets) - 1
+    too_long = {int(i): int(sizes[i]) for i in np.flatnonzero(sizes > max_line)}
+    return _Block(path, first, data, offsets, first + count - 1 if unterminated else 0, too_long)
 
 
 def _window(data: np.ndarray, starts: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray]:
@@ -471,9 +489,11 @@ def _slow(plans: list[_Plan], topics: dict[str, Topic], block: _Block, lines: Se
         number = block.first_line + int(i)
         raw = block.line_bytes(int(i))
         try:
+            if int(i) in block.too_long:
+                raise _too_long(block.too_long[int(i)])
             checked = _check_line(raw, topics, unterminated=number == block.unterminated)
         except _Bad as exc:
-            text = raw.decode("utf-8", "surrogateescape")
+            text = raw[:1000 if int(i) in block.too_long else None].decode("utf-8", "surrogateescape")
             result.problems.append(LineProblem(block.path, number, str(exc), text))
             continue
         if checked is not None:
@@ -570,6 +590,8 @@ def _process(plans: list[_Plan], topics: dict[str, Topic], block: _Block, pool: 
         codes, after = hinter.codes_of(block, lines)
     except pa.ArrowInvalid:
         codes, after = np.full(count, -1, np.int16), np.full(count, -1, np.int64)  # invalid UTF-8: check exactly
+    if block.too_long:
+        codes[list(block.too_long)] = -1  # check_line refuses them
     scratch = bytearray(block.data) if (after >= 0).any() else None
     order = np.argsort(codes, kind="stable")
     bounds = np.searchsorted(codes[order], np.arange(-1, len(plans) + 1))

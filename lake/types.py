@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from numbers import Integral, Real
 from typing import Any
 
@@ -58,6 +59,28 @@ _TRINO = {
 
 INT64_MIN, INT64_MAX = -(2**63), 2**63 - 1
 
+#: Limits of one emissions line (JSON text, newline excluded), the same for the Emitter and ingestion:
+#: a longer or deeper line is refused. Far above what real records need (a Plotly figure is ~10 deep).
+MAX_LINE_BYTES = 16 << 20
+MAX_JSON_DEPTH = 256
+# a JSON string (skipped whole), an opening bracket (group 1), or a closing one
+_JSON_NESTING = re.compile(r'"[^"\\]*(?:\\.[^"\\]*)*"|([\[{])|[\]}]')
+
+
+def json_too_deep(text: str, limit: int = MAX_JSON_DEPTH) -> bool:
+    """Whether JSON `text` nests arrays and objects deeper than `limit`, found without parsing it."""
+    if text.count("[") + text.count("{") <= limit:
+        return False
+    depth = 0
+    for token in _JSON_NESTING.finditer(text):
+        if token.group(1):
+            depth += 1
+            if depth > limit:
+                return True
+        elif token.group()[0] != '"':
+            depth -= 1
+    return False
+
 
 class FieldError(ValueError):
     """A value does not fit its field type; the message says what was expected and got."""
@@ -86,6 +109,23 @@ def _describe(value: Any) -> str:
     return f"{type(value).__name__} {text}"
 
 
+def is_utf8(text: str) -> bool:
+    """False if `text` holds a lone surrogate (U+D800-U+DFFF), which UTF-8 (and so Parquet) cannot store."""
+    if text.isascii():
+        return True
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
+
+
+def _text(value: str, where: str = "") -> str:
+    if not is_utf8(value):
+        raise FieldError(f"{where}string holds a lone surrogate (U+D800-U+DFFF), which is not valid Unicode text")
+    return value
+
+
 def _as_str_list(value: Any) -> list[str]:
     if hasattr(value, "tolist") and not isinstance(value, (str, bytes)):
         value = value.tolist()
@@ -94,6 +134,7 @@ def _as_str_list(value: Any) -> list[str]:
     for i, item in enumerate(value):
         if not isinstance(item, str):
             raise FieldError(f"expected a list of strings, got {_describe(item)} at position {i}")
+        _text(item, f"position {i}: ")
     return list(value)
 
 
@@ -132,13 +173,17 @@ def _metric(item: Any, index: int) -> dict[str, str | None]:
     kind = item["type"]
     if kind not in METRIC_KINDS:
         raise FieldError(f"{where}: type must be one of {', '.join(METRIC_KINDS)}, got {kind!r}")
-    return {
+    metric = {
         "name": item["name"],
         "description": item.get("description"),
         "status": item.get("status"),
         "type": kind,
         "value": _metric_value_text(kind, item["value"]),
     }
+    for key, text in metric.items():
+        if text is not None:
+            _text(text, f"{where}: {key}: ")
+    return metric
 
 
 def check_value(field_type: str, value: Any) -> Any:
@@ -147,7 +192,8 @@ def check_value(field_type: str, value: Any) -> Any:
     Rules: int takes integers (not bool); float takes integers or finite floats (not
     bool); boolean only bool; string/status/image/video a str; string[] a list of str;
     metric[] a list of metric objects (name, type scalar|text|image|plotly, value,
-    optional description and status). None is never accepted.
+    optional description and status). None is never accepted, nor a string holding a lone
+    surrogate (it has no UTF-8 form).
     """
     if field_type == "int":
         if isinstance(value, bool) or not isinstance(value, Integral):
@@ -175,7 +221,7 @@ def check_value(field_type: str, value: Any) -> Any:
     if field_type in ("string", "status", "image", "video"):
         if not isinstance(value, str):
             raise FieldError(f"expected {field_type} (a string), got {_describe(value)}")
-        return value
+        return _text(value)
     if field_type == "string[]":
         return _as_str_list(value)
     if field_type == "metric[]":

@@ -100,3 +100,33 @@ def test_schema_unwritable_output_is_a_user_error(tmp_path):
     result = lakegate("config", "schema", "-o", tmp_path / "no" / "such" / "dir.json")
     assert result.returncode == 1
     assert result.stderr.startswith("lakegate: cannot write ") and "Traceback" not in result.stderr
+
+
+TOPIC_NAMES = ["odom*", "a=b", "x%41", "a\\b", "t?", "t[1]", "{t}", "é" * 130, "_x", ".x", "Metadata", "a/b",
+               "odom.v1-x", "é" * 120, "Odom Velocity (m/s)2"]
+
+
+def test_check_refuses_exactly_the_topic_names_the_lake_cannot_hold(tmp_path):
+    """`config check` said ok to names like `odom*` that ingest then refused: it applies the lake's rule now."""
+    from lakegate.lake.paths import LakePathError, check_table_name
+
+    config = tmp_path / "names.resim.yaml"
+    config.write_text("version: 1\ntopics:\n" + "".join(f"  {json.dumps(name)}: {{schema: {{x: float}}}}\n"
+                                                         for name in TOPIC_NAMES))
+    result = lakegate("config", "check", config)
+    refused = {}
+    for problem in result.stdout.splitlines():
+        place, message = problem.split(": ", 1)
+        line = int(place.split(":")[-2])
+        refused[TOPIC_NAMES[line - 3]] = message  # one topic a line, from line 3
+    for name in TOPIC_NAMES:
+        try:
+            check_table_name(name)
+            lake_accepts = True
+        except LakePathError:
+            lake_accepts = False
+        assert (name not in refused) == lake_accepts or name == "Metadata", (name, refused.get(name))
+    assert "Metadata" in refused  # SQL table names ignore case: refused even though the lake could store it
+    assert result.returncode == 1 and result.stderr == ""
+    assert refused["odom*"] == "topic 'odom*' contains one of \\ = % * ? [ ] { }, which the lake's table paths cannot hold"
+    assert refused["é" * 130].endswith("is too long (at most 240 bytes)")

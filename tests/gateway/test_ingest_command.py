@@ -127,3 +127,30 @@ def test_ls_errors(tmp_path):
     assert lakegate("lake", "ls", "--lake", tmp_path / "lake").stdout.startswith("no branches")
     missing = lakegate("lake", "ls", "--lake", tmp_path / "lake", "--branch", "x", check=False)
     assert missing.returncode == 1 and "no branch 'x'" in missing.stderr
+
+
+#: Runs a command and, after its own output, prints the command's peak RSS (KiB) as the last line of stderr.
+PEAK_RSS = ("import resource, subprocess, sys; code = subprocess.run(sys.argv[1:]).returncode; "
+            "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss, file=sys.stderr); sys.exit(code)")
+
+
+def test_a_100_mb_line_is_refused_with_bounded_memory(tmp_path, emissions):
+    """One huge line used to be held and parsed whole (1 GB: 9.6 GB RSS); now it is a bad line, never held whole."""
+    huge = tmp_path / "huge.jsonl"
+    with huge.open("w") as handle:
+        handle.write(emissions.read_text())
+        handle.write('{"$metadata": {"topic": "robot_speed", "timestamp": 99}, "$data": {"speed": "')
+        for _ in range(100):
+            handle.write("x" * (1 << 20))
+        handle.write('"}}\n')
+        handle.write(line("robot_speed", 100, {"speed": 1.0}))
+    result = subprocess.run([sys.executable, "-c", PEAK_RSS, *CLI, "ingest", "--lake", str(tmp_path / "lake"),
+                             "--branch", "main", "--batch", "b", "--job", "j", "--metrics-config-path",
+                             str(FIXTURE_CONFIG), "--skip-bad-lines", str(huge)],
+                            capture_output=True, text=True, timeout=120)
+    *errors, peak_kib = result.stderr.splitlines()
+    assert result.returncode == 0, errors
+    size = huge.stat().st_size - len(emissions.read_text()) - len(line("robot_speed", 100, {"speed": 1.0})) - 1
+    assert f"huge.jsonl:12: line too long: {size:,} bytes, more than the limit of 16,777,216 bytes" in result.stdout
+    assert "12 rows" in result.stdout and "skipped 1 bad line(s)" in result.stdout
+    assert int(peak_kib) < 400 * 1024, f"peak RSS {int(peak_kib) // 1024} MiB for a 100 MiB line"

@@ -95,7 +95,7 @@ def test_every_field_type_serializes_like_json_dumps(out: Path, tmp_path: Path):
 
 
 def test_odd_topic_and_field_names_are_escaped(out: Path, tmp_path: Path):
-    topic, field = "it's {\"odd\"} \\ é", "f'{x}\"\\"
+    topic, field = "it's \"odd\" é", "f'{x}\"\\"  # a topic name is a table folder: no braces or backslash
     config = write_config(tmp_path / "c.yaml", {topic: {"schema": {field: "string", "n": "float"}}})
     with Emitter(config, out) as em:
         em.emit(topic, {field: "{v}", "n": 1}, timestamp=3)
@@ -129,6 +129,14 @@ VALUE_TABLE = [
     [{"name": "m", "type": "scalar", "value": True}],
     [{"name": "m", "type": "scalar", "value": np.float64(3.5)}],
     ["not a metric"],
+    # text that is not valid Unicode (a lone surrogate) in every string position, and valid non-ASCII text
+    "\ud800", "a\udfffb", np.str_("\udc00"), "é ✓ \U0001F600", ["ok", "\ud800"], np.array(["ok", "\ud800"]),
+    [{"name": "\ud800", "type": "scalar", "value": 1}],
+    [{"name": "m", "type": "text", "value": "\udbff"}],
+    [{"name": "m", "type": "scalar", "value": 1, "description": "\ud800"}],
+    [{"name": "m", "type": "scalar", "value": 1, "status": "\ud800"}],
+    [{"name": "m", "type": "image", "value": ["\ud800.png"]}],
+    [{"name": "m", "type": "image", "value": "\ud800.png"}],
 ]
 
 
@@ -531,3 +539,155 @@ def test_written_floats_round_trip_exactly(emitter: Emitter, out: Path):
     emitter.emit_series("robot_speed", {"speed": values}, list(range(len(values))))
     emitter.close()
     assert [line["$data"]["speed"] for line in read_lines(out)] == values
+
+
+# --- text that is not valid Unicode -------------------------------------------------------
+
+LONE = "\ud800"
+
+
+def test_lone_surrogate_is_refused_at_emit_in_every_string_position(out: Path, tmp_path: Path):
+    """UTF-8, and so Parquet, cannot store a lone surrogate: ingest would refuse the line (and the job)."""
+    metric = {"name": "m", "type": "text", "value": "v"}
+    with Emitter(FIXTURE_CONFIG, out) as em:
+        for field, value in [("name", LONE), ("description", "x" + LONE), ("tags", ["ok", LONE]),
+                             ("metrics", [{**metric, "value": LONE}]), ("metrics", [{**metric, "name": LONE}])]:
+            error = rejected(em, "goal_reached", {**GOAL, field: value}, 1, method="emit_event")
+            assert f"field {field!r}" in str(error) and "lone surrogate" in str(error)
+        error = rejected(em, "goal_distance", {"goal_name": ["a", LONE], "distance_m": [1.0, 2.0]}, [1, 2],
+                         method="emit_series")
+        assert "index 1" in str(error) and "lone surrogate" in str(error)
+    with Emitter(output_path=out) as em:  # without a config: topic names, field names, nested values
+        for topic, data in [(LONE, {"a": 1}), ("t", {LONE: 1}), ("t", {"a": {"b": [LONE]}}), ("t", {"a": LONE})]:
+            assert "Unicode" in str(rejected(em, topic, data, 1))
+        em.emit("t", {"a": "\U0001F600 é"}, 1)  # written as the JSON escapes of a surrogate *pair*: valid
+    assert [line["$data"]["a"] for line in read_lines(out)] == ["\U0001F600 é"]
+
+
+def test_what_the_emitter_accepts_ingests(out: Path, tmp_path: Path):
+    """Every line written for the value table ingests: emit-time and ingest-time rules agree."""
+    from lakegate.lake.config import load_config
+    from lakegate.lake.ingest import ingest_job
+
+    config = write_config(tmp_path / "c.yaml", {f"t{i}": {"schema": {"v": t}} for i, t in enumerate(FIELD_TYPES)})
+    written = 0
+    with Emitter(config, out) as em:
+        for i, field_type in enumerate(FIELD_TYPES):
+            for value in VALUE_TABLE:
+                try:
+                    em.emit(f"t{i}", {"v": value}, timestamp=1)
+                    written += 1
+                except ValidationError:
+                    pass
+    report = ingest_job(tmp_path / "lake", "main", "b", "j", [out], config=load_config([config]))
+    assert report.bad_lines == 0 and sum(report.rows.values()) == written
+
+
+# --- forked children -------------------------------------------------------------------------
+
+FORK_SCRIPT = """
+import multiprocessing, os, sys
+from lakegate.lake.emitter import Emitter
+
+mode, lines = sys.argv[3], 1000
+em = Emitter(sys.argv[1], sys.argv[2], flush_interval=3600)  # only exit paths write, never the interval
+
+
+def work(k):
+    for i in range(lines):
+        em.emit("goal_distance", {"goal_name": f"child-{k}", "distance_m": float(i)}, i)
+    return k
+
+
+em.emit("goal_distance", {"goal_name": "parent", "distance_m": 0.0}, 0)  # queued at the fork: the parent's
+ctx = multiprocessing.get_context("fork")
+if mode == "process":
+    children = [ctx.Process(target=work, args=(k,)) for k in range(8)]
+    for child in children:
+        child.start()
+    for child in children:
+        child.join()
+    assert all(child.exitcode == 0 for child in children)
+elif mode == "pool":
+    with ctx.Pool(4) as pool:  # leaving the block terminates the workers (SIGTERM)
+        assert sorted(pool.map(work, range(8), chunksize=1)) == list(range(8))
+else:
+    pids = []
+    for k in range(8):
+        pid = os.fork()
+        if pid == 0:
+            work(k)
+            os._exit(0)  # no atexit, no finalizers, no flush
+        pids.append(pid)
+    assert all(os.waitpid(pid, 0)[1] == 0 for pid in pids)
+"""
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="needs os.fork")
+@pytest.mark.parametrize("mode", ["process", "pool", "os_fork_os_exit"])
+def test_lines_of_forked_children_are_all_written(out: Path, mode: str):
+    """Each of 8 children emits 1,000 lines: every line is in the file once, whole, in each child's order."""
+    child = run_child(FORK_SCRIPT, str(FIXTURE_CONFIG), str(out), mode)
+    assert child.wait(timeout=60) == 0
+    seen: dict[str, list[int]] = {}
+    for line in read_lines(out):
+        seen.setdefault(line["$data"]["goal_name"], []).append(line["$metadata"]["timestamp"])
+    assert seen == {"parent": [0], **{f"child-{k}": list(range(1000)) for k in range(8)}}
+
+
+# --- write errors: a full disk ---------------------------------------------------------------
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")
+def test_write_errors_are_raised_to_the_caller():
+    em = Emitter(FIXTURE_CONFIG, "/dev/full", flush_interval=0.01)
+    em.emit("robot_speed", {"speed": 1.0}, 1)
+    deadline = time.monotonic() + 10  # the flusher thread fails; the next emit raises its error
+    with pytest.raises(OSError, match="No space left on device") as info:
+        while time.monotonic() < deadline:
+            em.emit("robot_speed", {"speed": 1.0}, 2)
+            time.sleep(0.01)
+    assert "could not write /dev/full" in str(info.value)
+    with pytest.raises(OSError, match=r"No space left on device \(\d+ line\(s\) not written\)"):
+        em.flush()
+    with pytest.raises(OSError, match="not written"):
+        em.close()
+    em.close()  # closed now: nothing more to say
+
+
+@pytest.fixture
+def tiny_disk(tmp_path: Path):
+    """A 64 KiB tmpfs (needs root and mount; skipped where not permitted)."""
+    mount_point = tmp_path / "tiny"
+    mount_point.mkdir()
+    try:
+        done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(mount_point)],
+                              capture_output=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        pytest.skip("mount is not available")
+    if done.returncode != 0:
+        pytest.skip(f"mounting a tmpfs is not permitted: {done.stderr.decode(errors='replace').strip()}")
+    try:
+        yield mount_point
+    finally:
+        subprocess.run(["umount", "-l", str(mount_point)], timeout=10, check=True)  # lazy: even if a file is open
+
+
+def test_full_disk_leaves_only_whole_lines_and_keeps_the_rest_queued(tiny_disk: Path):
+    filler = tiny_disk / "filler"
+    filler.write_bytes(b"x" * 32 * 1024)
+    out = tiny_disk / "emissions.resim.jsonl"
+    em = Emitter(FIXTURE_CONFIG, out, flush_interval=3600)
+    count = 450  # about 43 KB: more than the free space, less than the disk
+    em.emit_series("goal_distance", {"goal_name": [f"goal-{i:04}" for i in range(count)],
+                                     "distance_m": [float(i) for i in range(count)]}, list(range(count)))
+    with pytest.raises(OSError, match="No space left on device") as info:
+        em.flush()
+    text = out.read_bytes()
+    written = len(text.splitlines())
+    assert 0 < written < count and text.endswith(b"\n")  # a prefix of whole lines, nothing glued
+    assert f"({count - written} line(s) not written)" in str(info.value)
+    assert [line["$metadata"]["timestamp"] for line in read_lines(out)] == list(range(written))
+    filler.unlink()  # space again: the lines kept in the queue are written, in order, once
+    em.close()
+    assert [line["$metadata"]["timestamp"] for line in read_lines(out)] == list(range(count))

@@ -186,7 +186,7 @@ BAD = [
     ('{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0,}}', "bad JSON"),
     ('{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": 1.0, "x": 2.0, "y": 2.0, "z": 3.0}}', "duplicate key 'x'"),
     (line("odom", 1, {"x": 1.0, "y": 2.0, "z": 3.0}, event=True), "topic 'odom' is not an event topic"),
-    (line("plain", 1, {"i": 1, "f": 1.0, "b": True, "s": "\ud800", "tags": []}), "unpaired surrogate"),
+    (line("plain", 1, {"i": 1, "f": 1.0, "b": True, "s": "\ud800", "tags": []}), "lone surrogate"),
     ('{"$metadata": {"topic": "odom", "timestamp": 1, "colour": "red"}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0}}',
      "unexpected key 'colour' in $metadata"),
     ('{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0}, "extra": 1}',
@@ -508,3 +508,55 @@ def test_kill_9_during_ingest_leaves_nothing_partial_and_a_rerun_succeeds(tmp_pa
     report = ingest_job(lake, "main", "b1", "j1", [big], config=config)
     assert report.rows["odom"] == lines and count(lake, "odom") == lines
     assert not list(staging.glob(f"{process.pid}-*"))
+
+
+# --- line limits: length and nesting depth ---------------------------------------------------
+
+
+def test_deeply_nested_line_is_a_bad_line_not_a_crash(tmp_path, config):
+    """100k `[` used to raise RecursionError out of ingest, even with skip_bad_lines."""
+    deep = line("plain", 2, {"i": 1, "f": 1.0, "b": True, "s": "x", "tags": []}).replace('"tags": []', '"tags": ' + "[" * 100_000)
+    path = write_lines(tmp_path / "deep.jsonl", [odom(1), deep, odom(3)])
+    with pytest.raises(IngestError) as caught:
+        ingest_job(tmp_path / "lake", "main", "b1", "j1", [path], config=config)
+    assert [(p.line, p.reason) for p in caught.value.problems] == [
+        (2, "nested too deep: more than 256 levels of arrays and objects, the limit of an emissions line")]
+    report = ingest_job(tmp_path / "lake", "main", "b1", "j1", [path], config=config, skip_bad_lines=True)
+    assert report.rows["odom"] == 2 and report.bad_lines == 1
+
+
+@pytest.mark.parametrize("depth", [252, 253])
+def test_emitter_and_ingest_agree_on_the_depth_limit(tmp_path, config_path, config, depth):
+    """A Plotly object `depth` deep in a metric makes a line depth + 4 deep: both accept 256, refuse 257."""
+    figure: dict = {}
+    for _ in range(depth - 1):
+        figure = {"a": figure}
+    record = {"name": "g", "description": "d", "status": "PASSED", "tags": [],
+              "metrics": [{"name": "m", "type": "plotly", "value": figure}]}
+    raw = line("goal_reached", 1, record, event=True).encode()
+    with Emitter(config_path, tmp_path / "emissions.jsonl") as em:
+        if depth == 252:
+            assert check_line(raw, config.topics) is not None
+            em.emit_event("goal_reached", record, 1)
+        else:
+            with pytest.raises(ValueError, match="nested too deep"):
+                check_line(raw, config.topics)
+            with pytest.raises(ValueError, match="nested too deep"):
+                em.emit_event("goal_reached", record, 1)
+
+
+def test_overlong_lines_are_refused_without_being_held_whole(tmp_path, config, monkeypatch):
+    monkeypatch.setattr(ingest, "BLOCK_SIZE", 256)
+    monkeypatch.setattr(ingest, "MAX_LINE_BYTES", 150)
+    long_in_a_block = line("plain", 1, {"i": 1, "f": 1.0, "b": True, "s": "y" * 120, "tags": []})  # 190 bytes
+    across_blocks = line("plain", 2, {"i": 1, "f": 1.0, "b": True, "s": "z" * 2000, "tags": []})
+    path = write_lines(tmp_path / "long.jsonl", [odom(1), long_in_a_block, odom(3), across_blocks, odom(5)])
+    with path.open("a") as handle:
+        handle.write(across_blocks)  # and one more as the last line, without a newline
+    report = ingest_job(tmp_path / "lake", "main", "b1", "j1", [path], config=config, skip_bad_lines=True)
+    assert report.rows["odom"] == 3 and report.rows["plain"] == 0 and report.lines == 6
+    assert [(p.line, p.reason) for p in report.problems] == [
+        (2, f"line too long: {len(long_in_a_block):,} bytes, more than the limit of 150 bytes of an emissions line"),
+        (4, f"line too long: {len(across_blocks):,} bytes, more than the limit of 150 bytes of an emissions line"),
+        (6, f"line too long: {len(across_blocks):,} bytes, more than the limit of 150 bytes of an emissions line")]
+    assert [x for (x,) in query(tmp_path / "lake", "SELECT x FROM odom")] == [1.5, 3.5, 5.5]

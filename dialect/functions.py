@@ -1421,19 +1421,20 @@ def _sequence(call: Call) -> TType:
 
 
 def _render_sequence(g, node, args) -> str:
-    start, stop = g.sql(args[0]), g.sql(args[1])
-    step = g.sql(args[2]) if len(args) == 3 else f"CASE WHEN ({stop}) >= ({start}) THEN 1 ELSE -1 END"
+    # start, stop and step are bound once, as the list "_s", since the checks use each several times
+    bounds = ", ".join(f"CAST({g.sql(a)} AS BIGINT)" for a in args)
+    start, stop = '"_s"[1]', '"_s"[2]'
+    step = '"_s"[3]' if len(args) == 3 else f"CASE WHEN {stop} >= {start} THEN 1 ELSE -1 END"
     wrong_way = ("sequence stop value should be greater than or equal to start value if step is greater than zero "
                  "otherwise stop should be less than or equal to start")
-    entries = f"(CAST({stop} AS HUGEINT) - ({start})) // ({step}) + 1"
-    checked_stop = checked(g, f"CAST({stop} AS BIGINT)", (
-        (f"({step}) = 0", "step must not be zero"),
-        (f"({step}) > 0 AND ({start}) > ({stop})", wrong_way),
-        (f"({step}) < 0 AND ({start}) < ({stop})", wrong_way),
-        (f"{entries} > {MAX_SEQUENCE_ENTRIES}",
+    checked_stop = checked(g, stop, (
+        (f"{step} = 0", "step must not be zero"),
+        (f"{step} > 0 AND {start} > {stop}", wrong_way),
+        (f"{step} < 0 AND {start} < {stop}", wrong_way),
+        (f"(CAST({stop} AS HUGEINT) - {start}) // {step} + 1 > {MAX_SEQUENCE_ENTRIES}",
          f"result of sequence function must not have more than {MAX_SEQUENCE_ENTRIES} entries")))
-    return (f"CAST(generate_series(CAST({start} AS BIGINT), {checked_stop}, CAST({step} AS BIGINT)) "
-            "AS BIGINT[])")
+    return (f"list_transform([[{bounds}]], lambda \"_s\": "
+            f"CAST(generate_series({start}, {checked_stop}, {step}) AS BIGINT[]))[1]")
 
 
 def _slice(call: Call) -> TType:

@@ -51,6 +51,17 @@ class _Parser(Trino.Parser):
                         if name in ("CAST", "TRY_CAST", "EXTRACT", "POSITION", "SUBSTRING", "TRIM", "LISTAGG",
                                     "JSON_OBJECT", "JSON_QUERY", "JSON_VALUE", "JSON_TABLE")}
 
+    def _parse_types(self, check_func: bool = False, **kwargs):
+        # In a Trino expression a type name is only ever followed by a string (DATE '2024-01-01'; SqlBase.g4
+        # #typeConstructor), so `ARRAY[`, `ROW(`, `date(`, `decimal(` ... start a constructor or a call.
+        # sqlglot first reads them as a type, parsing every argument before it backs off and parses them
+        # again: twice the work per nesting level, 2^depth for nested calls.
+        if check_func and self._next and (
+                (self._curr.token_type == TokenType.ARRAY and self._next.token_type == TokenType.L_BRACKET)
+                or (self._curr.token_type in self.TYPE_TOKENS and self._next.token_type == TokenType.L_PAREN)):
+            return None
+        return super()._parse_types(check_func=check_func, **kwargs)
+
 
 class LakegateTrino(Trino):
     """Trino as sqlglot reads it, with function calls left uninterpreted."""

@@ -189,6 +189,17 @@ def _check_size(sql: str) -> None:
                                line=line, column=column, error_name="SYNTAX_ERROR")
 
 
+def _refuse_no_statement(sql: str) -> None:
+    """Trino's SYNTAX_ERROR for a text that does not start with a statement's keyword: its first
+    token, or '<EOF>' for a text of blanks and comments."""
+    first = next((lexeme for lexeme in _LEXEME.finditer(sql)
+                  if not lexeme.group()[0].isspace() and not lexeme.group().startswith(("--", "/*"))), None)
+    line, column = _where(sql, first.start()) if first else (1, 1)
+    token = first.group() if first else "<EOF>"
+    raise DialectError(f"mismatched input '{token}'. Expecting: a query (SELECT, WITH, VALUES, TABLE), SHOW, "
+                       "DESCRIBE or EXPLAIN", line=line, column=column, error_name="SYNTAX_ERROR")
+
+
 def _check_single_statement(sql: str) -> None:
     if ";" not in sql.rstrip().rstrip(";"):
         return
@@ -234,6 +245,8 @@ def check_text(sql: str | bytes) -> str:
                            error_name="SYNTAX_ERROR")
     _check_size(sql)
     kind, name, start = _statement(sql)
+    if kind == "other" and not name:
+        _refuse_no_statement(sql)
     if kind == "other" and name == "FROM":
         line, column = _where(sql, start)
         raise DialectError("syntax error: a query starts with SELECT, WITH, VALUES or TABLE, not FROM",

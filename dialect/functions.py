@@ -822,6 +822,10 @@ def _render_pad(g, node, args) -> str:
     return f"{node.name.lower()}({value}, {width}, {pad})"
 
 
+_PAD_NOTE = (f"size is at most {MAX_PAD_LENGTH:,} in lakegate (Trino: 2,147,483,647); "
+             "DuckDB would build larger strings outside its memory limit.")
+
+
 def _strpos(call: Call) -> TType:
     if len(call.args) == 3:
         call.fail("strpos with an instance is not supported in lakegate", "NOT_SUPPORTED")
@@ -866,8 +870,10 @@ register("concat_ws", "string", "concat_ws(separator, string1, ...) -> varchar",
          lambda c: tt.VARCHAR if len(c.args) >= 2 and all(t is not None and t.base in ("varchar", "unknown")
                                                              for t in c.types) else c.mismatch(),
          call_as("concat_ws"))
-register("lpad", "string", "lpad(string, size, padstring) -> varchar", _pad, _render_pad)
-register("rpad", "string", "rpad(string, size, padstring) -> varchar", _pad, _render_pad)
+register("lpad", "string", "lpad(string, size, padstring) -> varchar", _pad, _render_pad,
+         notes=_PAD_NOTE)
+register("rpad", "string", "rpad(string, size, padstring) -> varchar", _pad, _render_pad,
+         notes=_PAD_NOTE)
 register("split", "string", "split(string, delimiter[, limit]) -> array(varchar)", _split, _render_split)
 register("split_part", "string", "split_part(string, delimiter, index) -> varchar",
          lambda c: need(c, "string", "string", "integral")[0] if c.types and c.types[0] is not None

@@ -21,10 +21,11 @@ import threading
 from dataclasses import dataclass
 from pathlib import Path
 
+import duckdb
 import pytest
 
 from lakegate.dialect import guard
-from lakegate.dialect.errors import DialectError
+from lakegate.dialect.errors import DialectError, runtime_error
 from lakegate.dialect.translate import translate
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
@@ -204,3 +205,19 @@ def test_nested_calls_that_repeat_their_arguments_stay_bounded():
     # subscripts and slice() check the array before using it: the DuckDB text grows ~3-5x per level
     assert _translate_within_bound("SELECT " + "slice(ARRAY[" * 12 + "1" + "], 1, 1)" * 12) == "NOT_SUPPORTED"
     assert _translate_within_bound("SELECT " + "greatest(" * 16 + "1" + ", 1)" * 16) in ("ok", "NOT_SUPPORTED")
+
+
+def test_runtime_errors_show_no_absolute_server_paths(tiny_lake):
+    # a Parquet file of the lake replaced by garbage: DuckDB's message names the file by its absolute path
+    broken = next(tiny_lake.rglob("*.parquet"))
+    original = broken.read_bytes()
+    broken.write_bytes(b"not parquet")
+    try:
+        with duckdb.connect() as connection:
+            with pytest.raises(duckdb.Error) as caught:
+                connection.execute(f"SELECT * FROM read_parquet('{broken}')").fetchall()
+    finally:
+        broken.write_bytes(original)
+    assert str(tiny_lake) in str(caught.value)
+    message = runtime_error(str(caught.value)).message
+    assert str(tiny_lake) not in message and f".../{broken.name}" in message

@@ -78,11 +78,16 @@ _RUNTIME = (
 )
 
 
+#: An absolute file path in a DuckDB message (a lake file it read): at least two folders deep.
+_PATH = re.compile(r"(?<![\w.:/])/(?:[^\s/'\"]+/)+([^\s/'\"]+)")
+
+
 def runtime_error(message: str) -> DialectError:
     """The DialectError for a DuckDB error raised while running translated SQL: Trino's error name
-    and message (DuckDB's 'Invalid Input Error: ' prefix removed). No position: Trino reports none
-    for run-time failures either."""
+    and message (DuckDB's 'Invalid Input Error: ' prefix removed, absolute paths cut to their file
+    name). No position: Trino reports none for run-time failures either."""
     first = message.strip().splitlines()[0] if message.strip() else message
+    first = _PATH.sub(r".../\1", first)
     named = re.match(r"(?:[A-Za-z ]+ Error: )?([A-Z][A-Z_]+): (.*)", first)
     if named and named.group(1) in ERROR_CODES:
         return DialectError(named.group(2), error_name=named.group(1))

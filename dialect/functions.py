@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import re
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Iterable
 
 from sqlglot import exp
 
@@ -110,6 +110,24 @@ def literal_str(call: Call, index: int) -> str | None:
 
 
 # --- rendering helpers ---------------------------------------------------------------------------
+#: Trino's limits on results sized by an argument (SequenceFunction.MAX_RESULT_ENTRIES,
+#: RepeatFunction.MAX_RESULT_ENTRIES and MAX_SIZE_IN_BYTES), and lakegate's own cap on lpad / rpad
+#: and format() widths: DuckDB allocates such strings outside its memory limit.
+MAX_SEQUENCE_ENTRIES = 10_000
+MAX_REPEAT_ENTRIES = 10_000
+MAX_REPEAT_BYTES = 1_000_000
+MAX_PAD_LENGTH = 1_000_000
+
+
+def checked(g, value: str, checks: Iterable[tuple[str, str]]) -> str:
+    """`value` (SQL), or Trino's INVALID_FUNCTION_ARGUMENT with the message of the first of `checks`
+    ((condition SQL, message) pairs) that holds. Use it as the argument that sizes an allocation
+    (range(n), lpad's width): DuckDB folds constant arguments before running a query, even in a CASE
+    branch that is never taken, but never folds error(), so the check fires before any allocation."""
+    whens = " ".join(f"WHEN {condition} THEN {g.fail(tf.string(message))}" for condition, message in checks)
+    return f"CASE {whens} ELSE {value} END"
+
+
 def sqls(g, args) -> list[str]:
     return [g.sql(a) for a in args]
 
@@ -408,6 +426,8 @@ def _format_parts(call: Call | None, fmt: str, types: list[TType]) -> list:
             reject("a precision is only translated for %f and %e")
         if "-" in flags and width is None:
             reject("'-' needs a width")
+        if max(int(width or 0), int(precision or 0)) > MAX_PAD_LENGTH:
+            reject(f"a width or precision over {MAX_PAD_LENGTH} is not translated")
         arg = int(index) - 1 if index else next_arg
         if not index:
             next_arg += 1
@@ -794,10 +814,16 @@ def _pad(call: Call) -> TType:
 
 def _render_pad(g, node, args) -> str:
     value, size, pad = sqls(g, args)
-    name = node.name.lower()
-    return (f"CASE WHEN ({size}) < 0 THEN {g.fail(tf.string('Target length must be in the range [0..2147483647]'))} "
-            f"WHEN {pad} = '' AND length({value}) < ({size}) THEN "
-            f"{g.fail(tf.string('Padding string must not be empty'))} ELSE {name}({value}, CAST({size} AS INTEGER), {pad}) END")
+    width = checked(g, f"CAST({size} AS INTEGER)", (
+        (f"({size}) < 0 OR ({size}) > 2147483647", "Target length must be in the range [0..2147483647]"),
+        (f"({size}) > {MAX_PAD_LENGTH}", f"Target length must be at most {MAX_PAD_LENGTH} in lakegate "
+                                         "(Trino allows up to 2147483647)"),
+        (f"{pad} = ''", "Padding string must not be empty")))
+    return f"{node.name.lower()}({value}, {width}, {pad})"
+
+
+_PAD_NOTE = (f"size is at most {MAX_PAD_LENGTH:,} in lakegate (Trino: 2,147,483,647); "
+             "DuckDB would build larger strings outside its memory limit.")
 
 
 def _strpos(call: Call) -> TType:
@@ -844,8 +870,10 @@ register("concat_ws", "string", "concat_ws(separator, string1, ...) -> varchar",
          lambda c: tt.VARCHAR if len(c.args) >= 2 and all(t is not None and t.base in ("varchar", "unknown")
                                                              for t in c.types) else c.mismatch(),
          call_as("concat_ws"))
-register("lpad", "string", "lpad(string, size, padstring) -> varchar", _pad, _render_pad)
-register("rpad", "string", "rpad(string, size, padstring) -> varchar", _pad, _render_pad)
+register("lpad", "string", "lpad(string, size, padstring) -> varchar", _pad, _render_pad,
+         notes=_PAD_NOTE)
+register("rpad", "string", "rpad(string, size, padstring) -> varchar", _pad, _render_pad,
+         notes=_PAD_NOTE)
 register("split", "string", "split(string, delimiter[, limit]) -> array(varchar)", _split, _render_split)
 register("split_part", "string", "split_part(string, delimiter, index) -> varchar",
          lambda c: need(c, "string", "string", "integral")[0] if c.types and c.types[0] is not None
@@ -1399,16 +1427,20 @@ def _sequence(call: Call) -> TType:
 
 
 def _render_sequence(g, node, args) -> str:
-    start, stop = g.sql(args[0]), g.sql(args[1])
-    step = g.sql(args[2]) if len(args) == 3 else f"CASE WHEN ({stop}) >= ({start}) THEN 1 ELSE -1 END"
-    count = f"(({stop}) - ({start})) // ({step}) + 1"
-    return (f"CASE WHEN ({step}) = 0 THEN {g.fail(tf.string('step must not be zero'))} "
-            f"WHEN ({step}) > 0 AND ({start}) > ({stop}) THEN "
-            f"{g.fail(tf.string('sequence stop value should be greater than or equal to start value if step is greater than zero otherwise stop should be less than or equal to start'))} "
-            f"WHEN ({step}) < 0 AND ({start}) < ({stop}) THEN "
-            f"{g.fail(tf.string('sequence stop value should be greater than or equal to start value if step is greater than zero otherwise stop should be less than or equal to start'))} "
-            f"WHEN {count} > 10000 THEN {g.fail(tf.string('result of sequence function must not have more than 10000 entries'))} "
-            f"ELSE CAST(generate_series(CAST({start} AS BIGINT), CAST({stop} AS BIGINT), CAST({step} AS BIGINT)) AS BIGINT[]) END")
+    # start, stop and step are bound once, as the list "_s", since the checks use each several times
+    bounds = ", ".join(f"CAST({g.sql(a)} AS BIGINT)" for a in args)
+    start, stop = '"_s"[1]', '"_s"[2]'
+    step = '"_s"[3]' if len(args) == 3 else f"CASE WHEN {stop} >= {start} THEN 1 ELSE -1 END"
+    wrong_way = ("sequence stop value should be greater than or equal to start value if step is greater than zero "
+                 "otherwise stop should be less than or equal to start")
+    checked_stop = checked(g, stop, (
+        (f"{step} = 0", "step must not be zero"),
+        (f"{step} > 0 AND {start} > {stop}", wrong_way),
+        (f"{step} < 0 AND {start} < {stop}", wrong_way),
+        (f"(CAST({stop} AS HUGEINT) - {start}) // {step} + 1 > {MAX_SEQUENCE_ENTRIES}",
+         f"result of sequence function must not have more than {MAX_SEQUENCE_ENTRIES} entries")))
+    return (f"list_transform([[{bounds}]], lambda \"_s\": "
+            f"CAST(generate_series({start}, {checked_stop}, {step}) AS BIGINT[]))[1]")
 
 
 def _slice(call: Call) -> TType:
@@ -1479,9 +1511,13 @@ def _repeat(call: Call) -> TType:
 
 def _render_repeat(g, node, args) -> str:
     value, count = g.sql(args[0]), g.sql(args[1])
-    return (f"CASE WHEN ({count}) < 0 THEN {g.fail(tf.string('count argument of repeat function must be greater than or equal to 0'))} "
-            f"WHEN ({count}) > 10000 THEN {g.fail(tf.string('count argument of repeat function must be less than or equal to 10000'))} "
-            f"ELSE list_transform(range(CAST({count} AS BIGINT)), lambda \"_i\": {value}) END")
+    checks = [(f"({count}) > {MAX_REPEAT_ENTRIES}",
+               f"count argument of repeat function must be less than or equal to {MAX_REPEAT_ENTRIES}"),
+              (f"({count}) < 0", "count argument of repeat function must be greater than or equal to 0")]
+    if ttype(args[0]).base == "varchar":  # Trino counts each entry's bytes plus 5 (offset and null flag)
+        checks.append((f"({count}) > 0 AND strlen({value}) + 5 > ({MAX_REPEAT_BYTES} + ({count})) // ({count})",
+                       f"result of repeat function must not take more than {MAX_REPEAT_BYTES} bytes"))
+    return f"list_transform(range({checked(g, f'CAST({count} AS BIGINT)', checks)}), lambda \"_i\": {value})"
 
 
 def _map(call: Call) -> TType:

@@ -19,9 +19,13 @@ from lakegate.dialect.errors import DialectError
 
 #: Largest query text accepted, in UTF-8 bytes (Trino's default `query.max-length` is 1,000,000).
 MAX_TEXT_BYTES = 1_000_000
-#: Deepest nesting of brackets accepted; sqlglot's recursive parser fails at about 45 levels under
-#: Python's default recursion limit.
+#: Deepest nesting of brackets and CASE expressions accepted: sqlglot's recursive parser fails at
+#: about 45 levels under Python's default recursion limit; up to 32 every construct parses and
+#: translates in milliseconds (tests/dialect/test_limits.py).
 MAX_NESTING = 32
+#: Most tokens accepted in one query text: about 1 s to parse and translate (a 1 MB text can hold
+#: 250,000 tokens, which would take sqlglot over 10 s).
+MAX_TOKENS = 20_000
 
 _QUERY_WORDS = {"SELECT", "WITH", "VALUES", "TABLE"}
 _SESSION_WORDS = {"USE", "PREPARE", "EXECUTE", "DEALLOCATE", "COMMIT", "ROLLBACK"}
@@ -56,6 +60,8 @@ _DENIED_FUNCTIONS = {
 _DENIED_PREFIXES = ("read_", "parquet_", "duckdb_", "pragma_", "sqlite_", "postgres_", "mysql_", "iceberg_",
                     "delta_", "ducklake_", "arrow_scan", "pandas_", "python_")
 
+#: One lexeme of a query text: blanks, a comment, a string, a quoted name, a word, a number, any other character.
+_LEXEME = re.compile(r"""\s+|--[^\n]*|/\*.*?(?:\*/|\Z)|'(?:[^']|'')*'?|"(?:[^"]|"")*"?|\w+|.""", re.S)
 _SKIP = re.compile(r"(?:\s+|--[^\n]*(?:\n|$)|/\*.*?\*/|\()*", re.S)
 _WORD = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 _EXPLAIN_OPTIONS = re.compile(r"\s*\(\s*(?:TYPE|FORMAT)\b[^)]*\)", re.I)
@@ -159,33 +165,39 @@ def _refuse_statement(kind: str, name: str, sql: str, start: int) -> None:
                        line=line, column=column, error_name="PERMISSION_DENIED")
 
 
-def _check_nesting(sql: str) -> None:
-    if sql.count("(") + sql.count("[") <= MAX_NESTING:
-        return
-    depth, i, n = 0, 0, len(sql)
-    closing = {"'": "'", '"': '"'}
-    while i < n:
-        char = sql[i]
-        if char in "([":
+def _check_size(sql: str) -> None:
+    """Refuse more than MAX_TOKENS tokens (comments count) or brackets and CASE nested deeper than MAX_NESTING, by
+    one linear scan of the lexemes, before sqlglot's recursive parser sees the text."""
+    depth = tokens = 0
+    for lexeme in _LEXEME.finditer(sql):
+        text = lexeme.group()
+        if text[0].isspace():
+            continue
+        tokens += 1
+        word = text.upper()
+        if text in "([" or word == "CASE":
             depth += 1
-            if depth > MAX_NESTING:
-                line, column = _where(sql, i)
-                raise DialectError(f"unsupported in lakegate: brackets nested more than {MAX_NESTING} levels deep",
-                                   line=line, column=column, error_name="NOT_SUPPORTED")
-        elif char in ")]":
+        elif (text in ")]" or word == "END") and depth:
             depth -= 1
-        elif char in closing:
-            end = sql.find(closing[char], i + 1)
-            while end != -1 and sql.startswith(closing[char] * 2, end):
-                end = sql.find(closing[char], end + 2)
-            i = n if end == -1 else end
-        elif sql.startswith("--", i):
-            end = sql.find("\n", i)
-            i = n if end == -1 else end
-        elif sql.startswith("/*", i):
-            end = sql.find("*/", i + 2)
-            i = n if end == -1 else end + 1
-        i += 1
+        if depth > MAX_NESTING or tokens > MAX_TOKENS:
+            line, column = _where(sql, lexeme.start())
+            if tokens > MAX_TOKENS:
+                raise DialectError(f"Query text has more than {MAX_TOKENS} tokens (lakegate's limit)",
+                                   line=line, column=column, error_name="QUERY_TEXT_TOO_LARGE")
+            raise DialectError(f"statement is too large (stack overflow while parsing): brackets and CASE "
+                               f"nested more than {MAX_NESTING} levels deep (lakegate's limit)",
+                               line=line, column=column, error_name="SYNTAX_ERROR")
+
+
+def _refuse_no_statement(sql: str) -> None:
+    """Trino's SYNTAX_ERROR for a text that does not start with a statement's keyword: its first
+    token, or '<EOF>' for a text of blanks and comments."""
+    first = next((lexeme for lexeme in _LEXEME.finditer(sql)
+                  if not lexeme.group()[0].isspace() and not lexeme.group().startswith(("--", "/*"))), None)
+    line, column = _where(sql, first.start()) if first else (1, 1)
+    token = first.group() if first else "<EOF>"
+    raise DialectError(f"mismatched input '{token}'. Expecting: a query (SELECT, WITH, VALUES, TABLE), SHOW, "
+                       "DESCRIBE or EXPLAIN", line=line, column=column, error_name="SYNTAX_ERROR")
 
 
 def _check_single_statement(sql: str) -> None:
@@ -205,8 +217,8 @@ def _check_single_statement(sql: str) -> None:
 def check_text(sql: str | bytes) -> str:
     """Check a query text before parsing and return it as `str`.
 
-    Refuses invalid UTF-8, NUL characters, texts over MAX_TEXT_BYTES, brackets nested deeper than
-    MAX_NESTING, more than one statement, and every statement that is not a query (SHOW, DESCRIBE
+    Refuses invalid UTF-8, NUL characters, texts over MAX_TEXT_BYTES or MAX_TOKENS, brackets and CASE
+    nested deeper than MAX_NESTING, more than one statement, and every statement that is not a query (SHOW, DESCRIBE
     and EXPLAIN of a query pass; session statements get NOT_SUPPORTED, the rest PERMISSION_DENIED).
     """
     if isinstance(sql, (bytes, bytearray)):
@@ -231,8 +243,10 @@ def check_text(sql: str | bytes) -> str:
         line, column = _where(sql, nul)
         raise DialectError("the query text contains a NUL character", line=line, column=column,
                            error_name="SYNTAX_ERROR")
-    _check_nesting(sql)
+    _check_size(sql)
     kind, name, start = _statement(sql)
+    if kind == "other" and not name:
+        _refuse_no_statement(sql)
     if kind == "other" and name == "FROM":
         line, column = _where(sql, start)
         raise DialectError("syntax error: a query starts with SELECT, WITH, VALUES or TABLE, not FROM",

@@ -14,6 +14,7 @@ from sqlglot.generators.duckdb import DuckDBGenerator
 
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import ttype
+from lakegate.dialect.errors import DialectError
 from lakegate.dialect.trino_types import TType
 
 
@@ -45,12 +46,34 @@ def ten(power: int, scale: int = 0) -> str:
     return f"CAST('0.{'0' * (-power - 1)}1' AS DECIMAL({-power},{-power}))"
 
 
+#: Longest DuckDB SQL a query may translate to. Some translations repeat an argument's SQL (a CASE
+#: that checks it, then uses it), so nesting such calls multiplies the text; this bounds it early.
+MAX_SQL_CHARS = 1_000_000
+
+
 class Writer(DuckDBGenerator):
     """Writes the analyzed Trino tree as DuckDB SQL."""
 
     def __init__(self, **kwargs):
         super().__init__(identify=True, comments=False, **kwargs)
         self.in_try = 0
+        self._written: dict[tuple, tuple[exp.Expression, str]] = {}
+
+    def sql(self, expression, key=None, comment=True) -> str:
+        """The node's SQL, written once per node (transforms that use an argument twice would
+        otherwise write its subtree again, 2^depth times for nested calls), at most MAX_SQL_CHARS long."""
+        if not isinstance(expression, exp.Expression):
+            return super().sql(expression, key, comment)
+        memo = (id(expression), key, comment, self.in_try)
+        if memo in self._written:
+            return self._written[memo][1]
+        text = super().sql(expression, key, comment)
+        self._written[memo] = (expression, text)  # the node is kept so that its id is not reused
+        if len(text) > MAX_SQL_CHARS:
+            raise DialectError(f"unsupported in lakegate: the query translates to more than {MAX_SQL_CHARS} "
+                               "characters of DuckDB SQL (deeply nested function calls); simplify it",
+                               error_name="NOT_SUPPORTED")
+        return text
 
     # --- helpers for transforms and the function registry ---------------------------------------
     def fail(self, message_sql: str, error_name: str = "INVALID_FUNCTION_ARGUMENT") -> str:

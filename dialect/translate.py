@@ -12,7 +12,6 @@ from collections import OrderedDict
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Mapping, Sequence
 
-import sqlglot
 from sqlglot import exp
 from sqlglot.dialects.trino import Trino
 from sqlglot.errors import ParseError, TokenError
@@ -50,6 +49,30 @@ class _Parser(Trino.Parser):
     FUNCTION_PARSERS = {name: parser for name, parser in Trino.Parser.FUNCTION_PARSERS.items()
                         if name in ("CAST", "TRY_CAST", "EXTRACT", "POSITION", "SUBSTRING", "TRIM", "LISTAGG",
                                     "JSON_OBJECT", "JSON_QUERY", "JSON_VALUE", "JSON_TABLE")}
+
+    def _parse_types(self, check_func: bool = False, **kwargs):
+        # In a Trino expression a type name is only ever followed by a string (DATE '2024-01-01'; SqlBase.g4
+        # #typeConstructor), so `ARRAY[`, `ROW(`, `date(`, `decimal(` ... start a constructor or a call.
+        # sqlglot first reads them as a type, parsing every argument before it backs off and parses them
+        # again: twice the work per nesting level, 2^depth for nested calls.
+        if check_func and self._next and (
+                (self._curr.token_type == TokenType.ARRAY and self._next.token_type == TokenType.L_BRACKET)
+                or (self._curr.token_type in self.TYPE_TOKENS and self._next.token_type == TokenType.L_PAREN)):
+            return None
+        return super()._parse_types(check_func=check_func, **kwargs)
+
+    def _parse_bracket(self, this=None):
+        # DuckDB's list literal [1, 2]; Trino has only ARRAY[1, 2] (SqlBase.g4 #arrayConstructor)
+        if this is None and self._curr and self._curr.token_type == TokenType.L_BRACKET and \
+                not (self._prev and self._prev.token_type == TokenType.ARRAY):
+            self.raise_error("mismatched input '['. Expecting: an expression (an array is ARRAY[...])")
+        return super()._parse_bracket(this)
+
+    def _parse_in(self, this, alias: bool = False):
+        # DuckDB's `x IN [1, 2]`; Trino's predicate is `IN (...)` (SqlBase.g4 #inList, #inSubquery)
+        if self._curr and self._curr.token_type == TokenType.L_BRACKET:
+            self.raise_error("mismatched input '['. Expecting: '('")
+        return super()._parse_in(this, alias)
 
 
 class LakegateTrino(Trino):
@@ -136,30 +159,78 @@ def _typed_schema(schema: Mapping[str, Mapping[str, str]], key: object) -> dict[
     return typed
 
 
+#: DuckDB-only operators that sqlglot's Trino tokenizer accepts, with the hint shown (SqlBase.g4 has none of them).
+_DUCKDB_OPERATORS = {TokenType.DCOLON: "'::' casts are not Trino syntax (use CAST(x AS type))",
+                     TokenType.NULLSAFE_EQ: "use IS NOT DISTINCT FROM", TokenType.DARROW: "use json_extract_scalar",
+                     TokenType.L_BRACE: "Trino has no struct literals (use ROW(...))"}
+_SET_OPERATIONS = {TokenType.UNION, TokenType.INTERSECT, TokenType.EXCEPT}
+
+
+def _mismatched(token, hint: str = "", text: str | None = None) -> DialectError:
+    """Trino's SYNTAX_ERROR "mismatched input 'x'" at the start of `token` (or of its `text` suffix)."""
+    text = token.text if text is None else text
+    message = f"mismatched input '{text}'" + (f". {hint}" if hint else "")
+    return DialectError(message, line=token.line, column=max(1, token.col - len(text) + 1), error_name="SYNTAX_ERROR")
+
+
+def _refuse_duckdb_syntax(tokens: list) -> None:
+    """Refuse DuckDB syntax that sqlglot's Trino reader accepts but Trino's grammar (trinodb/trino
+    core/trino-grammar/src/main/antlr4/io/trino/grammar/sql/SqlBase.g4) does not: `::`, `==`, `//`, `**`,
+    `<=>`, `->>`, `{...}` struct literals, `UNION BY NAME` and `LIMIT n%` / `LIMIT n PERCENT`."""
+    for i, token in enumerate(tokens):
+        kind, following = token.token_type, tokens[i + 1] if i + 1 < len(tokens) else None
+        adjacent = following is not None and following.start == token.end + 1
+        if kind in _DUCKDB_OPERATORS:
+            raise _mismatched(token, _DUCKDB_OPERATORS[kind])
+        if kind == TokenType.EQ and token.text == "==":
+            raise _mismatched(token, "use '='", text="=")
+        if kind in (TokenType.SLASH, TokenType.STAR) and adjacent and following.token_type == kind:
+            raise _mismatched(following, "use power(a, b)" if kind == TokenType.STAR else
+                              "integer division is a / b on integers")
+        if kind in _SET_OPERATIONS:
+            by = tokens[i + 2] if following is not None and following.token_type in (TokenType.ALL, TokenType.DISTINCT) \
+                else following
+            if by is not None and by.text.upper() == "BY":
+                raise _mismatched(by, "UNION BY NAME is DuckDB syntax")
+        if kind == TokenType.LIMIT and following is not None and i + 2 < len(tokens) and \
+                tokens[i + 2].token_type in (TokenType.MOD, TokenType.PERCENT):
+            raise _mismatched(tokens[i + 2], "LIMIT takes a row count (Trino has no LIMIT n PERCENT)")
+
+
+def _parse_error(error: ParseError) -> DialectError:
+    """Trino's SYNTAX_ERROR for a sqlglot ParseError: its message without sqlglot's internals."""
+    detail = error.errors[0] if error.errors else {}
+    message = detail.get("description") or str(error).splitlines()[0]
+    line, column = detail.get("line"), detail.get("col")
+    token = detail.get("highlight") or ""
+    if line is not None and column is not None and token:
+        column = max(1, column - len(token) + 1)
+    if "<class" in message or message.startswith(("Invalid expression", "Required keyword")):
+        at_end = not (detail.get("end_context") or "").strip()
+        if at_end and message.startswith("Required keyword") and column is not None:
+            column += len(token)  # sqlglot points at the last token; what is missing comes after it
+        token = "<EOF>" if at_end and message.startswith("Required keyword") or not token else token
+        message = f"mismatched input '{token}'"
+    return DialectError(message if message.startswith("mismatched") else f"syntax error: {message}",
+                        line=line, column=column, error_name="SYNTAX_ERROR")
+
+
 def parse(sql: str) -> exp.Expression:
     """Parse exactly one Trino statement (a trailing `;` is allowed)."""
+    dialect = LakegateTrino()
     try:
-        statements = [s for s in sqlglot.parse(sql, dialect=LakegateTrino)
+        tokens = dialect.tokenize(sql)
+        _refuse_duckdb_syntax(tokens)
+        statements = [s for s in dialect.parser().parse(tokens, sql)
                       if s is not None and not isinstance(s, exp.Semicolon)]  # `; -- comment` is no statement
     except ParseError as error:
-        detail = error.errors[0] if error.errors else {}
-        message = detail.get("description") or str(error).splitlines()[0]
-        line, column = detail.get("line"), detail.get("col")
-        token = detail.get("highlight") or ""
-        if line is not None and column is not None and token:
-            column = max(1, column - len(token) + 1)
-        raise DialectError(f"syntax error: {message}", line=line, column=column, error_name="SYNTAX_ERROR") from None
+        raise _parse_error(error) from None
     except TokenError as error:
         raise DialectError(f"syntax error: {error}", error_name="SYNTAX_ERROR") from None
     except RecursionError:
         raise DialectError("syntax error: the query is nested too deeply", error_name="SYNTAX_ERROR") from None
-    if "::" in sql:
-        for token in LakegateTrino().tokenize(sql):
-            if token.token_type == TokenType.DCOLON:
-                raise DialectError("syntax error: '::' casts are not Trino syntax (use CAST(x AS type))",
-                                   line=token.line, column=max(1, token.col - 1), error_name="SYNTAX_ERROR")
     if not statements:
-        raise DialectError("syntax error: empty query", line=1, column=1, error_name="SYNTAX_ERROR")
+        raise DialectError("mismatched input '<EOF>'", line=1, column=1, error_name="SYNTAX_ERROR")
     if len(statements) > 1:
         raise DialectError("syntax error: only one statement is allowed", error_name="SYNTAX_ERROR")
     return statements[0]

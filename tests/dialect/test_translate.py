@@ -90,7 +90,7 @@ def test_cached_translation_is_reused_and_keyed_by_schema_and_params():
     ("SELECT x,\n  \"Missing Col\" FROM odom_linear_velocity", "COLUMN_NOT_FOUND", 2, 3, "'Missing Col'"),
     ("SELECT job_id FROM time_to_goal t JOIN metadata m ON t.job_id = m.job_id", "AMBIGUOUS_NAME", 1, 8, "job_id"),
     ("SELECT 'a' = 1", "TYPE_MISMATCH", 1, 8, "varchar(1) = integer"),
-    ("SELECT x FROM odom_linear_velocity WHERE", "SYNTAX_ERROR", None, None, "syntax error"),
+    ("SELECT x FROM odom_linear_velocity WHERE", "SYNTAX_ERROR", 1, 41, "mismatched input '<EOF>'"),
     ("SELECT 1; SELECT 2", ("SYNTAX_ERROR", "PERMISSION_DENIED"), 1, 11, "statement"),
     ("SELECT 1::integer", "SYNTAX_ERROR", 1, 9, "'::'"),
     ("SELECT regexp_like(job_id, '(?=a)') FROM time_to_goal", "NOT_SUPPORTED", 1, 8, "lookaround"),

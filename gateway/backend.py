@@ -8,6 +8,12 @@ parser (exactly one SELECT), and run on its own cursor, so queries run concurren
 `QueryResult.cancel()` interrupts just one. SHOW / DESCRIBE are answered from the branch schema
 (`introspection`), EXPLAIN with DuckDB's plan of the translated query.
 
+Every caller (the server, the dashboard, metrics, `lakegate query`) gets the same `Limits`: at most
+`max_concurrent_queries` queries run DuckDB work at once (a query waits for a slot within its time),
+and a timer interrupts a query (EXPLAIN ANALYZE included) `query_timeout` seconds after `execute`
+was called, which then fails with EXCEEDED_TIME_LIMIT. Errors name lake files relative to the lake,
+never by their absolute path.
+
 DuckDB's allowed directories cannot be made read-only: raw DuckDB SQL on these connections could
 still COPY or ATTACH inside the lake directory. No such statement reaches them: the guard refuses
 it, and only a single statement that DuckDB itself parses as a SELECT is ever run.
@@ -16,14 +22,16 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 import shutil
 import tempfile
 import threading
+import time
 import weakref
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Iterator, Protocol, Sequence
+from typing import Callable, Iterable, Iterator, Protocol, Sequence
 
 import duckdb
 import pyarrow as pa
@@ -33,6 +41,7 @@ from lakegate.dialect.errors import DialectError, runtime_error
 from lakegate.dialect.scope import Scope
 from lakegate.dialect.translate import Translation, translate
 from lakegate.gateway import introspection
+from lakegate.gateway.limits import Limits
 from lakegate.lake import paths
 from lakegate.lake.catalog import Catalog
 
@@ -82,6 +91,12 @@ def _static(columns: list[tuple[str, str]], rows: list[tuple]) -> QueryResult:
     return QueryResult(columns=columns, batches=iter([batch]))
 
 
+def time_limit_error(seconds: float) -> DialectError:
+    """The EXCEEDED_TIME_LIMIT error of a query that ran longer than `seconds`."""
+    return DialectError(f"Query exceeded the maximum execution time limit of {seconds:.2f}s",
+                        error_name="EXCEEDED_TIME_LIMIT")
+
+
 def _failure(error: BaseException) -> DialectError:
     """The DialectError (Trino error name) for an error DuckDB raised while running a query."""
     if isinstance(error, duckdb.InterruptException) or "INTERRUPT Error" in str(error):
@@ -91,36 +106,95 @@ def _failure(error: BaseException) -> DialectError:
     return runtime_error(str(error))
 
 
+def hide_paths(text: str, *roots: Path | str | None) -> str:
+    """`text` for a client: paths under `roots` relative to them, each root itself by its name."""
+    for root in roots:
+        if root is not None:
+            root = str(root).rstrip("/")
+            text = text.replace(root + "/", "")
+            text = re.sub(re.escape(root) + r"(?![\w.-])", os.path.basename(root), text)
+    return text
+
+
 def _quote_ident(name: str) -> str:
     return '"' + name.replace('"', '""') + '"'
 
 
 class _Run:
-    """One query on its own cursor: started lazily by the first read, so it can be canceled."""
+    """One query's DuckDB work on its own cursor, as an iterator of record batches: started lazily by
+    the first read (so it can be canceled first), holding one of the backend's slots until it ends
+    (`release`), and interrupted by a timer when its time is up (it then fails EXCEEDED_TIME_LIMIT)."""
 
-    def __init__(self, cursor: duckdb.DuckDBPyConnection, relation: duckdb.DuckDBPyRelation):
-        self.cursor, self.relation = cursor, relation
-        self.canceled = False
+    def __init__(self, cursor: duckdb.DuckDBPyConnection, produce: Callable[[], Iterable[pa.RecordBatch]], *,
+                 release: Callable[[], None] = lambda: None, timeout: float | None = None, remaining: float = 0.0,
+                 failure: Callable[[BaseException], DialectError] = _failure):
+        self.cursor, self._produce, self._release, self._failure = cursor, produce, release, failure
+        self.timeout = timeout
+        self.canceled = self.expired = False
+        self._lock = threading.Lock()
+        self._held = True
+        self._timer = threading.Timer(remaining, self._expire)  # started only with a `timeout`
+        self._timer.daemon = True
+        if timeout is not None:
+            self._timer.start()
+        self._batches = self._read()
+
+    def __iter__(self) -> "_Run":
+        return self
+
+    def __next__(self) -> pa.RecordBatch:
+        return next(self._batches)
+
+    def close(self) -> None:
+        """Stop reading: the cursor closes and the slot is free."""
+        self._batches.close()
+        self.cursor.close()
+        self._free()
 
     def cancel(self) -> None:
         self.canceled = True
+        self._interrupt()
+
+    def _expire(self) -> None:
+        self.expired = True
+        self._interrupt()
+        self._free()  # the slot is free even if nobody reads on
+
+    def _interrupt(self) -> None:
         try:
             self.cursor.interrupt()
         except duckdb.Error:
             pass  # already closed: nothing runs
 
-    def batches(self) -> Iterator[pa.RecordBatch]:
+    def _free(self) -> None:
+        with self._lock:
+            held, self._held = self._held, False
+        self._timer.cancel()
+        if held:
+            self._release()
+
+    def _stopped(self) -> DialectError | None:
+        """Why the query was stopped (time limit or cancel), if it was."""
+        if self.expired and self.timeout is not None:
+            return time_limit_error(self.timeout)
+        if self.canceled:
+            return DialectError("Query was canceled", error_name="USER_CANCELED")
+        return None
+
+    def _read(self) -> Iterator[pa.RecordBatch]:
         try:
-            if self.canceled:
-                raise DialectError("Query was canceled", error_name="USER_CANCELED")
             try:
-                reader = self.relation.to_arrow_reader(BATCH_ROWS)
-                for batch in reader:
+                for batch in self._produce():
+                    if self._stopped() is not None:
+                        break
                     yield batch
             except (duckdb.Error, OSError, pa.ArrowException) as error:
-                raise _failure(error) from None
+                raise self._stopped() or self._failure(error) from None
+            if self._stopped() is not None:
+                raise self._stopped()
         finally:
             self.cursor.close()
+            self._free()
 
 
 @dataclass
@@ -135,14 +209,16 @@ class _Branch:
 class DuckDBBackend:
     """Embedded DuckDB over the lake at `lake` (None: no lake, constant queries only).
 
-    `memory_limit` and `threads` apply to each branch's database. Views are rebuilt when the
+    `memory_limit` and `threads` apply to each branch's database; `limits` bound every query's time
+    and how many run at once (`query_timeout`, `max_concurrent_queries`). Views are rebuilt when the
     branch's directory or config registry changes (a new table or config version).
     """
 
-    def __init__(self, lake: Path | None, *, memory_limit: str = "2GB", threads: int = 2):
+    def __init__(self, lake: Path | None, *, memory_limit: str = "2GB", threads: int = 2, limits: Limits = Limits()):
         self.lake = Path(lake).resolve() if lake is not None else None
         self.catalog = Catalog(self.lake) if self.lake is not None else None
-        self.memory_limit, self.threads = memory_limit, threads
+        self.memory_limit, self.threads, self.limits = memory_limit, threads, limits
+        self._slots = threading.BoundedSemaphore(limits.max_concurrent_queries)
         self._branches: dict[str, _Branch] = {}
         self._paths: dict[str, tuple[str, str]] = {}  # branch -> its directory and configs directory
         self._listed: tuple[object, list[str]] = (None, [])  # (the lake directory's mtime, its branches)
@@ -253,6 +329,14 @@ class DuckDBBackend:
                 params: Sequence[object] = ()) -> QueryResult:
         """Translate and start one Trino-dialect query on `branch`, restricted to `scope`, with
         `params` bound to its `?`. Raises DialectError (with position) when refused or failing."""
+        deadline = time.monotonic() + self.limits.query_timeout
+        try:
+            return self._execute(sql, branch, scope, params, deadline)
+        except DialectError as error:
+            raise self._for_client(error) from None
+
+    def _execute(self, sql: str | bytes, branch: str, scope: Scope | None, params: Sequence[object],
+                 deadline: float) -> QueryResult:
         if not isinstance(sql, str):
             sql = guard.check_text(sql)  # bytes: decoded (or refused) first
         kind = guard.classify(sql)
@@ -261,17 +345,51 @@ class DuckDBBackend:
             answer = introspection.answer(guard.check_text(sql), state.schema, schemas=self.branches() or [branch])
             return _static(answer.columns, answer.rows)
         if kind == "explain":
-            return self._explain(guard.check_text(sql), state, scope, params)
-        translation = self._translate(state, sql, scope, params)
+            translation, analyze = self._explain(guard.check_text(sql), state, scope, params)
+            return self._start(state, translation, deadline, explain="EXPLAIN ANALYZE " if analyze else "EXPLAIN ")
+        return self._start(state, self._translate(state, sql, scope, params), deadline)
+
+    def _start(self, state: _Branch, translation: Translation, deadline: float, *,
+               explain: str | None = None) -> QueryResult:
+        """Take a slot (waiting at most until `deadline`) and start the translated query on its own
+        cursor; with `explain` ("EXPLAIN " or "EXPLAIN ANALYZE "), its plan is the result."""
+        timeout = self.limits.query_timeout
+        remaining = deadline - time.monotonic()
+        if remaining <= 0 or not self._slots.acquire(timeout=remaining):
+            raise time_limit_error(timeout)
         cursor = state.connection.cursor()
         try:
-            relation = cursor.sql(self._statement(state, cursor, translation.duckdb_sql))
+            if explain is None:
+                relation = cursor.sql(self._statement(state, cursor, translation.duckdb_sql))
+                produce: Callable[[], Iterable[pa.RecordBatch]] = lambda: relation.to_arrow_reader(BATCH_ROWS)
+                columns = list(translation.columns)
+            else:
+                self._single_select(cursor, translation.duckdb_sql)
+                produce = lambda: [self._plan(cursor, explain + translation.duckdb_sql)]
+                columns = [("Query Plan", "varchar")]
         except BaseException as error:
             cursor.close()
+            self._slots.release()
             raise _failure(error) if isinstance(error, duckdb.Error) else error
-        run = _Run(cursor, relation)
-        return QueryResult(columns=list(translation.columns), batches=run.batches(),
-                           duckdb_sql=translation.duckdb_sql, _cancel=run.cancel)
+        run = _Run(cursor, produce, release=self._slots.release, timeout=timeout,
+                   remaining=max(0.0, deadline - time.monotonic()), failure=self._failure)
+        return QueryResult(columns=columns, batches=run, duckdb_sql=translation.duckdb_sql, _cancel=run.cancel)
+
+    def _plan(self, cursor: duckdb.DuckDBPyConnection, explain_sql: str) -> pa.RecordBatch:
+        """DuckDB's plan (EXPLAIN [ANALYZE] runs here) as one row, lake paths made relative."""
+        rows = cursor.execute(explain_sql).fetchall()
+        plan = hide_paths("\n".join(str(row[-1]).rstrip() for row in rows), self.lake, self._temp)
+        return pa.record_batch([pa.array([plan], pa.string())], names=["Query Plan"])
+
+    def _failure(self, error: BaseException) -> DialectError:
+        return self._for_client(_failure(error))
+
+    def _for_client(self, error: DialectError) -> DialectError:
+        """`error` without absolute paths of the lake or the spill directory in its message."""
+        message = hide_paths(error.message, self.lake, self._temp)
+        if message == error.message:
+            return error
+        return DialectError(message, line=error.line, column=error.column, error_name=error.error_name)
 
     def _statement(self, state: _Branch, cursor: duckdb.DuckDBPyConnection, duckdb_sql: str) -> object:
         """The checked DuckDB Statement of the translated SQL, parsed once per text."""
@@ -297,11 +415,14 @@ class DuckDBBackend:
                                error_name="GENERIC_INTERNAL_ERROR")
         return statements[0]
 
-    def _explain(self, sql: str, state: _Branch, scope: Scope | None, params: Sequence[object]) -> QueryResult:
+    def _explain(self, sql: str, state: _Branch, scope: Scope | None, params: Sequence[object]
+                 ) -> tuple[Translation, bool]:
+        """The translation of the query an EXPLAIN [ANALYZE] explains (errors positioned in the
+        whole EXPLAIN text), and whether it is ANALYZE."""
         query, analyze = guard.explained_query(sql)
         start = sql.rfind(query)
         try:
-            translation = self._translate(state, query, scope, params)
+            return self._translate(state, query, scope, params), analyze
         except DialectError as error:
             if error.line is not None and error.column is not None:  # position in the whole EXPLAIN text
                 before = sql[:start]
@@ -310,15 +431,6 @@ class DuckDBBackend:
                 raise DialectError(error.message, line=error.line + line, column=column,
                                    error_name=error.error_name) from None
             raise
-        cursor = state.connection.cursor()
-        try:
-            self._single_select(cursor, translation.duckdb_sql)
-            rows = cursor.execute(("EXPLAIN ANALYZE " if analyze else "EXPLAIN ") + translation.duckdb_sql).fetchall()
-        except duckdb.Error as error:
-            raise _failure(error) from None
-        finally:
-            cursor.close()
-        return _static([("Query Plan", "varchar")], [("\n".join(str(row[-1]).rstrip() for row in rows),)])
 
     def close(self) -> None:
         """Close every branch database and remove the spill directory."""

@@ -219,6 +219,7 @@ class DuckDBBackend:
         self.catalog = Catalog(self.lake) if self.lake is not None else None
         self.memory_limit, self.threads, self.limits = memory_limit, threads, limits
         self._slots = threading.BoundedSemaphore(limits.max_concurrent_queries)
+        self._runs: weakref.WeakSet[_Run] = weakref.WeakSet()  # queries started and not collected
         self._branches: dict[str, _Branch] = {}
         self._paths: dict[str, tuple[str, str]] = {}  # branch -> its directory and configs directory
         self._listed: tuple[object, list[str]] = (None, [])  # (the lake directory's mtime, its branches)
@@ -373,6 +374,7 @@ class DuckDBBackend:
             raise _failure(error) if isinstance(error, duckdb.Error) else error
         run = _Run(cursor, produce, release=self._slots.release, timeout=timeout,
                    remaining=max(0.0, deadline - time.monotonic()), failure=self._failure)
+        self._runs.add(run)
         return QueryResult(columns=columns, batches=run, duckdb_sql=translation.duckdb_sql, _cancel=run.cancel)
 
     def _plan(self, cursor: duckdb.DuckDBPyConnection, explain_sql: str) -> pa.RecordBatch:
@@ -433,7 +435,9 @@ class DuckDBBackend:
             raise
 
     def close(self) -> None:
-        """Close every branch database and remove the spill directory."""
+        """Interrupt running queries, close every branch database and remove the spill directory."""
+        for run in list(self._runs):
+            run.cancel()
         with self._lock:
             for state in self._branches.values():
                 state.connection.close()

@@ -106,12 +106,14 @@ def _failure(error: BaseException) -> DialectError:
     return runtime_error(str(error))
 
 
-def hide_paths(text: str, *roots: Path | str | None) -> str:
-    """`text` for a client: paths under `roots` relative to them, each root itself by its name."""
+def hide_paths(text: str, *roots: Path | str | None, keep_width: bool = False) -> str:
+    """`text` for a client: paths under `roots` relative to them, each root itself by its name
+    (`keep_width`: a shortened path is followed by spaces, so that a drawn table keeps its shape)."""
     for root in roots:
         if root is not None:
             root = str(root).rstrip("/")
-            text = text.replace(root + "/", "")
+            pad = " " * (len(root) + 1) if keep_width else ""
+            text = re.sub(re.escape(root + "/") + r"(\S*)", lambda match: match.group(1) + pad, text)
             text = re.sub(re.escape(root) + r"(?![\w.-])", os.path.basename(root), text)
     return text
 
@@ -380,7 +382,7 @@ class DuckDBBackend:
     def _plan(self, cursor: duckdb.DuckDBPyConnection, explain_sql: str) -> pa.RecordBatch:
         """DuckDB's plan (EXPLAIN [ANALYZE] runs here) as one row, lake paths made relative."""
         rows = cursor.execute(explain_sql).fetchall()
-        plan = hide_paths("\n".join(str(row[-1]).rstrip() for row in rows), self.lake, self._temp)
+        plan = hide_paths("\n".join(str(row[-1]).rstrip() for row in rows), self.lake, self._temp, keep_width=True)
         return pa.record_batch([pa.array([plan], pa.string())], names=["Query Plan"])
 
     def _failure(self, error: BaseException) -> DialectError:

@@ -132,7 +132,7 @@ class _Run:
                  failure: Callable[[BaseException], DialectError] = _failure):
         self.cursor, self._produce, self._release, self._failure = cursor, produce, release, failure
         self.timeout = timeout
-        self.canceled = self.expired = False
+        self.reason: DialectError | None = None  # why the query was stopped, if it was
         self._lock = threading.Lock()
         self._held = True
         self._timer = threading.Timer(remaining, self._expire)  # started only with a `timeout`
@@ -154,19 +154,19 @@ class _Run:
         self._free()
 
     def cancel(self) -> None:
-        self.canceled = True
-        self._interrupt()
+        self.stop(DialectError("Query was canceled", error_name="USER_CANCELED"))
 
-    def _expire(self) -> None:
-        self.expired = True
-        self._interrupt()
-        self._free()  # the slot is free even if nobody reads on
-
-    def _interrupt(self) -> None:
+    def stop(self, reason: DialectError) -> None:
+        """Interrupt the query: reading on raises `reason` (the first one given)."""
+        self.reason = self.reason or reason
         try:
             self.cursor.interrupt()
         except duckdb.Error:
             pass  # already closed: nothing runs
+
+    def _expire(self) -> None:
+        self.stop(time_limit_error(self.timeout))
+        self._free()  # the slot is free even if nobody reads on
 
     def _free(self) -> None:
         with self._lock:
@@ -175,25 +175,17 @@ class _Run:
         if held:
             self._release()
 
-    def _stopped(self) -> DialectError | None:
-        """Why the query was stopped (time limit or cancel), if it was."""
-        if self.expired and self.timeout is not None:
-            return time_limit_error(self.timeout)
-        if self.canceled:
-            return DialectError("Query was canceled", error_name="USER_CANCELED")
-        return None
-
     def _read(self) -> Iterator[pa.RecordBatch]:
         try:
             try:
                 for batch in self._produce():
-                    if self._stopped() is not None:
+                    if self.reason is not None:
                         break
                     yield batch
             except (duckdb.Error, OSError, pa.ArrowException) as error:
-                raise self._stopped() or self._failure(error) from None
-            if self._stopped() is not None:
-                raise self._stopped()
+                raise self.reason or self._failure(error) from None
+            if self.reason is not None:
+                raise self.reason
         finally:
             self.cursor.close()
             self._free()
@@ -436,10 +428,14 @@ class DuckDBBackend:
                                    error_name=error.error_name) from None
             raise
 
+    def stop_all(self) -> None:
+        """Interrupt every running query: each fails with SERVER_SHUTTING_DOWN."""
+        for run in list(self._runs):
+            run.stop(DialectError("The server is shutting down", error_name="SERVER_SHUTTING_DOWN"))
+
     def close(self) -> None:
         """Interrupt running queries, close every branch database and remove the spill directory."""
-        for run in list(self._runs):
-            run.cancel()
+        self.stop_all()
         with self._lock:
             for state in self._branches.values():
                 state.connection.close()

@@ -89,9 +89,9 @@ def _force_exit() -> None:
     os._exit(1)
 
 
-def _with_stop_deadline(server) -> None:
-    """Make `server` (a uvicorn.Server) end the process STOP_GRACE seconds after the first stop
-    signal if it has not stopped by then."""
+def _with_stop_deadline(server, backend) -> None:
+    """Make the first stop signal of `server` (a uvicorn.Server) interrupt the queries of `backend`
+    (a DuckDBBackend) and end the process STOP_GRACE seconds later if it has not stopped by then."""
     handle_exit = server.handle_exit
 
     def stop(sig: int, frame: object) -> None:
@@ -99,6 +99,7 @@ def _with_stop_deadline(server) -> None:
             timer = threading.Timer(STOP_GRACE, _force_exit)
             timer.daemon = True
             timer.start()
+            backend.stop_all()
         handle_exit(sig, frame)
 
     server.handle_exit = stop
@@ -179,7 +180,7 @@ def serve_command(args: argparse.Namespace) -> int:
         previous = signal.signal(signal.SIGTERM, _interrupt)
         try:
             server = uvicorn.Server(config)
-            _with_stop_deadline(server)
+            _with_stop_deadline(server, backend)
             server.run(sockets=[sock])
         except KeyboardInterrupt:
             pass

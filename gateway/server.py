@@ -547,9 +547,9 @@ class QueryManager:
                     with self._lock:
                         self._queries.pop(query.id, None)
 
-    def close(self) -> bool:
+    def close(self) -> None:
         """Fail every query (SERVER_SHUTTING_DOWN), stop the reaper and wait (at most
-        SHUTDOWN_GRACE seconds) for the workers to stop; False when some still run."""
+        SHUTDOWN_GRACE seconds) for the workers to stop."""
         self._stop.set()
         self._reaper.join()
         queries = self.queries()
@@ -563,7 +563,6 @@ class QueryManager:
         working = sum(query.working for query in queries)
         if working:
             log.warning("%d query workers still run at shutdown; they are left to end with the process", working)
-        return not working
 
 
 # --- immediate answers --------------------------------------------------------------------------

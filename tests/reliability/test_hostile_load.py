@@ -72,7 +72,7 @@ def server(tmp_path):
 def _refusal(url: str, body: bytes, lake: Path) -> str:
     """The Trino error name a request ends with, after checking its message tells no traceback or
     server path."""
-    deadline = time.monotonic() + 6 * QUERY_TIMEOUT
+    deadline = time.monotonic() + 60
     response = requests.post(f"{url}/v1/statement", data=body, headers=HEADERS, timeout=60)
     if response.status_code == 413:
         return "QUERY_TEXT_TOO_LARGE"  # refused by the HTTP layer before it is read whole
@@ -93,7 +93,8 @@ def test_hostile_load_leaves_the_server_healthy(server):
     process, url, lake = server
     with ThreadPoolExecutor(len(HOSTILE)) as pool:
         names = list(pool.map(lambda case: _refusal(url, case[0], lake), HOSTILE))
-    assert all(name in expected for name, (_, expected) in zip(names, HOSTILE)), names
+    assert [name in expected for name, (_, expected) in zip(names, HOSTILE)] == [True] * len(HOSTILE), \
+        list(zip(names, [body[:40] for body, _ in HOSTILE]))
 
     started = time.monotonic()
     document = requests.post(f"{url}/v1/statement", data=b"SELECT 1", headers=HEADERS, timeout=5).json()

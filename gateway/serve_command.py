@@ -26,7 +26,7 @@ from lakegate.gateway.limits import Limits
 
 _DEFAULTS = Limits()
 #: Seconds after the first stop signal when a shutdown still running ends the process.
-STOP_GRACE = 4.0
+STOP_GRACE = 3.5
 
 
 def _positive(kind: type):
@@ -168,7 +168,7 @@ def serve_command(args: argparse.Namespace) -> int:
         app = create_app(backend, catalog_name=args.catalog, limits=limits, users=users,
                          dashboard_router=dashboard_router(dashboard))
         config = uvicorn.Config(app, log_level="warning", access_log=False, lifespan="on",
-                                timeout_graceful_shutdown=2,
+                                timeout_graceful_shutdown=1,
                                 ssl_certfile=str(args.tls_cert) if args.tls_cert else None,
                                 ssl_keyfile=str(args.tls_key) if args.tls_key else None)
         host, port = sock.getsockname()[:2]

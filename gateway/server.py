@@ -70,7 +70,7 @@ FINAL_PAGE_BYTES = 65_536
 #: How often the reaper looks at the queries.
 REAP_INTERVAL = 0.25
 #: Longest shutdown waits for workers to stop (they are daemon threads: the process may end without them).
-SHUTDOWN_GRACE = 1.5
+SHUTDOWN_GRACE = 1.0
 JSON = "application/json"
 
 

@@ -8,6 +8,12 @@ parser (exactly one SELECT), and run on its own cursor, so queries run concurren
 `QueryResult.cancel()` interrupts just one. SHOW / DESCRIBE are answered from the branch schema
 (`introspection`), EXPLAIN with DuckDB's plan of the translated query.
 
+Every caller (the server, the dashboard, metrics, `lakegate query`) gets the same `Limits`: at most
+`max_concurrent_queries` queries run DuckDB work at once (a query waits for a slot within its time),
+and a timer interrupts a query (EXPLAIN ANALYZE included) `query_timeout` seconds after `execute`
+was called, which then fails with EXCEEDED_TIME_LIMIT. Errors name lake files relative to the lake,
+never by their absolute path.
+
 DuckDB's allowed directories cannot be made read-only: raw DuckDB SQL on these connections could
 still COPY or ATTACH inside the lake directory. No such statement reaches them: the guard refuses
 it, and only a single statement that DuckDB itself parses as a SELECT is ever run.
@@ -16,14 +22,16 @@ from __future__ import annotations
 
 import hashlib
 import os
+import re
 import shutil
 import tempfile
 import threading
+import time
 import weakref
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Iterator, Protocol, Sequence
+from typing import Callable, Iterable, Iterator, Protocol, Sequence
 
 import duckdb
 import pyarrow as pa
@@ -33,6 +41,7 @@ from lakegate.dialect.errors import DialectError, runtime_error
 from lakegate.dialect.scope import Scope
 from lakegate.dialect.translate import Translation, translate
 from lakegate.gateway import introspection
+from lakegate.gateway.limits import Limits
 from lakegate.lake import paths
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.record import FileEntry, Record
@@ -85,6 +94,12 @@ def _static(columns: list[tuple[str, str]], rows: list[tuple]) -> QueryResult:
     return QueryResult(columns=columns, batches=iter([batch]))
 
 
+def time_limit_error(seconds: float) -> DialectError:
+    """The EXCEEDED_TIME_LIMIT error of a query that ran longer than `seconds`."""
+    return DialectError(f"Query exceeded the maximum execution time limit of {seconds:.2f}s",
+                        error_name="EXCEEDED_TIME_LIMIT")
+
+
 def _failure(error: BaseException) -> DialectError:
     """The DialectError (Trino error name) for an error DuckDB raised while running a query."""
     if isinstance(error, duckdb.InterruptException) or "INTERRUPT Error" in str(error):
@@ -94,51 +109,89 @@ def _failure(error: BaseException) -> DialectError:
     return runtime_error(str(error))
 
 
+def hide_paths(text: str, *roots: Path | str | None, keep_width: bool = False) -> str:
+    """`text` for a client: paths under `roots` relative to them, each root itself by its name
+    (`keep_width`: a shortened path is followed by spaces, so that a drawn table keeps its shape)."""
+    for root in roots:
+        if root is not None:
+            root = str(root).rstrip("/")
+            pad = " " * (len(root) + 1) if keep_width else ""
+            text = re.sub(re.escape(root + "/") + r"(\S*)", lambda match: match.group(1) + pad, text)
+            text = re.sub(re.escape(root) + r"(?![\w.-])", os.path.basename(root), text)
+    return text
+
+
 def _quote_ident(name: str) -> str:
     return '"' + name.replace('"', '""') + '"'
 
 
 class _Run:
-    """One query on its own cursor: started lazily by the first read, so it can be canceled.
+    """One query's DuckDB work on its own cursor, as an iterator of record batches: started lazily by
+    the first read (so it can be canceled first), holding one of the backend's slots until it ends
+    (`release`), and interrupted by a timer when its time is up (it then fails EXCEEDED_TIME_LIMIT)."""
 
-    `describe` turns a DuckDB error into the DialectError to raise; `again` (if given) starts the
-    query once more when it fails before its first row because a file it listed was replaced.
-    """
+    def __init__(self, cursor: duckdb.DuckDBPyConnection, produce: Callable[[], Iterable[pa.RecordBatch]], *,
+                 release: Callable[[], None] = lambda: None, timeout: float | None = None, remaining: float = 0.0,
+                 failure: Callable[[BaseException], DialectError] = _failure):
+        self.cursor, self._produce, self._release, self._failure = cursor, produce, release, failure
+        self.timeout = timeout
+        self.reason: DialectError | None = None  # why the query was stopped, if it was
+        self._lock = threading.Lock()
+        self._held = True
+        self._timer = threading.Timer(remaining, self._expire)  # started only with a `timeout`
+        self._timer.daemon = True
+        if timeout is not None:
+            self._timer.start()
+        self._batches = self._read()
 
-    def __init__(self, cursor: duckdb.DuckDBPyConnection, relation: duckdb.DuckDBPyRelation, *,
-                 describe: Callable[[BaseException], DialectError] | None = None,
-                 again: Callable[[BaseException], "_Run | None"] | None = None):
-        self.cursor, self.relation = cursor, relation
-        self.describe, self.again = describe or _failure, again
-        self.canceled = False
+    def __iter__(self) -> "_Run":
+        return self
+
+    def __next__(self) -> pa.RecordBatch:
+        return next(self._batches)
+
+    def close(self) -> None:
+        """Stop reading: the cursor closes and the slot is free."""
+        self._batches.close()
+        self.cursor.close()
+        self._free()
 
     def cancel(self) -> None:
-        self.canceled = True
+        self.stop(DialectError("Query was canceled", error_name="USER_CANCELED"))
+
+    def stop(self, reason: DialectError) -> None:
+        """Interrupt the query: reading on raises `reason` (the first one given)."""
+        self.reason = self.reason or reason
         try:
             self.cursor.interrupt()
         except duckdb.Error:
             pass  # already closed: nothing runs
 
-    def batches(self) -> Iterator[pa.RecordBatch]:
-        retry = None
+    def _expire(self) -> None:
+        self.stop(time_limit_error(self.timeout))
+        self._free()  # the slot is free even if nobody reads on
+
+    def _free(self) -> None:
+        with self._lock:
+            held, self._held = self._held, False
+        self._timer.cancel()
+        if held:
+            self._release()
+
+    def _read(self) -> Iterator[pa.RecordBatch]:
         try:
-            if self.canceled:
-                raise DialectError("Query was canceled", error_name="USER_CANCELED")
-            started = False
             try:
-                reader = self.relation.to_arrow_reader(BATCH_ROWS)
-                for batch in reader:
-                    started = True
+                for batch in self._produce():
+                    if self.reason is not None:
+                        break
                     yield batch
             except (duckdb.Error, OSError, pa.ArrowException) as error:
-                retry = None if started or self.again is None else self.again(error)
-                if retry is None:
-                    raise self.describe(error) from None
+                raise self.reason or self._failure(error) from None
+            if self.reason is not None:
+                raise self.reason
         finally:
             self.cursor.close()
-        if retry is not None:
-            self.cursor = retry.cursor  # `cancel` interrupts the query's new run
-            yield from retry.batches()
+            self._free()
 
 
 @dataclass
@@ -177,18 +230,21 @@ class _Branch:
 class DuckDBBackend:
     """Embedded DuckDB over the lake at `lake` (None: no lake, constant queries only).
 
-    `memory_limit` and `threads` apply to each branch's database. Each query reads its branch's
-    record generation (`lake.record`) once; when it changed (a commit) or the config registry did,
-    the views are rebuilt from one snapshot of the record, in one DuckDB transaction, so a query
-    sees every table at one generation. `pending` files (staged, not committed) replace the
-    record's files of their keys (`with_pending`).
+    `memory_limit` and `threads` apply to each branch's database; `limits` bound every query's time
+    and how many run at once (`query_timeout`, `max_concurrent_queries`). Each query reads its
+    branch's record generation (`lake.record`) once; when it changed (a commit) or the config registry
+    did, the views are rebuilt from one snapshot of the record, in one DuckDB transaction, so a query
+    sees every table at one generation. `pending` files (staged, not committed) replace the record's
+    files of their keys (`with_pending`).
     """
 
-    def __init__(self, lake: Path | None, *, memory_limit: str = "2GB", threads: int = 2,
+    def __init__(self, lake: Path | None, *, memory_limit: str = "2GB", threads: int = 2, limits: Limits = Limits(),
                  pending: Sequence[FileEntry] = ()):
         self.lake = Path(lake).resolve() if lake is not None else None
         self.catalog = Catalog(self.lake, pending) if self.lake is not None else None
-        self.memory_limit, self.threads = memory_limit, threads
+        self.memory_limit, self.threads, self.limits = memory_limit, threads, limits
+        self._slots = threading.BoundedSemaphore(limits.max_concurrent_queries)
+        self._runs: weakref.WeakSet[_Run] = weakref.WeakSet()  # queries started and not collected
         self._branches: dict[str, _Branch] = {}
         self._paths: dict[str, tuple[str, str]] = {}  # branch -> its directory and configs directory
         self._records: dict[str, Record] = {}
@@ -199,7 +255,8 @@ class DuckDBBackend:
 
     def with_pending(self, pending: Sequence[FileEntry]) -> "DuckDBBackend":
         """A new backend over the same lake that already shows `pending` (close it after use)."""
-        return DuckDBBackend(self.lake, memory_limit=self.memory_limit, threads=self.threads, pending=pending)
+        return DuckDBBackend(self.lake, memory_limit=self.memory_limit, threads=self.threads, limits=self.limits,
+                             pending=pending)
 
     # -- branches -------------------------------------------------------------------------
 
@@ -336,6 +393,14 @@ class DuckDBBackend:
                 params: Sequence[object] = ()) -> QueryResult:
         """Translate and start one Trino-dialect query on `branch`, restricted to `scope`, with
         `params` bound to its `?`. Raises DialectError (with position) when refused or failing."""
+        deadline = time.monotonic() + self.limits.query_timeout
+        try:
+            return self._execute(sql, branch, scope, params, deadline)
+        except DialectError as error:
+            raise self._for_client(error) from None
+
+    def _execute(self, sql: str | bytes, branch: str, scope: Scope | None, params: Sequence[object],
+                 deadline: float) -> QueryResult:
         if not isinstance(sql, str):
             sql = guard.check_text(sql)  # bytes: decoded (or refused) first
         kind = guard.classify(sql)
@@ -344,35 +409,89 @@ class DuckDBBackend:
             answer = introspection.answer(guard.check_text(sql), state.schema, schemas=self.branches() or [branch])
             return _static(answer.columns, answer.rows)
         if kind == "explain":
-            return self._explain(guard.check_text(sql), state, scope, params)
-        translation = self._translate(state, sql, scope, params)
-        run = self._start(branch, state, translation.duckdb_sql)
-        return QueryResult(columns=list(translation.columns), batches=run.batches(),
-                           duckdb_sql=translation.duckdb_sql, _cancel=run.cancel)
+            translation, analyze = self._explain(guard.check_text(sql), state, scope, params)
+            return self._start(branch, state, translation, deadline,
+                               explain="EXPLAIN ANALYZE " if analyze else "EXPLAIN ")
+        return self._start(branch, state, self._translate(state, sql, scope, params), deadline)
 
-    def _start(self, branch: str, state: _Branch, duckdb_sql: str, retries: int = RETRIES) -> _Run:
-        """Bind the query on a new cursor. A query that finds a listed file gone before its first
-        row (a writer replaced it after the query's views were read) starts again, up to `retries`
-        times, on the branch's views as they are now."""
-        def again(error: BaseException) -> _Run | None:
-            if not state.vanished(error):
-                return None
-            if retries == 0:
-                raise state.failure(error, vanished=True)
-            return self._start(branch, self._state(branch), duckdb_sql, retries - 1)
-
+    def _start(self, branch: str, state: _Branch, translation: Translation, deadline: float, *,
+               explain: str | None = None) -> QueryResult:
+        """Take a slot (waiting at most until `deadline`) and start the translated query on its own
+        cursor; with `explain` ("EXPLAIN " or "EXPLAIN ANALYZE "), its plan is the result."""
+        timeout = self.limits.query_timeout
+        remaining = deadline - time.monotonic()
+        if remaining <= 0 or not self._slots.acquire(timeout=remaining):
+            raise time_limit_error(timeout)
         cursor = state.connection.cursor()
         try:
-            relation = cursor.sql(self._statement(state, cursor, duckdb_sql))
+            if explain is None:
+                produce: Callable[[], Iterable[pa.RecordBatch]] = self._rows(branch, state, cursor,
+                                                                             translation.duckdb_sql)
+                columns = list(translation.columns)
+            else:
+                self._single_select(cursor, translation.duckdb_sql)
+                produce = lambda: [self._plan(cursor, explain + translation.duckdb_sql)]
+                columns = [("Query Plan", "varchar")]
         except BaseException as error:
             cursor.close()
-            if not isinstance(error, duckdb.Error):
-                raise
-            restarted = again(error)
-            if restarted is None:
-                raise state.failure(error) from None
-            return restarted
-        return _Run(cursor, relation, describe=state.failure, again=again)
+            self._slots.release()
+            raise self._for_client(state.failure(error)) if isinstance(error, duckdb.Error) else error
+        run = _Run(cursor, produce, release=self._slots.release, timeout=timeout,
+                   remaining=max(0.0, deadline - time.monotonic()),
+                   failure=lambda error: self._for_client(state.failure(error)))
+        self._runs.add(run)
+        return QueryResult(columns=columns, batches=run, duckdb_sql=translation.duckdb_sql, _cancel=run.cancel)
+
+    def _rows(self, branch: str, state: _Branch, cursor: duckdb.DuckDBPyConnection,
+              duckdb_sql: str) -> Callable[[], Iterator[pa.RecordBatch]]:
+        """Bind the query on `cursor` now; the returned function reads its record batches. A query
+        that finds a listed file gone before its first row (a writer replaced it after the query's
+        views were read) starts again on the branch's views as they are now, up to RETRIES times."""
+        def bind(attempt: _Branch, retries: int) -> duckdb.DuckDBPyRelation:
+            try:
+                return cursor.sql(self._statement(attempt, cursor, duckdb_sql))
+            except duckdb.Error as error:
+                return again(attempt, error, retries)
+
+        def again(attempt: _Branch, error: BaseException, retries: int) -> duckdb.DuckDBPyRelation:
+            if not attempt.vanished(error):
+                raise error
+            if retries == 0:
+                raise attempt.failure(error, vanished=True) from None
+            return bind(self._state(branch), retries - 1)
+
+        first = bind(state, RETRIES)
+
+        def read() -> Iterator[pa.RecordBatch]:
+            relation, retries = first, RETRIES
+            while True:
+                started = False
+                try:
+                    for batch in relation.to_arrow_reader(BATCH_ROWS):
+                        started = True
+                        yield batch
+                    return
+                except duckdb.Error as error:
+                    if started:
+                        raise
+                    relation, retries = again(state, error, retries), retries - 1
+        return read
+
+    def _plan(self, cursor: duckdb.DuckDBPyConnection, explain_sql: str) -> pa.RecordBatch:
+        """DuckDB's plan (EXPLAIN [ANALYZE] runs here) as one row, lake paths made relative."""
+        rows = cursor.execute(explain_sql).fetchall()
+        plan = hide_paths("\n".join(str(row[-1]).rstrip() for row in rows), self.lake, self._temp, keep_width=True)
+        return pa.record_batch([pa.array([plan], pa.string())], names=["Query Plan"])
+
+    def _failure(self, error: BaseException) -> DialectError:
+        return self._for_client(_failure(error))
+
+    def _for_client(self, error: DialectError) -> DialectError:
+        """`error` without absolute paths of the lake or the spill directory in its message."""
+        message = hide_paths(error.message, self.lake, self._temp)
+        if message == error.message:
+            return error
+        return DialectError(message, line=error.line, column=error.column, error_name=error.error_name)
 
     def _statement(self, state: _Branch, cursor: duckdb.DuckDBPyConnection, duckdb_sql: str) -> object:
         """The checked DuckDB Statement of the translated SQL, parsed once per text."""
@@ -398,11 +517,14 @@ class DuckDBBackend:
                                error_name="GENERIC_INTERNAL_ERROR")
         return statements[0]
 
-    def _explain(self, sql: str, state: _Branch, scope: Scope | None, params: Sequence[object]) -> QueryResult:
+    def _explain(self, sql: str, state: _Branch, scope: Scope | None, params: Sequence[object]
+                 ) -> tuple[Translation, bool]:
+        """The translation of the query an EXPLAIN [ANALYZE] explains (errors positioned in the
+        whole EXPLAIN text), and whether it is ANALYZE."""
         query, analyze = guard.explained_query(sql)
         start = sql.rfind(query)
         try:
-            translation = self._translate(state, query, scope, params)
+            return self._translate(state, query, scope, params), analyze
         except DialectError as error:
             if error.line is not None and error.column is not None:  # position in the whole EXPLAIN text
                 before = sql[:start]
@@ -411,18 +533,15 @@ class DuckDBBackend:
                 raise DialectError(error.message, line=error.line + line, column=column,
                                    error_name=error.error_name) from None
             raise
-        cursor = state.connection.cursor()
-        try:
-            self._single_select(cursor, translation.duckdb_sql)
-            rows = cursor.execute(("EXPLAIN ANALYZE " if analyze else "EXPLAIN ") + translation.duckdb_sql).fetchall()
-        except duckdb.Error as error:
-            raise state.failure(error) from None
-        finally:
-            cursor.close()
-        return _static([("Query Plan", "varchar")], [("\n".join(str(row[-1]).rstrip() for row in rows),)])
+
+    def stop_all(self) -> None:
+        """Interrupt every running query: each fails with SERVER_SHUTTING_DOWN."""
+        for run in list(self._runs):
+            run.stop(DialectError("The server is shutting down", error_name="SERVER_SHUTTING_DOWN"))
 
     def close(self) -> None:
-        """Close every branch database and remove the spill directory."""
+        """Interrupt running queries, close every branch database and remove the spill directory."""
+        self.stop_all()
         with self._lock:
             for state in self._branches.values():
                 state.connection.close()

@@ -5,6 +5,8 @@ Basic against bcrypt hashes) and `--tls-cert/--tls-key`: the trino client sends 
 over https, and a lake open to the network needs both. On loopback, `--users` works without TLS
 (clients then need `http_scheme='http'` and, for the trino client, `allow_insecure_auth=True`).
 Once listening it prints one line, `lakegate: serving <lake> at <url> ...`, to standard output.
+SIGINT / SIGTERM stop it within `STOP_GRACE` seconds whatever its queries do: a shutdown that has
+not finished by then ends the process with a message and exit code 1.
 """
 from __future__ import annotations
 
@@ -15,6 +17,7 @@ import signal
 import socket
 import ssl
 import sys
+import threading
 from pathlib import Path
 
 from lakegate.gateway.auth import Users, UsersFileError, check_listen
@@ -23,6 +26,8 @@ from lakegate.gateway.cli import positive as _positive
 from lakegate.gateway.limits import Limits
 
 _DEFAULTS = Limits()
+#: Seconds after the first stop signal when a shutdown still running ends the process.
+STOP_GRACE = 3.5
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -58,6 +63,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--max-concurrent-queries", type=_positive(int), default=_DEFAULTS.max_concurrent_queries,
                         metavar="N", help=f"queries that run at once; more wait in a queue "
                                           f"(default {_DEFAULTS.max_concurrent_queries})")
+    parser.add_argument("--client-timeout", type=_positive(float), default=_DEFAULTS.client_timeout, metavar="S",
+                        help=f"seconds a query may go without its client asking for results before it fails with "
+                             f"ABANDONED_QUERY (Trino's query.client.timeout; default {_DEFAULTS.client_timeout:g})")
     parser.add_argument("--max-queued-queries", type=_positive(int), default=_DEFAULTS.max_queued_queries,
                         metavar="N", help=f"queries that may wait; more fail with QUERY_QUEUE_FULL "
                                           f"(default {_DEFAULTS.max_queued_queries})")
@@ -78,6 +86,28 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def _interrupt(signum: int, frame: object) -> None:
     raise KeyboardInterrupt
+
+
+def _force_exit() -> None:
+    print(f"lakegate: stopped: shutdown did not finish within {STOP_GRACE:g}s of the stop signal "
+          "(query work still running)", file=sys.stderr, flush=True)
+    os._exit(1)
+
+
+def _with_stop_deadline(server, backend) -> None:
+    """Make the first stop signal of `server` (a uvicorn.Server) interrupt the queries of `backend`
+    (a DuckDBBackend) and end the process STOP_GRACE seconds later if it has not stopped by then."""
+    handle_exit = server.handle_exit
+
+    def stop(sig: int, frame: object) -> None:
+        if not server.should_exit:
+            timer = threading.Timer(STOP_GRACE, _force_exit)
+            timer.daemon = True
+            timer.start()
+            backend.stop_all()
+        handle_exit(sig, frame)
+
+    server.handle_exit = stop
 
 
 def _listen(host: str, port: int) -> socket.socket:
@@ -137,14 +167,15 @@ def serve_command(args: argparse.Namespace) -> int:
     limits = Limits(query_timeout=args.query_timeout, max_rows=args.max_rows,
                     max_concurrent_queries=args.max_concurrent_queries, max_queued_queries=args.max_queued_queries,
                     max_body=args.max_body, max_header_bytes=args.max_header_bytes,
-                    request_timeout=args.request_timeout, max_connections=args.max_connections)
+                    request_timeout=args.request_timeout, max_connections=args.max_connections,
+                    client_timeout=args.client_timeout)
     sock = _listen(args.host, args.port)
-    backend = DuckDBBackend(args.lake, memory_limit=args.memory_limit, threads=args.threads)
+    backend = DuckDBBackend(args.lake, memory_limit=args.memory_limit, threads=args.threads, limits=limits)
     dashboard = DashboardState(args.lake, backend)
     try:
         app = create_app(backend, catalog_name=args.catalog, limits=limits, users=users,
                          dashboard_router=dashboard_router(dashboard), allowed_hosts=args.allowed_host)
-        config = server_config(app, limits, timeout_graceful_shutdown=5,
+        config = server_config(app, limits, timeout_graceful_shutdown=1,
                                ssl_certfile=str(args.tls_cert) if args.tls_cert else None,
                                ssl_keyfile=str(args.tls_key) if args.tls_key else None)
         host, port = sock.getsockname()[:2]
@@ -155,7 +186,9 @@ def serve_command(args: argparse.Namespace) -> int:
         # uvicorn shuts down gracefully on SIGINT / SIGTERM, then raises the signal again: both end here
         previous = signal.signal(signal.SIGTERM, _interrupt)
         try:
-            uvicorn.Server(config).run(sockets=[sock])
+            server = uvicorn.Server(config)
+            _with_stop_deadline(server, backend)
+            server.run(sockets=[sock])
         except KeyboardInterrupt:
             pass
         finally:

@@ -10,7 +10,15 @@ and hands them over through a small buffer, so a result is never held whole: a s
 the worker wait. `GET nextUri` returns the next page (waiting up to
 `Limits.wait` for it); the same URI again returns the same document. `DELETE nextUri` or
 `DELETE /v1/query/{id}` cancel (the DuckDB work is interrupted). A reaper enforces the time limit,
-fails queries whose client went away, and forgets finished queries.
+fails queries whose client stopped polling for `Limits.client_timeout` seconds (ABANDONED_QUERY, as
+Trino's `query.client.timeout`), and forgets finished queries.
+
+Each running query has its own daemon worker thread, at most `Limits.max_concurrent_queries` at
+once. A query that ends (time limit, cancel, abandoned) while its worker still works is stopped: its
+DuckDB work is interrupted, and Python work still planning it (parsing, translation) is abandoned by
+an exception raised in the worker. Its slot is free at once: the worker counts as a "zombie" until
+it returns, and at most `max_concurrent_queries` zombies are counted apart, so runaway work never
+jams the server. Shutdown waits at most `SHUTDOWN_GRACE` seconds for workers.
 
 Routes: /v1/statement, /v1/statement/executing/{id}/{slug}/{token} (GET, HEAD, DELETE),
 /v1/query/{id} (GET, DELETE), /v1/info, /v1/info/state. With `users`, every route but /v1/info and
@@ -19,12 +27,13 @@ Routes: /v1/statement, /v1/statement/executing/{id}/{slug}/{token} (GET, HEAD, D
 from __future__ import annotations
 
 import asyncio
+import ctypes
 import logging
+import os
 import secrets
 import threading
 import time
 from collections import deque
-from concurrent.futures import ThreadPoolExecutor
 from contextlib import asynccontextmanager
 from dataclasses import dataclass
 from datetime import datetime, timezone
@@ -40,7 +49,7 @@ from lakegate.dialect import guard
 from lakegate.dialect.errors import DialectError
 from lakegate.gateway import session as sessions
 from lakegate.gateway.auth import Users
-from lakegate.gateway.backend import Backend, QueryResult
+from lakegate.gateway.backend import Backend, QueryResult, hide_paths, time_limit_error
 from lakegate.gateway.http_limits import Guard, authenticated_user
 from lakegate.gateway.host_check import HostCheck
 from lakegate.gateway.limits import Limits
@@ -63,6 +72,8 @@ MAX_PAGE_ROWS = 65_536
 FINAL_PAGE_BYTES = 65_536
 #: How often the reaper looks at the queries.
 REAP_INTERVAL = 0.25
+#: Longest shutdown waits for workers to stop (they are daemon threads: the process may end without them).
+SHUTDOWN_GRACE = 1.0
 JSON = "application/json"
 
 
@@ -74,6 +85,17 @@ class _Page:
 
 class _Stopped(Exception):
     """The query ended (canceled, failed or timed out) while its worker was still producing."""
+
+
+class _Abandoned(BaseException):
+    """Raised in a worker whose query ended while it was planning (Python work nothing else stops)."""
+
+
+def _raise_in(thread_id: int, exception: type[BaseException] | None) -> None:
+    """Raise `exception` in the thread `thread_id` at its next Python instruction (None: forget one
+    raised there and not yet delivered)."""
+    ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(thread_id),
+                                               None if exception is None else ctypes.py_object(exception))
 
 
 def _now() -> datetime:
@@ -91,6 +113,19 @@ def _wake(waiters: list[asyncio.Future]) -> None:
             future.get_loop().call_soon_threadsafe(_resolve, future)
         except RuntimeError:
             pass  # the event loop is closed: nobody waits any more
+
+
+#: Fault injection for tests: a query whose text contains this variable's value first spends up to
+#: 60 s in pure-Python work while planning, standing for a parse or translation that runs away.
+SLOW_PLANNING_ENV = "LAKEGATE_TEST_SLOW_PLANNING"
+
+
+def _injected_planning_work(sql: str) -> None:
+    marker = os.environ.get(SLOW_PLANNING_ENV)
+    if marker and marker in sql:
+        end = time.monotonic() + 60
+        while time.monotonic() < end:
+            pass
 
 
 class Query:
@@ -111,6 +146,8 @@ class Query:
         self.failure: Failure | None = None
         self.started = False
         self.working = False       # a worker runs the statement
+        self.zombie = False        # the query ended but its worker still runs, counted apart
+        self._planner: int | None = None  # the worker thread while it plans the query
         self.done = False          # the worker produced everything, or the query failed
         self.final = False         # the last document was served
         self.rows = 0
@@ -209,11 +246,27 @@ class Query:
     def running(self) -> bool:
         return self.started and not self.done
 
+    def plan(self, start: Callable[[], QueryResult]) -> QueryResult:
+        """`start()`: the query's planning (parsing, translation), which `interrupt` abandons by
+        raising _Abandoned in this thread."""
+        with self.lock:
+            self._planner = threading.get_ident()
+        try:
+            _injected_planning_work(self.sql)
+            return start()
+        finally:
+            with self.lock:
+                self._planner = None
+            _raise_in(threading.get_ident(), None)
+
     def interrupt(self) -> None:
-        """Interrupt the query's DuckDB work again (an interrupt that arrives just before DuckDB
-        starts is lost; the reaper repeats it while a failed query's worker still runs)."""
+        """Stop the ended query's work: interrupt its DuckDB work again (an interrupt that arrives
+        just before DuckDB starts is lost; the reaper repeats it while a failed query's worker still
+        runs), or abandon its planning."""
         with self.lock:
             result = self._result
+            if self._planner is not None and self.done:
+                _raise_in(self._planner, _Abandoned)
         if result is not None:
             result.cancel()
 
@@ -368,8 +421,9 @@ def _pages(columns: Sequence[tuple[str, str]], batches: Iterator[pa.RecordBatch]
 
 
 class QueryManager:
-    """The server's queries: a pool of `max_concurrent_queries` workers, a bounded queue, and the
-    reaper that enforces the time limit, abandons queries clients left and forgets old ones."""
+    """The server's queries: at most `max_concurrent_queries` running (and as many zombies, see the
+    module docstring), a bounded queue, and the reaper that enforces the time limit, abandons
+    queries clients left and forgets old ones."""
 
     def __init__(self, planner: Planner, limits: Limits):
         self.planner, self.limits = planner, limits
@@ -377,7 +431,9 @@ class QueryManager:
         self._queries: dict[str, Query] = {}
         self._lock = threading.Lock()
         self._waiting = 0  # queries created and not yet running or failed
-        self._pool = ThreadPoolExecutor(max_workers=limits.max_concurrent_queries, thread_name_prefix="lakegate-query")
+        self._queue: deque[Query] = deque()  # queries given to `start`, waiting for a worker
+        self._running = 0  # workers of queries that have not ended
+        self._zombies = 0  # workers of ended queries that still run
         self._stop = threading.Event()
         self._reaper = threading.Thread(target=self._reap, name="lakegate-reaper", daemon=True)
         self._reaper.start()
@@ -401,7 +457,43 @@ class QueryManager:
 
     def start(self, query: Query) -> None:
         """Give a queued query to the next free worker."""
-        self._pool.submit(self._run, query)
+        with self._lock:
+            self._queue.append(query)
+            self._dispatch()
+
+    def _dispatch(self) -> None:
+        """Start a worker for each queued query a slot is free for (lock held)."""
+        while self._running < self.limits.max_concurrent_queries and self._queue:
+            query = self._queue.popleft()
+            if query.done:
+                continue  # failed while queued
+            self._running += 1
+            query.working = True
+            threading.Thread(target=self._work, args=(query,), name=f"lakegate-query-{query.id}", daemon=True).start()
+
+    def _work(self, query: Query) -> None:
+        try:
+            self._run(query)
+        except _Abandoned:
+            pass
+        finally:
+            with self._lock:
+                query.working = False
+                if query.zombie:
+                    self._zombies -= 1
+                else:
+                    self._running -= 1
+                self._dispatch()
+
+    def _bury(self, query: Query) -> None:
+        """Count an ended query whose worker still runs as a zombie, freeing its slot (while fewer
+        than `max_concurrent_queries` zombies are counted)."""
+        with self._lock:
+            if query.working and not query.zombie and self._zombies < self.limits.max_concurrent_queries:
+                query.zombie = True
+                self._running -= 1
+                self._zombies += 1
+                self._dispatch()
 
     def get(self, query_id: str) -> Query | None:
         with self._lock:
@@ -415,9 +507,8 @@ class QueryManager:
         if not query.begin():
             return
         batches = None
-        query.working = True
         try:
-            result = self.planner.start(query.sql, query.session)
+            result = query.plan(lambda: self.planner.start(query.sql, query.session))
             batches = result.batches
             query.attach(result)
             held = None  # each page waits for the next, so that the last one ends the query with it
@@ -435,12 +526,13 @@ class QueryManager:
             query.fail(Failure.of(error))
         except Exception as error:  # a bug: the client gets GENERIC_INTERNAL_ERROR, the log the traceback
             log.exception("query %s failed", query.id)
-            query.fail(Failure.of(error))
+            failure = Failure.of(error)
+            query.fail(Failure(hide_paths(failure.message, getattr(self.planner.backend, "lake", None)),
+                               failure.error_name))
         finally:
             close = getattr(batches, "close", None)
             if close is not None:
                 close()
-            query.working = False
 
     def kill(self, query_id: str, message: str | None, session: Session, *, owner_only: bool) -> None:
         """CALL system.runtime.kill_query: fail a running or queued query with ADMINISTRATIVELY_KILLED."""
@@ -459,32 +551,35 @@ class QueryManager:
         while not self._stop.wait(REAP_INTERVAL):
             now = time.monotonic()
             for query in self.queries():
-                if query.failure is not None and query.working:
-                    query.interrupt()
                 idle = now - query.last_access
                 if query.running and query.elapsed("started") > limits.query_timeout:
-                    query.fail(Failure(f"Query exceeded the maximum execution time limit of "
-                                       f"{limits.query_timeout:.2f}s", "EXCEEDED_TIME_LIMIT"))
+                    query.fail(Failure.of(time_limit_error(limits.query_timeout)))
                 elif not query.done and idle > limits.client_timeout:
                     query.fail(Failure(f"Query {query.id} was abandoned by the client: its results have not "
-                                       f"been accessed for {limits.client_timeout:.0f}s", "ABANDONED_QUERY"))
+                                       f"been accessed for {limits.client_timeout:g}s", "ABANDONED_QUERY"))
+                if query.failure is not None and query.working:
+                    query.interrupt()
+                    self._bury(query)
                 if query.done and not query.working and idle > limits.retention:
                     with self._lock:
                         self._queries.pop(query.id, None)
 
     def close(self) -> None:
-        """Fail every query (SERVER_SHUTTING_DOWN), stop the workers and the reaper."""
+        """Fail every query (SERVER_SHUTTING_DOWN), stop the reaper and wait (at most
+        SHUTDOWN_GRACE seconds) for the workers to stop."""
         self._stop.set()
         self._reaper.join()
         queries = self.queries()
         for query in queries:
             query.fail(Failure("The server is shutting down", "SERVER_SHUTTING_DOWN"))
-        deadline = time.monotonic() + 10
+        deadline = time.monotonic() + SHUTDOWN_GRACE
         while any(query.working for query in queries) and time.monotonic() < deadline:
-            time.sleep(REAP_INTERVAL)  # repeat interrupts that came before DuckDB started
-            for query in queries:
+            for query in queries:  # repeat interrupts that came before DuckDB started
                 query.interrupt()
-        self._pool.shutdown(wait=True, cancel_futures=True)
+            time.sleep(0.05)
+        working = sum(query.working for query in queries)
+        if working:
+            log.warning("%d query workers still run at shutdown; they are left to end with the process", working)
 
 
 # --- immediate answers --------------------------------------------------------------------------

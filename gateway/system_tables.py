@@ -24,7 +24,7 @@ import pyarrow as pa
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError, runtime_error
 from lakegate.dialect.translate import translate
-from lakegate.gateway.backend import Backend, QueryResult, _Run
+from lakegate.gateway.backend import BATCH_ROWS, Backend, QueryResult, _Run
 from lakegate.gateway.introspection import _Reader, _tokens
 from lakegate.gateway.session import PROPERTIES, Answer, Session
 
@@ -251,8 +251,8 @@ class Metadata:
         except BaseException as error:
             cursor.close()
             raise runtime_error(str(error)) if isinstance(error, duckdb.Error) else error
-        run = _Run(cursor, relation)
-        return QueryResult(columns=list(translation.columns), batches=run.batches(),
+        run = _Run(cursor, lambda: relation.to_arrow_reader(BATCH_ROWS))
+        return QueryResult(columns=list(translation.columns), batches=run,
                            duckdb_sql=translation.duckdb_sql, _cancel=run.cancel)
 
     def close(self) -> None:

@@ -20,6 +20,7 @@ import trino
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
 from lakegate.gateway.backend import DuckDBBackend
+from lakegate.gateway.limits import Limits
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
 
@@ -449,3 +450,52 @@ def test_a_file_deleted_by_hand_fails_only_its_job(tmp_path):
         assert error.error_name == "HIVE_BAD_DATA" and "table odom, batch b1, job j1" in error.message
     finally:
         backend.close()
+
+
+ENDLESS = ("SELECT count(*) FROM UNNEST(sequence(1, 10000)) AS a(x) CROSS JOIN UNNEST(sequence(1, 10000)) AS b(y) "
+           "CROSS JOIN UNNEST(sequence(1, 10000)) AS c(z)")
+
+
+def test_the_time_limit_and_the_concurrency_bound_hold_for_every_caller(lake):
+    """Trino: query.max-execution-time fails a query (EXPLAIN ANALYZE executes it too) with
+    EXCEEDED_TIME_LIMIT (trinodb/trino docs/src/main/sphinx/admin/properties-query-management.rst)."""
+    backend = DuckDBBackend(lake, limits=Limits(query_timeout=1.0, max_concurrent_queries=1))
+    try:
+        for sql in (ENDLESS, f"EXPLAIN ANALYZE {ENDLESS}"):
+            started = time.monotonic()
+            with pytest.raises(DialectError) as caught:
+                backend.execute(sql).rows()
+            assert (caught.value.error_name, caught.value.message) == (
+                "EXCEEDED_TIME_LIMIT", "Query exceeded the maximum execution time limit of 1.00s")
+            assert time.monotonic() - started < 10
+    finally:
+        backend.close()
+    backend = DuckDBBackend(lake, limits=Limits(max_concurrent_queries=1))
+    try:
+        held = backend.execute("SELECT count(*) FROM odom")  # started, not read: it holds the only slot
+        answers: list = []
+        waiting = threading.Thread(target=lambda: answers.append(backend.execute("SELECT 1").rows()))
+        waiting.start()
+        waiting.join(0.5)
+        assert waiting.is_alive() and not answers  # waits for the slot
+        held.batches.close()
+        waiting.join(10)
+        assert answers == [[(1,)]]
+    finally:
+        backend.close()
+
+
+def test_errors_and_plans_name_lake_files_relative_to_the_lake(tmp_path):
+    lake = build_lake(tmp_path)
+    backend = DuckDBBackend(lake)
+    try:
+        plan = backend.execute("EXPLAIN ANALYZE SELECT count(*) FROM odom").rows()[0][0]
+        broken = next((lake / "main" / "odom").rglob("*.parquet"))
+        broken.write_bytes(b"not a parquet file")
+        error = refused(backend, "SELECT count(*) FROM odom")
+        unknown = refused(backend, "SELECT 1", branch="nope")
+    finally:
+        backend.close()
+    assert error.error_name == "HIVE_BAD_DATA" and "table odom" in error.message
+    for text in (plan, error.message, unknown.message):
+        assert str(tmp_path) not in text

@@ -45,7 +45,7 @@ OURS = """
 import json, sys, time, resource
 from pathlib import Path
 from lakegate.fixtures.generate import CONFIG_PATH
-from lakegate.gateway.metrics import MetricsEngine
+from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.lake.config import load_config
 config = load_config(CONFIG_PATH)
 metrics = [config.metrics[name] for name in json.loads(sys.argv[2])]
@@ -67,7 +67,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from lakegate.dialect.scope import Scope
 from lakegate.fixtures.generate import CONFIG_PATH
-from lakegate.gateway.backend import DuckDBBackend
+from lakegate.gateway.engine.backend import DuckDBBackend
 from lakegate.lake.config import load_config
 config = load_config(CONFIG_PATH)
 metrics = [config.metrics[name] for name in json.loads(sys.argv[2])]

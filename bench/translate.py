@@ -33,8 +33,7 @@ from results import median_of, timed, write_section  # noqa: E402
 
 from lakegate.dialect import translate as translate_module  # noqa: E402
 from lakegate.dialect.scope import Scope  # noqa: E402
-from lakegate.gateway.backend import BATCH_ROWS, DuckDBBackend  # noqa: E402
-from lakegate.lake import paths  # noqa: E402
+from lakegate.gateway.engine.backend import BATCH_ROWS, DuckDBBackend  # noqa: E402
 from lakegate.lake.catalog import Catalog  # noqa: E402
 from lakegate.lake.config import load_config  # noqa: E402
 from lakegate.lake.ingest import ingest_job  # noqa: E402

@@ -19,8 +19,8 @@ import trino
 
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
-from lakegate.gateway.backend import DuckDBBackend
-from lakegate.gateway.limits import Limits
+from lakegate.gateway.engine.backend import DuckDBBackend
+from lakegate.gateway.engine.limits import Limits
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
 

@@ -23,11 +23,11 @@ import pytest
 import uvicorn
 
 from lakegate.dialect.scope import Scope
-from lakegate.gateway.dashboard import DashboardState, dashboard_router
-from lakegate.gateway.debug_command import DebugJob
-from lakegate.gateway.debug_session import DashboardSession, FileConfig
-from lakegate.gateway.metrics import MetricsEngine
-from lakegate.gateway.server import create_app
+from lakegate.gateway.dashboard.routes import DashboardState, dashboard_router
+from lakegate.gateway.cli.debug import DebugJob
+from lakegate.gateway.dashboard.debug_session import DashboardSession, FileConfig
+from lakegate.gateway.metrics.evaluation import MetricsEngine
+from lakegate.gateway.server.app import create_app
 from lakegate.lake import paths
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job

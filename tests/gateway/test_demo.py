@@ -7,9 +7,9 @@ import re
 import subprocess
 import sys
 
-from lakegate.gateway.backend import DuckDBBackend
-from lakegate.gateway.demo_command import BATCH, BRANCH
-from lakegate.gateway.results import read_results
+from lakegate.gateway.engine.backend import DuckDBBackend
+from lakegate.gateway.cli.demo import BATCH, BRANCH
+from lakegate.gateway.metrics.results import read_results
 from lakegate.lake.catalog import Catalog
 
 CLI = [sys.executable, "-m", "lakegate.gateway.cli"]

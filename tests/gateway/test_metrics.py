@@ -16,7 +16,7 @@ import pytest
 
 from lakegate.dialect.scope import Scope
 from lakegate.fixtures.generate import CONFIG_PATH, GeneratedJob, generate_batch
-from lakegate.gateway.metrics import (BatchEvaluation, MetricsEngine, config_position, conflated_status, select_metrics,
+from lakegate.gateway.metrics.evaluation import (BatchEvaluation, MetricsEngine, config_position, conflated_status, select_metrics,
                                       worst)
 from lakegate.lake import paths
 from lakegate.lake.config import Location, Metric, StatusCheck, load_config

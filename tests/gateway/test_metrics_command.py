@@ -13,8 +13,8 @@ from pathlib import Path
 import pytest
 
 from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
-from lakegate.gateway.metrics import worst
-from lakegate.gateway.results import read_results
+from lakegate.gateway.metrics.evaluation import worst
+from lakegate.gateway.metrics.results import read_results
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file, read_metadata_row

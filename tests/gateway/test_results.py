@@ -10,9 +10,9 @@ from pathlib import Path
 import pytest
 
 from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
-from lakegate.gateway.backend import DuckDBBackend
-from lakegate.gateway.metrics import MetricsEngine
-from lakegate.gateway.results import read_results
+from lakegate.gateway.engine.backend import DuckDBBackend
+from lakegate.gateway.metrics.evaluation import MetricsEngine
+from lakegate.gateway.metrics.results import read_results
 from lakegate.lake.catalog import METRIC_RESULTS_COLUMNS
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job

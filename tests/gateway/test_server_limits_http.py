@@ -319,4 +319,4 @@ def test_a_port_outside_0_to_65535_is_refused(server_lake, command, port):
     result = subprocess.run([sys.executable, "-m", "lakegate.gateway.cli", *args, "--port", port],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 2 and "Traceback" not in result.stderr
-    assert f"argument --port: expected a port number (0 to 65535" in result.stderr and repr(port) in result.stderr
+    assert "argument --port: expected a port number (0 to 65535" in result.stderr and repr(port) in result.stderr

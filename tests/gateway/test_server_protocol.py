@@ -13,8 +13,8 @@ import pytest
 import requests
 import uvicorn
 
-from lakegate.gateway.backend import DuckDBBackend
-from lakegate.gateway.server import Limits, create_app
+from lakegate.gateway.engine.backend import DuckDBBackend
+from lakegate.gateway.server.app import Limits, create_app
 
 ALL_TYPES_BRANCH = "feature/all-types"  # the second branch of the test lake (conftest.py)
 HEADERS = {"X-Trino-User": "tester", "X-Trino-Catalog": "lake", "X-Trino-Schema": "main"}

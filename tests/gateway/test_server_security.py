@@ -12,7 +12,7 @@ import requests
 import trino
 from trino.auth import BasicAuthentication
 
-from lakegate.gateway import cli
+from lakegate.gateway.cli import main as cli
 
 PASSWORDS = {"alice": "wonderland", "bob": "builder"}
 HEADERS = {"X-Trino-Catalog": "lake", "X-Trino-Schema": "main"}

@@ -16,8 +16,8 @@ import plotly.graph_objects as go
 import pytest
 from plotly.offline import get_plotlyjs
 
-from lakegate.gateway.figures_html import figure_html, report_html
-from lakegate.gateway.templates import (
+from lakegate.gateway.metrics.figures_html import figure_html, report_html
+from lakegate.gateway.metrics.templates import (
     PALETTE,
     TemplateError,
     format_number,
@@ -349,7 +349,7 @@ def test_state_colours_are_stable_across_metrics_and_processes():
     colours_b = {t["name"]: t["marker"]["color"] for t in second.figure["data"]}
     assert colours_a["ACTIVE"] == colours_b["ACTIVE"] and colours_a["FAILED"] == colours_b["FAILED"]
     assert set(colours_a.values()) | set(colours_b.values()) <= set(PALETTE)
-    code = "from lakegate.gateway.templates import state_colour; print(state_colour('ACTIVE'), state_colour('FAILED'))"
+    code = "from lakegate.gateway.metrics.templates import state_colour; print(state_colour('ACTIVE'), state_colour('FAILED'))"
     outputs = [  # Python's own hash() of a str differs between these processes; the colours must not
         subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
                        env={**os.environ, "PYTHONHASHSEED": seed}).stdout.split()

@@ -26,13 +26,13 @@ from lakegate.dialect.errors import ERROR_CODES, DialectError
 from lakegate.dialect.scope import Scope
 from lakegate.dialect.translate import parse
 from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
-from lakegate.gateway.backend import DuckDBBackend
-from lakegate.gateway.backends_cli import add_backend_arguments, backend_from_args
-from lakegate.gateway.cli import UserError
-from lakegate.gateway.results import read_results
-from lakegate.gateway import trino_backend
-from lakegate.gateway.trino_backend import RemoteQueryError, TrinoBackend, forwarded_sql
-from lakegate.gateway.trino_ddl import schema_name
+from lakegate.gateway.engine.backend import DuckDBBackend
+from lakegate.gateway.cli.backends import add_backend_arguments, backend_from_args
+from lakegate.gateway.cli.errors import UserError
+from lakegate.gateway.metrics.results import read_results
+from lakegate.gateway.engine import trino_backend
+from lakegate.gateway.engine.trino_backend import RemoteQueryError, TrinoBackend, forwarded_sql
+from lakegate.gateway.engine.trino_ddl import schema_name
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file

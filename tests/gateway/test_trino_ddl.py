@@ -16,8 +16,8 @@ import sqlglot
 from sqlglot import exp
 
 from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
-from lakegate.gateway.metrics import MetricsEngine, select_metrics
-from lakegate.gateway.trino_ddl import DDLError, hive_type, schema_name
+from lakegate.gateway.metrics.evaluation import MetricsEngine, select_metrics
+from lakegate.gateway.engine.trino_ddl import DDLError, hive_type, schema_name
 from lakegate.lake import paths
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.config import load_config

@@ -14,7 +14,7 @@ import pyarrow as pa
 import pytest
 from trino.mapper import RowMapperFactory
 
-from lakegate.gateway.trino_values import encode_rows, encoder, type_signature
+from lakegate.gateway.engine.trino_values import encode_rows, encoder, type_signature
 
 VARCHAR = {"rawType": "varchar", "arguments": [{"kind": "LONG", "value": 2147483647}]}
 

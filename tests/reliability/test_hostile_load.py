@@ -17,7 +17,6 @@ from __future__ import annotations
 import resource
 import signal
 import subprocess
-import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path

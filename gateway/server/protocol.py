@@ -17,7 +17,7 @@ from typing import Sequence
 import orjson
 
 from lakegate.dialect.errors import DialectError
-from lakegate.gateway.trino_values import type_signature
+from lakegate.gateway.engine.trino_values import type_signature
 
 #: The Trino release whose behaviour lakegate follows, reported by /v1/info and `version()`.
 TRINO_VERSION = "476"

@@ -29,8 +29,8 @@ from lakegate.dialect.errors import ERROR_CODES, DialectError
 from lakegate.dialect.scope import Scope, restrict
 from lakegate.dialect.translate import LakegateTrino, parse
 from lakegate.dialect.trino_types import TType, parse_type
-from lakegate.gateway.backend import QueryResult
-from lakegate.gateway.trino_ddl import quote_ident, quote_text, schema_name
+from lakegate.gateway.engine.backend import QueryResult
+from lakegate.gateway.engine.trino_ddl import quote_ident, quote_text, schema_name
 
 #: Rows fetched from the cluster per record batch.
 BATCH_ROWS = 10_000

@@ -54,9 +54,9 @@ from tqdm import tqdm
 
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
-from lakegate.gateway.backend import Backend, DuckDBBackend
-from lakegate.gateway.results import ResultsWriter
-from lakegate.gateway.templates import UNSUPPORTED_TEMPLATES, Rendered, TemplateError, json_value, render
+from lakegate.gateway.engine.backend import Backend, DuckDBBackend
+from lakegate.gateway.metrics.results import ResultsWriter
+from lakegate.gateway.metrics.templates import UNSUPPORTED_TEMPLATES, Rendered, TemplateError, json_value, render
 from lakegate.lake import paths
 from lakegate.lake.config import Config, Location, Metric
 

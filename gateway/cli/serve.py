@@ -20,10 +20,10 @@ import sys
 import threading
 from pathlib import Path
 
-from lakegate.gateway.auth import Users, UsersFileError, check_listen
-from lakegate.gateway.cli import UserError, port_number
-from lakegate.gateway.cli import positive as _positive
-from lakegate.gateway.limits import Limits
+from lakegate.gateway.server.auth import Users, UsersFileError, check_listen
+from lakegate.gateway.cli.errors import UserError, port_number
+from lakegate.gateway.cli.errors import positive as _positive
+from lakegate.gateway.engine.limits import Limits
 
 _DEFAULTS = Limits()
 #: Seconds after the first stop signal when a shutdown still running ends the process.
@@ -158,10 +158,10 @@ def _check_options(args: argparse.Namespace) -> Users | None:
 def serve_command(args: argparse.Namespace) -> int:
     import uvicorn  # the server's imports cost every other command their start-up time: load them here
 
-    from lakegate.gateway.backend import DuckDBBackend
-    from lakegate.gateway.dashboard import DashboardState, dashboard_router
-    from lakegate.gateway.http_limits import server_config
-    from lakegate.gateway.server import create_app
+    from lakegate.gateway.engine.backend import DuckDBBackend
+    from lakegate.gateway.dashboard.routes import DashboardState, dashboard_router
+    from lakegate.gateway.server.http_limits import server_config
+    from lakegate.gateway.server.app import create_app
 
     users = _check_options(args)
     limits = Limits(query_timeout=args.query_timeout, max_rows=args.max_rows,

@@ -7,9 +7,9 @@ import argparse
 import os
 from pathlib import Path
 
-from lakegate.gateway.backend import Backend, DuckDBBackend
-from lakegate.gateway.cli import UserError
-from lakegate.gateway.trino_backend import TrinoBackend
+from lakegate.gateway.engine.backend import Backend, DuckDBBackend
+from lakegate.gateway.cli.errors import UserError
+from lakegate.gateway.engine.trino_backend import TrinoBackend
 
 
 def add_backend_arguments(parser: argparse.ArgumentParser) -> None:

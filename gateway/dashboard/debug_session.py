@@ -38,9 +38,9 @@ from ruamel.yaml.scalarstring import LiteralScalarString
 
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
-from lakegate.gateway.metrics import (EVALUATED_TYPES, MetricResult, MetricsEngine, conflated_status, worst)
-from lakegate.gateway.results import read_results
-from lakegate.gateway.templates import TEMPLATES, json_value
+from lakegate.gateway.metrics.evaluation import (EVALUATED_TYPES, MetricResult, MetricsEngine, conflated_status, worst)
+from lakegate.gateway.metrics.results import read_results
+from lakegate.gateway.metrics.templates import TEMPLATES, json_value
 from lakegate.lake.config import Config, ConfigError, Metric, load_config
 from lakegate.lake.config_schema import SET_METRIC_TYPES
 from lakegate.lake.registry import BranchConfigs

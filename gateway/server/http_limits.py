@@ -21,8 +21,8 @@ from starlette.concurrency import run_in_threadpool
 from starlette.requests import ClientDisconnect
 from uvicorn.protocols.http.httptools_impl import HttpToolsProtocol
 
-from lakegate.gateway.auth import LoginFailures, Users, basic_credentials
-from lakegate.gateway.limits import Limits
+from lakegate.gateway.server.auth import LoginFailures, Users, basic_credentials
+from lakegate.gateway.engine.limits import Limits
 
 log = logging.getLogger("lakegate.server")
 

@@ -5,8 +5,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from lakegate.gateway.cli import UserError
-from lakegate.gateway.trino_ddl import DDLError, ddl
+from lakegate.gateway.cli.errors import UserError
+from lakegate.gateway.engine.trino_ddl import DDLError, ddl
 from lakegate.lake.paths import LakePathError
 
 

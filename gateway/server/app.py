@@ -47,18 +47,18 @@ from starlette.concurrency import run_in_threadpool
 
 from lakegate.dialect import guard
 from lakegate.dialect.errors import DialectError
-from lakegate.gateway import session as sessions
-from lakegate.gateway.auth import Users
-from lakegate.gateway.backend import Backend, QueryResult, hide_paths, time_limit_error
-from lakegate.gateway.http_limits import Guard, authenticated_user
-from lakegate.gateway.host_check import HostCheck
-from lakegate.gateway.limits import Limits
-from lakegate.gateway.protocol import (Failure, Progress, QueryIds, columns_document, info_document,
+from lakegate.gateway.server import session as sessions
+from lakegate.gateway.server.auth import Users
+from lakegate.gateway.engine.backend import Backend, QueryResult, hide_paths, time_limit_error
+from lakegate.gateway.server.http_limits import Guard, authenticated_user
+from lakegate.gateway.server.host_check import HostCheck
+from lakegate.gateway.engine.limits import Limits
+from lakegate.gateway.server.protocol import (Failure, Progress, QueryIds, columns_document, info_document,
                                        results_document)
-from lakegate.gateway.session import Answer, Session
-from lakegate.gateway.statements import Planner, static_result
-from lakegate.gateway.system_tables import Metadata
-from lakegate.gateway.trino_values import encode_columns, encode_rows
+from lakegate.gateway.server.session import Answer, Session
+from lakegate.gateway.server.statements import Planner, static_result
+from lakegate.gateway.server.system_tables import Metadata
+from lakegate.gateway.engine.trino_values import encode_columns, encode_rows
 
 log = logging.getLogger("lakegate.server")
 

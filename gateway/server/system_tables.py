@@ -24,9 +24,9 @@ import pyarrow as pa
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError, runtime_error
 from lakegate.dialect.translate import translate
-from lakegate.gateway.backend import BATCH_ROWS, Backend, QueryResult, _Run
-from lakegate.gateway.introspection import _Reader, _tokens
-from lakegate.gateway.session import PROPERTIES, Answer, Session
+from lakegate.gateway.engine.backend import BATCH_ROWS, Backend, QueryResult, _Run
+from lakegate.gateway.engine.introspection import _Reader, _tokens
+from lakegate.gateway.server.session import PROPERTIES, Answer, Session
 
 INFORMATION_SCHEMA = "information_schema"
 SYSTEM = "system"

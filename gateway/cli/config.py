@@ -5,7 +5,7 @@ import argparse
 import json
 from pathlib import Path
 
-from lakegate.gateway.cli import UserError
+from lakegate.gateway.cli.errors import UserError
 from lakegate.lake.config import ConfigError, find_default_config, load_config
 from lakegate.lake.config_schema import json_schema
 

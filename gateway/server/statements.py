@@ -30,10 +30,10 @@ from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.params import parse_execute
 from lakegate.dialect.translate import parse
-from lakegate.gateway.backend import Backend, QueryResult
-from lakegate.gateway.protocol import TRINO_VERSION
-from lakegate.gateway.session import Answer, Session, check_properties
-from lakegate.gateway.system_tables import Metadata, TableRef
+from lakegate.gateway.engine.backend import Backend, QueryResult
+from lakegate.gateway.server.protocol import TRINO_VERSION
+from lakegate.gateway.server.session import Answer, Session, check_properties
+from lakegate.gateway.server.system_tables import Metadata, TableRef
 
 _EXECUTE = re.compile(r"(?:\s+|--[^\n]*(?:\n|$)|/\*.*?\*/)*EXECUTE\b", re.I | re.S)
 _ARROW = {"varchar": pa.string(), "bigint": pa.int64(), "boolean": pa.bool_()}

@@ -40,8 +40,8 @@ from lakegate.dialect import guard
 from lakegate.dialect.errors import DialectError, runtime_error
 from lakegate.dialect.scope import Scope
 from lakegate.dialect.translate import Translation, translate
-from lakegate.gateway import introspection
-from lakegate.gateway.limits import Limits
+from lakegate.gateway.engine import introspection
+from lakegate.gateway.engine.limits import Limits
 from lakegate.lake import paths
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.record import FileEntry, Record

@@ -16,7 +16,7 @@ from pathlib import Path
 
 from plotly.offline import get_plotlyjs
 
-from lakegate.gateway.templates import Rendered, display_value, image_mime
+from lakegate.gateway.metrics.templates import Rendered, display_value, image_mime
 
 #: Badge colours of metric statuses.
 STATUS_COLOURS = {

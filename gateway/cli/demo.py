@@ -18,10 +18,10 @@ from pathlib import Path
 from tqdm import tqdm
 
 from lakegate.fixtures.generate import generate_batch
-from lakegate.gateway.cli import writable_lake
-from lakegate.gateway.metrics import MetricsEngine
-from lakegate.gateway.metrics_command import format_table
-from lakegate.gateway.report import write_report
+from lakegate.gateway.cli.errors import writable_lake
+from lakegate.gateway.metrics.evaluation import MetricsEngine
+from lakegate.gateway.cli.metrics import format_table
+from lakegate.gateway.metrics.report import write_report
 from lakegate.lake import paths
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file

@@ -33,7 +33,7 @@ from lakegate.lake.metadata import read_metadata_row, stage_metadata_row
 from lakegate.lake.record import Change, FileEntry, current_file
 
 if TYPE_CHECKING:
-    from lakegate.gateway.metrics import MetricResult
+    from lakegate.gateway.metrics.evaluation import MetricResult
 
 _ARROW = {"varchar": pa.string(), "double": pa.float64(), "bigint": pa.int64(), "timestamp(3)": pa.timestamp("ms")}
 #: The Arrow schema of a batch's results file (batch_id lives in the directory name).

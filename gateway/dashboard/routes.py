@@ -37,10 +37,10 @@ from fastapi import APIRouter, Body, HTTPException
 from fastapi.responses import FileResponse, JSONResponse, RedirectResponse, Response
 
 from lakegate.dialect.errors import DialectError
-from lakegate.gateway.backend import Backend, DuckDBBackend
-from lakegate.gateway.debug_session import BranchConfig, DashboardSession, SessionError
-from lakegate.gateway.metrics import MetricsEngine
-from lakegate.gateway.results import read_results
+from lakegate.gateway.engine.backend import Backend, DuckDBBackend
+from lakegate.gateway.dashboard.debug_session import BranchConfig, DashboardSession, SessionError
+from lakegate.gateway.metrics.evaluation import MetricsEngine
+from lakegate.gateway.metrics.results import read_results
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.paths import LakePathError
 

@@ -15,12 +15,12 @@ from pathlib import Path
 from typing import Sequence
 
 from lakegate.dialect.errors import DialectError
-from lakegate.gateway.backends_cli import add_backend_arguments, backend_from_args
-from lakegate.gateway.cli import UserError, os_error_text, positive, writable_lake
-from lakegate.gateway.metrics import (BLOCKER, ERROR, SEVERITY, BatchEvaluation, MetricResult, MetricsEngine,
+from lakegate.gateway.cli.backends import add_backend_arguments, backend_from_args
+from lakegate.gateway.cli.errors import UserError, os_error_text, positive, writable_lake
+from lakegate.gateway.metrics.evaluation import (BLOCKER, ERROR, SEVERITY, BatchEvaluation, MetricResult, MetricsEngine,
                                       select_metrics)
-from lakegate.gateway.report import job_title, write_report
-from lakegate.gateway.templates import display_value
+from lakegate.gateway.metrics.report import job_title, write_report
+from lakegate.gateway.metrics.templates import display_value
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.config import Config, ConfigError, find_default_config, load_config
 from lakegate.lake.paths import LakePathError
@@ -73,7 +73,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                      help="show a progress bar on standard error (default: when it is a terminal)")
     run.set_defaults(func=run_command)
 
-    from lakegate.gateway.debug_command import add_debug_parser  # `metrics debug` lives in its own module
+    from lakegate.gateway.cli.debug import add_debug_parser  # `metrics debug` lives in its own module
     add_debug_parser(commands)
 
 

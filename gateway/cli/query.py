@@ -10,9 +10,9 @@ from typing import Any, TextIO
 
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
-from lakegate.gateway.backend import DuckDBBackend, QueryResult
-from lakegate.gateway.cli import UserError
-from lakegate.gateway.trino_values import encode_rows
+from lakegate.gateway.engine.backend import DuckDBBackend, QueryResult
+from lakegate.gateway.cli.errors import UserError
+from lakegate.gateway.engine.trino_values import encode_rows
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:

@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 from typing import Any, Sequence
 
-from lakegate.gateway.cli import UserError, writable_lake
+from lakegate.gateway.cli.errors import UserError, writable_lake
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.config import Config, ConfigError, find_default_config, load_config
 from lakegate.lake.ingest import IngestError, IngestReport, ingest_job

@@ -30,8 +30,8 @@ import webbrowser
 from pathlib import Path
 from typing import Any, Iterator
 
-from lakegate.gateway.auth import is_loopback
-from lakegate.gateway.cli import UserError, port_number
+from lakegate.gateway.server.auth import is_loopback
+from lakegate.gateway.cli.errors import UserError, port_number
 from lakegate.lake import paths
 from lakegate.lake.config import Config, ConfigError, find_default_config, load_config
 from lakegate.lake.ingest import IngestError, ingest_job
@@ -212,9 +212,9 @@ def _can_open_browser() -> bool:
 
 def debug_command(args: argparse.Namespace) -> int:
     # the web stack is imported here, so that other commands start without it
-    from lakegate.gateway.dashboard import DashboardState, dashboard_router
-    from lakegate.gateway.debug_session import DashboardSession, FileConfig, SessionError
-    from lakegate.gateway.server import create_app
+    from lakegate.gateway.dashboard.routes import DashboardState, dashboard_router
+    from lakegate.gateway.dashboard.debug_session import DashboardSession, FileConfig, SessionError
+    from lakegate.gateway.server.app import create_app
 
     if not is_loopback(args.host):
         raise UserError(f"refusing to serve the dashboard on {args.host}: it has no authentication; listen on a "
@@ -293,8 +293,8 @@ def _server(app: Any) -> Any:
     """A uvicorn server for `app` that gives open requests at most SHUTDOWN_SECONDS once stopped."""
     import uvicorn
 
-    from lakegate.gateway.http_limits import server_config
-    from lakegate.gateway.limits import Limits
+    from lakegate.gateway.server.http_limits import server_config
+    from lakegate.gateway.engine.limits import Limits
 
     return uvicorn.Server(server_config(app, Limits(), timeout_graceful_shutdown=SHUTDOWN_SECONDS))
 

@@ -1,0 +1,47 @@
+"""Errors the command line prints as one line (no traceback), and argument checks shared by commands."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any, Callable
+
+
+class UserError(Exception):
+    """An error caused by the user's input; printed as `lakegate: <message>`, exit code 1."""
+
+
+def port_number(text: str) -> int:
+    """An argparse type: a TCP port number, 0 to 65535 (0: any free port)."""
+    try:
+        number = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a port number (0 to 65535), got {text!r}") from None
+    if not 0 <= number <= 65535:
+        raise argparse.ArgumentTypeError(f"expected a port number (0 to 65535; 0 picks a free one), got {text!r}")
+    return number
+
+
+def positive(kind: type) -> Callable[[str], Any]:
+    """An argparse `type` that reads a `kind` (int or float) greater than 0."""
+    def parse(text: str) -> Any:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
+        if not value > 0:
+            raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+        return value
+    return parse
+
+
+def os_error_text(error: OSError) -> str:
+    """An OSError in one line: why, and the file (`No space left on device: 'lake/x'`)."""
+    reason = error.strerror or str(error)
+    return f"{reason}: {str(error.filename)!r}" if error.filename is not None else reason
+
+
+def writable_lake(path: Path) -> Path:
+    """`path` as a lake to write to (it need not exist yet); UserError if it is not a folder."""
+    if path.exists() and not path.is_dir():
+        raise UserError(f"--lake {str(path)!r} is not a directory (a lake is a folder; it is created if missing)")
+    return path

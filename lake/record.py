@@ -1,6 +1,6 @@
 """The branch's file record: which Parquet file holds each table's rows of each job, switched atomically.
 
-`<lake>/<branch-dir>/_lake.sqlite` (SQLite, WAL) keeps one row per (table, batch, job) in `files`
+`<lake>/<branch-dir>/_lake.sqlite` (SQLite, rollback journal) keeps one row per (table, batch, job) in `files`
 (path relative to the branch directory, row count, min/max `timestamp`, the file's columns, the
 commit that wrote it) and a `commits` log whose last id is the branch's *generation*. Writers
 put every new file in its partition directory under a fresh name (`paths.new_data_file`), with
@@ -106,18 +106,24 @@ class Record:
         self._db: sqlite3.Connection | None = None
 
     def _connect(self) -> sqlite3.Connection:
+        """The record's connection. SQLite's rollback journal (not WAL), so that a reader writes
+        nothing: a read-only mount or a full disk can still be read."""
         if self._db is None:
-            self.root.mkdir(parents=True, exist_ok=True)
-            db = sqlite3.connect(self.root / RECORD, timeout=BUSY_TIMEOUT_MS / 1000, isolation_level=None,
-                                 check_same_thread=False)
+            path = self.root / RECORD
+            if path.is_file() and not os.access(self.root, os.W_OK):  # a read-only lake
+                db = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True, timeout=BUSY_TIMEOUT_MS / 1000,
+                                     isolation_level=None, check_same_thread=False)
+            else:
+                self.root.mkdir(parents=True, exist_ok=True)
+                db = sqlite3.connect(path, timeout=BUSY_TIMEOUT_MS / 1000, isolation_level=None,
+                                     check_same_thread=False)
             db.execute(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
-            db.execute("PRAGMA journal_mode = WAL")
-            db.execute("PRAGMA synchronous = NORMAL")
-            with _transaction(db, immediate=True):
-                for statement in _SCHEMA.split(";")[:-1]:
-                    db.execute(statement)
-                if db.execute("SELECT count(*) FROM commits").fetchone()[0] == 0:
-                    _migrate(db, self.root)
+            if not _created(db):
+                with _transaction(db, immediate=True):
+                    for statement in _SCHEMA.split(";")[:-1]:
+                        db.execute(statement)
+                    if db.execute("SELECT count(*) FROM commits").fetchone()[0] == 0:
+                        _migrate(db, self.root)
             self._db = db
         return self._db
 
@@ -290,6 +296,13 @@ def _hidden(relative: str) -> str:
 def _entry(row: tuple) -> FileEntry:
     table, batch_id, job_id, path, rows, low, high, columns = row
     return FileEntry(table, batch_id, job_id, path, rows, low, high, tuple(json.loads(columns)))
+
+
+def _created(db: sqlite3.Connection) -> bool:
+    """Whether the record has its tables and first commit (read only: nothing to write then)."""
+    if db.execute("SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name = 'commits'").fetchone()[0] == 0:
+        return False
+    return db.execute("SELECT count(*) FROM commits").fetchone()[0] > 0
 
 
 def _migrate(db: sqlite3.Connection, root: Path) -> None:

@@ -160,7 +160,7 @@ def test_dashboard_queries_and_metrics_run_under_the_servers_limits(start):
 
 
 def test_a_client_that_stops_polling_abandons_its_query(start):
-    server = start("--client-timeout", "2", "--max-concurrent-queries", "1")
+    server = start("--client-timeout", "4", "--max-concurrent-queries", "1")  # 4 s: a loaded machine still polls in time
     connection = trino.dbapi.connect(host=server.host, port=server.port, user="tester", catalog="lake", schema="main")
     cursor = connection.cursor()
     cursor.execute("SELECT x, y FROM UNNEST(sequence(1, 2000)) AS a(x) CROSS JOIN UNNEST(sequence(1, 1000)) AS b(y)")
@@ -171,5 +171,5 @@ def test_a_client_that_stops_polling_abandons_its_query(start):
                                schema="runtime").cursor()
     rows.execute(f"SELECT state, error_code FROM queries WHERE query_id = '{query_id}'")
     assert rows.fetchall() == [["FAILED", "ABANDONED_QUERY"]]
-    assert time.monotonic() - started < 5
+    assert time.monotonic() - started < 12  # the client timeout, plus a loaded machine's slack
     assert stop_within(server) == 0

@@ -31,10 +31,11 @@ from lakegate.dialect.errors import DialectError
 from lakegate.dialect.params import parse_execute
 from lakegate.dialect.translate import parse
 from lakegate.gateway.engine.backend import Backend, QueryResult
-from lakegate.gateway.server.protocol import TRINO_VERSION
-from lakegate.gateway.server.session import Answer, Session, check_properties
-from lakegate.gateway.server.system_tables import Metadata, TableRef
+from lakegate.gateway.engine.session import Answer, Session, check_properties
+from lakegate.gateway.engine.system_tables import Metadata, TableRef
 
+#: The Trino release whose behaviour lakegate follows, reported by /v1/info and `version()`.
+TRINO_VERSION = "476"
 _EXECUTE = re.compile(r"(?:\s+|--[^\n]*(?:\n|$)|/\*.*?\*/)*EXECUTE\b", re.I | re.S)
 _ARROW = {"varchar": pa.string(), "bigint": pa.int64(), "boolean": pa.bool_()}
 #: What `version()` becomes: a varchar expression no longer than the call's text `version()`.

@@ -3,8 +3,9 @@ RESET SESSION, PREPARE, DEALLOCATE PREPARE, START TRANSACTION / COMMIT / ROLLBAC
 
 `Reader` walks a statement token by token (sqlglot's Trino tokenizer, every statement read word by
 word), reading names as Trino does (unquoted parts lower-cased) and reporting a syntax error with
-the line and column of the token it did not expect. Which statement a text is comes from
-`guard.classify`; what each statement means is its answerer's (the engine's session and system tables).
+the line and column of the token it did not expect. Which statement a text is comes from its first
+words (`guard.first_words`, `guard.classify`); what each statement means is its answerer's (the
+engine's sessions, planner and system tables).
 """
 from __future__ import annotations
 

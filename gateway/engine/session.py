@@ -9,7 +9,6 @@ back in `X-Trino-Prepared-Statement`. Transactions are accepted and do nothing (
 """
 from __future__ import annotations
 
-import re
 import uuid
 from dataclasses import dataclass, field
 from typing import Callable, Mapping
@@ -17,6 +16,7 @@ from urllib.parse import quote_plus, unquote_plus
 
 from sqlglot.tokens import TokenType
 
+from lakegate.dialect import guard
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
 from lakegate.dialect.statements import Reader
@@ -120,16 +120,9 @@ def _done(update_type: str, *headers: tuple[str, str]) -> Answer:
 
 # --- reading the statements ------------------------------------------------------------------
 
-_SKIP = r"(?:\s+|--[^\n]*(?:\n|$)|/\*.*?\*/)*"
-_FIRST_WORDS = re.compile(rf"{_SKIP}([A-Za-z_]+)(?:{_SKIP}([A-Za-z_]+))?", re.S)
-
-
 def statement_name(sql: str) -> str | None:
     """Which of `STATEMENTS` `sql` is (None for any other statement)."""
-    match = _FIRST_WORDS.match(sql)
-    if match is None:
-        return None
-    first, second = match.group(1).upper(), (match.group(2) or "").upper()
+    first, second = (guard.first_words(sql, 2) + ["", ""])[:2]
     for name in STATEMENTS:
         words = name.split()
         if words[0] == first and (len(words) == 1 or words[1] == second):

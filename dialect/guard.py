@@ -96,6 +96,12 @@ def _words(sql: str, offset: int, count: int) -> list[tuple[str, int]]:
     return words
 
 
+def first_words(sql: str, count: int) -> list[str]:
+    """The statement's first `count` words (fewer if it has fewer), upper-cased: what every caller
+    that tells statements apart reads (blanks, comments and opening parentheses skipped)."""
+    return [word for word, _ in _words(sql, 0, count)]
+
+
 def _statement(sql: str, offset: int = 0) -> tuple[str, str, int]:
     """(kind, statement name, offset of its first word) of the statement starting at `offset`."""
     words = _words(sql, offset, 2)

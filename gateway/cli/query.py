@@ -10,16 +10,18 @@ from typing import Any, TextIO
 
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
-from lakegate.gateway.engine.backend import DuckDBBackend, QueryResult
+from lakegate.gateway.engine.backend import QueryResult
+from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.cli.errors import UserError
 from lakegate.gateway.engine.trino_values import encode_rows
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        "query", help="run one Trino-dialect SQL query on the lake and print the result",
-        description="Run one Trino-dialect SQL query through lakegate's dialect layer on the embedded DuckDB "
-                    "backend and print the result. Without --lake only constant queries work (SELECT 1 + 1).")
+        "query", help="run one Trino-dialect SQL statement on the lake and print the result",
+        description="Run one Trino-dialect SQL statement on the embedded DuckDB backend and print the result, "
+                    "answered exactly as `lakegate serve` answers it (catalog lake, schema = the branch). "
+                    "Without --lake only constant queries work (SELECT 1 + 1).")
     parser.add_argument("sql", metavar="SQL", help="the query, in Trino's SQL dialect ('-' reads it from standard input)")
     parser.add_argument("--lake", type=Path, metavar="DIR",
                         help="the lake's directory (omit it for queries that read no table)")
@@ -45,17 +47,18 @@ def query_command(args: argparse.Namespace) -> int:
     if args.lake is not None and not args.lake.is_dir():
         raise UserError(f"no lake at {args.lake} (not a directory)")
     scope = Scope(batch_id=args.batch, job_id=args.job) if args.batch or args.job else None
-    backend = DuckDBBackend(args.lake)
+    engine = Engine.open(args.lake)
     try:
         if args.explain:
-            print(backend.translate(sql, branch=args.branch, scope=scope).duckdb_sql)
+            print(engine.backend.translate(sql, branch=args.branch, scope=scope).duckdb_sql)
             return 0
-        result = backend.execute(sql, branch=args.branch, scope=scope)
+        session = engine.session(branch=args.branch if args.lake is not None else None, scope=scope)
+        result = engine.execute(sql, session)
         {"table": write_table, "json": write_json, "csv": write_csv}[args.format](result, sys.stdout)
     except DialectError as error:
         raise UserError(_where(error)) from None
     finally:
-        backend.close()
+        engine.close()
     return 0
 
 

@@ -23,6 +23,7 @@ from pathlib import Path
 from lakegate.gateway.server.auth import Users, UsersFileError, check_listen
 from lakegate.gateway.cli.errors import UserError, port_number
 from lakegate.gateway.cli.errors import positive as _positive
+from lakegate.gateway.engine.introspection import CATALOG
 from lakegate.gateway.engine.limits import Limits
 
 _DEFAULTS = Limits()
@@ -45,7 +46,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--allowed-host", action="append", default=[], metavar="NAME[:PORT]",
                         help="a Host name clients may use besides 127.0.0.1, localhost, [::1] and the address "
                              "connected to (e.g. a reverse proxy's name; repeatable); others get 421")
-    parser.add_argument("--catalog", default="lake", help="the lake's catalog name (default: lake)")
+    parser.add_argument("--catalog", default=CATALOG, help=f"the lake's catalog name (default: {CATALOG})")
     parser.add_argument("--users", type=Path, metavar="FILE",
                         help="require HTTP Basic authentication against this file of 'user:bcrypt-hash' lines")
     parser.add_argument("--tls-cert", type=Path, metavar="FILE", help="serve https with this PEM certificate (chain)")

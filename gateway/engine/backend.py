@@ -125,7 +125,7 @@ def _quote_ident(name: str) -> str:
     return '"' + name.replace('"', '""') + '"'
 
 
-class _Run:
+class Run:
     """One query's DuckDB work on its own cursor, as an iterator of record batches: started lazily by
     the first read (so it can be canceled first), holding one of the backend's slots until it ends
     (`release`), and interrupted by a timer when its time is up (it then fails EXCEEDED_TIME_LIMIT)."""
@@ -144,7 +144,7 @@ class _Run:
             self._timer.start()
         self._batches = self._read()
 
-    def __iter__(self) -> "_Run":
+    def __iter__(self) -> "Run":
         return self
 
     def __next__(self) -> pa.RecordBatch:
@@ -244,7 +244,7 @@ class DuckDBBackend:
         self.catalog = Catalog(self.lake, pending) if self.lake is not None else None
         self.memory_limit, self.threads, self.limits = memory_limit, threads, limits
         self._slots = threading.BoundedSemaphore(limits.max_concurrent_queries)
-        self._runs: weakref.WeakSet[_Run] = weakref.WeakSet()  # queries started and not collected
+        self._runs: weakref.WeakSet[Run] = weakref.WeakSet()  # queries started and not collected
         self._branches: dict[str, _Branch] = {}
         self._paths: dict[str, tuple[str, str]] = {}  # branch -> its directory and configs directory
         self._records: dict[str, Record] = {}
@@ -436,7 +436,7 @@ class DuckDBBackend:
             cursor.close()
             self._slots.release()
             raise self._for_client(state.failure(error)) if isinstance(error, duckdb.Error) else error
-        run = _Run(cursor, produce, release=self._slots.release, timeout=timeout,
+        run = Run(cursor, produce, release=self._slots.release, timeout=timeout,
                    remaining=max(0.0, deadline - time.monotonic()),
                    failure=lambda error: self._for_client(state.failure(error)))
         self._runs.add(run)

@@ -47,7 +47,7 @@ from starlette.concurrency import run_in_threadpool
 
 from lakegate.dialect import guard
 from lakegate.dialect.errors import DialectError
-from lakegate.gateway.server import session as sessions
+from lakegate.gateway.engine import session as sessions
 from lakegate.gateway.server.auth import Users
 from lakegate.gateway.engine.backend import Backend, QueryResult, hide_paths, time_limit_error
 from lakegate.gateway.server.http_limits import Guard, authenticated_user
@@ -55,9 +55,9 @@ from lakegate.gateway.server.host_check import HostCheck
 from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.server.protocol import (Failure, Progress, QueryIds, columns_document, info_document,
                                        results_document)
-from lakegate.gateway.server.session import Answer, Session
-from lakegate.gateway.server.statements import Planner, static_result
-from lakegate.gateway.server.system_tables import Metadata
+from lakegate.gateway.engine.session import Answer, Session
+from lakegate.gateway.engine.statements import Planner, static_result
+from lakegate.gateway.engine.engine import CATALOG, Engine
 from lakegate.gateway.engine.trino_values import encode_columns, encode_rows
 
 log = logging.getLogger("lakegate.server")
@@ -538,7 +538,7 @@ class QueryManager:
         """CALL system.runtime.kill_query: fail a running or queued query with ADMINISTRATIVELY_KILLED."""
         query = self.get(query_id)
         if query is None:
-            raise DialectError(f"Target query not found: {query_id}", error_name="NOT_FOUND")
+            raise sessions.query_not_found(query_id)
         if owner_only and query.session.user != session.user:
             raise DialectError(f"Access Denied: Cannot kill query owned by {query.session.user}",
                                error_name="PERMISSION_DENIED")
@@ -609,8 +609,8 @@ def _call(sql: str, session: Session, manager: QueryManager, *, owner_only: bool
 class _Endpoints:
     """The protocol's routes (plain Starlette endpoints: no per-request validation work)."""
 
-    def __init__(self, manager: QueryManager, metadata: Metadata, limits: Limits, users: Users | None):
-        self.manager, self.metadata, self.limits, self.users = manager, metadata, limits, users
+    def __init__(self, manager: QueryManager, engine: Engine, users: Users | None):
+        self.manager, self.engine, self.limits, self.users = manager, engine, engine.limits, users
         self.started = time.monotonic()
 
     async def query(self, request: Request, *, slug: bool = True) -> Query | None:
@@ -654,7 +654,7 @@ class _Endpoints:
         query_id = self.manager.ids.next()
         try:
             if is_session:
-                answer = await run_in_threadpool(sessions.answer, sql, session, self.metadata.resolve_schema)
+                answer = await run_in_threadpool(self.engine.answer, sql, session)
             else:
                 answer = await run_in_threadpool(_call, sql, session, self.manager, owner_only=self.users is not None)
         except DialectError as error:
@@ -704,7 +704,7 @@ def _base_url(request: Request) -> str:
     return f"{scope['scheme']}://{host}{scope.get('root_path', '')}".rstrip("/")
 
 
-def create_app(backend: Backend, *, catalog_name: str = "lake", limits: Limits = Limits(),
+def create_app(backend: Backend, *, catalog_name: str = CATALOG, limits: Limits = Limits(),
                users: Users | None = None, dashboard_router: APIRouter | None = None,
                allowed_hosts: Sequence[str] = ()) -> FastAPI:
     """The SQL endpoint over `backend` (which must also list its branches: `backend.branches()`).
@@ -713,26 +713,28 @@ def create_app(backend: Backend, *, catalog_name: str = "lake", limits: Limits =
     with `users`, every request but /v1/info and /v1/info/state needs HTTP Basic credentials of one
     of them. `dashboard_router` is included as it is, behind the same guard. Every request must name
     this server in Host (and Origin, when it changes something): `host_check.HostCheck`, with
-    `allowed_hosts` for a proxy. `app.state` holds `manager` (QueryManager), `metadata` (Metadata),
-    `backend` and `limits`. Closing the app (lifespan shutdown) fails running queries
+    `allowed_hosts` for a proxy. `app.state` holds `engine` (the Engine), `manager` (QueryManager),
+    `metadata` (the engine's Metadata), `backend` and `limits`. Closing the app (lifespan shutdown) fails running queries
     and stops the workers; the backend stays open (its owner closes it).
     """
     queries: list[QueryManager] = []
-    metadata = Metadata(backend, catalog=catalog_name, memory_limit=getattr(backend, "memory_limit", "1GB"),
-                        queries=lambda user: [query.row() for manager in queries for query in manager.queries()
-                                              if users is None or query.session.user == user])
-    manager = QueryManager(Planner(backend, metadata), limits)
+    engine = Engine(backend, catalog=catalog_name, limits=limits,
+                    queries=lambda user: [query.row() for manager in queries for query in manager.queries()
+                                          if users is None or query.session.user == user])
+    metadata = engine.metadata
+    manager = QueryManager(engine.planner, limits)
     queries.append(manager)
 
     @asynccontextmanager
     async def lifespan(_: FastAPI):
         yield
         await run_in_threadpool(manager.close)
-        metadata.close()
+        engine.close()
 
     app = FastAPI(title="lakegate", lifespan=lifespan, docs_url=None, redoc_url=None, openapi_url=None)
     app.state.manager, app.state.metadata, app.state.backend, app.state.limits = manager, metadata, backend, limits
-    endpoints = _Endpoints(manager, metadata, limits, users)
+    app.state.engine = engine
+    endpoints = _Endpoints(manager, engine, users)
     executing = "/v1/statement/executing/{query_id}/{slug}/{token:int}"
     app.add_route("/v1/statement", endpoints.post_statement, methods=["POST"])
     app.add_route(executing, endpoints.head_results, methods=["HEAD"])  # before GET, which also matches HEAD

@@ -17,10 +17,9 @@ from typing import Sequence
 import orjson
 
 from lakegate.dialect.errors import DialectError
+from lakegate.gateway.engine.statements import TRINO_VERSION
 from lakegate.gateway.engine.trino_values import type_signature
 
-#: The Trino release whose behaviour lakegate follows, reported by /v1/info and `version()`.
-TRINO_VERSION = "476"
 ENVIRONMENT = "lakegate"
 
 USER_ERROR, INTERNAL_ERROR, INSUFFICIENT_RESOURCES = "USER_ERROR", "INTERNAL_ERROR", "INSUFFICIENT_RESOURCES"

@@ -132,7 +132,7 @@ def test_an_unknown_branch_is_a_clear_error(backend):
 def test_show_and_describe(backend):
     assert backend.execute("SHOW TABLES").rows() == [("events",), ("metadata",), ("never_emitted",), ("odom",),
                                                      ("time_to_goal",)]
-    result = backend.execute("SHOW TABLES FROM lakegate.main LIKE 'o%'")
+    result = backend.execute("SHOW TABLES FROM lake.main LIKE 'o%'")
     assert result.columns == [("Table", "varchar")] and result.rows() == [("odom",)]
     result = backend.execute("DESCRIBE odom")
     assert result.columns == [("Column", "varchar"), ("Type", "varchar"), ("Extra", "varchar"), ("Comment", "varchar")]
@@ -140,7 +140,7 @@ def test_show_and_describe(backend):
     assert backend.execute("SHOW COLUMNS FROM main.odom LIKE '%\\_id' ESCAPE '\\'").rows() == [
         ("batch_id", "varchar", "", ""), ("job_id", "varchar", "", "")]
     assert backend.execute("SHOW SCHEMAS").rows() == [("main",)]
-    assert backend.execute("SHOW CATALOGS").rows() == [("lakegate",)]
+    assert backend.execute("SHOW CATALOGS").rows() == [("lake",)]
     assert refused(backend, "DESCRIBE nothing").error_name == "TABLE_NOT_FOUND"
     assert refused(backend, "SHOW FUNCTIONS").error_name == "NOT_SUPPORTED"
 

@@ -15,7 +15,6 @@ original SQL. `version()` is replaced the same way, by a literal as long as the 
 """
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import Sequence
@@ -29,13 +28,14 @@ from lakegate.dialect import guard
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.params import parse_execute
+from lakegate.dialect.statements import Reader
 from lakegate.dialect.translate import parse
 from lakegate.gateway.engine.backend import Backend, QueryResult
-from lakegate.gateway.server.protocol import TRINO_VERSION
-from lakegate.gateway.server.session import Answer, Session, check_properties
-from lakegate.gateway.server.system_tables import Metadata, TableRef
+from lakegate.gateway.engine.session import Answer, Session, check_properties
+from lakegate.gateway.engine.system_tables import Metadata, TableRef
 
-_EXECUTE = re.compile(r"(?:\s+|--[^\n]*(?:\n|$)|/\*.*?\*/)*EXECUTE\b", re.I | re.S)
+#: The Trino release whose behaviour lakegate follows, reported by /v1/info and `version()`.
+TRINO_VERSION = "476"
 _ARROW = {"varchar": pa.string(), "bigint": pa.int64(), "boolean": pa.bool_()}
 #: What `version()` becomes: a varchar expression no longer than the call's text `version()`.
 _VERSION = f"'{TRINO_VERSION}'||''"
@@ -143,12 +143,12 @@ class Planner:
         refused or fails to start."""
         check_properties(session)
         kind = guard.classify(sql)
-        if _EXECUTE.match(sql):
+        if _is_execute(sql):
             if params:
                 raise DialectError("EXECUTE cannot be a prepared statement", error_name="NOT_SUPPORTED")
             execute = parse_execute(sql)
             statement = execute.statement if execute.statement is not None else session.prepared_statement(execute.name)
-            if _EXECUTE.match(statement):
+            if _is_execute(statement):
                 raise DialectError("EXECUTE of an EXECUTE statement is not supported", error_name="NOT_SUPPORTED")
             return self.start(statement, session, execute.params)
         if kind == "describe":
@@ -280,17 +280,22 @@ class Planner:
         return Answer(_DESCRIBE_OUTPUT, rows)
 
 
-_DESCRIBE_PREPARED = re.compile(r'\s*DESC(?:RIBE)?\s+(INPUT|OUTPUT)\s+("(?:[^"]|"")+"|[A-Za-z_][A-Za-z0-9_]*)\s*;?\s*',
-                                re.I)
+def _is_execute(sql: str) -> bool:
+    return guard.first_words(sql, 1) == ["EXECUTE"]
 
 
 def _described_statement(sql: str) -> tuple[str, str] | None:
-    """('INPUT' | 'OUTPUT', statement name) of `DESCRIBE INPUT|OUTPUT name`, else None."""
-    match = _DESCRIBE_PREPARED.fullmatch(sql)
-    if match is None:
+    """('INPUT' | 'OUTPUT', statement name as written) of `DESCRIBE INPUT|OUTPUT name`, else None."""
+    words = guard.first_words(sql, 2)
+    if words[:1] not in (["DESCRIBE"], ["DESC"]) or words[1:] not in (["INPUT"], ["OUTPUT"]):
         return None
-    name = match.group(2)
-    return match.group(1).upper(), name[1:-1].replace('""', '"') if name.startswith('"') else name
+    reader = Reader(sql)
+    reader.skip_words(2)
+    if len(reader.tokens) != reader.pos + 1:
+        return None  # DESCRIBE of a table called input or output
+    name = reader.peek().text
+    reader.identifier()  # a name, not a string or a symbol
+    return words[1], name
 
 
 def _parameter_count(statement: str) -> int:

@@ -23,10 +23,11 @@ import pyarrow as pa
 
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError, runtime_error
+from lakegate.dialect.statements import Reader
 from lakegate.dialect.translate import translate
-from lakegate.gateway.engine.backend import BATCH_ROWS, Backend, QueryResult, _Run
-from lakegate.gateway.engine.introspection import _Reader, _tokens
-from lakegate.gateway.server.session import PROPERTIES, Answer, Session
+from lakegate.gateway.engine.backend import BATCH_ROWS, Backend, QueryResult, Run
+from lakegate.gateway.engine.introspection import CATALOG
+from lakegate.gateway.engine.session import PROPERTIES, Answer, Session
 
 INFORMATION_SCHEMA = "information_schema"
 SYSTEM = "system"
@@ -105,7 +106,7 @@ class Metadata:
     and the system tables. `queries(user)` lists the server's queries that `user` (the session's
     user) may see, as rows of system.runtime.queries."""
 
-    def __init__(self, backend: Backend, *, catalog: str = "lake",
+    def __init__(self, backend: Backend, *, catalog: str = CATALOG,
                  queries: Callable[[str | None], list[tuple]] = lambda user: [], memory_limit: str = "1GB"):
         self.backend, self.catalog, self.queries = backend, catalog, queries
         self._db = duckdb.connect(":memory:", config={
@@ -251,7 +252,7 @@ class Metadata:
         except BaseException as error:
             cursor.close()
             raise runtime_error(str(error)) if isinstance(error, duckdb.Error) else error
-        run = _Run(cursor, lambda: relation.to_arrow_reader(BATCH_ROWS))
+        run = Run(cursor, lambda: relation.to_arrow_reader(BATCH_ROWS))
         return QueryResult(columns=list(translation.columns), batches=run,
                            duckdb_sql=translation.duckdb_sql, _cancel=run.cancel)
 
@@ -263,9 +264,9 @@ class Metadata:
     def show(self, sql: str, session: Session) -> Answer:
         """Answer SHOW CATALOGS / SCHEMAS / TABLES / COLUMNS / SESSION and DESCRIBE t, with Trino's
         result columns, sorted as Trino sorts them."""
-        reader = _Reader(_tokens(sql))
+        reader = Reader(sql)
         if reader.take("DESCRIBE", "DESC"):
-            parts = reader.name()
+            parts = reader.parts()
             reader.end()
             return self._columns(parts, session, None)
         reader.take("SHOW")
@@ -274,12 +275,12 @@ class Metadata:
             reader.end()
             return Answer([("Catalog", V)], _matching(self.catalogs(), pattern))
         if reader.take("SCHEMAS"):
-            catalog = reader.name()[0] if reader.take("FROM", "IN") else session.catalog
+            catalog = reader.parts()[0] if reader.take("FROM", "IN") else session.catalog
             pattern = reader.like()
             reader.end()
             return Answer([("Schema", V)], _matching(self.schemas(self.check_catalog(catalog)), pattern))
         if reader.take("TABLES"):
-            parts = reader.name() if reader.take("FROM", "IN") else []
+            parts = reader.parts() if reader.take("FROM", "IN") else []
             pattern = reader.like()
             reader.end()
             if len(parts) > 2:
@@ -290,7 +291,7 @@ class Metadata:
         if reader.take("COLUMNS"):
             if not reader.take("FROM", "IN"):
                 reader.fail("FROM")
-            parts = reader.name()
+            parts = reader.parts()
             pattern = reader.like()
             reader.end()
             return self._columns(parts, session, pattern)

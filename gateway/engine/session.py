@@ -9,18 +9,17 @@ back in `X-Trino-Prepared-Statement`. Transactions are accepted and do nothing (
 """
 from __future__ import annotations
 
-import re
 import uuid
 from dataclasses import dataclass, field
 from typing import Callable, Mapping
 from urllib.parse import quote_plus, unquote_plus
 
-from sqlglot.dialects.trino import Trino
-from sqlglot.errors import TokenError
-from sqlglot.tokens import Token, TokenType
+from sqlglot.tokens import TokenType
 
+from lakegate.dialect import guard
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
+from lakegate.dialect.statements import Reader
 
 #: Session properties lakegate knows: name -> description (both varchar, default NULL).
 PROPERTIES = {
@@ -121,92 +120,9 @@ def _done(update_type: str, *headers: tuple[str, str]) -> Answer:
 
 # --- reading the statements ------------------------------------------------------------------
 
-class _Tokenizer(Trino.Tokenizer):
-    COMMANDS: set = set()  # read every statement token by token (sqlglot keeps the rest of some as one string)
-
-
-class _Tokens:
-    def __init__(self, sql: str):
-        self.sql = sql
-        try:
-            tokens = _Tokenizer().tokenize(sql)
-        except TokenError as error:
-            raise DialectError(f"syntax error: {error}", error_name="SYNTAX_ERROR") from None
-        while tokens and tokens[-1].token_type == TokenType.SEMICOLON:
-            tokens.pop()
-        self.tokens, self.pos = tokens, 0
-
-    def skip_words(self, count: int) -> None:
-        """Skip the tokens of the statement's first `count` words (a token may hold several)."""
-        while count > 0 and self.peek() is not None:
-            count -= len(self.peek().text.split())
-            self.pos += 1
-
-    def peek(self) -> Token | None:
-        return self.tokens[self.pos] if self.pos < len(self.tokens) else None
-
-    def word(self) -> str:
-        token = self.peek()
-        return token.text.upper() if token is not None and token.token_type != TokenType.STRING else ""
-
-    def take(self, *words: str) -> bool:
-        if self.word() in words:
-            self.pos += 1
-            return True
-        return False
-
-    def expect(self, *words: str) -> None:
-        if not self.take(*words):
-            self.fail(" or ".join(words))
-
-    def identifier(self) -> tuple[str, bool]:
-        """One name: (text, quoted); unquoted names are lower-cased, as Trino does."""
-        token = self.peek()
-        if token is None or token.token_type in (TokenType.STRING, TokenType.DOT, TokenType.EQ, TokenType.COMMA):
-            self.fail("a name")
-        self.pos += 1
-        quoted = token.token_type == TokenType.IDENTIFIER
-        return (token.text if quoted else token.text.lower()), quoted
-
-    def name(self) -> list[tuple[str, bool]]:
-        parts = [self.identifier()]
-        while self.peek() is not None and self.peek().token_type == TokenType.DOT:
-            self.pos += 1
-            parts.append(self.identifier())
-        return parts
-
-    def rest(self) -> str:
-        """The text from the current token on (without a trailing `;`)."""
-        token = self.peek()
-        if token is None:
-            self.fail("a statement")
-        end = self.tokens[-1].end + 1
-        return self.sql[token.start:end]
-
-    def end(self) -> None:
-        if self.peek() is not None:
-            self.fail("the end of the statement")
-
-    def fail(self, expected: str) -> None:
-        token = self.peek()
-        if token is None:
-            line, column, found = None, None, "the end"
-        else:
-            line, column, found = token.line, max(1, token.col - len(token.text) + 1), f"'{token.text}'"
-        raise DialectError(f"syntax error: expected {expected}, found {found}", line=line, column=column,
-                           error_name="SYNTAX_ERROR")
-
-
-_SKIP = r"(?:\s+|--[^\n]*(?:\n|$)|/\*.*?\*/)*"
-_FIRST_WORDS = re.compile(rf"{_SKIP}([A-Za-z_]+)(?:{_SKIP}([A-Za-z_]+))?", re.S)
-
-
 def statement_name(sql: str) -> str | None:
     """Which of `STATEMENTS` `sql` is (None for any other statement)."""
-    match = _FIRST_WORDS.match(sql)
-    if match is None:
-        return None
-    first, second = match.group(1).upper(), (match.group(2) or "").upper()
+    first, second = (guard.first_words(sql, 2) + ["", ""])[:2]
     for name in STATEMENTS:
         words = name.split()
         if words[0] == first and (len(words) == 1 or words[1] == second):
@@ -218,7 +134,7 @@ def answer(sql: str, session: Session, resolve_schema: Callable[[str | None, tup
            ) -> Answer:
     """Answer one of `STATEMENTS`. `resolve_schema(catalog, (schema, quoted))` checks a USE target
     and returns the (catalog, schema) names to set (DialectError when either does not exist)."""
-    tokens = _Tokens(sql)
+    tokens = Reader(sql)
     name = statement_name(sql)
     tokens.skip_words(len(name.split()) if name else 0)
     if name == "USE":
@@ -278,7 +194,7 @@ def _property(parts: list[tuple[str, bool]]) -> str:
 def kill_query_arguments(sql: str, session: Session) -> tuple[str, str | None]:
     """(query_id, message) of `CALL system.runtime.kill_query(query_id => '...', message => '...')`
     (arguments named or positional); PROCEDURE_NOT_FOUND for any other procedure."""
-    tokens = _Tokens(sql)
+    tokens = Reader(sql)
     tokens.skip_words(1)
     name = [text for text, _ in tokens.name()]
     full = ([session.catalog or ""] if len(name) == 2 else []) + name
@@ -307,3 +223,8 @@ def kill_query_arguments(sql: str, session: Session) -> tuple[str, str | None]:
     if not arguments.get("query_id"):
         raise DialectError("kill_query needs a query_id", error_name="INVALID_PROCEDURE_ARGUMENT")
     return arguments["query_id"], arguments.get("message")
+
+
+def query_not_found(query_id: str) -> DialectError:
+    """What kill_query answers for a query that is not there."""
+    return DialectError(f"Target query not found: {query_id}", error_name="NOT_FOUND")

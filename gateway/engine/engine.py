@@ -1,0 +1,71 @@
+"""The Engine: the one object that owns a lake's backend, its catalog, the session defaults and the
+limits, and answers statements as the SQL server does. `lakegate query`, `lakegate serve` (through
+`server.app.create_app`) and the dashboard use it, so they agree on catalog names, on what SHOW,
+DESCRIBE and `information_schema` answer, and on every error.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable, Sequence
+
+from lakegate.dialect import guard
+from lakegate.dialect.scope import Scope
+from lakegate.gateway.engine import session as sessions
+from lakegate.gateway.engine.backend import Backend, DuckDBBackend, QueryResult
+from lakegate.gateway.engine.introspection import CATALOG
+from lakegate.gateway.engine.limits import Limits
+from lakegate.gateway.engine.session import Answer, Session
+from lakegate.gateway.engine.statements import Planner, static_result
+from lakegate.gateway.engine.system_tables import Metadata
+
+#: The session user of a caller that names none (`lakegate query`).
+DEFAULT_USER = "lakegate"
+
+
+class Engine:
+    """A lake's backend with its catalog, system tables and statement planner.
+
+    `queries(user)` lists the running queries `user` may see (system.runtime.queries); only the
+    server has any. The backend stays open when the engine closes unless the engine opened it.
+    """
+
+    def __init__(self, backend: Backend, *, catalog: str = CATALOG, limits: Limits = Limits(),
+                 queries: Callable[[str | None], list[tuple]] = lambda user: [], owns_backend: bool = False):
+        self.backend, self.catalog, self.limits = backend, catalog, limits
+        self.metadata = Metadata(backend, catalog=catalog, queries=queries,
+                                 memory_limit=getattr(backend, "memory_limit", "1GB"))
+        self.planner = Planner(backend, self.metadata)
+        self._owns_backend = owns_backend
+
+    @classmethod
+    def open(cls, lake: Path | None, *, limits: Limits = Limits()) -> "Engine":
+        """An engine over the embedded DuckDB backend of `lake` (None: no tables, constant queries only)."""
+        return cls(DuckDBBackend(lake, limits=limits), limits=limits, owns_backend=True)
+
+    def session(self, *, user: str = DEFAULT_USER, branch: str | None = None, scope: Scope | None = None) -> Session:
+        """A session in this engine's catalog, on `branch` (DialectError SCHEMA_NOT_FOUND when the lake
+        has no such branch), with `scope` as its session properties."""
+        if branch is not None:
+            branch = self.metadata.schema_name(self.catalog, branch)
+        properties = {name: value for name, value in (("batch_id", scope and scope.batch_id),
+                                                        ("job_id", scope and scope.job_id)) if value is not None}
+        return Session(user=user, catalog=self.catalog, schema=branch, properties=properties)
+
+    def answer(self, sql: str, session: Session) -> Answer:
+        """Answer a session statement (USE, SET SESSION, PREPARE, ...: `session.STATEMENTS`)."""
+        return sessions.answer(sql, session, self.metadata.resolve_schema)
+
+    def execute(self, sql: str, session: Session, params: Sequence[object] = ()) -> QueryResult:
+        """Run one statement as the server would answer it; DialectError when refused or failing.
+        A session statement is answered (its effect is the client's to keep)."""
+        if sessions.statement_name(sql) is not None:
+            return static_result(self.answer(sql, session))
+        if guard.classify(sql) == "call":  # kill_query: no query runs outside the server
+            raise sessions.query_not_found(sessions.kill_query_arguments(sql, session)[0])
+        return self.planner.start(sql, session, params)
+
+    def close(self) -> None:
+        self.metadata.close()
+        if self._owns_backend:
+            self.backend.close()
+

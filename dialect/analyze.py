@@ -59,6 +59,10 @@ class Scope:
     ctes: dict[str, list[OutCol]] = field(default_factory=dict)
     outputs: list[OutCol] | None = None   # select outputs, visible in ORDER BY
 
+    def derived(self) -> "Scope":
+        """The scope of a derived table in this FROM: this query's CTEs, not its other sources."""
+        return Scope(outer=self.outer, ctes=self.ctes)
+
     def cte(self, name: str) -> list[OutCol] | None:
         scope: Scope | None = self
         while scope is not None:
@@ -422,13 +426,13 @@ class Analyzer:
             if alias is None:
                 node.set("alias", exp.TableAlias(this=exp.to_identifier(qualifier, quoted=True)))
         elif isinstance(node, exp.Subquery):
-            cols = self.query(node.this, lateral_scope or scope.outer)
+            cols = self.query(node.this, lateral_scope or scope.derived())
             self._modifiers(node, cols, scope)
             qualifier = alias_name or self.fresh_alias()
             if alias is None:
                 node.set("alias", exp.TableAlias(this=exp.to_identifier(qualifier, quoted=True)))
         elif isinstance(node, exp.Values):
-            cols = self.values(node, lateral_scope or scope.outer)
+            cols = self.values(node, lateral_scope or scope.derived())
             qualifier = alias_name or self.fresh_alias()
             if alias is None or not alias.columns:
                 node.set("alias", exp.TableAlias(this=exp.to_identifier(qualifier, quoted=True),

@@ -294,9 +294,13 @@ def _labeller() -> Callable[[Any], str]:
 def _line(result: _Result) -> Rendered:
     result.need_columns((3,), "[series, x, y]")
     ys, problems = result.numbers(2, "numeric y values")
-    dates = any(isinstance(row[1], dt.date) for row in result.rows)
-    if dates:
-        xs: list[Any] = [_plot_time(row[1]) if isinstance(row[1], dt.date) else None for row in result.rows]
+    categorical = _is_text(result.types[1])  # ReSim draws text x values as categories
+    dates = not categorical and any(isinstance(row[1], dt.date) for row in result.rows)
+    xs: list[Any]
+    if categorical:
+        xs = [row[1] for row in result.rows]
+    elif dates:
+        xs = [_plot_time(row[1]) if isinstance(row[1], dt.date) else None for row in result.rows]
         for number, row in enumerate(result.rows, 1):
             if row[1] is not None and not isinstance(row[1], dt.date):
                 raise result.bad_value(number, 1, "numeric or timestamp x values")
@@ -313,8 +317,8 @@ def _line(result: _Result) -> Rendered:
             "y": [ys[i] for i in indexes],
         })
     layout = _layout(result.names[1], result.names[2], hovermode="closest")
-    if dates:
-        layout["xaxis"]["type"] = "date"
+    if dates or categorical:
+        layout["xaxis"]["type"] = "date" if dates else "category"
     return Rendered(
         template="line",
         figure={"data": traces, "layout": layout},
@@ -503,11 +507,26 @@ def _state_timeline(result: _Result) -> Rendered:
     )
 
 
+def _is_text(type_name: str) -> bool:
+    return type_name.startswith(("varchar", "char"))
+
+
+def _histogram_columns(result: _Result) -> tuple[int, int | None]:
+    """(value column, series column): [value], [value, series], or [group, value] as ReSim's
+    own examples write it (`group_name` first), told apart by the columns' types."""
+    if len(result.names) == 1:
+        return 0, None
+    if _is_text(result.types[0]) and not _is_text(result.types[1]):
+        return 1, 0
+    return 0, 1
+
+
 def _histogram(result: _Result) -> Rendered:
-    result.need_columns((1, 2), "[value] or [value, series]")
-    values, problems = result.numbers(0, "numeric values")
-    with_series = len(result.names) == 2
-    groups = _series(result, 1 if with_series else None)
+    result.need_columns((1, 2), "[value], [value, series] or [group, value]")
+    value_column, series_column = _histogram_columns(result)
+    values, problems = result.numbers(value_column, "numeric values")
+    with_series = series_column is not None
+    groups = _series(result, series_column)
     traces = []
     for name, indexes in groups.items():
         trace = {"type": "histogram", "x": [values[i] for i in indexes]}
@@ -515,12 +534,12 @@ def _histogram(result: _Result) -> Rendered:
             trace.update(name=name, opacity=0.6)
         traces.append(trace)
     counted = sum(1 for value in values if value is not None)
-    nulls = sum(1 for row in result.rows if row[0] is None)
+    nulls = sum(1 for row in result.rows if row[value_column] is None)
     if nulls:
         problems.append(f"{_plural(nulls, 'NULL value')} not counted")
     return Rendered(
         template="histogram",
-        figure={"data": traces, "layout": _layout(result.names[0], "Count", barmode="overlay")},
+        figure={"data": traces, "layout": _layout(result.names[value_column], "Count", barmode="overlay")},
         text=_plural(counted, "value") + (f" in {_plural(len(groups), 'series', 'series')}" if with_series else ""),
         problems=problems,
     )

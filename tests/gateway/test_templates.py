@@ -383,8 +383,25 @@ def test_histogram_with_and_without_series():
     assert [(t["name"], t["x"]) for t in rendered.figure["data"]] == [("b", [1.0, 3.0]), ("a", [2.0])]
 
 
+def test_histogram_takes_resims_group_name_first_shape():
+    columns = [("group_name", "varchar"), ("Speed (m/s)", "double")]
+    rendered = render("Speed", "histogram", columns, [("b", 1.0), ("a", 2.0), ("b", None), ("b", 3.0)])
+    check_figure(rendered.figure)
+    assert [(t["name"], t["x"]) for t in rendered.figure["data"]] == [("b", [1.0, None, 3.0]), ("a", [2.0])]
+    assert rendered.figure["layout"]["xaxis"]["title"]["text"] == "Speed (m/s)"
+    assert rendered.text == "3 values in 2 series" and rendered.problems == ["1 NULL value not counted"]
+
+
+def test_line_draws_text_x_values_as_categories():
+    columns = [("group_name", "varchar"), ("Experience", "varchar"), ("Max speed (m/s)", "double")]
+    rendered = render("Speed", "line", columns, [("max", "parking", 1.5), ("max", "highway", 3.0), ("max", None, 2.0)])
+    check_figure(rendered.figure)
+    assert rendered.figure["data"][0]["x"] == ["parking", "highway", None]
+    assert rendered.figure["layout"]["xaxis"]["type"] == "category"
+
+
 def test_histogram_errors():
-    with pytest.raises(TemplateError, match=r"needs 1 or 2 columns \[value\] or \[value, series\], got 3 \(a, b, c\)"):
+    with pytest.raises(TemplateError, match=r"needs 1 or 2 columns \[value\], \[value, series\] or \[group, value\], got 3 \(a, b, c\)"):
         render("H", "histogram", [("a", "double"), ("b", "double"), ("c", "double")], [])
     with pytest.raises(TemplateError, match=r"needs numeric values in column 1 \"a\", but row 2 has 'x' \(varchar\)"):
         render("H", "histogram", [("a", "varchar")], [(1.0,), ("x",)])

@@ -233,21 +233,28 @@ def _check_line(raw: bytes, topics: dict[str, Topic], unterminated: bool) -> tup
     data = record["$data"]
     if not isinstance(data, dict):
         raise _Bad(f"topic {name!r}: $data must be an object, got {_what(data)}")
+    values, problems = _check_data(topic, data)
+    if problems:
+        raise _Bad(f"topic {name!r}{', ' if problems[0].startswith('field ') else ': '}" + "; ".join(problems))
+    return name, timestamp, values
+
+
+def _check_data(topic: Topic, data: dict[str, Any]) -> tuple[list[Any], list[str]]:
+    """The field values as stored, and every problem of `$data` (missing, unexpected and bad fields)."""
+    problems = []
     missing = [f for f in topic.fields if f not in data]
     if missing:
-        raise _Bad(f"topic {name!r}: missing field{'s' if len(missing) > 1 else ''} {', '.join(map(repr, missing))}")
-    extra = [f for f in data if f not in topic.fields]
-    if extra:
-        raise _Bad(f"topic {name!r}: unexpected field{'s' if len(extra) > 1 else ''} {', '.join(map(repr, extra))}"
-                   f"{did_you_mean(extra[0], topic.fields)}")
+        problems.append(f"missing field{'s' if len(missing) > 1 else ''} {', '.join(map(repr, missing))}")
+    unexpected = [f for f in data if f not in topic.fields]
+    problems += [f"unexpected field {f!r}{did_you_mean(f, missing or topic.fields)}" for f in unexpected]
     values = []
     for field_name, field_type in topic.fields.items():
-        try:
-            value = check_value(field_type, data[field_name])
-        except FieldError as exc:
-            raise _Bad(f"topic {name!r}, field {field_name!r}: {exc}") from None
-        values.append(value)
-    return name, timestamp, values
+        if field_name in data:
+            try:
+                values.append(check_value(field_type, data[field_name]))
+            except FieldError as exc:
+                problems.append(f"field {field_name!r}: {exc}")
+    return values, problems
 
 
 # -- topics as plans -------------------------------------------------------------------------

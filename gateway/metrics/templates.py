@@ -398,40 +398,49 @@ def _image(result: _Result, logs_dir: Path | None) -> Rendered:
     result.need_columns((1,), "[image file name]")
     root = logs_dir.resolve() if logs_dir is not None else None
     images: list[str] = []
-    problems: list[str] = []
+    failed: dict[str, list[str]] = {}  # what went wrong -> the files (or rows) it went wrong for
     rows: list[list[str | None]] = []
     for number, (name,) in enumerate(result.rows, 1):
         if name is None:
-            problems.append(f"row {number}: NULL file name")
+            failed.setdefault("NULL file name", []).append(f"row {number}")
             rows.append([None, None])
             continue
         if not isinstance(name, str):
             raise result.bad_value(number, 0, "image file names")
         found = None
         if root is None:
-            problems.append(f"{name}: no log directory to look in")
+            failed.setdefault("no log directory to look in", []).append(name)
         else:
             path = (root / name).resolve()
             if not path.is_relative_to(root):
-                problems.append(f"{name}: outside the job's logs ({root})")
+                failed.setdefault(f"outside the job's logs ({root})", []).append(name)
             elif not path.is_file():
-                problems.append(f"{name}: missing from the job's logs ({root})")
+                failed.setdefault(f"missing from the job's logs ({root})", []).append(name)
             elif image_mime(path) is None:
-                problems.append(f"{name}: not a PNG, GIF or JPEG image")
+                failed.setdefault("not a PNG, GIF or JPEG image", []).append(name)
             else:
                 found = str(path)
                 images.append(found)
         rows.append([name, found])
     text = _plural(len(images), "image")
-    if problems:
-        text += f", {_plural(len(problems), 'problem')}"
+    count = sum(len(names) for names in failed.values())
+    if count:
+        text += f", {_plural(count, 'problem')}"
     return Rendered(
         template="image",
         table={"columns": [result.names[0], "path"], "rows": rows},
         text=text,
         images=images,
-        problems=problems,
+        problems=[_grouped_problem(what, names) for what, names in failed.items()],
     )
+
+
+def _grouped_problem(what: str, names: list[str], shown: int = 3) -> str:
+    """One line for every file with the same problem: `a.gif: what`, or `200 files: what (a.gif, b.gif, ...)`."""
+    if len(names) == 1:
+        return f"{names[0]}: {what}"
+    listed = ", ".join(names[:shown]) + (f" and {len(names) - shown} more" if len(names) > shown else "")
+    return f"{len(names)} {'rows' if names[0].startswith('row ') else 'files'}: {what} ({listed})"
 
 
 def _nanoseconds(value: Any) -> int | float | None:

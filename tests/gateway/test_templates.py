@@ -289,6 +289,19 @@ def test_image_without_logs_dir_reports_every_file():
     assert rendered.images == [] and rendered.problems == ["a.gif: no log directory to look in"]
 
 
+def test_image_problems_are_one_line_per_cause_with_a_count(tmp_path):
+    rows = [(f"frame_{i:03}.png",) for i in range(200)] + [(None,), (None,)]
+    rendered = render("Feed", "image", [("filename", "varchar")], rows)
+    assert rendered.problems == [
+        "200 files: no log directory to look in (frame_000.png, frame_001.png, frame_002.png and 197 more)",
+        "2 rows: NULL file name (row 201, row 202)",
+    ]
+    assert rendered.text == "0 images, 202 problems"
+    rendered = render("Feed", "image", [("filename", "varchar")], rows[:2], logs_dir=tmp_path)
+    assert rendered.problems == [f"2 files: missing from the job's logs ({tmp_path.resolve()}) "
+                                 "(frame_000.png, frame_001.png)"]
+
+
 def test_image_shape_errors(tmp_path):
     with pytest.raises(TemplateError, match=r"template 'image' needs exactly 1 column \[image file name\], got 2 \(a, b\)"):
         render("Feed", "image", [("a", "varchar"), ("b", "varchar")], [], logs_dir=tmp_path)

@@ -143,8 +143,8 @@ TOPIC = Section(
 
 METRICS_SET = Section(
     "metrics set",
-    {"metrics": Key("names", "Names of the test and batch metrics of this set.", required=True,
-                    nullable=True, what="metric")},
+    {"metrics": Key("names", "Names of the metrics of this set (dashboard and report metrics are not evaluated "
+                             "yet).", required=True, nullable=True, what="metric")},
 )
 
 FILE = Section(

@@ -158,6 +158,8 @@ class IngestReport:
     config_version: int
     files: list[Path] = field(default_factory=list)
     problems: list[LineProblem] = field(default_factory=list)  # the first MAX_PROBLEMS, when skipped
+    skipped: str = ""  # what the skipped lines held, per topic (BadLines.what_skipping_drops)
+    causes: list[tuple[LineProblem, int]] = field(default_factory=list)  # skipped lines by cause
 
 
 # -- checking one line exactly --------------------------------------------------------------
@@ -851,6 +853,7 @@ def ingest_job(
         branch=branch, batch_id=batch_id, job_id=job_id, rows=writer.rows, events=writer.events, lines=lines,
         bad_lines=bad, quarantine=quarantine_target if bad else None, seconds=time.perf_counter() - started,
         config_version=version, files=published, problems=problems if bad else [],
+        skipped=grouped.what_skipping_drops(topics) if bad else "", causes=list(grouped.causes.values()),
     )
 
 

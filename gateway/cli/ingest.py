@@ -148,10 +148,11 @@ def summary(report: IngestReport) -> str:
     if empty:
         lines.append(f"  no rows for: {', '.join(empty)}")
     if report.bad_lines:
-        lines.append(f"skipped {report.bad_lines:,} bad line(s); they are in {report.quarantine}")
-        lines += [f"  {p}" for p in report.problems[:SHOWN_PROBLEMS]]
-        if report.bad_lines > SHOWN_PROBLEMS:
-            lines.append(f"  ... and {report.bad_lines - SHOWN_PROBLEMS} more")
+        lines.append(f"skipped {report.bad_lines:,} bad line(s), dropping {report.skipped}; they are in "
+                     f"{report.quarantine}")
+        lines += [f"  {_cause(first, count)}" for first, count in report.causes[:SHOWN_PROBLEMS]]
+        if len(report.causes) > SHOWN_PROBLEMS:
+            lines.append(f"  ... and {len(report.causes) - SHOWN_PROBLEMS} more")
     return "\n".join(lines)
 
 

@@ -100,7 +100,9 @@ def test_bad_lines_are_grouped_by_cause_say_what_skipping_drops_and_exit_1(tmp_p
     ]
     skipped = lakegate("ingest", "--lake", lake, "--branch", "main", "--batch", "b", "--job", "j",
                        "--metrics-config-path", FIXTURE_CONFIG, "--skip-bad-lines", bad)
-    assert "skipped 29 bad line(s); they are in " in skipped.stdout and "_quarantine" in skipped.stdout
+    assert "skipped 29 bad line(s), dropping 25 rows of topic 'robot_speed', 3 events of event topic " \
+           "'goal_reached' (with their metrics), 1 line naming no declared topic; they are in " in skipped.stdout
+    assert "_quarantine" in skipped.stdout and "(and 24 more lines like it)" in skipped.stdout
 
 
 @pytest.mark.parametrize("args, message", [

@@ -59,6 +59,10 @@ class Scope:
     ctes: dict[str, list[OutCol]] = field(default_factory=dict)
     outputs: list[OutCol] | None = None   # select outputs, visible in ORDER BY
 
+    def derived(self) -> "Scope":
+        """The scope of a derived table in this FROM: this query's CTEs, not its other sources."""
+        return Scope(outer=self.outer, ctes=self.ctes)
+
     def cte(self, name: str) -> list[OutCol] | None:
         scope: Scope | None = self
         while scope is not None:
@@ -422,13 +426,13 @@ class Analyzer:
             if alias is None:
                 node.set("alias", exp.TableAlias(this=exp.to_identifier(qualifier, quoted=True)))
         elif isinstance(node, exp.Subquery):
-            cols = self.query(node.this, lateral_scope or scope.outer)
+            cols = self.query(node.this, lateral_scope or scope.derived())
             self._modifiers(node, cols, scope)
             qualifier = alias_name or self.fresh_alias()
             if alias is None:
                 node.set("alias", exp.TableAlias(this=exp.to_identifier(qualifier, quoted=True)))
         elif isinstance(node, exp.Values):
-            cols = self.values(node, lateral_scope or scope.outer)
+            cols = self.values(node, lateral_scope or scope.derived())
             qualifier = alias_name or self.fresh_alias()
             if alias is None or not alias.columns:
                 node.set("alias", exp.TableAlias(this=exp.to_identifier(qualifier, quoted=True),
@@ -1105,14 +1109,35 @@ def _window(a: Analyzer, node, scope, env):
             bound = spec.args.get(key)
             if isinstance(bound, exp.Expression):
                 bound_type = a.expr(bound, scope, env)
-                if spec.args.get("kind", "").upper() == "RANGE" and not isinstance(bound, exp.Literal):
-                    a.unsupported("RANGE frame with an expression offset", spec)
                 if spec.args.get("kind", "").upper() == "RANGE":
-                    a.unsupported("RANGE frame with an offset", spec)
+                    _check_range_offset(a, order, bound, bound_type)
+                    continue
                 if not bound_type.is_integral:
                     a.fail(f"Window frame offset must be an integer: {bound_type}", bound, "TYPE_MISMATCH")
     inner.meta["over"] = node
     return t
+
+
+def _check_range_offset(a: Analyzer, order: exp.Expression | None, bound: exp.Expression, offset: TType) -> None:
+    """A RANGE frame offset, as Trino's StatementAnalyzer checks it: one sort key, numeric with a
+    numeric offset or date/timestamp with an interval. lakegate takes a non-negative literal offset
+    over a double or integral key (an integer offset) or a date/timestamp key: what DuckDB frames alike."""
+    keys = order.expressions if order is not None else []
+    if len(keys) != 1:
+        a.fail("Window frame of type RANGE PRECEDING or FOLLOWING requires single sort item in ORDER BY "
+               f"(actual: {len(keys)})", bound, "INVALID_ORDER_BY")
+    key = ttype(keys[0].this)
+    if not (key.is_numeric or key.base in ("date", "timestamp", "timestamp_tz")):
+        a.fail("Window frame of type RANGE PRECEDING or FOLLOWING requires that sort item type be numeric, "
+               f"datetime or interval (actual: {key})", bound, "TYPE_MISMATCH")
+    temporal = key.base in ("date", "timestamp", "timestamp_tz")
+    if (offset.base in ("interval_ds", "interval_ym")) != temporal or not (temporal or offset.is_numeric):
+        a.fail(f"Window frame RANGE value type ({offset}) not compatible with sort item type ({key})", bound,
+               "TYPE_MISMATCH")
+    literal = bound.this if isinstance(bound, exp.Interval) else bound
+    if not isinstance(literal, exp.Literal) or literal.this.strip().startswith("-") or \
+            key.base in ("decimal", "real", "timestamp_tz") or (key.is_integral and not offset.is_integral):
+        a.unsupported(f"RANGE frame with offset {bound.sql(dialect='trino')} over a {key} sort key", bound)
 
 
 @handles(exp.GroupConcat)

@@ -1722,6 +1722,50 @@ def _render_date_parse(g, node, args) -> str:
     return f"CAST(strptime({g.sql(args[0])}, {fmt}) AS TIMESTAMP)"
 
 
+# from_iso8601_date parses as Joda's ISODateTimeFormat.dateElementParser (Trino's DateTimeFunctions):
+# the longest of yyyy[-MM[-dd]], xxxx-Www[-e] and yyyy-DDD wins, the first on a tie; a field may have
+# fewer digits than its width, a year a sign. Years outside 1..9999 (which Python's dates, and so the
+# results, cannot hold) are refused at run time.
+_ISO_DAY = r"^([+-]?[0-9]{1,9})(?:-([0-9]{1,2})(?:-([0-9]{1,2}))?)?$"
+_ISO_WEEK = r"^([+-]?[0-9]{1,9})-W([0-9]{1,2})(?:-([0-9]))?$"
+_ISO_ORDINAL = r"^([+-]?[0-9]{1,9})-([0-9]{3})$"
+
+
+def _iso_parts(value: str, pattern: str) -> tuple[str, str, str]:
+    """Year, second and third field of `pattern`'s match as integers (the missing ones 1)."""
+    fields = [f"CAST(regexp_extract({value}, {tf.string(pattern)}, {i}) AS BIGINT)" for i in (1, 2)]
+    third = f"CAST(coalesce(nullif(regexp_extract({value}, {tf.string(pattern)}, 3), ''), '1') AS BIGINT)"
+    if pattern == _ISO_DAY:
+        fields[1] = f"CAST(coalesce(nullif(regexp_extract({value}, {tf.string(pattern)}, 2), ''), '1') AS BIGINT)"
+    return fields[0], fields[1], third
+
+
+def _render_from_iso8601_date(g, node, args) -> str:
+    v = '"_iso"'
+    y, m, d = _iso_parts(v, _ISO_DAY)
+    wy, w, e = _iso_parts(v, _ISO_WEEK)
+    oy, doy, _ = _iso_parts(v, _ISO_ORDINAL)
+    week_one = f"(make_date({wy}, 1, 4) - CAST(isodow(make_date({wy}, 1, 4)) - 1 AS INTEGER))"
+    week_date = f"({week_one} + CAST(7 * ({w} - 1) + {e} - 1 AS INTEGER))"
+    ordinal_date = f"(make_date({oy}, 1, 1) + CAST({doy} - 1 AS INTEGER))"
+    quoted = f"'\"' || {v} || '\"'"
+    invalid = g.fail(f"'Invalid format: ' || {quoted}")
+    out_of_range = g.fail(f"'Cannot parse ' || {quoted} || ': a field value is out of range'")
+    too_far = g.fail(f"'from_iso8601_date of a year outside 1..9999: ' || {quoted}", "NOT_SUPPORTED")
+    body = (f"CASE WHEN {v} IS NULL THEN NULL "
+            f"WHEN NOT regexp_full_match({v}, '[+-]?[0-9]{{1,9}}(-.*)?') THEN {invalid} "
+            f"WHEN CAST(regexp_extract({v}, '^[+-]?[0-9]+') AS BIGINT) NOT BETWEEN 1 AND 9999 THEN {too_far} "
+            f"WHEN regexp_full_match({v}, {tf.string(_ISO_DAY)}) THEN "
+            f"coalesce(try(make_date({y}, {m}, {d})), {out_of_range}) "
+            f"WHEN regexp_full_match({v}, {tf.string(_ISO_WEEK)}) THEN CASE "
+            f"WHEN {w} BETWEEN 1 AND week(make_date({wy}, 12, 28)) AND {e} BETWEEN 1 AND 7 THEN {week_date} "
+            f"ELSE {out_of_range} END "
+            f"WHEN regexp_full_match({v}, {tf.string(_ISO_ORDINAL)}) THEN CASE "
+            f"WHEN {doy} >= 1 AND year({ordinal_date}) = {oy} THEN {ordinal_date} ELSE {out_of_range} END "
+            f"ELSE {invalid} END")
+    return f"list_transform([{g.sql(args[0])}], lambda {v}: {body})[1]"
+
+
 def _from_unixtime(call: Call) -> TType:
     if len(call.args) != 1:
         call.fail("from_unixtime with a time zone is not supported in lakegate", "NOT_SUPPORTED")
@@ -1781,6 +1825,9 @@ register("date_format", "datetime", "date_format(timestamp, format) -> varchar",
 register("date_parse", "datetime", "date_parse(string, format) -> timestamp(3)", _date_parse, _render_date_parse)
 register("from_unixtime", "datetime", "from_unixtime(unixtime) -> timestamp(3) with time zone", _from_unixtime,
          _render_from_unixtime, notes="In the session time zone, which is UTC in lakegate.")
+register("from_iso8601_date", "datetime", "from_iso8601_date(string) -> date",
+         lambda c: need(c, "string") and tt.DATE, _render_from_iso8601_date,
+         notes="Joda's ISO 8601 date forms, as Trino: 2020-05-11, 2020-05, 2020, 2020-W10[-5], 2020-130.")
 register("to_unixtime", "datetime", "to_unixtime(timestamp) -> double", _to_unixtime, _render_to_unixtime)
 register("now", "datetime", "now() -> timestamp(3) with time zone", fixed(tt.timestamp(3, True)),
          lambda g, node, args: "date_trunc('millisecond', current_timestamp)")
@@ -1879,7 +1926,6 @@ REJECTED: dict[str, str] = {
     "at_timezone": "time zones other than UTC are not supported",
     "from_unixtime_nanos": "DuckDB has no nanosecond timestamp with time zone",
     "from_iso8601_timestamp": "not translated",
-    "from_iso8601_date": "not translated",
     "to_iso8601": "not translated",
     "human_readable_seconds": "not translated",
     "timezone_hour": "time zones other than UTC are not supported",

@@ -106,8 +106,25 @@ class Writer(DuckDBGenerator):
         if meta.get("filter") is not None:
             sql += f" FILTER(WHERE {self.sql(meta['filter'])})"
         if meta.get("over") is not None:
-            sql += " " + self.over(meta["over"])
+            return self.windowed(sql, meta["over"])
         return sql
+
+    def windowed(self, call: str, window: exp.Window) -> str:
+        """`call OVER (...)`. DuckDB refuses error() (volatile) in a window's keys, so keys that can
+        fail are windowed by their unchecked value (failures as NULL) and checked beside the window,
+        on the same rows: a failing key fails the query, as in Trino."""
+        over = self.over(window)
+        if "error(" not in over:
+            return f"{call} {over}"
+        order = window.args.get("order")
+        keys = [*(window.args.get("partition_by") or []), *(o.this for o in (order.expressions if order else []))]
+        checks = [f"({sql}) IS NULL" for sql in map(self.sql, keys) if "error(" in sql]
+        self.in_try += 1
+        try:
+            over = self.over(window)
+        finally:
+            self.in_try -= 1
+        return f"CASE WHEN {' OR '.join(checks)} THEN {call} {over} ELSE {call} {over} END"
 
     def over(self, window: exp.Window) -> str:
         parts = []

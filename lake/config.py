@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from lakegate.lake import paths
-from lakegate.lake.config_schema import FILE, SET_METRIC_TYPES, TOPIC_NAME_RULES
+from lakegate.lake.config_schema import FILE, TOPIC_NAME_RULES
 from lakegate.lake.config_yaml import Entry, FileReader, Named, RawProblem, did_you_mean
 
 DEFAULT_CONFIG_PATH = Path(".resim/metrics/config.resim.yaml")
@@ -65,7 +65,7 @@ class Topic:
 @dataclass
 class StatusCheck:
     query_string: str
-    block: Any
+    block: Any = None  # a check may have only `warn`, or only `block`
     warn: Any = None
     location: Location | None = None
     query_location: Location | None = None  # where the query_string value starts
@@ -281,17 +281,13 @@ class _Builder:
                 self._data_locations[section, name] = location
 
     def check_sets(self) -> None:
-        """Every name in a metrics set must be a test or batch metric of the merged config."""
+        """Every name in a metrics set must be a metric of the merged config (of any type, as in ReSim)."""
         metrics = self.config.metrics
         for metrics_set, items in self._set_items:
             for name, location in items:
-                metric = metrics.get(name)
-                if metric is None:
+                if name not in metrics:
                     self._error(location, f"metrics set '{metrics_set.name}' names unknown metric "
                                           f"'{name}'{did_you_mean(name, metrics)}")
-                elif metric.type not in SET_METRIC_TYPES:
-                    self._error(location, f"metrics set '{metrics_set.name}' names metric '{name}' of type "
-                                          f"{metric.type}; a metrics set holds only test and batch metrics")
 
 
 def _value(entries: dict[str, Entry], key: str, default: Any) -> Any:

@@ -14,7 +14,7 @@ from typing import Any
 from lakegate.lake.types import FIELD_TYPES, TYPE_ALIASES
 
 METRIC_TYPES = ("test", "batch", "dashboard", "report")
-#: Metric types a metrics set may hold.
+#: Metric types a metrics set evaluates; ReSim's sets may also list dashboard and report metrics.
 SET_METRIC_TYPES = ("test", "batch")
 TEMPLATE_TYPES = ("system", "custom")
 TEMPLATES = ("line", "bar", "table", "scalar", "image", "state_timeline", "histogram", "pie", "video", "artifact")
@@ -97,6 +97,7 @@ class Section:
     title: str
     keys: dict[str, Key]
     when: tuple[When, ...] = ()
+    one_of: tuple[str, ...] = ()  # at least one of these keys is required
 
 
 STATUS = Section(
@@ -104,9 +105,10 @@ STATUS = Section(
     {
         "query_string": Key("query", "SQL query with exactly one ? placeholder, replaced by the threshold. "
                             "The check fails when the query returns rows.", required=True),
-        "block": Key("threshold", "Threshold for a blocking failure.", required=True),
-        "warn": Key("threshold", "Threshold for a warning."),
+        "block": Key("threshold", "Threshold for a blocking failure."),
+        "warn": Key("threshold", "Threshold for a warning (a check may have only warn, as in ReSim)."),
     },
+    one_of=("block", "warn"),
 )
 
 METRIC = Section(
@@ -114,7 +116,7 @@ METRIC = Section(
     {
         "type": Key("string", "test: one job's data; batch: every job of a batch; dashboard and report: "
                     "shown on dashboards and reports.", required=True, choices=METRIC_TYPES),
-        "description": Key("string", "What the metric shows.", required=True),
+        "description": Key("string", "What the metric shows (optional, as in ReSim)."),
         "query_string": Key("query", "SQL query in the Trino dialect.", required=True),
         "template_type": Key("string", "system: a built-in template; custom: a template file.",
                              choices=TEMPLATE_TYPES, default="system"),
@@ -141,8 +143,8 @@ TOPIC = Section(
 
 METRICS_SET = Section(
     "metrics set",
-    {"metrics": Key("names", "Names of the test and batch metrics of this set.", required=True,
-                    nullable=True, what="metric")},
+    {"metrics": Key("names", "Names of the metrics of this set (dashboard and report metrics are not evaluated "
+                             "yet).", required=True, nullable=True, what="metric")},
 )
 
 FILE = Section(
@@ -238,6 +240,8 @@ def _section_schema(section: Section, defs: dict[str, Any]) -> dict[str, Any]:
         schema["required"] = required
     if section.when:
         schema["allOf"] = [_when_schema(rule, section) for rule in section.when]
+    if section.one_of:
+        schema["anyOf"] = [{"required": [name]} for name in section.one_of]
     return schema
 
 

@@ -190,6 +190,9 @@ class FileReader:
         for name, spec in section.keys.items():
             if spec.required and name not in present:
                 self.error(anchor, f"missing required key '{name}' in {label}")
+        if section.one_of and not present.intersection(section.one_of):
+            keys = " or ".join(f"'{name}'" for name in section.one_of)
+            self.error(anchor, f"{label} needs {keys}")
         for rule in section.when:
             value = entries[rule.key].value if rule.key in entries else section.keys[rule.key].default
             if (rule.key in present and rule.key not in entries) or value != rule.value:

@@ -31,7 +31,7 @@ from __future__ import annotations
 import json
 import sys
 import time
-from collections import deque
+from collections import Counter, deque
 from collections.abc import Iterator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -95,9 +95,36 @@ class LineProblem:
     line: int
     reason: str
     text: str = ""
+    topic: str | None = None  # the declared topic the line names, if it names one
 
     def __str__(self) -> str:
         return f"{self.path}:{self.line}: {self.reason}"
+
+
+@dataclass
+class BadLines:
+    """Every bad line of a job by cause: the first line of each distinct reason and how many share
+    it, and per topic how many lines a skip would drop (None: lines naming no declared topic)."""
+
+    causes: dict[str, tuple[LineProblem, int]] = field(default_factory=dict)
+    dropped: Counter[str | None] = field(default_factory=Counter)
+
+    def add(self, problem: LineProblem) -> None:
+        first, count = self.causes.get(problem.reason, (problem, 0))
+        self.causes[problem.reason] = (first, count + 1)
+        self.dropped[problem.topic] += 1
+
+    def what_skipping_drops(self, topics: dict[str, Topic]) -> str:
+        """`2 rows of topic 'a', 109 events of event topic 'goal_reached' (with their metrics)`."""
+        parts = []
+        for name, count in self.dropped.most_common():
+            if name is None:
+                parts.append(f"{count} line{'s' if count > 1 else ''} naming no declared topic")
+            elif topics[name].event:
+                parts.append(f"{count} event{'s' if count > 1 else ''} of event topic {name!r} (with their metrics)")
+            else:
+                parts.append(f"{count} row{'s' if count > 1 else ''} of topic {name!r}")
+        return ", ".join(parts)
 
 
 class IngestError(ValueError):
@@ -106,9 +133,11 @@ class IngestError(ValueError):
     `total` counts every bad line found, even beyond the `MAX_PROBLEMS` kept.
     """
 
-    def __init__(self, message: str, problems: Sequence[LineProblem] = (), total: int = 0):
+    def __init__(self, message: str, problems: Sequence[LineProblem] = (), total: int = 0,
+                 bad_lines: BadLines | None = None):
         self.problems = list(problems)
         self.total = total
+        self.bad_lines = bad_lines or BadLines()
         self.summary = message
         super().__init__("\n".join([message, *(str(p) for p in self.problems)]))
 
@@ -129,6 +158,8 @@ class IngestReport:
     config_version: int
     files: list[Path] = field(default_factory=list)
     problems: list[LineProblem] = field(default_factory=list)  # the first MAX_PROBLEMS, when skipped
+    skipped: str = ""  # what the skipped lines held, per topic (BadLines.what_skipping_drops)
+    causes: list[tuple[LineProblem, int]] = field(default_factory=list)  # skipped lines by cause
 
 
 # -- checking one line exactly --------------------------------------------------------------
@@ -172,6 +203,15 @@ def check_line(raw: bytes, topics: dict[str, Topic], *, unterminated: bool = Fal
         return _check_line(raw, topics, unterminated)
     except _Bad as exc:
         raise ValueError(str(exc)) from None
+
+
+def _topic_of(text: str, topics: dict[str, Topic]) -> str | None:
+    """The declared topic a (bad) line names, if it can be read."""
+    try:
+        name = json.loads(text)["$metadata"]["topic"]
+    except (ValueError, TypeError, KeyError, RecursionError):
+        return None
+    return name if isinstance(name, str) and name in topics else None
 
 
 def _too_long(size: int) -> _Bad:
@@ -233,21 +273,28 @@ def _check_line(raw: bytes, topics: dict[str, Topic], unterminated: bool) -> tup
     data = record["$data"]
     if not isinstance(data, dict):
         raise _Bad(f"topic {name!r}: $data must be an object, got {_what(data)}")
+    values, problems = _check_data(topic, data)
+    if problems:
+        raise _Bad(f"topic {name!r}{', ' if problems[0].startswith('field ') else ': '}" + "; ".join(problems))
+    return name, timestamp, values
+
+
+def _check_data(topic: Topic, data: dict[str, Any]) -> tuple[list[Any], list[str]]:
+    """The field values as stored, and every problem of `$data` (missing, unexpected and bad fields)."""
+    problems = []
     missing = [f for f in topic.fields if f not in data]
     if missing:
-        raise _Bad(f"topic {name!r}: missing field{'s' if len(missing) > 1 else ''} {', '.join(map(repr, missing))}")
-    extra = [f for f in data if f not in topic.fields]
-    if extra:
-        raise _Bad(f"topic {name!r}: unexpected field{'s' if len(extra) > 1 else ''} {', '.join(map(repr, extra))}"
-                   f"{did_you_mean(extra[0], topic.fields)}")
+        problems.append(f"missing field{'s' if len(missing) > 1 else ''} {', '.join(map(repr, missing))}")
+    unexpected = [f for f in data if f not in topic.fields]
+    problems += [f"unexpected field {f!r}{did_you_mean(f, missing or topic.fields)}" for f in unexpected]
     values = []
     for field_name, field_type in topic.fields.items():
-        try:
-            value = check_value(field_type, data[field_name])
-        except FieldError as exc:
-            raise _Bad(f"topic {name!r}, field {field_name!r}: {exc}") from None
-        values.append(value)
-    return name, timestamp, values
+        if field_name in data:
+            try:
+                values.append(check_value(field_type, data[field_name]))
+            except FieldError as exc:
+                problems.append(f"field {field_name!r}: {exc}")
+    return values, problems
 
 
 # -- topics as plans -------------------------------------------------------------------------
@@ -494,7 +541,7 @@ def _slow(plans: list[_Plan], topics: dict[str, Topic], block: _Block, lines: Se
             checked = _check_line(raw, topics, unterminated=number == block.unterminated)
         except _Bad as exc:
             text = raw[:1000 if int(i) in block.too_long else None].decode("utf-8", "surrogateescape")
-            result.problems.append(LineProblem(block.path, number, str(exc), text))
+            result.problems.append(LineProblem(block.path, number, str(exc), text, _topic_of(text, topics)))
             continue
         if checked is not None:
             name, timestamp, values = checked
@@ -744,6 +791,7 @@ def ingest_job(
             raise IngestError(f"emissions file {str(path)!r} does not exist or is not a file")
     row = build_metadata_row(metadata or {}, lake=lake, branch=branch, batch_id=batch_id, job_id=job_id)
     problems: list[LineProblem] = []
+    grouped = BadLines()
     bad = 0
     lines = 0
     with paths.job_lock(lake, branch, batch_id, job_id), paths.staging(lake, branch) as scratch:
@@ -763,6 +811,8 @@ def ingest_job(
                 if found:
                     bad += len(found)
                     problems.extend(found[:max(0, MAX_PROBLEMS - len(problems))])
+                    for problem in found:
+                        grouped.add(problem)
                     if skip_bad_lines:
                         bad_lines.writelines(json.dumps({"file": p.path, "line": p.line, "reason": p.reason,
                                                          "text": p.text}) + "\n" for p in found)
@@ -786,7 +836,8 @@ def ingest_job(
         if bad and not skip_bad_lines:
             writer.close()
             raise IngestError(f"{bad} bad line{'s' if bad > 1 else ''} in the emissions of job {job_id!r}; nothing "
-                              "was written (use --skip-bad-lines to keep the good rows)", problems, bad)
+                              "was written (--skip-bad-lines would keep the good rows and drop "
+                              f"{grouped.what_skipping_drops(topics)})", problems, bad, grouped)
         staged = writer.close()
         metadata_file = scratch / "metadata.parquet"
         write_metadata_file(metadata_table(row), metadata_file)
@@ -802,6 +853,7 @@ def ingest_job(
         branch=branch, batch_id=batch_id, job_id=job_id, rows=writer.rows, events=writer.events, lines=lines,
         bad_lines=bad, quarantine=quarantine_target if bad else None, seconds=time.perf_counter() - started,
         config_version=version, files=published, problems=problems if bad else [],
+        skipped=grouped.what_skipping_drops(topics) if bad else "", causes=list(grouped.causes.values()),
     )
 
 

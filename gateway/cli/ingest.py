@@ -9,7 +9,7 @@ from typing import Any, Sequence
 from lakegate.gateway.cli.errors import UserError, writable_lake
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.config import Config, ConfigError, find_default_config, load_config
-from lakegate.lake.ingest import IngestError, IngestReport, ingest_job
+from lakegate.lake.ingest import IngestError, IngestReport, LineProblem, ingest_job
 from lakegate.lake.metadata import MetadataError, load_metadata_file
 from lakegate.lake.paths import LakePathError
 from lakegate.lake.registry import BranchConfigs
@@ -106,6 +106,11 @@ def _print_problems(title: str, problems: Sequence[str], total: int | None = Non
         print(f"  ... and {total - SHOWN_PROBLEMS} more", file=sys.stderr)
 
 
+def _cause(first: LineProblem, count: int) -> str:
+    """One cause of bad lines: its first line, and how many more lines share its reason."""
+    return f"{first}" + (f" (and {count - 1} more line{'s' if count > 2 else ''} like it)" if count > 1 else "")
+
+
 def ingest_command(args: argparse.Namespace) -> int:
     progress = sys.stderr.isatty() if args.progress is None else args.progress
     writable_lake(args.lake)
@@ -120,7 +125,9 @@ def ingest_command(args: argparse.Namespace) -> int:
         _print_problems("bad metadata:", exc.problems)
         return 1
     except IngestError as exc:
-        _print_problems(exc.summary, [str(p) for p in exc.problems], exc.total)
+        causes = exc.bad_lines.causes.values()
+        _print_problems(exc.summary, [_cause(first, count) for first, count in causes] or
+                        [str(p) for p in exc.problems], len(causes) or exc.total)
         return 1
     except (LakePathError, OSError) as exc:
         raise UserError(str(exc)) from None
@@ -141,10 +148,11 @@ def summary(report: IngestReport) -> str:
     if empty:
         lines.append(f"  no rows for: {', '.join(empty)}")
     if report.bad_lines:
-        lines.append(f"skipped {report.bad_lines:,} bad line(s); they are in {report.quarantine}")
-        lines += [f"  {p}" for p in report.problems[:SHOWN_PROBLEMS]]
-        if report.bad_lines > SHOWN_PROBLEMS:
-            lines.append(f"  ... and {report.bad_lines - SHOWN_PROBLEMS} more")
+        lines.append(f"skipped {report.bad_lines:,} bad line(s), dropping {report.skipped}; they are in "
+                     f"{report.quarantine}")
+        lines += [f"  {_cause(first, count)}" for first, count in report.causes[:SHOWN_PROBLEMS]]
+        if len(report.causes) > SHOWN_PROBLEMS:
+            lines.append(f"  ... and {len(report.causes) - SHOWN_PROBLEMS} more")
     return "\n".join(lines)
 
 

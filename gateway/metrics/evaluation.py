@@ -27,7 +27,7 @@ supported) counts for nothing. One metric:
 * no rows and `skip_if_no_data: true`: NOT_RUN;
 * `type: dashboard | report`, `template_type: custom` and the templates `video` and
   `artifact` are not supported yet: NOT_RUN with that reason (they never fail a batch);
-* otherwise the status check, if any: the status query runs with `block` bound to its one
+* otherwise the status check, if any: the status query runs with `block` (when given) bound to its one
   `?` (a typed query parameter, never pasted text); any row means BLOCKER; else with `warn`
   (when given): any row means WARNING; else PASSED. No status check: PASSED.
 
@@ -364,7 +364,7 @@ class MetricsEngine:
         if metric.status is not None:
             check = metric.status
             try:
-                if self._any_rows(check.query_string, branch, scope, check.block):
+                if check.block is not None and self._any_rows(check.query_string, branch, scope, check.block):
                     result.status = BLOCKER
                 elif check.warn is not None and self._any_rows(check.query_string, branch, scope, check.warn):
                     result.status = WARNING

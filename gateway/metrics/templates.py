@@ -294,9 +294,13 @@ def _labeller() -> Callable[[Any], str]:
 def _line(result: _Result) -> Rendered:
     result.need_columns((3,), "[series, x, y]")
     ys, problems = result.numbers(2, "numeric y values")
-    dates = any(isinstance(row[1], dt.date) for row in result.rows)
-    if dates:
-        xs: list[Any] = [_plot_time(row[1]) if isinstance(row[1], dt.date) else None for row in result.rows]
+    categorical = _is_text(result.types[1])  # ReSim draws text x values as categories
+    dates = not categorical and any(isinstance(row[1], dt.date) for row in result.rows)
+    xs: list[Any]
+    if categorical:
+        xs = [row[1] for row in result.rows]
+    elif dates:
+        xs = [_plot_time(row[1]) if isinstance(row[1], dt.date) else None for row in result.rows]
         for number, row in enumerate(result.rows, 1):
             if row[1] is not None and not isinstance(row[1], dt.date):
                 raise result.bad_value(number, 1, "numeric or timestamp x values")
@@ -313,8 +317,8 @@ def _line(result: _Result) -> Rendered:
             "y": [ys[i] for i in indexes],
         })
     layout = _layout(result.names[1], result.names[2], hovermode="closest")
-    if dates:
-        layout["xaxis"]["type"] = "date"
+    if dates or categorical:
+        layout["xaxis"]["type"] = "date" if dates else "category"
     return Rendered(
         template="line",
         figure={"data": traces, "layout": layout},
@@ -394,40 +398,49 @@ def _image(result: _Result, logs_dir: Path | None) -> Rendered:
     result.need_columns((1,), "[image file name]")
     root = logs_dir.resolve() if logs_dir is not None else None
     images: list[str] = []
-    problems: list[str] = []
+    failed: dict[str, list[str]] = {}  # what went wrong -> the files (or rows) it went wrong for
     rows: list[list[str | None]] = []
     for number, (name,) in enumerate(result.rows, 1):
         if name is None:
-            problems.append(f"row {number}: NULL file name")
+            failed.setdefault("NULL file name", []).append(f"row {number}")
             rows.append([None, None])
             continue
         if not isinstance(name, str):
             raise result.bad_value(number, 0, "image file names")
         found = None
         if root is None:
-            problems.append(f"{name}: no log directory to look in")
+            failed.setdefault("no log directory to look in", []).append(name)
         else:
             path = (root / name).resolve()
             if not path.is_relative_to(root):
-                problems.append(f"{name}: outside the job's logs ({root})")
+                failed.setdefault(f"outside the job's logs ({root})", []).append(name)
             elif not path.is_file():
-                problems.append(f"{name}: missing from the job's logs ({root})")
+                failed.setdefault(f"missing from the job's logs ({root})", []).append(name)
             elif image_mime(path) is None:
-                problems.append(f"{name}: not a PNG, GIF or JPEG image")
+                failed.setdefault("not a PNG, GIF or JPEG image", []).append(name)
             else:
                 found = str(path)
                 images.append(found)
         rows.append([name, found])
     text = _plural(len(images), "image")
-    if problems:
-        text += f", {_plural(len(problems), 'problem')}"
+    count = sum(len(names) for names in failed.values())
+    if count:
+        text += f", {_plural(count, 'problem')}"
     return Rendered(
         template="image",
         table={"columns": [result.names[0], "path"], "rows": rows},
         text=text,
         images=images,
-        problems=problems,
+        problems=[_grouped_problem(what, names) for what, names in failed.items()],
     )
+
+
+def _grouped_problem(what: str, names: list[str], shown: int = 3) -> str:
+    """One line for every file with the same problem: `a.gif: what`, or `200 files: what (a.gif, b.gif, ...)`."""
+    if len(names) == 1:
+        return f"{names[0]}: {what}"
+    listed = ", ".join(names[:shown]) + (f" and {len(names) - shown} more" if len(names) > shown else "")
+    return f"{len(names)} {'rows' if names[0].startswith('row ') else 'files'}: {what} ({listed})"
 
 
 def _nanoseconds(value: Any) -> int | float | None:
@@ -503,11 +516,26 @@ def _state_timeline(result: _Result) -> Rendered:
     )
 
 
+def _is_text(type_name: str) -> bool:
+    return type_name.startswith(("varchar", "char"))
+
+
+def _histogram_columns(result: _Result) -> tuple[int, int | None]:
+    """(value column, series column): [value], [value, series], or [group, value] as ReSim's
+    own examples write it (`group_name` first), told apart by the columns' types."""
+    if len(result.names) == 1:
+        return 0, None
+    if _is_text(result.types[0]) and not _is_text(result.types[1]):
+        return 1, 0
+    return 0, 1
+
+
 def _histogram(result: _Result) -> Rendered:
-    result.need_columns((1, 2), "[value] or [value, series]")
-    values, problems = result.numbers(0, "numeric values")
-    with_series = len(result.names) == 2
-    groups = _series(result, 1 if with_series else None)
+    result.need_columns((1, 2), "[value], [value, series] or [group, value]")
+    value_column, series_column = _histogram_columns(result)
+    values, problems = result.numbers(value_column, "numeric values")
+    with_series = series_column is not None
+    groups = _series(result, series_column)
     traces = []
     for name, indexes in groups.items():
         trace = {"type": "histogram", "x": [values[i] for i in indexes]}
@@ -515,12 +543,12 @@ def _histogram(result: _Result) -> Rendered:
             trace.update(name=name, opacity=0.6)
         traces.append(trace)
     counted = sum(1 for value in values if value is not None)
-    nulls = sum(1 for row in result.rows if row[0] is None)
+    nulls = sum(1 for row in result.rows if row[value_column] is None)
     if nulls:
         problems.append(f"{_plural(nulls, 'NULL value')} not counted")
     return Rendered(
         template="histogram",
-        figure={"data": traces, "layout": _layout(result.names[0], "Count", barmode="overlay")},
+        figure={"data": traces, "layout": _layout(result.names[value_column], "Count", barmode="overlay")},
         text=_plural(counted, "value") + (f" in {_plural(len(groups), 'series', 'series')}" if with_series else ""),
         problems=problems,
     )

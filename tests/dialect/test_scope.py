@@ -134,3 +134,26 @@ def test_scoped_trino_sql_for_a_forwarding_backend():
 def test_translation_carries_the_scoped_trino_sql(fixture_lake):
     translation = translate("SELECT count(*) FROM odom", fixture_lake.schema, scope=JOB)
     assert "WHERE batch_id = 'b1' AND job_id = 'j1'" in translation.trino_sql
+
+
+@pytest.mark.parametrize("sql, rows", [
+    # issue 13: a CTE read in a derived table, a joined subquery and a nested CTE's body
+    ("WITH i AS (SELECT 1 AS a) SELECT a FROM (SELECT a FROM i)", [(1,)]),
+    ("WITH i AS (SELECT 1 AS a) SELECT a FROM (SELECT a FROM (SELECT a FROM i) d1) d2", [(1,)]),
+    ("WITH n AS (SELECT count(*) AS c FROM odom) SELECT m.job_id, s.c FROM metadata m "
+     "JOIN (SELECT c FROM n) s ON true", [("j1", 4)]),
+    ("WITH n AS (SELECT max(x) AS c FROM odom) SELECT c FROM (WITH k AS (SELECT c * 2 AS c FROM n) SELECT c FROM k)",
+     [(12.0,)]),
+    ("WITH n AS (SELECT 2 AS c) SELECT * FROM (VALUES 1) v(a) CROSS JOIN (SELECT c FROM n)", [(1, 2)]),
+    # a CTE named like a topic shadows it inside a derived table too, and the topic stays scoped in the CTE body
+    ("WITH odom AS (SELECT count(*) AS x FROM odom) SELECT x FROM (SELECT x FROM odom)", [(4,)]),
+    ("WITH odom AS (SELECT 42 AS x) SELECT o.x FROM metadata m JOIN (SELECT x FROM odom) o ON true", [(42,)]),
+])
+def test_a_cte_is_visible_at_every_depth_of_its_query(fixture_lake, sql, rows):
+    assert run(fixture_lake, sql) == rows
+
+
+def test_a_derived_table_does_not_see_its_siblings():
+    with pytest.raises(DialectError, match="Table 'i' does not exist"):
+        translate("SELECT 1 FROM (WITH i AS (SELECT 1 AS a) SELECT a FROM i) x, (SELECT a FROM i) y",
+                  {"odom": {"x": "double"}})

@@ -78,21 +78,31 @@ def test_default_config_is_the_branchs_current_one_then_the_cwd_file(tmp_path, e
     assert Catalog(lake).connect("main").execute("SELECT COUNT(*) FROM robot_speed").fetchall() == [(20,)]
 
 
-def test_bad_lines_print_one_problem_per_line_and_exit_1(tmp_path):
+def test_bad_lines_are_grouped_by_cause_say_what_skipping_drops_and_exit_1(tmp_path):
     lake = tmp_path / "lake"
     bad = tmp_path / "bad.jsonl"
+    event = {"name": "g", "description": "d", "status": 5, "tags": [], "metrics": []}
     bad.write_text("".join(line("robot_speed", i, {"speed": "fast"}) for i in range(25)) +
-                   line("robot_speed", 99, {"speed": 1.0}))
+                   line("robot_speed", 99, {"speed": 1.0}) +
+                   "".join(line("goal_reached", i, event, True) for i in range(3)) +
+                   line("robot_speeds", 1, {"speed": 1.0}))
     result = lakegate("ingest", "--lake", lake, "--branch", "main", "--batch", "b", "--job", "j",
                       "--metrics-config-path", FIXTURE_CONFIG, bad, check=False)
     assert result.returncode == 1 and result.stdout == ""
-    lines = result.stderr.splitlines()
-    assert lines[0] == "lakegate: 25 bad lines in the emissions of job 'j'; nothing was written (use --skip-bad-lines to keep the good rows)"
-    assert lines[1] == f"  {bad}:1: topic 'robot_speed', field 'speed': expected float, got str 'fast'"
-    assert len(lines) == 1 + 20 + 1 and lines[-1] == "  ... and 5 more"
+    assert result.stderr.splitlines() == [
+        "lakegate: 29 bad lines in the emissions of job 'j'; nothing was written (--skip-bad-lines would keep the "
+        "good rows and drop 25 rows of topic 'robot_speed', 3 events of event topic 'goal_reached' (with their "
+        "metrics), 1 line naming no declared topic)",
+        f"  {bad}:1: topic 'robot_speed', field 'speed': expected float, got str 'fast' (and 24 more lines like it)",
+        f"  {bad}:27: topic 'goal_reached', field 'status': expected status (a string), got int 5 "
+        "(and 2 more lines like it)",
+        f"  {bad}:30: unknown topic 'robot_speeds' (did you mean 'robot_speed'?)",
+    ]
     skipped = lakegate("ingest", "--lake", lake, "--branch", "main", "--batch", "b", "--job", "j",
                        "--metrics-config-path", FIXTURE_CONFIG, "--skip-bad-lines", bad)
-    assert "skipped 25 bad line(s); they are in " in skipped.stdout and "_quarantine" in skipped.stdout
+    assert "skipped 29 bad line(s), dropping 25 rows of topic 'robot_speed', 3 events of event topic " \
+           "'goal_reached' (with their metrics), 1 line naming no declared topic; they are in " in skipped.stdout
+    assert "_quarantine" in skipped.stdout and "(and 24 more lines like it)" in skipped.stdout
 
 
 @pytest.mark.parametrize("args, message", [

@@ -154,7 +154,7 @@ def test_config_and_usage_errors_exit_1(nav, tmp_path):
                       "--metrics-config-path", bad)
     assert result.returncode == 1
     assert f"{bad}:{at}:{text.index('Count, L') + 1}: duplicate metric 'Count'" in result.stderr
-    assert f"{bad}:{at}:{text.index('Later') + 1}: metrics set 'S' names metric 'Later' of type dashboard" in result.stderr
+    assert "'Later'" not in result.stderr  # a set may list a dashboard metric, as in ReSim
     assert f"{bad}:{at}:{text.index('Missing') + 1}: metrics set 'S' names unknown metric 'Missing'" in result.stderr
     args = ["metrics", "run", "--lake", lake, "--branch", "main"]
     for extra, message in (

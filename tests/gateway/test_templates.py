@@ -289,6 +289,19 @@ def test_image_without_logs_dir_reports_every_file():
     assert rendered.images == [] and rendered.problems == ["a.gif: no log directory to look in"]
 
 
+def test_image_problems_are_one_line_per_cause_with_a_count(tmp_path):
+    rows = [(f"frame_{i:03}.png",) for i in range(200)] + [(None,), (None,)]
+    rendered = render("Feed", "image", [("filename", "varchar")], rows)
+    assert rendered.problems == [
+        "200 files: no log directory to look in (frame_000.png, frame_001.png, frame_002.png and 197 more)",
+        "2 rows: NULL file name (row 201, row 202)",
+    ]
+    assert rendered.text == "0 images, 202 problems"
+    rendered = render("Feed", "image", [("filename", "varchar")], rows[:2], logs_dir=tmp_path)
+    assert rendered.problems == [f"2 files: missing from the job's logs ({tmp_path.resolve()}) "
+                                 "(frame_000.png, frame_001.png)"]
+
+
 def test_image_shape_errors(tmp_path):
     with pytest.raises(TemplateError, match=r"template 'image' needs exactly 1 column \[image file name\], got 2 \(a, b\)"):
         render("Feed", "image", [("a", "varchar"), ("b", "varchar")], [], logs_dir=tmp_path)
@@ -383,8 +396,25 @@ def test_histogram_with_and_without_series():
     assert [(t["name"], t["x"]) for t in rendered.figure["data"]] == [("b", [1.0, 3.0]), ("a", [2.0])]
 
 
+def test_histogram_takes_resims_group_name_first_shape():
+    columns = [("group_name", "varchar"), ("Speed (m/s)", "double")]
+    rendered = render("Speed", "histogram", columns, [("b", 1.0), ("a", 2.0), ("b", None), ("b", 3.0)])
+    check_figure(rendered.figure)
+    assert [(t["name"], t["x"]) for t in rendered.figure["data"]] == [("b", [1.0, None, 3.0]), ("a", [2.0])]
+    assert rendered.figure["layout"]["xaxis"]["title"]["text"] == "Speed (m/s)"
+    assert rendered.text == "3 values in 2 series" and rendered.problems == ["1 NULL value not counted"]
+
+
+def test_line_draws_text_x_values_as_categories():
+    columns = [("group_name", "varchar"), ("Experience", "varchar"), ("Max speed (m/s)", "double")]
+    rendered = render("Speed", "line", columns, [("max", "parking", 1.5), ("max", "highway", 3.0), ("max", None, 2.0)])
+    check_figure(rendered.figure)
+    assert rendered.figure["data"][0]["x"] == ["parking", "highway", None]
+    assert rendered.figure["layout"]["xaxis"]["type"] == "category"
+
+
 def test_histogram_errors():
-    with pytest.raises(TemplateError, match=r"needs 1 or 2 columns \[value\] or \[value, series\], got 3 \(a, b, c\)"):
+    with pytest.raises(TemplateError, match=r"needs 1 or 2 columns \[value\], \[value, series\] or \[group, value\], got 3 \(a, b, c\)"):
         render("H", "histogram", [("a", "double"), ("b", "double"), ("c", "double")], [])
     with pytest.raises(TemplateError, match=r"needs numeric values in column 1 \"a\", but row 2 has 'x' \(varchar\)"):
         render("H", "histogram", [("a", "varchar")], [(1.0,), ("x",)])

@@ -320,9 +320,33 @@ def test_count_placeholders():
             count_placeholders(sql)
 
 
-def test_status_without_block(tmp_path):
+def test_status_with_only_warn_loads(tmp_path):
+    text = METRIC_WITH_STATUS.replace("{query}", "SELECT 1 FROM t HAVING COUNT(*) < ?").replace("block: 3", "warn: 3")
+    status = load_config(write(tmp_path, text)).metrics["M"].status
+    assert (status.block, status.warn) == (None, 3)
+
+
+def test_status_without_block_or_warn(tmp_path):
     text = METRIC_WITH_STATUS.replace("{query}", "SELECT 1 FROM t HAVING COUNT(*) < ?").replace("      block: 3\n", "")
-    assert one_error(tmp_path, text) == (8, 5, "missing required key 'block' in status of metric 'M'")
+    assert one_error(tmp_path, text) == (8, 5, "status of metric 'M' needs 'block' or 'warn'")
+
+
+def test_description_is_optional(tmp_path):
+    text = METRIC_WITH_STATUS.replace("{query}", "SELECT 1 FROM t HAVING COUNT(*) < ?").replace("        description: d\n", "")
+    assert load_config(write(tmp_path, text)).metrics["M"].description == ""
+
+
+def test_metrics_set_may_list_dashboard_and_report_metrics(tmp_path):
+    config = load_config(write(tmp_path, """
+        version: 1
+        metrics:
+          A: {type: test, query_string: SELECT 1, template: scalar}
+          Board: {type: dashboard, query_string: SELECT 1, template: line}
+          Weekly: {type: report, query_string: SELECT 1, template: table}
+        metrics sets:
+          S: {metrics: [A, Board, Weekly]}
+    """))
+    assert [m.type for m in config.metrics_in_set("S")] == ["test", "dashboard", "report"]
 
 
 def test_status_must_be_a_mapping_and_thresholds_scalars(tmp_path):
@@ -358,8 +382,6 @@ def test_metrics_set_errors(tmp_path):
     """)) == [
         (9, 9, "metrics set 'S' names unknown metric 'Robot Sped' (did you mean 'Robot Speed'?)"),
         (11, 9, "duplicate metric 'Robot Speed' in metrics set 'S' (first at line 10, column 9)"),
-        (12, 9, "metrics set 'S' names metric 'Board' of type dashboard; a metrics set holds only test and batch metrics"),
-        (13, 9, "metrics set 'S' names metric 'Weekly' of type report; a metrics set holds only test and batch metrics"),
         (14, 9, "metrics set 'S' names unknown metric 'Nothing Like It'"),
     ]
 

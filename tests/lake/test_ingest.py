@@ -177,6 +177,10 @@ BAD = [
     (line("plain", 1, {"i": 2**63, "f": 1.0, "b": True, "s": "", "tags": []}), "int out of the 64-bit range"),
     (line("odom", 1, {"x": 1.0, "y": 2.0}), "topic 'odom': missing field 'z'"),
     (line("odom", 1, {"x": 1.0, "y": 2.0, "z": 3.0, "w": 4.0}), "topic 'odom': unexpected field 'w'"),
+    # every problem of a line, each unexpected field with the likeliest missing one
+    (line("odom", 1, {"x": "1", "y": 2.0, "zz": 3.0, "w": 4.0}),
+     "topic 'odom': missing field 'z'; unexpected field 'zz' (did you mean 'z'?); unexpected field 'w'; "
+     "field 'x': expected float, got str"),
     (line("odom", -1, {"x": 1.0, "y": 2.0, "z": 3.0}), "bad timestamp: expected an integer number of nanoseconds"),
     (line("odom", 1.5, {"x": 1.0, "y": 2.0, "z": 3.0}), "bad timestamp"),
     (line("odom", "5", {"x": 1.0, "y": 2.0, "z": 3.0}), "bad timestamp"),

@@ -52,8 +52,9 @@ from lakegate.lake.config_yaml import did_you_mean
 from lakegate.lake.metadata import build_metadata_row, metadata_table, write_metadata_file
 from lakegate.lake.record import Change
 from lakegate.lake.registry import BranchConfigs
-from lakegate.lake.types import (INT64_MAX, MAX_JSON_DEPTH, MAX_LINE_BYTES, METRIC_STRUCT, FieldError, arrow_type,
-                                 check_value, json_too_deep)
+from lakegate.lake.schema import (EVENTS_COLUMNS, JOB_COLUMNS, RESERVED_FIELDS, TIMESTAMP, field_arrow_type, file_schema,
+                                  topic_columns)
+from lakegate.lake.types import INT64_MAX, MAX_JSON_DEPTH, MAX_LINE_BYTES, FieldError, check_value, json_too_deep
 
 BLOCK_SIZE = 16 << 20
 #: Rows buffered per topic before they are written as (part of) a row group.
@@ -62,20 +63,7 @@ ROWS_PER_WRITE = 128 * 1024
 MAX_PROBLEMS = 100
 THREADS = 2
 
-#: Columns lakegate adds to every topic row (besides the batch_id/job_id partitions).
-TIMESTAMP = "timestamp"
-JOB_COLUMNS = ("experience_name", "build_version")
-RESERVED_FIELDS = frozenset({TIMESTAMP, *JOB_COLUMNS, "batch_id", "job_id"})
-EVENTS_SCHEMA = pa.schema([
-    (TIMESTAMP, pa.int64()),
-    ("topic", pa.string()),
-    ("name", pa.string()),
-    ("description", pa.string()),
-    ("status", pa.string()),
-    ("tags", pa.list_(pa.string())),
-    ("metrics", pa.list_(METRIC_STRUCT)),
-    *[(name, pa.string()) for name in JOB_COLUMNS],
-])
+EVENTS_SCHEMA = file_schema(paths.EVENTS_TABLE, EVENTS_COLUMNS)
 #: events column -> field types of an event topic that fill it (other types leave it NULL).
 EVENT_FIELDS = {
     "name": ("string", "status", "image", "video"),
@@ -260,13 +248,13 @@ class _Plan:
         self.index = index
         self.topic = topic
         self.name = topic.name
-        self.schema = pa.schema([(TIMESTAMP, pa.int64()), *[(f, arrow_type(t)) for f, t in topic.fields.items()]])
-        self.file_schema = pa.schema([*self.schema, *[(c, pa.string()) for c in JOB_COLUMNS]])
+        self.file_schema = file_schema(topic.name, topic_columns(topic))
+        self.schema = pa.schema([field for field in self.file_schema if field.name not in JOB_COLUMNS])
         # metric[] values are normalised by check_value; a topic without fields has no Arrow struct
         self.fast = bool(topic.fields) and "metric[]" not in topic.fields.values()
         if self.fast:
             meta = pa.struct([("topic", pa.string()), ("timestamp", pa.int64()), ("event", pa.bool_())])
-            data = pa.struct([(f, arrow_type(t)) for f, t in topic.fields.items()])
+            data = pa.struct([(f, field_arrow_type(t)) for f, t in topic.fields.items()])
             self.line_options = pj.ParseOptions(explicit_schema=pa.schema([("$metadata", meta), ("$data", data)]),
                                                 unexpected_field_behavior="error")
             self.data_options = pj.ParseOptions(explicit_schema=pa.schema(list(data)), unexpected_field_behavior="error")
@@ -504,7 +492,7 @@ def _slow(plans: list[_Plan], topics: dict[str, Topic], block: _Block, lines: Se
         plan = by_name[name]
         columns = [pa.array([r[0] for r in topic_rows], pa.int64()), pa.array([r[1] for r in topic_rows], pa.int64())]
         for j, (_, kind) in enumerate(plan.topic.fields.items()):
-            columns.append(pa.array([r[2][j] for r in topic_rows], arrow_type(kind)))
+            columns.append(pa.array([r[2][j] for r in topic_rows], field_arrow_type(kind)))
         result.tables[plan.index] = pa.Table.from_arrays(columns, schema=pa.schema([(_LINE, pa.int64()), *plan.schema]))
     return result
 

@@ -11,7 +11,6 @@ from __future__ import annotations
 from functools import cache
 from typing import Iterable
 
-import duckdb
 import pyarrow as pa
 
 from lakegate.lake import paths
@@ -112,6 +111,8 @@ def field_arrow_type(field_type: str) -> pa.DataType:
 
 @cache
 def _duckdb_types() -> dict[str, str]:
+    import duckdb  # here, not at the top: ingestion and the Emitter never load DuckDB
+
     names = list(ARROW_TYPES)
     empty = pa.schema([(str(i), ARROW_TYPES[name]) for i, name in enumerate(names)]).empty_table()
     with duckdb.connect() as con:

@@ -1,14 +1,13 @@
 """Every lake table's columns, as Trino and Arrow types: the one place for table schemas and type maps.
 
 A table's columns are (name, Trino type) pairs in table order, partition keys included
-(`paths.partition_keys`: they live in the directory names, not in the Parquet files). The Arrow
-type of each Trino type a lake column can have is listed once here (`arrow_type`); the DuckDB type
-the catalog's views cast to is DuckDB's own reading of that Arrow type (`duckdb_type`), so no
-second map can disagree. A topic field's Trino type comes from its config type (`types.trino_type`).
+(`paths.partition_keys`: they live in the directory names, not in the Parquet files). Each Trino
+type a lake column can have is listed once here with its Arrow type (`arrow_type`) and the DuckDB
+type the catalog's views cast to (`duckdb_type`). A topic field's Trino type comes from its config
+type (`types.trino_type`).
 """
 from __future__ import annotations
 
-from functools import cache
 from typing import Iterable
 
 import pyarrow as pa
@@ -24,16 +23,20 @@ PARTITIONS = ("batch_id", "job_id")
 RESERVED_FIELDS = frozenset({TIMESTAMP, *JOB_COLUMNS, *PARTITIONS})
 
 METRIC_STRUCT = pa.struct([(name, pa.string()) for name in ("name", "description", "status", "type", "value")])
-#: Trino type -> Arrow type (as stored in Parquet), for every type a lake column can have.
-ARROW_TYPES = {
-    "bigint": pa.int64(),
-    "double": pa.float64(),
-    "boolean": pa.bool_(),
-    "varchar": pa.string(),
-    "timestamp(3)": pa.timestamp("ms"),
-    "array(varchar)": pa.list_(pa.string()),
-    trino_type("metric[]"): pa.list_(METRIC_STRUCT),
+_METRIC_DUCKDB = "STRUCT(" + ", ".join(f'"{f.name}" VARCHAR' for f in METRIC_STRUCT) + ")[]"
+#: Trino type -> (Arrow type as stored in Parquet, DuckDB type the catalog's views cast to), for
+#: every type a lake column can have (tests check DuckDB reads each Arrow type as this DuckDB type).
+_TYPES = {
+    "bigint": (pa.int64(), "BIGINT"),
+    "double": (pa.float64(), "DOUBLE"),
+    "boolean": (pa.bool_(), "BOOLEAN"),
+    "varchar": (pa.string(), "VARCHAR"),
+    "timestamp(3)": (pa.timestamp("ms"), "TIMESTAMP_MS"),
+    "array(varchar)": (pa.list_(pa.string()), "VARCHAR[]"),
+    trino_type("metric[]"): (pa.list_(METRIC_STRUCT), _METRIC_DUCKDB),
 }
+#: Trino type -> Arrow type of every lake column type.
+ARROW_TYPES = {trino: arrow for trino, (arrow, _) in _TYPES.items()}
 
 Columns = list[tuple[str, str]]
 
@@ -109,19 +112,9 @@ def field_arrow_type(field_type: str) -> pa.DataType:
     return ARROW_TYPES[trino_type(field_type)]
 
 
-@cache
-def _duckdb_types() -> dict[str, str]:
-    import duckdb  # here, not at the top: ingestion and the Emitter never load DuckDB
-
-    names = list(ARROW_TYPES)
-    empty = pa.schema([(str(i), ARROW_TYPES[name]) for i, name in enumerate(names)]).empty_table()
-    with duckdb.connect() as con:
-        return dict(zip(names, (str(t) for t in con.from_arrow(empty).types)))
-
-
 def duckdb_type(trino: str) -> str:
-    """The DuckDB type DuckDB reads a lake column of Trino type `trino` as (`timestamp(3)`: TIMESTAMP_MS)."""
-    return _duckdb_types()[trino]
+    """The DuckDB type of a lake column of Trino type `trino` (`timestamp(3)`: TIMESTAMP_MS)."""
+    return _TYPES[trino][1]
 
 
 def topic_columns(topic: Topic) -> Columns:

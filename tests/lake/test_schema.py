@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import duckdb
+import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
@@ -75,5 +76,12 @@ def test_duckdb_reads_each_lake_type_as_its_duckdb_type(lake):
         read = con.sql(f"SELECT * FROM read_parquet('{root / entry.path}')")
         for name, duck in zip(read.columns, read.types):
             if columns[name] != "timestamp(3)":
-                assert duckdb_type(columns[name]) == str(duck), name
+                assert con.type(duckdb_type(columns[name])) == duck, name
     assert duckdb_type("timestamp(3)") == "TIMESTAMP_MS"
+
+
+@pytest.mark.parametrize("trino", list(ARROW_TYPES))
+def test_each_duckdb_type_is_duckdbs_reading_of_the_arrow_type(trino):
+    empty = pa.schema([("c", ARROW_TYPES[trino])]).empty_table()
+    with duckdb.connect() as con:
+        assert con.from_arrow(empty).types == [con.type(duckdb_type(trino))]

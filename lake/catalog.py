@@ -25,56 +25,9 @@ import pyarrow.parquet as pq
 
 from lakegate.lake import paths
 from lakegate.lake.config import Config, Topic
-from lakegate.lake.ingest import JOB_COLUMNS, TIMESTAMP
-from lakegate.lake.metadata import COLUMNS as METADATA_COLUMNS
 from lakegate.lake.record import FileEntry, Record, Snapshot
 from lakegate.lake.registry import BranchConfigs
-from lakegate.lake.types import trino_type
-
-_METRIC_DUCKDB = 'STRUCT("name" VARCHAR, "description" VARCHAR, "status" VARCHAR, "type" VARCHAR, "value" VARCHAR)[]'
-#: Trino type -> DuckDB type, for every type a lake column can have.
-DUCKDB_TYPES = {
-    "bigint": "BIGINT",
-    "double": "DOUBLE",
-    "boolean": "BOOLEAN",
-    "varchar": "VARCHAR",
-    "timestamp(3)": "TIMESTAMP_MS",
-    "array(varchar)": "VARCHAR[]",
-    trino_type("metric[]"): _METRIC_DUCKDB,
-}
-PARTITIONS = ("batch_id", "job_id")
-_EVENTS_COLUMNS = [
-    (TIMESTAMP, "bigint"),
-    ("topic", "varchar"),
-    ("name", "varchar"),
-    ("description", "varchar"),
-    ("status", "varchar"),
-    ("tags", "array(varchar)"),
-    ("metrics", trino_type("metric[]")),
-    *[(c, "varchar") for c in JOB_COLUMNS],
-    *[(c, "varchar") for c in PARTITIONS],
-]
-#: Columns of `metric_results`: one row per evaluated metric (job_id NULL for batch metrics).
-METRIC_RESULTS_COLUMNS = [
-    ("batch_id", "varchar"),
-    ("job_id", "varchar"),
-    ("metric_name", "varchar"),
-    ("metric_type", "varchar"),
-    ("template", "varchar"),
-    ("status", "varchar"),
-    ("scalar_value", "double"),
-    ("value_text", "varchar"),
-    ("units", "varchar"),
-    ("figure_json", "varchar"),
-    ("details_json", "varchar"),
-    ("error_message", "varchar"),
-    ("error_line", "bigint"),
-    ("error_column", "bigint"),
-    ("error_location", "varchar"),
-    ("metrics_set", "varchar"),
-    ("config_version", "bigint"),
-    ("evaluated_at", "timestamp(3)"),
-]
+from lakegate.lake.schema import EVENTS_COLUMNS, METADATA_COLUMNS, METRIC_RESULTS_COLUMNS, duckdb_type, topic_columns
 
 
 @dataclass
@@ -108,16 +61,10 @@ def _quote_text(text: str) -> str:
     return "'" + text.replace("'", "''") + "'"
 
 
-def topic_columns(topic: Topic) -> list[tuple[str, str]]:
-    """A topic table's columns (name, Trino type) in order."""
-    return [(TIMESTAMP, "bigint"), *[(f, trino_type(t)) for f, t in topic.fields.items()],
-            *[(c, "varchar") for c in JOB_COLUMNS], *[(c, "varchar") for c in PARTITIONS]]
-
-
 def _unreadable_sql(spec: _Spec, entry: FileEntry) -> str:
     """A SELECT standing for an unreadable file: it raises HIVE_BAD_DATA when a query reads its job."""
     keys = {"batch_id": entry.batch_id, "job_id": entry.job_id} if entry.job_id else {"batch_id": entry.batch_id}
-    items = [_quote_ident(c) if c in keys else f"CAST(NULL AS {DUCKDB_TYPES[t]}) AS {_quote_ident(c)}"
+    items = [_quote_ident(c) if c in keys else f"CAST(NULL AS {duckdb_type(t)}) AS {_quote_ident(c)}"
              for c, t in spec.columns]
     constants = ", ".join(f"{_quote_text(value)} AS {_quote_ident(key)}" for key, value in keys.items())
     message = _quote_text(f"HIVE_BAD_DATA: Cannot read the Parquet file of {entry.where}: it is corrupt, truncated or "
@@ -203,7 +150,7 @@ class Catalog:
             varied = any(t.fields != topics[0].fields for t in topics[1:])
             specs.append(_Spec(name, "topic", topic_columns(topics[0]), varied))
         specs.sort(key=lambda s: s.name not in current)  # current topics first, in config order
-        specs.append(_Spec(paths.EVENTS_TABLE, "events", list(_EVENTS_COLUMNS)))
+        specs.append(_Spec(paths.EVENTS_TABLE, "events", list(EVENTS_COLUMNS)))
         specs.append(_Spec(paths.METADATA_TABLE, "metadata", list(METADATA_COLUMNS)))
         if paths.METRIC_RESULTS_TABLE in with_files:
             specs.append(_Spec(paths.METRIC_RESULTS_TABLE, "metric_results", list(METRIC_RESULTS_COLUMNS)))
@@ -236,7 +183,7 @@ class Catalog:
             selects = [self._files_sql(spec, root, files)] if files else []
             selects += [_unreadable_sql(spec, entry) for entry in bad]
             if not selects:
-                columns = ", ".join(f"CAST(NULL AS {DUCKDB_TYPES[t]}) AS {_quote_ident(c)}" for c, t in spec.columns)
+                columns = ", ".join(f"CAST(NULL AS {duckdb_type(t)}) AS {_quote_ident(c)}" for c, t in spec.columns)
                 selects = [f"SELECT {columns} WHERE false"]
             views[spec.name] = " UNION ALL ".join(selects)
         return views
@@ -255,11 +202,11 @@ class Catalog:
             if present is None and trino != "timestamp(3)":
                 items.append(_quote_ident(column))
             elif present is None:  # DuckDB reads Parquet milliseconds as TIMESTAMP (microseconds)
-                items.append(f"CAST({_quote_ident(column)} AS TIMESTAMP_MS) AS {_quote_ident(column)}")
+                items.append(f"CAST({_quote_ident(column)} AS {duckdb_type(trino)}) AS {_quote_ident(column)}")
             elif column in present:
-                items.append(f"CAST({_quote_ident(column)} AS {DUCKDB_TYPES[trino]}) AS {_quote_ident(column)}")
+                items.append(f"CAST({_quote_ident(column)} AS {duckdb_type(trino)}) AS {_quote_ident(column)}")
             else:
-                items.append(f"CAST(NULL AS {DUCKDB_TYPES[trino]}) AS {_quote_ident(column)}")
+                items.append(f"CAST(NULL AS {duckdb_type(trino)}) AS {_quote_ident(column)}")
         return f"SELECT {', '.join(items)} FROM {source}"
 
     def unreadable(self, branch: str) -> list[tuple[FileEntry, str]]:

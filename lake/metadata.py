@@ -24,44 +24,13 @@ from ruamel.yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 from lakegate.lake import paths
 from lakegate.lake.config_yaml import FileReader, RawProblem, describe, did_you_mean
 from lakegate.lake.record import Change, current_file
+from lakegate.lake.schema import METADATA_COLUMNS, file_schema
 
-#: (column, Trino type) in table order. batch_id and job_id live only in the partition directories.
-COLUMNS: tuple[tuple[str, str], ...] = (
-    ("org_id", "varchar"),
-    ("batch_id", "varchar"),
-    ("job_id", "varchar"),
-    ("project_id", "varchar"),
-    ("branch_id", "varchar"),
-    ("branch_name", "varchar"),
-    ("build_id", "varchar"),
-    ("build_name", "varchar"),
-    ("build_version", "varchar"),
-    ("build_creation_timestamp", "timestamp(3)"),
-    ("experience_id", "varchar"),
-    ("experience_name", "varchar"),
-    ("experience_tag_ids", "array(varchar)"),
-    ("experience_tag_names", "array(varchar)"),
-    ("test_suite_id", "varchar"),
-    ("test_suite_name", "varchar"),
-    ("test_suite_revision", "bigint"),
-    ("job_status", "varchar"),
-    ("job_metrics_status", "varchar"),
-    ("job_conflated_status", "varchar"),
-    ("custom_field_keys", "array(varchar)"),
-    ("custom_field_values", "array(varchar)"),
-    ("time", "timestamp(3)"),
-)
-COLUMN_NAMES = tuple(name for name, _ in COLUMNS)
-PARTITION_COLUMNS = ("batch_id", "job_id")
-_ARROW = {
-    "varchar": pa.string(),
-    "bigint": pa.int64(),
-    "timestamp(3)": pa.timestamp("ms"),
-    "array(varchar)": pa.list_(pa.string()),
-}
+#: Column names in table order; batch_id and job_id live only in the partition directories.
+COLUMN_NAMES = tuple(name for name, _ in METADATA_COLUMNS)
 #: The Arrow schema of the Parquet file (all columns but the partition ones).
-FILE_SCHEMA = pa.schema([(name, _ARROW[kind]) for name, kind in COLUMNS if name not in PARTITION_COLUMNS])
-_TYPES = dict(COLUMNS)
+FILE_SCHEMA = file_schema(paths.METADATA_TABLE, METADATA_COLUMNS)
+_TYPES = dict(METADATA_COLUMNS)
 _YAML = YAML(typ="safe", pure=True).constructor  # the config loader's library (YAML 1.2)
 
 #: Namespace of the deterministic ids (uuid5) generated for names.

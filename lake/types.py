@@ -1,7 +1,7 @@
-"""Topic field types: their names in the config, Arrow and Trino types, and value checks.
+"""Topic field types: their names in the config, Trino types, and value checks.
 
 One table of types serves the Emitter (validation before writing), ingestion
-(validation and Arrow conversion) and the catalog (Trino column types).
+(validation) and the catalog (Trino column types); `schema` gives their Arrow types.
 """
 from __future__ import annotations
 
@@ -11,8 +11,6 @@ import re
 from numbers import Integral, Real
 from typing import Any
 
-import pyarrow as pa
-
 #: Field type names accepted in a topic schema, with aliases resolved.
 FIELD_TYPES = ("int", "float", "boolean", "string", "status", "image", "video", "string[]", "metric[]")
 TYPE_ALIASES = {"bigint": "int"}
@@ -21,28 +19,6 @@ TYPE_ALIASES = {"bigint": "int"}
 METRIC_KINDS = ("scalar", "text", "image", "plotly")
 METRIC_REQUIRED_KEYS = ("name", "type", "value")
 METRIC_OPTIONAL_KEYS = ("description", "status")
-
-METRIC_STRUCT = pa.struct(
-    [
-        ("name", pa.string()),
-        ("description", pa.string()),
-        ("status", pa.string()),
-        ("type", pa.string()),
-        ("value", pa.string()),
-    ]
-)
-
-_ARROW = {
-    "int": pa.int64(),
-    "float": pa.float64(),
-    "boolean": pa.bool_(),
-    "string": pa.string(),
-    "status": pa.string(),
-    "image": pa.string(),
-    "video": pa.string(),
-    "string[]": pa.list_(pa.string()),
-    "metric[]": pa.list_(METRIC_STRUCT),
-}
 
 _TRINO = {
     "int": "bigint",
@@ -89,12 +65,7 @@ class FieldError(ValueError):
 def canonical_type(name: str) -> str | None:
     """The canonical field type for a config type name, or None when unknown."""
     name = TYPE_ALIASES.get(name, name)
-    return name if name in _ARROW else None
-
-
-def arrow_type(field_type: str) -> pa.DataType:
-    """The Arrow type a field of this type is stored as in Parquet."""
-    return _ARROW[field_type]
+    return name if name in _TRINO else None
 
 
 def trino_type(field_type: str) -> str:

@@ -31,12 +31,12 @@ from lakegate.dialect.params import parse_execute
 from lakegate.dialect.statements import Reader
 from lakegate.dialect.translate import parse
 from lakegate.gateway.engine.backend import Backend, QueryResult
+from lakegate.gateway.engine.trino_values import arrow_type
 from lakegate.gateway.engine.session import Answer, Session, check_properties
 from lakegate.gateway.engine.system_tables import Metadata, TableRef
 
 #: The Trino release whose behaviour lakegate follows, reported by /v1/info and `version()`.
 TRINO_VERSION = "476"
-_ARROW = {"varchar": pa.string(), "bigint": pa.int64(), "boolean": pa.bool_()}
 #: What `version()` becomes: a varchar expression no longer than the call's text `version()`.
 _VERSION = f"'{TRINO_VERSION}'||''"
 _DESCRIBE_OUTPUT = [("Column Name", "varchar"), ("Catalog", "varchar"), ("Schema", "varchar"),
@@ -45,7 +45,7 @@ _DESCRIBE_OUTPUT = [("Column Name", "varchar"), ("Catalog", "varchar"), ("Schema
 
 def static_result(answer: Answer) -> QueryResult:
     """A result computed in Python (varchar, bigint and boolean columns) as a QueryResult."""
-    arrays = [pa.array([row[i] for row in answer.rows], _ARROW[trino_type])
+    arrays = [pa.array([row[i] for row in answer.rows], arrow_type(tt.parse_type(trino_type)))
               for i, (_, trino_type) in enumerate(answer.columns)]
     batch = pa.record_batch(arrays, names=[name for name, _ in answer.columns])
     return QueryResult(columns=list(answer.columns), batches=iter([batch]))

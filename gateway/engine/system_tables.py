@@ -28,6 +28,7 @@ from lakegate.dialect.translate import translate
 from lakegate.gateway.engine.backend import BATCH_ROWS, Backend, QueryResult, Run
 from lakegate.gateway.engine.introspection import CATALOG
 from lakegate.gateway.engine.session import PROPERTIES, Answer, Session
+from lakegate.gateway.engine.trino_values import arrow_type
 
 INFORMATION_SCHEMA = "information_schema"
 SYSTEM = "system"
@@ -78,8 +79,6 @@ SYSTEM_SCHEMAS: dict[str, dict[str, list[tuple[str, str]]]] = {
                     ("end", _TS), ("error_type", V), ("error_code", V)],
     },
 }
-_ARROW = {V: pa.string(), B: pa.int64(), "boolean": pa.bool_(), "array(varchar)": pa.list_(pa.string()),
-          _TS: pa.timestamp("ms", tz="UTC")}
 #: java.sql.Types of Trino base types (system.jdbc.columns.data_type; JAVA_OBJECT otherwise).
 _JDBC_TYPES = {"boolean": 16, "bigint": -5, "integer": 4, "smallint": 5, "tinyint": -6, "real": 7, "double": 8,
                "decimal": 3, "varchar": 12, "char": 1, "varbinary": -3, "date": 91, "time": 92, "time_tz": 2013,
@@ -231,7 +230,7 @@ class Metadata:
     def arrow(self, ref: TableRef, user: str | None = None) -> pa.Table:
         columns = self.tables(ref.catalog, ref.schema)[ref.table]
         rows = self.rows(ref, user)
-        return pa.table({name: pa.array([row[i] for row in rows], _ARROW[trino_type])
+        return pa.table({name: pa.array([row[i] for row in rows], arrow_type(tt.parse_type(trino_type)))
                          for i, (name, trino_type) in enumerate(columns)})
 
     # -- queries over system tables -------------------------------------------------------

@@ -31,6 +31,7 @@ from lakegate.dialect.translate import LakegateTrino, parse
 from lakegate.dialect.trino_types import TType, parse_type
 from lakegate.gateway.engine.backend import QueryResult
 from lakegate.gateway.engine.trino_ddl import quote_ident, quote_text, schema_name
+from lakegate.gateway.engine.trino_values import arrow_type
 
 #: Rows fetched from the cluster per record batch.
 BATCH_ROWS = 10_000
@@ -168,33 +169,6 @@ def forwarded_sql(sql: str | bytes, *, scope: Scope | None = None, params: Seque
 
 
 # --- values ---------------------------------------------------------------------------------------
-
-def arrow_type(t: TType) -> pa.DataType:
-    """The Arrow type that carries values of a Trino type (as the DuckDB backend's batches do)."""
-    base, args = t.base, t.args
-    simple = {"boolean": pa.bool_(), "tinyint": pa.int8(), "smallint": pa.int16(), "integer": pa.int32(),
-              "bigint": pa.int64(), "real": pa.float32(), "double": pa.float64(), "varchar": pa.string(),
-              "char": pa.string(), "json": pa.string(), "uuid": pa.string(), "varbinary": pa.binary(),
-              "date": pa.date32(), "unknown": pa.null(), "interval_ds": pa.month_day_nano_interval(),
-              "interval_ym": pa.month_day_nano_interval()}
-    if base in simple:
-        return simple[base]
-    if base == "decimal":
-        return pa.decimal128(args[0], args[1])
-    if base == "timestamp":
-        return pa.timestamp("ms" if args[0] <= 3 else "us")
-    if base == "timestamp_tz":
-        return pa.timestamp("ms" if args[0] <= 3 else "us", tz="UTC")
-    if base == "time":
-        return pa.time64("us")
-    if base == "array":
-        return pa.list_(arrow_type(args[0]))
-    if base == "map":
-        return pa.map_(arrow_type(args[0]), arrow_type(args[1]))
-    if base == "row":
-        return pa.struct([(name or f"field{i}", arrow_type(f)) for i, (name, f) in enumerate(args)])
-    raise ValueError(f"type {t} has no Arrow equivalent in lakegate")
-
 
 def _converter(t: TType) -> Callable[[Any], Any] | None:
     """How to turn one client value of `t` into what `pa.array` takes (None: as it is)."""

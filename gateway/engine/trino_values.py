@@ -1,6 +1,7 @@
 """Trino client-protocol encoding of result types and values (notes/trino-protocol.md, sections 5-6).
 
-`type_signature` turns a Trino type name into the `typeSignature` tree clients read; `encoder`
+`type_signature` turns a Trino type name into the `typeSignature` tree clients read; `arrow_type` gives
+the Arrow type carrying a Trino type's values (any Trino type; the lake's own columns: `lake.schema`); `encoder`
 gives the JSON encoding of one Python value of a type; `encode_rows` encodes a whole Arrow record
 batch column by column, with Arrow's vectorised casts for the common types (the server's hot path).
 """
@@ -57,6 +58,33 @@ def type_signature(trino_type: str) -> dict:
     2147483647, `decimal(p,s)` both numbers, `timestamp(p)` its precision, nested types their
     element, key/value or named field signatures). ValueError for an unknown type name."""
     return _signature(parse_type(trino_type))
+
+
+def arrow_type(t: TType) -> pa.DataType:
+    """The Arrow type that carries values of a Trino type (as the DuckDB backend's batches do)."""
+    base, args = t.base, t.args
+    simple = {"boolean": pa.bool_(), "tinyint": pa.int8(), "smallint": pa.int16(), "integer": pa.int32(),
+              "bigint": pa.int64(), "real": pa.float32(), "double": pa.float64(), "varchar": pa.string(),
+              "char": pa.string(), "json": pa.string(), "uuid": pa.string(), "varbinary": pa.binary(),
+              "date": pa.date32(), "unknown": pa.null(), "interval_ds": pa.month_day_nano_interval(),
+              "interval_ym": pa.month_day_nano_interval()}
+    if base in simple:
+        return simple[base]
+    if base == "decimal":
+        return pa.decimal128(args[0], args[1])
+    if base == "timestamp":
+        return pa.timestamp("ms" if args[0] <= 3 else "us")
+    if base == "timestamp_tz":
+        return pa.timestamp("ms" if args[0] <= 3 else "us", tz="UTC")
+    if base == "time":
+        return pa.time64("us")
+    if base == "array":
+        return pa.list_(arrow_type(args[0]))
+    if base == "map":
+        return pa.map_(arrow_type(args[0]), arrow_type(args[1]))
+    if base == "row":
+        return pa.struct([(name or f"field{i}", arrow_type(f)) for i, (name, f) in enumerate(args)])
+    raise ValueError(f"type {t} has no Arrow equivalent in lakegate")
 
 
 # --- per-value encoders --------------------------------------------------------------------------

@@ -1,7 +1,7 @@
 """Evaluated metrics in the lake: the `metric_results` table.
 
 One Parquet file per batch, `<lake>/<branch>/metric_results/batch_id=<B>/<name>.parquet`, one
-row per evaluated metric (columns: `lakegate.lake.catalog.METRIC_RESULTS_COLUMNS`; `job_id`
+row per evaluated metric (columns: `lakegate.lake.schema.METRIC_RESULTS_COLUMNS`; `job_id`
 is NULL for batch metrics). Evaluating a batch again replaces its file and its jobs' statuses
 in one commit of the branch's record, so the table always holds the latest evaluation of each
 batch, and the statuses in `metadata` are the ones it computed. The catalog shows it as a table of
@@ -28,16 +28,15 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from lakegate.lake import paths
-from lakegate.lake.catalog import METRIC_RESULTS_COLUMNS
 from lakegate.lake.metadata import read_metadata_row, stage_metadata_row
 from lakegate.lake.record import Change, FileEntry, current_file
+from lakegate.lake.schema import METRIC_RESULTS_COLUMNS, file_schema
 
 if TYPE_CHECKING:
     from lakegate.gateway.metrics.evaluation import MetricResult
 
-_ARROW = {"varchar": pa.string(), "double": pa.float64(), "bigint": pa.int64(), "timestamp(3)": pa.timestamp("ms")}
 #: The Arrow schema of a batch's results file (batch_id lives in the directory name).
-SCHEMA = pa.schema([(name, _ARROW[kind]) for name, kind in METRIC_RESULTS_COLUMNS if name != "batch_id"])
+SCHEMA = file_schema(paths.METRIC_RESULTS_TABLE, METRIC_RESULTS_COLUMNS)
 
 
 def _json(value: Any) -> str | None:

@@ -25,7 +25,7 @@ import duckdb
 import pytest
 import sqlglot
 
-from lakegate.dialect.docs import Case, called_names, load_cases
+from functions_doc import Case, called_names, load_cases
 from lakegate.dialect.errors import DialectError, runtime_error
 
 CASES = load_cases()

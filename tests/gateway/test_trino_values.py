@@ -14,7 +14,9 @@ import pyarrow as pa
 import pytest
 from trino.mapper import RowMapperFactory
 
-from lakegate.gateway.engine.trino_values import encode_rows, encoder, type_signature
+from lakegate.dialect.trino_types import parse_type
+from lakegate.gateway.engine.trino_values import arrow_type, encode_rows, encoder, type_signature
+from lakegate.lake.schema import ARROW_TYPES
 
 VARCHAR = {"rawType": "varchar", "arguments": [{"kind": "LONG", "value": 2147483647}]}
 
@@ -172,3 +174,8 @@ def test_encode_rows_checks_the_column_count():
     assert encode_rows([("a", "bigint")], batch) == [[1]]
     with pytest.raises(ValueError):
         encode_rows([("a", "bigint"), ("b", "bigint")], batch)
+
+
+@pytest.mark.parametrize("trino_type", list(ARROW_TYPES))
+def test_the_engine_carries_each_lake_type_as_the_lake_stores_it(trino_type):
+    assert arrow_type(parse_type(trino_type)) == ARROW_TYPES[trino_type]

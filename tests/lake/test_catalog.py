@@ -9,7 +9,7 @@ from lakegate.lake import paths
 from lakegate.lake.catalog import Catalog, JobRef
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
-from lakegate.lake.metadata import COLUMNS as METADATA_COLUMNS
+from lakegate.lake.schema import METADATA_COLUMNS
 
 V1 = """\
 version: 1

@@ -16,11 +16,11 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
-from lakegate.lake import ingest, paths
+from lakegate.lake import paths
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.config import Config, Topic, load_config
 from lakegate.lake.emitter import Emitter
-from lakegate.lake.ingest import IngestError, check_line, ingest_job
+from lakegate.lake.ingest import IngestError, check_line, ingest_job, rules, scan
 from lakegate.lake.record import current_file
 from lakegate.lake.types import FieldError, check_value
 
@@ -271,7 +271,7 @@ def test_skip_bad_lines_keeps_good_rows_and_quarantines_the_rest(tmp_path, confi
 
 
 def test_many_blocks_many_files_and_long_lines_keep_line_numbers(tmp_path, config, monkeypatch):
-    monkeypatch.setattr(ingest, "BLOCK_SIZE", 700)  # a few lines per block; some lines are longer than a block
+    monkeypatch.setattr(scan, "BLOCK_SIZE", 700)  # a few lines per block; some lines are longer than a block
     long_tags = ["tag%d" % i for i in range(200)]
     first = write_lines(tmp_path / "a.jsonl", [odom(i) for i in range(40)] + [line("odom", 1, {"x": 1})] +
                         [line("plain", i, {"i": i, "f": 0.5, "b": False, "s": "x" * 1500, "tags": long_tags}) for i in range(5)])
@@ -344,16 +344,16 @@ def expected_decision(field_type, literal):
 
 def fast_paths(plans, raw):
     """Run one line through both fast paths: whole lines, and `$data` objects of lines in the Emitter's layout."""
-    block = ingest._Block("test", 1, raw + b"\n", np.array([0, len(raw) + 1]), 0)
+    block = scan.Block("test", 1, raw + b"\n", np.array([0, len(raw) + 1]), 0)
     lines = pa.Array.from_buffers(pa.large_binary(), 1, [None, pa.py_buffer(block.offsets), pa.py_buffer(block.data)])
-    codes, after = ingest._Hinter(plans).codes_of(block, lines)
+    codes, after = scan.Hinter(plans).codes_of(block, lines)
     plan = plans[codes[0]]
-    layout, timestamps, start, close = ingest._emitter_layout(block, np.array([0]), after, plan.topic.event)
+    layout, timestamps, start, close = scan._emitter_layout(block, np.array([0]), after, plan.topic.event)
     assert layout[0], "the cases are written in the Emitter's layout"
-    payloads = ingest._payloads(bytearray(block.data), start, close)
+    payloads = scan._payloads(bytearray(block.data), start, close)
     return {
-        "lines": ingest._fast_lines(plan, pa.py_buffer(block.data), np.array([1])),
-        "payloads": ingest._fast_payloads(plan, payloads, np.array([1]), timestamps),
+        "lines": scan._fast_lines(plan, pa.py_buffer(block.data), np.array([1])),
+        "payloads": scan._fast_payloads(plan, payloads, np.array([1]), timestamps),
     }
 
 
@@ -368,7 +368,7 @@ def test_fast_path_and_exact_checks_agree_on_a_table_of_values(tmp_path):
              for n, (t, literal) in enumerate(cases)]
     path = tmp_path / "cases.jsonl"
     path.write_bytes("".join(t + "\n" for t in texts).encode("utf-8", "surrogatepass"))
-    plans = ingest._plans(config)
+    plans = scan.topic_plans(config)
     for n, ((field_type, literal), text) in enumerate(zip(cases, texts)):
         accept, stored = expected_decision(field_type, literal)
         raw = text.encode("utf-8", "surrogatepass")
@@ -462,10 +462,9 @@ def test_progress_bar_goes_to_stderr_only_when_asked(tmp_path, config, capsys):
 CRASH_SCRIPT = """
 import sys
 from pathlib import Path
-from lakegate.lake import ingest
 from lakegate.lake.config import load_config
-from lakegate.lake.ingest import ingest_job
-ingest.BLOCK_SIZE, ingest.ROWS_PER_WRITE = 1 << 20, 20_000  # small blocks and writes: a file is open early
+from lakegate.lake.ingest import ingest_job, scan, write
+scan.BLOCK_SIZE, write.ROWS_PER_WRITE = 1 << 20, 20_000  # small blocks and writes: a file is open early
 ingest_job(Path(sys.argv[1]), "main", "b1", "j1", [Path(sys.argv[3])], config=load_config(sys.argv[2]))
 """
 
@@ -550,8 +549,9 @@ def test_emitter_and_ingest_agree_on_the_depth_limit(tmp_path, config_path, conf
 
 
 def test_overlong_lines_are_refused_without_being_held_whole(tmp_path, config, monkeypatch):
-    monkeypatch.setattr(ingest, "BLOCK_SIZE", 256)
-    monkeypatch.setattr(ingest, "MAX_LINE_BYTES", 150)
+    monkeypatch.setattr(scan, "BLOCK_SIZE", 256)
+    for module in (rules, scan):  # the limit of the exact check and of the block reader
+        monkeypatch.setattr(module, "MAX_LINE_BYTES", 150)
     long_in_a_block = line("plain", 1, {"i": 1, "f": 1.0, "b": True, "s": "y" * 120, "tags": []})  # 190 bytes
     across_blocks = line("plain", 2, {"i": 1, "f": 1.0, "b": True, "s": "z" * 2000, "tags": []})
     path = write_lines(tmp_path / "long.jsonl", [odom(1), long_in_a_block, odom(3), across_blocks, odom(5)])

@@ -1,0 +1,150 @@
+"""Ingestion of one job: scan, write to staging, then publish the staged files as the job's tables
+in one commit of the branch's record."""
+from __future__ import annotations
+
+import json
+import sys
+import time
+from collections import deque
+from collections.abc import Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from tqdm import tqdm
+
+from lakegate.lake import paths
+from lakegate.lake.config import Config
+from lakegate.lake.ingest import scan
+from lakegate.lake.ingest.rules import MAX_PROBLEMS, BadLines, IngestError, LineProblem
+from lakegate.lake.ingest.scan import Block, Hinter, Result, merge_results, process_block, read_blocks, topic_plans
+from lakegate.lake.ingest.write import JobWriter
+from lakegate.lake.metadata import build_metadata_row, metadata_table, write_metadata_file
+from lakegate.lake.record import Change
+from lakegate.lake.registry import BranchConfigs
+from lakegate.lake.schema import JOB_COLUMNS
+
+
+@dataclass
+class IngestReport:
+    """What one ingest did."""
+
+    branch: str
+    batch_id: str
+    job_id: str
+    rows: dict[str, int]  # every declared topic -> rows written (0 if none)
+    events: int
+    lines: int
+    bad_lines: int
+    quarantine: Path | None
+    seconds: float
+    config_version: int
+    files: list[Path] = field(default_factory=list)
+    problems: list[LineProblem] = field(default_factory=list)  # the first MAX_PROBLEMS, when skipped
+    skipped: str = ""  # what the skipped lines held, per topic (BadLines.what_skipping_drops)
+    causes: list[tuple[LineProblem, int]] = field(default_factory=list)  # skipped lines by cause
+
+
+def ingest_job(
+    lake: Path,
+    branch: str,
+    batch_id: str,
+    job_id: str,
+    emissions: Sequence[Path],
+    *,
+    config: Config,
+    metadata: dict[str, Any] | None = None,
+    skip_bad_lines: bool = False,
+    progress: bool = False,
+) -> IngestReport:
+    """Ingest the emissions files of one job into the lake (replacing an earlier ingest of it).
+
+    Raises IngestError (nothing written) when a line is bad and `skip_bad_lines` is off,
+    MetadataError for bad metadata, LakePathError for names the lake cannot hold.
+    """
+    started = time.perf_counter()
+    lake = Path(lake)
+    paths.encode_branch(branch)
+    paths.check_segment(batch_id, "batch id")
+    paths.check_segment(job_id, "job id")
+    plans = topic_plans(config)
+    files = [Path(p) for p in emissions]
+    for path in files:
+        if not path.is_file():
+            raise IngestError(f"emissions file {str(path)!r} does not exist or is not a file")
+    row = build_metadata_row(metadata or {}, lake=lake, branch=branch, batch_id=batch_id, job_id=job_id)
+    problems: list[LineProblem] = []
+    grouped = BadLines()
+    bad = 0
+    lines = 0
+    with paths.job_lock(lake, branch, batch_id, job_id), paths.staging(lake, branch) as scratch:
+        writer = JobWriter(scratch, plans, {c: row[c] for c in JOB_COLUMNS})
+        quarantine = scratch / "quarantine.jsonl"
+        with open(quarantine, "w", encoding="utf-8") as bad_lines, \
+                ThreadPoolExecutor(scan.THREADS, thread_name_prefix="lakegate-ingest") as pool, \
+                tqdm(total=sum(p.stat().st_size for p in files), unit="B", unit_scale=True, desc="ingest",
+                     disable=not progress, file=sys.stderr, dynamic_ncols=True) as bar:
+            pending: deque[tuple[Block, list[Future[Result]]]] = deque()
+
+            def collect() -> None:
+                nonlocal bad, lines
+                block, futures = pending.popleft()
+                results = [f.result() for f in futures]
+                found = sorted((p for r in results for p in r.problems), key=lambda p: p.line)
+                if found:
+                    bad += len(found)
+                    problems.extend(found[:max(0, MAX_PROBLEMS - len(problems))])
+                    for problem in found:
+                        grouped.add(problem)
+                    if skip_bad_lines:
+                        bad_lines.writelines(json.dumps({"file": p.path, "line": p.line, "reason": p.reason,
+                                                         "text": p.text}) + "\n" for p in found)
+                    else:
+                        writer.enabled = False  # the job fails: keep counting problems, write nothing
+                for index, table in merge_results(results).items():
+                    writer.add(index, table)
+                lines += len(block.offsets) - 1
+                bar.update(len(block.data) - (1 if block.unterminated else 0))
+                bar.set_postfix(lines=f"{lines:,}", refresh=False)
+
+            topics = {plan.name: plan.topic for plan in plans}
+            hinter = Hinter(plans)
+            for path in files:
+                for block in read_blocks(path):
+                    pending.append((block, process_block(plans, topics, block, pool, hinter)))
+                    while len(pending) > 2:
+                        collect()
+            while pending:
+                collect()
+        if bad and not skip_bad_lines:
+            writer.close()
+            raise IngestError(f"{bad} bad line{'s' if bad > 1 else ''} in the emissions of job {job_id!r}; nothing "
+                              "was written (--skip-bad-lines would keep the good rows and drop "
+                              f"{grouped.what_skipping_drops(topics)})", problems, bad, grouped)
+        staged = writer.close()
+        metadata_file = scratch / "metadata.parquet"
+        write_metadata_file(metadata_table(row), metadata_file)
+        staged[paths.METADATA_TABLE] = metadata_file
+        version = BranchConfigs(lake, branch).store_config(config)
+        published = _publish(lake, branch, batch_id, job_id, staged)
+        quarantine_target = paths.quarantine_file(lake, branch, batch_id, job_id)
+        if bad:
+            paths.publish(quarantine, quarantine_target)
+        else:
+            quarantine_target.unlink(missing_ok=True)
+    return IngestReport(
+        branch=branch, batch_id=batch_id, job_id=job_id, rows=writer.rows, events=writer.events, lines=lines,
+        bad_lines=bad, quarantine=quarantine_target if bad else None, seconds=time.perf_counter() - started,
+        config_version=version, files=published, problems=problems if bad else [],
+        skipped=grouped.what_skipping_drops(topics) if bad else "", causes=list(grouped.causes.values()),
+    )
+
+
+def _publish(lake: Path, branch: str, batch_id: str, job_id: str, staged: dict[str, Path]) -> list[Path]:
+    """Make the staged files the job's tables, all at once (one record commit); the old files go."""
+    change = Change(lake, branch)
+    for name, file in staged.items():
+        change.add(name, batch_id, job_id, file)
+    change.replace_job(batch_id, job_id)
+    return change.commit(f"ingest {batch_id}/{job_id}")

@@ -273,6 +273,12 @@ def test_export_keeps_to_the_config_folder(tmp_path: Path, nav_jobs, debug_proce
         archive = zipfile.ZipFile(io.BytesIO(response.read()))
     assert disposition == "attachment; filename=\"we_ird__-export.zip\"; filename*=UTF-8''we%22ird%20%C3%A9-export.zip"
     assert sorted(archive.namelist()) == sorted([config.name, "templates/view.liquid"])
+    config.write_text(_with_custom_metric(nav_jobs.config.read_text(), "view.liquid"))  # found in templates/
+    _get(f"{base}api/sessions/{session}")
+    with urllib.request.urlopen(export, timeout=30) as response:
+        archive = zipfile.ZipFile(io.BytesIO(response.read()))
+    assert sorted(archive.namelist()) == sorted([config.name, "templates/view.liquid"])
+
     assert server.stop() == 0
 
 

@@ -98,7 +98,7 @@ def test_run_prints_every_metric_as_json_and_exits_2_on_a_blocker(nav, tmp_path)
     assert [len(j["events"]) for j in output["jobs"]] == [
         job.emissions_path.read_text().count('"topic": "goal_reached"') for job in jobs]
     metrics = output["metrics"]
-    assert len(metrics) == 3 * 8 + 6
+    assert len(metrics) == 3 * 9 + 6
     assert set(metrics[0]) >= {"batch_id", "job_id", "metric", "type", "template", "status", "scalar_value", "error"}
     scalar = next(m for m in metrics if m["metric"] == "Time to reach final goal" and m["job_id"] == jobs[2].job_id)
     assert (scalar["status"], scalar["scalar_value"], scalar["error"]) == ("BLOCKER", 75.0, None)

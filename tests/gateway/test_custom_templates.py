@@ -45,9 +45,16 @@ def config_with(folder: Path, template_file: str, *, query: str = "SELECT goal_n
             template_type: custom
             template_file: {template_file}
             units: {units}
+          Nothing Yet:
+            type: test
+            description: no rows, skipped (issue 13 item 10)
+            query_string: SELECT goal_name AS label, time_s AS value FROM time_to_goal WHERE time_s < 0
+            template_type: custom
+            template_file: {template_file}
+            skip_if_no_data: true
         metrics sets:
           Custom:
-            metrics: [Goal Times]
+            metrics: [Goal Times, Nothing Yet]
         """))
     return path
 
@@ -126,17 +133,19 @@ def test_sync_stores_the_template_and_run_renders_it_into_results_and_report(tmp
     run = lakegate("metrics", "run", "--lake", lake, "--branch", "main", "--batch", "b1", "--metrics-set", "Custom",
                    "--format", "json", "--report", report)
     assert run.returncode == 0, run.stderr
-    (metric,) = json.loads(run.stdout)["metrics"]
+    metric, skipped = json.loads(run.stdout)["metrics"]
     assert (metric["template"], metric["status"], metric["value"]) == ("custom", "PASSED", "1 trace from bars.liquid")
+    assert (skipped["template"], skipped["status"], skipped["error"]["message"]) == (
+        "custom", "NOT_RUN", "skipped: the query returned no rows (skip_if_no_data)")
 
     emitted = [json.loads(line) for line in job.emissions_path.read_text().splitlines()]
     goals = [(e["$data"]["goal_name"], e["$data"]["time_s"]) for e in emitted
              if e["$metadata"]["topic"] == "time_to_goal"]
     assert len(goals) >= 2
-    (stored,) = read_results(lake, "main", "b1")
+    stored, _ = read_results(lake, "main", "b1")
     figure = json.loads(stored["figure_json"])
     assert figure["data"] == [{"type": "bar", "x": [g for g, _ in goals], "y": [t for _, t in goals],
                                "name": "Goal Times"}]
-    assert stored["template"] == "custom"
+    assert (stored["metric_name"], stored["template"], stored["units"]) == ("Goal Times", "custom", "s")
     html = report.read_text()
     assert "Goal Times" in html and '"name":"Goal Times"' in html.replace(", ", ",").replace(": ", ":")

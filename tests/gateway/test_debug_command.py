@@ -87,6 +87,7 @@ def _get(url: str) -> bytes:
 def test_serves_the_dashboard_and_picks_up_config_changes(tmp_path: Path, nav_jobs, debug_processes) -> None:
     config = tmp_path / "config.resim.yaml"
     config.write_text(nav_jobs.config.read_text())
+    shutil.copytree(nav_jobs.config.parent / "templates", tmp_path / "templates")  # its custom template
     job = nav_jobs.jobs[2]  # fewer than 3 goals reached: "Time to reach final goal" blocks
     server = debug_processes(["--emissions-file", str(job.emissions_path), "--metrics-config-path", str(config),
                               "--metrics-set", NAV_SET], tmp_path)

@@ -87,6 +87,18 @@ class Metric:
     location: Location | None = None
     query_location: Location | None = None  # where the query_string value starts
 
+    def template_path(self) -> Path | None:
+        """The custom template file: next to the config file declaring the metric, else in its
+        `templates/` folder; None when neither exists inside that folder."""
+        if not self.template_file or self.location is None or "\0" in self.template_file:
+            return None
+        folder = Path(self.location.path).parent.resolve()
+        for candidate in (folder / self.template_file, folder / "templates" / self.template_file):
+            path = candidate.resolve()
+            if path.is_relative_to(folder) and path.is_file():
+                return path
+        return None
+
 
 @dataclass
 class MetricsSet:

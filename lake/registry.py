@@ -1,8 +1,9 @@
 """Config versions of a branch: every config used to ingest into it, numbered, never dropped.
 
 `<lake>/<branch-dir>/_configs/v000001/` holds the source files of one version (in merge
-order, as `00-<name>`, `01-<name>` ...) and `manifest.json` (original paths, content hash,
-time). A version appears by renaming a finished directory into place, so readers never
+order, as `00-<name>`, `01-<name>` ...), the custom template files they name (at the same
+path relative to the config as in the source folder, so the stored config finds them) and
+`manifest.json` (original paths, template files, content hash, time). A version appears by renaming a finished directory into place, so readers never
 see half of one and two writers never share a number. The newest version is `current()`;
 the catalog uses it (and older versions, for topics no longer declared) to know every
 table's columns.
@@ -19,7 +20,7 @@ from pathlib import Path
 from typing import Sequence
 
 from lakegate.lake import paths
-from lakegate.lake.config import Config, load_config
+from lakegate.lake.config import Config, ConfigError, load_config
 
 _PREFIX = "v"
 MANIFEST = "manifest.json"
@@ -74,7 +75,8 @@ class BranchConfigs:
         contents = [(Path(p).name, Path(p).read_bytes()) for p in sources]
         if not contents:
             raise ValueError("a config version needs at least one file")
-        digest = _digest(contents)
+        templates = _template_files(sources)
+        digest = _digest(contents + templates)
         latest = self.current_version()
         if latest is not None and self._manifest(latest).get("sha256") == digest:
             return latest
@@ -85,8 +87,12 @@ class BranchConfigs:
             names = [f"{i:02d}-{name}" for i, (name, _) in enumerate(contents)]
             for name, (_, data) in zip(names, contents):
                 (scratch / name).write_bytes(data)
+            for name, data in templates:  # where the stored config finds them: beside it, as beside the source
+                (scratch / name).parent.mkdir(parents=True, exist_ok=True)
+                (scratch / name).write_bytes(data)
             manifest = {
                 "files": names,
+                "templates": [name for name, _ in templates],
                 "sources": [str(Path(p).resolve()) for p in sources],
                 "sha256": digest,
                 "stored_at": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
@@ -127,6 +133,22 @@ class BranchConfigs:
             return json.loads((self._dir(version) / MANIFEST).read_text())
         except (OSError, ValueError):
             return {}
+
+
+def _template_files(sources: Sequence[str | Path]) -> list[tuple[str, bytes]]:
+    """(path relative to its config's folder, contents) of every custom template file the config
+    names that exists there; none for a config that does not load (loading it says why)."""
+    try:
+        config = load_config(sources)
+    except (ConfigError, OSError):
+        return []
+    found: dict[str, bytes] = {}
+    for metric in config.metrics.values():
+        path = metric.template_path()
+        if path is not None and metric.location is not None:
+            name = path.relative_to(Path(metric.location.path).parent.resolve()).as_posix()
+            found.setdefault(name, path.read_bytes())
+    return sorted(found.items())
 
 
 def _digest(contents: list[tuple[str, bytes]]) -> str:

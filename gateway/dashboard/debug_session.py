@@ -647,7 +647,8 @@ class DashboardSession:
                     if metric.location else ""
                 raise SessionError(f"metric {metric.name!r}{where}: template_file {metric.template_file!r} is "
                                    "outside the config's folder; only files inside it are exported")
-            if path.is_file():
+            path = metric.template_path()  # beside the config, else in its templates/ folder
+            if path is not None and path.is_relative_to(folder):
                 found[path.relative_to(folder).as_posix()] = path
         return found
 

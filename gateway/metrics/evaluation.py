@@ -25,8 +25,9 @@ supported) counts for nothing. One metric:
   exactly (e.g. `config.resim.yaml:57:9`); the rest of the set still runs;
 * the result does not fit the template: ERROR with the template's message;
 * no rows and `skip_if_no_data: true`: NOT_RUN;
-* `type: dashboard | report`, `template_type: custom` and the templates `video` and
-  `artifact` are not supported yet: NOT_RUN with that reason (they never fail a batch);
+* `type: dashboard | report` and the templates `video` and `artifact` are not supported
+  yet: NOT_RUN with that reason (they never fail a batch);
+* `template_type: custom`: the result is rendered by the metric's Liquid template (`custom`);
 * otherwise the status check, if any: the status query runs with `block` (when given) bound to its one
   `?` (a typed query parameter, never pasted text); any row means BLOCKER; else with `warn`
   (when given): any row means WARNING; else PASSED. No status check: PASSED.
@@ -55,6 +56,7 @@ from tqdm import tqdm
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
 from lakegate.gateway.engine.backend import Backend, DuckDBBackend
+from lakegate.gateway.metrics.custom import CUSTOM, render_custom
 from lakegate.gateway.metrics.results import ResultsWriter
 from lakegate.gateway.metrics.templates import UNSUPPORTED_TEMPLATES, Rendered, TemplateError, json_value, render
 from lakegate.lake import paths
@@ -259,9 +261,7 @@ def unsupported_reason(metric: Metric) -> str | None:
     """Why a metric cannot be evaluated yet, or None when it can."""
     if metric.type not in EVALUATED_TYPES:
         return f"metric type '{metric.type}' is not supported yet (only test and batch metrics are evaluated)"
-    if metric.template_type != "system":
-        return f"template_type '{metric.template_type}' is not supported yet (only system templates are)"
-    if metric.template in UNSUPPORTED_TEMPLATES:
+    if metric.template_type == "system" and metric.template in UNSUPPORTED_TEMPLATES:
         return f"template '{metric.template}' is not supported yet"
     return None
 
@@ -333,7 +333,8 @@ class MetricsEngine:
     def evaluate(self, metric: Metric, branch: str, scope: Scope, *, logs_dir: Path | None = None) -> MetricResult:
         """Evaluate one metric in one scope: run its query, render it, judge its status."""
         started = time.perf_counter()
-        result = MetricResult(metric=metric.name, metric_type=metric.type, template=metric.template,
+        template = CUSTOM if metric.template_type == CUSTOM else metric.template
+        result = MetricResult(metric=metric.name, metric_type=metric.type, template=template,
                               batch_id=scope.batch_id or "", job_id=scope.job_id, status=PASSED,
                               units=metric.units, description=metric.description)
         reason = unsupported_reason(metric)
@@ -356,8 +357,11 @@ class MetricsEngine:
             result.error = MetricError("skipped: the query returned no rows (skip_if_no_data)")
             return
         try:
-            result.rendered = render(metric.name, metric.template or "", answer.columns, rows, units=metric.units,
-                                     logs_dir=logs_dir, template_type=metric.template_type)
+            if metric.template_type == CUSTOM:
+                result.rendered = render_custom(metric, answer.columns, rows)
+            else:
+                result.rendered = render(metric.name, metric.template or "", answer.columns, rows,
+                                         units=metric.units, logs_dir=logs_dir)
         except TemplateError as error:
             result.status, result.error = ERROR, MetricError(str(error), query="template")
             return

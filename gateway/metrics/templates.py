@@ -71,17 +71,12 @@ def render(
     *,
     units: str | None = None,
     logs_dir: Path | None = None,
-    template_type: str = "system",
 ) -> Rendered:
-    """Render a query result (`columns` as (name, Trino type) pairs, `rows` of Python values).
+    """Render a query result (`columns` as (name, Trino type) pairs, `rows` of Python values)
+    with a system template (custom templates are `custom.render_custom`).
 
     `units` are shown after a scalar; `logs_dir` is where the image template finds files.
     """
-    if template_type != "system":
-        raise TemplateError(
-            f"metric {metric_name!r}: template_type {template_type!r} is not supported yet "
-            f"(only 'system' templates are)"
-        )
     if template in UNSUPPORTED_TEMPLATES:
         raise TemplateError(f"metric {metric_name!r}: template {template!r} is not supported yet")
     if template not in TEMPLATES:

@@ -13,6 +13,7 @@ field of every topic type (two rows, values in ALL_TYPES_ROWS) in batch `b1`, jo
 from __future__ import annotations
 
 import json
+import shutil
 import signal
 import subprocess
 import sys
@@ -82,6 +83,7 @@ def nav_jobs(tmp_path_factory) -> NavJobs:
     jobs = generate_batch(root / "jobs", jobs=3)
     config = root / "config.resim.yaml"
     config.write_text(CONFIG_PATH.read_text())
+    shutil.copytree(CONFIG_PATH.parent / "templates", root / "templates")  # its custom template
     return NavJobs(jobs, config)
 
 

@@ -20,7 +20,7 @@ def lakegate(*args: str | Path, cwd: Path | None = None) -> subprocess.Completed
 def test_check_valid_fixture_prints_a_summary():
     result = lakegate("config", "check", FIXTURE)
     assert (result.returncode, result.stderr) == (0, "")
-    assert result.stdout == f"ok: 10 topics, 14 metrics, 1 metrics set ({FIXTURE})\n"
+    assert result.stdout == f"ok: 10 topics, 15 metrics, 1 metrics set ({FIXTURE})\n"
 
 
 def test_check_prints_every_problem_with_its_place(tmp_path):
@@ -57,7 +57,7 @@ def test_check_merges_several_files(tmp_path):
     )
     result = lakegate("config", "check", FIXTURE, extra)
     assert result.returncode == 0, result.stdout + result.stderr
-    assert result.stdout == f"ok: 10 topics, 15 metrics, 2 metrics sets ({FIXTURE}, {extra})\n"
+    assert result.stdout == f"ok: 10 topics, 16 metrics, 2 metrics sets ({FIXTURE}, {extra})\n"
 
     result = lakegate("config", "check", FIXTURE, FIXTURE)
     assert result.returncode == 1

@@ -103,6 +103,7 @@ def _debug(served: Served, nav_jobs, tmp_path: Path, index: int = 0) -> tuple[Da
     """A debug session on job `index` (its own batch on branch 'debug'), with its own config copy."""
     config_path = tmp_path / "config.resim.yaml"
     shutil.copy(nav_jobs.config, config_path)
+    shutil.copytree(nav_jobs.config.parent / "templates", tmp_path / "templates", dirs_exist_ok=True)
     source = nav_jobs.jobs[index]
     job = DebugJob(served.lake, "debug", source.emissions_path, source.logs_dir,
                    load_metadata_file(source.metadata_path))

@@ -87,6 +87,7 @@ def _get(url: str) -> bytes:
 def test_serves_the_dashboard_and_picks_up_config_changes(tmp_path: Path, nav_jobs, debug_processes) -> None:
     config = tmp_path / "config.resim.yaml"
     config.write_text(nav_jobs.config.read_text())
+    shutil.copytree(nav_jobs.config.parent / "templates", tmp_path / "templates")  # its custom template
     job = nav_jobs.jobs[2]  # fewer than 3 goals reached: "Time to reach final goal" blocks
     server = debug_processes(["--emissions-file", str(job.emissions_path), "--metrics-config-path", str(config),
                               "--metrics-set", NAV_SET], tmp_path)
@@ -273,6 +274,12 @@ def test_export_keeps_to_the_config_folder(tmp_path: Path, nav_jobs, debug_proce
         archive = zipfile.ZipFile(io.BytesIO(response.read()))
     assert disposition == "attachment; filename=\"we_ird__-export.zip\"; filename*=UTF-8''we%22ird%20%C3%A9-export.zip"
     assert sorted(archive.namelist()) == sorted([config.name, "templates/view.liquid"])
+    config.write_text(_with_custom_metric(nav_jobs.config.read_text(), "view.liquid"))  # found in templates/
+    _get(f"{base}api/sessions/{session}")
+    with urllib.request.urlopen(export, timeout=30) as response:
+        archive = zipfile.ZipFile(io.BytesIO(response.read()))
+    assert sorted(archive.namelist()) == sorted([config.name, "templates/view.liquid"])
+
     assert server.stop() == 0
 
 

@@ -51,5 +51,5 @@ def test_demo_from_anywhere_with_no_arguments_then_again(tmp_path):
     results = read_results(lake, BRANCH, BATCH)
     again = demo("--lake", lake, "--no-progress", cwd=tmp_path)
     assert "2 PASSED, 2 WARNING, 2 BLOCKER" in again
-    assert len(read_results(lake, BRANCH, BATCH)) == len(results) == 6 * 8 + 6  # replaced, not added
+    assert len(read_results(lake, BRANCH, BATCH)) == len(results) == 6 * 9 + 6  # replaced, not added
     assert len(Catalog(lake).jobs(BRANCH)) == 6

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -56,6 +57,7 @@ def relaxed_config(tmp_path: Path) -> Path:
         text = text.replace(old, new)
     path = tmp_path / "relaxed.resim.yaml"
     path.write_text(text)
+    shutil.copytree(CONFIG_PATH.parent / "templates", tmp_path / "templates", dirs_exist_ok=True)  # custom templates
     return path
 
 
@@ -63,7 +65,7 @@ def test_sync_stores_each_new_version_and_keeps_the_old(tmp_path):
     lake = tmp_path / "lake"
     first = lakegate("metrics", "sync", "--lake", lake, "--branch", "feature/x", "--metrics-config-path", CONFIG_PATH)
     assert first.returncode == 0, first.stderr
-    assert "stored as version 1" in first.stdout and "14 metrics" in first.stdout
+    assert "stored as version 1" in first.stdout and "15 metrics" in first.stdout
     again = lakegate("metrics", "sync", "--lake", lake, "--branch", "feature/x", "--metrics-config-path", CONFIG_PATH)
     assert "unchanged: the same as version 1" in again.stdout
     project = tmp_path / "project"
@@ -96,7 +98,7 @@ def test_run_prints_every_metric_as_json_and_exits_2_on_a_blocker(nav, tmp_path)
     assert [len(j["events"]) for j in output["jobs"]] == [
         job.emissions_path.read_text().count('"topic": "goal_reached"') for job in jobs]
     metrics = output["metrics"]
-    assert len(metrics) == 3 * 8 + 6
+    assert len(metrics) == 3 * 9 + 6
     assert set(metrics[0]) >= {"batch_id", "job_id", "metric", "type", "template", "status", "scalar_value", "error"}
     scalar = next(m for m in metrics if m["metric"] == "Time to reach final goal" and m["job_id"] == jobs[2].job_id)
     assert (scalar["status"], scalar["scalar_value"], scalar["error"]) == ("BLOCKER", 75.0, None)

@@ -73,7 +73,8 @@ def test_every_evaluated_metric_is_stored(lake):
     for row in rows:
         assert set(row) == {name for name, _ in METRIC_RESULTS_COLUMNS}
         metric = config.metrics[row["metric_name"]]
-        assert (row["metric_type"], row["template"], row["batch_id"]) == (metric.type, metric.template, "b1")
+        template = "custom" if metric.template_type == "custom" else metric.template
+        assert (row["metric_type"], row["template"], row["batch_id"]) == (metric.type, template, "b1")
         assert (row["job_id"] is None) == (metric.type == "batch")
         assert (row["metrics_set"], row["config_version"]) == ("Nav Metrics", 1)
         assert (row["scalar_value"] is not None) == (metric.template == "scalar")

@@ -447,9 +447,7 @@ def test_video_and_artifact_are_not_supported_yet(template):
         render("Clip", template, [("f", "varchar")], [("a.mp4",)])
 
 
-def test_custom_templates_and_unknown_names_are_errors():
-    with pytest.raises(TemplateError, match=r"metric 'Mine': template_type 'custom' is not supported yet"):
-        render("Mine", "line", LINE_COLUMNS, [], template_type="custom")
+def test_unknown_template_names_are_errors():
     with pytest.raises(TemplateError, match=r"metric 'Mine': unknown template 'sparkline'"):
         render("Mine", "sparkline", LINE_COLUMNS, [])
 

@@ -64,7 +64,7 @@ def test_fixture_loads_topics_metrics_and_set():
                            "tags": "string[]", "metrics": "metric[]"}
     assert goal.location == Location(str(FIXTURE), line_of(FIXTURE, "  goal_reached:"), 3)
 
-    assert len(config.metrics) == 14
+    assert len(config.metrics) == 15
     speed = config.metrics["Robot Speed"]
     assert (speed.type, speed.template_type, speed.template, speed.status) == ("test", "system", "line", None)
     assert speed.query_string.startswith("SELECT\n  'Speed',") and "FROM odom_linear_velocity;" in speed.query_string
@@ -83,10 +83,10 @@ def test_fixture_loads_topics_metrics_and_set():
 
     assert list(config.metrics_sets) == ["Nav Metrics"]
     names = config.metrics_sets["Nav Metrics"].metrics
-    assert len(names) == 14 and names[:2] == ["Robot Speed", "Time to reach final goal"]
+    assert len(names) == 15 and names[:2] == ["Robot Speed", "Time to reach final goal"]
     assert [m.name for m in config.metrics_in_set("Nav Metrics")] == names
     assert config.paths == [str(FIXTURE)]
-    assert config.summary() == "10 topics, 14 metrics, 1 metrics set"
+    assert config.summary() == "10 topics, 15 metrics, 1 metrics set"
 
 
 def test_metrics_in_set_unknown_name_lists_known_sets():

@@ -45,6 +45,7 @@ class Source:
     name: str | None                     # Trino name to qualify with (alias or table name), lower case
     qualifier: str                       # identifier used in the DuckDB SQL
     columns: list[OutCol]
+    using: dict[str, str] = field(default_factory=dict)  # JOIN USING column name -> its DuckDB SQL
 
     def find(self, name: str) -> list[OutCol]:
         return [c for c in self.columns if c[0] is not None and c[0].lower() == name]
@@ -66,6 +67,20 @@ class Scope:
                 return scope.ctes[name]
             scope = scope.outer
         return None
+
+
+def _same_value(a: exp.Expression, b: exp.Expression) -> bool:
+    """The same expression, columns compared by what they resolved to."""
+    if isinstance(a, exp.Column) and isinstance(b, exp.Column) and a._meta and b._meta:
+        return a.meta.get("ref") == b.meta.get("ref") and a.meta.get("sql") == b.meta.get("sql")
+    return a == b
+
+
+def _using_value(source: Source, col: OutCol, common: TType) -> str:
+    """The DuckDB SQL of one side's USING column, cast to the join column's type."""
+    quoted = ".".join('"' + part.replace('"', '""') + '"' for part in (source.qualifier, col[1]))
+    sql = source.using.get(col[1].lower(), quoted)
+    return sql if col[2] == common else f"CAST({sql} AS {tt.duckdb_type(common)})"
 
 
 def ttype(node: exp.Expression) -> TType:
@@ -204,7 +219,22 @@ class Analyzer:
         node.meta["outputs"] = outputs
         self._modifiers(node, outputs, scope)
         self.check_grouping(node, scope)
+        if distinct is not None and node.args.get("order") is not None:
+            self.check_distinct_order(node)
         return outputs
+
+    def check_distinct_order(self, node: exp.Select) -> None:
+        """SELECT DISTINCT orders only by what it selects (io.trino.sql.analyzer.StatementAnalyzer,
+        EXPRESSION_NOT_IN_DISTINCT); DuckDB would order by an arbitrary row of each group."""
+        items = [i.this if isinstance(i, exp.Alias) else i for i in node.expressions]
+        for ordered in node.args["order"].expressions:
+            target = ordered.this
+            if isinstance(target, exp.Literal) and not target.is_string or \
+                    isinstance(target, exp.Column) and target.meta.get("output"):
+                continue
+            if not any(_same_value(target, item) for item in items):
+                self.fail("For SELECT DISTINCT, ORDER BY expressions must appear in select list", target,
+                          "EXPRESSION_NOT_IN_DISTINCT")
 
     def check_grouping(self, node: exp.Select, scope: Scope) -> None:
         """In an aggregation, every column outside an aggregate must be a GROUP BY key, as Trino
@@ -328,6 +358,8 @@ class Analyzer:
                 alias = f"_col{len(expanded)}" if col[0] is None else col[0]
                 expanded.append(exp.Alias(this=ref, alias=exp.to_identifier(alias, quoted=True)))
                 ref.meta["ref"] = (source.qualifier, col[1], ())
+                if col[1].lower() in source.using:
+                    ref.meta["sql"] = source.using[col[1].lower()]
                 _set(ref, col[2])
                 ref.meta["resolved"] = True
         return expanded
@@ -383,6 +415,8 @@ class Analyzer:
         rows = []
         for row in node.expressions:
             cells = row.expressions if isinstance(row, exp.Tuple) else [row]
+            if len(cells) == 1 and self.expr(cells[0], scope, {}).base == "row":
+                cells = self._row_fields(row, cells[0])
             rows.append([self.expr(c, scope, {}) for c in cells])
         width = len(rows[0])
         if any(len(r) != width for r in rows):
@@ -396,6 +430,16 @@ class Analyzer:
             types.append(common)
         node.meta["types"] = types
         return [(None, f"_col{i}", t) for i, t in enumerate(types)]
+
+    def _row_fields(self, row: exp.Expression, cell: exp.Expression) -> list[exp.Expression]:
+        """A VALUES item of a row type is one column per field in Trino (StatementAnalyzer.visitValues);
+        written as ROW(...) it becomes those fields, any other row-typed item is refused."""
+        if not (isinstance(cell, exp.Anonymous) and cell.name.upper() == "ROW"):
+            self.unsupported("a VALUES item of a row type that is not ROW(...) (Trino makes each field a column)",
+                             cell)
+        fields = list(cell.expressions)
+        (row if isinstance(row, exp.Tuple) else cell).replace(exp.Tuple(expressions=fields))
+        return fields
 
     # --- FROM -----------------------------------------------------------------------------------
     def relation(self, node: exp.Expression, scope: Scope, lateral_scope: Scope | None = None) -> None:
@@ -503,17 +547,34 @@ class Analyzer:
             self.condition(on, scope, "JOIN ON")
         using = join.args.get("using")
         if using:
-            left = scope.sources[:-1]
-            right = scope.sources[-1]
-            for ident in using:
-                name = ident.name.lower()
-                found_right = right.find(name)
-                found_left = [c for s in left for c in s.find(name)]
-                if not found_right or not found_left:
-                    self.fail(f"Column '{ident.name}' is missing from {'right' if not found_right else 'left'} side of join",
-                              ident, "COLUMN_NOT_FOUND")
-                if tt.common_super_type(found_left[0][2], found_right[0][2]) is None:
-                    self.fail(f"Column types of '{ident.name}' in USING do not match", ident, "TYPE_MISMATCH")
+            self.join_using(join, using, scope)
+
+    def join_using(self, join: exp.Join, using: list, scope: Scope) -> None:
+        """JOIN ... USING (k): each k becomes one unqualified column of the common type, listed first by
+        `*` (the left value, the right one for RIGHT JOIN, coalesced for FULL JOIN); `t.k` no longer
+        resolves (io.trino.sql.analyzer.StatementAnalyzer.analyzeJoinUsing, io.trino.sql.query.TestJoinUsing)."""
+        side = (join.args.get("side") or "").upper()
+        joined: list[OutCol] = []
+        sql: dict[str, str] = {}
+        for ident in using:
+            name = ident.name.lower()
+            if name in sql:
+                self.fail(f"Column '{ident.name}' appears multiple times in USING clause", ident, "DUPLICATE_COLUMN_NAME")
+            left = [(s, c) for s in scope.sources[:-1] for c in s.find(name)]
+            right = [(scope.sources[-1], c) for c in scope.sources[-1].find(name)]
+            if not right or not left:
+                self.fail(f"Column '{ident.name}' is missing from {'right' if not right else 'left'} side of join",
+                          ident, "COLUMN_NOT_FOUND")
+            common = tt.common_super_type(left[0][1][2], right[0][1][2])
+            if common is None:
+                self.fail(f"Column types of '{ident.name}' in USING do not match", ident, "TYPE_MISMATCH")
+            values = [_using_value(source, col, common) for source, col in (left[0], right[0])]
+            sql[name] = {"RIGHT": values[1], "FULL": f"COALESCE({values[0]}, {values[1]})"}.get(side, values[0])
+            joined.append((left[0][1][0], left[0][1][1], common))
+        for index, source in enumerate(scope.sources):
+            kept = [c for c in source.columns if c[0] is None or c[0].lower() not in sql]
+            scope.sources[index] = Source(source.name, source.qualifier, kept, source.using)
+        scope.sources.insert(0, Source(None, scope.sources[0].qualifier, joined, sql))
 
     # --- expressions ----------------------------------------------------------------------------
     def expr(self, node: exp.Expression, scope: Scope, env: dict[str, TType]) -> TType:
@@ -555,6 +616,8 @@ class Analyzer:
                 if matches:
                     source, col = matches[0]
                     node.meta["ref"] = (source.qualifier, col[1], ())
+                    if col[1].lower() in source.using:
+                        node.meta["sql"] = source.using[col[1].lower()]
                     return self._fields(node, col[2], parts[split + 1:], quoted[split + 1:])
             search = search.outer
         self.fail(f"Column '{'.'.join(parts)}' cannot be resolved", node, "COLUMN_NOT_FOUND")
@@ -1119,6 +1182,8 @@ def _window(a: Analyzer, node, scope, env):
 def _listagg(a: Analyzer, node, scope, env):
     if node.args.get("on_overflow") is not None:
         a.unsupported("listagg ON OVERFLOW", node)
+    if not isinstance(node.this, exp.Order):  # SqlBase.g4 #listagg: WITHIN GROUP is not optional
+        a.fail("listagg requires WITHIN GROUP (ORDER BY ...)", node, "FUNCTION_NOT_FOUND")
     args = [node.this] + ([node.args["separator"]] if node.args.get("separator") is not None else [])
     call = exp.Anonymous(this="listagg", expressions=args)
     call.meta.update({k: v for k, v in (node._meta or {}).items() if k in ("line", "col", "start", "end")})

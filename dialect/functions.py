@@ -291,8 +291,11 @@ def _lag(call: Call) -> TType:
 
 
 def _render_lag(g, node, args) -> str:
+    """lag / lead; a negative offset fails (io.trino.operator.window.LagFunction, LeadFunction), a
+    NULL offset gives NULL."""
     t = ttype(node)
-    parts = [g.coerce(args[0], t)] + [g.sql(a) for a in args[1:2]] + [g.coerce(a, t) for a in args[2:]]
+    offsets = [checked(g, g.sql(a), [(f"({g.sql(a)}) < 0", "Offset must be at least 0")]) for a in args[1:2]]
+    parts = [g.coerce(args[0], t)] + offsets + [g.coerce(a, t) for a in args[2:]]
     return g.agg(node, node.name.lower(), parts)
 
 
@@ -418,6 +421,11 @@ def _format_parts(call: Call | None, fmt: str, types: list[TType]) -> list:
                           f"of the format string: {why}", "NOT_SUPPORTED")
             raise ValueError(why)
 
+        if "-" in flags and "0" in flags:  # java.util.Formatter: IllegalFormatFlagsException
+            if call is not None:
+                call.fail(f"Invalid format string: {fmt} (IllegalFormatFlags: Flags = '{flags}')",
+                          "INVALID_FUNCTION_ARGUMENT")
+            raise ValueError("illegal flags")
         if conversion not in "sdfxXe":
             reject("only %s, %d, %f, %e, %x, %% and %n are translated")
         if set(flags) - set("-0,") or ("0" in flags and conversion == "s") or ("," in flags and conversion not in "df"):
@@ -611,12 +619,22 @@ def _render_round(g, node, args) -> str:
         # DuckDB rounds decimals HALF_UP but narrows the scale: widen back to Trino's type
         return tf.cast(f"round({value}, {digits})", t) if len(args) == 2 else tf.cast(f"round({value})", t)
     if source.is_integral:
-        if len(args) == 1:
-            return value
-        return tf.cast(f"round(CAST({value} AS DECIMAL(38,0)), {digits})", t)
+        return value if len(args) == 1 else _round_integral(g, value, digits, t)
     if source.base == "real":
         return tf.cast(f"round(CAST({value} AS DOUBLE), {digits})", t)
     return f"CASE WHEN isnan({value}) OR isinf({value}) THEN {value} ELSE round({value}, {digits}) END"
+
+
+def _round_integral(g, value: str, digits: str, t: TType) -> str:
+    """round(integer, d): HALF_UP to 10^-d, failing with NUMERIC_VALUE_OUT_OF_RANGE when 10^-d or
+    the result overflows (io.trino.operator.scalar.MathFunctions.roundLong)."""
+    rounded = f"round(CAST({value} AS DECIMAL(38,0)), {digits})"
+    overflow = f"{tf.string('numerical overflow: ')} || CAST({value} AS VARCHAR)"
+    if t.base != "bigint":
+        overflow = f"{tf.string(f'Out of range for {t.base}: ')} || CAST({rounded} AS VARCHAR)"
+    too_small = g.fail(f"{tf.string('numerical overflow: ')} || CAST({value} AS VARCHAR)", "NUMERIC_VALUE_OUT_OF_RANGE")
+    return (f"CASE WHEN ({digits}) < -18 THEN {too_small} "
+            f"ELSE {tf.checked_integer(g, rounded, t, overflow)} END")
 
 
 def _ceil_floor(call: Call) -> TType:
@@ -881,7 +899,9 @@ register("split_part", "string", "split_part(string, delimiter, index) -> varcha
          _render_split_part, notes="NULL when the index is beyond the last field, as in Trino (DuckDB gives '').")
 register("chr", "string", "chr(n) -> varchar(1)", fixed(tt.varchar(1), "integral"), call_as("chr"))
 register("codepoint", "string", "codepoint(string) -> integer", fixed(tt.INTEGER, "string"),
-         lambda g, node, args: f"CAST(unicode({g.sql(args[0])}) AS INTEGER)")
+         lambda g, node, args: f"CASE WHEN length({g.sql(args[0])}) <> 1 THEN "
+                               f"{g.fail(tf.string('Input string must be a single character string'))} "
+                               f"ELSE CAST(unicode({g.sql(args[0])}) AS INTEGER) END")
 register("levenshtein_distance", "string", "levenshtein_distance(string1, string2) -> bigint",
          fixed(tt.BIGINT, "string", "string"), call_as("levenshtein", cast_result=True))
 register("hamming_distance", "string", "hamming_distance(string1, string2) -> bigint",

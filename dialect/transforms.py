@@ -148,6 +148,7 @@ def qualified_column(g: Writer, node: exp.Column) -> str:
         return DuckDBGenerator.column_sql(g, node)
     qualifier, name, fields = ref
     sql = quote(name) if qualifier is None else f"{quote(qualifier)}.{quote(name)}"
+    sql = node.meta.get("sql", sql)  # a JOIN USING column
     for field in fields:
         sql = f"struct_extract({sql}, {string(field)})"
     return sql
@@ -216,10 +217,21 @@ def decimal_result_type(g: Writer, node: exp.Binary) -> str:
     sql = f"{left} {op} {right}"
     if t.is_decimal or t.base == "real":
         return cast(sql, t)
-    if t.base in ("timestamp", "timestamp_tz", "date") and ttype(node.expression).base.startswith("interval"):
-        if t.base == "date":
-            return f"CAST({sql} AS DATE)"
+    if t.base == "date":
+        return whole_days(g, node, sql)
     return sql
+
+
+def whole_days(g: Writer, node: exp.Binary, sql: str) -> str:
+    """DATE ± interval: Trino refuses a day-to-second interval that is not whole days
+    (io.trino.type.DateTimeOperators: "Cannot add hour, minutes or seconds to a date")."""
+    verb = "add hour, minutes or seconds to" if isinstance(node, exp.Add) else "subtract hour, minutes or seconds from"
+    side = node.expression if ttype(node.expression).base.startswith("interval_") else node.this
+    interval = g.sql(side)
+    if ttype(side) == tt.INTERVAL_YM:
+        return f"CAST({sql} AS DATE)"
+    return (f"CASE WHEN epoch({interval}) % 86400 <> 0 THEN {g.fail(string(f'Cannot {verb} a date'))} "
+            f"ELSE CAST({sql} AS DATE) END")
 
 
 @transform(exp.Div)
@@ -336,6 +348,19 @@ def ieee_comparison(g: Writer, node: exp.Binary) -> str:
                  f"WHEN list_count({flags}) < len({flags}) THEN NULL ELSE true END")
         return equal if op == "=" else f"NOT ({equal})"
     return f"{left} {op} {right}"
+
+
+@transform(exp.In)
+def eager_constant_in_list(g: Writer, node: exp.In) -> str:
+    """A constant IN list whose items can fail (`3 IN (2, 3, 5 / 0)`) evaluates every item first, as
+    Trino's interpreter does (io.trino.sql.query.TestInlining: "Division by zero"); DuckDB stops at
+    the first match. IN over columns short-circuits in both."""
+    sql = g.in_sql(node)
+    items = node.expressions
+    if node.find(exp.Column) is not None or all(isinstance(i, (exp.Literal, exp.Null)) for i in items):
+        return sql
+    common = node.meta["compare"]
+    return f"CASE WHEN len([{', '.join(g.coerce(i, common) for i in items)}]) >= 0 THEN {sql} END"
 
 
 # --- conditionals --------------------------------------------------------------------------------

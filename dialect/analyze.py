@@ -881,7 +881,19 @@ def _arithmetic(a: Analyzer, node, scope, env):
         result = _temporal_arithmetic(op, left, right)
     if result is None:
         a.fail(f"Cannot apply operator: {left} {op} {right}", node, "TYPE_MISMATCH")
+    if op == "%" and not remainder_fits(left, right, result):
+        a.unsupported(f"% of {left} by {right} (the operands at a common scale exceed 38 digits)", node)
     return result
+
+
+def remainder_fits(left: TType, right: TType, result: TType) -> bool:
+    """Whether DuckDB computes decimal `left % right` exactly: both operands at the common scale fit in
+    38 digits (Trino rescales in 256 bits, io.trino.type.DecimalOperators)."""
+    if not result.is_decimal or not (left.is_decimal or right.is_decimal):
+        return True
+    a, b = tt.as_decimal(left), tt.as_decimal(right)
+    scale = max(a.args[1], b.args[1])
+    return max(a.args[0] - a.args[1], b.args[0] - b.args[1]) + scale <= 38
 
 
 def _temporal_arithmetic(op: str, left: TType, right: TType) -> TType | None:

@@ -15,7 +15,7 @@ from sqlglot import exp
 
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect import transforms as tf
-from lakegate.dialect.analyze import Call, ttype
+from lakegate.dialect.analyze import Call, remainder_fits, ttype
 from lakegate.dialect.trino_types import TType
 
 Render = Callable[["tf.Writer", exp.Expression, list], str]
@@ -184,11 +184,36 @@ def _render_avg(g, node, args) -> str:
 def _minmax(call: Call) -> TType:
     if len(call.args) == 2:
         t, n = need(call, "orderable", "integral")
+        if call.name == "max" and t.is_approx:
+            call.fail("unsupported in lakegate: max(x, n) over real or double (Trino's NaN ordering is not "
+                      "translated)", "NOT_SUPPORTED")
         return tt.array(t)
     (t,) = need(call, "orderable")
     if t.base == "row" or t.base == "array":
         call.fail(f"min/max over {t} is not supported in lakegate", "NOT_SUPPORTED")
     return t
+
+
+def not_nan(sql: str) -> str:
+    """A double as SQL, NULL when it is NaN."""
+    return f"CASE WHEN isnan({sql}) THEN NULL ELSE {sql} END"
+
+
+# Trino's max, max_by, greatest and array_max order NaN below every number, min and friends above
+# (io.trino.util.MinMaxCompare: COMPARISON_UNORDERED_FIRST / _LAST), so NaN wins only when all values
+# are NaN; DuckDB orders NaN above every number, which is right for the min side only.
+def _render_max(g, node, args) -> str:
+    if len(args) == 2 or not ttype(args[0]).is_approx:
+        return agg_as("max")(g, node, args)
+    value = g.sql(args[0])
+    return f"coalesce({g.agg(node, 'max', [not_nan(value)])}, {g.agg(node, 'max', [value])})"
+
+
+def _render_max_by(g, node, args) -> str:
+    value, key = g.sql(args[0]), g.sql(args[1])
+    if ttype(args[1]).is_approx:  # non-NaN keys above NaN keys, then by value
+        key = f"CASE WHEN {key} IS NULL THEN NULL ELSE struct_pack(n := NOT isnan({key}), v := {key}) END"
+    return tf.cast(g.agg(node, "arg_max_null", [value, key]), ttype(node))
 
 
 def _by(call: Call) -> TType:
@@ -245,10 +270,12 @@ register("avg", "aggregate", "avg(x) -> double for integers, decimal(p,s) for de
          _avg, _render_avg, kind="aggregate",
          notes="avg(decimal(p,s)) is computed exactly and rounded HALF_UP to scale s, as Trino does.")
 register("min", "aggregate", "min(x) -> same; min(x, n) -> array", _minmax, agg_as("min"), kind="aggregate")
-register("max", "aggregate", "max(x) -> same; max(x, n) -> array", _minmax, agg_as("max"), kind="aggregate")
+register("max", "aggregate", "max(x) -> same; max(x, n) -> array", _minmax, _render_max, kind="aggregate",
+         notes="NaN only when every value is NaN, as in Trino.")
 register("arbitrary", "aggregate", "arbitrary(x) -> same", same("any"), agg_as("any_value"), kind="aggregate",
          aliases=("any_value",))
-register("max_by", "aggregate", "max_by(x, y) -> type of x", _by, agg_as("arg_max_null"), kind="aggregate")
+register("max_by", "aggregate", "max_by(x, y) -> type of x", _by, _render_max_by, kind="aggregate",
+         notes="A NaN y is below every number, as in Trino.")
 register("min_by", "aggregate", "min_by(x, y) -> type of x", _by, agg_as("arg_min_null"), kind="aggregate")
 register("array_agg", "aggregate", "array_agg(x) -> array(x)", _array_agg, agg_as("list", cast_result=False),
          kind="aggregate")
@@ -270,8 +297,14 @@ register("bool_or", "aggregate", "bool_or(boolean) -> boolean", fixed(tt.BOOLEAN
 for _name, _duck in (("stddev", "stddev_samp"), ("stddev_samp", "stddev_samp"), ("stddev_pop", "stddev_pop"),
                      ("variance", "var_samp"), ("var_samp", "var_samp"), ("var_pop", "var_pop")):
     register(_name, "aggregate", f"{_name}(x) -> double", as_double("number"), agg_as(_duck), kind="aggregate")
+def _bivariate(call: Call) -> TType:
+    """corr, covar_* and regr_*: real over two reals, double otherwise (Trino's Real* aggregations)."""
+    types = need(call, "number", "number")
+    return tt.REAL if all(t.base == "real" for t in types) else tt.DOUBLE
+
+
 for _name in ("corr", "covar_samp", "covar_pop", "regr_slope", "regr_intercept"):
-    register(_name, "aggregate", f"{_name}(y, x) -> double", as_double("number", "number"), agg_as(_name),
+    register(_name, "aggregate", f"{_name}(y, x) -> double; real for two reals", _bivariate, agg_as(_name),
              kind="aggregate")
 register("listagg", "aggregate", "listagg(x, separator) WITHIN GROUP (ORDER BY ...) -> varchar",
          lambda c: tt.VARCHAR if len(c.args) in (1, 2) and all(t is not None and t.base in ("varchar", "unknown")
@@ -345,7 +378,11 @@ def _greatest(call: Call) -> TType:
 def _render_greatest(g, node, args) -> str:
     t = ttype(node)
     name = node.name.lower()
-    return null_if_any_null(g, args, f"{name}({', '.join(g.coerce(a, t) for a in args)})")
+    values = [g.coerce(a, t) for a in args]
+    if name == "greatest" and t.is_approx:  # NaN only when all are NaN (MinMaxCompare, above)
+        nan = tf.cast("'NaN'", t)
+        return null_if_any_null(g, args, f"coalesce(greatest({', '.join(not_nan(v) for v in values)}), {nan})")
+    return null_if_any_null(g, args, f"{name}({', '.join(values)})")
 
 
 def _render_typeof(g, node, args) -> str:
@@ -658,11 +695,22 @@ def _sign(call: Call) -> TType:
     return tt.decimal(1, 0) if t.is_decimal else t
 
 
+def _render_sign(g, node, args) -> str:
+    value = g.sql(args[0])
+    sql = f"sign({value})"
+    if ttype(args[0]).is_approx:  # DuckDB: sign(NaN) = 0
+        sql = f"CASE WHEN isnan({value}) THEN {value} ELSE {sql} END"
+    return tf.cast(sql, ttype(node))
+
+
 def _mod(call: Call) -> TType:
     a, b = need(call, "number", "number")
     result = tt.arithmetic_type("%", a, b)
     if result is None:
         call.mismatch()
+    if not remainder_fits(a, b, result):
+        call.fail(f"unsupported in lakegate: mod({a}, {b}) (the operands at a common scale exceed 38 digits)",
+                  "NOT_SUPPORTED")
     return result
 
 
@@ -670,7 +718,7 @@ def _render_mod(g, node, args) -> str:
     t = ttype(node)
     left, right = g.sql(args[0]), g.sql(args[1])
     if t.is_approx:
-        return tf.cast(f"CASE WHEN {right} = 0 THEN CAST('NaN' AS DOUBLE) ELSE fmod({left}, {right}) END", t)
+        return tf.cast(f"CASE WHEN {right} = 0 THEN CAST('NaN' AS DOUBLE) ELSE {left} % {right} END", t)
     return tf.cast(f"({left} % {tf.nonzero(g, right)})", t)
 
 
@@ -707,7 +755,7 @@ register("round", "math", "round(x[, d]) -> same (decimal(p+1,s) with d for deci
          notes="HALF_UP; the result keeps Trino's type, e.g. round(decimal(6,2), 1) is decimal(7,2).")
 register("truncate", "math", "truncate(x) -> same (decimal(p-s,0) for decimals)", _truncate,
          call_as("trunc", cast_result=True))
-register("sign", "math", "sign(x) -> same", _sign, call_as("sign", cast_result=True))
+register("sign", "math", "sign(x) -> same", _sign, _render_sign, notes="sign(NaN) is NaN (Java's Math.signum).")
 register("mod", "math", "mod(n, m) -> same as n % m", _mod, _render_mod)
 register("sqrt", "math", "sqrt(x) -> double", as_double("number"), double_fn("sqrt"))
 register("cbrt", "math", "cbrt(x) -> double", as_double("number"),
@@ -1169,7 +1217,10 @@ def _contains(call: Call) -> TType:
 
 def _render_contains(g, node, args) -> str:
     arr, value = g.sql(args[0]), g.sql(args[1])
-    return (f"CASE WHEN ({value}) IS NULL OR ({arr}) IS NULL THEN NULL WHEN list_contains({arr}, {value}) THEN true "
+    found = f"list_contains({arr}, {value})"
+    if ttype(args[1]).is_approx:  # Trino's EQUAL: NaN is never found (io.trino.operator.scalar.ArrayContains)
+        found += f" AND NOT isnan({value})"
+    return (f"CASE WHEN ({value}) IS NULL OR ({arr}) IS NULL THEN NULL WHEN {found} THEN true "
             f"WHEN list_count({arr}) < len({arr}) THEN NULL ELSE false END")
 
 
@@ -1326,6 +1377,10 @@ def _array_minmax(call: Call) -> TType:
 def _render_array_minmax(g, node, args) -> str:
     arr = g.sql(args[0])
     name = "list_max" if node.name.lower() == "array_max" else "list_min"
+    if name == "list_max" and ttype(node).is_approx:  # NaN only when all are NaN (ArrayMaxFunction)
+        nan = tf.cast("'NaN'", ttype(node))
+        return (f"CASE WHEN list_count({arr}) < len({arr}) OR len({arr}) = 0 THEN NULL ELSE "
+                f"coalesce(list_max(list_filter({arr}, lambda \"_x\": NOT isnan(\"_x\"))), {nan}) END")
     return f"CASE WHEN list_count({arr}) < len({arr}) THEN NULL ELSE {name}({arr}) END"
 
 
@@ -1506,8 +1561,10 @@ def _array_remove(call: Call) -> TType:
 
 def _render_array_remove(g, node, args) -> str:
     arr, value = g.sql(args[0]), g.sql(args[1])
+    # Trino's EQUAL: a NaN is unequal to everything and stays (io.trino.operator.scalar.ArrayRemoveFunction)
+    keep_nan = ' OR isnan("_e")' if ttype(args[1]).is_approx else ""
     return (f"CASE WHEN ({value}) IS NULL THEN NULL ELSE list_filter({arr}, lambda \"_e\": "
-            f"\"_e\" IS NULL OR \"_e\" <> {value}) END")
+            f"\"_e\" IS NULL OR \"_e\" <> {value}{keep_nan}) END")
 
 
 def _arrays_overlap(call: Call) -> TType:

@@ -296,7 +296,7 @@ def modulus(g: Writer, node: exp.Mod) -> str:
     t = ttype(node)
     left, right = _operands(g, node)
     if t.is_approx:
-        return cast(f"CASE WHEN {right} = 0 THEN CAST('NaN' AS DOUBLE) ELSE fmod({left}, {right}) END", t)
+        return cast(f"CASE WHEN {right} = 0 THEN CAST('NaN' AS DOUBLE) ELSE {left} % {right} END", t)
     sql = f"({left} % {nonzero(g, right)})"
     return cast(sql, t) if t.is_decimal else sql
 
@@ -361,6 +361,18 @@ def eager_constant_in_list(g: Writer, node: exp.In) -> str:
         return sql
     common = node.meta["compare"]
     return f"CASE WHEN len([{', '.join(g.coerce(i, common) for i in items)}]) >= 0 THEN {sql} END"
+
+
+@transform(exp.Between)
+def ieee_between(g: Writer, node: exp.Between) -> str:
+    """`v BETWEEN low AND high` is `low <= v AND v <= high` with IEEE comparisons: false when a double
+    is NaN (DuckDB orders NaN above every number)."""
+    sql = g.between_sql(node)
+    common = node.meta.get("compare")
+    if common is None or not common.is_approx:
+        return sql
+    sides = [g.sql(side) for side in (node.this, node.args["low"], node.args["high"])]
+    return f"({sql} AND " + " AND ".join(f"NOT isnan({side})" for side in sides) + ")"
 
 
 # --- conditionals --------------------------------------------------------------------------------
@@ -490,6 +502,10 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
         return parse_varchar(g, sql, target)
     if target.is_integral and source.is_approx:
         return checked_cast(g, f"round({sql})", source, target)
+    if target.is_decimal and source.is_approx:
+        # Trino converts the shortest decimal text of the float (BigDecimal.valueOf(double),
+        # Float.toString: io.trino.type.DecimalCasts), HALF_UP; DuckDB would convert its binary value
+        return checked_cast(g, f"CAST({sql} AS VARCHAR)", source, target)
     if target.is_integral and (source.is_integral or source.is_decimal) or target.is_decimal and source.is_numeric:
         return checked_cast(g, sql, source, target)
     if target.base == "timestamp" and source.base in ("timestamp", "date"):

@@ -312,9 +312,9 @@ def concat_operator(g: Writer, node: exp.DPipe) -> str:
     if lt.base == "array" and rt.base == "array":
         a, b = g.coerce(left, t), g.coerce(right, t)
         return f"CASE WHEN {a} IS NULL OR {b} IS NULL THEN NULL ELSE list_concat({a}, {b}) END"
-    if lt.base == "array":
-        return f"list_append({g.coerce(left, t)}, {g.coerce(right, t.element)})"
-    return f"list_prepend({g.coerce(left, t.element)}, {g.coerce(right, t)})"
+    a, b = g.coerce(left, t if lt.base == "array" else t.element), g.coerce(right, t if rt.base == "array" else t.element)
+    appended = f"list_append({a}, {b})" if lt.base == "array" else f"list_prepend({a}, {b})"
+    return f"CASE WHEN {a} IS NULL OR {b} IS NULL THEN NULL ELSE {appended} END"  # a NULL element too
 
 
 # --- comparisons ---------------------------------------------------------------------------------
@@ -340,14 +340,37 @@ def ieee_comparison(g: Writer, node: exp.Binary) -> str:
         if op == "<>":
             return f"({left} <> {right} OR " + " OR ".join(f"isnan({s})" for s in sides) + ")"
         return f"({left} {op} {right} AND " + " AND ".join(f"NOT isnan({s})" for s in sides) + ")"
-    if common.base == "array" and op in ("=", "<>"):
-        flags = (f"list_transform(list_zip({left}, {right}), lambda \"_z\": "
-                 f"struct_extract(\"_z\", 1) = struct_extract(\"_z\", 2))")
-        equal = (f"CASE WHEN ({left}) IS NULL OR ({right}) IS NULL THEN NULL WHEN len({left}) <> len({right}) "
-                 f"THEN false WHEN list_contains({flags}, false) THEN false "
-                 f"WHEN list_count({flags}) < len({flags}) THEN NULL ELSE true END")
+    if common.base in ("array", "map", "row") and op in ("=", "<>"):
+        equal = trino_equal(left, right, common)
         return equal if op == "=" else f"NOT ({equal})"
     return f"{left} {op} {right}"
+
+
+def trino_equal(left: str, right: str, t: TType, depth: int = 0) -> str:
+    """Trino's `=` on values of type `t`: NULL when either side is NULL; NaN equals nothing; arrays,
+    maps (in any key order) and rows are equal when every element is, false when one element is not,
+    NULL otherwise (io.trino.type.ArrayType, MapType and RowType equal operators). DuckDB would compare
+    NULL elements as equal values."""
+    nulls = f"({left}) IS NULL OR ({right}) IS NULL"
+    if t.base in ("double", "real"):
+        return f"CASE WHEN {nulls} THEN NULL ELSE ({left}) = ({right}) AND NOT isnan({left}) END"
+    if t.base == "row":
+        fields = [trino_equal(f"struct_extract_at({left}, {i + 1})", f"struct_extract_at({right}, {i + 1})", f, depth)
+                  for i, (_, f) in enumerate(t.args)]
+        return f"CASE WHEN {nulls} THEN NULL ELSE ({' AND '.join(fields)}) END"
+    z = quote(f"_z{depth}")
+    if t.base == "array":
+        element = trino_equal(f"struct_extract({z}, 1)", f"struct_extract({z}, 2)", t.element, depth + 1)
+        flags, size = f"list_transform(list_zip({left}, {right}), lambda {z}: {element})", f"len({left}) <> len({right})"
+    elif t.base == "map":
+        value = trino_equal(f"({left})[{z}]", f"({right})[{z}]", t.args[1], depth + 1)
+        flags = (f"list_transform(map_keys({left}), lambda {z}: CASE WHEN NOT list_contains(map_keys({right}), {z}) "
+                 f"THEN false ELSE {value} END)")
+        size = f"cardinality({left}) <> cardinality({right})"
+    else:
+        return f"({left}) = ({right})"
+    return (f"CASE WHEN {nulls} THEN NULL WHEN {size} THEN false WHEN list_contains({flags}, false) THEN false "
+            f"WHEN list_count({flags}) < len({flags}) THEN NULL ELSE true END")
 
 
 @transform(exp.In)

@@ -951,10 +951,31 @@ register("codepoint", "string", "codepoint(string) -> integer", fixed(tt.INTEGER
          lambda g, node, args: f"CASE WHEN length({g.sql(args[0])}) <> 1 THEN "
                                f"{g.fail(tf.string('Input string must be a single character string'))} "
                                f"ELSE CAST(unicode({g.sql(args[0])}) AS INTEGER) END")
+def _render_levenshtein(g, node, args) -> str:
+    """Edits counted in characters (StringFunctions.levenshteinDistance); DuckDB's levenshtein counts
+    bytes, so non-ASCII text runs a row-by-row dynamic programme over the characters."""
+    a, b = sqls(g, args)
+    by_chars = (f"list_reduce(string_split({a}, ''), lambda \"_prev\", \"_ch\": list_reduce(range(1, length({b}) + 1), "
+                f"lambda \"_cur\", \"_j\": list_append(\"_cur\", least(\"_prev\"[\"_j\" + 1] + 1, \"_cur\"[\"_j\"] + 1, "
+                f"\"_prev\"[\"_j\"] + CASE WHEN \"_ch\" = substr({b}, \"_j\", 1) THEN 0 ELSE 1 END)), "
+                f"[\"_prev\"[1] + 1]), range(0, length({b}) + 1))[length({b}) + 1]")
+    return (f"CAST(CASE WHEN strlen({a}) = length({a}) AND strlen({b}) = length({b}) THEN levenshtein({a}, {b}) "
+            f"ELSE {by_chars} END AS BIGINT)")
+
+
+def _render_hamming(g, node, args) -> str:
+    """Positions counted in characters (StringFunctions.hammingDistance); DuckDB's hamming counts bytes."""
+    a, b = sqls(g, args)
+    same_length = "The input strings to hamming_distance function must have the same length"
+    differing = f"list_filter(range(1, length({a}) + 1), lambda \"_i\": substr({a}, \"_i\", 1) <> substr({b}, \"_i\", 1))"
+    return (f"CASE WHEN length({a}) <> length({b}) THEN {g.fail(tf.string(same_length))} "
+            f"ELSE CAST(len({differing}) AS BIGINT) END")
+
+
 register("levenshtein_distance", "string", "levenshtein_distance(string1, string2) -> bigint",
-         fixed(tt.BIGINT, "string", "string"), call_as("levenshtein", cast_result=True))
+         fixed(tt.BIGINT, "string", "string"), _render_levenshtein, notes="Counts characters, as Trino does.")
 register("hamming_distance", "string", "hamming_distance(string1, string2) -> bigint",
-         fixed(tt.BIGINT, "string", "string"), call_as("hamming", cast_result=True))
+         fixed(tt.BIGINT, "string", "string"), _render_hamming, notes="Counts characters, as Trino does.")
 register("translate", "string", "translate(source, from, to) -> varchar", fixed(tt.VARCHAR, "string", "string", "string"),
          call_as("translate"))
 
@@ -1079,8 +1100,15 @@ def _render_regexp_extract_all(g, node, args) -> str:
     return sql
 
 
-def _regexp_replacement(text: str) -> str:
-    """A Java replacement string ($1, \\$) as an RE2 rewrite string (\\1, $)."""
+class IllegalGroupReference(ValueError):
+    """A replacement names a group the pattern does not have."""
+
+
+def _regexp_replacement(text: str, groups: int | None) -> str:
+    """A Java replacement string as an RE2 rewrite string: `\\x` is x, `$` takes as many digits as
+    name an existing group (`$10` with one group is group 1 then '0', `$01` is group 1), as Trino's
+    JoniRegexpFunctions.appendReplacement does. `groups` is the pattern's group count (None: unknown,
+    then only one-digit references are translated). ValueError for what is not translated."""
     out = []
     i = 0
     while i < len(text):
@@ -1091,15 +1119,29 @@ def _regexp_replacement(text: str) -> str:
             i += 2
             continue
         if ch == "$":
-            m = re.match(r"\$(\d)", text[i:])
-            if not m:
-                raise ValueError("named group reference")
-            out.append("\\" + m.group(1))
-            i += 2
+            digits = re.match(r"\$(\d+)", text[i:])
+            if not digits:
+                raise ValueError("named group references in the regexp_replace replacement")
+            if groups is None and len(digits.group(1)) > 1:
+                raise ValueError("a multi-digit group reference with a non-literal pattern")
+            number, used = int(digits.group(1)[0]), 1
+            while used < len(digits.group(1)) and number * 10 + int(digits.group(1)[used]) <= groups:
+                number, used = number * 10 + int(digits.group(1)[used]), used + 1
+            if groups is not None and number > groups:
+                raise IllegalGroupReference(f"Illegal group reference: group {number} does not exist")
+            if number > 9:
+                raise ValueError("a group reference above 9")
+            out.append("\\" + str(number))
+            i += 1 + used
             continue
         out.append("\\\\" if ch == "\\" else ch)
         i += 1
     return "".join(out)
+
+
+def _pattern_groups(pattern: exp.Expression) -> int | None:
+    """The number of capturing groups of a literal pattern (None when it is not a literal)."""
+    return len(capturing_groups(pattern.name)) if isinstance(pattern, exp.Literal) and pattern.is_string else None
 
 
 def _regexp_replace(call: Call) -> TType:
@@ -1110,10 +1152,11 @@ def _regexp_replace(call: Call) -> TType:
         if replacement is None:
             call.fail("regexp_replace needs a literal replacement string in lakegate", "NOT_SUPPORTED")
         try:
-            _regexp_replacement(replacement)
-        except ValueError:
-            call.fail("unsupported in lakegate: named group references in the regexp_replace replacement",
-                      "NOT_SUPPORTED")
+            _regexp_replacement(replacement, _pattern_groups(call.args[1]))
+        except IllegalGroupReference as e:
+            call.fail(str(e), "INVALID_FUNCTION_ARGUMENT")
+        except ValueError as e:
+            call.fail(f"unsupported in lakegate: {e}", "NOT_SUPPORTED")
     if x is None:
         return tt.VARCHAR
     if len(call.args) == 2:
@@ -1126,7 +1169,7 @@ def _regexp_replace(call: Call) -> TType:
 
 def _render_regexp_replace(g, node, args) -> str:
     value, pattern = g.sql(args[0]), g.sql(args[1])
-    replacement = tf.string(_regexp_replacement(args[2].name)) if len(args) == 3 else "''"
+    replacement = tf.string(_regexp_replacement(args[2].name, _pattern_groups(args[1]))) if len(args) == 3 else "''"
     return f"regexp_replace({value}, {pattern}, {replacement}, 'g')"
 
 
@@ -1141,8 +1184,35 @@ register("regexp_extract_all", "regexp", "regexp_extract_all(string, pattern[, g
          _regexp_extract_all, _render_regexp_extract_all)
 register("regexp_replace", "regexp", "regexp_replace(string, pattern[, replacement]) -> varchar", _regexp_replace,
          _render_regexp_replace, notes="Replaces every match; Java's $1 group references are translated.")
-register("regexp_split", "regexp", "regexp_split(string, pattern) -> array(varchar)",
-         lambda c: _regexp(c, "array", (2,), "string", "string"), call_as("regexp_split_to_array"))
+def _regexp_split(call: Call) -> TType:
+    """Splits at matches; a pattern that can match the empty string is refused: Trino then splits
+    between characters and adds '' at both ends (JoniRegexpFunctions.regexpSplit), DuckDB does not."""
+    result = _regexp(call, "array", (2,), "string", "string")
+    pattern = literal_str(call, 1)
+    if pattern is not None and (re.search(r"\\[bB]|\^|\$", pattern) or _matches_empty(pattern)):
+        call.fail("unsupported in lakegate: regexp_split with a pattern that can match the empty string",
+                  "NOT_SUPPORTED")
+    return result
+
+
+def _matches_empty(pattern: str) -> bool:
+    try:
+        return re.fullmatch(pattern, "") is not None
+    except re.error:
+        return False
+
+
+def _render_regexp_split(g, node, args) -> str:
+    value, pattern = sqls(g, args)
+    split = null_if_any_null(g, args, f"regexp_split_to_array({value}, {pattern})")
+    if isinstance(args[1], exp.Literal):
+        return split
+    message = tf.string("unsupported in lakegate: regexp_split with a pattern that can match the empty string")
+    return f"CASE WHEN regexp_full_match('', {pattern}) THEN {g.fail(message, 'NOT_SUPPORTED')} ELSE {split} END"
+
+
+register("regexp_split", "regexp", "regexp_split(string, pattern) -> array(varchar)", _regexp_split,
+         _render_regexp_split, notes="A pattern that can match the empty string is refused.")
 register("regexp_count", "regexp", "regexp_count(string, pattern) -> bigint",
          lambda c: _regexp(c, tt.BIGINT, (2,), "string", "string"),
          lambda g, node, args: f"CAST(len(regexp_extract_all({g.sql(args[0])}, {g.sql(args[1])})) AS BIGINT)")

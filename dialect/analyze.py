@@ -584,7 +584,10 @@ class Analyzer:
             self.fail(f"mismatched input: {_DUCKDB_SYNTAX[type(node)]} is not Trino syntax", node, "SYNTAX_ERROR")
         if handler is None:
             self.unsupported(_describe(node), node)
-        return _set(node, handler(self, node, scope, env))
+        t = handler(self, node, scope, env)
+        if t.base in ("timestamp", "timestamp_tz") and t.args[0] > 6:
+            self.unsupported(f"{t} (lakegate keeps microseconds; digits past them would be dropped)", node)
+        return _set(node, t)
 
     def column(self, node: exp.Column, scope: Scope, env: dict[str, TType]) -> TType:
         if node.meta.get("resolved"):
@@ -881,6 +884,9 @@ def _arithmetic(a: Analyzer, node, scope, env):
         result = _temporal_arithmetic(op, left, right)
     if result is None:
         a.fail(f"Cannot apply operator: {left} {op} {right}", node, "TYPE_MISMATCH")
+    if op == "-" and left.base in ("timestamp", "timestamp_tz") and right.base == left.base and \
+            max(left.args[0], right.args[0]) > 3:
+        a.unsupported(f"{left} - {right} (Trino rounds the difference to milliseconds)", node)
     if op == "%" and not remainder_fits(left, right, result):
         a.unsupported(f"% of {left} by {right} (the operands at a common scale exceed 38 digits)", node)
     return result
@@ -896,14 +902,20 @@ def remainder_fits(left: TType, right: TType, result: TType) -> bool:
     return max(a.args[0] - a.args[1], b.args[0] - b.args[1]) + scale <= 38
 
 
+def _at_least_millis(t: TType) -> TType:
+    """timestamp(p) ± a day-to-second interval is timestamp(max(p, 3)): the interval carries milliseconds
+    (io.trino.operator.scalar.timestamp.TimestampOperators.TimestampPlusIntervalDayToSecond)."""
+    if t.base in ("timestamp", "timestamp_tz") and t.args[0] < 3:
+        return tt.timestamp(3, with_time_zone=t.base == "timestamp_tz")
+    return t
+
+
 def _temporal_arithmetic(op: str, left: TType, right: TType) -> TType | None:
     intervals = ("interval_ds", "interval_ym")
     if op in "+-" and left.base in ("date", "timestamp", "timestamp_tz") and right.base in intervals:
-        if left.base == "date" and right.base == "interval_ds":
-            return left
-        return left
+        return _at_least_millis(left) if right.base == "interval_ds" else left
     if op == "+" and right.base in ("date", "timestamp", "timestamp_tz") and left.base in intervals:
-        return right
+        return _at_least_millis(right) if left.base == "interval_ds" else right
     if op in "+-" and left.base == right.base and left.base in intervals:
         return left
     if op == "-" and left.base == right.base and left.base in ("timestamp", "timestamp_tz"):

@@ -1853,6 +1853,8 @@ def _render_date_format(g, node, args) -> str:
     value = g.sql(args[0])
     if ttype(args[0]).base == "timestamp_tz":
         value = f"timezone('UTC', {value})"
+    if "%f" in re.findall(r"%.", args[1].name):  # Trino prints the milliseconds as six digits ('.111000')
+        value = f"date_trunc('millisecond', {value})"
     return f"strftime({value}, {tf.string(mysql_to_strftime(args[1].name))})"
 
 
@@ -1869,8 +1871,16 @@ def _date_parse(call: Call) -> TType:
 
 
 def _render_date_parse(g, node, args) -> str:
-    fmt = tf.string(mysql_to_strftime(args[1].name))
-    return f"CAST(strptime({g.sql(args[0])}, {fmt}) AS TIMESTAMP)"
+    """Fields the format leaves out default to 1970-01-01 and %y reads 70..69 as 1970..2069
+    (DateTimeFunctions: Joda's defaults, PIVOT_YEAR = 2020); strptime would use 1900 and 1969."""
+    fmt, value = args[1].name, g.sql(args[0])
+    years = re.findall(r"%.", fmt)
+    if "%Y" not in years and "%y" not in years:
+        fmt, value = "%Y " + fmt, f"('1970 ' || {value})"
+    sql = f"CAST(strptime({value}, {tf.string(mysql_to_strftime(fmt))}) AS TIMESTAMP)"
+    if "%y" in years:
+        sql = f"CASE WHEN year({sql}) = 1969 THEN {sql} + INTERVAL 100 YEAR ELSE {sql} END"
+    return sql
 
 
 def _from_unixtime(call: Call) -> TType:

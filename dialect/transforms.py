@@ -586,7 +586,8 @@ def _fits(source: TType, target: TType) -> bool:
 def round_timestamp(sql: str, precision: int) -> str:
     """A timestamp rounded HALF_UP to `precision` fractional digits (Trino's timestamp(p) casts)."""
     unit = 10 ** (6 - precision)
-    return f"make_timestamp(CAST(round(epoch_us({sql}) / {unit}) * {unit} AS BIGINT))"
+    shifted = f"(epoch_us({sql}) + {unit // 2})"  # then floored to a multiple of unit, before 1970 too
+    return f"make_timestamp({shifted} - ((({shifted} % {unit}) + {unit}) % {unit}))"
 
 
 def parse_varchar(g: Writer, sql: str, target: TType) -> str:

@@ -1008,10 +1008,27 @@ def _cast(a: Analyzer, node, scope, env):
             a.unsupported("timestamp literal with a time zone", node)
     if target.base in ("char", "time", "time_tz", "uuid", "varbinary", "json", "map"):
         a.unsupported(f"cast to {target}", node)
+    if target.base == "timestamp_tz" and source.base == "varchar":
+        _check_utc_text(a, node)
     if not castable(source, target):
         a.fail(f"Cannot cast {source} to {target}", node, "TYPE_MISMATCH")
     node.meta["from"] = source
     return target
+
+
+#: The zone at the end of a timestamp text: a region name or an offset.
+_ZONE_SUFFIX = re.compile(r"[0-9]\s*([A-Za-z][A-Za-z0-9_/+-]*|[+-][0-9]{1,2}(?::?[0-9]{2})?)\s*$")
+
+
+def _check_utc_text(a: "Analyzer", node: exp.Cast) -> None:
+    """A text cast to timestamp with time zone must name UTC or no zone: lakegate's values carry no
+    zone of their own (Trino's keep theirs, and render and compute in it), and the session zone is UTC."""
+    if not (isinstance(node.this, exp.Literal) and node.this.is_string):
+        a.unsupported("CAST of a non-literal varchar to timestamp with time zone (each value's zone would be "
+                      "lost)", node)
+    zone = _ZONE_SUFFIX.search(node.this.name.strip())
+    if zone is not None and zone.group(1).upper() != "UTC":
+        a.unsupported(f"timestamp with time zone '{zone.group(1)}' (lakegate keeps timestamps in UTC only)", node)
 
 
 def castable(source: TType, target: TType) -> bool:
@@ -1235,6 +1252,8 @@ def _at_time_zone(a: Analyzer, node, scope, env):
     if t.base not in ("timestamp", "timestamp_tz"):
         a.fail(f"Type of value must be a time or timestamp with or without time zone (actual {t})", node,
                "TYPE_MISMATCH")
+    if zone.name.strip().upper() != "UTC":
+        a.unsupported(f"AT TIME ZONE '{zone.name}' (lakegate keeps timestamps in UTC only)", node)
     a.expr(zone, scope, env)
     return tt.timestamp(t.args[0], with_time_zone=True)
 

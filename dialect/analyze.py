@@ -45,6 +45,7 @@ class Source:
     name: str | None                     # Trino name to qualify with (alias or table name), lower case
     qualifier: str                       # identifier used in the DuckDB SQL
     columns: list[OutCol]
+    using: dict[str, str] = field(default_factory=dict)  # JOIN USING column name -> its DuckDB SQL
 
     def find(self, name: str) -> list[OutCol]:
         return [c for c in self.columns if c[0] is not None and c[0].lower() == name]
@@ -70,6 +71,20 @@ class Scope:
                 return scope.ctes[name]
             scope = scope.outer
         return None
+
+
+def _same_value(a: exp.Expression, b: exp.Expression) -> bool:
+    """The same expression, columns compared by what they resolved to."""
+    if isinstance(a, exp.Column) and isinstance(b, exp.Column) and a._meta and b._meta:
+        return a.meta.get("ref") == b.meta.get("ref") and a.meta.get("sql") == b.meta.get("sql")
+    return a == b
+
+
+def _using_value(source: Source, col: OutCol, common: TType) -> str:
+    """The DuckDB SQL of one side's USING column, cast to the join column's type."""
+    quoted = ".".join('"' + part.replace('"', '""') + '"' for part in (source.qualifier, col[1]))
+    sql = source.using.get(col[1].lower(), quoted)
+    return sql if col[2] == common else f"CAST({sql} AS {tt.duckdb_type(common)})"
 
 
 def ttype(node: exp.Expression) -> TType:
@@ -208,7 +223,22 @@ class Analyzer:
         node.meta["outputs"] = outputs
         self._modifiers(node, outputs, scope)
         self.check_grouping(node, scope)
+        if distinct is not None and node.args.get("order") is not None:
+            self.check_distinct_order(node)
         return outputs
+
+    def check_distinct_order(self, node: exp.Select) -> None:
+        """SELECT DISTINCT orders only by what it selects (io.trino.sql.analyzer.StatementAnalyzer,
+        EXPRESSION_NOT_IN_DISTINCT); DuckDB would order by an arbitrary row of each group."""
+        items = [i.this if isinstance(i, exp.Alias) else i for i in node.expressions]
+        for ordered in node.args["order"].expressions:
+            target = ordered.this
+            if isinstance(target, exp.Literal) and not target.is_string or \
+                    isinstance(target, exp.Column) and target.meta.get("output"):
+                continue
+            if not any(_same_value(target, item) for item in items):
+                self.fail("For SELECT DISTINCT, ORDER BY expressions must appear in select list", target,
+                          "EXPRESSION_NOT_IN_DISTINCT")
 
     def check_grouping(self, node: exp.Select, scope: Scope) -> None:
         """In an aggregation, every column outside an aggregate must be a GROUP BY key, as Trino
@@ -332,6 +362,8 @@ class Analyzer:
                 alias = f"_col{len(expanded)}" if col[0] is None else col[0]
                 expanded.append(exp.Alias(this=ref, alias=exp.to_identifier(alias, quoted=True)))
                 ref.meta["ref"] = (source.qualifier, col[1], ())
+                if col[1].lower() in source.using:
+                    ref.meta["sql"] = source.using[col[1].lower()]
                 _set(ref, col[2])
                 ref.meta["resolved"] = True
         return expanded
@@ -387,6 +419,8 @@ class Analyzer:
         rows = []
         for row in node.expressions:
             cells = row.expressions if isinstance(row, exp.Tuple) else [row]
+            if len(cells) == 1 and self.expr(cells[0], scope, {}).base == "row":
+                cells = self._row_fields(row, cells[0])
             rows.append([self.expr(c, scope, {}) for c in cells])
         width = len(rows[0])
         if any(len(r) != width for r in rows):
@@ -400,6 +434,16 @@ class Analyzer:
             types.append(common)
         node.meta["types"] = types
         return [(None, f"_col{i}", t) for i, t in enumerate(types)]
+
+    def _row_fields(self, row: exp.Expression, cell: exp.Expression) -> list[exp.Expression]:
+        """A VALUES item of a row type is one column per field in Trino (StatementAnalyzer.visitValues);
+        written as ROW(...) it becomes those fields, any other row-typed item is refused."""
+        if not (isinstance(cell, exp.Anonymous) and cell.name.upper() == "ROW"):
+            self.unsupported("a VALUES item of a row type that is not ROW(...) (Trino makes each field a column)",
+                             cell)
+        fields = list(cell.expressions)
+        (row if isinstance(row, exp.Tuple) else cell).replace(exp.Tuple(expressions=fields))
+        return fields
 
     # --- FROM -----------------------------------------------------------------------------------
     def relation(self, node: exp.Expression, scope: Scope, lateral_scope: Scope | None = None) -> None:
@@ -507,17 +551,34 @@ class Analyzer:
             self.condition(on, scope, "JOIN ON")
         using = join.args.get("using")
         if using:
-            left = scope.sources[:-1]
-            right = scope.sources[-1]
-            for ident in using:
-                name = ident.name.lower()
-                found_right = right.find(name)
-                found_left = [c for s in left for c in s.find(name)]
-                if not found_right or not found_left:
-                    self.fail(f"Column '{ident.name}' is missing from {'right' if not found_right else 'left'} side of join",
-                              ident, "COLUMN_NOT_FOUND")
-                if tt.common_super_type(found_left[0][2], found_right[0][2]) is None:
-                    self.fail(f"Column types of '{ident.name}' in USING do not match", ident, "TYPE_MISMATCH")
+            self.join_using(join, using, scope)
+
+    def join_using(self, join: exp.Join, using: list, scope: Scope) -> None:
+        """JOIN ... USING (k): each k becomes one unqualified column of the common type, listed first by
+        `*` (the left value, the right one for RIGHT JOIN, coalesced for FULL JOIN); `t.k` no longer
+        resolves (io.trino.sql.analyzer.StatementAnalyzer.analyzeJoinUsing, io.trino.sql.query.TestJoinUsing)."""
+        side = (join.args.get("side") or "").upper()
+        joined: list[OutCol] = []
+        sql: dict[str, str] = {}
+        for ident in using:
+            name = ident.name.lower()
+            if name in sql:
+                self.fail(f"Column '{ident.name}' appears multiple times in USING clause", ident, "DUPLICATE_COLUMN_NAME")
+            left = [(s, c) for s in scope.sources[:-1] for c in s.find(name)]
+            right = [(scope.sources[-1], c) for c in scope.sources[-1].find(name)]
+            if not right or not left:
+                self.fail(f"Column '{ident.name}' is missing from {'right' if not right else 'left'} side of join",
+                          ident, "COLUMN_NOT_FOUND")
+            common = tt.common_super_type(left[0][1][2], right[0][1][2])
+            if common is None:
+                self.fail(f"Column types of '{ident.name}' in USING do not match", ident, "TYPE_MISMATCH")
+            values = [_using_value(source, col, common) for source, col in (left[0], right[0])]
+            sql[name] = {"RIGHT": values[1], "FULL": f"COALESCE({values[0]}, {values[1]})"}.get(side, values[0])
+            joined.append((left[0][1][0], left[0][1][1], common))
+        for index, source in enumerate(scope.sources):
+            kept = [c for c in source.columns if c[0] is None or c[0].lower() not in sql]
+            scope.sources[index] = Source(source.name, source.qualifier, kept, source.using)
+        scope.sources.insert(0, Source(None, scope.sources[0].qualifier, joined, sql))
 
     # --- expressions ----------------------------------------------------------------------------
     def expr(self, node: exp.Expression, scope: Scope, env: dict[str, TType]) -> TType:
@@ -527,7 +588,10 @@ class Analyzer:
             self.fail(f"mismatched input: {_DUCKDB_SYNTAX[type(node)]} is not Trino syntax", node, "SYNTAX_ERROR")
         if handler is None:
             self.unsupported(_describe(node), node)
-        return _set(node, handler(self, node, scope, env))
+        t = handler(self, node, scope, env)
+        if t.base in ("timestamp", "timestamp_tz") and t.args[0] > 6:
+            self.unsupported(f"{t} (lakegate keeps microseconds; digits past them would be dropped)", node)
+        return _set(node, t)
 
     def column(self, node: exp.Column, scope: Scope, env: dict[str, TType]) -> TType:
         if node.meta.get("resolved"):
@@ -559,6 +623,8 @@ class Analyzer:
                 if matches:
                     source, col = matches[0]
                     node.meta["ref"] = (source.qualifier, col[1], ())
+                    if col[1].lower() in source.using:
+                        node.meta["sql"] = source.using[col[1].lower()]
                     return self._fields(node, col[2], parts[split + 1:], quoted[split + 1:])
             search = search.outer
         self.fail(f"Column '{'.'.join(parts)}' cannot be resolved", node, "COLUMN_NOT_FOUND")
@@ -822,17 +888,38 @@ def _arithmetic(a: Analyzer, node, scope, env):
         result = _temporal_arithmetic(op, left, right)
     if result is None:
         a.fail(f"Cannot apply operator: {left} {op} {right}", node, "TYPE_MISMATCH")
+    if op == "-" and left.base in ("timestamp", "timestamp_tz") and right.base == left.base and \
+            max(left.args[0], right.args[0]) > 3:
+        a.unsupported(f"{left} - {right} (Trino rounds the difference to milliseconds)", node)
+    if op == "%" and not remainder_fits(left, right, result):
+        a.unsupported(f"% of {left} by {right} (the operands at a common scale exceed 38 digits)", node)
     return result
+
+
+def remainder_fits(left: TType, right: TType, result: TType) -> bool:
+    """Whether DuckDB computes decimal `left % right` exactly: both operands at the common scale fit in
+    38 digits (Trino rescales in 256 bits, io.trino.type.DecimalOperators)."""
+    if not result.is_decimal or not (left.is_decimal or right.is_decimal):
+        return True
+    a, b = tt.as_decimal(left), tt.as_decimal(right)
+    scale = max(a.args[1], b.args[1])
+    return max(a.args[0] - a.args[1], b.args[0] - b.args[1]) + scale <= 38
+
+
+def _at_least_millis(t: TType) -> TType:
+    """timestamp(p) ± a day-to-second interval is timestamp(max(p, 3)): the interval carries milliseconds
+    (io.trino.operator.scalar.timestamp.TimestampOperators.TimestampPlusIntervalDayToSecond)."""
+    if t.base in ("timestamp", "timestamp_tz") and t.args[0] < 3:
+        return tt.timestamp(3, with_time_zone=t.base == "timestamp_tz")
+    return t
 
 
 def _temporal_arithmetic(op: str, left: TType, right: TType) -> TType | None:
     intervals = ("interval_ds", "interval_ym")
     if op in "+-" and left.base in ("date", "timestamp", "timestamp_tz") and right.base in intervals:
-        if left.base == "date" and right.base == "interval_ds":
-            return left
-        return left
+        return _at_least_millis(left) if right.base == "interval_ds" else left
     if op == "+" and right.base in ("date", "timestamp", "timestamp_tz") and left.base in intervals:
-        return right
+        return _at_least_millis(right) if left.base == "interval_ds" else right
     if op in "+-" and left.base == right.base and left.base in intervals:
         return left
     if op == "-" and left.base == right.base and left.base in ("timestamp", "timestamp_tz"):
@@ -925,10 +1012,27 @@ def _cast(a: Analyzer, node, scope, env):
             a.unsupported("timestamp literal with a time zone", node)
     if target.base in ("char", "time", "time_tz", "uuid", "varbinary", "json", "map"):
         a.unsupported(f"cast to {target}", node)
+    if target.base == "timestamp_tz" and source.base == "varchar":
+        _check_utc_text(a, node)
     if not castable(source, target):
         a.fail(f"Cannot cast {source} to {target}", node, "TYPE_MISMATCH")
     node.meta["from"] = source
     return target
+
+
+#: The zone at the end of a timestamp text: a region name or an offset.
+_ZONE_SUFFIX = re.compile(r"[0-9]\s*([A-Za-z][A-Za-z0-9_/+-]*|[+-][0-9]{1,2}(?::?[0-9]{2})?)\s*$")
+
+
+def _check_utc_text(a: "Analyzer", node: exp.Cast) -> None:
+    """A text cast to timestamp with time zone must name UTC or no zone: lakegate's values carry no
+    zone of their own (Trino's keep theirs, and render and compute in it), and the session zone is UTC."""
+    if not (isinstance(node.this, exp.Literal) and node.this.is_string):
+        a.unsupported("CAST of a non-literal varchar to timestamp with time zone (each value's zone would be "
+                      "lost)", node)
+    zone = _ZONE_SUFFIX.search(node.this.name.strip())
+    if zone is not None and zone.group(1).upper() != "UTC":
+        a.unsupported(f"timestamp with time zone '{zone.group(1)}' (lakegate keeps timestamps in UTC only)", node)
 
 
 def castable(source: TType, target: TType) -> bool:
@@ -1144,6 +1248,8 @@ def _check_range_offset(a: Analyzer, order: exp.Expression | None, bound: exp.Ex
 def _listagg(a: Analyzer, node, scope, env):
     if node.args.get("on_overflow") is not None:
         a.unsupported("listagg ON OVERFLOW", node)
+    if not isinstance(node.this, exp.Order):  # SqlBase.g4 #listagg: WITHIN GROUP is not optional
+        a.fail("listagg requires WITHIN GROUP (ORDER BY ...)", node, "FUNCTION_NOT_FOUND")
     args = [node.this] + ([node.args["separator"]] if node.args.get("separator") is not None else [])
     call = exp.Anonymous(this="listagg", expressions=args)
     call.meta.update({k: v for k, v in (node._meta or {}).items() if k in ("line", "col", "start", "end")})
@@ -1171,6 +1277,8 @@ def _at_time_zone(a: Analyzer, node, scope, env):
     if t.base not in ("timestamp", "timestamp_tz"):
         a.fail(f"Type of value must be a time or timestamp with or without time zone (actual {t})", node,
                "TYPE_MISMATCH")
+    if zone.name.strip().upper() != "UTC":
+        a.unsupported(f"AT TIME ZONE '{zone.name}' (lakegate keeps timestamps in UTC only)", node)
     a.expr(zone, scope, env)
     return tt.timestamp(t.args[0], with_time_zone=True)
 

@@ -15,7 +15,7 @@ from sqlglot import exp
 
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect import transforms as tf
-from lakegate.dialect.analyze import Call, ttype
+from lakegate.dialect.analyze import Call, remainder_fits, ttype
 from lakegate.dialect.trino_types import TType
 
 Render = Callable[["tf.Writer", exp.Expression, list], str]
@@ -184,11 +184,36 @@ def _render_avg(g, node, args) -> str:
 def _minmax(call: Call) -> TType:
     if len(call.args) == 2:
         t, n = need(call, "orderable", "integral")
+        if call.name == "max" and t.is_approx:
+            call.fail("unsupported in lakegate: max(x, n) over real or double (Trino's NaN ordering is not "
+                      "translated)", "NOT_SUPPORTED")
         return tt.array(t)
     (t,) = need(call, "orderable")
     if t.base == "row" or t.base == "array":
         call.fail(f"min/max over {t} is not supported in lakegate", "NOT_SUPPORTED")
     return t
+
+
+def not_nan(sql: str) -> str:
+    """A double as SQL, NULL when it is NaN."""
+    return f"CASE WHEN isnan({sql}) THEN NULL ELSE {sql} END"
+
+
+# Trino's max, max_by, greatest and array_max order NaN below every number, min and friends above
+# (io.trino.util.MinMaxCompare: COMPARISON_UNORDERED_FIRST / _LAST), so NaN wins only when all values
+# are NaN; DuckDB orders NaN above every number, which is right for the min side only.
+def _render_max(g, node, args) -> str:
+    if len(args) == 2 or not ttype(args[0]).is_approx:
+        return agg_as("max")(g, node, args)
+    value = g.sql(args[0])
+    return f"coalesce({g.agg(node, 'max', [not_nan(value)])}, {g.agg(node, 'max', [value])})"
+
+
+def _render_max_by(g, node, args) -> str:
+    value, key = g.sql(args[0]), g.sql(args[1])
+    if ttype(args[1]).is_approx:  # non-NaN keys above NaN keys, then by value
+        key = f"CASE WHEN {key} IS NULL THEN NULL ELSE struct_pack(n := NOT isnan({key}), v := {key}) END"
+    return tf.cast(g.agg(node, "arg_max_null", [value, key]), ttype(node))
 
 
 def _by(call: Call) -> TType:
@@ -245,10 +270,12 @@ register("avg", "aggregate", "avg(x) -> double for integers, decimal(p,s) for de
          _avg, _render_avg, kind="aggregate",
          notes="avg(decimal(p,s)) is computed exactly and rounded HALF_UP to scale s, as Trino does.")
 register("min", "aggregate", "min(x) -> same; min(x, n) -> array", _minmax, agg_as("min"), kind="aggregate")
-register("max", "aggregate", "max(x) -> same; max(x, n) -> array", _minmax, agg_as("max"), kind="aggregate")
+register("max", "aggregate", "max(x) -> same; max(x, n) -> array", _minmax, _render_max, kind="aggregate",
+         notes="NaN only when every value is NaN, as in Trino.")
 register("arbitrary", "aggregate", "arbitrary(x) -> same", same("any"), agg_as("any_value"), kind="aggregate",
          aliases=("any_value",))
-register("max_by", "aggregate", "max_by(x, y) -> type of x", _by, agg_as("arg_max_null"), kind="aggregate")
+register("max_by", "aggregate", "max_by(x, y) -> type of x", _by, _render_max_by, kind="aggregate",
+         notes="A NaN y is below every number, as in Trino.")
 register("min_by", "aggregate", "min_by(x, y) -> type of x", _by, agg_as("arg_min_null"), kind="aggregate")
 register("array_agg", "aggregate", "array_agg(x) -> array(x)", _array_agg, agg_as("list", cast_result=False),
          kind="aggregate")
@@ -270,8 +297,14 @@ register("bool_or", "aggregate", "bool_or(boolean) -> boolean", fixed(tt.BOOLEAN
 for _name, _duck in (("stddev", "stddev_samp"), ("stddev_samp", "stddev_samp"), ("stddev_pop", "stddev_pop"),
                      ("variance", "var_samp"), ("var_samp", "var_samp"), ("var_pop", "var_pop")):
     register(_name, "aggregate", f"{_name}(x) -> double", as_double("number"), agg_as(_duck), kind="aggregate")
+def _bivariate(call: Call) -> TType:
+    """corr, covar_* and regr_*: real over two reals, double otherwise (Trino's Real* aggregations)."""
+    types = need(call, "number", "number")
+    return tt.REAL if all(t.base == "real" for t in types) else tt.DOUBLE
+
+
 for _name in ("corr", "covar_samp", "covar_pop", "regr_slope", "regr_intercept"):
-    register(_name, "aggregate", f"{_name}(y, x) -> double", as_double("number", "number"), agg_as(_name),
+    register(_name, "aggregate", f"{_name}(y, x) -> double; real for two reals", _bivariate, agg_as(_name),
              kind="aggregate")
 register("listagg", "aggregate", "listagg(x, separator) WITHIN GROUP (ORDER BY ...) -> varchar",
          lambda c: tt.VARCHAR if len(c.args) in (1, 2) and all(t is not None and t.base in ("varchar", "unknown")
@@ -291,8 +324,11 @@ def _lag(call: Call) -> TType:
 
 
 def _render_lag(g, node, args) -> str:
+    """lag / lead; a negative offset fails (io.trino.operator.window.LagFunction, LeadFunction), a
+    NULL offset gives NULL."""
     t = ttype(node)
-    parts = [g.coerce(args[0], t)] + [g.sql(a) for a in args[1:2]] + [g.coerce(a, t) for a in args[2:]]
+    offsets = [checked(g, g.sql(a), [(f"({g.sql(a)}) < 0", "Offset must be at least 0")]) for a in args[1:2]]
+    parts = [g.coerce(args[0], t)] + offsets + [g.coerce(a, t) for a in args[2:]]
     return g.agg(node, node.name.lower(), parts)
 
 
@@ -342,7 +378,11 @@ def _greatest(call: Call) -> TType:
 def _render_greatest(g, node, args) -> str:
     t = ttype(node)
     name = node.name.lower()
-    return null_if_any_null(g, args, f"{name}({', '.join(g.coerce(a, t) for a in args)})")
+    values = [g.coerce(a, t) for a in args]
+    if name == "greatest" and t.is_approx:  # NaN only when all are NaN (MinMaxCompare, above)
+        nan = tf.cast("'NaN'", t)
+        return null_if_any_null(g, args, f"coalesce(greatest({', '.join(not_nan(v) for v in values)}), {nan})")
+    return null_if_any_null(g, args, f"{name}({', '.join(values)})")
 
 
 def _render_typeof(g, node, args) -> str:
@@ -418,6 +458,11 @@ def _format_parts(call: Call | None, fmt: str, types: list[TType]) -> list:
                           f"of the format string: {why}", "NOT_SUPPORTED")
             raise ValueError(why)
 
+        if "-" in flags and "0" in flags:  # java.util.Formatter: IllegalFormatFlagsException
+            if call is not None:
+                call.fail(f"Invalid format string: {fmt} (IllegalFormatFlags: Flags = '{flags}')",
+                          "INVALID_FUNCTION_ARGUMENT")
+            raise ValueError("illegal flags")
         if conversion not in "sdfxXe":
             reject("only %s, %d, %f, %e, %x, %% and %n are translated")
         if set(flags) - set("-0,") or ("0" in flags and conversion == "s") or ("," in flags and conversion not in "df"):
@@ -611,12 +656,22 @@ def _render_round(g, node, args) -> str:
         # DuckDB rounds decimals HALF_UP but narrows the scale: widen back to Trino's type
         return tf.cast(f"round({value}, {digits})", t) if len(args) == 2 else tf.cast(f"round({value})", t)
     if source.is_integral:
-        if len(args) == 1:
-            return value
-        return tf.cast(f"round(CAST({value} AS DECIMAL(38,0)), {digits})", t)
+        return value if len(args) == 1 else _round_integral(g, value, digits, t)
     if source.base == "real":
         return tf.cast(f"round(CAST({value} AS DOUBLE), {digits})", t)
     return f"CASE WHEN isnan({value}) OR isinf({value}) THEN {value} ELSE round({value}, {digits}) END"
+
+
+def _round_integral(g, value: str, digits: str, t: TType) -> str:
+    """round(integer, d): HALF_UP to 10^-d, failing with NUMERIC_VALUE_OUT_OF_RANGE when 10^-d or
+    the result overflows (io.trino.operator.scalar.MathFunctions.roundLong)."""
+    rounded = f"round(CAST({value} AS DECIMAL(38,0)), {digits})"
+    overflow = f"{tf.string('numerical overflow: ')} || CAST({value} AS VARCHAR)"
+    if t.base != "bigint":
+        overflow = f"{tf.string(f'Out of range for {t.base}: ')} || CAST({rounded} AS VARCHAR)"
+    too_small = g.fail(f"{tf.string('numerical overflow: ')} || CAST({value} AS VARCHAR)", "NUMERIC_VALUE_OUT_OF_RANGE")
+    return (f"CASE WHEN ({digits}) < -18 THEN {too_small} "
+            f"ELSE {tf.checked_integer(g, rounded, t, overflow)} END")
 
 
 def _ceil_floor(call: Call) -> TType:
@@ -640,11 +695,22 @@ def _sign(call: Call) -> TType:
     return tt.decimal(1, 0) if t.is_decimal else t
 
 
+def _render_sign(g, node, args) -> str:
+    value = g.sql(args[0])
+    sql = f"sign({value})"
+    if ttype(args[0]).is_approx:  # DuckDB: sign(NaN) = 0
+        sql = f"CASE WHEN isnan({value}) THEN {value} ELSE {sql} END"
+    return tf.cast(sql, ttype(node))
+
+
 def _mod(call: Call) -> TType:
     a, b = need(call, "number", "number")
     result = tt.arithmetic_type("%", a, b)
     if result is None:
         call.mismatch()
+    if not remainder_fits(a, b, result):
+        call.fail(f"unsupported in lakegate: mod({a}, {b}) (the operands at a common scale exceed 38 digits)",
+                  "NOT_SUPPORTED")
     return result
 
 
@@ -652,7 +718,7 @@ def _render_mod(g, node, args) -> str:
     t = ttype(node)
     left, right = g.sql(args[0]), g.sql(args[1])
     if t.is_approx:
-        return tf.cast(f"CASE WHEN {right} = 0 THEN CAST('NaN' AS DOUBLE) ELSE fmod({left}, {right}) END", t)
+        return tf.cast(f"CASE WHEN {right} = 0 THEN CAST('NaN' AS DOUBLE) ELSE {left} % {right} END", t)
     return tf.cast(f"({left} % {tf.nonzero(g, right)})", t)
 
 
@@ -689,7 +755,7 @@ register("round", "math", "round(x[, d]) -> same (decimal(p+1,s) with d for deci
          notes="HALF_UP; the result keeps Trino's type, e.g. round(decimal(6,2), 1) is decimal(7,2).")
 register("truncate", "math", "truncate(x) -> same (decimal(p-s,0) for decimals)", _truncate,
          call_as("trunc", cast_result=True))
-register("sign", "math", "sign(x) -> same", _sign, call_as("sign", cast_result=True))
+register("sign", "math", "sign(x) -> same", _sign, _render_sign, notes="sign(NaN) is NaN (Java's Math.signum).")
 register("mod", "math", "mod(n, m) -> same as n % m", _mod, _render_mod)
 register("sqrt", "math", "sqrt(x) -> double", as_double("number"), double_fn("sqrt"))
 register("cbrt", "math", "cbrt(x) -> double", as_double("number"),
@@ -757,8 +823,9 @@ def _render_concat(g, node, args) -> str:
     pieces = []
     for a in args:
         pieces.append(g.coerce(a, t) if ttype(a).base == "array" else f"[{g.coerce(a, t.element)}]")
-    return null_if_any_null(g, [a for a in args if ttype(a).base == "array"],
-                            "flatten([" + ", ".join(pieces) + "])")
+    # NULL when any argument, array or element, is NULL (io.trino.operator.scalar.ArrayConcatFunction,
+    # ArrayToElementConcatFunction, ElementToArrayConcatFunction take no nullable arguments)
+    return null_if_any_null(g, args, "flatten([" + ", ".join(pieces) + "])")
 
 
 def _replace(call: Call) -> TType:
@@ -881,11 +948,34 @@ register("split_part", "string", "split_part(string, delimiter, index) -> varcha
          _render_split_part, notes="NULL when the index is beyond the last field, as in Trino (DuckDB gives '').")
 register("chr", "string", "chr(n) -> varchar(1)", fixed(tt.varchar(1), "integral"), call_as("chr"))
 register("codepoint", "string", "codepoint(string) -> integer", fixed(tt.INTEGER, "string"),
-         lambda g, node, args: f"CAST(unicode({g.sql(args[0])}) AS INTEGER)")
+         lambda g, node, args: f"CASE WHEN length({g.sql(args[0])}) <> 1 THEN "
+                               f"{g.fail(tf.string('Input string must be a single character string'))} "
+                               f"ELSE CAST(unicode({g.sql(args[0])}) AS INTEGER) END")
+def _render_levenshtein(g, node, args) -> str:
+    """Edits counted in characters (StringFunctions.levenshteinDistance); DuckDB's levenshtein counts
+    bytes, so non-ASCII text runs a row-by-row dynamic programme over the characters."""
+    a, b = sqls(g, args)
+    by_chars = (f"list_reduce(string_split({a}, ''), lambda \"_prev\", \"_ch\": list_reduce(range(1, length({b}) + 1), "
+                f"lambda \"_cur\", \"_j\": list_append(\"_cur\", least(\"_prev\"[\"_j\" + 1] + 1, \"_cur\"[\"_j\"] + 1, "
+                f"\"_prev\"[\"_j\"] + CASE WHEN \"_ch\" = substr({b}, \"_j\", 1) THEN 0 ELSE 1 END)), "
+                f"[\"_prev\"[1] + 1]), range(0, length({b}) + 1))[length({b}) + 1]")
+    return (f"CAST(CASE WHEN strlen({a}) = length({a}) AND strlen({b}) = length({b}) THEN levenshtein({a}, {b}) "
+            f"ELSE {by_chars} END AS BIGINT)")
+
+
+def _render_hamming(g, node, args) -> str:
+    """Positions counted in characters (StringFunctions.hammingDistance); DuckDB's hamming counts bytes."""
+    a, b = sqls(g, args)
+    same_length = "The input strings to hamming_distance function must have the same length"
+    differing = f"list_filter(range(1, length({a}) + 1), lambda \"_i\": substr({a}, \"_i\", 1) <> substr({b}, \"_i\", 1))"
+    return (f"CASE WHEN length({a}) <> length({b}) THEN {g.fail(tf.string(same_length))} "
+            f"ELSE CAST(len({differing}) AS BIGINT) END")
+
+
 register("levenshtein_distance", "string", "levenshtein_distance(string1, string2) -> bigint",
-         fixed(tt.BIGINT, "string", "string"), call_as("levenshtein", cast_result=True))
+         fixed(tt.BIGINT, "string", "string"), _render_levenshtein, notes="Counts characters, as Trino does.")
 register("hamming_distance", "string", "hamming_distance(string1, string2) -> bigint",
-         fixed(tt.BIGINT, "string", "string"), call_as("hamming", cast_result=True))
+         fixed(tt.BIGINT, "string", "string"), _render_hamming, notes="Counts characters, as Trino does.")
 register("translate", "string", "translate(source, from, to) -> varchar", fixed(tt.VARCHAR, "string", "string", "string"),
          call_as("translate"))
 
@@ -1010,8 +1100,15 @@ def _render_regexp_extract_all(g, node, args) -> str:
     return sql
 
 
-def _regexp_replacement(text: str) -> str:
-    """A Java replacement string ($1, \\$) as an RE2 rewrite string (\\1, $)."""
+class IllegalGroupReference(ValueError):
+    """A replacement names a group the pattern does not have."""
+
+
+def _regexp_replacement(text: str, groups: int | None) -> str:
+    """A Java replacement string as an RE2 rewrite string: `\\x` is x, `$` takes as many digits as
+    name an existing group (`$10` with one group is group 1 then '0', `$01` is group 1), as Trino's
+    JoniRegexpFunctions.appendReplacement does. `groups` is the pattern's group count (None: unknown,
+    then only one-digit references are translated). ValueError for what is not translated."""
     out = []
     i = 0
     while i < len(text):
@@ -1022,15 +1119,29 @@ def _regexp_replacement(text: str) -> str:
             i += 2
             continue
         if ch == "$":
-            m = re.match(r"\$(\d)", text[i:])
-            if not m:
-                raise ValueError("named group reference")
-            out.append("\\" + m.group(1))
-            i += 2
+            digits = re.match(r"\$(\d+)", text[i:])
+            if not digits:
+                raise ValueError("named group references in the regexp_replace replacement")
+            if groups is None and len(digits.group(1)) > 1:
+                raise ValueError("a multi-digit group reference with a non-literal pattern")
+            number, used = int(digits.group(1)[0]), 1
+            while used < len(digits.group(1)) and number * 10 + int(digits.group(1)[used]) <= groups:
+                number, used = number * 10 + int(digits.group(1)[used]), used + 1
+            if groups is not None and number > groups:
+                raise IllegalGroupReference(f"Illegal group reference: group {number} does not exist")
+            if number > 9:
+                raise ValueError("a group reference above 9")
+            out.append("\\" + str(number))
+            i += 1 + used
             continue
         out.append("\\\\" if ch == "\\" else ch)
         i += 1
     return "".join(out)
+
+
+def _pattern_groups(pattern: exp.Expression) -> int | None:
+    """The number of capturing groups of a literal pattern (None when it is not a literal)."""
+    return len(capturing_groups(pattern.name)) if isinstance(pattern, exp.Literal) and pattern.is_string else None
 
 
 def _regexp_replace(call: Call) -> TType:
@@ -1041,10 +1152,11 @@ def _regexp_replace(call: Call) -> TType:
         if replacement is None:
             call.fail("regexp_replace needs a literal replacement string in lakegate", "NOT_SUPPORTED")
         try:
-            _regexp_replacement(replacement)
-        except ValueError:
-            call.fail("unsupported in lakegate: named group references in the regexp_replace replacement",
-                      "NOT_SUPPORTED")
+            _regexp_replacement(replacement, _pattern_groups(call.args[1]))
+        except IllegalGroupReference as e:
+            call.fail(str(e), "INVALID_FUNCTION_ARGUMENT")
+        except ValueError as e:
+            call.fail(f"unsupported in lakegate: {e}", "NOT_SUPPORTED")
     if x is None:
         return tt.VARCHAR
     if len(call.args) == 2:
@@ -1057,7 +1169,7 @@ def _regexp_replace(call: Call) -> TType:
 
 def _render_regexp_replace(g, node, args) -> str:
     value, pattern = g.sql(args[0]), g.sql(args[1])
-    replacement = tf.string(_regexp_replacement(args[2].name)) if len(args) == 3 else "''"
+    replacement = tf.string(_regexp_replacement(args[2].name, _pattern_groups(args[1]))) if len(args) == 3 else "''"
     return f"regexp_replace({value}, {pattern}, {replacement}, 'g')"
 
 
@@ -1072,8 +1184,35 @@ register("regexp_extract_all", "regexp", "regexp_extract_all(string, pattern[, g
          _regexp_extract_all, _render_regexp_extract_all)
 register("regexp_replace", "regexp", "regexp_replace(string, pattern[, replacement]) -> varchar", _regexp_replace,
          _render_regexp_replace, notes="Replaces every match; Java's $1 group references are translated.")
-register("regexp_split", "regexp", "regexp_split(string, pattern) -> array(varchar)",
-         lambda c: _regexp(c, "array", (2,), "string", "string"), call_as("regexp_split_to_array"))
+def _regexp_split(call: Call) -> TType:
+    """Splits at matches; a pattern that can match the empty string is refused: Trino then splits
+    between characters and adds '' at both ends (JoniRegexpFunctions.regexpSplit), DuckDB does not."""
+    result = _regexp(call, "array", (2,), "string", "string")
+    pattern = literal_str(call, 1)
+    if pattern is not None and (re.search(r"\\[bB]|\^|\$", pattern) or _matches_empty(pattern)):
+        call.fail("unsupported in lakegate: regexp_split with a pattern that can match the empty string",
+                  "NOT_SUPPORTED")
+    return result
+
+
+def _matches_empty(pattern: str) -> bool:
+    try:
+        return re.fullmatch(pattern, "") is not None
+    except re.error:
+        return False
+
+
+def _render_regexp_split(g, node, args) -> str:
+    value, pattern = sqls(g, args)
+    split = null_if_any_null(g, args, f"regexp_split_to_array({value}, {pattern})")
+    if isinstance(args[1], exp.Literal):
+        return split
+    message = tf.string("unsupported in lakegate: regexp_split with a pattern that can match the empty string")
+    return f"CASE WHEN regexp_full_match('', {pattern}) THEN {g.fail(message, 'NOT_SUPPORTED')} ELSE {split} END"
+
+
+register("regexp_split", "regexp", "regexp_split(string, pattern) -> array(varchar)", _regexp_split,
+         _render_regexp_split, notes="A pattern that can match the empty string is refused.")
 register("regexp_count", "regexp", "regexp_count(string, pattern) -> bigint",
          lambda c: _regexp(c, tt.BIGINT, (2,), "string", "string"),
          lambda g, node, args: f"CAST(len(regexp_extract_all({g.sql(args[0])}, {g.sql(args[1])})) AS BIGINT)")
@@ -1149,7 +1288,10 @@ def _contains(call: Call) -> TType:
 
 def _render_contains(g, node, args) -> str:
     arr, value = g.sql(args[0]), g.sql(args[1])
-    return (f"CASE WHEN ({value}) IS NULL OR ({arr}) IS NULL THEN NULL WHEN list_contains({arr}, {value}) THEN true "
+    found = f"list_contains({arr}, {value})"
+    if ttype(args[1]).is_approx:  # Trino's EQUAL: NaN is never found (io.trino.operator.scalar.ArrayContains)
+        found += f" AND NOT isnan({value})"
+    return (f"CASE WHEN ({value}) IS NULL OR ({arr}) IS NULL THEN NULL WHEN {found} THEN true "
             f"WHEN list_count({arr}) < len({arr}) THEN NULL ELSE false END")
 
 
@@ -1179,7 +1321,8 @@ def _render_array_join(g, node, args) -> str:
     if len(args) == 3:
         text = f"coalesce({text}, {g.sql(args[2])})"
     items = arr if text == '"_e"' else f"list_transform({arr}, lambda \"_e\": {text})"
-    return f"array_to_string({items}, {delim})"
+    # NULL elements are skipped, so an all-NULL array joins to '' (io.trino.operator.scalar.ArrayJoin)
+    return null_if_any_null(g, args[:2], f"coalesce(array_to_string({items}, {delim}), '')")
 
 
 def _array_sort(call: Call) -> TType:
@@ -1306,6 +1449,10 @@ def _array_minmax(call: Call) -> TType:
 def _render_array_minmax(g, node, args) -> str:
     arr = g.sql(args[0])
     name = "list_max" if node.name.lower() == "array_max" else "list_min"
+    if name == "list_max" and ttype(node).is_approx:  # NaN only when all are NaN (ArrayMaxFunction)
+        nan = tf.cast("'NaN'", ttype(node))
+        return (f"CASE WHEN list_count({arr}) < len({arr}) OR len({arr}) = 0 THEN NULL ELSE "
+                f"coalesce(list_max(list_filter({arr}, lambda \"_x\": NOT isnan(\"_x\"))), {nan}) END")
     return f"CASE WHEN list_count({arr}) < len({arr}) THEN NULL ELSE {name}({arr}) END"
 
 
@@ -1486,8 +1633,10 @@ def _array_remove(call: Call) -> TType:
 
 def _render_array_remove(g, node, args) -> str:
     arr, value = g.sql(args[0]), g.sql(args[1])
+    # Trino's EQUAL: a NaN is unequal to everything and stays (io.trino.operator.scalar.ArrayRemoveFunction)
+    keep_nan = ' OR isnan("_e")' if ttype(args[1]).is_approx else ""
     return (f"CASE WHEN ({value}) IS NULL THEN NULL ELSE list_filter({arr}, lambda \"_e\": "
-            f"\"_e\" IS NULL OR \"_e\" <> {value}) END")
+            f"\"_e\" IS NULL OR \"_e\" <> {value}{keep_nan}) END")
 
 
 def _arrays_overlap(call: Call) -> TType:
@@ -1527,6 +1676,8 @@ def _map(call: Call) -> TType:
     keys, values = _array_arg(call, 0), _array_arg(call, 1)
     if keys.element.base in ("map", "json"):
         call.mismatch()
+    if keys.element.base in ("array", "row"):  # DuckDB map keys lose their type in the result encoding
+        call.fail(f"unsupported in lakegate: a map with {keys.element.base} keys", "NOT_SUPPORTED")
     return tt.map_of(keys.element, values.element)
 
 
@@ -1702,6 +1853,8 @@ def _render_date_format(g, node, args) -> str:
     value = g.sql(args[0])
     if ttype(args[0]).base == "timestamp_tz":
         value = f"timezone('UTC', {value})"
+    if "%f" in re.findall(r"%.", args[1].name):  # Trino prints the milliseconds as six digits ('.111000')
+        value = f"date_trunc('millisecond', {value})"
     return f"strftime({value}, {tf.string(mysql_to_strftime(args[1].name))})"
 
 
@@ -1718,8 +1871,16 @@ def _date_parse(call: Call) -> TType:
 
 
 def _render_date_parse(g, node, args) -> str:
-    fmt = tf.string(mysql_to_strftime(args[1].name))
-    return f"CAST(strptime({g.sql(args[0])}, {fmt}) AS TIMESTAMP)"
+    """Fields the format leaves out default to 1970-01-01 and %y reads 70..69 as 1970..2069
+    (DateTimeFunctions: Joda's defaults, PIVOT_YEAR = 2020); strptime would use 1900 and 1969."""
+    fmt, value = args[1].name, g.sql(args[0])
+    years = re.findall(r"%.", fmt)
+    if "%Y" not in years and "%y" not in years:
+        fmt, value = "%Y " + fmt, f"('1970 ' || {value})"
+    sql = f"CAST(strptime({value}, {tf.string(mysql_to_strftime(fmt))}) AS TIMESTAMP)"
+    if "%y" in years:
+        sql = f"CASE WHEN year({sql}) = 1969 THEN {sql} + INTERVAL 100 YEAR ELSE {sql} END"
+    return sql
 
 
 # from_iso8601_date parses as Joda's ISODateTimeFormat.dateElementParser (Trino's DateTimeFunctions):

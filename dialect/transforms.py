@@ -165,6 +165,7 @@ def qualified_column(g: Writer, node: exp.Column) -> str:
         return DuckDBGenerator.column_sql(g, node)
     qualifier, name, fields = ref
     sql = quote(name) if qualifier is None else f"{quote(qualifier)}.{quote(name)}"
+    sql = node.meta.get("sql", sql)  # a JOIN USING column
     for field in fields:
         sql = f"struct_extract({sql}, {string(field)})"
     return sql
@@ -233,10 +234,21 @@ def decimal_result_type(g: Writer, node: exp.Binary) -> str:
     sql = f"{left} {op} {right}"
     if t.is_decimal or t.base == "real":
         return cast(sql, t)
-    if t.base in ("timestamp", "timestamp_tz", "date") and ttype(node.expression).base.startswith("interval"):
-        if t.base == "date":
-            return f"CAST({sql} AS DATE)"
+    if t.base == "date":
+        return whole_days(g, node, sql)
     return sql
+
+
+def whole_days(g: Writer, node: exp.Binary, sql: str) -> str:
+    """DATE ± interval: Trino refuses a day-to-second interval that is not whole days
+    (io.trino.type.DateTimeOperators: "Cannot add hour, minutes or seconds to a date")."""
+    verb = "add hour, minutes or seconds to" if isinstance(node, exp.Add) else "subtract hour, minutes or seconds from"
+    side = node.expression if ttype(node.expression).base.startswith("interval_") else node.this
+    interval = g.sql(side)
+    if ttype(side) == tt.INTERVAL_YM:
+        return f"CAST({sql} AS DATE)"
+    return (f"CASE WHEN epoch({interval}) % 86400 <> 0 THEN {g.fail(string(f'Cannot {verb} a date'))} "
+            f"ELSE CAST({sql} AS DATE) END")
 
 
 @transform(exp.Div)
@@ -301,7 +313,7 @@ def modulus(g: Writer, node: exp.Mod) -> str:
     t = ttype(node)
     left, right = _operands(g, node)
     if t.is_approx:
-        return cast(f"CASE WHEN {right} = 0 THEN CAST('NaN' AS DOUBLE) ELSE fmod({left}, {right}) END", t)
+        return cast(f"CASE WHEN {right} = 0 THEN CAST('NaN' AS DOUBLE) ELSE {left} % {right} END", t)
     sql = f"({left} % {nonzero(g, right)})"
     return cast(sql, t) if t.is_decimal else sql
 
@@ -317,9 +329,9 @@ def concat_operator(g: Writer, node: exp.DPipe) -> str:
     if lt.base == "array" and rt.base == "array":
         a, b = g.coerce(left, t), g.coerce(right, t)
         return f"CASE WHEN {a} IS NULL OR {b} IS NULL THEN NULL ELSE list_concat({a}, {b}) END"
-    if lt.base == "array":
-        return f"list_append({g.coerce(left, t)}, {g.coerce(right, t.element)})"
-    return f"list_prepend({g.coerce(left, t.element)}, {g.coerce(right, t)})"
+    a, b = g.coerce(left, t if lt.base == "array" else t.element), g.coerce(right, t if rt.base == "array" else t.element)
+    appended = f"list_append({a}, {b})" if lt.base == "array" else f"list_prepend({a}, {b})"
+    return f"CASE WHEN {a} IS NULL OR {b} IS NULL THEN NULL ELSE {appended} END"  # a NULL element too
 
 
 # --- comparisons ---------------------------------------------------------------------------------
@@ -345,14 +357,62 @@ def ieee_comparison(g: Writer, node: exp.Binary) -> str:
         if op == "<>":
             return f"({left} <> {right} OR " + " OR ".join(f"isnan({s})" for s in sides) + ")"
         return f"({left} {op} {right} AND " + " AND ".join(f"NOT isnan({s})" for s in sides) + ")"
-    if common.base == "array" and op in ("=", "<>"):
-        flags = (f"list_transform(list_zip({left}, {right}), lambda \"_z\": "
-                 f"struct_extract(\"_z\", 1) = struct_extract(\"_z\", 2))")
-        equal = (f"CASE WHEN ({left}) IS NULL OR ({right}) IS NULL THEN NULL WHEN len({left}) <> len({right}) "
-                 f"THEN false WHEN list_contains({flags}, false) THEN false "
-                 f"WHEN list_count({flags}) < len({flags}) THEN NULL ELSE true END")
+    if common.base in ("array", "map", "row") and op in ("=", "<>"):
+        equal = trino_equal(left, right, common)
         return equal if op == "=" else f"NOT ({equal})"
     return f"{left} {op} {right}"
+
+
+def trino_equal(left: str, right: str, t: TType, depth: int = 0) -> str:
+    """Trino's `=` on values of type `t`: NULL when either side is NULL; NaN equals nothing; arrays,
+    maps (in any key order) and rows are equal when every element is, false when one element is not,
+    NULL otherwise (io.trino.type.ArrayType, MapType and RowType equal operators). DuckDB would compare
+    NULL elements as equal values."""
+    nulls = f"({left}) IS NULL OR ({right}) IS NULL"
+    if t.base in ("double", "real"):
+        return f"CASE WHEN {nulls} THEN NULL ELSE ({left}) = ({right}) AND NOT isnan({left}) END"
+    if t.base == "row":
+        fields = [trino_equal(f"struct_extract_at({left}, {i + 1})", f"struct_extract_at({right}, {i + 1})", f, depth)
+                  for i, (_, f) in enumerate(t.args)]
+        return f"CASE WHEN {nulls} THEN NULL ELSE ({' AND '.join(fields)}) END"
+    z = quote(f"_z{depth}")
+    if t.base == "array":
+        element = trino_equal(f"struct_extract({z}, 1)", f"struct_extract({z}, 2)", t.element, depth + 1)
+        flags, size = f"list_transform(list_zip({left}, {right}), lambda {z}: {element})", f"len({left}) <> len({right})"
+    elif t.base == "map":
+        value = trino_equal(f"({left})[{z}]", f"({right})[{z}]", t.args[1], depth + 1)
+        flags = (f"list_transform(map_keys({left}), lambda {z}: CASE WHEN NOT list_contains(map_keys({right}), {z}) "
+                 f"THEN false ELSE {value} END)")
+        size = f"cardinality({left}) <> cardinality({right})"
+    else:
+        return f"({left}) = ({right})"
+    return (f"CASE WHEN {nulls} THEN NULL WHEN {size} THEN false WHEN list_contains({flags}, false) THEN false "
+            f"WHEN list_count({flags}) < len({flags}) THEN NULL ELSE true END")
+
+
+@transform(exp.In)
+def eager_constant_in_list(g: Writer, node: exp.In) -> str:
+    """A constant IN list whose items can fail (`3 IN (2, 3, 5 / 0)`) evaluates every item first, as
+    Trino's interpreter does (io.trino.sql.query.TestInlining: "Division by zero"); DuckDB stops at
+    the first match. IN over columns short-circuits in both."""
+    sql = g.in_sql(node)
+    items = node.expressions
+    if node.find(exp.Column) is not None or all(isinstance(i, (exp.Literal, exp.Null)) for i in items):
+        return sql
+    common = node.meta["compare"]
+    return f"CASE WHEN len([{', '.join(g.coerce(i, common) for i in items)}]) >= 0 THEN {sql} END"
+
+
+@transform(exp.Between)
+def ieee_between(g: Writer, node: exp.Between) -> str:
+    """`v BETWEEN low AND high` is `low <= v AND v <= high` with IEEE comparisons: false when a double
+    is NaN (DuckDB orders NaN above every number)."""
+    sql = g.between_sql(node)
+    common = node.meta.get("compare")
+    if common is None or not common.is_approx:
+        return sql
+    sides = [g.sql(side) for side in (node.this, node.args["low"], node.args["high"])]
+    return f"({sql} AND " + " AND ".join(f"NOT isnan({side})" for side in sides) + ")"
 
 
 # --- conditionals --------------------------------------------------------------------------------
@@ -482,6 +542,10 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
         return parse_varchar(g, sql, target)
     if target.is_integral and source.is_approx:
         return checked_cast(g, f"round({sql})", source, target)
+    if target.is_decimal and source.is_approx:
+        # Trino converts the shortest decimal text of the float (BigDecimal.valueOf(double),
+        # Float.toString: io.trino.type.DecimalCasts), HALF_UP; DuckDB would convert its binary value
+        return checked_cast(g, f"CAST({sql} AS VARCHAR)", source, target)
     if target.is_integral and (source.is_integral or source.is_decimal) or target.is_decimal and source.is_numeric:
         return checked_cast(g, sql, source, target)
     if target.base == "timestamp" and source.base in ("timestamp", "date"):
@@ -539,7 +603,8 @@ def _fits(source: TType, target: TType) -> bool:
 def round_timestamp(sql: str, precision: int) -> str:
     """A timestamp rounded HALF_UP to `precision` fractional digits (Trino's timestamp(p) casts)."""
     unit = 10 ** (6 - precision)
-    return f"make_timestamp(CAST(round(epoch_us({sql}) / {unit}) * {unit} AS BIGINT))"
+    shifted = f"(epoch_us({sql}) + {unit // 2})"  # then floored to a multiple of unit, before 1970 too
+    return f"make_timestamp({shifted} - ((({shifted} % {unit}) + {unit}) % {unit}))"
 
 
 def parse_varchar(g: Writer, sql: str, target: TType) -> str:

@@ -95,7 +95,12 @@ def from_headers(headers: Mapping[str, str], user: str | None = None) -> Session
 
 
 def check_properties(session: Session) -> None:
-    """Refuse session properties lakegate does not know (as Trino refuses unknown ones)."""
+    """Refuse session properties lakegate does not know (as Trino refuses unknown ones), and a session
+    time zone other than UTC (zone-dependent functions and casts are evaluated in UTC)."""
+    if session.time_zone is not None and session.time_zone.strip().upper() not in ("UTC", "Z", "ETC/UTC", "+00:00"):
+        raise DialectError(f"unsupported in lakegate: session time zone '{session.time_zone}' (X-Trino-Time-Zone); "
+                           "lakegate evaluates time zone dependent functions and casts in UTC only",
+                           error_name="NOT_SUPPORTED")
     for name in session.properties:
         if name not in PROPERTIES:
             raise DialectError(f"Session property '{name}' does not exist (lakegate knows {', '.join(PROPERTIES)})",

@@ -19,7 +19,7 @@ import json
 import math
 import re
 import uuid
-from decimal import Decimal
+from decimal import Context, Decimal
 
 import duckdb
 import pytest
@@ -116,7 +116,7 @@ def to_protocol(value, ttype: tuple):
         return value
     if base == "decimal":
         if isinstance(value, (Decimal, int)) and not isinstance(value, bool):
-            return format(Decimal(value).quantize(Decimal(1).scaleb(-args[1])), "f")
+            return format(Decimal(value).quantize(Decimal(1).scaleb(-args[1]), context=Context(prec=80)), "f")
         return repr(value)
     if base == "date" and isinstance(value, dt.date):
         return value.isoformat()

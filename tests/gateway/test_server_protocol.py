@@ -281,6 +281,15 @@ def test_use_sets_catalog_and_schema(lake_server):
     assert rows == [[2]]
 
 
+def test_session_time_zone_other_than_utc_is_refused(lake_server):
+    """Zone-dependent functions run in UTC: a UTC session answers, any other zone is refused rather than
+    answered in UTC (Trino: hour(from_unixtime(0)) is 19 in America/New_York)."""
+    sql = "SELECT hour(from_unixtime(0)), current_timezone()"
+    assert result(lake_server, sql, {"X-Trino-Time-Zone": "UTC"}) == [[0, "UTC"]]
+    refused = error(lake_server, sql, {"X-Trino-Time-Zone": "America/New_York"})
+    assert refused["errorName"] == "NOT_SUPPORTED" and "America/New_York" in refused["message"]
+
+
 def test_session_properties_narrow_every_table(lake_server):
     response = post(lake_server, "SET SESSION batch_id = 'b1'")
     assert response.json()["updateType"] == "SET SESSION"

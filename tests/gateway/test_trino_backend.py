@@ -133,7 +133,7 @@ QUERIES = [
                                "MAP(ARRAY['a'], ARRAY[1.5]) m, CAST(ROW(1, 'x') AS ROW(a bigint, b varchar)) r, "
                                "CAST(NULL AS bigint) nl, 5 / 2 q, typeof(1) t, CAST(1.5 AS real) re, "
                                "CAST(3 AS smallint) sm, CAST(3 AS tinyint) ti, "
-                               "TIMESTAMP '2024-01-02 03:04:05.123 Europe/Paris' tz, INTERVAL '3' DAY iv, "
+                               "TIMESTAMP '2024-01-02 03:04:05.123 UTC' tz, INTERVAL '3' DAY iv, "
                                "INTERVAL '14' MONTH ym, true b"),
     ("a CTE that shadows a topic", f"WITH {TOPIC} AS (SELECT 7 AS x) SELECT x FROM {TOPIC}"),
     ("no rows", f"SELECT timestamp, x FROM {TOPIC} WHERE x > 1e9"),

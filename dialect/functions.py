@@ -726,6 +726,38 @@ register("random", "math", "random() -> double; random(n) / random(m, n) -> same
          aliases=("rand",))
 
 
+# --- bitwise (io.trino.operator.scalar.BitwiseFunctions: bigint in, bigint out) ------------------
+def _bigints(g, args) -> list[str]:
+    return [f"CAST({g.sql(a)} AS BIGINT)" for a in args]
+
+
+def _render_bit_count(g, node, args) -> str:
+    """Trino's bitCount: `x` as a `bits`-bit two's complement number; bits outside 2..64 or an `x`
+    that does not fit are INVALID_FUNCTION_ARGUMENT."""
+    x, bits = _bigints(g, args)
+    low = f"((CAST(1 AS HUGEINT) << ({bits} - 1)) - 1)"
+    checks = [(f"{bits} NOT BETWEEN 2 AND 64",
+               f"{tf.string('Bits specified in bit_count must be between 2 and 64, got ')} || {bits}"),
+              (f"{x} > {low} OR {x} < -{low} - 1",
+               f"{tf.string('Number must be representable with the bits specified. ')} || {x} || "
+               f"{tf.string(' cannot be represented with ')} || {bits} || {tf.string(' bits')}")]
+    whens = " ".join(f"WHEN {condition} THEN {g.fail(message)}" for condition, message in checks)
+    return (f"CASE WHEN {x} IS NULL OR {bits} IS NULL THEN NULL {whens} "
+            f"ELSE bit_count(CAST(CAST({x} AS HUGEINT) & ((CAST(1 AS HUGEINT) << {bits}) - 1) AS UBIGINT)) END")
+
+
+register("bitwise_and", "math", "bitwise_and(x, y) -> bigint", fixed(tt.BIGINT, "integral", "integral"),
+         lambda g, node, args: "({} & {})".format(*_bigints(g, args)))
+register("bitwise_or", "math", "bitwise_or(x, y) -> bigint", fixed(tt.BIGINT, "integral", "integral"),
+         lambda g, node, args: "({} | {})".format(*_bigints(g, args)))
+register("bitwise_xor", "math", "bitwise_xor(x, y) -> bigint", fixed(tt.BIGINT, "integral", "integral"),
+         lambda g, node, args: "xor({}, {})".format(*_bigints(g, args)))
+register("bitwise_not", "math", "bitwise_not(x) -> bigint", fixed(tt.BIGINT, "integral"),
+         lambda g, node, args: "(~{})".format(*_bigints(g, args)))
+register("bit_count", "math", "bit_count(x, bits) -> bigint", fixed(tt.BIGINT, "integral", "integral"),
+         _render_bit_count)
+
+
 # === string =======================================================================================
 def _string_same(call: Call) -> TType:
     (t,) = need(call, "string")
@@ -1790,6 +1822,21 @@ register("date", "datetime", "date(x) -> date",
          lambda c: tt.DATE if len(c.args) == 1 and c.types[0] is not None and c.types[0].base in
          ("varchar", "timestamp", "timestamp_tz", "date", "unknown") else c.mismatch(),
          lambda g, node, args: tf.cast_value(g, g.sql(args[0]), ttype(args[0]), tt.DATE))
+def _render_from_iso8601_date(g, node, args) -> str:
+    """A calendar date YYYY-MM-DD casts exactly; Trino's other ISO 8601 forms (week and ordinal dates,
+    a year or year-month alone) are refused at run time, also inside try()."""
+    text = g.sql(args[0])
+    refuse = tf.string("NOT_SUPPORTED: from_iso8601_date of a value other than a YYYY-MM-DD date is not "
+                       "supported in lakegate")
+    quote = tf.string('"')
+    invalid = g.fail(f"{tf.string('Invalid format: ')} || {quote} || {text} || {quote}")
+    return (f"CASE WHEN {text} IS NULL THEN NULL "
+            f"WHEN NOT regexp_full_match({text}, '\\d{{4}}-\\d{{2}}-\\d{{2}}') THEN error({refuse}) "
+            f"WHEN TRY_CAST({text} AS DATE) IS NULL THEN {invalid} ELSE CAST({text} AS DATE) END")
+
+
+register("from_iso8601_date", "datetime", "from_iso8601_date(string) -> date", fixed(tt.DATE, "string"),
+         _render_from_iso8601_date)
 register("last_day_of_month", "datetime", "last_day_of_month(x) -> date", fixed(tt.DATE, "temporal"),
          lambda g, node, args: f"last_day({g.sql(args[0])})")
 for _name in _FIELD_OF:
@@ -1879,7 +1926,6 @@ REJECTED: dict[str, str] = {
     "at_timezone": "time zones other than UTC are not supported",
     "from_unixtime_nanos": "DuckDB has no nanosecond timestamp with time zone",
     "from_iso8601_timestamp": "not translated",
-    "from_iso8601_date": "not translated",
     "to_iso8601": "not translated",
     "human_readable_seconds": "not translated",
     "timezone_hour": "time zones other than UTC are not supported",
@@ -1905,11 +1951,6 @@ REJECTED: dict[str, str] = {
     "hmac_sha256": "the varbinary type is not supported",
     "spooky_hash_v2_32": "the varbinary type is not supported",
     "to_big_endian_64": "the varbinary type is not supported",
-    "bit_count": "bitwise functions not translated",
-    "bitwise_and": "bitwise functions not translated",
-    "bitwise_or": "bitwise functions not translated",
-    "bitwise_xor": "bitwise functions not translated",
-    "bitwise_not": "bitwise functions not translated",
     "bitwise_left_shift": "bitwise functions not translated",
     "bitwise_right_shift": "bitwise functions not translated",
     "url_extract_host": "URL functions not translated",

@@ -17,6 +17,7 @@ from sqlglot import exp
 
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
+from lakegate.dialect.guard import trino_name
 from lakegate.dialect.trino_types import TType
 
 #: Output column of a query: (Trino name or None when anonymous, name in the DuckDB SQL, type).
@@ -522,7 +523,7 @@ class Analyzer:
         if type(node) in _DUCKDB_SYNTAX:
             self.fail(f"mismatched input: {_DUCKDB_SYNTAX[type(node)]} is not Trino syntax", node, "SYNTAX_ERROR")
         if handler is None:
-            self.unsupported(_describe(node), node)
+            self.unsupported(trino_name(node), node)
         return _set(node, handler(self, node, scope, env))
 
     def column(self, node: exp.Column, scope: Scope, env: dict[str, TType]) -> TType:
@@ -618,12 +619,6 @@ def _ident_name(ident: exp.Expression) -> str:
 _DUCKDB_SYNTAX = {exp.ILike: "ILIKE", exp.Glob: "GLOB", exp.SimilarTo: "SIMILAR TO",
                   exp.Comprehension: "a list comprehension [x FOR x IN ...]", exp.Slice: "an array slice a[i:j]",
                   exp.BitwiseXor: "the '^' operator", exp.PropertyEQ: "the ':=' operator"}
-
-
-def _describe(node: exp.Expression) -> str:
-    if isinstance(node, exp.Func):
-        return f"function '{node.sql_name().lower()}'"
-    return f"syntax {node.key.upper()}"
 
 
 # --- expression handlers ---------------------------------------------------------------------------
@@ -956,6 +951,8 @@ def _bracket(a: Analyzer, node, scope, env):
             a.fail(f"Cannot use {index} for subscript of {container}", node, "TYPE_MISMATCH")
         return container.element
     if container.base == "map":
+        if container.args[0].base in ("array", "map", "row"):
+            a.unsupported(f"subscript of a map with {container.args[0].base} keys", node)
         if tt.common_super_type(container.args[0], index) is None:
             a.fail(f"Cannot use {index} for subscript of {container}", node, "TYPE_MISMATCH")
         return container.args[1]

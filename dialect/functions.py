@@ -209,6 +209,8 @@ def _approx_percentile(call: Call) -> TType:
     x, p = call.types
     if x is None or not (x.is_integral or x.is_approx or x.is_unknown):
         call.mismatch()
+    if not _constant_percentage(call):
+        call.fail("unsupported in lakegate: approx_percentile with a percentage that is not a literal", "NOT_SUPPORTED")
     if p is not None and p.base == "array":
         return tt.array(tt.BIGINT if x.is_integral else x)
     if p is None or not (p.is_numeric or p.is_unknown):
@@ -216,9 +218,29 @@ def _approx_percentile(call: Call) -> TType:
     return tt.BIGINT if x.is_integral else x
 
 
+def _typed_number_literal(node: exp.Expression) -> str | None:
+    """The number of a typed literal such as DOUBLE '0.5' (a cast of a string literal), else None."""
+    if isinstance(node, exp.Cast) and isinstance(node.this, exp.Literal) and node.this.is_string:
+        try:
+            return repr(float(node.this.name))
+        except ValueError:
+            return None
+    return None
+
+
+def _constant_percentage(call: Call) -> bool:
+    """DuckDB's quantile needs a constant: a number literal, a typed literal, or an array of them."""
+    node = call.args[1]
+    if isinstance(node, exp.Array):
+        return all(isinstance(e, exp.Literal) or _typed_number_literal(e) for e in node.expressions)
+    return call.literal(1) is not None or _typed_number_literal(node) is not None
+
+
 def _render_approx_percentile(g, node, args) -> str:
+    """DuckDB wants the percentage as a constant: a typed literal is written as its number."""
     t = ttype(node)
-    return tf.cast(g.agg(node, "quantile_disc", [g.sql(args[0]), g.sql(args[1])]), t)
+    percentage = _typed_number_literal(args[1]) or g.sql(args[1])
+    return tf.cast(g.agg(node, "quantile_disc", [g.sql(args[0]), percentage]), t)
 
 
 register("count", "aggregate", "count(*) -> bigint; count(x) -> bigint",
@@ -593,7 +615,11 @@ def _abs(call: Call) -> TType:
 
 def _round(call: Call) -> TType:
     types = need(call, "number", "integral", optional=1)
+    if len(types) == 2 and types[1].base == "bigint":  # MathFunctions.round(x, INTEGER decimals)
+        call.mismatch()
     t = types[0]
+    if len(types) == 2 and not (t.is_approx or types[1].is_unknown or call.literal(1) is not None):
+        call.fail("unsupported in lakegate: round(x, d) of an exact number with a non-literal d", "NOT_SUPPORTED")
     if t.is_decimal:
         p, s = t.args
         if len(types) == 2:
@@ -917,7 +943,10 @@ register("codepoint", "string", "codepoint(string) -> integer", fixed(tt.INTEGER
 register("levenshtein_distance", "string", "levenshtein_distance(string1, string2) -> bigint",
          fixed(tt.BIGINT, "string", "string"), call_as("levenshtein", cast_result=True))
 register("hamming_distance", "string", "hamming_distance(string1, string2) -> bigint",
-         fixed(tt.BIGINT, "string", "string"), call_as("hamming", cast_result=True))
+         fixed(tt.BIGINT, "string", "string"),
+         lambda g, node, args: (lambda a, b: f"CASE WHEN length({a}) <> length({b}) THEN " + g.fail(tf.string(
+             "The input strings to hamming_distance function must have the same length")) +
+             f" ELSE CAST(hamming({a}, {b}) AS BIGINT) END")(*sqls(g, args)))
 register("translate", "string", "translate(source, from, to) -> varchar", fixed(tt.VARCHAR, "string", "string", "string"),
          call_as("translate"))
 

@@ -214,11 +214,18 @@ class Analyzer:
         having = node.args.get("having")
         items = [i.this if isinstance(i, exp.Alias) else i for i in node.expressions]
         checked = items + ([having.this] if having is not None else [])
+        if group is None:
+            for item in checked:
+                for grouping in item.find_all(exp.Grouping):
+                    self.fail("A GROUPING() operation can only be used with a corresponding GROUPING SET/CUBE/ROLLUP/"
+                              "GROUP BY clause", grouping, "MISSING_GROUP_BY")
         if group is None and not any(self._aggregate_inside(i) for i in checked):
             return
         keys = []
         for key in (group.expressions if group is not None else []):
-            if isinstance(key, exp.Literal) and not key.is_string:
+            if isinstance(key, (exp.Rollup, exp.Cube, exp.GroupingSets)):
+                keys.extend(grouping_keys(key))
+            elif isinstance(key, exp.Literal) and not key.is_string:
                 keys.append(items[int(key.name) - 1])
             else:
                 keys.append(key)
@@ -241,6 +248,13 @@ class Analyzer:
                 and node.meta["spec"].kind != "scalar":
             return
         if isinstance(node, (exp.Window, exp.Subquery, exp.Exists, exp.Lambda, exp.Filter)):
+            return
+        if isinstance(node, exp.Grouping):
+            for argument in node.expressions:
+                if not any(argument == key for key in keys):
+                    self.fail("The arguments to GROUPING() must be expressions referenced by the GROUP BY at the "
+                              f"associated query level. Mismatch due to {argument.sql(dialect='trino')}.", node,
+                              "INVALID_ARGUMENTS")
             return
         if isinstance(node, exp.Column) and node._meta and node.meta.get("ref") is not None:
             if node.meta["ref"][0] in qualifiers and not node.meta.get("lambda"):
@@ -341,7 +355,11 @@ class Analyzer:
                 self.unsupported(f"GROUP BY {key.upper().replace('_', ' ')}", item if isinstance(item, exp.Expression) else group)
         for item in group.expressions:
             if isinstance(item, (exp.Rollup, exp.Cube, exp.GroupingSets)):
-                self.unsupported(f"GROUP BY {item.key.upper()}", item)
+                for key in grouping_keys(item):
+                    if isinstance(key, exp.Literal) and not key.is_string:
+                        self.unsupported(f"a column position in {_GROUPING_ELEMENT[type(item)]}", key)
+                    self.expr(key, scope, {})
+                continue
             if isinstance(item, exp.Literal) and not item.is_string:
                 index = int(item.name) if item.name.isdigit() else 0
                 if not 1 <= index <= len(select.expressions):
@@ -612,6 +630,24 @@ def _ident_name(ident: exp.Expression) -> str:
     """Trino's output name for an identifier: as written, quoted or not (names are matched without
     regard to case)."""
     return ident.name
+
+
+_GROUPING_ELEMENT = {exp.Rollup: "ROLLUP", exp.Cube: "CUBE", exp.GroupingSets: "GROUPING SETS"}
+
+
+def grouping_keys(element: exp.Expression) -> list[exp.Expression]:
+    """The expressions a ROLLUP, CUBE or GROUPING SETS element groups by (sets and their parentheses
+    unwrapped; `()` holds none)."""
+    keys = []
+    for item in element.expressions:
+        if isinstance(item, (exp.Tuple, exp.Paren)):
+            keys.extend(grouping_keys(exp.Tuple(expressions=[item.this])) if isinstance(item, exp.Paren)
+                        else grouping_keys(item))
+        elif isinstance(item, (exp.Rollup, exp.Cube, exp.GroupingSets)):
+            keys.extend(grouping_keys(item))
+        else:
+            keys.append(item)
+    return keys
 
 
 #: DuckDB expressions sqlglot's Trino reader accepts that Trino's grammar has not (trinodb/trino
@@ -1094,22 +1130,51 @@ def _window(a: Analyzer, node, scope, env):
             a.expr(ordered.this, scope, env)
     spec = node.args.get("spec")
     if spec is not None:
-        if spec.args.get("exclude"):
-            a.unsupported("window frame EXCLUDE", spec)
-        if spec.args.get("kind", "").upper() == "GROUPS":
-            a.unsupported("GROUPS window frame", spec)
-        for key in ("start", "end"):
-            bound = spec.args.get(key)
-            if isinstance(bound, exp.Expression):
-                bound_type = a.expr(bound, scope, env)
-                if spec.args.get("kind", "").upper() == "RANGE" and not isinstance(bound, exp.Literal):
-                    a.unsupported("RANGE frame with an expression offset", spec)
-                if spec.args.get("kind", "").upper() == "RANGE":
-                    a.unsupported("RANGE frame with an offset", spec)
-                if not bound_type.is_integral:
-                    a.fail(f"Window frame offset must be an integer: {bound_type}", bound, "TYPE_MISMATCH")
+        _frame(a, spec, order.expressions if order is not None else [], scope, env)
     inner.meta["over"] = node
     return t
+
+
+def _frame(a: Analyzer, spec: exp.WindowSpec, order: list, scope, env) -> None:
+    """Check a window frame as Trino's StatementAnalyzer does (ROWS / GROUPS offsets are integers,
+    GROUPS needs ORDER BY, a RANGE offset needs one numeric sort key); DuckDB runs the same frames.
+    Not translated: EXCLUDE, RANGE offsets over dates and timestamps (intervals) or not literal."""
+    kind = spec.args.get("kind", "").upper()
+    if spec.args.get("exclude"):
+        a.unsupported("window frame EXCLUDE", spec)
+    offsets = [b for b in (spec.args.get("start"), spec.args.get("end")) if isinstance(b, exp.Expression)]
+    if kind == "GROUPS" and offsets and not order:
+        a.fail("Window frame of type GROUPS PRECEDING or FOLLOWING requires ORDER BY", spec, "MISSING_ORDER_BY")
+    if kind == "RANGE" and offsets:
+        if len(order) != 1:
+            a.fail(f"Window frame of type RANGE PRECEDING or FOLLOWING requires single sort item in ORDER BY "
+                   f"(actual: {len(order)})", spec, "INVALID_WINDOW_FRAME")
+        key = ttype(order[0].this)
+        if not key.is_numeric:
+            a.unsupported(f"RANGE frame with an offset over a {key} sort key", spec)
+    for bound in offsets:
+        bound_type = a.expr(bound, scope, env)
+        if kind != "RANGE" and not bound_type.is_integral:
+            a.fail(f"Window frame offset must be an integer: {bound_type}", bound, "TYPE_MISMATCH")
+        if kind == "RANGE" and (a_literal_number(bound) is None or not bound_type.is_numeric):
+            a.unsupported("RANGE frame with an offset that is not a number literal", spec)
+
+
+def a_literal_number(node: exp.Expression) -> exp.Literal | None:
+    """`node` when it is a number literal."""
+    return node if isinstance(node, exp.Literal) and not node.is_string else None
+
+
+@handles(exp.Grouping)
+def _grouping(a: Analyzer, node, scope, env):
+    """grouping(k1, ..., kn) -> bigint: bit i (from the right) is 1 when key k(n-i) is not grouped
+    (docs/src/main/sphinx/functions/aggregate.md); the arguments are checked against the GROUP BY
+    keys with the rest of the query (Analyzer.check_grouping)."""
+    for argument in node.expressions:
+        a.expr(argument, scope, env)
+    if len(node.expressions) > 63:
+        a.fail("GROUPING supports up to 63 column arguments", node, "TOO_MANY_ARGUMENTS")
+    return tt.BIGINT
 
 
 @handles(exp.GroupConcat)

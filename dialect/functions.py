@@ -193,9 +193,49 @@ def _minmax(call: Call) -> TType:
 
 def _by(call: Call) -> TType:
     if len(call.args) == 3:
-        call.fail("max_by/min_by with a count is not supported in lakegate", "NOT_SUPPORTED")
+        return _by_n(call)
     x, y = need(call, "any", "orderable")
     return x
+
+
+#: MaxByNStateFactory.MAX_NUMBER_OF_VALUES
+MAX_BY_N = 10_000
+
+
+def _by_n(call: Call) -> TType:
+    """max_by(x, y, n) / min_by(x, y, n) -> array(x): a literal n in 1..10000, as Trino checks it."""
+    x, _, _ = need(call, "any", "orderable", "integral")
+    n = literal_int(call, 2)
+    if n is None:
+        call.fail(f"unsupported in lakegate: {call.name} with a count that is not a literal", "NOT_SUPPORTED")
+    if call.node.meta.get("distinct") or call.node.meta.get("order") is not None:
+        call.fail(f"unsupported in lakegate: {call.name} with a count and DISTINCT or ORDER BY", "NOT_SUPPORTED")
+    if n <= 0:
+        call.fail(f"third argument of {call.name} must be a positive integer", "INVALID_FUNCTION_ARGUMENT")
+    if n > MAX_BY_N:
+        call.fail(f"third argument of {call.name} must be less than or equal to {MAX_BY_N}; found {n}",
+                  "INVALID_FUNCTION_ARGUMENT")
+    return tt.array(x)
+
+
+def _render_by(duck: str, descending: bool) -> Render:
+    """max_by / min_by; with a count, the x of the n rows of largest (smallest) non-NULL y, in that
+    order, NULL x kept (MinMaxByNAggregationFunction). A NaN key never wins, as with Trino's
+    COMPARISON_UNORDERED_FIRST / _LAST ordering."""
+    plain = agg_as(duck)
+
+    def render(g, node, args):
+        if len(args) == 2:
+            return plain(g, node, args)
+        x, y = g.sql(args[0]), g.sql(args[1])
+        keys = (f"isnan({y}), " if ttype(args[1]).is_approx else "") + f"{y} {'DESC' if descending else 'ASC'}"
+        where = f"({y}) IS NOT NULL"
+        if node.meta.get("filter") is not None:
+            where += f" AND ({g.sql(node.meta['filter'])})"
+        over = f" {g.over(node.meta['over'])}" if node.meta.get("over") is not None else ""
+        collected = f"array_agg({x} ORDER BY {keys}) FILTER (WHERE {where}){over}"
+        return tf.cast(f"list_slice({collected}, 1, {g.sql(args[2])})", ttype(node))
+    return render
 
 
 def _array_agg(call: Call) -> TType:
@@ -270,8 +310,10 @@ register("min", "aggregate", "min(x) -> same; min(x, n) -> array", _minmax, agg_
 register("max", "aggregate", "max(x) -> same; max(x, n) -> array", _minmax, agg_as("max"), kind="aggregate")
 register("arbitrary", "aggregate", "arbitrary(x) -> same", same("any"), agg_as("any_value"), kind="aggregate",
          aliases=("any_value",))
-register("max_by", "aggregate", "max_by(x, y) -> type of x", _by, agg_as("arg_max_null"), kind="aggregate")
-register("min_by", "aggregate", "min_by(x, y) -> type of x", _by, agg_as("arg_min_null"), kind="aggregate")
+register("max_by", "aggregate", "max_by(x, y) -> type of x; max_by(x, y, n) -> array(type of x)", _by,
+         _render_by("arg_max_null", descending=True), kind="aggregate")
+register("min_by", "aggregate", "min_by(x, y) -> type of x; min_by(x, y, n) -> array(type of x)", _by,
+         _render_by("arg_min_null", descending=False), kind="aggregate")
 register("array_agg", "aggregate", "array_agg(x) -> array(x)", _array_agg, agg_as("list", cast_result=False),
          kind="aggregate")
 register("approx_distinct", "aggregate", "approx_distinct(x) -> bigint",
@@ -1914,7 +1956,6 @@ REJECTED: dict[str, str] = {
     "bitwise_and_agg": "not translated",
     "bitwise_or_agg": "not translated",
     "bitwise_xor_agg": "not translated",
-    "max_by_n": "not translated",
     "approx_set": "HyperLogLog state functions are not available",
     "empty_approx_set": "HyperLogLog state functions are not available",
     "merge": "HyperLogLog / qdigest / tdigest state functions are not available",

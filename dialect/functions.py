@@ -310,6 +310,15 @@ register("min", "aggregate", "min(x) -> same; min(x, n) -> array", _minmax, agg_
 register("max", "aggregate", "max(x) -> same; max(x, n) -> array", _minmax, agg_as("max"), kind="aggregate")
 register("arbitrary", "aggregate", "arbitrary(x) -> same", same("any"), agg_as("any_value"), kind="aggregate",
          aliases=("any_value",))
+def _histogram(call: Call) -> TType:
+    (t,) = need(call, "orderable")
+    if t.is_unknown:
+        call.mismatch()
+    return tt.map_of(t, tt.BIGINT)
+
+
+register("histogram", "aggregate", "histogram(x) -> map(K, bigint)", _histogram, agg_as("histogram"),
+         kind="aggregate", notes="NULL values are not counted; NULL for no rows (Histogram.java).")
 register("max_by", "aggregate", "max_by(x, y) -> type of x; max_by(x, y, n) -> array(type of x)", _by,
          _render_by("arg_max_null", descending=True), kind="aggregate")
 register("min_by", "aggregate", "min_by(x, y) -> type of x; min_by(x, y, n) -> array(type of x)", _by,
@@ -1942,7 +1951,6 @@ REJECTED: dict[str, str] = {
     "map_from_entries": "map functions are not supported (no map columns in the lake)",
     "map_zip_with": "map functions are not supported (no map columns in the lake)",
     "multimap_from_entries": "map functions are not supported (no map columns in the lake)",
-    "histogram": "map result type not supported",
     "map_agg": "map result type not supported",
     "multimap_agg": "map result type not supported",
     "map_union": "map result type not supported",

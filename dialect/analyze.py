@@ -88,6 +88,9 @@ class Call:
         self.scope, self.env = scope, env
         self.types: list[TType | None] = [
             None if isinstance(a, (exp.Lambda, exp.Star)) else analyzer.expr(a, scope, env) for a in args]
+        for i, a in enumerate(args):  # an argument that analysis replaced (listagg) is written as its replacement
+            if a._meta and "replaced_by" in a._meta:
+                args[i] = a.meta["replaced_by"]
 
     def lam(self, index: int, params: list[TType]) -> TType:
         """Type the lambda at argument `index` with the given parameter types; its body's type."""
@@ -1179,12 +1182,12 @@ def _grouping(a: Analyzer, node, scope, env):
 
 @handles(exp.GroupConcat)
 def _listagg(a: Analyzer, node, scope, env):
-    if node.args.get("on_overflow") is not None:
-        a.unsupported("listagg ON OVERFLOW", node)
     args = [node.this] + ([node.args["separator"]] if node.args.get("separator") is not None else [])
     call = exp.Anonymous(this="listagg", expressions=args)
+    call.meta["overflow_truncate"] = isinstance(node.args.get("on_overflow"), exp.OverflowTruncateBehavior)
     call.meta.update({k: v for k, v in (node._meta or {}).items() if k in ("line", "col", "start", "end")})
     node.replace(call)
+    node.meta["replaced_by"] = call
     return _set(call, a.function(call, scope, env))
 
 

@@ -346,11 +346,27 @@ for _name, _duck in (("stddev", "stddev_samp"), ("stddev_samp", "stddev_samp"), 
 for _name in ("corr", "covar_samp", "covar_pop", "regr_slope", "regr_intercept"):
     register(_name, "aggregate", f"{_name}(y, x) -> double", as_double("number", "number"), agg_as(_name),
              kind="aggregate")
+#: ListaggAggregationFunction: the output limit (DEFAULT_MAX_PAGE_SIZE_IN_BYTES) and its error.
+LISTAGG_MAX_BYTES = 1_048_576
+
+
+def _render_listagg(g, node, args) -> str:
+    text = g.agg(node, "string_agg", [g.sql(args[0]), g.sql(args[1]) if len(args) > 1 else "''"])
+    if node.meta.get("overflow_truncate"):
+        overflow = ("error(" + tf.string("NOT_SUPPORTED: listagg ON OVERFLOW TRUNCATE of a result longer than "
+                                         f"{LISTAGG_MAX_BYTES} bytes is not supported in lakegate") + ")")
+    else:
+        overflow = ("error(" + tf.string("EXCEEDED_FUNCTION_MEMORY_LIMIT: Concatenated string has the length in "
+                                         f"bytes larger than the maximum output length {LISTAGG_MAX_BYTES}") + ")")
+    return f"CASE WHEN octet_length(CAST({text} AS BLOB)) > {LISTAGG_MAX_BYTES} THEN {overflow} ELSE {text} END"
+
+
 register("listagg", "aggregate", "listagg(x, separator) WITHIN GROUP (ORDER BY ...) -> varchar",
          lambda c: tt.VARCHAR if len(c.args) in (1, 2) and all(t is not None and t.base in ("varchar", "unknown")
                                                                 for t in c.types) else c.mismatch(),
-         lambda g, node, args: g.agg(node, "string_agg", [g.sql(args[0]), g.sql(args[1]) if len(args) > 1 else "''"]),
-         kind="aggregate", notes="ON OVERFLOW clauses are not translated (no length limit applies).")
+         lambda g, node, args: _render_listagg(g, node, args), kind="aggregate",
+         notes="ON OVERFLOW ERROR (the default) fails past 1,048,576 bytes as in Trino; ON OVERFLOW TRUNCATE is "
+               "answered until the result would be truncated, then refused at run time (NOT_SUPPORTED).")
 register("geometric_mean", "aggregate", "geometric_mean(x) -> double", as_double("number"),
          agg_as("geometric_mean"), kind="aggregate")
 

@@ -1423,6 +1423,37 @@ def _render_array_distinct(g, node, args) -> str:
             f"lambda \"_p\": struct_extract(\"_p\", 1))")
 
 
+def _trim_array(call: Call) -> TType:
+    need(call, "array", "integral")
+    return _array_arg(call)
+
+
+def _render_trim_array(g, node, args) -> str:
+    """ArrayTrimFunction: drop `size` elements from the end; a negative size or one past the
+    cardinality is INVALID_FUNCTION_ARGUMENT."""
+    arr, size = g.sql(args[0]), f"CAST({g.sql(args[1])} AS BIGINT)"
+    negative = g.fail(f"{tf.string('size must not be negative: ')} || {size}")
+    too_big = g.fail(f"{tf.string('size must not exceed array cardinality ')} || len({arr}) || "
+                     f"{tf.string(': ')} || {size}")
+    return (f"CASE WHEN {size} < 0 THEN {negative} WHEN {size} > len({arr}) THEN {too_big} "
+            f"ELSE list_slice({arr}, 1, len({arr}) - {size}) END")
+
+
+def _array_histogram(call: Call) -> TType:
+    need(call, "array")
+    element = _array_arg(call).element
+    if element.base in ("map", "json"):
+        call.mismatch()
+    return tt.map_of(element, tt.BIGINT)
+
+
+def _render_array_histogram(g, node, args) -> str:
+    """NULL elements are ignored; an array without non-NULL elements gives an empty map."""
+    arr = g.sql(args[0])
+    counted = f"(SELECT histogram(\"_e\") FROM (SELECT unnest({arr}) AS \"_e\"))"
+    return tf.cast(f"CASE WHEN ({arr}) IS NULL THEN NULL ELSE coalesce({counted}, map()) END", ttype(node))
+
+
 def _array_minmax(call: Call) -> TType:
     need(call, "array")
     element = _array_arg(call).element
@@ -1680,6 +1711,9 @@ register("map", "map", "map(array(K), array(V)) -> map(K, V)", _map, _render_map
          notes="Duplicate or NULL keys fail as in Trino.")
 register("map_keys", "map", "map_keys(map(K, V)) -> array(K)", _map_part, call_as("map_keys"))
 register("map_values", "map", "map_values(map(K, V)) -> array(V)", _map_part, call_as("map_values"))
+register("trim_array", "array", "trim_array(x, n) -> array", _trim_array, _render_trim_array)
+register("array_histogram", "array", "array_histogram(x) -> map(K, bigint)", _array_histogram,
+         _render_array_histogram)
 register("cardinality", "array", "cardinality(array) -> bigint; cardinality(map) -> bigint", _cardinality,
          lambda g, node, args: f"CAST({'cardinality' if ttype(args[0]).base == 'map' else 'len'}({g.sql(args[0])}) AS BIGINT)")
 register("contains", "array", "contains(array, element) -> boolean", _contains, _render_contains,
@@ -1956,8 +1990,6 @@ REJECTED: dict[str, str] = {
     "array_union": "set semantics (order, NULL handling) not translated exactly",
     "array_intersect": "set semantics (order, NULL handling) not translated exactly",
     "array_except": "set semantics (order, NULL handling) not translated exactly",
-    "array_histogram": "map result type not supported",
-    "trim_array": "not translated",
     "zip": "row field naming of the result not translated",
     "transform_keys": "map functions are not supported (no map columns in the lake)",
     "transform_values": "map functions are not supported (no map columns in the lake)",

@@ -134,6 +134,7 @@ class Analyzer:
         self.schema = schema
         self.sql = sql
         self._alias_counter = 0
+        self.groupings: list[exp.Grouping] = []  # every grouping() operation, checked by check_grouping
 
     # --- errors ---------------------------------------------------------------------------------
     def fail(self, message: str, node: exp.Expression, error_name: str = "NOT_SUPPORTED") -> NoReturn:
@@ -217,11 +218,10 @@ class Analyzer:
         having = node.args.get("having")
         items = [i.this if isinstance(i, exp.Alias) else i for i in node.expressions]
         checked = items + ([having.this] if having is not None else [])
-        if group is None:
-            for item in checked:
-                for grouping in item.find_all(exp.Grouping):
-                    self.fail("A GROUPING() operation can only be used with a corresponding GROUPING SET/CUBE/ROLLUP/"
-                              "GROUP BY clause", grouping, "MISSING_GROUP_BY")
+        for grouping in self.groupings:
+            if group is None and grouping.find_ancestor(exp.Select) is node:
+                self.fail("A GROUPING() operation can only be used with a corresponding GROUPING SET/CUBE/ROLLUP/"
+                          "GROUP BY clause", grouping, "MISSING_GROUP_BY")
         if group is None and not any(self._aggregate_inside(i) for i in checked):
             return
         keys = []
@@ -1175,6 +1175,7 @@ def _grouping(a: Analyzer, node, scope, env):
     keys with the rest of the query (Analyzer.check_grouping)."""
     for argument in node.expressions:
         a.expr(argument, scope, env)
+    a.groupings.append(node)
     if len(node.expressions) > 63:
         a.fail("GROUPING supports up to 63 column arguments", node, "TOO_MANY_ARGUMENTS")
     return tt.BIGINT

@@ -17,6 +17,7 @@ from sqlglot import exp
 
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
+from lakegate.dialect.guard import trino_name
 from lakegate.dialect.trino_types import TType
 
 #: Output column of a query: (Trino name or None when anonymous, name in the DuckDB SQL, type).
@@ -106,6 +107,9 @@ class Call:
         self.scope, self.env = scope, env
         self.types: list[TType | None] = [
             None if isinstance(a, (exp.Lambda, exp.Star)) else analyzer.expr(a, scope, env) for a in args]
+        for i, a in enumerate(args):  # an argument that analysis replaced (listagg) is written as its replacement
+            if a._meta and "replaced_by" in a._meta:
+                args[i] = a.meta["replaced_by"]
 
     def lam(self, index: int, params: list[TType]) -> TType:
         """Type the lambda at argument `index` with the given parameter types; its body's type."""
@@ -149,6 +153,7 @@ class Analyzer:
         self.schema = schema
         self.sql = sql
         self._alias_counter = 0
+        self.groupings: list[exp.Grouping] = []  # every grouping() operation, checked by check_grouping
 
     # --- errors ---------------------------------------------------------------------------------
     def fail(self, message: str, node: exp.Expression, error_name: str = "NOT_SUPPORTED") -> NoReturn:
@@ -247,11 +252,17 @@ class Analyzer:
         having = node.args.get("having")
         items = [i.this if isinstance(i, exp.Alias) else i for i in node.expressions]
         checked = items + ([having.this] if having is not None else [])
+        for grouping in self.groupings:
+            if group is None and grouping.find_ancestor(exp.Select) is node:
+                self.fail("A GROUPING() operation can only be used with a corresponding GROUPING SET/CUBE/ROLLUP/"
+                          "GROUP BY clause", grouping, "MISSING_GROUP_BY")
         if group is None and not any(self._aggregate_inside(i) for i in checked):
             return
         keys = []
         for key in (group.expressions if group is not None else []):
-            if isinstance(key, exp.Literal) and not key.is_string:
+            if isinstance(key, (exp.Rollup, exp.Cube, exp.GroupingSets)):
+                keys.extend(grouping_keys(key))
+            elif isinstance(key, exp.Literal) and not key.is_string:
                 keys.append(items[int(key.name) - 1])
             else:
                 keys.append(key)
@@ -274,6 +285,13 @@ class Analyzer:
                 and node.meta["spec"].kind != "scalar":
             return
         if isinstance(node, (exp.Window, exp.Subquery, exp.Exists, exp.Lambda, exp.Filter)):
+            return
+        if isinstance(node, exp.Grouping):
+            for argument in node.expressions:
+                if not any(argument == key for key in keys):
+                    self.fail("The arguments to GROUPING() must be expressions referenced by the GROUP BY at the "
+                              f"associated query level. Mismatch due to {argument.sql(dialect='trino')}.", node,
+                              "INVALID_ARGUMENTS")
             return
         if isinstance(node, exp.Column) and node._meta and node.meta.get("ref") is not None:
             if node.meta["ref"][0] in qualifiers and not node.meta.get("lambda"):
@@ -376,7 +394,11 @@ class Analyzer:
                 self.unsupported(f"GROUP BY {key.upper().replace('_', ' ')}", item if isinstance(item, exp.Expression) else group)
         for item in group.expressions:
             if isinstance(item, (exp.Rollup, exp.Cube, exp.GroupingSets)):
-                self.unsupported(f"GROUP BY {item.key.upper()}", item)
+                for key in grouping_keys(item):
+                    if isinstance(key, exp.Literal) and not key.is_string:
+                        self.unsupported(f"a column position in {_GROUPING_ELEMENT[type(item)]}", key)
+                    self.expr(key, scope, {})
+                continue
             if isinstance(item, exp.Literal) and not item.is_string:
                 index = int(item.name) if item.name.isdigit() else 0
                 if not 1 <= index <= len(select.expressions):
@@ -587,7 +609,7 @@ class Analyzer:
         if type(node) in _DUCKDB_SYNTAX:
             self.fail(f"mismatched input: {_DUCKDB_SYNTAX[type(node)]} is not Trino syntax", node, "SYNTAX_ERROR")
         if handler is None:
-            self.unsupported(_describe(node), node)
+            self.unsupported(trino_name(node), node)
         t = handler(self, node, scope, env)
         if t.base in ("timestamp", "timestamp_tz") and t.args[0] > 6:
             self.unsupported(f"{t} (lakegate keeps microseconds; digits past them would be dropped)", node)
@@ -683,17 +705,29 @@ def _ident_name(ident: exp.Expression) -> str:
     return ident.name
 
 
+_GROUPING_ELEMENT = {exp.Rollup: "ROLLUP", exp.Cube: "CUBE", exp.GroupingSets: "GROUPING SETS"}
+
+
+def grouping_keys(element: exp.Expression) -> list[exp.Expression]:
+    """The expressions a ROLLUP, CUBE or GROUPING SETS element groups by (sets and their parentheses
+    unwrapped; `()` holds none)."""
+    keys = []
+    for item in element.expressions:
+        if isinstance(item, (exp.Tuple, exp.Paren)):
+            keys.extend(grouping_keys(exp.Tuple(expressions=[item.this])) if isinstance(item, exp.Paren)
+                        else grouping_keys(item))
+        elif isinstance(item, (exp.Rollup, exp.Cube, exp.GroupingSets)):
+            keys.extend(grouping_keys(item))
+        else:
+            keys.append(item)
+    return keys
+
+
 #: DuckDB expressions sqlglot's Trino reader accepts that Trino's grammar has not (trinodb/trino
 #: core/trino-grammar/src/main/antlr4/io/trino/grammar/sql/SqlBase.g4), named as written.
 _DUCKDB_SYNTAX = {exp.ILike: "ILIKE", exp.Glob: "GLOB", exp.SimilarTo: "SIMILAR TO",
                   exp.Comprehension: "a list comprehension [x FOR x IN ...]", exp.Slice: "an array slice a[i:j]",
                   exp.BitwiseXor: "the '^' operator", exp.PropertyEQ: "the ':=' operator"}
-
-
-def _describe(node: exp.Expression) -> str:
-    if isinstance(node, exp.Func):
-        return f"function '{node.sql_name().lower()}'"
-    return f"syntax {node.key.upper()}"
 
 
 # --- expression handlers ---------------------------------------------------------------------------
@@ -1064,6 +1098,8 @@ def _bracket(a: Analyzer, node, scope, env):
             a.fail(f"Cannot use {index} for subscript of {container}", node, "TYPE_MISMATCH")
         return container.element
     if container.base == "map":
+        if container.args[0].base in ("array", "map", "row"):
+            a.unsupported(f"subscript of a map with {container.args[0].base} keys", node)
         if tt.common_super_type(container.args[0], index) is None:
             a.fail(f"Cannot use {index} for subscript of {container}", node, "TYPE_MISMATCH")
         return container.args[1]
@@ -1205,28 +1241,51 @@ def _window(a: Analyzer, node, scope, env):
             a.expr(ordered.this, scope, env)
     spec = node.args.get("spec")
     if spec is not None:
-        if spec.args.get("exclude"):
-            a.unsupported("window frame EXCLUDE", spec)
-        if spec.args.get("kind", "").upper() == "GROUPS":
-            a.unsupported("GROUPS window frame", spec)
-        for key in ("start", "end"):
-            bound = spec.args.get(key)
-            if isinstance(bound, exp.Expression):
-                bound_type = a.expr(bound, scope, env)
-                if spec.args.get("kind", "").upper() == "RANGE":
-                    _check_range_offset(a, order, bound, bound_type)
-                    continue
-                if not bound_type.is_integral:
-                    a.fail(f"Window frame offset must be an integer: {bound_type}", bound, "TYPE_MISMATCH")
+        _frame(a, spec, order.expressions if order is not None else [], scope, env)
     inner.meta["over"] = node
     return t
 
 
-def _check_range_offset(a: Analyzer, order: exp.Expression | None, bound: exp.Expression, offset: TType) -> None:
+def _frame(a: Analyzer, spec: exp.WindowSpec, order: list, scope, env) -> None:
+    """Check a window frame as Trino's StatementAnalyzer does (ROWS / GROUPS offsets are integers,
+    GROUPS needs ORDER BY, a RANGE offset needs one numeric sort key); DuckDB runs the same frames.
+    RANGE offsets: `_check_range_offset`. Not translated: EXCLUDE."""
+    kind = spec.args.get("kind", "").upper()
+    if spec.args.get("exclude"):
+        a.unsupported("window frame EXCLUDE", spec)
+    offsets = [b for b in (spec.args.get("start"), spec.args.get("end")) if isinstance(b, exp.Expression)]
+    if kind == "GROUPS" and offsets and not order:
+        a.fail("Window frame of type GROUPS PRECEDING or FOLLOWING requires ORDER BY", spec, "MISSING_ORDER_BY")
+    for bound in offsets:
+        bound_type = a.expr(bound, scope, env)
+        if kind == "RANGE":
+            _check_range_offset(a, order, bound, bound_type)
+        elif not bound_type.is_integral:
+            a.fail(f"Window frame offset must be an integer: {bound_type}", bound, "TYPE_MISMATCH")
+
+
+def a_literal_number(node: exp.Expression) -> exp.Literal | None:
+    """`node` when it is a number literal."""
+    return node if isinstance(node, exp.Literal) and not node.is_string else None
+
+
+@handles(exp.Grouping)
+def _grouping(a: Analyzer, node, scope, env):
+    """grouping(k1, ..., kn) -> bigint: bit i (from the right) is 1 when key k(n-i) is not grouped
+    (docs/src/main/sphinx/functions/aggregate.md); the arguments are checked against the GROUP BY
+    keys with the rest of the query (Analyzer.check_grouping)."""
+    for argument in node.expressions:
+        a.expr(argument, scope, env)
+    a.groupings.append(node)
+    if len(node.expressions) > 63:
+        a.fail("GROUPING supports up to 63 column arguments", node, "TOO_MANY_ARGUMENTS")
+    return tt.BIGINT
+
+
+def _check_range_offset(a: Analyzer, keys: list, bound: exp.Expression, offset: TType) -> None:
     """A RANGE frame offset, as Trino's StatementAnalyzer checks it: one sort key, numeric with a
     numeric offset or date/timestamp with an interval. lakegate takes a non-negative literal offset
     over a double or integral key (an integer offset) or a date/timestamp key: what DuckDB frames alike."""
-    keys = order.expressions if order is not None else []
     if len(keys) != 1:
         a.fail("Window frame of type RANGE PRECEDING or FOLLOWING requires single sort item in ORDER BY "
                f"(actual: {len(keys)})", bound, "INVALID_ORDER_BY")
@@ -1246,14 +1305,14 @@ def _check_range_offset(a: Analyzer, order: exp.Expression | None, bound: exp.Ex
 
 @handles(exp.GroupConcat)
 def _listagg(a: Analyzer, node, scope, env):
-    if node.args.get("on_overflow") is not None:
-        a.unsupported("listagg ON OVERFLOW", node)
     if not isinstance(node.this, exp.Order):  # SqlBase.g4 #listagg: WITHIN GROUP is not optional
         a.fail("listagg requires WITHIN GROUP (ORDER BY ...)", node, "FUNCTION_NOT_FOUND")
     args = [node.this] + ([node.args["separator"]] if node.args.get("separator") is not None else [])
     call = exp.Anonymous(this="listagg", expressions=args)
+    call.meta["overflow_truncate"] = isinstance(node.args.get("on_overflow"), exp.OverflowTruncateBehavior)
     call.meta.update({k: v for k, v in (node._meta or {}).items() if k in ("line", "col", "start", "end")})
     node.replace(call)
+    node.meta["replaced_by"] = call
     return _set(call, a.function(call, scope, env))
 
 

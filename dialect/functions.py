@@ -218,9 +218,49 @@ def _render_max_by(g, node, args) -> str:
 
 def _by(call: Call) -> TType:
     if len(call.args) == 3:
-        call.fail("max_by/min_by with a count is not supported in lakegate", "NOT_SUPPORTED")
+        return _by_n(call)
     x, y = need(call, "any", "orderable")
     return x
+
+
+#: MaxByNStateFactory.MAX_NUMBER_OF_VALUES
+MAX_BY_N = 10_000
+
+
+def _by_n(call: Call) -> TType:
+    """max_by(x, y, n) / min_by(x, y, n) -> array(x): a literal n in 1..10000, as Trino checks it."""
+    x, _, _ = need(call, "any", "orderable", "integral")
+    n = literal_int(call, 2)
+    if n is None:
+        call.fail(f"unsupported in lakegate: {call.name} with a count that is not a literal", "NOT_SUPPORTED")
+    if call.node.meta.get("distinct") or call.node.meta.get("order") is not None:
+        call.fail(f"unsupported in lakegate: {call.name} with a count and DISTINCT or ORDER BY", "NOT_SUPPORTED")
+    if n <= 0:
+        call.fail(f"third argument of {call.name} must be a positive integer", "INVALID_FUNCTION_ARGUMENT")
+    if n > MAX_BY_N:
+        call.fail(f"third argument of {call.name} must be less than or equal to {MAX_BY_N}; found {n}",
+                  "INVALID_FUNCTION_ARGUMENT")
+    return tt.array(x)
+
+
+def _render_by(duck: str, descending: bool) -> Render:
+    """max_by / min_by; with a count, the x of the n rows of largest (smallest) non-NULL y, in that
+    order, NULL x kept (MinMaxByNAggregationFunction). A NaN key never wins, as with Trino's
+    COMPARISON_UNORDERED_FIRST / _LAST ordering."""
+    plain = agg_as(duck)
+
+    def render(g, node, args):
+        if len(args) == 2:
+            return plain(g, node, args)
+        x, y = g.sql(args[0]), g.sql(args[1])
+        keys = (f"isnan({y}), " if ttype(args[1]).is_approx else "") + f"{y} {'DESC' if descending else 'ASC'}"
+        where = f"({y}) IS NOT NULL"
+        if node.meta.get("filter") is not None:
+            where += f" AND ({g.sql(node.meta['filter'])})"
+        over = f" {g.over(node.meta['over'])}" if node.meta.get("over") is not None else ""
+        collected = f"array_agg({x} ORDER BY {keys}) FILTER (WHERE {where}){over}"
+        return tf.cast(f"list_slice({collected}, 1, {g.sql(args[2])})", ttype(node))
+    return render
 
 
 def _array_agg(call: Call) -> TType:
@@ -234,6 +274,8 @@ def _approx_percentile(call: Call) -> TType:
     x, p = call.types
     if x is None or not (x.is_integral or x.is_approx or x.is_unknown):
         call.mismatch()
+    if not _constant_percentage(call):
+        call.fail("unsupported in lakegate: approx_percentile with a percentage that is not a literal", "NOT_SUPPORTED")
     if p is not None and p.base == "array":
         return tt.array(tt.BIGINT if x.is_integral else x)
     if p is None or not (p.is_numeric or p.is_unknown):
@@ -241,9 +283,29 @@ def _approx_percentile(call: Call) -> TType:
     return tt.BIGINT if x.is_integral else x
 
 
+def _typed_number_literal(node: exp.Expression) -> str | None:
+    """The number of a typed literal such as DOUBLE '0.5' (a cast of a string literal), else None."""
+    if isinstance(node, exp.Cast) and isinstance(node.this, exp.Literal) and node.this.is_string:
+        try:
+            return repr(float(node.this.name))
+        except ValueError:
+            return None
+    return None
+
+
+def _constant_percentage(call: Call) -> bool:
+    """DuckDB's quantile needs a constant: a number literal, a typed literal, or an array of them."""
+    node = call.args[1]
+    if isinstance(node, exp.Array):
+        return all(isinstance(e, exp.Literal) or _typed_number_literal(e) for e in node.expressions)
+    return call.literal(1) is not None or _typed_number_literal(node) is not None
+
+
 def _render_approx_percentile(g, node, args) -> str:
+    """DuckDB wants the percentage as a constant: a typed literal is written as its number."""
     t = ttype(node)
-    return tf.cast(g.agg(node, "quantile_disc", [g.sql(args[0]), g.sql(args[1])]), t)
+    percentage = _typed_number_literal(args[1]) or g.sql(args[1])
+    return tf.cast(g.agg(node, "quantile_disc", [g.sql(args[0]), percentage]), t)
 
 
 register("count", "aggregate", "count(*) -> bigint; count(x) -> bigint",
@@ -274,9 +336,21 @@ register("max", "aggregate", "max(x) -> same; max(x, n) -> array", _minmax, _ren
          notes="NaN only when every value is NaN, as in Trino.")
 register("arbitrary", "aggregate", "arbitrary(x) -> same", same("any"), agg_as("any_value"), kind="aggregate",
          aliases=("any_value",))
-register("max_by", "aggregate", "max_by(x, y) -> type of x", _by, _render_max_by, kind="aggregate",
-         notes="A NaN y is below every number, as in Trino.")
-register("min_by", "aggregate", "min_by(x, y) -> type of x", _by, agg_as("arg_min_null"), kind="aggregate")
+def _histogram(call: Call) -> TType:
+    (t,) = need(call, "orderable")
+    if t.is_unknown:
+        call.mismatch()
+    return tt.map_of(t, tt.BIGINT)
+
+
+register("histogram", "aggregate", "histogram(x) -> map(K, bigint)", _histogram, agg_as("histogram"),
+         kind="aggregate", notes="NULL values are not counted; NULL for no rows (Histogram.java).")
+_render_max_by_n = _render_by("arg_max_null", descending=True)
+register("max_by", "aggregate", "max_by(x, y) -> type of x; max_by(x, y, n) -> array(type of x)", _by,
+         lambda g, node, args: (_render_max_by_n if len(args) == 3 else _render_max_by)(g, node, args),
+         kind="aggregate", notes="A NaN y is below every number, as in Trino.")
+register("min_by", "aggregate", "min_by(x, y) -> type of x; min_by(x, y, n) -> array(type of x)", _by,
+         _render_by("arg_min_null", descending=False), kind="aggregate")
 register("array_agg", "aggregate", "array_agg(x) -> array(x)", _array_agg, agg_as("list", cast_result=False),
          kind="aggregate")
 register("approx_distinct", "aggregate", "approx_distinct(x) -> bigint",
@@ -306,11 +380,27 @@ def _bivariate(call: Call) -> TType:
 for _name in ("corr", "covar_samp", "covar_pop", "regr_slope", "regr_intercept"):
     register(_name, "aggregate", f"{_name}(y, x) -> double; real for two reals", _bivariate, agg_as(_name),
              kind="aggregate")
+#: ListaggAggregationFunction: the output limit (DEFAULT_MAX_PAGE_SIZE_IN_BYTES) and its error.
+LISTAGG_MAX_BYTES = 1_048_576
+
+
+def _render_listagg(g, node, args) -> str:
+    text = g.agg(node, "string_agg", [g.sql(args[0]), g.sql(args[1]) if len(args) > 1 else "''"])
+    if node.meta.get("overflow_truncate"):
+        overflow = ("error(" + tf.string("NOT_SUPPORTED: listagg ON OVERFLOW TRUNCATE of a result longer than "
+                                         f"{LISTAGG_MAX_BYTES} bytes is not supported in lakegate") + ")")
+    else:
+        overflow = ("error(" + tf.string("EXCEEDED_FUNCTION_MEMORY_LIMIT: Concatenated string has the length in "
+                                         f"bytes larger than the maximum output length {LISTAGG_MAX_BYTES}") + ")")
+    return f"CASE WHEN octet_length(CAST({text} AS BLOB)) > {LISTAGG_MAX_BYTES} THEN {overflow} ELSE {text} END"
+
+
 register("listagg", "aggregate", "listagg(x, separator) WITHIN GROUP (ORDER BY ...) -> varchar",
          lambda c: tt.VARCHAR if len(c.args) in (1, 2) and all(t is not None and t.base in ("varchar", "unknown")
                                                                 for t in c.types) else c.mismatch(),
-         lambda g, node, args: g.agg(node, "string_agg", [g.sql(args[0]), g.sql(args[1]) if len(args) > 1 else "''"]),
-         kind="aggregate", notes="ON OVERFLOW clauses are not translated (no length limit applies).")
+         lambda g, node, args: _render_listagg(g, node, args), kind="aggregate",
+         notes="ON OVERFLOW ERROR (the default) fails past 1,048,576 bytes as in Trino; ON OVERFLOW TRUNCATE is "
+               "answered until the result would be truncated, then refused at run time (NOT_SUPPORTED).")
 register("geometric_mean", "aggregate", "geometric_mean(x) -> double", as_double("number"),
          agg_as("geometric_mean"), kind="aggregate")
 
@@ -638,7 +728,11 @@ def _abs(call: Call) -> TType:
 
 def _round(call: Call) -> TType:
     types = need(call, "number", "integral", optional=1)
+    if len(types) == 2 and types[1].base == "bigint":  # MathFunctions.round(x, INTEGER decimals)
+        call.mismatch()
     t = types[0]
+    if len(types) == 2 and not (t.is_approx or types[1].is_unknown or call.literal(1) is not None):
+        call.fail("unsupported in lakegate: round(x, d) of an exact number with a non-literal d", "NOT_SUPPORTED")
     if t.is_decimal:
         p, s = t.args
         if len(types) == 2:
@@ -790,6 +884,38 @@ register("is_infinite", "math", "is_infinite(x) -> boolean", fixed(tt.BOOLEAN, "
          lambda g, node, args: f"isinf(CAST({g.sql(args[0])} AS DOUBLE))")
 register("random", "math", "random() -> double; random(n) / random(m, n) -> same as n", _random, _render_random,
          aliases=("rand",))
+
+
+# --- bitwise (io.trino.operator.scalar.BitwiseFunctions: bigint in, bigint out) ------------------
+def _bigints(g, args) -> list[str]:
+    return [f"CAST({g.sql(a)} AS BIGINT)" for a in args]
+
+
+def _render_bit_count(g, node, args) -> str:
+    """Trino's bitCount: `x` as a `bits`-bit two's complement number; bits outside 2..64 or an `x`
+    that does not fit are INVALID_FUNCTION_ARGUMENT."""
+    x, bits = _bigints(g, args)
+    low = f"((CAST(1 AS HUGEINT) << ({bits} - 1)) - 1)"
+    checks = [(f"{bits} NOT BETWEEN 2 AND 64",
+               f"{tf.string('Bits specified in bit_count must be between 2 and 64, got ')} || {bits}"),
+              (f"{x} > {low} OR {x} < -{low} - 1",
+               f"{tf.string('Number must be representable with the bits specified. ')} || {x} || "
+               f"{tf.string(' cannot be represented with ')} || {bits} || {tf.string(' bits')}")]
+    whens = " ".join(f"WHEN {condition} THEN {g.fail(message)}" for condition, message in checks)
+    return (f"CASE WHEN {x} IS NULL OR {bits} IS NULL THEN NULL {whens} "
+            f"ELSE bit_count(CAST(CAST({x} AS HUGEINT) & ((CAST(1 AS HUGEINT) << {bits}) - 1) AS UBIGINT)) END")
+
+
+register("bitwise_and", "math", "bitwise_and(x, y) -> bigint", fixed(tt.BIGINT, "integral", "integral"),
+         lambda g, node, args: "({} & {})".format(*_bigints(g, args)))
+register("bitwise_or", "math", "bitwise_or(x, y) -> bigint", fixed(tt.BIGINT, "integral", "integral"),
+         lambda g, node, args: "({} | {})".format(*_bigints(g, args)))
+register("bitwise_xor", "math", "bitwise_xor(x, y) -> bigint", fixed(tt.BIGINT, "integral", "integral"),
+         lambda g, node, args: "xor({}, {})".format(*_bigints(g, args)))
+register("bitwise_not", "math", "bitwise_not(x) -> bigint", fixed(tt.BIGINT, "integral"),
+         lambda g, node, args: "(~{})".format(*_bigints(g, args)))
+register("bit_count", "math", "bit_count(x, bits) -> bigint", fixed(tt.BIGINT, "integral", "integral"),
+         _render_bit_count)
 
 
 # === string =======================================================================================
@@ -1438,6 +1564,37 @@ def _render_array_distinct(g, node, args) -> str:
             f"lambda \"_p\": struct_extract(\"_p\", 1))")
 
 
+def _trim_array(call: Call) -> TType:
+    need(call, "array", "integral")
+    return _array_arg(call)
+
+
+def _render_trim_array(g, node, args) -> str:
+    """ArrayTrimFunction: drop `size` elements from the end; a negative size or one past the
+    cardinality is INVALID_FUNCTION_ARGUMENT."""
+    arr, size = g.sql(args[0]), f"CAST({g.sql(args[1])} AS BIGINT)"
+    negative = g.fail(f"{tf.string('size must not be negative: ')} || {size}")
+    too_big = g.fail(f"{tf.string('size must not exceed array cardinality ')} || len({arr}) || "
+                     f"{tf.string(': ')} || {size}")
+    return (f"CASE WHEN {size} < 0 THEN {negative} WHEN {size} > len({arr}) THEN {too_big} "
+            f"ELSE list_slice({arr}, 1, len({arr}) - {size}) END")
+
+
+def _array_histogram(call: Call) -> TType:
+    need(call, "array")
+    element = _array_arg(call).element
+    if element.base in ("map", "json"):
+        call.mismatch()
+    return tt.map_of(element, tt.BIGINT)
+
+
+def _render_array_histogram(g, node, args) -> str:
+    """NULL elements are ignored; an array without non-NULL elements gives an empty map."""
+    arr = g.sql(args[0])
+    counted = f"(SELECT histogram(\"_e\") FROM (SELECT unnest({arr}) AS \"_e\"))"
+    return tf.cast(f"CASE WHEN ({arr}) IS NULL THEN NULL ELSE coalesce({counted}, map()) END", ttype(node))
+
+
 def _array_minmax(call: Call) -> TType:
     need(call, "array")
     element = _array_arg(call).element
@@ -1703,6 +1860,9 @@ register("map", "map", "map(array(K), array(V)) -> map(K, V)", _map, _render_map
          notes="Duplicate or NULL keys fail as in Trino.")
 register("map_keys", "map", "map_keys(map(K, V)) -> array(K)", _map_part, call_as("map_keys"))
 register("map_values", "map", "map_values(map(K, V)) -> array(V)", _map_part, call_as("map_values"))
+register("trim_array", "array", "trim_array(x, n) -> array", _trim_array, _render_trim_array)
+register("array_histogram", "array", "array_histogram(x) -> map(K, bigint)", _array_histogram,
+         _render_array_histogram)
 register("cardinality", "array", "cardinality(array) -> bigint; cardinality(map) -> bigint", _cardinality,
          lambda g, node, args: f"CAST({'cardinality' if ttype(args[0]).base == 'map' else 'len'}({g.sql(args[0])}) AS BIGINT)")
 register("contains", "array", "contains(array, element) -> boolean", _contains, _render_contains,
@@ -1901,32 +2061,6 @@ def _iso_parts(value: str, pattern: str) -> tuple[str, str, str]:
     return fields[0], fields[1], third
 
 
-def _render_from_iso8601_date(g, node, args) -> str:
-    v = '"_iso"'
-    y, m, d = _iso_parts(v, _ISO_DAY)
-    wy, w, e = _iso_parts(v, _ISO_WEEK)
-    oy, doy, _ = _iso_parts(v, _ISO_ORDINAL)
-    week_one = f"(make_date({wy}, 1, 4) - CAST(isodow(make_date({wy}, 1, 4)) - 1 AS INTEGER))"
-    week_date = f"({week_one} + CAST(7 * ({w} - 1) + {e} - 1 AS INTEGER))"
-    ordinal_date = f"(make_date({oy}, 1, 1) + CAST({doy} - 1 AS INTEGER))"
-    quoted = f"'\"' || {v} || '\"'"
-    invalid = g.fail(f"'Invalid format: ' || {quoted}")
-    out_of_range = g.fail(f"'Cannot parse ' || {quoted} || ': a field value is out of range'")
-    too_far = g.fail(f"'from_iso8601_date of a year outside 1..9999: ' || {quoted}", "NOT_SUPPORTED")
-    body = (f"CASE WHEN {v} IS NULL THEN NULL "
-            f"WHEN NOT regexp_full_match({v}, '[+-]?[0-9]{{1,9}}(-.*)?') THEN {invalid} "
-            f"WHEN CAST(regexp_extract({v}, '^[+-]?[0-9]+') AS BIGINT) NOT BETWEEN 1 AND 9999 THEN {too_far} "
-            f"WHEN regexp_full_match({v}, {tf.string(_ISO_DAY)}) THEN "
-            f"coalesce(try(make_date({y}, {m}, {d})), {out_of_range}) "
-            f"WHEN regexp_full_match({v}, {tf.string(_ISO_WEEK)}) THEN CASE "
-            f"WHEN {w} BETWEEN 1 AND week(make_date({wy}, 12, 28)) AND {e} BETWEEN 1 AND 7 THEN {week_date} "
-            f"ELSE {out_of_range} END "
-            f"WHEN regexp_full_match({v}, {tf.string(_ISO_ORDINAL)}) THEN CASE "
-            f"WHEN {doy} >= 1 AND year({ordinal_date}) = {oy} THEN {ordinal_date} ELSE {out_of_range} END "
-            f"ELSE {invalid} END")
-    return f"list_transform([{g.sql(args[0])}], lambda {v}: {body})[1]"
-
-
 def _from_unixtime(call: Call) -> TType:
     if len(call.args) != 1:
         call.fail("from_unixtime with a time zone is not supported in lakegate", "NOT_SUPPORTED")
@@ -1986,6 +2120,32 @@ register("date_format", "datetime", "date_format(timestamp, format) -> varchar",
 register("date_parse", "datetime", "date_parse(string, format) -> timestamp(3)", _date_parse, _render_date_parse)
 register("from_unixtime", "datetime", "from_unixtime(unixtime) -> timestamp(3) with time zone", _from_unixtime,
          _render_from_unixtime, notes="In the session time zone, which is UTC in lakegate.")
+def _render_from_iso8601_date(g, node, args) -> str:
+    v = '"_iso"'
+    y, m, d = _iso_parts(v, _ISO_DAY)
+    wy, w, e = _iso_parts(v, _ISO_WEEK)
+    oy, doy, _ = _iso_parts(v, _ISO_ORDINAL)
+    week_one = f"(make_date({wy}, 1, 4) - CAST(isodow(make_date({wy}, 1, 4)) - 1 AS INTEGER))"
+    week_date = f"({week_one} + CAST(7 * ({w} - 1) + {e} - 1 AS INTEGER))"
+    ordinal_date = f"(make_date({oy}, 1, 1) + CAST({doy} - 1 AS INTEGER))"
+    quoted = f"'\"' || {v} || '\"'"
+    invalid = g.fail(f"'Invalid format: ' || {quoted}")
+    out_of_range = g.fail(f"'Cannot parse ' || {quoted} || ': a field value is out of range'")
+    too_far = g.fail(f"'from_iso8601_date of a year outside 1..9999: ' || {quoted}", "NOT_SUPPORTED")
+    body = (f"CASE WHEN {v} IS NULL THEN NULL "
+            f"WHEN NOT regexp_full_match({v}, '[+-]?[0-9]{{1,9}}(-.*)?') THEN {invalid} "
+            f"WHEN CAST(regexp_extract({v}, '^[+-]?[0-9]+') AS BIGINT) NOT BETWEEN 1 AND 9999 THEN {too_far} "
+            f"WHEN regexp_full_match({v}, {tf.string(_ISO_DAY)}) THEN "
+            f"coalesce(try(make_date({y}, {m}, {d})), {out_of_range}) "
+            f"WHEN regexp_full_match({v}, {tf.string(_ISO_WEEK)}) THEN CASE "
+            f"WHEN {w} BETWEEN 1 AND week(make_date({wy}, 12, 28)) AND {e} BETWEEN 1 AND 7 THEN {week_date} "
+            f"ELSE {out_of_range} END "
+            f"WHEN regexp_full_match({v}, {tf.string(_ISO_ORDINAL)}) THEN CASE "
+            f"WHEN {doy} >= 1 AND year({ordinal_date}) = {oy} THEN {ordinal_date} ELSE {out_of_range} END "
+            f"ELSE {invalid} END")
+    return f"list_transform([{g.sql(args[0])}], lambda {v}: {body})[1]"
+
+
 register("from_iso8601_date", "datetime", "from_iso8601_date(string) -> date",
          lambda c: need(c, "string") and tt.DATE, _render_from_iso8601_date,
          notes="Joda's ISO 8601 date forms, as Trino: 2020-05-11, 2020-05, 2020, 2020-W10[-5], 2020-130.")
@@ -2021,8 +2181,6 @@ REJECTED: dict[str, str] = {
     "array_union": "set semantics (order, NULL handling) not translated exactly",
     "array_intersect": "set semantics (order, NULL handling) not translated exactly",
     "array_except": "set semantics (order, NULL handling) not translated exactly",
-    "array_histogram": "map result type not supported",
-    "trim_array": "not translated",
     "zip": "row field naming of the result not translated",
     "transform_keys": "map functions are not supported (no map columns in the lake)",
     "transform_values": "map functions are not supported (no map columns in the lake)",
@@ -2032,7 +2190,6 @@ REJECTED: dict[str, str] = {
     "map_from_entries": "map functions are not supported (no map columns in the lake)",
     "map_zip_with": "map functions are not supported (no map columns in the lake)",
     "multimap_from_entries": "map functions are not supported (no map columns in the lake)",
-    "histogram": "map result type not supported",
     "map_agg": "map result type not supported",
     "multimap_agg": "map result type not supported",
     "map_union": "map result type not supported",
@@ -2046,7 +2203,6 @@ REJECTED: dict[str, str] = {
     "bitwise_and_agg": "not translated",
     "bitwise_or_agg": "not translated",
     "bitwise_xor_agg": "not translated",
-    "max_by_n": "not translated",
     "approx_set": "HyperLogLog state functions are not available",
     "empty_approx_set": "HyperLogLog state functions are not available",
     "merge": "HyperLogLog / qdigest / tdigest state functions are not available",
@@ -2112,11 +2268,6 @@ REJECTED: dict[str, str] = {
     "hmac_sha256": "the varbinary type is not supported",
     "spooky_hash_v2_32": "the varbinary type is not supported",
     "to_big_endian_64": "the varbinary type is not supported",
-    "bit_count": "bitwise functions not translated",
-    "bitwise_and": "bitwise functions not translated",
-    "bitwise_or": "bitwise functions not translated",
-    "bitwise_xor": "bitwise functions not translated",
-    "bitwise_not": "bitwise functions not translated",
     "bitwise_left_shift": "bitwise functions not translated",
     "bitwise_right_shift": "bitwise functions not translated",
     "url_extract_host": "URL functions not translated",

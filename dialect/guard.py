@@ -269,6 +269,30 @@ def _function_name(node: exp.Expression) -> str:
     return node.sql_name().lower() if isinstance(node, exp.Func) else ""
 
 
+#: Trino's words for syntax that sqlglot parses into nodes named otherwise.
+_TRINO_SYNTAX = {exp.HexString: "binary literal X'...' (varbinary)",
+                 exp.ByteString: "binary literal X'...' (varbinary)",
+                 exp.UnicodeString: "Unicode string literal U&'...'",
+                 exp.JSONValue: "function 'json_value'",
+                 exp.GroupingSets: "GROUPING SETS"}
+_LEADING_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+def trino_name(node: exp.Expression) -> str:
+    """What Trino calls the construct `node` ("function 'json_object'", "JSON literal", ...), never
+    sqlglot's class name: a function is named as sqlglot's Trino writer spells it."""
+    if isinstance(node, exp.ParseJSON) and node.args.get("is_literal"):
+        return "JSON literal"
+    if type(node) in _TRINO_SYNTAX:
+        return _TRINO_SYNTAX[type(node)]
+    if isinstance(node, exp.Anonymous):
+        return f"function '{str(node.name).lower()}'"
+    if isinstance(node, exp.Func):
+        name = _LEADING_NAME.match(node.sql(dialect="trino"))
+        return f"function '{(name.group() if name else node.sql_name()).lower()}'"
+    return f"syntax {node.key.upper()}"
+
+
 def _denied(name: str) -> bool:
     return name in _DENIED_FUNCTIONS or name.startswith(_DENIED_PREFIXES)
 
@@ -300,6 +324,8 @@ def check(expression: exp.Expression) -> None:
             _fail(f"Access Denied: {node.key.upper()} is not allowed inside a query", node)
         elif isinstance(node, (exp.Table, exp.Lateral)):
             source = node.this
+            if isinstance(source, exp.JSONTable):
+                _fail("unsupported in lakegate: table function 'json_table'", source, "NOT_SUPPORTED")
             if isinstance(source, exp.Func) and not isinstance(source, exp.Unnest):
                 name = _function_name(source)
                 label = "TABLE(...)" if name == "table" else f"'{name}'"

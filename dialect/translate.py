@@ -44,7 +44,8 @@ class _Parser(Trino.Parser):
     # Every `name(...)` call parses as a plain function call, so that the registry in
     # functions.py decides what each Trino function means (sqlglot's own function classes would
     # carry other dialects' semantics into the translation).
-    FUNCTIONS: dict = {}
+    # grouping(...) is not a function but the GROUPING operation, checked against the GROUP BY keys.
+    FUNCTIONS: dict = {"GROUPING": lambda args: exp.Grouping(expressions=args)}
     # Keep only the special call syntaxes Trino has (CAST(x AS t), EXTRACT(f FROM x), ...).
     FUNCTION_PARSERS = {name: parser for name, parser in Trino.Parser.FUNCTION_PARSERS.items()
                         if name in ("CAST", "TRY_CAST", "EXTRACT", "POSITION", "SUBSTRING", "TRIM", "LISTAGG",

@@ -21,6 +21,7 @@ it, and only a single statement that DuckDB itself parses as a SELECT is ever ru
 from __future__ import annotations
 
 import hashlib
+import itertools
 import os
 import re
 import shutil
@@ -44,7 +45,7 @@ from lakegate.gateway.engine import introspection
 from lakegate.gateway.engine.limits import Limits
 from lakegate.lake import paths
 from lakegate.lake.catalog import Catalog
-from lakegate.lake.record import FileEntry, Record
+from lakegate.lake.record import FileEntry, Record, Snapshot
 
 #: Rows per streamed record batch.
 BATCH_ROWS = 65_536
@@ -52,6 +53,10 @@ BATCH_ROWS = 65_536
 RETRIES = 3
 #: Parsed DuckDB statements kept per branch (parsing costs about 0.4 ms).
 STATEMENT_CACHE = 256
+#: Scopes whose views (over only their files) are kept per branch, beyond those used in the last
+#: SCOPE_GRACE seconds (a query may be about to bind them).
+SCOPE_VIEWS = 64
+SCOPE_GRACE = 60.0
 
 
 @dataclass
@@ -203,6 +208,7 @@ class _Branch:
     statements: OrderedDict = field(default_factory=OrderedDict)  # DuckDB SQL -> its checked Statement
     files: dict[str, str] = field(default_factory=dict)  # reader path -> "table T, batch B, job J" (last 2 loads)
     listed: dict[str, str] = field(default_factory=dict)  # the same, of the views' files only
+    scopes: OrderedDict = field(default_factory=OrderedDict)  # (generation, batch, job) -> [DuckDB schema, last use]
 
     def failure(self, error: BaseException, *, vanished: bool = False) -> DialectError:
         """The DialectError for a DuckDB error: a listed file is named by its table, batch and job
@@ -250,6 +256,7 @@ class DuckDBBackend:
         self._records: dict[str, Record] = {}
         self._listed: tuple[object, list[str]] = (None, [])  # (the lake directory's mtime, its branches)
         self._lock = threading.Lock()
+        self._scope_ids = itertools.count(1)
         self._temp = tempfile.mkdtemp(prefix="lakegate-duckdb-")
         self._cleanup = weakref.finalize(self, shutil.rmtree, self._temp, ignore_errors=True)
 
@@ -323,9 +330,8 @@ class DuckDBBackend:
             return state
 
     def _load_views(self, state: _Branch, branch: str, stamp: object) -> None:
-        """Replace the views by those of the record's current snapshot. A file that cannot be read
-        is left out (queries of its job fail, `Catalog.view_sql`); a file replaced meanwhile (a
-        writer committed after the snapshot was read) means a newer snapshot is taken."""
+        """Replace the views by those of the record's current snapshot (a newer one when a writer
+        replaced one of its files meanwhile, `_create_views`)."""
         if self.catalog is None:
             state.stamp = stamp
             return
@@ -335,33 +341,45 @@ class DuckDBBackend:
             files = {str(paths.reader_path(root, e.path)): e.where for e in snapshot.files}
             state.files = {**state.listed, **files}  # queries still running may name the last files
             schema = self.catalog.schema(branch, snapshot)
-            unreadable: set[str] = set()
-            failed = self._swap_views(state, self.catalog.view_sql(branch, snapshot))
-            while failed is not None:
-                named = {path for path in files if path in failed}
-                if named <= unreadable:
-                    raise state.failure(duckdb.Error(failed))
-                if not all(map(os.path.exists, named)) and self._records[branch].generation() != snapshot.generation:
-                    break  # a writer replaced the file: take the newer snapshot
-                unreadable |= named  # corrupt, or missing although the record holds it
-                failed = self._swap_views(state, self.catalog.view_sql(branch, snapshot, unreadable=unreadable))
-            if failed is None:
+            if self._create_views(state, branch, snapshot, state.schema):
                 break
         state.files, state.listed = {**state.listed, **files}, files
         state.schema, state.stamp = schema, (snapshot.generation, stamp[1])
         state.version = hashlib.sha1(repr(sorted((t, sorted(c.items())) for t, c in schema.items()))
                                      .encode()).hexdigest()
 
+    def _create_views(self, state: _Branch, branch: str, snapshot: Snapshot, old: Iterable[str] = (),
+                      schema: str | None = None) -> bool:
+        """Create the views of `snapshot` in one transaction (in DuckDB schema `schema`, default the
+        branch's own views, dropping the `old` views it no longer has). A file that cannot be read is
+        left out (queries of its job fail, `Catalog.view_sql`); False when one was replaced
+        meanwhile (a writer committed after the snapshot was read): take a newer snapshot."""
+        root = paths.branch_dir(self.lake, branch)
+        files = {str(paths.reader_path(root, e.path)) for e in snapshot.files}
+        unreadable: set[str] = set()
+        while (failed := self._swap_views(state, self.catalog.view_sql(branch, snapshot, unreadable=unreadable),
+                                          old, schema)) is not None:
+            named = {path for path in files if path in failed}
+            if named <= unreadable:
+                raise state.failure(duckdb.Error(failed))
+            if not all(map(os.path.exists, named)) and self._records[branch].generation() != snapshot.generation:
+                return False
+            unreadable |= named  # corrupt, or missing although the record holds it
+        return True
+
     @staticmethod
-    def _swap_views(state: _Branch, views: dict[str, str]) -> str | None:
-        """Replace the branch's views in one transaction; the error text if one cannot be made."""
+    def _swap_views(state: _Branch, views: dict[str, str], old: Iterable[str], schema: str | None) -> str | None:
+        """Replace views in one transaction; the error text if one cannot be made."""
+        prefix = f"{schema}." if schema else ""
         cursor = state.connection.cursor()
         try:
             cursor.execute("BEGIN")
-            for name in set(state.schema) - set(views):
+            if schema:
+                cursor.execute(f"CREATE SCHEMA {schema}")
+            for name in set(old) - set(views):
                 cursor.execute(f"DROP VIEW IF EXISTS {_quote_ident(name)}")
             for name, select in views.items():
-                cursor.execute(f"CREATE OR REPLACE VIEW {_quote_ident(name)} AS {select}")
+                cursor.execute(f"CREATE OR REPLACE VIEW {prefix}{_quote_ident(name)} AS {select}")
             cursor.execute("COMMIT")
             return None
         except duckdb.Error as error:
@@ -369,6 +387,32 @@ class DuckDBBackend:
             return str(error)
         finally:
             cursor.close()
+
+    def _scope_views(self, state: _Branch, branch: str, scope: Scope | None) -> str | None:
+        """The DuckDB schema whose views read only the files of `scope` at the views' generation
+        (made on first use from the record's index, kept in an LRU); None: read the branch's views
+        (no scope, or a writer committed since the views were loaded: the scope's filter still
+        holds, the next query loads the new generation)."""
+        if self.catalog is None or scope is None or not scope.conditions():
+            return None
+        generation = state.stamp[0]
+        key = (generation, scope.batch_id, scope.job_id)
+        with self._lock:
+            now = time.monotonic()
+            found = state.scopes.get(key)
+            if found is not None:
+                state.scopes.move_to_end(key)
+                found[1] = now
+                return found[0]
+            snapshot = self.catalog.snapshot(branch, self._records[branch], batch_id=scope.batch_id,
+                                             job_id=scope.job_id)
+            name = f"scope_{next(self._scope_ids)}"
+            if snapshot.generation != generation or not self._create_views(state, branch, snapshot, schema=name):
+                return None
+            state.scopes[key] = [name, now]
+            while len(state.scopes) > SCOPE_VIEWS and next(iter(state.scopes.values()))[1] < now - SCOPE_GRACE:
+                state.connection.execute(f"DROP SCHEMA {state.scopes.popitem(last=False)[1][0]} CASCADE")
+            return name
 
     def schema(self, branch: str = "main") -> dict[str, dict[str, str]]:
         """Table -> column -> Trino type name of `branch` (empty without a lake)."""
@@ -410,14 +454,14 @@ class DuckDBBackend:
             return _static(answer.columns, answer.rows)
         if kind == "explain":
             translation, analyze = self._explain(guard.check_text(sql), state, scope, params)
-            return self._start(branch, state, translation, deadline,
+            return self._start(branch, state, translation, deadline, scope,
                                explain="EXPLAIN ANALYZE " if analyze else "EXPLAIN ")
-        return self._start(branch, state, self._translate(state, sql, scope, params), deadline)
+        return self._start(branch, state, self._translate(state, sql, scope, params), deadline, scope)
 
-    def _start(self, branch: str, state: _Branch, translation: Translation, deadline: float, *,
-               explain: str | None = None) -> QueryResult:
+    def _start(self, branch: str, state: _Branch, translation: Translation, deadline: float,
+               scope: Scope | None, *, explain: str | None = None) -> QueryResult:
         """Take a slot (waiting at most until `deadline`) and start the translated query on its own
-        cursor; with `explain` ("EXPLAIN " or "EXPLAIN ANALYZE "), its plan is the result."""
+        cursor, reading the views of its `scope` (`_scope_views`); with `explain` ("EXPLAIN " or "EXPLAIN ANALYZE "), its plan is the result."""
         timeout = self.limits.query_timeout
         remaining = deadline - time.monotonic()
         if remaining <= 0 or not self._slots.acquire(timeout=remaining):
@@ -426,9 +470,10 @@ class DuckDBBackend:
         try:
             if explain is None:
                 produce: Callable[[], Iterable[pa.RecordBatch]] = self._rows(branch, state, cursor,
-                                                                             translation.duckdb_sql)
+                                                                             translation.duckdb_sql, scope)
                 columns = list(translation.columns)
             else:
+                self._use_views(cursor, self._scope_views(state, branch, scope))
                 self._single_select(cursor, translation.duckdb_sql)
                 produce = lambda: [self._plan(cursor, explain + translation.duckdb_sql)]
                 columns = [("Query Plan", "varchar")]
@@ -443,12 +488,14 @@ class DuckDBBackend:
         return QueryResult(columns=columns, batches=run, duckdb_sql=translation.duckdb_sql, _cancel=run.cancel)
 
     def _rows(self, branch: str, state: _Branch, cursor: duckdb.DuckDBPyConnection,
-              duckdb_sql: str) -> Callable[[], Iterator[pa.RecordBatch]]:
-        """Bind the query on `cursor` now; the returned function reads its record batches. A query
-        that finds a listed file gone before its first row (a writer replaced it after the query's
-        views were read) starts again on the branch's views as they are now, up to RETRIES times."""
+              duckdb_sql: str, scope: Scope | None) -> Callable[[], Iterator[pa.RecordBatch]]:
+        """Bind the query on `cursor` now, over the views of its `scope`; the returned function reads
+        its record batches. A query that finds a listed file gone before its first row (a writer
+        replaced it after the query's views were read) starts again on the branch's views as they
+        are now, up to RETRIES times."""
         def bind(attempt: _Branch, retries: int) -> duckdb.DuckDBPyRelation:
             try:
+                self._use_views(cursor, self._scope_views(attempt, branch, scope))
                 return cursor.sql(self._statement(attempt, cursor, duckdb_sql))
             except duckdb.Error as error:
                 return again(attempt, error, retries)
@@ -476,6 +523,12 @@ class DuckDBBackend:
                         raise
                     relation, retries = again(state, error, retries), retries - 1
         return read
+
+    @staticmethod
+    def _use_views(cursor: duckdb.DuckDBPyConnection, schema: str | None) -> None:
+        """Make the cursor's table names resolve to the views of `schema` (None: the branch's)."""
+        if schema is not None:
+            cursor.execute(f"SET search_path = '{schema}'")
 
     def _plan(self, cursor: duckdb.DuckDBPyConnection, explain_sql: str) -> pa.RecordBatch:
         """DuckDB's plan (EXPLAIN [ANALYZE] runs here) as one row, lake paths made relative."""

@@ -1,8 +1,9 @@
 """Backends: run one Trino-dialect query on a branch of the lake and stream its result.
 
-`DuckDBBackend` is the embedded default: per branch, one in-memory DuckDB database with a view per
-lake table (`Catalog.view_sql`), locked down before any user query runs (defence in depth behind
-the dialect guard): no file access outside the lake, no extension installing or loading, settings
+`DuckDBBackend` is the embedded default: one in-memory DuckDB database per process (one memory
+budget, one thread pool), in which each branch is an attached in-memory database with a view per
+lake table (`Catalog.view_sql`), released when idle. It is locked down before any user query runs
+(defence in depth behind the dialect guard): no file access outside the lake, no extension installing or loading, settings
 locked. Each query is translated by `lakegate.dialect.translate`, checked once more by DuckDB's own
 parser (exactly one SELECT), and run on its own cursor, so queries run concurrently and
 `QueryResult.cancel()` interrupts just one. SHOW / DESCRIBE are answered from the branch schema
@@ -57,6 +58,8 @@ STATEMENT_CACHE = 256
 #: SCOPE_GRACE seconds (a query may be about to bind them).
 SCOPE_VIEWS = 64
 SCOPE_GRACE = 60.0
+#: Seconds without a query after which a branch's views are released (made again on its next query).
+IDLE_SECONDS = 600.0
 
 
 @dataclass
@@ -201,14 +204,22 @@ class _Run:
 
 @dataclass
 class _Branch:
-    connection: duckdb.DuckDBPyConnection
+    database: duckdb.DuckDBPyConnection  # the backend's one database
+    name: str  # the branch's attached database in it
     stamp: object = None
+    used: float = 0.0  # time.monotonic() of its last query
     schema: dict[str, dict[str, str]] = field(default_factory=dict)
     version: str = ""
     statements: OrderedDict = field(default_factory=OrderedDict)  # DuckDB SQL -> its checked Statement
     files: dict[str, str] = field(default_factory=dict)  # reader path -> "table T, batch B, job J" (last 2 loads)
     listed: dict[str, str] = field(default_factory=dict)  # the same, of the views' files only
     scopes: OrderedDict = field(default_factory=OrderedDict)  # (generation, batch, job) -> [DuckDB schema, last use]
+
+    def cursor(self) -> duckdb.DuckDBPyConnection:
+        """A new cursor whose table names resolve in the branch's attached database."""
+        cursor = self.database.cursor()
+        cursor.execute(f"USE {self.name}")
+        return cursor
 
     def failure(self, error: BaseException, *, vanished: bool = False) -> DialectError:
         """The DialectError for a DuckDB error: a listed file is named by its table, batch and job
@@ -236,8 +247,10 @@ class _Branch:
 class DuckDBBackend:
     """Embedded DuckDB over the lake at `lake` (None: no lake, constant queries only).
 
-    `memory_limit` and `threads` apply to each branch's database; `limits` bound every query's time
-    and how many run at once (`query_timeout`, `max_concurrent_queries`). Each query reads its
+    `memory_limit` and `threads` are shared by every branch (one DuckDB database; each branch is
+    attached to it on first use and detached after `idle_seconds` without a query, at least the
+    query timeout, so that no query still runs on it); `limits` bound every query's time and how
+    many run at once (`query_timeout`, `max_concurrent_queries`). Each query reads its
     branch's record generation (`lake.record`) once; when it changed (a commit) or the config registry
     did, the views are rebuilt from one snapshot of the record, in one DuckDB transaction, so a query
     sees every table at one generation. `pending` files (staged, not committed) replace the record's
@@ -245,10 +258,13 @@ class DuckDBBackend:
     """
 
     def __init__(self, lake: Path | None, *, memory_limit: str = "2GB", threads: int = 2, limits: Limits = Limits(),
-                 pending: Sequence[FileEntry] = ()):
+                 pending: Sequence[FileEntry] = (), idle_seconds: float = IDLE_SECONDS):
         self.lake = Path(lake).resolve() if lake is not None else None
         self.catalog = Catalog(self.lake, pending) if self.lake is not None else None
         self.memory_limit, self.threads, self.limits = memory_limit, threads, limits
+        self.idle_seconds = max(idle_seconds, limits.query_timeout)
+        self._database: duckdb.DuckDBPyConnection | None = None
+        self._branch_ids = itertools.count(1)
         self._slots = threading.BoundedSemaphore(limits.max_concurrent_queries)
         self._runs: weakref.WeakSet[_Run] = weakref.WeakSet()  # queries started and not collected
         self._branches: dict[str, _Branch] = {}
@@ -263,7 +279,7 @@ class DuckDBBackend:
     def with_pending(self, pending: Sequence[FileEntry]) -> "DuckDBBackend":
         """A new backend over the same lake that already shows `pending` (close it after use)."""
         return DuckDBBackend(self.lake, memory_limit=self.memory_limit, threads=self.threads, limits=self.limits,
-                             pending=pending)
+                             pending=pending, idle_seconds=self.idle_seconds)
 
     # -- branches -------------------------------------------------------------------------
 
@@ -305,10 +321,15 @@ class DuckDBBackend:
             return record.generation(), None
 
     def _connect(self) -> duckdb.DuckDBPyConnection:
-        return duckdb.connect(":memory:", config={
-            "threads": self.threads, "memory_limit": self.memory_limit, "temp_directory": self._temp,
-            "autoinstall_known_extensions": False, "autoload_known_extensions": False,
-            "python_enable_replacements": False})
+        """The backend's one database, locked down (made on first use; called under `_lock`)."""
+        if self._database is None:
+            database = duckdb.connect(":memory:", config={
+                "threads": self.threads, "memory_limit": self.memory_limit, "temp_directory": self._temp,
+                "autoinstall_known_extensions": False, "autoload_known_extensions": False,
+                "python_enable_replacements": False})
+            self._lock_down(database)
+            self._database = database
+        return self._database
 
     def _lock_down(self, connection: duckdb.DuckDBPyConnection) -> None:
         connection.execute("SET TimeZone = 'UTC'")
@@ -319,15 +340,26 @@ class DuckDBBackend:
 
     def _state(self, branch: str) -> _Branch:
         with self._lock:
+            self._release_idle()  # before the stamp: it may close this branch's record
             stamp = self._stamp(branch)
             state = self._branches.get(branch)
             if state is None:
-                connection = self._connect()
-                self._lock_down(connection)
-                state = self._branches[branch] = _Branch(connection, stamp=object())
+                database, name = self._connect(), f"branch_{next(self._branch_ids)}"
+                database.execute(f"ATTACH ':memory:' AS {name}")
+                state = self._branches[branch] = _Branch(database, name, stamp=object())
+            state.used = time.monotonic()
             if state.stamp != stamp:
                 self._load_views(state, branch, stamp)
             return state
+
+    def _release_idle(self) -> None:
+        """Detach the branches not queried for `idle_seconds` (called under `_lock`)."""
+        limit = time.monotonic() - self.idle_seconds
+        for branch, state in list(self._branches.items()):
+            if state.used < limit:
+                del self._branches[branch]
+                state.database.execute(f"DETACH {state.name}")
+                self._records.pop(branch).close()
 
     def _load_views(self, state: _Branch, branch: str, stamp: object) -> None:
         """Replace the views by those of the record's current snapshot (a newer one when a writer
@@ -371,7 +403,7 @@ class DuckDBBackend:
     def _swap_views(state: _Branch, views: dict[str, str], old: Iterable[str], schema: str | None) -> str | None:
         """Replace views in one transaction; the error text if one cannot be made."""
         prefix = f"{schema}." if schema else ""
-        cursor = state.connection.cursor()
+        cursor = state.cursor()
         try:
             cursor.execute("BEGIN")
             if schema:
@@ -406,12 +438,12 @@ class DuckDBBackend:
                 return found[0]
             snapshot = self.catalog.snapshot(branch, self._records[branch], batch_id=scope.batch_id,
                                              job_id=scope.job_id)
-            name = f"scope_{next(self._scope_ids)}"
+            name = f"{state.name}.scope_{next(self._scope_ids)}"
             if snapshot.generation != generation or not self._create_views(state, branch, snapshot, schema=name):
                 return None
             state.scopes[key] = [name, now]
             while len(state.scopes) > SCOPE_VIEWS and next(iter(state.scopes.values()))[1] < now - SCOPE_GRACE:
-                state.connection.execute(f"DROP SCHEMA {state.scopes.popitem(last=False)[1][0]} CASCADE")
+                state.database.execute(f"DROP SCHEMA {state.scopes.popitem(last=False)[1][0]} CASCADE")
             return name
 
     def schema(self, branch: str = "main") -> dict[str, dict[str, str]]:
@@ -420,7 +452,7 @@ class DuckDBBackend:
 
     def connection(self, branch: str = "main") -> duckdb.DuckDBPyConnection:
         """A new cursor on the branch's locked-down DuckDB database (raw DuckDB SQL, for tests and tools)."""
-        return self._state(branch).connection.cursor()
+        return self._state(branch).cursor()
 
     # -- queries --------------------------------------------------------------------------
 
@@ -466,7 +498,7 @@ class DuckDBBackend:
         remaining = deadline - time.monotonic()
         if remaining <= 0 or not self._slots.acquire(timeout=remaining):
             raise time_limit_error(timeout)
-        cursor = state.connection.cursor()
+        cursor = state.cursor()
         try:
             if explain is None:
                 produce: Callable[[], Iterable[pa.RecordBatch]] = self._rows(branch, state, cursor,
@@ -596,8 +628,8 @@ class DuckDBBackend:
         """Interrupt running queries, close every branch database and remove the spill directory."""
         self.stop_all()
         with self._lock:
-            for state in self._branches.values():
-                state.connection.close()
+            if self._database is not None:
+                self._database.close()
             self._branches.clear()
             for record in self._records.values():
                 record.close()

@@ -22,6 +22,7 @@ from lakegate.dialect.scope import Scope
 from lakegate.gateway.engine.backend import DuckDBBackend
 from lakegate.gateway.engine.limits import Limits
 from lakegate.lake.config import load_config
+from lakegate.lake import paths
 from lakegate.lake.ingest import ingest_job
 
 CONFIG = """\
@@ -299,6 +300,7 @@ REINGEST_SCRIPT = """
 import sys
 from pathlib import Path
 from lakegate.lake.config import load_config
+from lakegate.lake import paths
 from lakegate.lake.ingest import ingest_job
 lake, config, emissions, runs = Path(sys.argv[1]), load_config([sys.argv[2]]), Path(sys.argv[3]), int(sys.argv[4])
 for run in range(runs):
@@ -536,3 +538,33 @@ def test_scoped_views_follow_a_re_ingest(tmp_path):
         assert backend.execute("SELECT count(*) FROM odom", scope=Scope(batch_id="b1")).rows() == [(7,)]
     finally:
         backend.close()
+
+
+def test_branches_share_one_database_and_idle_ones_are_released(tmp_path):
+    """Issue 12: 20 branches are attached databases of the backend's one DuckDB database, so one
+    memory limit and one thread pool bound them together; a branch not queried for `idle_seconds`
+    is detached and answers again (its views made anew) at its next query."""
+    lake = build_lake(tmp_path, jobs=[("b1", "j1", 3)])
+    branches = [f"team/{i}" for i in range(20)]
+    for branch in branches:
+        shutil.copytree(lake / "main", paths.branch_dir(lake, branch))
+    backend = DuckDBBackend(lake, memory_limit="300MB", threads=2, limits=Limits(query_timeout=1.0), idle_seconds=1.0)
+    expected = duckdb.connect(config={"memory_limit": "300MB", "threads": 2})
+    attached = "SELECT count(*) FROM duckdb_databases() WHERE database_name LIKE 'branch_%'"
+    try:
+        for branch in branches:
+            assert backend.execute("SELECT count(*), min(job_id) FROM odom", branch=branch).rows() == [(3, "j1")]
+        con = backend.connection(branches[0])
+        assert con.execute(attached).fetchone() == (20,)
+        settings = "SELECT current_setting('memory_limit'), current_setting('threads')"
+        assert con.execute(settings).fetchone() == expected.execute(settings).fetchone()
+        con.close()
+        time.sleep(1.2)
+        assert backend.execute("SELECT count(*) FROM odom", branch=branches[5]).rows() == [(3,)]
+        con = backend.connection(branches[5])
+        assert con.execute(attached).fetchone() == (1,)  # the 19 others were idle: released
+        con.close()
+        assert backend.execute("SELECT count(*) FROM odom", branch=branches[7], scope=Scope("b1", "j1")).rows() == [(3,)]
+    finally:
+        backend.close()
+        expected.close()

@@ -161,20 +161,21 @@ class Catalog:
         return sorted(names)
 
     def snapshot(self, branch: str, record: Record | None = None, *, batch_id: str | None = None,
-                 job_id: str | None = None) -> Snapshot:
-        """The branch's files now, or only those of one scope (`Record.snapshot`); `record`: an
-        open record of the branch to read them from."""
+                 job_id: str | None = None, files: bool = True) -> Snapshot:
+        """The branch's files now, or only those of one scope, or none (`Record.snapshot`);
+        `record`: an open record of the branch to read them from."""
         if record is None:
             record = Record(self.lake, branch)
             try:
-                found = record.snapshot(batch_id, job_id)
+                found = record.snapshot(batch_id, job_id, files=files)
             finally:
                 record.close()
         else:
-            found = record.snapshot(batch_id, job_id)
+            found = record.snapshot(batch_id, job_id, files=files)
         if not self.pending:
             return found
-        pending = {key: entry for key, entry in self.pending.items() if _in_scope(entry, batch_id, job_id)}
+        pending = {key: entry for key, entry in self.pending.items()
+                   if files and _in_scope(entry, batch_id, job_id)}
         files = {entry.key: entry for entry in found.files} | pending
         return Snapshot(found.generation, tuple(files.values()), found.tables | {e.table for e in self.pending.values()})
 

@@ -132,10 +132,11 @@ class Record:
         """The id of the last commit (changes whenever any table of the branch changes)."""
         return self._connect().execute("SELECT max(commit_id) FROM commits").fetchone()[0]
 
-    def snapshot(self, batch_id: str | None = None, job_id: str | None = None) -> Snapshot:
+    def snapshot(self, batch_id: str | None = None, job_id: str | None = None, *, files: bool = True) -> Snapshot:
         """The branch's files, read in one transaction (none for a branch without a directory):
         every file, or with `batch_id` and/or `job_id` only the files a query of that scope reads
-        (the job's files and its batch's batch-level files; found by index, the branch is not read)."""
+        (the job's files and its batch's batch-level files; found by index, the branch is not read);
+        `files=False`: only the generation and the tables, no file."""
         if not self.root.is_dir():
             return Snapshot(0, ())
         where, args = _scope_condition(batch_id, job_id)
@@ -143,7 +144,7 @@ class Record:
         with _transaction(db):
             generation = db.execute("SELECT max(commit_id) FROM commits").fetchone()[0]
             rows = db.execute("SELECT table_name, batch_id, job_id, path, rows, min_ts, max_ts, columns FROM files "
-                              f"{where} ORDER BY table_name, batch_id, job_id", args).fetchall()
+                              f"{where} ORDER BY table_name, batch_id, job_id", args).fetchall() if files else []
             tables = frozenset(row[0] for row in db.execute(_TABLES) if row[0] is not None)
         return Snapshot(generation, tuple(_entry(row) for row in rows), tables)
 

@@ -213,7 +213,10 @@ class _Branch:
     statements: OrderedDict = field(default_factory=OrderedDict)  # DuckDB SQL -> its checked Statement
     files: dict[str, str] = field(default_factory=dict)  # reader path -> "table T, batch B, job J" (last 2 loads)
     listed: dict[str, str] = field(default_factory=dict)  # the same, of the views' files only
-    scopes: OrderedDict = field(default_factory=OrderedDict)  # (generation, batch, job) -> [DuckDB schema, last use]
+    views: set[str] = field(default_factory=set)  # the branch-wide views made
+    loaded: bool = False  # whether they are those of the stamp's generation
+    #: (generation, batch, job) -> [DuckDB schema, last use, reader path -> "table T, batch B, job J"]
+    scopes: OrderedDict = field(default_factory=OrderedDict)
 
     def cursor(self) -> duckdb.DuckDBPyConnection:
         """A new cursor whose table names resolve in the branch's attached database."""
@@ -226,22 +229,27 @@ class _Branch:
         (HIVE_BAD_DATA when it cannot be read, HIVE_FILE_NOT_FOUND when writers kept replacing
         it), never by its path."""
         message = str(error)
-        named = [path for path in self.files if path in message]
+        files = self.known()
+        named = [path for path in files if path in message]
         if not named:
             return _failure(error)
         for path in named:
-            message = message.replace(f"'{path}'", path).replace(f'"{path}"', path).replace(path, self.files[path])
+            message = message.replace(f"'{path}'", path).replace(f'"{path}"', path).replace(path, files[path])
         if vanished:
-            return DialectError(f"The data of {self.files[named[0]]} was replaced while the query read it, "
+            return DialectError(f"The data of {files[named[0]]} was replaced while the query read it, "
                                 "again and again; run the query again", error_name="HIVE_FILE_NOT_FOUND")
         first = message.strip().splitlines()[0].split(": ", 1)[-1]
-        return DialectError(f"Cannot read the Parquet file of {self.files[named[0]]}: {first}",
+        return DialectError(f"Cannot read the Parquet file of {files[named[0]]}: {first}",
                             error_name="HIVE_BAD_DATA")
 
     def vanished(self, error: BaseException) -> bool:
         """Whether the error is about a listed file that is gone (a writer replaced it)."""
         message = str(error)
-        return any(path in message and not os.path.exists(path) for path in self.files)
+        return any(path in message and not os.path.exists(path) for path in self.known())
+
+    def known(self) -> dict[str, str]:
+        """Every file the views list (branch-wide and scoped): reader path -> how messages name it."""
+        return {**self.files, **{path: where for entry in self.scopes.values() for path, where in entry[2].items()}}
 
 
 class DuckDBBackend:
@@ -338,7 +346,9 @@ class DuckDBBackend:
         connection.execute("SET enable_external_access = false")
         connection.execute("SET lock_configuration = true")
 
-    def _state(self, branch: str) -> _Branch:
+    def _state(self, branch: str, *, views: bool = False) -> _Branch:
+        """The branch at its record's current generation: its schema, and with `views` its branch-wide
+        views (a query without a scope reads them; a scoped one reads `_scope_views`)."""
         with self._lock:
             self._release_idle()  # before the stamp: it may close this branch's record
             stamp = self._stamp(branch)
@@ -348,8 +358,8 @@ class DuckDBBackend:
                 database.execute(f"ATTACH ':memory:' AS {name}")
                 state = self._branches[branch] = _Branch(database, name, stamp=object())
             state.used = time.monotonic()
-            if state.stamp != stamp:
-                self._load_views(state, branch, stamp)
+            if state.stamp != stamp or (views and not state.loaded):
+                self._load(state, branch, stamp, views)
             return state
 
     def _release_idle(self) -> None:
@@ -361,24 +371,32 @@ class DuckDBBackend:
                 state.database.execute(f"DETACH {state.name}")
                 self._records.pop(branch).close()
 
-    def _load_views(self, state: _Branch, branch: str, stamp: object) -> None:
-        """Replace the views by those of the record's current snapshot (a newer one when a writer
-        replaced one of its files meanwhile, `_create_views`)."""
+    def _load(self, state: _Branch, branch: str, stamp: object, views: bool) -> None:
+        """Take the schema of the record's current generation; with `views`, replace the branch-wide
+        views by those of its snapshot (otherwise only the record's tables are read, no file list)."""
         if self.catalog is None:
             state.stamp = stamp
             return
+        record = self._records[branch]
+        snapshot = self._load_views(state, branch) if views else self.catalog.snapshot(branch, record, files=False)
+        schema = self.catalog.schema(branch, snapshot)
+        state.schema, state.stamp, state.loaded = schema, (snapshot.generation, stamp[1]), views
+        state.version = hashlib.sha1(repr(sorted((t, sorted(c.items())) for t, c in schema.items()))
+                                     .encode()).hexdigest()
+
+    def _load_views(self, state: _Branch, branch: str) -> Snapshot:
+        """Replace the branch-wide views by those of the record's current snapshot (a newer one when
+        a writer replaced one of its files meanwhile, `_create_views`); returns the snapshot."""
         root = paths.branch_dir(self.lake, branch)
         while True:
             snapshot = self.catalog.snapshot(branch, self._records[branch])
             files = {str(paths.reader_path(root, e.path)): e.where for e in snapshot.files}
             state.files = {**state.listed, **files}  # queries still running may name the last files
-            schema = self.catalog.schema(branch, snapshot)
-            if self._create_views(state, branch, snapshot, state.schema):
+            if self._create_views(state, branch, snapshot, state.views):
                 break
         state.files, state.listed = {**state.listed, **files}, files
-        state.schema, state.stamp = schema, (snapshot.generation, stamp[1])
-        state.version = hashlib.sha1(repr(sorted((t, sorted(c.items())) for t, c in schema.items()))
-                                     .encode()).hexdigest()
+        state.views = set(self.catalog.schema(branch, snapshot))
+        return snapshot
 
     def _create_views(self, state: _Branch, branch: str, snapshot: Snapshot, old: Iterable[str] = (),
                       schema: str | None = None) -> bool:
@@ -387,10 +405,10 @@ class DuckDBBackend:
         left out (queries of its job fail, `Catalog.view_sql`); False when one was replaced
         meanwhile (a writer committed after the snapshot was read): take a newer snapshot."""
         root = paths.branch_dir(self.lake, branch)
-        files = {str(paths.reader_path(root, e.path)) for e in snapshot.files}
         unreadable: set[str] = set()
         while (failed := self._swap_views(state, self.catalog.view_sql(branch, snapshot, unreadable=unreadable),
                                           old, schema)) is not None:
+            files = (str(paths.reader_path(root, e.path)) for e in snapshot.files)
             named = {path for path in files if path in failed}
             if named <= unreadable:
                 raise state.failure(duckdb.Error(failed))
@@ -420,31 +438,33 @@ class DuckDBBackend:
         finally:
             cursor.close()
 
-    def _scope_views(self, state: _Branch, branch: str, scope: Scope | None) -> str | None:
-        """The DuckDB schema whose views read only the files of `scope` at the views' generation
-        (made on first use from the record's index, kept in an LRU); None: read the branch's views
-        (no scope, or a writer committed since the views were loaded: the scope's filter still
-        holds, the next query loads the new generation)."""
-        if self.catalog is None or scope is None or not scope.conditions():
-            return None
-        generation = state.stamp[0]
-        key = (generation, scope.batch_id, scope.job_id)
+    def _scope_views(self, state: _Branch, branch: str, scope: Scope) -> str:
+        """The DuckDB schema whose views read only the files of `scope` (the job's files and its
+        batch's batch-level files, found by the record's index), made on first use at each
+        generation and kept in an LRU."""
         with self._lock:
             now = time.monotonic()
-            found = state.scopes.get(key)
+            found = state.scopes.get((state.stamp[0], scope.batch_id, scope.job_id))
             if found is not None:
-                state.scopes.move_to_end(key)
+                state.scopes.move_to_end((state.stamp[0], scope.batch_id, scope.job_id))
                 found[1] = now
                 return found[0]
-            snapshot = self.catalog.snapshot(branch, self._records[branch], batch_id=scope.batch_id,
-                                             job_id=scope.job_id)
             name = f"{state.name}.scope_{next(self._scope_ids)}"
-            if snapshot.generation != generation or not self._create_views(state, branch, snapshot, schema=name):
-                return None
-            state.scopes[key] = [name, now]
+            while True:  # a writer may commit meanwhile: the scope's files are then those of its generation
+                snapshot = self.catalog.snapshot(branch, self._records[branch], batch_id=scope.batch_id,
+                                                 job_id=scope.job_id)
+                if self._create_views(state, branch, snapshot, schema=name):
+                    break
+            root = paths.branch_dir(self.lake, branch)
+            files = {str(paths.reader_path(root, e.path)): e.where for e in snapshot.files}
+            state.scopes[(snapshot.generation, scope.batch_id, scope.job_id)] = [name, now, files]
             while len(state.scopes) > SCOPE_VIEWS and next(iter(state.scopes.values()))[1] < now - SCOPE_GRACE:
                 state.database.execute(f"DROP SCHEMA {state.scopes.popitem(last=False)[1][0]} CASCADE")
             return name
+
+    def _scoped(self, scope: Scope | None) -> bool:
+        """Whether a query of `scope` reads the scope's own views (`_scope_views`)."""
+        return self.catalog is not None and scope is not None and bool(scope.conditions())
 
     def schema(self, branch: str = "main") -> dict[str, dict[str, str]]:
         """Table -> column -> Trino type name of `branch` (empty without a lake)."""
@@ -452,7 +472,7 @@ class DuckDBBackend:
 
     def connection(self, branch: str = "main") -> duckdb.DuckDBPyConnection:
         """A new cursor on the branch's locked-down DuckDB database (raw DuckDB SQL, for tests and tools)."""
-        return self._state(branch).cursor()
+        return self._state(branch, views=True).cursor()
 
     # -- queries --------------------------------------------------------------------------
 
@@ -480,7 +500,7 @@ class DuckDBBackend:
         if not isinstance(sql, str):
             sql = guard.check_text(sql)  # bytes: decoded (or refused) first
         kind = guard.classify(sql)
-        state = self._state(branch)
+        state = self._state(branch, views=kind not in ("show", "describe") and not self._scoped(scope))
         if kind in ("show", "describe"):
             answer = introspection.answer(guard.check_text(sql), state.schema, schemas=self.branches() or [branch])
             return _static(answer.columns, answer.rows)
@@ -505,7 +525,8 @@ class DuckDBBackend:
                                                                              translation.duckdb_sql, scope)
                 columns = list(translation.columns)
             else:
-                self._use_views(cursor, self._scope_views(state, branch, scope))
+                if self._scoped(scope):
+                    self._use_views(cursor, self._scope_views(state, branch, scope))
                 self._single_select(cursor, translation.duckdb_sql)
                 produce = lambda: [self._plan(cursor, explain + translation.duckdb_sql)]
                 columns = [("Query Plan", "varchar")]
@@ -527,7 +548,8 @@ class DuckDBBackend:
         are now, up to RETRIES times."""
         def bind(attempt: _Branch, retries: int) -> duckdb.DuckDBPyRelation:
             try:
-                self._use_views(cursor, self._scope_views(attempt, branch, scope))
+                if self._scoped(scope):
+                    self._use_views(cursor, self._scope_views(attempt, branch, scope))
                 return cursor.sql(self._statement(attempt, cursor, duckdb_sql))
             except duckdb.Error as error:
                 return again(attempt, error, retries)
@@ -537,7 +559,7 @@ class DuckDBBackend:
                 raise error
             if retries == 0:
                 raise attempt.failure(error, vanished=True) from None
-            return bind(self._state(branch), retries - 1)
+            return bind(self._state(branch, views=not self._scoped(scope)), retries - 1)
 
         first = bind(state, RETRIES)
 
@@ -557,10 +579,9 @@ class DuckDBBackend:
         return read
 
     @staticmethod
-    def _use_views(cursor: duckdb.DuckDBPyConnection, schema: str | None) -> None:
-        """Make the cursor's table names resolve to the views of `schema` (None: the branch's)."""
-        if schema is not None:
-            cursor.execute(f"SET search_path = '{schema}'")
+    def _use_views(cursor: duckdb.DuckDBPyConnection, schema: str) -> None:
+        """Make the cursor's table names resolve to the views of `schema`."""
+        cursor.execute(f"SET search_path = '{schema}'")
 
     def _plan(self, cursor: duckdb.DuckDBPyConnection, explain_sql: str) -> pa.RecordBatch:
         """DuckDB's plan (EXPLAIN [ANALYZE] runs here) as one row, lake paths made relative."""

@@ -177,7 +177,8 @@ class Catalog:
         pending = {key: entry for key, entry in self.pending.items()
                    if files and _in_scope(entry, batch_id, job_id)}
         files = {entry.key: entry for entry in found.files} | pending
-        return Snapshot(found.generation, tuple(files.values()), found.tables | {e.table for e in self.pending.values()})
+        tables = found.tables | {entry.table for entry in self.pending.values()}
+        return Snapshot(found.generation, tuple(files.values()), tables)
 
     def jobs(self, branch: str, batch_id: str | None = None) -> list[JobRef]:
         """The jobs (those with a metadata row) of a branch, or of one batch, sorted."""

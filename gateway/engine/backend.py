@@ -1,9 +1,10 @@
 """Backends: run one Trino-dialect query on a branch of the lake and stream its result.
 
-`DuckDBBackend` is the embedded default: one in-memory DuckDB database per process (one memory
+`DuckDBBackend` is the embedded default: one in-memory DuckDB database per backend (one memory
 budget, one thread pool), in which each branch is an attached in-memory database with a view per
-lake table (`Catalog.view_sql`), released when idle. It is locked down before any user query runs
-(defence in depth behind the dialect guard): no file access outside the lake, no extension installing or loading, settings
+lake table (`Catalog.view_sql`), released when idle; a scoped query (a batch or a job) reads views
+over only its scope's files. It is locked down before any user query runs (defence in depth behind
+the dialect guard): no file access outside the lake, no extension installing or loading, settings
 locked. Each query is translated by `lakegate.dialect.translate`, checked once more by DuckDB's own
 parser (exactly one SELECT), and run on its own cursor, so queries run concurrently and
 `QueryResult.cancel()` interrupts just one. SHOW / DESCRIBE are answered from the branch schema
@@ -513,7 +514,8 @@ class DuckDBBackend:
     def _start(self, branch: str, state: _Branch, translation: Translation, deadline: float,
                scope: Scope | None, *, explain: str | None = None) -> QueryResult:
         """Take a slot (waiting at most until `deadline`) and start the translated query on its own
-        cursor, reading the views of its `scope` (`_scope_views`); with `explain` ("EXPLAIN " or "EXPLAIN ANALYZE "), its plan is the result."""
+        cursor, reading the views of its `scope` (`_scope_views`); with `explain` ("EXPLAIN " or
+        "EXPLAIN ANALYZE "), its plan is the result."""
         timeout = self.limits.query_timeout
         remaining = deadline - time.monotonic()
         if remaining <= 0 or not self._slots.acquire(timeout=remaining):

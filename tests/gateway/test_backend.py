@@ -564,7 +564,8 @@ def test_branches_share_one_database_and_idle_ones_are_released(tmp_path):
         con = backend.connection(branches[5])
         assert con.execute(attached).fetchone() == (1,)  # the 19 others were idle: released
         con.close()
-        assert backend.execute("SELECT count(*) FROM odom", branch=branches[7], scope=Scope("b1", "j1")).rows() == [(3,)]
+        scoped = backend.execute("SELECT count(*) FROM odom", branch=branches[7], scope=Scope("b1", "j1"))
+        assert scoped.rows() == [(3,)]
     finally:
         backend.close()
         expected.close()

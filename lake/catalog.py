@@ -188,8 +188,13 @@ class Catalog:
                       for e in self.snapshot(branch, batch_id=batch_id).of(paths.METADATA_TABLE))
 
     def batches(self, branch: str) -> list[str]:
-        """The batches of a branch that have at least one job, sorted."""
-        return sorted({job.batch_id for job in self.jobs(branch)})
+        """The batches of a branch that have at least one job, sorted (no file list is read)."""
+        record = Record(self.lake, branch)
+        try:
+            found = set(record.batches())
+        finally:
+            record.close()
+        return sorted(found | {e.batch_id for e in self.pending.values() if e.table == paths.METADATA_TABLE})
 
     # -- tables ---------------------------------------------------------------------------
 

@@ -148,6 +148,13 @@ class Record:
             tables = frozenset(row[0] for row in db.execute(_TABLES) if row[0] is not None)
         return Snapshot(generation, tuple(_entry(row) for row in rows), tables)
 
+    def batches(self) -> list[str]:
+        """The batches with at least one job (a `metadata` row), sorted (read from the index alone)."""
+        if not self.root.is_dir():
+            return []
+        return [row[0] for row in self._connect().execute(
+            "SELECT DISTINCT batch_id FROM files WHERE table_name = ? ORDER BY batch_id", (paths.METADATA_TABLE,))]
+
     def find(self, table: str, batch_id: str, job_id: str = "") -> FileEntry | None:
         """The file of one table's job (or batch), if any."""
         if not self.root.is_dir():

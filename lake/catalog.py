@@ -61,6 +61,13 @@ def _quote_text(text: str) -> str:
     return "'" + text.replace("'", "''") + "'"
 
 
+def _in_scope(entry: FileEntry, batch_id: str | None, job_id: str | None) -> bool:
+    """Whether a query of the scope (batch, job) reads `entry` (a batch-level file: every job of its batch)."""
+    if batch_id is not None and entry.batch_id != batch_id:
+        return False
+    return job_id is None or entry.job_id in (job_id, "")
+
+
 def _unreadable_sql(spec: _Spec, entry: FileEntry) -> str:
     """A SELECT standing for an unreadable file: it raises HIVE_BAD_DATA when a query reads its job."""
     keys = {"batch_id": entry.batch_id, "job_id": entry.job_id} if entry.job_id else {"batch_id": entry.batch_id}
@@ -100,31 +107,41 @@ class Catalog:
                     continue
         return sorted(names)
 
-    def snapshot(self, branch: str, record: Record | None = None) -> Snapshot:
-        """The branch's files now (`record`: an open record of the branch to read them from)."""
+    def snapshot(self, branch: str, record: Record | None = None, *, batch_id: str | None = None,
+                 job_id: str | None = None, files: bool = True) -> Snapshot:
+        """The branch's files now, or only those of one scope, or none (`Record.snapshot`);
+        `record`: an open record of the branch to read them from."""
         if record is None:
             record = Record(self.lake, branch)
             try:
-                found = record.snapshot()
+                found = record.snapshot(batch_id, job_id, files=files)
             finally:
                 record.close()
         else:
-            found = record.snapshot()
+            found = record.snapshot(batch_id, job_id, files=files)
         if not self.pending:
             return found
-        files = {entry.key: entry for entry in found.files} | self.pending
-        return Snapshot(found.generation, tuple(files.values()))
+        pending = {key: entry for key, entry in self.pending.items()
+                   if files and _in_scope(entry, batch_id, job_id)}
+        files = {entry.key: entry for entry in found.files} | pending
+        tables = found.tables | {entry.table for entry in self.pending.values()}
+        return Snapshot(found.generation, tuple(files.values()), tables)
 
     def jobs(self, branch: str, batch_id: str | None = None) -> list[JobRef]:
         """The jobs (those with a metadata row) of a branch, or of one batch, sorted."""
         if batch_id is not None:
             paths.check_segment(batch_id, "batch id")
-        return sorted(JobRef(e.batch_id, e.job_id) for e in self.snapshot(branch).of(paths.METADATA_TABLE)
-                      if batch_id is None or e.batch_id == batch_id)
+        return sorted(JobRef(e.batch_id, e.job_id)
+                      for e in self.snapshot(branch, batch_id=batch_id).of(paths.METADATA_TABLE))
 
     def batches(self, branch: str) -> list[str]:
-        """The batches of a branch that have at least one job, sorted."""
-        return sorted({job.batch_id for job in self.jobs(branch)})
+        """The batches of a branch that have at least one job, sorted (no file list is read)."""
+        record = Record(self.lake, branch)
+        try:
+            found = set(record.batches())
+        finally:
+            record.close()
+        return sorted(found | {e.batch_id for e in self.pending.values() if e.table == paths.METADATA_TABLE})
 
     # -- tables ---------------------------------------------------------------------------
 
@@ -142,7 +159,7 @@ class Catalog:
             for topic in self._config(branch, version).topics.values():
                 declared.setdefault(topic.name, []).append(topic)
         current = set(self._config(branch, versions[-1]).topics) if versions else set()
-        with_files = {entry.table for entry in snapshot.files}
+        with_files = snapshot.tables
         specs = []
         for name, topics in declared.items():
             if name not in current and name not in with_files:
@@ -170,7 +187,8 @@ class Catalog:
     def view_sql(self, branch: str, snapshot: Snapshot | None = None,
                  unreadable: Collection[str] = ()) -> dict[str, str]:
         """Table -> a DuckDB SELECT of its rows, columns as in `schema`, over exactly the files of
-        `snapshot` (default: the record now, read through `paths.reader_path`); no file is opened to
+        `snapshot` (default: the record now, read through `paths.reader_path`; a scope's snapshot gives
+        every table of the branch, over the scope's files only); no file is opened to
         build it. The `unreadable` files (absolute reader paths) are left out: a query that reads
         their job fails with HIVE_BAD_DATA naming table, batch and job; other jobs still read."""
         snapshot = snapshot or self.snapshot(branch)

@@ -74,10 +74,12 @@ class FileEntry:
 
 @dataclass(frozen=True)
 class Snapshot:
-    """Every file of a branch at one generation."""
+    """The files of a branch at one generation: all of them, or those of one scope (`Record.snapshot`);
+    `tables` are the tables that have files anywhere in the branch."""
 
     generation: int
     files: tuple[FileEntry, ...]
+    tables: frozenset[str] = frozenset()
 
     def of(self, table: str) -> list[FileEntry]:
         return [entry for entry in self.files if entry.table == table]
@@ -136,16 +138,28 @@ class Record:
         """The id of the last commit (changes whenever any table of the branch changes)."""
         return self._connect().execute("SELECT max(commit_id) FROM commits").fetchone()[0]
 
-    def snapshot(self) -> Snapshot:
-        """Every file of the branch, read in one transaction (none for a branch without a directory)."""
+    def snapshot(self, batch_id: str | None = None, job_id: str | None = None, *, files: bool = True) -> Snapshot:
+        """The branch's files, read in one transaction (none for a branch without a directory):
+        every file, or with `batch_id` and/or `job_id` only the files a query of that scope reads
+        (the job's files and its batch's batch-level files; found by index, the branch is not read);
+        `files=False`: only the generation and the tables, no file."""
         if not self.root.is_dir():
             return Snapshot(0, ())
+        where, args = _scope_condition(batch_id, job_id)
         db = self._connect()
         with _transaction(db):
             generation = db.execute("SELECT max(commit_id) FROM commits").fetchone()[0]
             rows = db.execute("SELECT table_name, batch_id, job_id, path, rows, min_ts, max_ts, columns FROM files "
-                              "ORDER BY table_name, batch_id, job_id").fetchall()
-        return Snapshot(generation, tuple(_entry(row) for row in rows))
+                              f"{where} ORDER BY table_name, batch_id, job_id", args).fetchall() if files else []
+            tables = frozenset(row[0] for row in db.execute(_TABLES) if row[0] is not None)
+        return Snapshot(generation, tuple(_entry(row) for row in rows), tables)
+
+    def batches(self) -> list[str]:
+        """The batches with at least one job (a `metadata` row), sorted (read from the index alone)."""
+        if not self.root.is_dir():
+            return []
+        return [row[0] for row in self._connect().execute(
+            "SELECT DISTINCT batch_id FROM files WHERE table_name = ? ORDER BY batch_id", (paths.METADATA_TABLE,))]
 
     def find(self, table: str, batch_id: str, job_id: str = "") -> FileEntry | None:
         """The file of one table's job (or batch), if any."""
@@ -287,6 +301,24 @@ def _transaction(db: sqlite3.Connection, *, immediate: bool = False) -> Iterator
         db.execute("ROLLBACK")
         raise
     db.execute("COMMIT")
+
+
+#: The distinct tables of `files`, one index seek per table (not a scan of every file).
+_TABLES = """WITH RECURSIVE t(name) AS (SELECT min(table_name) FROM files
+    UNION ALL SELECT (SELECT min(table_name) FROM files WHERE table_name > name) FROM t WHERE name IS NOT NULL)
+    SELECT name FROM t"""
+
+
+def _scope_condition(batch_id: str | None, job_id: str | None) -> tuple[str, tuple[str, ...]]:
+    """The WHERE clause (and its arguments) of the files a query of one scope reads: batch-level
+    files (job_id '') belong to every job of their batch."""
+    if batch_id is not None and job_id is not None:
+        return "WHERE batch_id = ? AND job_id IN (?, '')", (batch_id, job_id)
+    if batch_id is not None:
+        return "WHERE batch_id = ?", (batch_id,)
+    if job_id is not None:
+        return "WHERE job_id IN (?, '')", (job_id,)
+    return "", ()
 
 
 def _hidden(relative: str) -> str:

@@ -57,10 +57,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--max-rows", type=_positive(int), default=_DEFAULTS.max_rows, metavar="N",
                         help=f"rows a result may have (default {_DEFAULTS.max_rows})")
     parser.add_argument("--memory-limit", default="2GB", metavar="SIZE",
-                        help="DuckDB memory limit per branch database, e.g. 2GB or 512MB (default 2GB); a query "
-                             "that needs more fails with EXCEEDED_GLOBAL_MEMORY_LIMIT")
+                        help="DuckDB memory limit of the server, all branches together, e.g. 2GB or 512MB "
+                             "(default 2GB); a query that needs more fails with EXCEEDED_GLOBAL_MEMORY_LIMIT")
     parser.add_argument("--threads", type=_positive(int), default=os.cpu_count() or 1, metavar="N",
-                        help="DuckDB threads per branch database (default: the number of CPUs)")
+                        help="DuckDB threads of the server (all branches together; default: the number of CPUs)")
     parser.add_argument("--max-concurrent-queries", type=_positive(int), default=_DEFAULTS.max_concurrent_queries,
                         metavar="N", help=f"queries that run at once; more wait in a queue "
                                           f"(default {_DEFAULTS.max_concurrent_queries})")

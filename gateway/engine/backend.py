@@ -1,7 +1,9 @@
 """Backends: run one Trino-dialect query on a branch of the lake and stream its result.
 
-`DuckDBBackend` is the embedded default: per branch, one in-memory DuckDB database with a view per
-lake table (`Catalog.view_sql`), locked down before any user query runs (defence in depth behind
+`DuckDBBackend` is the embedded default: one in-memory DuckDB database per backend (one memory
+budget, one thread pool), in which each branch is an attached in-memory database with a view per
+lake table (`Catalog.view_sql`), released when idle; a scoped query (a batch or a job) reads views
+over only its scope's files. It is locked down before any user query runs (defence in depth behind
 the dialect guard): no file access outside the lake, no extension installing or loading, settings
 locked. Each query is translated by `lakegate.dialect.translate`, checked once more by DuckDB's own
 parser (exactly one SELECT), and run on its own cursor, so queries run concurrently and
@@ -21,6 +23,7 @@ it, and only a single statement that DuckDB itself parses as a SELECT is ever ru
 from __future__ import annotations
 
 import hashlib
+import itertools
 import os
 import re
 import shutil
@@ -44,7 +47,7 @@ from lakegate.gateway.engine import introspection
 from lakegate.gateway.engine.limits import Limits
 from lakegate.lake import paths
 from lakegate.lake.catalog import Catalog
-from lakegate.lake.record import FileEntry, Record
+from lakegate.lake.record import FileEntry, Record, Snapshot
 
 #: Rows per streamed record batch.
 BATCH_ROWS = 65_536
@@ -52,6 +55,12 @@ BATCH_ROWS = 65_536
 RETRIES = 3
 #: Parsed DuckDB statements kept per branch (parsing costs about 0.4 ms).
 STATEMENT_CACHE = 256
+#: Scopes whose views (over only their files) are kept per branch, beyond those used in the last
+#: SCOPE_GRACE seconds (a query may be about to bind them).
+SCOPE_VIEWS = 64
+SCOPE_GRACE = 60.0
+#: Seconds without a query after which a branch's views are released (made again on its next query).
+IDLE_SECONDS = 600.0
 
 
 @dataclass
@@ -196,42 +205,61 @@ class Run:
 
 @dataclass
 class _Branch:
-    connection: duckdb.DuckDBPyConnection
+    database: duckdb.DuckDBPyConnection  # the backend's one database
+    name: str  # the branch's attached database in it
     stamp: object = None
+    used: float = 0.0  # time.monotonic() of its last query
     schema: dict[str, dict[str, str]] = field(default_factory=dict)
     version: str = ""
     statements: OrderedDict = field(default_factory=OrderedDict)  # DuckDB SQL -> its checked Statement
     files: dict[str, str] = field(default_factory=dict)  # reader path -> "table T, batch B, job J" (last 2 loads)
     listed: dict[str, str] = field(default_factory=dict)  # the same, of the views' files only
+    views: set[str] = field(default_factory=set)  # the branch-wide views made
+    loaded: bool = False  # whether they are those of the stamp's generation
+    #: (generation, batch, job) -> [DuckDB schema, last use, reader path -> "table T, batch B, job J"]
+    scopes: OrderedDict = field(default_factory=OrderedDict)
+
+    def cursor(self) -> duckdb.DuckDBPyConnection:
+        """A new cursor whose table names resolve in the branch's attached database."""
+        cursor = self.database.cursor()
+        cursor.execute(f"USE {self.name}")
+        return cursor
 
     def failure(self, error: BaseException, *, vanished: bool = False) -> DialectError:
         """The DialectError for a DuckDB error: a listed file is named by its table, batch and job
         (HIVE_BAD_DATA when it cannot be read, HIVE_FILE_NOT_FOUND when writers kept replacing
         it), never by its path."""
         message = str(error)
-        named = [path for path in self.files if path in message]
+        files = self.known()
+        named = [path for path in files if path in message]
         if not named:
             return _failure(error)
         for path in named:
-            message = message.replace(f"'{path}'", path).replace(f'"{path}"', path).replace(path, self.files[path])
+            message = message.replace(f"'{path}'", path).replace(f'"{path}"', path).replace(path, files[path])
         if vanished:
-            return DialectError(f"The data of {self.files[named[0]]} was replaced while the query read it, "
+            return DialectError(f"The data of {files[named[0]]} was replaced while the query read it, "
                                 "again and again; run the query again", error_name="HIVE_FILE_NOT_FOUND")
         first = message.strip().splitlines()[0].split(": ", 1)[-1]
-        return DialectError(f"Cannot read the Parquet file of {self.files[named[0]]}: {first}",
+        return DialectError(f"Cannot read the Parquet file of {files[named[0]]}: {first}",
                             error_name="HIVE_BAD_DATA")
 
     def vanished(self, error: BaseException) -> bool:
         """Whether the error is about a listed file that is gone (a writer replaced it)."""
         message = str(error)
-        return any(path in message and not os.path.exists(path) for path in self.files)
+        return any(path in message and not os.path.exists(path) for path in self.known())
+
+    def known(self) -> dict[str, str]:
+        """Every file the views list (branch-wide and scoped): reader path -> how messages name it."""
+        return {**self.files, **{path: where for entry in self.scopes.values() for path, where in entry[2].items()}}
 
 
 class DuckDBBackend:
     """Embedded DuckDB over the lake at `lake` (None: no lake, constant queries only).
 
-    `memory_limit` and `threads` apply to each branch's database; `limits` bound every query's time
-    and how many run at once (`query_timeout`, `max_concurrent_queries`). Each query reads its
+    `memory_limit` and `threads` are shared by every branch (one DuckDB database; each branch is
+    attached to it on first use and detached after `idle_seconds` without a query, at least the
+    query timeout, so that no query still runs on it); `limits` bound every query's time and how
+    many run at once (`query_timeout`, `max_concurrent_queries`). Each query reads its
     branch's record generation (`lake.record`) once; when it changed (a commit) or the config registry
     did, the views are rebuilt from one snapshot of the record, in one DuckDB transaction, so a query
     sees every table at one generation. `pending` files (staged, not committed) replace the record's
@@ -239,10 +267,13 @@ class DuckDBBackend:
     """
 
     def __init__(self, lake: Path | None, *, memory_limit: str = "2GB", threads: int = 2, limits: Limits = Limits(),
-                 pending: Sequence[FileEntry] = ()):
+                 pending: Sequence[FileEntry] = (), idle_seconds: float = IDLE_SECONDS):
         self.lake = Path(lake).resolve() if lake is not None else None
         self.catalog = Catalog(self.lake, pending) if self.lake is not None else None
         self.memory_limit, self.threads, self.limits = memory_limit, threads, limits
+        self.idle_seconds = max(idle_seconds, limits.query_timeout)
+        self._database: duckdb.DuckDBPyConnection | None = None
+        self._branch_ids = itertools.count(1)
         self._slots = threading.BoundedSemaphore(limits.max_concurrent_queries)
         self._runs: weakref.WeakSet[Run] = weakref.WeakSet()  # queries started and not collected
         self._branches: dict[str, _Branch] = {}
@@ -250,13 +281,14 @@ class DuckDBBackend:
         self._records: dict[str, Record] = {}
         self._listed: tuple[object, list[str]] = (None, [])  # (the lake directory's mtime, its branches)
         self._lock = threading.Lock()
+        self._scope_ids = itertools.count(1)
         self._temp = tempfile.mkdtemp(prefix="lakegate-duckdb-")
         self._cleanup = weakref.finalize(self, shutil.rmtree, self._temp, ignore_errors=True)
 
     def with_pending(self, pending: Sequence[FileEntry]) -> "DuckDBBackend":
         """A new backend over the same lake that already shows `pending` (close it after use)."""
         return DuckDBBackend(self.lake, memory_limit=self.memory_limit, threads=self.threads, limits=self.limits,
-                             pending=pending)
+                             pending=pending, idle_seconds=self.idle_seconds)
 
     # -- branches -------------------------------------------------------------------------
 
@@ -298,10 +330,15 @@ class DuckDBBackend:
             return record.generation(), None
 
     def _connect(self) -> duckdb.DuckDBPyConnection:
-        return duckdb.connect(":memory:", config={
-            "threads": self.threads, "memory_limit": self.memory_limit, "temp_directory": self._temp,
-            "autoinstall_known_extensions": False, "autoload_known_extensions": False,
-            "python_enable_replacements": False})
+        """The backend's one database, locked down (made on first use; called under `_lock`)."""
+        if self._database is None:
+            database = duckdb.connect(":memory:", config={
+                "threads": self.threads, "memory_limit": self.memory_limit, "temp_directory": self._temp,
+                "autoinstall_known_extensions": False, "autoload_known_extensions": False,
+                "python_enable_replacements": False})
+            self._lock_down(database)
+            self._database = database
+        return self._database
 
     def _lock_down(self, connection: duckdb.DuckDBPyConnection) -> None:
         connection.execute("SET TimeZone = 'UTC'")
@@ -310,58 +347,90 @@ class DuckDBBackend:
         connection.execute("SET enable_external_access = false")
         connection.execute("SET lock_configuration = true")
 
-    def _state(self, branch: str) -> _Branch:
+    def _state(self, branch: str, *, views: bool = False) -> _Branch:
+        """The branch at its record's current generation: its schema, and with `views` its branch-wide
+        views (a query without a scope reads them; a scoped one reads `_scope_views`)."""
         with self._lock:
+            self._release_idle()  # before the stamp: it may close this branch's record
             stamp = self._stamp(branch)
             state = self._branches.get(branch)
             if state is None:
-                connection = self._connect()
-                self._lock_down(connection)
-                state = self._branches[branch] = _Branch(connection, stamp=object())
-            if state.stamp != stamp:
-                self._load_views(state, branch, stamp)
+                database, name = self._connect(), f"branch_{next(self._branch_ids)}"
+                database.execute(f"ATTACH ':memory:' AS {name}")
+                state = self._branches[branch] = _Branch(database, name, stamp=object())
+            state.used = time.monotonic()
+            if state.stamp != stamp or (views and not state.loaded):
+                self._load(state, branch, stamp, views)
             return state
 
-    def _load_views(self, state: _Branch, branch: str, stamp: object) -> None:
-        """Replace the views by those of the record's current snapshot. A file that cannot be read
-        is left out (queries of its job fail, `Catalog.view_sql`); a file replaced meanwhile (a
-        writer committed after the snapshot was read) means a newer snapshot is taken."""
+    def _release_idle(self) -> None:
+        """Detach the branches not queried for `idle_seconds` (called under `_lock`)."""
+        limit = time.monotonic() - self.idle_seconds
+        for branch, state in list(self._branches.items()):
+            if state.used < limit:
+                del self._branches[branch]
+                state.database.execute(f"DETACH {state.name}")
+                self._records.pop(branch).close()
+
+    def _load(self, state: _Branch, branch: str, stamp: object, views: bool) -> None:
+        """Take the schema of the record's current generation; with `views`, replace the branch-wide
+        views by those of its snapshot (otherwise only the record's tables are read, no file list)."""
         if self.catalog is None:
             state.stamp = stamp
             return
+        record = self._records[branch]
+        snapshot = self._load_views(state, branch) if views else self.catalog.snapshot(branch, record, files=False)
+        schema = self.catalog.schema(branch, snapshot)
+        state.schema, state.stamp, state.loaded = schema, (snapshot.generation, stamp[1]), views
+        state.version = hashlib.sha1(repr(sorted((t, sorted(c.items())) for t, c in schema.items()))
+                                     .encode()).hexdigest()
+
+    def _load_views(self, state: _Branch, branch: str) -> Snapshot:
+        """Replace the branch-wide views by those of the record's current snapshot (a newer one when
+        a writer replaced one of its files meanwhile, `_create_views`); returns the snapshot."""
         root = paths.branch_dir(self.lake, branch)
         while True:
             snapshot = self.catalog.snapshot(branch, self._records[branch])
             files = {str(paths.reader_path(root, e.path)): e.where for e in snapshot.files}
             state.files = {**state.listed, **files}  # queries still running may name the last files
-            schema = self.catalog.schema(branch, snapshot)
-            unreadable: set[str] = set()
-            failed = self._swap_views(state, self.catalog.view_sql(branch, snapshot))
-            while failed is not None:
-                named = {path for path in files if path in failed}
-                if named <= unreadable:
-                    raise state.failure(duckdb.Error(failed))
-                if not all(map(os.path.exists, named)) and self._records[branch].generation() != snapshot.generation:
-                    break  # a writer replaced the file: take the newer snapshot
-                unreadable |= named  # corrupt, or missing although the record holds it
-                failed = self._swap_views(state, self.catalog.view_sql(branch, snapshot, unreadable=unreadable))
-            if failed is None:
+            if self._create_views(state, branch, snapshot, state.views):
                 break
         state.files, state.listed = {**state.listed, **files}, files
-        state.schema, state.stamp = schema, (snapshot.generation, stamp[1])
-        state.version = hashlib.sha1(repr(sorted((t, sorted(c.items())) for t, c in schema.items()))
-                                     .encode()).hexdigest()
+        state.views = set(self.catalog.schema(branch, snapshot))
+        return snapshot
+
+    def _create_views(self, state: _Branch, branch: str, snapshot: Snapshot, old: Iterable[str] = (),
+                      schema: str | None = None) -> bool:
+        """Create the views of `snapshot` in one transaction (in DuckDB schema `schema`, default the
+        branch's own views, dropping the `old` views it no longer has). A file that cannot be read is
+        left out (queries of its job fail, `Catalog.view_sql`); False when one was replaced
+        meanwhile (a writer committed after the snapshot was read): take a newer snapshot."""
+        root = paths.branch_dir(self.lake, branch)
+        unreadable: set[str] = set()
+        while (failed := self._swap_views(state, self.catalog.view_sql(branch, snapshot, unreadable=unreadable),
+                                          old, schema)) is not None:
+            files = (str(paths.reader_path(root, e.path)) for e in snapshot.files)
+            named = {path for path in files if path in failed}
+            if named <= unreadable:
+                raise state.failure(duckdb.Error(failed))
+            if not all(map(os.path.exists, named)) and self._records[branch].generation() != snapshot.generation:
+                return False
+            unreadable |= named  # corrupt, or missing although the record holds it
+        return True
 
     @staticmethod
-    def _swap_views(state: _Branch, views: dict[str, str]) -> str | None:
-        """Replace the branch's views in one transaction; the error text if one cannot be made."""
-        cursor = state.connection.cursor()
+    def _swap_views(state: _Branch, views: dict[str, str], old: Iterable[str], schema: str | None) -> str | None:
+        """Replace views in one transaction; the error text if one cannot be made."""
+        prefix = f"{schema}." if schema else ""
+        cursor = state.cursor()
         try:
             cursor.execute("BEGIN")
-            for name in set(state.schema) - set(views):
+            if schema:
+                cursor.execute(f"CREATE SCHEMA {schema}")
+            for name in set(old) - set(views):
                 cursor.execute(f"DROP VIEW IF EXISTS {_quote_ident(name)}")
             for name, select in views.items():
-                cursor.execute(f"CREATE OR REPLACE VIEW {_quote_ident(name)} AS {select}")
+                cursor.execute(f"CREATE OR REPLACE VIEW {prefix}{_quote_ident(name)} AS {select}")
             cursor.execute("COMMIT")
             return None
         except duckdb.Error as error:
@@ -370,13 +439,41 @@ class DuckDBBackend:
         finally:
             cursor.close()
 
+    def _scope_views(self, state: _Branch, branch: str, scope: Scope) -> str:
+        """The DuckDB schema whose views read only the files of `scope` (the job's files and its
+        batch's batch-level files, found by the record's index), made on first use at each
+        generation and kept in an LRU."""
+        with self._lock:
+            now = time.monotonic()
+            found = state.scopes.get((state.stamp[0], scope.batch_id, scope.job_id))
+            if found is not None:
+                state.scopes.move_to_end((state.stamp[0], scope.batch_id, scope.job_id))
+                found[1] = now
+                return found[0]
+            name = f"{state.name}.scope_{next(self._scope_ids)}"
+            while True:  # a writer may commit meanwhile: the scope's files are then those of its generation
+                snapshot = self.catalog.snapshot(branch, self._records[branch], batch_id=scope.batch_id,
+                                                 job_id=scope.job_id)
+                if self._create_views(state, branch, snapshot, schema=name):
+                    break
+            root = paths.branch_dir(self.lake, branch)
+            files = {str(paths.reader_path(root, e.path)): e.where for e in snapshot.files}
+            state.scopes[(snapshot.generation, scope.batch_id, scope.job_id)] = [name, now, files]
+            while len(state.scopes) > SCOPE_VIEWS and next(iter(state.scopes.values()))[1] < now - SCOPE_GRACE:
+                state.database.execute(f"DROP SCHEMA {state.scopes.popitem(last=False)[1][0]} CASCADE")
+            return name
+
+    def _scoped(self, scope: Scope | None) -> bool:
+        """Whether a query of `scope` reads the scope's own views (`_scope_views`)."""
+        return self.catalog is not None and scope is not None and bool(scope.conditions())
+
     def schema(self, branch: str = "main") -> dict[str, dict[str, str]]:
         """Table -> column -> Trino type name of `branch` (empty without a lake)."""
         return self._state(branch).schema
 
     def connection(self, branch: str = "main") -> duckdb.DuckDBPyConnection:
         """A new cursor on the branch's locked-down DuckDB database (raw DuckDB SQL, for tests and tools)."""
-        return self._state(branch).connection.cursor()
+        return self._state(branch, views=True).cursor()
 
     # -- queries --------------------------------------------------------------------------
 
@@ -404,31 +501,34 @@ class DuckDBBackend:
         if not isinstance(sql, str):
             sql = guard.check_text(sql)  # bytes: decoded (or refused) first
         kind = guard.classify(sql)
-        state = self._state(branch)
+        state = self._state(branch, views=kind not in ("show", "describe") and not self._scoped(scope))
         if kind in ("show", "describe"):
             answer = introspection.answer(guard.check_text(sql), state.schema, schemas=self.branches() or [branch])
             return _static(answer.columns, answer.rows)
         if kind == "explain":
             translation, analyze = self._explain(guard.check_text(sql), state, scope, params)
-            return self._start(branch, state, translation, deadline,
+            return self._start(branch, state, translation, deadline, scope,
                                explain="EXPLAIN ANALYZE " if analyze else "EXPLAIN ")
-        return self._start(branch, state, self._translate(state, sql, scope, params), deadline)
+        return self._start(branch, state, self._translate(state, sql, scope, params), deadline, scope)
 
-    def _start(self, branch: str, state: _Branch, translation: Translation, deadline: float, *,
-               explain: str | None = None) -> QueryResult:
+    def _start(self, branch: str, state: _Branch, translation: Translation, deadline: float,
+               scope: Scope | None, *, explain: str | None = None) -> QueryResult:
         """Take a slot (waiting at most until `deadline`) and start the translated query on its own
-        cursor; with `explain` ("EXPLAIN " or "EXPLAIN ANALYZE "), its plan is the result."""
+        cursor, reading the views of its `scope` (`_scope_views`); with `explain` ("EXPLAIN " or
+        "EXPLAIN ANALYZE "), its plan is the result."""
         timeout = self.limits.query_timeout
         remaining = deadline - time.monotonic()
         if remaining <= 0 or not self._slots.acquire(timeout=remaining):
             raise time_limit_error(timeout)
-        cursor = state.connection.cursor()
+        cursor = state.cursor()
         try:
             if explain is None:
                 produce: Callable[[], Iterable[pa.RecordBatch]] = self._rows(branch, state, cursor,
-                                                                             translation.duckdb_sql)
+                                                                             translation.duckdb_sql, scope)
                 columns = list(translation.columns)
             else:
+                if self._scoped(scope):
+                    self._use_views(cursor, self._scope_views(state, branch, scope))
                 self._single_select(cursor, translation.duckdb_sql)
                 produce = lambda: [self._plan(cursor, explain + translation.duckdb_sql)]
                 columns = [("Query Plan", "varchar")]
@@ -443,12 +543,15 @@ class DuckDBBackend:
         return QueryResult(columns=columns, batches=run, duckdb_sql=translation.duckdb_sql, _cancel=run.cancel)
 
     def _rows(self, branch: str, state: _Branch, cursor: duckdb.DuckDBPyConnection,
-              duckdb_sql: str) -> Callable[[], Iterator[pa.RecordBatch]]:
-        """Bind the query on `cursor` now; the returned function reads its record batches. A query
-        that finds a listed file gone before its first row (a writer replaced it after the query's
-        views were read) starts again on the branch's views as they are now, up to RETRIES times."""
+              duckdb_sql: str, scope: Scope | None) -> Callable[[], Iterator[pa.RecordBatch]]:
+        """Bind the query on `cursor` now, over the views of its `scope`; the returned function reads
+        its record batches. A query that finds a listed file gone before its first row (a writer
+        replaced it after the query's views were read) starts again on the branch's views as they
+        are now, up to RETRIES times."""
         def bind(attempt: _Branch, retries: int) -> duckdb.DuckDBPyRelation:
             try:
+                if self._scoped(scope):
+                    self._use_views(cursor, self._scope_views(attempt, branch, scope))
                 return cursor.sql(self._statement(attempt, cursor, duckdb_sql))
             except duckdb.Error as error:
                 return again(attempt, error, retries)
@@ -458,7 +561,7 @@ class DuckDBBackend:
                 raise error
             if retries == 0:
                 raise attempt.failure(error, vanished=True) from None
-            return bind(self._state(branch), retries - 1)
+            return bind(self._state(branch, views=not self._scoped(scope)), retries - 1)
 
         first = bind(state, RETRIES)
 
@@ -476,6 +579,11 @@ class DuckDBBackend:
                         raise
                     relation, retries = again(state, error, retries), retries - 1
         return read
+
+    @staticmethod
+    def _use_views(cursor: duckdb.DuckDBPyConnection, schema: str) -> None:
+        """Make the cursor's table names resolve to the views of `schema`."""
+        cursor.execute(f"SET search_path = '{schema}'")
 
     def _plan(self, cursor: duckdb.DuckDBPyConnection, explain_sql: str) -> pa.RecordBatch:
         """DuckDB's plan (EXPLAIN [ANALYZE] runs here) as one row, lake paths made relative."""
@@ -543,8 +651,8 @@ class DuckDBBackend:
         """Interrupt running queries, close every branch database and remove the spill directory."""
         self.stop_all()
         with self._lock:
-            for state in self._branches.values():
-                state.connection.close()
+            if self._database is not None:
+                self._database.close()
             self._branches.clear()
             for record in self._records.values():
                 record.close()

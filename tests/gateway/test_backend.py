@@ -22,6 +22,7 @@ from lakegate.dialect.scope import Scope
 from lakegate.gateway.engine.backend import DuckDBBackend
 from lakegate.gateway.engine.limits import Limits
 from lakegate.lake.config import load_config
+from lakegate.lake import paths
 from lakegate.lake.ingest import ingest_job
 
 CONFIG = """\
@@ -299,6 +300,7 @@ REINGEST_SCRIPT = """
 import sys
 from pathlib import Path
 from lakegate.lake.config import load_config
+from lakegate.lake import paths
 from lakegate.lake.ingest import ingest_job
 lake, config, emissions, runs = Path(sys.argv[1]), load_config([sys.argv[2]]), Path(sys.argv[3]), int(sys.argv[4])
 for run in range(runs):
@@ -499,3 +501,72 @@ def test_errors_and_plans_name_lake_files_relative_to_the_lake(tmp_path):
     assert error.error_name == "HIVE_BAD_DATA" and "table odom" in error.message
     for text in (plan, error.message, unknown.message):
         assert str(tmp_path) not in text
+
+
+def test_a_scoped_query_reads_only_the_files_of_its_scope(tmp_path):
+    """Issue 12: a test metric's (job) and a batch metric's (batch) queries read views over only their
+    files, found in the record: after the views are loaded, the first odom file of the branch (job
+    j1, the one DuckDB would open to bind a view over every file) is overwritten with garbage.
+    Queries scoped to other jobs or batches still answer; those that read j1 fail naming it."""
+    lake = build_lake(tmp_path)
+    backend = DuckDBBackend(lake, memory_limit="256MB", threads=1)
+    try:
+        assert backend.execute("SELECT count(*) FROM odom").rows() == [(9,)]
+        first = next(lake.glob("main/odom/batch_id=b1/job_id=j1/*.parquet"))
+        first.write_bytes(b"not parquet at all" * 10)  # the reader link is the same file
+        sql = "SELECT m.experience_name, count(*) FROM odom o JOIN metadata m ON o.job_id = m.job_id GROUP BY 1"
+        assert backend.execute(sql, scope=Scope(batch_id="b1", job_id="j2")).rows() == [("exp j2", 2)]
+        assert backend.execute(sql, scope=Scope(batch_id="b2")).rows() == [("exp j3", 4)]
+        assert backend.execute(sql, scope=Scope(job_id="j3")).rows() == [("exp j3", 4)]
+        for scope in (Scope(batch_id="b1"), Scope(batch_id="b1", job_id="j1")):
+            error = refused(backend, sql, scope=scope)
+            assert "table odom, batch b1, job j1" in error.message and str(tmp_path) not in error.message
+    finally:
+        backend.close()
+
+
+def test_scoped_views_follow_a_re_ingest(tmp_path):
+    """A scope's views belong to one generation of the record: after the job is ingested again, the
+    same scoped query reads the new files (with the new rows)."""
+    lake = build_lake(tmp_path)
+    backend = DuckDBBackend(lake, memory_limit="256MB", threads=1)
+    try:
+        scope = Scope(batch_id="b1", job_id="j1")
+        assert backend.execute("SELECT count(*), min(experience_name) FROM odom", scope=scope).rows() == [(3, "exp j1")]
+        ingest_one(tmp_path, lake, "j1", "".join(line("odom", i, {"x": 1.0, "y": 2.0}) for i in range(5)), name="new")
+        assert backend.execute("SELECT count(*), min(experience_name) FROM odom", scope=scope).rows() == [(5, "new")]
+        assert backend.execute("SELECT count(*) FROM odom", scope=Scope(batch_id="b1")).rows() == [(7,)]
+    finally:
+        backend.close()
+
+
+def test_branches_share_one_database_and_idle_ones_are_released(tmp_path):
+    """Issue 12: 20 branches are attached databases of the backend's one DuckDB database, so one
+    memory limit and one thread pool bound them together; a branch not queried for `idle_seconds`
+    is detached and answers again (its views made anew) at its next query."""
+    lake = build_lake(tmp_path, jobs=[("b1", "j1", 3)])
+    branches = [f"team/{i}" for i in range(20)]
+    for branch in branches:
+        shutil.copytree(lake / "main", paths.branch_dir(lake, branch))
+    backend = DuckDBBackend(lake, memory_limit="300MB", threads=2, limits=Limits(query_timeout=1.0),
+                            idle_seconds=3600)
+    expected = duckdb.connect(config={"memory_limit": "300MB", "threads": 2})
+    attached = "SELECT count(*) FROM duckdb_databases() WHERE database_name LIKE 'branch_%'"
+    try:
+        for branch in branches:
+            assert backend.execute("SELECT count(*), min(job_id) FROM odom", branch=branch).rows() == [(3, "j1")]
+        con = backend.connection(branches[0])
+        assert con.execute(attached).fetchone() == (20,)
+        settings = "SELECT current_setting('memory_limit'), current_setting('threads')"
+        assert con.execute(settings).fetchone() == expected.execute(settings).fetchone()
+        con.close()
+        backend.idle_seconds = 0.0  # every branch is idle now (no waiting: the test holds under any load)
+        assert backend.execute("SELECT count(*) FROM odom", branch=branches[5]).rows() == [(3,)]
+        con = backend.connection(branches[5])
+        assert con.execute(attached).fetchone() == (1,)  # the others were idle: released
+        con.close()
+        scoped = backend.execute("SELECT count(*) FROM odom", branch=branches[7], scope=Scope("b1", "j1"))
+        assert scoped.rows() == [(3,)]
+    finally:
+        backend.close()
+        expected.close()

@@ -13,12 +13,14 @@ import math
 from decimal import Decimal
 from typing import Any
 
+import duckdb
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from trino.dbapi import Cursor
 
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.params import TypedLiteral, literal, parse_using
+from lakegate.dialect.translate import translate
 
 PROPERTY = settings(max_examples=200, deadline=None)
 
@@ -95,3 +97,82 @@ def test_a_date_the_client_writes_with_fewer_year_digits_stays_typed_text():
         TypedLiteral("date", "999-01-01"),
         TypedLiteral("date", "2024-02-30"),
     ]
+
+
+SCHEMA = {"t": {"a": "bigint", "s": "varchar"}}
+#: statements of every kind DuckDB or Trino knows, reads and writes, some with a query inside
+STATEMENTS = [
+    "SELECT a FROM t",
+    "WITH w AS (SELECT a FROM t) SELECT * FROM w",
+    "VALUES (1, 'x')",
+    "TABLE t",
+    "SELECT 1 UNION ALL SELECT 2",
+    "INSERT INTO t SELECT * FROM t",
+    "INSERT INTO t VALUES (1, 'x')",
+    "WITH w AS (SELECT 1) INSERT INTO t SELECT * FROM w",
+    "UPDATE t SET a = 1",
+    "DELETE FROM t",
+    "MERGE INTO t USING t AS u ON t.a = u.a WHEN MATCHED THEN DELETE",
+    "TRUNCATE t",
+    "CREATE TABLE u AS SELECT * FROM t",
+    "CREATE OR REPLACE VIEW v AS SELECT 1",
+    "CREATE MACRO m(x) AS x",
+    "DROP TABLE t",
+    "ALTER TABLE t ADD COLUMN c int",
+    "COPY t TO 'out.csv'",
+    "COPY (SELECT 1) TO 'out.parquet' (FORMAT parquet)",
+    "EXPORT DATABASE 'dir'",
+    "IMPORT DATABASE 'dir'",
+    "ATTACH 'other.db' AS other",
+    "DETACH other",
+    "INSTALL httpfs",
+    "LOAD httpfs",
+    "PRAGMA version",
+    "SET memory_limit = '1GB'",
+    "SET SESSION query_max_run_time = '1h'",
+    "RESET memory_limit",
+    "CALL pragma_version()",
+    "CHECKPOINT",
+    "VACUUM",
+    "BEGIN TRANSACTION",
+    "START TRANSACTION",
+    "COMMIT",
+    "USE other",
+    "PREPARE p FROM SELECT 1",
+    "EXECUTE p",
+    "DESCRIBE t",
+    "SHOW TABLES",
+    "SUMMARIZE t",
+    "PIVOT t ON a",
+    "FROM t",
+    "EXPLAIN SELECT 1",
+    "EXPLAIN ANALYZE DELETE FROM t",
+    "SELECT * FROM read_csv('x.csv')",
+    "SELECT * FROM query('DROP TABLE t')",
+    "SELECT (SELECT count(*) FROM t)",
+]
+
+
+@st.composite
+def statement_texts(draw: st.DrawFn) -> str:
+    """One or two statements, dressed as a client might send them: comments, brackets, case, semicolons."""
+    parts = []
+    for statement in draw(st.lists(st.sampled_from(STATEMENTS), min_size=1, max_size=2)):
+        if draw(st.booleans()):
+            statement = "".join(c.swapcase() if draw(st.booleans()) else c for c in statement)
+        if statement.upper().startswith(("SELECT", "WITH", "VALUES", "TABLE")) and draw(st.booleans()):
+            statement = f"({statement})"
+        prefix = draw(st.sampled_from(["", " ", "\n", "/* c */ ", "-- c\n", "/* a; DROP TABLE t */"]))
+        parts.append(prefix + statement)
+    return ";".join(parts) + draw(st.sampled_from(["", ";", " ; ", ";\n-- end"]))
+
+
+@settings(max_examples=300, deadline=None)
+@given(sql=statement_texts())
+def test_only_a_single_select_ever_reaches_duckdb(sql):
+    try:
+        duckdb_sql = translate(sql, SCHEMA).duckdb_sql
+    except DialectError:
+        return
+    statements = duckdb.extract_statements(duckdb_sql)
+    assert [s.type for s in statements] == [duckdb.StatementType.SELECT], (sql, duckdb_sql)

@@ -2,12 +2,14 @@
 """Set up and run lakegate on a fresh machine that has only python3.
 
     python3 dev.py demo [ARGS...]   create .venv, install lakegate, run `lakegate demo`
-    python3 dev.py test [ARGS...]   create .venv, install lakegate[test], run the test suite
+    python3 dev.py test [ARGS...]   create .venv, install lakegate[test], lint (ruff), run the test suite
+    python3 dev.py lint             only the lint: `ruff check` and `ruff format --check`
     python3 dev.py bench NAME       run bench/NAME.py (results go to bench/RESULTS.md)
     python3 dev.py lakegate ARGS    run any lakegate command inside .venv
 
 The virtual environment is reinstalled only when pyproject.toml changes.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -44,6 +46,15 @@ def ensure_venv(extras: str = "test") -> None:
     stamp.write_text(digest)
 
 
+def lint() -> int:
+    """`ruff check` and `ruff format --check` over the tree (settings in pyproject.toml); nonzero on findings."""
+    checked = _run([BIN / "ruff", "check", "--output-format", "concise", "."])
+    formatted = _run([BIN / "ruff", "format", "--check", "."])
+    if checked or formatted:
+        print("lint: fix the findings above (`.venv/bin/ruff format FILE` formats a file)", file=sys.stderr)
+    return checked or formatted
+
+
 def main(argv: list[str]) -> int:
     if not argv or argv[0] in {"-h", "--help", "help"}:
         print(__doc__)
@@ -52,9 +63,12 @@ def main(argv: list[str]) -> int:
     ensure_venv()
     if command == "demo":
         return _run([BIN / "lakegate", "demo", *rest])
+    if command == "lint":
+        return lint()
     if command == "test":
+        linted = lint()
         workers = [] if any(a.startswith("-n") for a in rest) else ["-n", "2"]
-        return _run([PY, "-m", "pytest", *workers, *rest])
+        return _run([PY, "-m", "pytest", *workers, *rest]) or linted
     if command == "bench":
         if not rest:
             print("usage: python3 dev.py bench NAME [ARGS...]  (NAME is a file in bench/)")

@@ -28,6 +28,7 @@ from lakegate.dialect.trino_types import decimal_literal_type
 
 _MARK = "lakegate_param_"
 _EXECUTE = re.compile(r"\s*EXECUTE\b", re.I)
+_ISO_DATE = re.compile(r"[0-9]{4}-[0-9]{2}-[0-9]{2}")
 _NON_FINITE = {math.inf: "Infinity", -math.inf: "-Infinity"}
 
 
@@ -196,7 +197,7 @@ def _value(node: exp.Expression) -> object:
         elif to.is_type(exp.DataType.Type.DECIMAL):
             return Decimal(text.strip())
         elif to.is_type(exp.DataType.Type.DATE):
-            return dt.date.fromisoformat(text.strip())
+            return _date(text)
         elif to.is_type(exp.DataType.Type.UUID):
             return uuid.UUID(text.strip())
         return TypedLiteral(to.sql(dialect="trino").lower(), text)
@@ -217,6 +218,15 @@ def _value(node: exp.Expression) -> object:
         return dict(zip(keys, values))
     raise DialectError(f"a parameter must be a literal, not '{node.sql(dialect='trino')}'",
                        error_name="INVALID_PARAMETER_USAGE")
+
+
+def _date(text: str) -> dt.date | TypedLiteral:
+    """The date of a DATE literal's text; any other text ('999-01-01', '2024-02-30') stays typed text,
+    so the query answers (or refuses) it exactly as the same literal written inline."""
+    try:
+        return dt.date.fromisoformat(text.strip()) if _ISO_DATE.fullmatch(text.strip()) else TypedLiteral("date", text)
+    except ValueError:
+        return TypedLiteral("date", text)
 
 
 def parse_execute(text: str) -> Execute:

@@ -4,9 +4,10 @@ Starts `lakegate metrics debug` on a generated job, loads the page and checks th
 kind renders a non-empty chart, table, value or image; edits a query and sees the new value;
 breaks it and sees the error with its line and column marked in the query; adds a metric with
 the form; exports the config and loads it back; looks at the data explorer and the events.
-Screenshots go to tests/artifacts/ (git-ignored). Without /usr/bin/chromium the test is skipped,
-except under CI=true, where it must run.
+Screenshots go to the test's tmp_path, or to $LAKEGATE_TEST_ARTIFACTS when set (CI artifacts).
+Without /usr/bin/chromium the test is skipped, except under CI=true, where it must run.
 """
+
 from __future__ import annotations
 
 import io
@@ -21,9 +22,16 @@ import pytest
 from lakegate.lake.config import load_config
 
 CHROMIUM = Path("/usr/bin/chromium")
-ARTIFACTS = Path(__file__).resolve().parents[1] / "artifacts"
-ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
 TEMPLATES = ("line", "bar", "table", "scalar", "image", "state_timeline", "histogram", "pie")
 CHARTS = ("line", "bar", "state_timeline", "histogram", "pie")
 
@@ -44,17 +52,34 @@ def _require_browser():
     return sync_api
 
 
+def _artifacts(tmp_path: Path) -> Path:
+    """Where the screenshots go: $LAKEGATE_TEST_ARTIFACTS if set, else a folder of the test's tmp_path."""
+    folder = Path(os.environ.get("LAKEGATE_TEST_ARTIFACTS") or tmp_path / "artifacts")
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
 def _card(page, name: str):
     return page.locator(f'article.metric[data-metric="{name}"]')
 
 
 def test_dashboard_in_a_real_browser(tmp_path: Path, nav_jobs, debug_processes) -> None:
     sync_api = _require_browser()
-    ARTIFACTS.mkdir(exist_ok=True)
+    artifacts = _artifacts(tmp_path)
     job = nav_jobs.jobs[0]
-    server = debug_processes(["--emissions-file", str(job.emissions_path), "--metrics-config-path",
-                              str(nav_jobs.config), "--metrics-set", "Nav Metrics",
-                              "--metadata", str(job.metadata_path)], tmp_path)
+    server = debug_processes(
+        [
+            "--emissions-file",
+            str(job.emissions_path),
+            "--metrics-config-path",
+            str(nav_jobs.config),
+            "--metrics-set",
+            "Nav Metrics",
+            "--metadata",
+            str(job.metadata_path),
+        ],
+        tmp_path,
+    )
     emitted = [json.loads(line) for line in job.emissions_path.read_text().splitlines()]
     goal_states = sum(1 for line in emitted if line["$metadata"]["topic"] == "goal_status")
     errors: list[str] = []
@@ -79,7 +104,8 @@ def test_dashboard_in_a_real_browser(tmp_path: Path, nav_jobs, debug_processes) 
                     if kind in CHARTS:
                         card.locator(".js-plotly-plot .main-svg").first.wait_for()
                         points = card.locator(".js-plotly-plot").evaluate(
-                            "el => el.data.reduce((n, t) => n + (t.x || t.values || []).length, 0)")
+                            "el => el.data.reduce((n, t) => n + (t.x || t.values || []).length, 0)"
+                        )
                         assert points > 0, name
                     elif kind == "table":
                         assert card.locator("table.data tbody tr").count() > 0, name
@@ -89,15 +115,17 @@ def test_dashboard_in_a_real_browser(tmp_path: Path, nav_jobs, debug_processes) 
                         image = card.locator(".images img").first
                         image.wait_for()
                         assert image.evaluate("img => img.complete && img.naturalWidth > 0"), name
-            page.screenshot(path=str(ARTIFACTS / "dashboard-metrics.png"), full_page=True)
+            page.screenshot(path=str(artifacts / "dashboard-metrics.png"), full_page=True)
 
             # edit a query in place and see the new value
             card = _card(page, "Time to reach final goal")
             card.locator("summary").click()
             card.locator("textarea").fill("SELECT 42.5")
             card.locator("button.run").click()
-            page.wait_for_function("document.querySelector('article.metric[data-metric=\"Time to reach final goal\"] "
-                                   ".scalar')?.textContent === '42.5 s'")
+            page.wait_for_function(
+                'document.querySelector(\'article.metric[data-metric="Time to reach final goal"] '
+                ".scalar')?.textContent === '42.5 s'"
+            )
             assert _card(page, "Time to reach final goal").locator(".chip.edited").count() == 1
 
             # break it: the error names the line and column, which are marked in the query
@@ -110,7 +138,7 @@ def test_dashboard_in_a_real_browser(tmp_path: Path, nav_jobs, debug_processes) 
             assert "line 2, column 6" in message and "time_to_goalz" in message
             assert card.locator(".editor .hl-err").inner_text() == "time_to_goalz"
             assert card.locator(".badge").first.inner_text() == "ERROR"
-            card.screenshot(path=str(ARTIFACTS / "dashboard-error.png"))
+            card.screenshot(path=str(artifacts / "dashboard-error.png"))
 
             # add a metric with the form
             page.click("#add-metric-open")
@@ -135,22 +163,26 @@ def test_dashboard_in_a_real_browser(tmp_path: Path, nav_jobs, debug_processes) 
             exported.parent.mkdir()
             exported.write_bytes(archive.read("config.resim.yaml"))
             config = load_config(exported)
-            assert config.metrics["Time to reach final goal"].query_string.strip() == \
-                "SELECT sum(time_s)\nFROM time_to_goalz"
+            assert (
+                config.metrics["Time to reach final goal"].query_string.strip()
+                == "SELECT sum(time_s)\nFROM time_to_goalz"
+            )
             assert config.metrics["Goal status rows"].status.warn == 1
             assert config.metrics_sets["Nav Metrics"].metrics[-1] == "Goal status rows"
 
             # the data explorer: topics with row counts, an ad hoc query shown as a table
             page.click("nav.tabs button[data-tab=explorer]")
             page.wait_for_selector('#tables .table-item[data-table="goal_status"]')
-            assert page.locator('#tables .table-item[data-table="goal_status"] .count').inner_text() == \
-                f"{goal_states} rows"
+            assert (
+                page.locator('#tables .table-item[data-table="goal_status"] .count').inner_text()
+                == f"{goal_states} rows"
+            )
             page.locator('#tables .table-item[data-table="goal_status"] summary').click()
             page.locator('#tables .table-item[data-table="goal_status"] button').click()
             page.wait_for_selector("#query-result table.data")
             assert page.locator("#query-result table.data tbody tr").count() == goal_states
             assert page.locator("#query-result .result-meta").inner_text().startswith(f"{goal_states} rows")
-            page.screenshot(path=str(ARTIFACTS / "dashboard-explorer.png"))
+            page.screenshot(path=str(artifacts / "dashboard-explorer.png"))
 
             # the events tab: the job's events in time order
             page.click("nav.tabs button[data-tab=events]")
@@ -158,7 +190,7 @@ def test_dashboard_in_a_real_browser(tmp_path: Path, nav_jobs, debug_processes) 
             goals = [line["$metadata"]["timestamp"] for line in emitted if line["$metadata"]["topic"] == "goal_reached"]
             times = page.locator("#events .event .time").all_inner_texts()
             assert times == [f"{t / 1e9:.3f} s" for t in sorted(goals)]
-            page.screenshot(path=str(ARTIFACTS / "dashboard-events.png"), full_page=True)
+            page.screenshot(path=str(artifacts / "dashboard-events.png"), full_page=True)
         finally:
             browser.close()
     assert errors == []

@@ -7,6 +7,7 @@ writing to a file under bench/.work/; a rate is the median of RUNS runs and incl
 
     python3 dev.py bench emit [--runs 5] [--emits 200000] [--points 200000]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -33,16 +34,21 @@ GOAL = 3.0  # validated emit() at least 3x the reference's rate
 
 def ensure_reference() -> str:
     """Create the reference venv and install resim-open-core into it if needed; its version."""
-    probe = [str(REF_PYTHON), "-c", "from importlib.metadata import version; import resim.metrics.python.emissions; "
-             "print(version('resim-open-core'))"]
+    probe = [
+        str(REF_PYTHON),
+        "-c",
+        "from importlib.metadata import version; import resim.metrics.python.emissions; "
+        "print(version('resim-open-core'))",
+    ]
     if REF_PYTHON.exists():
         found = subprocess.run(probe, capture_output=True, text=True)
         if found.returncode == 0:
             return found.stdout.strip()
     print(f"installing resim-open-core into {REF_VENV} ...", file=sys.stderr, flush=True)
     venv.EnvBuilder(with_pip=True, clear=True).create(REF_VENV)
-    subprocess.run([str(REF_PYTHON), "-m", "pip", "install", "-q", "--disable-pip-version-check", "resim-open-core"],
-                   check=True)
+    subprocess.run(
+        [str(REF_PYTHON), "-m", "pip", "install", "-q", "--disable-pip-version-check", "resim-open-core"], check=True
+    )
     return subprocess.run(probe, capture_output=True, text=True, check=True).stdout.strip()
 
 
@@ -72,8 +78,9 @@ def measure(impl: str, mode: str, count: int) -> dict[str, float]:
     """One run in a fresh process: rates per second of wall-clock and of process CPU time."""
     python = sys.executable if impl == "ours" else str(REF_PYTHON)
     out = WORK / f"emit-{impl}-{mode}.jsonl"
-    result = subprocess.run([python, __file__, "--worker", impl, mode, str(count), str(out)],
-                            capture_output=True, text=True, check=True)
+    result = subprocess.run(
+        [python, __file__, "--worker", impl, mode, str(count), str(out)], capture_output=True, text=True, check=True
+    )
     with out.open() as lines:
         written = sum(1 for _ in lines)
     if written != count:
@@ -100,8 +107,12 @@ def main() -> int:
         for run in range(args.runs):
             for impl in ("ours", "reference"):  # alternate, so that load changes hit both alike
                 runs.setdefault((impl, mode), []).append(measure(impl, mode, count))
-            print(f"{mode} run {run + 1}/{args.runs}: ours {runs['ours', mode][-1]['cpu']:,.0f}/s, "
-                  f"reference {runs['reference', mode][-1]['cpu']:,.0f}/s (CPU time)", file=sys.stderr, flush=True)
+            print(
+                f"{mode} run {run + 1}/{args.runs}: ours {runs['ours', mode][-1]['cpu']:,.0f}/s, "
+                f"reference {runs['reference', mode][-1]['cpu']:,.0f}/s (CPU time)",
+                file=sys.stderr,
+                flush=True,
+            )
     identical = (WORK / "emit-ours-emit.jsonl").read_bytes() == (WORK / "emit-reference-emit.jsonl").read_bytes()
     for scratch in WORK.glob("emit-*.jsonl"):
         scratch.unlink()
@@ -111,8 +122,9 @@ def main() -> int:
 
     def row(mode: str, what: str, clock: str) -> str:
         ours, ref = rate("ours", mode, clock), rate("reference", mode, clock)
-        figures = " / ".join(", ".join(f"{r[clock] / 1000:.0f}k" for r in runs[impl, mode])
-                             for impl in ("ours", "reference"))
+        figures = " / ".join(
+            ", ".join(f"{r[clock] / 1000:.0f}k" for r in runs[impl, mode]) for impl in ("ours", "reference")
+        )
         per = {"cpu": "per CPU second", "wall": "per wall-clock second"}[clock]
         return f"| {what}, {per} | {ours:,.0f} /s | {ref:,.0f} /s | {ours / ref:.2f}x | {figures} |"
 
@@ -120,24 +132,28 @@ def main() -> int:
     series_what = f"`emit_series()` points ({args.points:,} points in one call)"
     ratio = {clock: rate("ours", "emit", clock) / rate("reference", "emit", clock) for clock in ("cpu", "wall")}
     load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
-    write_section("Emitter", "python3 dev.py bench emit", [
-        f"- baseline: reference `Emitter` of resim-open-core {ref_version} (its own venv), validating against "
-        "the same config, measured in the same run; runs alternate lakegate / reference, each in a fresh process",
-        f"- median of {args.runs} runs, including `close()`; random full-precision floats. Rates per second of "
-        "process CPU time (all threads) are the figures judged, as they are least disturbed by other load on "
-        f"this shared machine; wall-clock rates are shown too. Load average at the end: {load}",
-        "",
-        "| measure | lakegate | reference | ratio | runs (lakegate / reference) |",
-        "|---|---|---|---|---|",
-        row("emit", emit_what, "cpu"),
-        row("emit", emit_what, "wall"),
-        row("series", series_what, "cpu"),
-        row("series", series_what, "wall"),
-        "",
-        f"- goal: validated `emit()` >= {GOAL:.0f}x the reference: **{'met' if ratio['cpu'] >= GOAL else 'NOT met'}** "
-        f"({ratio['cpu']:.2f}x per CPU second, {ratio['wall']:.2f}x per wall-clock second)",
-        f"- the two emissions files of the last `emit()` runs are byte-identical: {'yes' if identical else 'no'}",
-    ])
+    write_section(
+        "Emitter",
+        "python3 dev.py bench emit",
+        [
+            f"- baseline: reference `Emitter` of resim-open-core {ref_version} (its own venv), validating against "
+            "the same config, measured in the same run; runs alternate lakegate / reference, each in a fresh process",
+            f"- median of {args.runs} runs, including `close()`; random full-precision floats. Rates per second of "
+            "process CPU time (all threads) are the figures judged, as they are least disturbed by other load on "
+            f"this shared machine; wall-clock rates are shown too. Load average at the end: {load}",
+            "",
+            "| measure | lakegate | reference | ratio | runs (lakegate / reference) |",
+            "|---|---|---|---|---|",
+            row("emit", emit_what, "cpu"),
+            row("emit", emit_what, "wall"),
+            row("series", series_what, "cpu"),
+            row("series", series_what, "wall"),
+            "",
+            f"- goal: validated `emit()` >= {GOAL:.0f}x the reference: **{'met' if ratio['cpu'] >= GOAL else 'NOT met'}** "
+            f"({ratio['cpu']:.2f}x per CPU second, {ratio['wall']:.2f}x per wall-clock second)",
+            f"- the two emissions files of the last `emit()` runs are byte-identical: {'yes' if identical else 'no'}",
+        ],
+    )
     return 0
 
 

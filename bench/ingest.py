@@ -11,6 +11,7 @@ start-up excluded for both; the end-to-end time is shown too). Peak memory is th
 the subprocess (wait4), also measured on a file a third as long to show that it does not
 grow with the input. Writes section "Ingest" of bench/RESULTS.md.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -69,35 +70,58 @@ def generate(path: Path, lines: int, seed: int = 7) -> None:
             r = rnd.random()
             head = '{"$metadata": {"topic": "%s", "timestamp": %d}, "$data": '
             if r < 0.40:
-                out.append(head % ("odom_linear_velocity", t) + '{"x": %r, "y": %r, "z": %r}}' % (
-                    rnd.uniform(-2, 2), rnd.uniform(-2, 2), rnd.uniform(-0.1, 0.1)))
+                out.append(
+                    head % ("odom_linear_velocity", t)
+                    + f'{{"x": {rnd.uniform(-2, 2)!r}, "y": {rnd.uniform(-2, 2)!r}, "z": {rnd.uniform(-0.1, 0.1)!r}}}}}'
+                )
             elif r < 0.50:
-                out.append(head % ("pose_difference", t) + '{"position_diff_m": %r}}' % rnd.uniform(0, 1.5))
+                out.append(head % ("pose_difference", t) + f'{{"position_diff_m": {rnd.uniform(0, 1.5)!r}}}}}')
             elif r < 0.65:
-                out.append(head % ("goal_distance", t) + '{"goal_name": "%s", "distance_m": %r}}' % (
-                    rnd.choice(goals), rnd.uniform(0, 30)))
+                out.append(
+                    head % ("goal_distance", t)
+                    + f'{{"goal_name": "{rnd.choice(goals)}", "distance_m": {rnd.uniform(0, 30)!r}}}}}'
+                )
             elif r < 0.75:
                 error, sigma = rnd.uniform(0, 1), rnd.uniform(0.1, 1)
-                out.append(head % ("covariance_accuracy", t) + '{"error_m": %r, "sigma_m": %r, "within_1_sigma": %d}}' % (
-                    error, sigma, error < sigma))
+                out.append(
+                    head % ("covariance_accuracy", t)
+                    + f'{{"error_m": {error!r}, "sigma_m": {sigma!r}, "within_1_sigma": {int(error < sigma)}}}}}'
+                )
             elif r < 0.85:
-                out.append(head % ("robot_speed", t) + '{"speed": %r}}' % rnd.uniform(0, 2))
+                out.append(head % ("robot_speed", t) + f'{{"speed": {rnd.uniform(0, 2)!r}}}}}')
             elif r < 0.90:
-                out.append(head % ("drone_speed", t) + '{"speed": %r}}' % rnd.uniform(0, 20))
+                out.append(head % ("drone_speed", t) + f'{{"speed": {rnd.uniform(0, 20)!r}}}}}')
             elif r < 0.95:
-                out.append(head % ("goal_status", t) + '{"state": "%s"}}' % rnd.choice(states))
+                out.append(head % ("goal_status", t) + f'{{"state": "{rnd.choice(states)}"}}}}')
             elif r < 0.97:
-                out.append(head % ("time_to_goal", t) + '{"goal_name": "%s", "time_s": %r}}' % (
-                    rnd.choice(goals), rnd.uniform(1, 100)))
+                out.append(
+                    head % ("time_to_goal", t)
+                    + f'{{"goal_name": "{rnd.choice(goals)}", "time_s": {rnd.uniform(1, 100)!r}}}}}'
+                )
             elif r < 0.995:
-                out.append(head % ("camera_gif", t) + '{"filename": "frames/frame_%08d.png"}}' % i)
+                out.append(head % ("camera_gif", t) + f'{{"filename": "frames/frame_{i:08d}.png"}}}}')
             else:
-                out.append(json.dumps({
-                    "$metadata": {"topic": "goal_reached", "timestamp": t, "event": True},
-                    "$data": {"name": "Goal reached", "description": "Robot reached a goal", "status": "PASSED",
-                              "tags": ["navigation", "goal"],
-                              "metrics": [{"name": "Distance", "type": "scalar", "value": rnd.uniform(0, 1),
-                                           "status": "PASSED"}]}}))
+                out.append(
+                    json.dumps(
+                        {
+                            "$metadata": {"topic": "goal_reached", "timestamp": t, "event": True},
+                            "$data": {
+                                "name": "Goal reached",
+                                "description": "Robot reached a goal",
+                                "status": "PASSED",
+                                "tags": ["navigation", "goal"],
+                                "metrics": [
+                                    {
+                                        "name": "Distance",
+                                        "type": "scalar",
+                                        "value": rnd.uniform(0, 1),
+                                        "status": "PASSED",
+                                    }
+                                ],
+                            },
+                        }
+                    )
+                )
             if len(out) >= 20000:
                 handle.write("\n".join(out) + "\n")
                 out = []
@@ -145,8 +169,11 @@ def main() -> int:
         for name, fn in (("duckdb", baseline), ("lakegate", ours)):
             result = fn(path)
             runs[name].append(result)
-            print(f"run {i + 1}: {name:<8} {result['seconds']:.2f} s, {args.lines / result['seconds']:,.0f} rows/s, "
-                  f"peak RSS {result['rss_mb']:.0f} MB", flush=True)
+            print(
+                f"run {i + 1}: {name:<8} {result['seconds']:.2f} s, {args.lines / result['seconds']:,.0f} rows/s, "
+                f"peak RSS {result['rss_mb']:.0f} MB",
+                flush=True,
+            )
     small_rss = ours(small)["rss_mb"]
     for name, results in runs.items():
         assert all(r["rows"] == args.lines for r in results), f"{name} wrote {results[0]['rows']} rows"
@@ -163,13 +190,17 @@ def main() -> int:
         "| | median time | rows/s | end-to-end (with start-up) | CPU (user+sys) | peak RSS |",
         "|---|---|---|---|---|---|",
     ]
-    labels = {"lakegate": "lakegate `ingest_job` (validated, per-topic Parquet, zstd)",
-              "duckdb": "DuckDB `read_json` + `COPY TO parquet` (no validation)"}
+    labels = {
+        "lakegate": "lakegate `ingest_job` (validated, per-topic Parquet, zstd)",
+        "duckdb": "DuckDB `read_json` + `COPY TO parquet` (no validation)",
+    }
     for name in ("lakegate", "duckdb"):
         results = runs[name]
-        lines.append(f"| {labels[name]} | {median[name]:.2f} s | {rate[name]:,.0f} | "
-                     f"{statistics.median(r['wall'] for r in results):.2f} s | "
-                     f"{statistics.median(r['cpu'] for r in results):.2f} s | {rss[name]:.0f} MB |")
+        lines.append(
+            f"| {labels[name]} | {median[name]:.2f} s | {rate[name]:,.0f} | "
+            f"{statistics.median(r['wall'] for r in results):.2f} s | "
+            f"{statistics.median(r['cpu'] for r in results):.2f} s | {rss[name]:.0f} MB |"
+        )
     lines += [
         "",
         f"- ratio lakegate / DuckDB: **{ratio:.2f}x** (goal >= {GOAL}x): {'met' if ratio >= GOAL else 'NOT met'}",

@@ -18,6 +18,7 @@ Reports the median seconds of each, jobs per second, the ratio, and the peak RSS
 process. Writes section "Metrics" of bench/RESULTS.md. Goal: the whole batch in under 30 s on
 2 cores, memory under 2 GB.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -37,9 +38,18 @@ WORK = ROOT / "bench" / ".work" / "metrics"
 BATCH = "bench"
 GOAL_SECONDS, GOAL_MB = 30.0, 2048
 #: The 10 metrics of the example config evaluated (test metrics first, then batch metrics).
-METRICS = ("Robot Speed", "Time to reach final goal", "Maximum Localization Error (job)", "Distance to Goal",
-           "AMCL Covariance Calibration", "Goal Status", "Speed Distribution",
-           "Average Speed", "Maximum Localization Error", "Passed Jobs by Tag Group")
+METRICS = (
+    "Robot Speed",
+    "Time to reach final goal",
+    "Maximum Localization Error (job)",
+    "Distance to Goal",
+    "AMCL Covariance Calibration",
+    "Goal Status",
+    "Speed Distribution",
+    "Average Speed",
+    "Maximum Localization Error",
+    "Passed Jobs by Tag Group",
+)
 
 OURS = """
 import json, sys, time, resource
@@ -131,8 +141,15 @@ def prepare(jobs: int, rows_per_job: int) -> tuple[Path, int]:
         shutil.rmtree(scratch, ignore_errors=True)
         generated = generate_batch(scratch, jobs=min(6, jobs), seed=1000 + seed, samples_per_goal=samples_per_goal)
         for job in generated:
-            report = ingest_job(lake, "main", BATCH, job.job_id, [job.emissions_path], config=config,
-                                metadata=load_metadata_file(job.metadata_path))
+            report = ingest_job(
+                lake,
+                "main",
+                BATCH,
+                job.job_id,
+                [job.emissions_path],
+                config=config,
+                metadata=load_metadata_file(job.metadata_path),
+            )
             total += sum(report.rows.values())
         jobs -= len(generated)
         seed += 1
@@ -155,8 +172,11 @@ def main() -> int:
         for name, code in (("baseline", BASELINE), ("lakegate", OURS)):
             result = run_python(code, str(lake), names, BATCH)
             runs[name].append(result)
-            print(f"run {i + 1}: {name:<8} {result['seconds']:.2f} s, {result['jobs'] / result['seconds']:.1f} jobs/s, "
-                  f"peak RSS {result['rss_mb']:.0f} MB", flush=True)
+            print(
+                f"run {i + 1}: {name:<8} {result['seconds']:.2f} s, {result['jobs'] / result['seconds']:.1f} jobs/s, "
+                f"peak RSS {result['rss_mb']:.0f} MB",
+                flush=True,
+            )
     ours = runs["lakegate"]
     assert all(r["jobs"] == args.jobs and r["errors"] == 0 for r in ours), ours[0]
     median = {name: statistics.median(r["seconds"] for r in results) for name, results in runs.items()}
@@ -173,13 +193,17 @@ def main() -> int:
         "| | median time | jobs/s | end-to-end (with start-up) | CPU (user+sys) | peak RSS |",
         "|---|---|---|---|---|---|",
     ]
-    labels = {"lakegate": "lakegate `MetricsEngine.evaluate_batch` (translate, scope, run, render, judge, store)",
-              "baseline": "bare DuckDB: the same queries' SQL, translated beforehand, results fetched as Arrow"}
+    labels = {
+        "lakegate": "lakegate `MetricsEngine.evaluate_batch` (translate, scope, run, render, judge, store)",
+        "baseline": "bare DuckDB: the same queries' SQL, translated beforehand, results fetched as Arrow",
+    }
     for name in ("lakegate", "baseline"):
         results = runs[name]
-        lines.append(f"| {labels[name]} | {median[name]:.2f} s | {args.jobs / median[name]:.1f} | "
-                     f"{statistics.median(r['wall'] for r in results):.2f} s | "
-                     f"{statistics.median(r['cpu'] for r in results):.2f} s | {rss[name]:.0f} MB |")
+        lines.append(
+            f"| {labels[name]} | {median[name]:.2f} s | {args.jobs / median[name]:.1f} | "
+            f"{statistics.median(r['wall'] for r in results):.2f} s | "
+            f"{statistics.median(r['cpu'] for r in results):.2f} s | {rss[name]:.0f} MB |"
+        )
     lines += [
         "",
         f"- goal: the whole batch in < {GOAL_SECONDS:.0f} s and < {GOAL_MB / 1024:.0f} GB: "

@@ -1,4 +1,5 @@
 """Shared by the benchmark scripts: machine facts, medians, and writing one section of RESULTS.md."""
+
 from __future__ import annotations
 
 import json
@@ -9,9 +10,9 @@ import statistics
 import subprocess
 import sys
 import time
+from collections.abc import Callable, Iterable
 from importlib import metadata
 from pathlib import Path
-from typing import Callable, Iterable
 
 RESULTS = Path(__file__).resolve().parent / "RESULTS.md"
 HEADER = "# Benchmark results\n\nEach section is written by the script it names; re-run it to refresh that section.\n"

@@ -21,6 +21,7 @@ On each branch, measures (median of `--runs`):
 
 Writes section "Scale" of bench/RESULTS.md.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -68,8 +69,15 @@ def source() -> tuple[Path, list]:
         registry = BranchConfigs(lake, BRANCH)
         config = registry.load(registry.store([CONFIG_PATH]))
         for job in jobs:
-            ingest_job(lake, BRANCH, BATCH, job.job_id, [job.emissions_path], config=config,
-                       metadata=load_metadata_file(job.metadata_path))
+            ingest_job(
+                lake,
+                BRANCH,
+                BATCH,
+                job.job_id,
+                [job.emissions_path],
+                config=config,
+                metadata=load_metadata_file(job.metadata_path),
+            )
         (lake / ".complete").touch()
     return lake, jobs
 
@@ -100,8 +108,18 @@ def build(size: int, source_lake: Path) -> Path:
             target = paths.partition_dir(lake, BRANCH, entry.table, batch, job) / Path(entry.path).name
             _link(source_root / entry.path, target)
             _link(source_root / entry.path, paths.reader_path(root, target.relative_to(root).as_posix()))
-            entries.append(FileEntry(entry.table, batch, job, target.relative_to(root).as_posix(), entry.rows,
-                                     entry.min_ts, entry.max_ts, entry.columns))
+            entries.append(
+                FileEntry(
+                    entry.table,
+                    batch,
+                    job,
+                    target.relative_to(root).as_posix(),
+                    entry.rows,
+                    entry.min_ts,
+                    entry.max_ts,
+                    entry.columns,
+                )
+            )
     record.commit(f"bench: {size} jobs", entries)
     record.close()
     (lake / ".complete").touch()
@@ -126,14 +144,39 @@ def command(*args: str) -> tuple[float, float]:
 
 
 def metrics_run(lake: Path) -> tuple[float, float]:
-    return command("metrics", "run", "--lake", str(lake), "--branch", BRANCH, "--batch", BATCH,
-                   "--metrics-set", METRICS_SET, "--format", "json")
+    return command(
+        "metrics",
+        "run",
+        "--lake",
+        str(lake),
+        "--branch",
+        BRANCH,
+        "--batch",
+        BATCH,
+        "--metrics-set",
+        METRICS_SET,
+        "--format",
+        "json",
+    )
 
 
 def ingest(lake: Path, job, run: int) -> tuple[float, float]:
-    return command("ingest", "--lake", str(lake), "--branch", BRANCH, "--batch", "extra", "--job", f"extra-{run}",
-                   "--metadata", str(job.metadata_path), "--metrics-config-path", str(CONFIG_PATH),
-                   str(job.emissions_path))
+    return command(
+        "ingest",
+        "--lake",
+        str(lake),
+        "--branch",
+        BRANCH,
+        "--batch",
+        "extra",
+        "--job",
+        f"extra-{run}",
+        "--metadata",
+        str(job.metadata_path),
+        "--metrics-config-path",
+        str(CONFIG_PATH),
+        str(job.emissions_path),
+    )
 
 
 def medians(runs: list[tuple[float, float]], name: str) -> dict[str, float]:
@@ -147,18 +190,26 @@ def served(lake: Path, runs: int, job_id: str) -> dict[str, float]:
     try:
         figures = {}
         metrics = load_config(CONFIG_PATH).metrics
-        for name, sql, session in (("test metric", metrics[TEST_METRIC].query_string,
-                                    {"batch_id": BATCH, "job_id": job_id}),
-                                   ("batch metric", metrics[BATCH_METRIC].query_string, {"batch_id": BATCH}),
-                                   ("count(*) FROM metadata", COUNT, {}),
-                                   ("GROUP BY over one topic", GROUP_BY, {})):
-            connection = trino.dbapi.connect(host="127.0.0.1", port=server.port, user="bench", catalog="lake",
-                                             schema=BRANCH, session_properties=session)
+        for name, sql, session in (
+            ("test metric", metrics[TEST_METRIC].query_string, {"batch_id": BATCH, "job_id": job_id}),
+            ("batch metric", metrics[BATCH_METRIC].query_string, {"batch_id": BATCH}),
+            ("count(*) FROM metadata", COUNT, {}),
+            ("GROUP BY over one topic", GROUP_BY, {}),
+        ):
+            connection = trino.dbapi.connect(
+                host="127.0.0.1",
+                port=server.port,
+                user="bench",
+                catalog="lake",
+                schema=BRANCH,
+                session_properties=session,
+            )
 
             def query() -> None:
                 cursor = connection.cursor()
                 cursor.execute(sql)
                 cursor.fetchall()
+
             query()  # warm-up
             figures[name] = statistics.median(timed(query) for _ in range(max(runs, 5)))
         figures["server RSS (MB)"] = server.memory("VmRSS") / 2**20
@@ -187,21 +238,28 @@ def main(argv: list[str] | None = None) -> int:
     empty = WORK / "empty"
     shutil.rmtree(empty, ignore_errors=True)
     empty_ingest = medians([ingest(empty, jobs[run % JOBS], run) for run in range(args.runs)], "ingest")
-    write_section("Scale", f"python3 dev.py bench scale --sizes {args.sizes} --runs {args.runs}",
-                  _lines(sizes, figures, empty_ingest, args.runs))
+    write_section(
+        "Scale",
+        f"python3 dev.py bench scale --sizes {args.sizes} --runs {args.runs}",
+        _lines(sizes, figures, empty_ingest, args.runs),
+    )
     return 0
 
 
-def _lines(sizes: list[int], figures: dict[int, dict[str, float]], empty_ingest: dict[str, float],
-           runs: int) -> list[str]:
+def _lines(
+    sizes: list[int], figures: dict[int, dict[str, float]], empty_ingest: dict[str, float], runs: int
+) -> list[str]:
     measures = list(figures[sizes[0]])
-    lines = [f"Branches of {', '.join(f'{s:,}' for s in sizes)} jobs (12 Parquet files per job); batch `{BATCH}` "
-             f"(40 jobs) is the same in each. Medians of {runs} runs (queries: of {max(runs, 5)}, warm); the "
-             "goals are judged on CPU seconds (user + system of the process), least disturbed by the other load "
-             "on this shared machine. "
-             f"Load average at the end: {', '.join(f'{x:.2f}' for x in os.getloadavg())}.", "",
-             "| measure | " + " | ".join(f"{s:,} jobs" for s in sizes) + f" | {sizes[-1]:,} / {sizes[0]:,} |",
-             "|---|" + "---:|" * (len(sizes) + 1)]
+    lines = [
+        f"Branches of {', '.join(f'{s:,}' for s in sizes)} jobs (12 Parquet files per job); batch `{BATCH}` "
+        f"(40 jobs) is the same in each. Medians of {runs} runs (queries: of {max(runs, 5)}, warm); the "
+        "goals are judged on CPU seconds (user + system of the process), least disturbed by the other load "
+        "on this shared machine. "
+        f"Load average at the end: {', '.join(f'{x:.2f}' for x in os.getloadavg())}.",
+        "",
+        "| measure | " + " | ".join(f"{s:,} jobs" for s in sizes) + f" | {sizes[-1]:,} / {sizes[0]:,} |",
+        "|---|" + "---:|" * (len(sizes) + 1),
+    ]
     for measure in measures:
         unit = "MB" if "MB" in measure else "s"
         cells = [f"{figures[s][measure]:.0f}" if unit == "MB" else _seconds(figures[s][measure]) for s in sizes]
@@ -214,13 +272,19 @@ def _lines(sizes: list[int], figures: dict[int, dict[str, float]], empty_ingest:
     for measure, goal in GOALS.items():
         base = figures[sizes[0]][f"{measure} (CPU)"] if measure == "metrics run" else empty_ingest["ingest (CPU)"]
         ratio = largest[f"{measure} (CPU)"] / base
-        lines.append(f"- goal: {measure} on {sizes[-1]:,} jobs within {goal}x of "
-                     f"{'the smallest branch' if measure == 'metrics run' else 'an empty branch'}: "
-                     f"{ratio:.2f}x in CPU seconds, **{'met' if ratio <= goal else 'not met'}**")
-    lines.append(f"- goal: `count(*) FROM metadata` under 100 ms: {_seconds(largest['count(*) FROM metadata'])}, "
-                 f"**{'met' if largest['count(*) FROM metadata'] < 0.1 else 'not met'}**")
-    lines.append(f"- goal: server RSS under 1 GB: {largest['server RSS (MB)']:.0f} MB, "
-                 f"**{'met' if largest['server RSS (MB)'] < 1024 else 'not met'}**")
+        lines.append(
+            f"- goal: {measure} on {sizes[-1]:,} jobs within {goal}x of "
+            f"{'the smallest branch' if measure == 'metrics run' else 'an empty branch'}: "
+            f"{ratio:.2f}x in CPU seconds, **{'met' if ratio <= goal else 'not met'}**"
+        )
+    lines.append(
+        f"- goal: `count(*) FROM metadata` under 100 ms: {_seconds(largest['count(*) FROM metadata'])}, "
+        f"**{'met' if largest['count(*) FROM metadata'] < 0.1 else 'not met'}**"
+    )
+    lines.append(
+        f"- goal: server RSS under 1 GB: {largest['server RSS (MB)']:.0f} MB, "
+        f"**{'met' if largest['server RSS (MB)'] < 1024 else 'not met'}**"
+    )
     return lines
 
 

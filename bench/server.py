@@ -19,6 +19,7 @@ metadata row per job), starts `lakegate serve` on 127.0.0.1 in a subprocess, and
 
 Writes section "Server" of bench/RESULTS.md.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -31,8 +32,8 @@ import sys
 import threading
 import time
 import urllib.request
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import duckdb
 import requests
@@ -51,16 +52,22 @@ GOALS = {"select1_ms": 2.0, "rows_per_s": 250_000, "aggregate_ratio": 1.3}
 FETCH = f"SELECT timestamp, x, y FROM {TOPIC} WHERE job_id = 'j0'"
 #: The same job's rows 4 times: what grows with the result, not with the files DuckDB reads (and caches).
 FETCH_4M = " UNION ALL ".join([FETCH] * 4)
-AGGREGATE = (f"SELECT job_id, count(*) AS n, avg(x) AS ax, min(y) AS my, max(x) AS mx FROM {TOPIC} "
-             "GROUP BY job_id ORDER BY job_id")
+AGGREGATE = (
+    f"SELECT job_id, count(*) AS n, avg(x) AS ax, min(y) AS my, max(x) AS mx FROM {TOPIC} "
+    "GROUP BY job_id ORDER BY job_id"
+)
 #: The concurrent mix: (name, SQL, parameters or None); each client starts at its own offset.
 MIX = [
     ("SELECT 1", "SELECT 1", None),
     ("job aggregate", f"SELECT count(*), avg(x), max(y) FROM {TOPIC} WHERE job_id = 'j3'", None),
     ("1,000-row page", f"SELECT timestamp, x, y FROM {TOPIC} WHERE job_id = 'j5' ORDER BY timestamp LIMIT 1000", None),
     ("parameterized", f"SELECT count(*) FROM {TOPIC} WHERE job_id = ? AND x > ?", ["j7", 1.5]),
-    ("metadata join", f"SELECT m.experience_name, count(*) FROM {TOPIC} d JOIN metadata m ON d.job_id = m.job_id "
-                      "WHERE d.job_id IN ('j8', 'j9') GROUP BY 1 ORDER BY 1", None),
+    (
+        "metadata join",
+        f"SELECT m.experience_name, count(*) FROM {TOPIC} d JOIN metadata m ON d.job_id = m.job_id "
+        "WHERE d.job_id IN ('j8', 'j9') GROUP BY 1 ORDER BY 1",
+        None,
+    ),
     ("introspection", "SHOW TABLES", None),
 ]
 
@@ -111,8 +118,19 @@ class Server:
 
     def __init__(self, lake: Path, extra: list[str]):
         self.port = free_port()
-        command = [sys.executable, "-m", "lakegate.gateway.cli", "serve", "--lake", str(lake),
-                   "--host", "127.0.0.1", "--port", str(self.port), *extra]
+        command = [
+            sys.executable,
+            "-m",
+            "lakegate.gateway.cli",
+            "serve",
+            "--lake",
+            str(lake),
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(self.port),
+            *extra,
+        ]
         self.log = open(ROOT / "bench" / ".work" / "server.log", "w")
         self.process = subprocess.Popen(command, stdout=self.log, stderr=subprocess.STDOUT)
         deadline = time.monotonic() + 60
@@ -123,7 +141,7 @@ class Server:
             except OSError:
                 if self.process.poll() is not None or time.monotonic() > deadline:
                     self.stop()
-                    raise SystemExit(f"lakegate serve did not start; see {self.log.name}")
+                    raise SystemExit(f"lakegate serve did not start; see {self.log.name}") from None
                 time.sleep(0.2)
 
     def pids(self) -> list[int]:
@@ -172,8 +190,9 @@ class Server:
             return False
 
     def connect(self, session: requests.Session | None = None) -> trino.dbapi.Connection:
-        return trino.dbapi.connect(host="127.0.0.1", port=self.port, user="bench", catalog="lake", schema="main",
-                                   http_session=session)
+        return trino.dbapi.connect(
+            host="127.0.0.1", port=self.port, user="bench", catalog="lake", schema="main", http_session=session
+        )
 
     def stop(self) -> None:
         self.process.terminate()
@@ -227,8 +246,14 @@ def select_one(server: Server, direct: duckdb.DuckDBPyConnection) -> dict:
     ours, runs = median_of(200, lambda: timed(lambda: client_rows(connection, "SELECT 1")))
     server_cpu, client_cpu, sent = costs.measure(lambda: [client_rows(connection, "SELECT 1") for _ in range(200)])
     theirs, _ = median_of(200, lambda: timed(lambda: direct.execute("SELECT 1").fetchall()))
-    return {"ours": ours, "theirs": theirs, "p90": percentile(sorted(runs), 90), "server_cpu": server_cpu / 200,
-            "client_cpu": client_cpu / 200, "requests": sent / 200}
+    return {
+        "ours": ours,
+        "theirs": theirs,
+        "p90": percentile(sorted(runs), 90),
+        "server_cpu": server_cpu / 200,
+        "client_cpu": client_cpu / 200,
+        "requests": sent / 200,
+    }
 
 
 def client_floor() -> tuple[float, float]:
@@ -272,10 +297,21 @@ def fetch(server: Server, direct: duckdb.DuckDBPyConnection, runs: int) -> dict:
         rows_4m += len(batch)
     seconds_4m = time.perf_counter() - start
     peak_4m = server.memory("VmHWM")
-    return {"rows": counted, "ours": counted / ours, "ours_runs": [counted / s for s in ours_runs],
-            "theirs": counted / theirs, "rss_before": rss_before, "peak_1m": peak_1m, "peak_4m": peak_4m,
-            "rows_4m": rows_4m, "rate_4m": rows_4m / seconds_4m, "reset": reset, "server_cpu": server_cpu,
-            "client_cpu": client_cpu, "requests": sent}
+    return {
+        "rows": counted,
+        "ours": counted / ours,
+        "ours_runs": [counted / s for s in ours_runs],
+        "theirs": counted / theirs,
+        "rss_before": rss_before,
+        "peak_1m": peak_1m,
+        "peak_4m": peak_4m,
+        "rows_4m": rows_4m,
+        "rate_4m": rows_4m / seconds_4m,
+        "reset": reset,
+        "server_cpu": server_cpu,
+        "client_cpu": client_cpu,
+        "requests": sent,
+    }
 
 
 def aggregate(server: Server, direct: duckdb.DuckDBPyConnection, runs: int) -> dict:
@@ -284,14 +320,18 @@ def aggregate(server: Server, direct: duckdb.DuckDBPyConnection, runs: int) -> d
     ours_rows = client_rows(connection, AGGREGATE)
     theirs_rows = direct.execute(AGGREGATE).fetchall()
     if len(ours_rows) != len(theirs_rows) or not all(
-            math.isclose(a, b, rel_tol=1e-12) if isinstance(a, float) else a == b
-            for row, other in zip(ours_rows, theirs_rows) for a, b in zip(row, other)):
+        math.isclose(a, b, rel_tol=1e-12) if isinstance(a, float) else a == b
+        for row, other in zip(ours_rows, theirs_rows)
+        for a, b in zip(row, other)
+    ):
         raise SystemExit(f"the aggregate differs: server {ours_rows} vs DuckDB {theirs_rows}")
     figures: dict[str, list[float]] = {"ours": [], "theirs": []}
     for run in range(runs):
-        pair = [("ours", lambda: client_rows(connection, AGGREGATE)),
-                ("theirs", lambda: direct.execute(AGGREGATE).fetchall())]
-        for key, fn in (reversed(pair) if run % 2 else pair):
+        pair = [
+            ("ours", lambda: client_rows(connection, AGGREGATE)),
+            ("theirs", lambda: direct.execute(AGGREGATE).fetchall()),
+        ]
+        for key, fn in reversed(pair) if run % 2 else pair:
             figures[key].append(timed(fn))
     ours, theirs = statistics.median(figures["ours"]), statistics.median(figures["theirs"])
     return {"ours": ours, "theirs": theirs, "ratio": ours / theirs, "runs": figures}
@@ -328,10 +368,17 @@ def concurrency(server: Server, clients: int, seconds: float) -> dict:
         thread.join()
     elapsed = time.perf_counter() - started
     every = sorted(x for values in latencies.values() for x in values)
-    return {"queries": len(every), "qps": len(every) / elapsed, "p50": percentile(every, 50),
-            "p99": percentile(every, 99), "errors": errors, "elapsed": elapsed,
-            "per_query": {name: (len(v), percentile(sorted(v), 50), percentile(sorted(v), 99))
-                          for name, v in latencies.items()}}
+    return {
+        "queries": len(every),
+        "qps": len(every) / elapsed,
+        "p50": percentile(every, 50),
+        "p99": percentile(every, 99),
+        "errors": errors,
+        "elapsed": elapsed,
+        "per_query": {
+            name: (len(v), percentile(sorted(v), 50), percentile(sorted(v), 99)) for name, v in latencies.items()
+        },
+    }
 
 
 def percentile(values: list[float], p: float) -> float:
@@ -353,8 +400,13 @@ def main() -> None:
     parser.add_argument("--runs", type=int, default=3, help="runs of the fetch and aggregate measures (default 3)")
     parser.add_argument("--seconds", type=float, default=30.0, help="length of the concurrency test (default 30)")
     parser.add_argument("--clients", type=int, default=32, help="concurrent clients (default 32)")
-    parser.add_argument("--serve-arg", action="append", default=[], metavar="ARG",
-                        help="an extra argument for `lakegate serve` (repeat for several)")
+    parser.add_argument(
+        "--serve-arg",
+        action="append",
+        default=[],
+        metavar="ARG",
+        help="an extra argument for `lakegate serve` (repeat for several)",
+    )
     args = parser.parse_args()
     started, load_start = time.perf_counter(), os.getloadavg()[0]
     lake = build_lake(ROWS)
@@ -409,8 +461,10 @@ def main() -> None:
         f"{mb(fetched['rss_before'])}" + ("" if fetched["reset"] else " (peak could not be reset: VmHWM since start)"),
         f"- aggregate runs (ms): server {', '.join(f'{s * 1e3:.0f}' for s in summed['runs']['ours'])}; DuckDB "
         f"{', '.join(f'{s * 1e3:.0f}' for s in summed['runs']['theirs'])}",
-        "- concurrency mix, per query (count, p50, p99): " + "; ".join(
-            f"{name} {n} / {p50 * 1e3:.0f} ms / {p99 * 1e3:.0f} ms" for name, (n, p50, p99) in load["per_query"].items()),
+        "- concurrency mix, per query (count, p50, p99): "
+        + "; ".join(
+            f"{name} {n} / {p50 * 1e3:.0f} ms / {p99 * 1e3:.0f} ms" for name, (n, p50, p99) in load["per_query"].items()
+        ),
     ]
     if load["errors"]:
         lines.append(f"- first errors: {'; '.join(load['errors'][:3])}")

@@ -13,6 +13,7 @@ costs at run time against hand-written DuckDB SQL.
    alternating; wall-clock and CPU time (all threads), the latter less disturbed by other processes.
    Writes section "Translation" of bench/RESULTS.md.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -48,21 +49,27 @@ GOALS = {"cached_us": 50.0, "cold_ms": 5.0, "ratio": 1.1}
 
 #: (name, Trino metric query, scope, hand-written DuckDB SQL over the same views)
 EXECUTION = [
-    ("aggregate (batch)",
-     f"SELECT AVG(x), MAX(y), COUNT(*) FROM {TOPIC}",
-     Scope(batch_id="b1"),
-     f"SELECT avg(x), max(y), count(*) FROM {TOPIC} WHERE batch_id = 'b1'"),
-    ("line chart projection (job)",
-     f'SELECT \'Speed\', timestamp / 1E9 AS "Time (s)", SQRT(POWER(x, 2) + POWER(y, 2)) AS "Speed (m/s)" FROM {TOPIC}',
-     Scope(batch_id="b1", job_id="j0"),
-     f"SELECT 'Speed', timestamp / 1e9 AS \"Time (s)\", sqrt(pow(x, 2) + pow(y, 2)) AS \"Speed (m/s)\" "
-     f"FROM {TOPIC} WHERE batch_id = 'b1' AND job_id = 'j0'"),
-    ("join with metadata (batch)",
-     f"SELECT m.experience_name, MIN(x), AVG(x), MAX(x) FROM {TOPIC} d JOIN metadata m ON d.job_id = m.job_id "
-     "GROUP BY m.experience_name",
-     Scope(batch_id="b1"),
-     f"SELECT m.experience_name, min(x), avg(x), max(x) FROM {TOPIC} d JOIN metadata m ON d.job_id = m.job_id "
-     "WHERE d.batch_id = 'b1' AND m.batch_id = 'b1' GROUP BY m.experience_name"),
+    (
+        "aggregate (batch)",
+        f"SELECT AVG(x), MAX(y), COUNT(*) FROM {TOPIC}",
+        Scope(batch_id="b1"),
+        f"SELECT avg(x), max(y), count(*) FROM {TOPIC} WHERE batch_id = 'b1'",
+    ),
+    (
+        "line chart projection (job)",
+        f'SELECT \'Speed\', timestamp / 1E9 AS "Time (s)", SQRT(POWER(x, 2) + POWER(y, 2)) AS "Speed (m/s)" FROM {TOPIC}',
+        Scope(batch_id="b1", job_id="j0"),
+        f'SELECT \'Speed\', timestamp / 1e9 AS "Time (s)", sqrt(pow(x, 2) + pow(y, 2)) AS "Speed (m/s)" '
+        f"FROM {TOPIC} WHERE batch_id = 'b1' AND job_id = 'j0'",
+    ),
+    (
+        "join with metadata (batch)",
+        f"SELECT m.experience_name, MIN(x), AVG(x), MAX(x) FROM {TOPIC} d JOIN metadata m ON d.job_id = m.job_id "
+        "GROUP BY m.experience_name",
+        Scope(batch_id="b1"),
+        f"SELECT m.experience_name, min(x), avg(x), max(x) FROM {TOPIC} d JOIN metadata m ON d.job_id = m.job_id "
+        "WHERE d.batch_id = 'b1' AND m.batch_id = 'b1' GROUP BY m.experience_name",
+    ),
 ]
 
 
@@ -77,12 +84,21 @@ def build_lake(rows: int) -> Path:
     WORK.mkdir(parents=True)
     config = load_config([CONFIG])
     seed = WORK / "seed.jsonl"
-    seed.write_text(json.dumps({"$metadata": {"topic": TOPIC, "timestamp": 0}, "$data": {"x": 0.0, "y": 0.0, "z": 0.0}}) + "\n")
+    seed.write_text(
+        json.dumps({"$metadata": {"topic": TOPIC, "timestamp": 0}, "$data": {"x": 0.0, "y": 0.0, "z": 0.0}}) + "\n"
+    )
     generator = np.random.default_rng(7)
     per_job = rows // len(JOBS)
     for i, (batch, job) in enumerate(JOBS):
-        ingest_job(lake, "main", batch, job, [seed], config=config,
-                   metadata={"experience_name": f"experience {i % 3}", "build_version": "1.0"})  # metadata, configs
+        ingest_job(
+            lake,
+            "main",
+            batch,
+            job,
+            [seed],
+            config=config,
+            metadata={"experience_name": f"experience {i % 3}", "build_version": "1.0"},
+        )  # metadata, configs
         target = current_file(lake, "main", TOPIC, batch, job)
         schema = pq.read_schema(target)
         columns = {
@@ -92,9 +108,15 @@ def build_lake(rows: int) -> Path:
             "z": pa.array(np.zeros(per_job)),
         }
         constants = {"experience_name": f"experience {i % 3}", "build_version": "1.0"}
-        table = pa.table({f.name: columns[f.name] if f.name in columns else pa.repeat(pa.scalar(constants[f.name], f.type),
-                                                                                      per_job)
-                          for f in schema}, schema=schema)
+        table = pa.table(
+            {
+                f.name: columns[f.name]
+                if f.name in columns
+                else pa.repeat(pa.scalar(constants[f.name], f.type), per_job)
+                for f in schema
+            },
+            schema=schema,
+        )
         scratch = target.with_suffix(".tmp")
         pq.write_table(table, scratch, row_group_size=1_000_000)
         scratch.replace(target)
@@ -121,6 +143,7 @@ def translation_times(schema: dict, runs: int) -> tuple[list[str], dict[str, lis
     figures: dict[str, list[float]] = {"cold": [], "new": [], "cached": []}
     counter = iter(range(10**9))
     for name, sql, scope, params in metric_queries():
+
         def call(text: str = sql) -> None:
             translate_module.translate(text, schema, scope=scope, params=params, schema_version="v")
 
@@ -137,11 +160,16 @@ def translation_times(schema: dict, runs: int) -> tuple[list[str], dict[str, lis
             call()
             return timed(lambda: [call() for _ in range(repeat)]) / repeat
 
-        medians = {"cold": median_of(max(runs, 9), cold)[0], "new": median_of(max(runs, 9), new_text)[0],
-                   "cached": median_of(runs, cached)[0]}
+        medians = {
+            "cold": median_of(max(runs, 9), cold)[0],
+            "new": median_of(max(runs, 9), new_text)[0],
+            "cached": median_of(runs, cached)[0],
+        }
         for key, value in medians.items():
             figures[key].append(value)
-        lines.append(f"| {name} | {medians['cold'] * 1e3:.2f} | {medians['new'] * 1e3:.2f} | {medians['cached'] * 1e6:.1f} |")
+        lines.append(
+            f"| {name} | {medians['cold'] * 1e3:.2f} | {medians['new'] * 1e3:.2f} | {medians['cached'] * 1e6:.1f} |"
+        )
     return lines, figures
 
 
@@ -159,10 +187,13 @@ def wall_and_cpu(fn) -> tuple[float, float]:
 def execution_ratios(backend: DuckDBBackend, runs: int) -> tuple[list[str], float, float]:
     """Per typical query: medians of wall and CPU time, translated vs hand-written, and their ratios
     (the CPU ratio is less disturbed by other processes on a busy machine)."""
-    lines = ["| query | rows out | translated (ms) | hand-written DuckDB (ms) | wall ratio | CPU ratio |",
-             "|---|---:|---:|---:|---:|---:|"]
+    lines = [
+        "| query | rows out | translated (ms) | hand-written DuckDB (ms) | wall ratio | CPU ratio |",
+        "|---|---:|---:|---:|---:|---:|",
+    ]
     worst_wall = worst_cpu = 0.0
     for name, sql, scope, hand in EXECUTION:
+
         def ours() -> int:
             return consume(backend.execute(sql, scope=scope).batches)
 
@@ -182,19 +213,26 @@ def execution_ratios(backend: DuckDBBackend, runs: int) -> tuple[list[str], floa
                 figures[key].append(wall_and_cpu(fn))
         (ours_wall, ours_cpu), (theirs_wall, theirs_cpu) = (
             (statistics.median(w for w, _ in figures[k]), statistics.median(c for _, c in figures[k]))
-            for k in ("ours", "theirs"))
+            for k in ("ours", "theirs")
+        )
         worst_wall = max(worst_wall, ours_wall / theirs_wall)
         worst_cpu = max(worst_cpu, ours_cpu / theirs_cpu)
-        lines.append(f"| {name} | {rows_out:,} | {ours_wall * 1e3:.1f} | {theirs_wall * 1e3:.1f} | "
-                     f"{ours_wall / theirs_wall:.3f} | {ours_cpu / theirs_cpu:.3f} |")
+        lines.append(
+            f"| {name} | {rows_out:,} | {ours_wall * 1e3:.1f} | {theirs_wall * 1e3:.1f} | "
+            f"{ours_wall / theirs_wall:.3f} | {ours_cpu / theirs_cpu:.3f} |"
+        )
     return lines, worst_wall, worst_cpu
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--rows", type=int, default=10_000_000, help="rows of the benchmark topic (default 10M)")
-    parser.add_argument("--runs", type=int, default=15,
-                        help="runs per measurement; the median is reported (default 15: a query takes tens of ms)")
+    parser.add_argument(
+        "--runs",
+        type=int,
+        default=15,
+        help="runs per measurement; the median is reported (default 15: a query takes tens of ms)",
+    )
     args = parser.parse_args()
     started = time.perf_counter()
     lake = build_lake(args.rows)

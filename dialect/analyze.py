@@ -7,11 +7,13 @@ and the output columns of every query, and rejects what Trino would reject (unkn
 mismatches) or what lakegate cannot answer identically (unsupported syntax and functions), always
 with the position in the original SQL text. The generator in `translate.py` then reads the types.
 """
+
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable, NoReturn
+from typing import NoReturn
 
 from sqlglot import exp
 
@@ -43,8 +45,8 @@ def position(node: exp.Expression, sql: str) -> tuple[int | None, int | None]:
 class Source:
     """One relation in a FROM clause: its qualifier in the DuckDB SQL and its columns."""
 
-    name: str | None                     # Trino name to qualify with (alias or table name), lower case
-    qualifier: str                       # identifier used in the DuckDB SQL
+    name: str | None  # Trino name to qualify with (alias or table name), lower case
+    qualifier: str  # identifier used in the DuckDB SQL
     columns: list[OutCol]
     using: dict[str, str] = field(default_factory=dict)  # JOIN USING column name -> its DuckDB SQL
 
@@ -57,11 +59,11 @@ class Scope:
     """The names visible to an expression: FROM sources, then enclosing queries' (correlation)."""
 
     sources: list[Source] = field(default_factory=list)
-    outer: "Scope | None" = None
+    outer: Scope | None = None
     ctes: dict[str, list[OutCol]] = field(default_factory=dict)
-    outputs: list[OutCol] | None = None   # select outputs, visible in ORDER BY
+    outputs: list[OutCol] | None = None  # select outputs, visible in ORDER BY
 
-    def derived(self) -> "Scope":
+    def derived(self) -> Scope:
         """The scope of a derived table in this FROM: this query's CTEs, not its other sources."""
         return Scope(outer=self.outer, ctes=self.ctes)
 
@@ -101,12 +103,20 @@ def _set(node: exp.Expression, t: TType) -> TType:
 class Call:
     """What a function's type rule sees: the call, its arguments and their types."""
 
-    def __init__(self, analyzer: "Analyzer", node: exp.Expression, name: str, args: list[exp.Expression],
-                 scope: Scope, env: dict[str, TType]):
+    def __init__(
+        self,
+        analyzer: Analyzer,
+        node: exp.Expression,
+        name: str,
+        args: list[exp.Expression],
+        scope: Scope,
+        env: dict[str, TType],
+    ):
         self.analyzer, self.node, self.name, self.args = analyzer, node, name, args
         self.scope, self.env = scope, env
         self.types: list[TType | None] = [
-            None if isinstance(a, (exp.Lambda, exp.Star)) else analyzer.expr(a, scope, env) for a in args]
+            None if isinstance(a, (exp.Lambda, exp.Star)) else analyzer.expr(a, scope, env) for a in args
+        ]
         for i, a in enumerate(args):  # an argument that analysis replaced (listagg) is written as its replacement
             if a._meta and "replaced_by" in a._meta:
                 args[i] = a.meta["replaced_by"]
@@ -149,6 +159,7 @@ class Analyzer:
 
     def __init__(self, schema: dict[str, list[tuple[str, TType]]], sql: str):
         from lakegate.dialect import functions  # the registry types its calls through Call
+
         self.functions = functions
         self.schema = schema
         self.sql = sql
@@ -193,17 +204,40 @@ class Analyzer:
                 names = [c.name for c in cte.args["alias"].columns] if cte.args["alias"].columns else None
                 if names:
                     if len(names) != len(cols):
-                        self.fail(f"WITH query name {cte.alias} specifies {len(names)} column names, "
-                                  f"but the query has {len(cols)}", cte, "MISMATCHED_COLUMN_ALIASES")
+                        self.fail(
+                            f"WITH query name {cte.alias} specifies {len(names)} column names, "
+                            f"but the query has {len(cols)}",
+                            cte,
+                            "MISMATCHED_COLUMN_ALIASES",
+                        )
                     cols = [(_ident_name(i), _ident_name(i), c[2]) for i, c in zip(cte.args["alias"].columns, cols)]
                 scope.ctes[cte.alias.lower()] = cols
         return scope
 
     def select(self, node: exp.Select, outer: Scope | None) -> list[OutCol]:
-        for key in ("qualify", "laterals", "connect", "pivots", "prewhere", "sample", "distribute", "sort",
-                    "cluster", "into", "locks", "settings", "format", "options", "match", "exclude", "for_"):
+        for key in (
+            "qualify",
+            "laterals",
+            "connect",
+            "pivots",
+            "prewhere",
+            "sample",
+            "distribute",
+            "sort",
+            "cluster",
+            "into",
+            "locks",
+            "settings",
+            "format",
+            "options",
+            "match",
+            "exclude",
+            "for_",
+        ):
             if node.args.get(key):
-                self.unsupported(key.upper().rstrip("_"), node.args[key] if isinstance(node.args[key], exp.Expression) else node)
+                self.unsupported(
+                    key.upper().rstrip("_"), node.args[key] if isinstance(node.args[key], exp.Expression) else node
+                )
         scope = self._with(node, outer)
         from_ = node.args.get("from_")
         if from_ is not None:
@@ -238,12 +272,19 @@ class Analyzer:
         items = [i.this if isinstance(i, exp.Alias) else i for i in node.expressions]
         for ordered in node.args["order"].expressions:
             target = ordered.this
-            if isinstance(target, exp.Literal) and not target.is_string or \
-                    isinstance(target, exp.Column) and target.meta.get("output"):
+            if (
+                isinstance(target, exp.Literal)
+                and not target.is_string
+                or isinstance(target, exp.Column)
+                and target.meta.get("output")
+            ):
                 continue
             if not any(_same_value(target, item) for item in items):
-                self.fail("For SELECT DISTINCT, ORDER BY expressions must appear in select list", target,
-                          "EXPRESSION_NOT_IN_DISTINCT")
+                self.fail(
+                    "For SELECT DISTINCT, ORDER BY expressions must appear in select list",
+                    target,
+                    "EXPRESSION_NOT_IN_DISTINCT",
+                )
 
     def check_grouping(self, node: exp.Select, scope: Scope) -> None:
         """In an aggregation, every column outside an aggregate must be a GROUP BY key, as Trino
@@ -254,12 +295,16 @@ class Analyzer:
         checked = items + ([having.this] if having is not None else [])
         for grouping in self.groupings:
             if group is None and grouping.find_ancestor(exp.Select) is node:
-                self.fail("A GROUPING() operation can only be used with a corresponding GROUPING SET/CUBE/ROLLUP/"
-                          "GROUP BY clause", grouping, "MISSING_GROUP_BY")
+                self.fail(
+                    "A GROUPING() operation can only be used with a corresponding GROUPING SET/CUBE/ROLLUP/"
+                    "GROUP BY clause",
+                    grouping,
+                    "MISSING_GROUP_BY",
+                )
         if group is None and not any(self._aggregate_inside(i) for i in checked):
             return
         keys = []
-        for key in (group.expressions if group is not None else []):
+        for key in group.expressions if group is not None else []:
             if isinstance(key, (exp.Rollup, exp.Cube, exp.GroupingSets)):
                 keys.extend(grouping_keys(key))
             elif isinstance(key, exp.Literal) and not key.is_string:
@@ -281,22 +326,32 @@ class Analyzer:
     def _grouped(self, node: exp.Expression, keys: list, qualifiers: set) -> None:
         if any(node == key for key in keys):
             return
-        if isinstance(node, exp.Anonymous) and node._meta and node.meta.get("spec") is not None \
-                and node.meta["spec"].kind != "scalar":
+        if (
+            isinstance(node, exp.Anonymous)
+            and node._meta
+            and node.meta.get("spec") is not None
+            and node.meta["spec"].kind != "scalar"
+        ):
             return
         if isinstance(node, (exp.Window, exp.Subquery, exp.Exists, exp.Lambda, exp.Filter)):
             return
         if isinstance(node, exp.Grouping):
             for argument in node.expressions:
                 if not any(argument == key for key in keys):
-                    self.fail("The arguments to GROUPING() must be expressions referenced by the GROUP BY at the "
-                              f"associated query level. Mismatch due to {argument.sql(dialect='trino')}.", node,
-                              "INVALID_ARGUMENTS")
+                    self.fail(
+                        "The arguments to GROUPING() must be expressions referenced by the GROUP BY at the "
+                        f"associated query level. Mismatch due to {argument.sql(dialect='trino')}.",
+                        node,
+                        "INVALID_ARGUMENTS",
+                    )
             return
         if isinstance(node, exp.Column) and node._meta and node.meta.get("ref") is not None:
             if node.meta["ref"][0] in qualifiers and not node.meta.get("lambda"):
-                self.fail(f"'{node.sql(dialect='trino')}' must be an aggregate expression or appear in GROUP BY clause",
-                          node, "EXPRESSION_NOT_AGGREGATE")
+                self.fail(
+                    f"'{node.sql(dialect='trino')}' must be an aggregate expression or appear in GROUP BY clause",
+                    node,
+                    "EXPRESSION_NOT_AGGREGATE",
+                )
             return
         for child in node.iter_expressions():
             self._grouped(child, keys, qualifiers)
@@ -318,8 +373,9 @@ class Analyzer:
                     self.unsupported("FETCH ... WITH TIES", clause)
             else:
                 count = clause.expression
-            if count is not None and not (isinstance(count, exp.Literal) and not count.is_string
-                                          and count.name.isdigit()):
+            if count is not None and not (
+                isinstance(count, exp.Literal) and not count.is_string and count.name.isdigit()
+            ):
                 if not (isinstance(count, exp.Var) and count.name.upper() == "ALL"):
                     self.fail(f"{key.upper()} must be a non-negative integer literal", clause, "TYPE_MISMATCH")
 
@@ -338,8 +394,11 @@ class Analyzer:
     def projection(self, node: exp.Select, scope: Scope) -> list[OutCol]:
         items: list[exp.Expression] = []
         for item in node.expressions:
-            star = item if isinstance(item, exp.Star) else (
-                item if isinstance(item, exp.Column) and isinstance(item.this, exp.Star) else None)
+            star = (
+                item
+                if isinstance(item, exp.Star)
+                else (item if isinstance(item, exp.Column) and isinstance(item.this, exp.Star) else None)
+            )
             if star is None:
                 items.append(item)
                 continue
@@ -376,7 +435,9 @@ class Analyzer:
         expanded: list[exp.Expression] = []
         for source in sources:
             for col in source.columns:
-                ref = exp.column(exp.to_identifier(col[1], quoted=True), table=exp.to_identifier(source.qualifier, quoted=True))
+                ref = exp.column(
+                    exp.to_identifier(col[1], quoted=True), table=exp.to_identifier(source.qualifier, quoted=True)
+                )
                 alias = f"_col{len(expanded)}" if col[0] is None else col[0]
                 expanded.append(exp.Alias(this=ref, alias=exp.to_identifier(alias, quoted=True)))
                 ref.meta["ref"] = (source.qualifier, col[1], ())
@@ -391,7 +452,9 @@ class Analyzer:
             self.unsupported("GROUP BY ALL", group)
         for key in ("grouping_sets", "cube", "rollup", "totals"):
             for item in group.args.get(key) or []:
-                self.unsupported(f"GROUP BY {key.upper().replace('_', ' ')}", item if isinstance(item, exp.Expression) else group)
+                self.unsupported(
+                    f"GROUP BY {key.upper().replace('_', ' ')}", item if isinstance(item, exp.Expression) else group
+                )
         for item in group.expressions:
             if isinstance(item, (exp.Rollup, exp.Cube, exp.GroupingSets)):
                 for key in grouping_keys(item):
@@ -418,20 +481,29 @@ class Analyzer:
             branches.append(self.query(branch, scope))
         left, right = branches
         if len(left) != len(right):
-            self.fail(f"{node.key.upper()} query has different number of fields: {len(left)}, {len(right)}", node,
-                      "TYPE_MISMATCH")
+            self.fail(
+                f"{node.key.upper()} query has different number of fields: {len(left)}, {len(right)}",
+                node,
+                "TYPE_MISMATCH",
+            )
         outputs = []
         for index, (a, b) in enumerate(zip(left, right)):
             common = tt.common_super_type(a[2], b[2])
             if common is None:
-                self.fail(f"column {index + 1} in {node.key.upper()} query has incompatible types: {a[2]}, {b[2]}",
-                          node, "TYPE_MISMATCH")
+                self.fail(
+                    f"column {index + 1} in {node.key.upper()} query has incompatible types: {a[2]}, {b[2]}",
+                    node,
+                    "TYPE_MISMATCH",
+                )
             outputs.append((a[0], a[1], common))
         if node.args.get("distinct") or isinstance(node, (exp.Intersect, exp.Except)):
             for col in outputs:
                 if col[2].base in _UNORDERABLE[:3]:
-                    self.fail(f"Type {col[2]} is not comparable, and therefore cannot be used in {node.key.upper()}",
-                              node, "TYPE_MISMATCH")
+                    self.fail(
+                        f"Type {col[2]} is not comparable, and therefore cannot be used in {node.key.upper()}",
+                        node,
+                        "TYPE_MISMATCH",
+                    )
         node.meta["outputs"] = outputs
         self._modifiers(node, outputs, Scope(outer=scope))
         return outputs
@@ -451,8 +523,11 @@ class Analyzer:
         for index in range(width):
             common = tt.common_super_type_of([r[index] for r in rows])
             if common is None:
-                self.fail(f"Values rows have mismatched types: {', '.join(str(r[index]) for r in rows)}", node,
-                          "TYPE_MISMATCH")
+                self.fail(
+                    f"Values rows have mismatched types: {', '.join(str(r[index]) for r in rows)}",
+                    node,
+                    "TYPE_MISMATCH",
+                )
             types.append(common)
         node.meta["types"] = types
         return [(None, f"_col{i}", t) for i, t in enumerate(types)]
@@ -461,8 +536,7 @@ class Analyzer:
         """A VALUES item of a row type is one column per field in Trino (StatementAnalyzer.visitValues);
         written as ROW(...) it becomes those fields, any other row-typed item is refused."""
         if not (isinstance(cell, exp.Anonymous) and cell.name.upper() == "ROW"):
-            self.unsupported("a VALUES item of a row type that is not ROW(...) (Trino makes each field a column)",
-                             cell)
+            self.unsupported("a VALUES item of a row type that is not ROW(...) (Trino makes each field a column)", cell)
         fields = list(cell.expressions)
         (row if isinstance(row, exp.Tuple) else cell).replace(exp.Tuple(expressions=fields))
         return fields
@@ -475,7 +549,10 @@ class Analyzer:
         column_names = [_ident_name(c) for c in alias.columns] if alias is not None and alias.columns else None
         if isinstance(node, exp.Table):
             if isinstance(node.this, (exp.Anonymous, exp.Func)):
-                self.unsupported(f"table function '{node.this.name if isinstance(node.this, exp.Anonymous) else node.this.key}'", node)
+                self.unsupported(
+                    f"table function '{node.this.name if isinstance(node.this, exp.Anonymous) else node.this.key}'",
+                    node,
+                )
             if node.args.get("joins") or node.args.get("pivots") or node.args.get("sample"):
                 self.unsupported("table sampling or pivot", node)
             name = node.name.lower()
@@ -501,8 +578,13 @@ class Analyzer:
             cols = self.values(node, lateral_scope or scope.derived())
             qualifier = alias_name or self.fresh_alias()
             if alias is None or not alias.columns:
-                node.set("alias", exp.TableAlias(this=exp.to_identifier(qualifier, quoted=True),
-                                                  columns=[exp.to_identifier(c[1], quoted=True) for c in cols]))
+                node.set(
+                    "alias",
+                    exp.TableAlias(
+                        this=exp.to_identifier(qualifier, quoted=True),
+                        columns=[exp.to_identifier(c[1], quoted=True) for c in cols],
+                    ),
+                )
         elif isinstance(node, exp.Unnest):
             cols = self.unnest(node, scope, column_names)
             qualifier = alias_name or self.fresh_alias()
@@ -519,8 +601,12 @@ class Analyzer:
             self.unsupported(f"FROM item {node.key.upper()}", node)
         if column_names is not None:
             if len(column_names) != len(cols):
-                self.fail(f"Column alias list has {len(column_names)} entries but '{qualifier}' has {len(cols)} columns "
-                          "available", alias, "MISMATCHED_COLUMN_ALIASES")
+                self.fail(
+                    f"Column alias list has {len(column_names)} entries but '{qualifier}' has {len(cols)} columns "
+                    "available",
+                    alias,
+                    "MISMATCHED_COLUMN_ALIASES",
+                )
             cols = [(n, n, c[2]) for n, c in zip(column_names, cols)]
         source = Source(alias_name or (node.name.lower() if isinstance(node, exp.Table) else None), qualifier, cols)
         if any(s.name is not None and s.name == source.name for s in scope.sources):
@@ -554,8 +640,11 @@ class Analyzer:
             cols.append((None, "", tt.BIGINT))
         if names is not None:
             if len(names) != len(cols):
-                self.fail(f"Column alias list has {len(names)} entries but UNNEST has {len(cols)} columns available",
-                          node.args["alias"], "MISMATCHED_COLUMN_ALIASES")
+                self.fail(
+                    f"Column alias list has {len(names)} entries but UNNEST has {len(cols)} columns available",
+                    node.args["alias"],
+                    "MISMATCHED_COLUMN_ALIASES",
+                )
             cols = [(n, n, c[2]) for n, c in zip(names, cols)]
         else:
             cols = [(c[0], c[0] or f"_col{i}", c[2]) for i, c in enumerate(cols)]
@@ -565,9 +654,15 @@ class Analyzer:
 
     def join(self, join: exp.Join, scope: Scope) -> None:
         kind = (join.args.get("kind") or "").upper()
-        if kind in ("SEMI", "ANTI", "ASOF", "POSITIONAL") or join.args.get("method") or join.args.get("match_condition"):
+        if (
+            kind in ("SEMI", "ANTI", "ASOF", "POSITIONAL")
+            or join.args.get("method")
+            or join.args.get("match_condition")
+        ):
             self.unsupported(f"{kind or join.args.get('method')} JOIN", join)
-        self.relation(join.this, scope, lateral_scope=scope if isinstance(join.this, (exp.Unnest, exp.Lateral)) else None)
+        self.relation(
+            join.this, scope, lateral_scope=scope if isinstance(join.this, (exp.Unnest, exp.Lateral)) else None
+        )
         on = join.args.get("on")
         if on is not None:
             self.condition(on, scope, "JOIN ON")
@@ -585,12 +680,17 @@ class Analyzer:
         for ident in using:
             name = ident.name.lower()
             if name in sql:
-                self.fail(f"Column '{ident.name}' appears multiple times in USING clause", ident, "DUPLICATE_COLUMN_NAME")
+                self.fail(
+                    f"Column '{ident.name}' appears multiple times in USING clause", ident, "DUPLICATE_COLUMN_NAME"
+                )
             left = [(s, c) for s in scope.sources[:-1] for c in s.find(name)]
             right = [(scope.sources[-1], c) for c in scope.sources[-1].find(name)]
             if not right or not left:
-                self.fail(f"Column '{ident.name}' is missing from {'right' if not right else 'left'} side of join",
-                          ident, "COLUMN_NOT_FOUND")
+                self.fail(
+                    f"Column '{ident.name}' is missing from {'right' if not right else 'left'} side of join",
+                    ident,
+                    "COLUMN_NOT_FOUND",
+                )
             common = tt.common_super_type(left[0][1][2], right[0][1][2])
             if common is None:
                 self.fail(f"Column types of '{ident.name}' in USING do not match", ident, "TYPE_MISMATCH")
@@ -647,7 +747,7 @@ class Analyzer:
                     node.meta["ref"] = (source.qualifier, col[1], ())
                     if col[1].lower() in source.using:
                         node.meta["sql"] = source.using[col[1].lower()]
-                    return self._fields(node, col[2], parts[split + 1:], quoted[split + 1:])
+                    return self._fields(node, col[2], parts[split + 1 :], quoted[split + 1 :])
             search = search.outer
         self.fail(f"Column '{'.'.join(parts)}' cannot be resolved", node, "COLUMN_NOT_FOUND")
 
@@ -673,8 +773,11 @@ class Analyzer:
         spec = self.functions.SUPPORTED.get(name)
         if spec is None:
             if name in self.functions.REJECTED:
-                self.fail(f"unsupported in lakegate: function '{name}': {self.functions.REJECTED[name]}", node,
-                          "NOT_SUPPORTED")
+                self.fail(
+                    f"unsupported in lakegate: function '{name}': {self.functions.REJECTED[name]}",
+                    node,
+                    "NOT_SUPPORTED",
+                )
             self.fail(f"Function '{name}' not registered", node, "FUNCTION_NOT_FOUND")
         if spec.kind == "window" and not window:
             self.fail(f"Window function {name} requires an OVER clause", node, "MISSING_OVER")
@@ -714,8 +817,11 @@ def grouping_keys(element: exp.Expression) -> list[exp.Expression]:
     keys = []
     for item in element.expressions:
         if isinstance(item, (exp.Tuple, exp.Paren)):
-            keys.extend(grouping_keys(exp.Tuple(expressions=[item.this])) if isinstance(item, exp.Paren)
-                        else grouping_keys(item))
+            keys.extend(
+                grouping_keys(exp.Tuple(expressions=[item.this]))
+                if isinstance(item, exp.Paren)
+                else grouping_keys(item)
+            )
         elif isinstance(item, (exp.Rollup, exp.Cube, exp.GroupingSets)):
             keys.extend(grouping_keys(item))
         else:
@@ -725,9 +831,15 @@ def grouping_keys(element: exp.Expression) -> list[exp.Expression]:
 
 #: DuckDB expressions sqlglot's Trino reader accepts that Trino's grammar has not (trinodb/trino
 #: core/trino-grammar/src/main/antlr4/io/trino/grammar/sql/SqlBase.g4), named as written.
-_DUCKDB_SYNTAX = {exp.ILike: "ILIKE", exp.Glob: "GLOB", exp.SimilarTo: "SIMILAR TO",
-                  exp.Comprehension: "a list comprehension [x FOR x IN ...]", exp.Slice: "an array slice a[i:j]",
-                  exp.BitwiseXor: "the '^' operator", exp.PropertyEQ: "the ':=' operator"}
+_DUCKDB_SYNTAX = {
+    exp.ILike: "ILIKE",
+    exp.Glob: "GLOB",
+    exp.SimilarTo: "SIMILAR TO",
+    exp.Comprehension: "a list comprehension [x FOR x IN ...]",
+    exp.Slice: "an array slice a[i:j]",
+    exp.BitwiseXor: "the '^' operator",
+    exp.PropertyEQ: "the ':=' operator",
+}
 
 
 # --- expression handlers ---------------------------------------------------------------------------
@@ -740,6 +852,7 @@ def handles(*types: type) -> Callable[[Handler], Handler]:
         for t in types:
             _HANDLERS[t] = fn
         return fn
+
     return register
 
 
@@ -831,8 +944,16 @@ def _comparable(a: Analyzer, node, left: TType, right: TType, op: str) -> TType:
     return common
 
 
-_OPS = {exp.EQ: "=", exp.NEQ: "<>", exp.GT: ">", exp.GTE: ">=", exp.LT: "<", exp.LTE: "<=",
-        exp.NullSafeEQ: "IS NOT DISTINCT FROM", exp.NullSafeNEQ: "IS DISTINCT FROM"}
+_OPS = {
+    exp.EQ: "=",
+    exp.NEQ: "<>",
+    exp.GT: ">",
+    exp.GTE: ">=",
+    exp.LT: "<",
+    exp.LTE: "<=",
+    exp.NullSafeEQ: "IS NOT DISTINCT FROM",
+    exp.NullSafeNEQ: "IS DISTINCT FROM",
+}
 
 
 @handles(*_COMPARISONS)
@@ -922,8 +1043,12 @@ def _arithmetic(a: Analyzer, node, scope, env):
         result = _temporal_arithmetic(op, left, right)
     if result is None:
         a.fail(f"Cannot apply operator: {left} {op} {right}", node, "TYPE_MISMATCH")
-    if op == "-" and left.base in ("timestamp", "timestamp_tz") and right.base == left.base and \
-            max(left.args[0], right.args[0]) > 3:
+    if (
+        op == "-"
+        and left.base in ("timestamp", "timestamp_tz")
+        and right.base == left.base
+        and max(left.args[0], right.args[0]) > 3
+    ):
         a.unsupported(f"{left} - {right} (Trino rounds the difference to milliseconds)", node)
     if op == "%" and not remainder_fits(left, right, result):
         a.unsupported(f"% of {left} by {right} (the operands at a common scale exceed 38 digits)", node)
@@ -998,8 +1123,11 @@ def _case(a: Analyzer, node, scope, env):
         results.append(a.expr(default, scope, env))
     common = tt.common_super_type_of(results)
     if common is None:
-        a.fail(f"All CASE results must be the same type or coercible to a common type: "
-               f"{', '.join(map(str, results))}", node, "TYPE_MISMATCH")
+        a.fail(
+            f"All CASE results must be the same type or coercible to a common type: {', '.join(map(str, results))}",
+            node,
+            "TYPE_MISMATCH",
+        )
     return common
 
 
@@ -1013,8 +1141,11 @@ def _if(a: Analyzer, node, scope, env):
         results.append(a.expr(node.args["false"], scope, env))
     common = tt.common_super_type_of(results)
     if common is None:
-        a.fail(f"Result types for IF must be the same or coercible to a common type: "
-               f"{', '.join(map(str, results))}", node, "TYPE_MISMATCH")
+        a.fail(
+            f"Result types for IF must be the same or coercible to a common type: {', '.join(map(str, results))}",
+            node,
+            "TYPE_MISMATCH",
+        )
     return common
 
 
@@ -1024,7 +1155,7 @@ def _typed_literal(a: Analyzer, node: exp.Cast) -> bool:
     literal = node.this
     if not (isinstance(node, exp.Cast) and isinstance(literal, exp.Literal) and literal.is_string and literal._meta):
         return False
-    before = a.sql[:literal._meta.get("start", 0)].rstrip()
+    before = a.sql[: literal._meta.get("start", 0)].rstrip()
     return bool(before) and (before[-1].isalnum() or before[-1] in ")_")
 
 
@@ -1042,7 +1173,9 @@ def _cast(a: Analyzer, node, scope, env):
                 target = tt.decimal_literal_type(text)
             except ValueError:
                 a.fail(f"'{text}' is not a valid decimal literal", node, "INVALID_LITERAL")
-        elif target.base == "timestamp" and re.search(r"[0-9]:[0-9]{2}(:[0-9]{2}([.][0-9]*)?)?\s*([A-Za-z]|[+-][0-9])", text):
+        elif target.base == "timestamp" and re.search(
+            r"[0-9]:[0-9]{2}(:[0-9]{2}([.][0-9]*)?)?\s*([A-Za-z]|[+-][0-9])", text
+        ):
             a.unsupported("timestamp literal with a time zone", node)
     if target.base in ("char", "time", "time_tz", "uuid", "varbinary", "json", "map"):
         a.unsupported(f"cast to {target}", node)
@@ -1058,12 +1191,13 @@ def _cast(a: Analyzer, node, scope, env):
 _ZONE_SUFFIX = re.compile(r"[0-9]\s*([A-Za-z][A-Za-z0-9_/+-]*|[+-][0-9]{1,2}(?::?[0-9]{2})?)\s*$")
 
 
-def _check_utc_text(a: "Analyzer", node: exp.Cast) -> None:
+def _check_utc_text(a: Analyzer, node: exp.Cast) -> None:
     """A text cast to timestamp with time zone must name UTC or no zone: lakegate's values carry no
     zone of their own (Trino's keep theirs, and render and compute in it), and the session zone is UTC."""
     if not (isinstance(node.this, exp.Literal) and node.this.is_string):
-        a.unsupported("CAST of a non-literal varchar to timestamp with time zone (each value's zone would be "
-                      "lost)", node)
+        a.unsupported(
+            "CAST of a non-literal varchar to timestamp with time zone (each value's zone would be lost)", node
+        )
     zone = _ZONE_SUFFIX.search(node.this.name.strip())
     if zone is not None and zone.group(1).upper() != "UTC":
         a.unsupported(f"timestamp with time zone '{zone.group(1)}' (lakegate keeps timestamps in UTC only)", node)
@@ -1077,8 +1211,12 @@ def castable(source: TType, target: TType) -> bool:
     if source.is_numeric or source.base in scalar:
         if target.is_numeric or target.base in scalar:
             return True
-    if source.base in ("varchar", "date", "timestamp", "timestamp_tz") and \
-            target.base in ("varchar", "date", "timestamp", "timestamp_tz"):
+    if source.base in ("varchar", "date", "timestamp", "timestamp_tz") and target.base in (
+        "varchar",
+        "date",
+        "timestamp",
+        "timestamp_tz",
+    ):
         return True
     if source.base == target.base == "array":
         return castable(source.element, target.element)
@@ -1163,8 +1301,23 @@ def _localtimestamp(a, node, scope, env):
 def _extract(a: Analyzer, node, scope, env):
     unit = node.this.name.upper()
     t = a.expr(node.expression, scope, env)
-    allowed = {"YEAR", "QUARTER", "MONTH", "WEEK", "DAY", "DAY_OF_MONTH", "DAY_OF_WEEK", "DOW", "DAY_OF_YEAR", "DOY",
-               "YEAR_OF_WEEK", "YOW", "HOUR", "MINUTE", "SECOND"}
+    allowed = {
+        "YEAR",
+        "QUARTER",
+        "MONTH",
+        "WEEK",
+        "DAY",
+        "DAY_OF_MONTH",
+        "DAY_OF_WEEK",
+        "DOW",
+        "DAY_OF_YEAR",
+        "DOY",
+        "YEAR_OF_WEEK",
+        "YOW",
+        "HOUR",
+        "MINUTE",
+        "SECOND",
+    }
     if unit not in allowed:
         a.unsupported(f"EXTRACT({unit} FROM ...)", node)
     if t.base not in ("date", "timestamp", "timestamp_tz", "unknown"):
@@ -1287,19 +1440,34 @@ def _check_range_offset(a: Analyzer, keys: list, bound: exp.Expression, offset: 
     numeric offset or date/timestamp with an interval. lakegate takes a non-negative literal offset
     over a double or integral key (an integer offset) or a date/timestamp key: what DuckDB frames alike."""
     if len(keys) != 1:
-        a.fail("Window frame of type RANGE PRECEDING or FOLLOWING requires single sort item in ORDER BY "
-               f"(actual: {len(keys)})", bound, "INVALID_ORDER_BY")
+        a.fail(
+            "Window frame of type RANGE PRECEDING or FOLLOWING requires single sort item in ORDER BY "
+            f"(actual: {len(keys)})",
+            bound,
+            "INVALID_ORDER_BY",
+        )
     key = ttype(keys[0].this)
     if not (key.is_numeric or key.base in ("date", "timestamp", "timestamp_tz")):
-        a.fail("Window frame of type RANGE PRECEDING or FOLLOWING requires that sort item type be numeric, "
-               f"datetime or interval (actual: {key})", bound, "TYPE_MISMATCH")
+        a.fail(
+            "Window frame of type RANGE PRECEDING or FOLLOWING requires that sort item type be numeric, "
+            f"datetime or interval (actual: {key})",
+            bound,
+            "TYPE_MISMATCH",
+        )
     temporal = key.base in ("date", "timestamp", "timestamp_tz")
     if (offset.base in ("interval_ds", "interval_ym")) != temporal or not (temporal or offset.is_numeric):
-        a.fail(f"Window frame RANGE value type ({offset}) not compatible with sort item type ({key})", bound,
-               "TYPE_MISMATCH")
+        a.fail(
+            f"Window frame RANGE value type ({offset}) not compatible with sort item type ({key})",
+            bound,
+            "TYPE_MISMATCH",
+        )
     literal = bound.this if isinstance(bound, exp.Interval) else bound
-    if not isinstance(literal, exp.Literal) or literal.this.strip().startswith("-") or \
-            key.base in ("decimal", "real", "timestamp_tz") or (key.is_integral and not offset.is_integral):
+    if (
+        not isinstance(literal, exp.Literal)
+        or literal.this.strip().startswith("-")
+        or key.base in ("decimal", "real", "timestamp_tz")
+        or (key.is_integral and not offset.is_integral)
+    ):
         a.unsupported(f"RANGE frame with offset {bound.sql(dialect='trino')} over a {key} sort key", bound)
 
 
@@ -1323,8 +1491,7 @@ def _lambda(a: Analyzer, node, scope, env):
 
 @handles(exp.Placeholder, exp.Parameter)
 def _placeholder(a: Analyzer, node, scope, env):
-    a.fail("Incorrect number of parameters: the query has more '?' than values given", node,
-           "INVALID_PARAMETER_USAGE")
+    a.fail("Incorrect number of parameters: the query has more '?' than values given", node, "INVALID_PARAMETER_USAGE")
 
 
 @handles(exp.AtTimeZone)
@@ -1334,8 +1501,9 @@ def _at_time_zone(a: Analyzer, node, scope, env):
     if not (isinstance(zone, exp.Literal) and zone.is_string):
         a.unsupported("AT TIME ZONE with a non-literal zone", node)
     if t.base not in ("timestamp", "timestamp_tz"):
-        a.fail(f"Type of value must be a time or timestamp with or without time zone (actual {t})", node,
-               "TYPE_MISMATCH")
+        a.fail(
+            f"Type of value must be a time or timestamp with or without time zone (actual {t})", node, "TYPE_MISMATCH"
+        )
     if zone.name.strip().upper() != "UTC":
         a.unsupported(f"AT TIME ZONE '{zone.name}' (lakegate keeps timestamps in UTC only)", node)
     a.expr(zone, scope, env)

@@ -1,4 +1,5 @@
 """The one error type of the dialect layer, carrying Trino's error name and the SQL position."""
+
 from __future__ import annotations
 
 import re
@@ -56,8 +57,14 @@ class DialectError(ValueError):
     report it as Trino does. `str(err)` reads like `message (line 2, column 10)`.
     """
 
-    def __init__(self, message: str, *, line: int | None = None, column: int | None = None,
-                 error_name: str = "GENERIC_USER_ERROR"):
+    def __init__(
+        self,
+        message: str,
+        *,
+        line: int | None = None,
+        column: int | None = None,
+        error_name: str = "GENERIC_USER_ERROR",
+    ):
         self.message = message
         self.line = line
         self.column = column
@@ -100,6 +107,9 @@ def runtime_error(message: str) -> DialectError:
     if named and named.group(1) in ERROR_CODES:
         return DialectError(named.group(2), error_name=named.group(1))
     name = next((n for marker, n in _RUNTIME if marker in first), "GENERIC_USER_ERROR")
-    text = first.split(": ", 1)[1] if first.startswith(("Invalid Input Error: ", "Conversion Error: ",
-                                                          "Out of Range Error: ")) else first
+    text = (
+        first.split(": ", 1)[1]
+        if first.startswith(("Invalid Input Error: ", "Conversion Error: ", "Out of Range Error: "))
+        else first
+    )
     return DialectError(text, error_name=name)

@@ -5,16 +5,17 @@ functions it refuses, with the reason (`REJECTED`). docs/functions.md is generat
 A call's result type comes from `FunctionSpec.infer(call)` (see `analyze.Call`), which also rejects
 argument types Trino would reject; `FunctionSpec.render(writer, node, args)` writes the DuckDB SQL.
 """
+
 from __future__ import annotations
 
 import re
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import Callable, Iterable
 
 from sqlglot import exp
 
-from lakegate.dialect import trino_types as tt
 from lakegate.dialect import transforms as tf
+from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import Call, remainder_fits, ttype
 from lakegate.dialect.trino_types import TType
 
@@ -27,8 +28,8 @@ class FunctionSpec:
 
     name: str
     family: str
-    signature: str                      # as Trino documents it, e.g. "cardinality(array(E)) -> bigint"
-    kind: str                           # scalar | aggregate | window
+    signature: str  # as Trino documents it, e.g. "cardinality(array(E)) -> bigint"
+    kind: str  # scalar | aggregate | window
     infer: Callable[[Call], TType]
     render: Render
     notes: str = ""
@@ -37,8 +38,16 @@ class FunctionSpec:
 SUPPORTED: dict[str, FunctionSpec] = {}
 
 
-def register(name: str, family: str, signature: str, infer: Callable[[Call], TType], render: Render,
-             kind: str = "scalar", notes: str = "", aliases: tuple[str, ...] = ()) -> None:
+def register(
+    name: str,
+    family: str,
+    signature: str,
+    infer: Callable[[Call], TType],
+    render: Render,
+    kind: str = "scalar",
+    notes: str = "",
+    aliases: tuple[str, ...] = (),
+) -> None:
     for alias in (name, *aliases):
         SUPPORTED[alias] = FunctionSpec(alias, family, signature, kind, infer, render, notes)
 
@@ -73,13 +82,16 @@ def fixed(result: TType, *kinds: str, optional: int = 0) -> Callable[[Call], TTy
     def infer(call: Call) -> TType:
         need(call, *kinds, optional=optional)
         return result
+
     return infer
 
 
 def same(*kinds: str, optional: int = 0) -> Callable[[Call], TType]:
     """Result type is the first argument's type (NULL literal: unknown)."""
+
     def infer(call: Call) -> TType:
         return need(call, *kinds, optional=optional)[0]
+
     return infer
 
 
@@ -134,9 +146,11 @@ def sqls(g, args) -> list[str]:
 
 def call_as(duck: str, cast_result: bool = False) -> Render:
     """DuckDB function `duck` with the same arguments (cast to the Trino result type if asked)."""
+
     def render(g, node, args):
         sql = f"{duck}({', '.join(sqls(g, args))})"
         return tf.cast(sql, ttype(node)) if cast_result else sql
+
     return render
 
 
@@ -144,6 +158,7 @@ def agg_as(duck: str, cast_result: bool = True) -> Render:
     def render(g, node, args):
         sql = g.agg(node, duck, ["*" if isinstance(a, exp.Star) else g.sql(a) for a in args])
         return tf.cast(sql, ttype(node)) if cast_result else sql
+
     return render
 
 
@@ -185,8 +200,10 @@ def _minmax(call: Call) -> TType:
     if len(call.args) == 2:
         t, n = need(call, "orderable", "integral")
         if call.name == "max" and t.is_approx:
-            call.fail("unsupported in lakegate: max(x, n) over real or double (Trino's NaN ordering is not "
-                      "translated)", "NOT_SUPPORTED")
+            call.fail(
+                "unsupported in lakegate: max(x, n) over real or double (Trino's NaN ordering is not translated)",
+                "NOT_SUPPORTED",
+            )
         return tt.array(t)
     (t,) = need(call, "orderable")
     if t.base == "row" or t.base == "array":
@@ -238,8 +255,10 @@ def _by_n(call: Call) -> TType:
     if n <= 0:
         call.fail(f"third argument of {call.name} must be a positive integer", "INVALID_FUNCTION_ARGUMENT")
     if n > MAX_BY_N:
-        call.fail(f"third argument of {call.name} must be less than or equal to {MAX_BY_N}; found {n}",
-                  "INVALID_FUNCTION_ARGUMENT")
+        call.fail(
+            f"third argument of {call.name} must be less than or equal to {MAX_BY_N}; found {n}",
+            "INVALID_FUNCTION_ARGUMENT",
+        )
     return tt.array(x)
 
 
@@ -260,6 +279,7 @@ def _render_by(duck: str, descending: bool) -> Render:
         over = f" {g.over(node.meta['over'])}" if node.meta.get("over") is not None else ""
         collected = f"array_agg({x} ORDER BY {keys}) FILTER (WHERE {where}){over}"
         return tf.cast(f"list_slice({collected}, 1, {g.sql(args[2])})", ttype(node))
+
     return render
 
 
@@ -308,15 +328,31 @@ def _render_approx_percentile(g, node, args) -> str:
     return tf.cast(g.agg(node, "quantile_disc", [g.sql(args[0]), percentage]), t)
 
 
-register("count", "aggregate", "count(*) -> bigint; count(x) -> bigint",
-         lambda c: tt.BIGINT if len(c.args) <= 1 else c.mismatch(), agg_as("count"), kind="aggregate")
+register(
+    "count",
+    "aggregate",
+    "count(*) -> bigint; count(x) -> bigint",
+    lambda c: tt.BIGINT if len(c.args) <= 1 else c.mismatch(),
+    agg_as("count"),
+    kind="aggregate",
+)
+
+
 def _render_count_if(g, node, args) -> str:
     """DuckDB's count_if is NULL over no rows or only NULLs; Trino's is 0."""
     return f"COALESCE({g.agg(node, 'count_if', [g.sql(args[0])])}, 0)::BIGINT"
 
 
-register("count_if", "aggregate", "count_if(boolean) -> bigint", fixed(tt.BIGINT, "boolean"), _render_count_if,
-         kind="aggregate")
+register(
+    "count_if",
+    "aggregate",
+    "count_if(boolean) -> bigint",
+    fixed(tt.BIGINT, "boolean"),
+    _render_count_if,
+    kind="aggregate",
+)
+
+
 def _render_sum(g, node, args) -> str:
     t = ttype(node)
     total = g.agg(node, "sum", [g.sql(args[0])])
@@ -325,17 +361,45 @@ def _render_sum(g, node, args) -> str:
     return tf.cast(total, t)
 
 
-register("sum", "aggregate", "sum(x) -> bigint for integers, decimal(38,s) for decimal(p,s), same for real/double",
-         _sum, _render_sum, kind="aggregate",
-         notes="DuckDB sums integers as HUGEINT; the result is cast to bigint and fails on overflow like Trino.")
-register("avg", "aggregate", "avg(x) -> double for integers, decimal(p,s) for decimal(p,s), real/double",
-         _avg, _render_avg, kind="aggregate",
-         notes="avg(decimal(p,s)) is computed exactly and rounded HALF_UP to scale s, as Trino does.")
+register(
+    "sum",
+    "aggregate",
+    "sum(x) -> bigint for integers, decimal(38,s) for decimal(p,s), same for real/double",
+    _sum,
+    _render_sum,
+    kind="aggregate",
+    notes="DuckDB sums integers as HUGEINT; the result is cast to bigint and fails on overflow like Trino.",
+)
+register(
+    "avg",
+    "aggregate",
+    "avg(x) -> double for integers, decimal(p,s) for decimal(p,s), real/double",
+    _avg,
+    _render_avg,
+    kind="aggregate",
+    notes="avg(decimal(p,s)) is computed exactly and rounded HALF_UP to scale s, as Trino does.",
+)
 register("min", "aggregate", "min(x) -> same; min(x, n) -> array", _minmax, agg_as("min"), kind="aggregate")
-register("max", "aggregate", "max(x) -> same; max(x, n) -> array", _minmax, _render_max, kind="aggregate",
-         notes="NaN only when every value is NaN, as in Trino.")
-register("arbitrary", "aggregate", "arbitrary(x) -> same", same("any"), agg_as("any_value"), kind="aggregate",
-         aliases=("any_value",))
+register(
+    "max",
+    "aggregate",
+    "max(x) -> same; max(x, n) -> array",
+    _minmax,
+    _render_max,
+    kind="aggregate",
+    notes="NaN only when every value is NaN, as in Trino.",
+)
+register(
+    "arbitrary",
+    "aggregate",
+    "arbitrary(x) -> same",
+    same("any"),
+    agg_as("any_value"),
+    kind="aggregate",
+    aliases=("any_value",),
+)
+
+
 def _histogram(call: Call) -> TType:
     (t,) = need(call, "orderable")
     if t.is_unknown:
@@ -343,34 +407,93 @@ def _histogram(call: Call) -> TType:
     return tt.map_of(t, tt.BIGINT)
 
 
-register("histogram", "aggregate", "histogram(x) -> map(K, bigint)", _histogram, agg_as("histogram"),
-         kind="aggregate", notes="NULL values are not counted; NULL for no rows (Histogram.java).")
+register(
+    "histogram",
+    "aggregate",
+    "histogram(x) -> map(K, bigint)",
+    _histogram,
+    agg_as("histogram"),
+    kind="aggregate",
+    notes="NULL values are not counted; NULL for no rows (Histogram.java).",
+)
 _render_max_by_n = _render_by("arg_max_null", descending=True)
-register("max_by", "aggregate", "max_by(x, y) -> type of x; max_by(x, y, n) -> array(type of x)", _by,
-         lambda g, node, args: (_render_max_by_n if len(args) == 3 else _render_max_by)(g, node, args),
-         kind="aggregate", notes="A NaN y is below every number, as in Trino.")
-register("min_by", "aggregate", "min_by(x, y) -> type of x; min_by(x, y, n) -> array(type of x)", _by,
-         _render_by("arg_min_null", descending=False), kind="aggregate")
-register("array_agg", "aggregate", "array_agg(x) -> array(x)", _array_agg, agg_as("list", cast_result=False),
-         kind="aggregate")
-register("approx_distinct", "aggregate", "approx_distinct(x) -> bigint",
-         lambda c: tt.BIGINT if len(c.args) in (1, 2) and c.types[0] is not None else c.mismatch(),
-         lambda g, node, args: tf.cast(f"count(DISTINCT {g.sql(args[0])})" if not node.meta.get("over") else
-                                       g.agg(node, "count", [f"DISTINCT {g.sql(args[0])}"]), tt.BIGINT),
-         kind="aggregate",
-         notes="Returns the exact distinct count, which is within Trino's documented standard error (2.3%).")
-register("approx_percentile", "aggregate", "approx_percentile(x, percentage) -> same as x; "
-         "approx_percentile(x, array(double)) -> array", _approx_percentile, _render_approx_percentile,
-         kind="aggregate",
-         notes="Returns the exact nearest-rank value (DuckDB quantile_disc), which is within Trino's documented "
-               "approximation error; weighted and accuracy variants are rejected.")
-register("bool_and", "aggregate", "bool_and(boolean) -> boolean", fixed(tt.BOOLEAN, "boolean"),
-         agg_as("bool_and", cast_result=False), kind="aggregate", aliases=("every",))
-register("bool_or", "aggregate", "bool_or(boolean) -> boolean", fixed(tt.BOOLEAN, "boolean"),
-         agg_as("bool_or", cast_result=False), kind="aggregate")
-for _name, _duck in (("stddev", "stddev_samp"), ("stddev_samp", "stddev_samp"), ("stddev_pop", "stddev_pop"),
-                     ("variance", "var_samp"), ("var_samp", "var_samp"), ("var_pop", "var_pop")):
+register(
+    "max_by",
+    "aggregate",
+    "max_by(x, y) -> type of x; max_by(x, y, n) -> array(type of x)",
+    _by,
+    lambda g, node, args: (_render_max_by_n if len(args) == 3 else _render_max_by)(g, node, args),
+    kind="aggregate",
+    notes="A NaN y is below every number, as in Trino.",
+)
+register(
+    "min_by",
+    "aggregate",
+    "min_by(x, y) -> type of x; min_by(x, y, n) -> array(type of x)",
+    _by,
+    _render_by("arg_min_null", descending=False),
+    kind="aggregate",
+)
+register(
+    "array_agg",
+    "aggregate",
+    "array_agg(x) -> array(x)",
+    _array_agg,
+    agg_as("list", cast_result=False),
+    kind="aggregate",
+)
+register(
+    "approx_distinct",
+    "aggregate",
+    "approx_distinct(x) -> bigint",
+    lambda c: tt.BIGINT if len(c.args) in (1, 2) and c.types[0] is not None else c.mismatch(),
+    lambda g, node, args: tf.cast(
+        f"count(DISTINCT {g.sql(args[0])})"
+        if not node.meta.get("over")
+        else g.agg(node, "count", [f"DISTINCT {g.sql(args[0])}"]),
+        tt.BIGINT,
+    ),
+    kind="aggregate",
+    notes="Returns the exact distinct count, which is within Trino's documented standard error (2.3%).",
+)
+register(
+    "approx_percentile",
+    "aggregate",
+    "approx_percentile(x, percentage) -> same as x; approx_percentile(x, array(double)) -> array",
+    _approx_percentile,
+    _render_approx_percentile,
+    kind="aggregate",
+    notes="Returns the exact nearest-rank value (DuckDB quantile_disc), which is within Trino's documented "
+    "approximation error; weighted and accuracy variants are rejected.",
+)
+register(
+    "bool_and",
+    "aggregate",
+    "bool_and(boolean) -> boolean",
+    fixed(tt.BOOLEAN, "boolean"),
+    agg_as("bool_and", cast_result=False),
+    kind="aggregate",
+    aliases=("every",),
+)
+register(
+    "bool_or",
+    "aggregate",
+    "bool_or(boolean) -> boolean",
+    fixed(tt.BOOLEAN, "boolean"),
+    agg_as("bool_or", cast_result=False),
+    kind="aggregate",
+)
+for _name, _duck in (
+    ("stddev", "stddev_samp"),
+    ("stddev_samp", "stddev_samp"),
+    ("stddev_pop", "stddev_pop"),
+    ("variance", "var_samp"),
+    ("var_samp", "var_samp"),
+    ("var_pop", "var_pop"),
+):
     register(_name, "aggregate", f"{_name}(x) -> double", as_double("number"), agg_as(_duck), kind="aggregate")
+
+
 def _bivariate(call: Call) -> TType:
     """corr, covar_* and regr_*: real over two reals, double otherwise (Trino's Real* aggregations)."""
     types = need(call, "number", "number")
@@ -378,8 +501,9 @@ def _bivariate(call: Call) -> TType:
 
 
 for _name in ("corr", "covar_samp", "covar_pop", "regr_slope", "regr_intercept"):
-    register(_name, "aggregate", f"{_name}(y, x) -> double; real for two reals", _bivariate, agg_as(_name),
-             kind="aggregate")
+    register(
+        _name, "aggregate", f"{_name}(y, x) -> double; real for two reals", _bivariate, agg_as(_name), kind="aggregate"
+    )
 #: ListaggAggregationFunction: the output limit (DEFAULT_MAX_PAGE_SIZE_IN_BYTES) and its error.
 LISTAGG_MAX_BYTES = 1_048_576
 
@@ -387,22 +511,48 @@ LISTAGG_MAX_BYTES = 1_048_576
 def _render_listagg(g, node, args) -> str:
     text = g.agg(node, "string_agg", [g.sql(args[0]), g.sql(args[1]) if len(args) > 1 else "''"])
     if node.meta.get("overflow_truncate"):
-        overflow = ("error(" + tf.string("NOT_SUPPORTED: listagg ON OVERFLOW TRUNCATE of a result longer than "
-                                         f"{LISTAGG_MAX_BYTES} bytes is not supported in lakegate") + ")")
+        overflow = (
+            "error("
+            + tf.string(
+                "NOT_SUPPORTED: listagg ON OVERFLOW TRUNCATE of a result longer than "
+                f"{LISTAGG_MAX_BYTES} bytes is not supported in lakegate"
+            )
+            + ")"
+        )
     else:
-        overflow = ("error(" + tf.string("EXCEEDED_FUNCTION_MEMORY_LIMIT: Concatenated string has the length in "
-                                         f"bytes larger than the maximum output length {LISTAGG_MAX_BYTES}") + ")")
+        overflow = (
+            "error("
+            + tf.string(
+                "EXCEEDED_FUNCTION_MEMORY_LIMIT: Concatenated string has the length in "
+                f"bytes larger than the maximum output length {LISTAGG_MAX_BYTES}"
+            )
+            + ")"
+        )
     return f"CASE WHEN octet_length(CAST({text} AS BLOB)) > {LISTAGG_MAX_BYTES} THEN {overflow} ELSE {text} END"
 
 
-register("listagg", "aggregate", "listagg(x, separator) WITHIN GROUP (ORDER BY ...) -> varchar",
-         lambda c: tt.VARCHAR if len(c.args) in (1, 2) and all(t is not None and t.base in ("varchar", "unknown")
-                                                                for t in c.types) else c.mismatch(),
-         lambda g, node, args: _render_listagg(g, node, args), kind="aggregate",
-         notes="ON OVERFLOW ERROR (the default) fails past 1,048,576 bytes as in Trino; ON OVERFLOW TRUNCATE is "
-               "answered until the result would be truncated, then refused at run time (NOT_SUPPORTED).")
-register("geometric_mean", "aggregate", "geometric_mean(x) -> double", as_double("number"),
-         agg_as("geometric_mean"), kind="aggregate")
+register(
+    "listagg",
+    "aggregate",
+    "listagg(x, separator) WITHIN GROUP (ORDER BY ...) -> varchar",
+    lambda c: (
+        tt.VARCHAR
+        if len(c.args) in (1, 2) and all(t is not None and t.base in ("varchar", "unknown") for t in c.types)
+        else c.mismatch()
+    ),
+    lambda g, node, args: _render_listagg(g, node, args),
+    kind="aggregate",
+    notes="ON OVERFLOW ERROR (the default) fails past 1,048,576 bytes as in Trino; ON OVERFLOW TRUNCATE is "
+    "answered until the result would be truncated, then refused at run time (NOT_SUPPORTED).",
+)
+register(
+    "geometric_mean",
+    "aggregate",
+    "geometric_mean(x) -> double",
+    as_double("number"),
+    agg_as("geometric_mean"),
+    kind="aggregate",
+)
 
 
 # === window =======================================================================================
@@ -425,16 +575,20 @@ def _render_lag(g, node, args) -> str:
 for _name in ("row_number", "rank", "dense_rank"):
     register(_name, "window", f"{_name}() -> bigint", fixed(tt.BIGINT), agg_as(_name), kind="window")
 register("ntile", "window", "ntile(n) -> bigint", fixed(tt.BIGINT, "integral"), agg_as("ntile"), kind="window")
-register("percent_rank", "window", "percent_rank() -> double", fixed(tt.DOUBLE), agg_as("percent_rank"),
-         kind="window")
+register("percent_rank", "window", "percent_rank() -> double", fixed(tt.DOUBLE), agg_as("percent_rank"), kind="window")
 register("cume_dist", "window", "cume_dist() -> double", fixed(tt.DOUBLE), agg_as("cume_dist"), kind="window")
 register("lag", "window", "lag(x[, offset[, default]]) -> same", _lag, _render_lag, kind="window")
 register("lead", "window", "lead(x[, offset[, default]]) -> same", _lag, _render_lag, kind="window")
-register("first_value", "window", "first_value(x) -> same", same("any"), agg_as("first_value", False),
-         kind="window")
+register("first_value", "window", "first_value(x) -> same", same("any"), agg_as("first_value", False), kind="window")
 register("last_value", "window", "last_value(x) -> same", same("any"), agg_as("last_value", False), kind="window")
-register("nth_value", "window", "nth_value(x, offset) -> same", same("any", "integral"),
-         agg_as("nth_value", False), kind="window")
+register(
+    "nth_value",
+    "window",
+    "nth_value(x, offset) -> same",
+    same("any", "integral"),
+    agg_as("nth_value", False),
+    kind="window",
+)
 
 
 # === conditional ==================================================================================
@@ -477,8 +631,10 @@ def _render_greatest(g, node, args) -> str:
 
 def _render_typeof(g, node, args) -> str:
     name = tf.string(str(ttype(args[0])))
-    aggregate = any(isinstance(n, exp.Anonymous) and n.meta.get("spec") is not None and n.meta["spec"].kind != "scalar"
-                    for n in args[0].walk())
+    aggregate = any(
+        isinstance(n, exp.Anonymous) and n.meta.get("spec") is not None and n.meta["spec"].kind != "scalar"
+        for n in args[0].walk()
+    )
     # the argument stays in the query when it holds an aggregate, so the query stays an aggregation
     return f"CASE WHEN ({g.sql(args[0])}) IS NULL THEN {name} ELSE {name} END" if aggregate else name
 
@@ -494,17 +650,39 @@ def _render_try(g, node, args) -> str:
 
 register("coalesce", "conditional", "coalesce(value1, value2[, ...]) -> common type", _coalesce, _render_coalesce)
 register("nullif", "conditional", "nullif(value1, value2) -> type of value1", _nullif, call_as("nullif"))
-register("greatest", "conditional", "greatest(value1, value2, ...) -> common type", _greatest, _render_greatest,
-         notes="NULL when any argument is NULL, as in Trino (DuckDB ignores NULLs).")
-register("least", "conditional", "least(value1, value2, ...) -> common type", _greatest, _render_greatest,
-         notes="NULL when any argument is NULL, as in Trino (DuckDB ignores NULLs).")
-register("try", "conditional", "try(expression) -> same", same("any"), _render_try,
-         notes="NULL instead of failing on division by zero, invalid casts, out-of-range subscripts and "
-               "invalid function arguments.")
-register("typeof", "conditional", "typeof(expression) -> varchar",
-         lambda c: tt.VARCHAR if len(c.args) == 1 and c.types[0] is not None else c.mismatch(),
-         lambda g, node, args: _render_typeof(g, node, args),
-         notes="The Trino type name, computed when the query is translated.")
+register(
+    "greatest",
+    "conditional",
+    "greatest(value1, value2, ...) -> common type",
+    _greatest,
+    _render_greatest,
+    notes="NULL when any argument is NULL, as in Trino (DuckDB ignores NULLs).",
+)
+register(
+    "least",
+    "conditional",
+    "least(value1, value2, ...) -> common type",
+    _greatest,
+    _render_greatest,
+    notes="NULL when any argument is NULL, as in Trino (DuckDB ignores NULLs).",
+)
+register(
+    "try",
+    "conditional",
+    "try(expression) -> same",
+    same("any"),
+    _render_try,
+    notes="NULL instead of failing on division by zero, invalid casts, out-of-range subscripts and "
+    "invalid function arguments.",
+)
+register(
+    "typeof",
+    "conditional",
+    "typeof(expression) -> varchar",
+    lambda c: tt.VARCHAR if len(c.args) == 1 and c.types[0] is not None else c.mismatch(),
+    lambda g, node, args: _render_typeof(g, node, args),
+    notes="The Trino type name, computed when the query is translated.",
+)
 
 
 # === conversion ===================================================================================
@@ -530,7 +708,7 @@ def _format_parts(call: Call | None, fmt: str, types: list[TType]) -> list:
     next_arg = 0
     for match in _SPEC.finditer(fmt):
         if match.start() > position:
-            parts.append(fmt[position:match.start()])
+            parts.append(fmt[position : match.start()])
         position = match.end()
         index, flags, width, precision, conversion = match.groups()
         flags = flags or ""
@@ -544,14 +722,18 @@ def _format_parts(call: Call | None, fmt: str, types: list[TType]) -> list:
 
         def reject(why: str):
             if call is not None:
-                call.fail(f"unsupported in lakegate: format specifier '{match.group(0)}' at position {column} "
-                          f"of the format string: {why}", "NOT_SUPPORTED")
+                call.fail(
+                    f"unsupported in lakegate: format specifier '{match.group(0)}' at position {column} "
+                    f"of the format string: {why}",
+                    "NOT_SUPPORTED",
+                )
             raise ValueError(why)
 
         if "-" in flags and "0" in flags:  # java.util.Formatter: IllegalFormatFlagsException
             if call is not None:
-                call.fail(f"Invalid format string: {fmt} (IllegalFormatFlags: Flags = '{flags}')",
-                          "INVALID_FUNCTION_ARGUMENT")
+                call.fail(
+                    f"Invalid format string: {fmt} (IllegalFormatFlags: Flags = '{flags}')", "INVALID_FUNCTION_ARGUMENT"
+                )
             raise ValueError("illegal flags")
         if conversion not in "sdfxXe":
             reject("only %s, %d, %f, %e, %x, %% and %n are translated")
@@ -568,8 +750,10 @@ def _format_parts(call: Call | None, fmt: str, types: list[TType]) -> list:
             next_arg += 1
         if arg >= len(types):
             if call is not None:
-                call.fail(f"Invalid format string: {fmt} (MissingFormatArgument: Format specifier "
-                          f"'{match.group(0)}')", "INVALID_FUNCTION_ARGUMENT")
+                call.fail(
+                    f"Invalid format string: {fmt} (MissingFormatArgument: Format specifier '{match.group(0)}')",
+                    "INVALID_FUNCTION_ARGUMENT",
+                )
             raise ValueError("missing argument")
         t = types[arg]
         if conversion in "dxX" and not (t.is_integral or t.is_unknown):
@@ -580,8 +764,9 @@ def _format_parts(call: Call | None, fmt: str, types: list[TType]) -> list:
             reject(f"%e is translated for double and real arguments, got {t}")
         if conversion == "e" and (flags or width):
             reject("flags and widths are not translated for %e")
-        if conversion == "s" and not (t.base in ("varchar", "boolean", "unknown") or t.is_integral or t.is_approx
-                                      or t.base == "date"):
+        if conversion == "s" and not (
+            t.base in ("varchar", "boolean", "unknown") or t.is_integral or t.is_approx or t.base == "date"
+        ):
             reject(f"%s of {t} is not translated")
         parts.append((arg, flags, int(width) if width else None, int(precision) if precision else None, conversion))
     if position < len(fmt):
@@ -622,9 +807,11 @@ def _render_format(g, node, args) -> str:
             if "-" in flags:
                 text = f"rpad({text}, CAST(greatest({width}, length({text})) AS INTEGER), ' ')"
             elif "0" in flags:
-                text = (f"CASE WHEN starts_with({text}, '-') THEN '-' || lpad(substr({text}, 2), "
-                        f"CAST(greatest({width} - 1, length({text}) - 1) AS INTEGER), '0') ELSE "
-                        f"lpad({text}, CAST(greatest({width}, length({text})) AS INTEGER), '0') END")
+                text = (
+                    f"CASE WHEN starts_with({text}, '-') THEN '-' || lpad(substr({text}, 2), "
+                    f"CAST(greatest({width} - 1, length({text}) - 1) AS INTEGER), '0') ELSE "
+                    f"lpad({text}, CAST(greatest({width}, length({text})) AS INTEGER), '0') END"
+                )
             else:
                 text = f"lpad({text}, CAST(greatest({width}, length({text})) AS INTEGER), ' ')"
         pieces.append(f"coalesce({text}, 'null')")
@@ -638,8 +825,10 @@ def group_thousands(text: str) -> str:
     whole = f"split_part({number}, '.', 1)"
     fraction = f"CASE WHEN contains({number}, '.') THEN '.' || split_part({number}, '.', 2) ELSE '' END"
     reversed_whole = f"reverse({whole})"
-    chunks = (f"array_to_string(list_transform(range(0, length({whole}), 3), lambda \"_i\": "
-              f"substr({reversed_whole}, CAST(\"_i\" + 1 AS BIGINT), 3)), ',')")
+    chunks = (
+        f'array_to_string(list_transform(range(0, length({whole}), 3), lambda "_i": '
+        f"substr({reversed_whole}, CAST(\"_i\" + 1 AS BIGINT), 3)), ',')"
+    )
     return f"CASE WHEN {text} IS NULL THEN NULL ELSE {sign} || reverse({chunks}) || {fraction} END"
 
 
@@ -660,14 +849,18 @@ def java_double(sql: str, duck: str = "DOUBLE") -> str:
     digits = f"regexp_replace(replace(split_part({text}, 'e', 1), '.', ''), '^0+|0+$', '', 'g')"
     exponent = f"CAST(split_part(format('{{:.16e}}', CAST(abs({value}) AS DOUBLE)), 'e', 2) AS INTEGER)"
     scientific = f"left({digits}, 1) || '.' || coalesce(nullif(substr({digits}, 2), ''), '0') || 'E' || CAST({exponent} AS VARCHAR)"
-    plain_big = (f"rpad({digits}, CAST(greatest({exponent} + 1, length({digits})) AS INTEGER), '0')[1:{exponent} + 1] || '.' || "
-                 f"coalesce(nullif(substr({digits}, {exponent} + 2), ''), '0')")
+    plain_big = (
+        f"rpad({digits}, CAST(greatest({exponent} + 1, length({digits})) AS INTEGER), '0')[1:{exponent} + 1] || '.' || "
+        f"coalesce(nullif(substr({digits}, {exponent} + 2), ''), '0')"
+    )
     plain_small = f"'0.' || repeat('0', -{exponent} - 1) || {digits}"
-    return (f"CASE WHEN isnan({value}) THEN 'NaN' WHEN isinf({value}) THEN CASE WHEN {value} > 0 THEN 'Infinity' "
-            f"ELSE '-Infinity' END WHEN {value} = 0 THEN CASE WHEN starts_with(CAST({value} AS VARCHAR), '-') "
-            f"THEN '-0.0' ELSE '0.0' END ELSE CASE WHEN {value} < 0 THEN '-' ELSE '' END || CASE "
-            f"WHEN abs({value}) >= 1e-3 AND abs({value}) < 1e7 THEN CASE WHEN {exponent} >= 0 THEN {plain_big} "
-            f"ELSE {plain_small} END ELSE {scientific} END END")
+    return (
+        f"CASE WHEN isnan({value}) THEN 'NaN' WHEN isinf({value}) THEN CASE WHEN {value} > 0 THEN 'Infinity' "
+        f"ELSE '-Infinity' END WHEN {value} = 0 THEN CASE WHEN starts_with(CAST({value} AS VARCHAR), '-') "
+        f"THEN '-0.0' ELSE '0.0' END ELSE CASE WHEN {value} < 0 THEN '-' ELSE '' END || CASE "
+        f"WHEN abs({value}) >= 1e-3 AND abs({value}) < 1e7 THEN CASE WHEN {exponent} >= 0 THEN {plain_big} "
+        f"ELSE {plain_small} END ELSE {scientific} END END"
+    )
 
 
 def _shortest_digits(value: str) -> tuple[str, str]:
@@ -687,17 +880,21 @@ def java_scientific(sql: str, precision: int) -> str:
     mantissa = f"CAST(left({digits}, 1) || '.' || coalesce(nullif(substr({digits}, 2), ''), '0') AS DECIMAL(38,30))"
     rounded = f"CAST({mantissa} AS DECIMAL({precision + 2},{precision}))"
     carry = f"CASE WHEN {rounded} >= 10 THEN 1 ELSE 0 END"
-    shown = (f"CASE WHEN {rounded} >= 10 THEN CAST(CAST(1 AS DECIMAL({precision + 2},{precision})) AS VARCHAR) "
-             f"ELSE CAST({rounded} AS VARCHAR) END")
+    shown = (
+        f"CASE WHEN {rounded} >= 10 THEN CAST(CAST(1 AS DECIMAL({precision + 2},{precision})) AS VARCHAR) "
+        f"ELSE CAST({rounded} AS VARCHAR) END"
+    )
     if precision == 0:
         shown = f"split_part({shown}, '.', 1)"
     power = f"{exponent} + {carry}"
-    suffix = (f"'e' || CASE WHEN {power} < 0 THEN '-' ELSE '+' END || lpad(CAST(abs({power}) AS VARCHAR), 2, '0')")
+    suffix = f"'e' || CASE WHEN {power} < 0 THEN '-' ELSE '+' END || lpad(CAST(abs({power}) AS VARCHAR), 2, '0')"
     zero = "0" + ("." + "0" * precision if precision else "") + "e+00"
-    return (f"CASE WHEN isnan({value}) THEN 'NaN' WHEN isinf({value}) THEN CASE WHEN {value} > 0 THEN 'Infinity' "
-            f"ELSE '-Infinity' END WHEN {value} = 0 THEN CASE WHEN starts_with(CAST({value} AS VARCHAR), '-') "
-            f"THEN '-{zero}' ELSE '{zero}' END ELSE CASE WHEN {value} < 0 THEN '-' ELSE '' END || {shown} || "
-            f"{suffix} END")
+    return (
+        f"CASE WHEN isnan({value}) THEN 'NaN' WHEN isinf({value}) THEN CASE WHEN {value} > 0 THEN 'Infinity' "
+        f"ELSE '-Infinity' END WHEN {value} = 0 THEN CASE WHEN starts_with(CAST({value} AS VARCHAR), '-') "
+        f"THEN '-{zero}' ELSE '{zero}' END ELSE CASE WHEN {value} < 0 THEN '-' ELSE '' END || {shown} || "
+        f"{suffix} END"
+    )
 
 
 def java_fixed(sql: str, t: TType, precision: int) -> str:
@@ -711,13 +908,21 @@ def java_fixed(sql: str, t: TType, precision: int) -> str:
     value = f"CAST({sql} AS DOUBLE)"
     rounded = f"CAST(CAST(CAST({value} AS VARCHAR) AS DECIMAL(38,{precision})) AS VARCHAR)"
     rounded = f"regexp_replace({rounded}, '^(-?)[.]', '\\10.')"
-    return (f"CASE WHEN isnan({value}) THEN 'NaN' WHEN isinf({value}) THEN CASE WHEN {value} > 0 THEN 'Infinity' "
-            f"ELSE '-Infinity' END ELSE {rounded} END")
+    return (
+        f"CASE WHEN isnan({value}) THEN 'NaN' WHEN isinf({value}) THEN CASE WHEN {value} > 0 THEN 'Infinity' "
+        f"ELSE '-Infinity' END ELSE {rounded} END"
+    )
 
 
-register("format", "conversion", "format(format, args...) -> varchar", _format, _render_format,
-         notes="Java format specifiers %s, %d, %f / %.Nf and %e (HALF_UP), %x, %%, %n with '-' / '0' flags and widths; "
-               "other specifiers are rejected with their position.")
+register(
+    "format",
+    "conversion",
+    "format(format, args...) -> varchar",
+    _format,
+    _render_format,
+    notes="Java format specifiers %s, %d, %f / %.Nf and %e (HALF_UP), %x, %%, %n with '-' / '0' flags and widths; "
+    "other specifiers are rejected with their position.",
+)
 
 
 # === math =========================================================================================
@@ -764,8 +969,7 @@ def _round_integral(g, value: str, digits: str, t: TType) -> str:
     if t.base != "bigint":
         overflow = f"{tf.string(f'Out of range for {t.base}: ')} || CAST({rounded} AS VARCHAR)"
     too_small = g.fail(f"{tf.string('numerical overflow: ')} || CAST({value} AS VARCHAR)", "NUMERIC_VALUE_OUT_OF_RANGE")
-    return (f"CASE WHEN ({digits}) < -18 THEN {too_small} "
-            f"ELSE {tf.checked_integer(g, rounded, t, overflow)} END")
+    return f"CASE WHEN ({digits}) < -18 THEN {too_small} ELSE {tf.checked_integer(g, rounded, t, overflow)} END"
 
 
 def _ceil_floor(call: Call) -> TType:
@@ -803,8 +1007,9 @@ def _mod(call: Call) -> TType:
     if result is None:
         call.mismatch()
     if not remainder_fits(a, b, result):
-        call.fail(f"unsupported in lakegate: mod({a}, {b}) (the operands at a common scale exceed 38 digits)",
-                  "NOT_SUPPORTED")
+        call.fail(
+            f"unsupported in lakegate: mod({a}, {b}) (the operands at a common scale exceed 38 digits)", "NOT_SUPPORTED"
+        )
     return result
 
 
@@ -819,8 +1024,10 @@ def _render_mod(g, node, args) -> str:
 def double_fn(duck: str) -> Render:
     """A DuckDB math function over the argument as double (DuckDB, like Java, gives NaN / Infinity
     outside the domain)."""
+
     def render(g, node, args):
         return f"{duck}({', '.join(f'CAST({g.sql(a)} AS DOUBLE)' for a in args)})"
+
     return render
 
 
@@ -836,54 +1043,125 @@ def _render_random(g, node, args) -> str:
         return "random()"
     t = ttype(node)
     low, high = ("0", g.sql(args[0])) if len(args) == 1 else (g.sql(args[0]), g.sql(args[1]))
-    return tf.cast(f"CASE WHEN ({high}) <= ({low}) THEN {g.fail(tf.string('bound must be greater than origin'))} "
-                   f"ELSE ({low}) + CAST(floor(random() * (({high}) - ({low}))) AS BIGINT) END", t)
+    return tf.cast(
+        f"CASE WHEN ({high}) <= ({low}) THEN {g.fail(tf.string('bound must be greater than origin'))} "
+        f"ELSE ({low}) + CAST(floor(random() * (({high}) - ({low}))) AS BIGINT) END",
+        t,
+    )
 
 
 register("abs", "math", "abs(x) -> same", _abs, call_as("abs", cast_result=True))
-register("ceiling", "math", "ceiling(x) -> same (decimal(p-s+min(s,1),0) for decimals)", _ceil_floor,
-         call_as("ceil", cast_result=True), aliases=("ceil",))
-register("floor", "math", "floor(x) -> same (decimal(p-s+min(s,1),0) for decimals)", _ceil_floor,
-         call_as("floor", cast_result=True))
-register("round", "math", "round(x[, d]) -> same (decimal(p+1,s) with d for decimal(p,s))", _round, _render_round,
-         notes="HALF_UP; the result keeps Trino's type, e.g. round(decimal(6,2), 1) is decimal(7,2).")
-register("truncate", "math", "truncate(x) -> same (decimal(p-s,0) for decimals)", _truncate,
-         call_as("trunc", cast_result=True))
+register(
+    "ceiling",
+    "math",
+    "ceiling(x) -> same (decimal(p-s+min(s,1),0) for decimals)",
+    _ceil_floor,
+    call_as("ceil", cast_result=True),
+    aliases=("ceil",),
+)
+register(
+    "floor",
+    "math",
+    "floor(x) -> same (decimal(p-s+min(s,1),0) for decimals)",
+    _ceil_floor,
+    call_as("floor", cast_result=True),
+)
+register(
+    "round",
+    "math",
+    "round(x[, d]) -> same (decimal(p+1,s) with d for decimal(p,s))",
+    _round,
+    _render_round,
+    notes="HALF_UP; the result keeps Trino's type, e.g. round(decimal(6,2), 1) is decimal(7,2).",
+)
+register(
+    "truncate",
+    "math",
+    "truncate(x) -> same (decimal(p-s,0) for decimals)",
+    _truncate,
+    call_as("trunc", cast_result=True),
+)
 register("sign", "math", "sign(x) -> same", _sign, _render_sign, notes="sign(NaN) is NaN (Java's Math.signum).")
 register("mod", "math", "mod(n, m) -> same as n % m", _mod, _render_mod)
 register("sqrt", "math", "sqrt(x) -> double", as_double("number"), double_fn("sqrt"))
-register("cbrt", "math", "cbrt(x) -> double", as_double("number"),
-         lambda g, node, args: (lambda x: f"CASE WHEN round(cbrt({x})) * round(cbrt({x})) * round(cbrt({x})) = {x} "
-                                          f"THEN round(cbrt({x})) ELSE cbrt({x}) END")(f"CAST({g.sql(args[0])} AS DOUBLE)"),
-         notes="Exact for perfect cubes, like Java's Math.cbrt.")
+register(
+    "cbrt",
+    "math",
+    "cbrt(x) -> double",
+    as_double("number"),
+    lambda g, node, args: (
+        lambda x: (
+            f"CASE WHEN round(cbrt({x})) * round(cbrt({x})) * round(cbrt({x})) = {x} "
+            f"THEN round(cbrt({x})) ELSE cbrt({x}) END"
+        )
+    )(f"CAST({g.sql(args[0])} AS DOUBLE)"),
+    notes="Exact for perfect cubes, like Java's Math.cbrt.",
+)
 register("exp", "math", "exp(x) -> double", as_double("number"), double_fn("exp"))
 register("ln", "math", "ln(x) -> double", as_double("number"), double_fn("ln"))
 register("log2", "math", "log2(x) -> double", as_double("number"), double_fn("log2"))
 register("log10", "math", "log10(x) -> double", as_double("number"), double_fn("log10"))
-register("log", "math", "log(b, x) -> double", as_double("number", "number"),
-         lambda g, node, args: f"(ln(CAST({g.sql(args[1])} AS DOUBLE)) / ln(CAST({g.sql(args[0])} AS DOUBLE)))")
-register("power", "math", "power(x, p) -> double", as_double("number", "number"),
-         lambda g, node, args: f"pow(CAST({g.sql(args[0])} AS DOUBLE), CAST({g.sql(args[1])} AS DOUBLE))",
-         aliases=("pow",))
+register(
+    "log",
+    "math",
+    "log(b, x) -> double",
+    as_double("number", "number"),
+    lambda g, node, args: f"(ln(CAST({g.sql(args[1])} AS DOUBLE)) / ln(CAST({g.sql(args[0])} AS DOUBLE)))",
+)
+register(
+    "power",
+    "math",
+    "power(x, p) -> double",
+    as_double("number", "number"),
+    lambda g, node, args: f"pow(CAST({g.sql(args[0])} AS DOUBLE), CAST({g.sql(args[1])} AS DOUBLE))",
+    aliases=("pow",),
+)
 for _name in ("sin", "cos", "tan", "atan", "sinh", "cosh", "tanh", "degrees", "radians"):
     register(_name, "math", f"{_name}(x) -> double", as_double("number"), double_fn(_name))
 for _name in ("asin", "acos"):
     register(_name, "math", f"{_name}(x) -> double", as_double("number"), double_fn(_name))
-register("atan2", "math", "atan2(y, x) -> double", as_double("number", "number"),
-         lambda g, node, args: f"atan2(CAST({g.sql(args[0])} AS DOUBLE), CAST({g.sql(args[1])} AS DOUBLE))")
+register(
+    "atan2",
+    "math",
+    "atan2(y, x) -> double",
+    as_double("number", "number"),
+    lambda g, node, args: f"atan2(CAST({g.sql(args[0])} AS DOUBLE), CAST({g.sql(args[1])} AS DOUBLE))",
+)
 register("pi", "math", "pi() -> double", fixed(tt.DOUBLE), lambda g, node, args: "pi()")
 register("e", "math", "e() -> double", fixed(tt.DOUBLE), lambda g, node, args: "exp(1)")
-register("infinity", "math", "infinity() -> double", fixed(tt.DOUBLE),
-         lambda g, node, args: "CAST('Infinity' AS DOUBLE)")
+register(
+    "infinity", "math", "infinity() -> double", fixed(tt.DOUBLE), lambda g, node, args: "CAST('Infinity' AS DOUBLE)"
+)
 register("nan", "math", "nan() -> double", fixed(tt.DOUBLE), lambda g, node, args: "CAST('NaN' AS DOUBLE)")
-register("is_nan", "math", "is_nan(x) -> boolean", fixed(tt.BOOLEAN, "approx"),
-         lambda g, node, args: f"isnan(CAST({g.sql(args[0])} AS DOUBLE))")
-register("is_finite", "math", "is_finite(x) -> boolean", fixed(tt.BOOLEAN, "approx"),
-         lambda g, node, args: f"isfinite(CAST({g.sql(args[0])} AS DOUBLE))")
-register("is_infinite", "math", "is_infinite(x) -> boolean", fixed(tt.BOOLEAN, "approx"),
-         lambda g, node, args: f"isinf(CAST({g.sql(args[0])} AS DOUBLE))")
-register("random", "math", "random() -> double; random(n) / random(m, n) -> same as n", _random, _render_random,
-         aliases=("rand",))
+register(
+    "is_nan",
+    "math",
+    "is_nan(x) -> boolean",
+    fixed(tt.BOOLEAN, "approx"),
+    lambda g, node, args: f"isnan(CAST({g.sql(args[0])} AS DOUBLE))",
+)
+register(
+    "is_finite",
+    "math",
+    "is_finite(x) -> boolean",
+    fixed(tt.BOOLEAN, "approx"),
+    lambda g, node, args: f"isfinite(CAST({g.sql(args[0])} AS DOUBLE))",
+)
+register(
+    "is_infinite",
+    "math",
+    "is_infinite(x) -> boolean",
+    fixed(tt.BOOLEAN, "approx"),
+    lambda g, node, args: f"isinf(CAST({g.sql(args[0])} AS DOUBLE))",
+)
+register(
+    "random",
+    "math",
+    "random() -> double; random(n) / random(m, n) -> same as n",
+    _random,
+    _render_random,
+    aliases=("rand",),
+)
 
 
 # --- bitwise (io.trino.operator.scalar.BitwiseFunctions: bigint in, bigint out) ------------------
@@ -896,26 +1174,55 @@ def _render_bit_count(g, node, args) -> str:
     that does not fit are INVALID_FUNCTION_ARGUMENT."""
     x, bits = _bigints(g, args)
     low = f"((CAST(1 AS HUGEINT) << ({bits} - 1)) - 1)"
-    checks = [(f"{bits} NOT BETWEEN 2 AND 64",
-               f"{tf.string('Bits specified in bit_count must be between 2 and 64, got ')} || {bits}"),
-              (f"{x} > {low} OR {x} < -{low} - 1",
-               f"{tf.string('Number must be representable with the bits specified. ')} || {x} || "
-               f"{tf.string(' cannot be represented with ')} || {bits} || {tf.string(' bits')}")]
+    checks = [
+        (
+            f"{bits} NOT BETWEEN 2 AND 64",
+            f"{tf.string('Bits specified in bit_count must be between 2 and 64, got ')} || {bits}",
+        ),
+        (
+            f"{x} > {low} OR {x} < -{low} - 1",
+            f"{tf.string('Number must be representable with the bits specified. ')} || {x} || "
+            f"{tf.string(' cannot be represented with ')} || {bits} || {tf.string(' bits')}",
+        ),
+    ]
     whens = " ".join(f"WHEN {condition} THEN {g.fail(message)}" for condition, message in checks)
-    return (f"CASE WHEN {x} IS NULL OR {bits} IS NULL THEN NULL {whens} "
-            f"ELSE bit_count(CAST(CAST({x} AS HUGEINT) & ((CAST(1 AS HUGEINT) << {bits}) - 1) AS UBIGINT)) END")
+    return (
+        f"CASE WHEN {x} IS NULL OR {bits} IS NULL THEN NULL {whens} "
+        f"ELSE bit_count(CAST(CAST({x} AS HUGEINT) & ((CAST(1 AS HUGEINT) << {bits}) - 1) AS UBIGINT)) END"
+    )
 
 
-register("bitwise_and", "math", "bitwise_and(x, y) -> bigint", fixed(tt.BIGINT, "integral", "integral"),
-         lambda g, node, args: "({} & {})".format(*_bigints(g, args)))
-register("bitwise_or", "math", "bitwise_or(x, y) -> bigint", fixed(tt.BIGINT, "integral", "integral"),
-         lambda g, node, args: "({} | {})".format(*_bigints(g, args)))
-register("bitwise_xor", "math", "bitwise_xor(x, y) -> bigint", fixed(tt.BIGINT, "integral", "integral"),
-         lambda g, node, args: "xor({}, {})".format(*_bigints(g, args)))
-register("bitwise_not", "math", "bitwise_not(x) -> bigint", fixed(tt.BIGINT, "integral"),
-         lambda g, node, args: "(~{})".format(*_bigints(g, args)))
-register("bit_count", "math", "bit_count(x, bits) -> bigint", fixed(tt.BIGINT, "integral", "integral"),
-         _render_bit_count)
+register(
+    "bitwise_and",
+    "math",
+    "bitwise_and(x, y) -> bigint",
+    fixed(tt.BIGINT, "integral", "integral"),
+    lambda g, node, args: "({} & {})".format(*_bigints(g, args)),
+)
+register(
+    "bitwise_or",
+    "math",
+    "bitwise_or(x, y) -> bigint",
+    fixed(tt.BIGINT, "integral", "integral"),
+    lambda g, node, args: "({} | {})".format(*_bigints(g, args)),
+)
+register(
+    "bitwise_xor",
+    "math",
+    "bitwise_xor(x, y) -> bigint",
+    fixed(tt.BIGINT, "integral", "integral"),
+    lambda g, node, args: "xor({}, {})".format(*_bigints(g, args)),
+)
+register(
+    "bitwise_not",
+    "math",
+    "bitwise_not(x) -> bigint",
+    fixed(tt.BIGINT, "integral"),
+    lambda g, node, args: "(~{})".format(*_bigints(g, args)),
+)
+register(
+    "bit_count", "math", "bit_count(x, bits) -> bigint", fixed(tt.BIGINT, "integral", "integral"), _render_bit_count
+)
 
 
 # === string =======================================================================================
@@ -984,20 +1291,26 @@ def _render_split(g, node, args) -> str:
     sql = f"string_split({value}, {delim})"
     if len(args) == 3:
         limit = g.sql(args[2])
-        sql = (f"CASE WHEN ({limit}) <= 0 THEN {g.fail(tf.string('Limit must be positive'))} "
-               f"WHEN len({sql}) <= ({limit}) THEN {sql} ELSE list_append({sql}[1:({limit}) - 1], "
-               f"array_to_string({sql}[({limit}):], {delim})) END")
+        sql = (
+            f"CASE WHEN ({limit}) <= 0 THEN {g.fail(tf.string('Limit must be positive'))} "
+            f"WHEN len({sql}) <= ({limit}) THEN {sql} ELSE list_append({sql}[1:({limit}) - 1], "
+            f"array_to_string({sql}[({limit}):], {delim})) END"
+        )
     if isinstance(args[1], exp.Literal) and args[1].name:
         return sql
-    return f"CASE WHEN {delim} = '' THEN {g.fail(tf.string('The delimiter may not be the empty string'))} ELSE {sql} END"
+    return (
+        f"CASE WHEN {delim} = '' THEN {g.fail(tf.string('The delimiter may not be the empty string'))} ELSE {sql} END"
+    )
 
 
 def _render_split_part(g, node, args) -> str:
     value, delim, index = sqls(g, args)
     parts = f"string_split({value}, {delim})"
-    return (f"CASE WHEN ({index}) <= 0 THEN {g.fail(tf.string('Index must be greater than zero'))} "
-            f"WHEN {delim} = '' THEN {g.fail(tf.string('The delimiter may not be the empty string'))} "
-            f"WHEN len({parts}) < ({index}) THEN NULL ELSE {parts}[{index}] END")
+    return (
+        f"CASE WHEN ({index}) <= 0 THEN {g.fail(tf.string('Index must be greater than zero'))} "
+        f"WHEN {delim} = '' THEN {g.fail(tf.string('The delimiter may not be the empty string'))} "
+        f"WHEN len({parts}) < ({index}) THEN NULL ELSE {parts}[{index}] END"
+    )
 
 
 def _pad(call: Call) -> TType:
@@ -1007,16 +1320,25 @@ def _pad(call: Call) -> TType:
 
 def _render_pad(g, node, args) -> str:
     value, size, pad = sqls(g, args)
-    width = checked(g, f"CAST({size} AS INTEGER)", (
-        (f"({size}) < 0 OR ({size}) > 2147483647", "Target length must be in the range [0..2147483647]"),
-        (f"({size}) > {MAX_PAD_LENGTH}", f"Target length must be at most {MAX_PAD_LENGTH} in lakegate "
-                                         "(Trino allows up to 2147483647)"),
-        (f"{pad} = ''", "Padding string must not be empty")))
+    width = checked(
+        g,
+        f"CAST({size} AS INTEGER)",
+        (
+            (f"({size}) < 0 OR ({size}) > 2147483647", "Target length must be in the range [0..2147483647]"),
+            (
+                f"({size}) > {MAX_PAD_LENGTH}",
+                f"Target length must be at most {MAX_PAD_LENGTH} in lakegate (Trino allows up to 2147483647)",
+            ),
+            (f"{pad} = ''", "Padding string must not be empty"),
+        ),
+    )
     return f"{node.name.lower()}({value}, {width}, {pad})"
 
 
-_PAD_NOTE = (f"size is at most {MAX_PAD_LENGTH:,} in lakegate (Trino: 2,147,483,647); "
-             "DuckDB would build larger strings outside its memory limit.")
+_PAD_NOTE = (
+    f"size is at most {MAX_PAD_LENGTH:,} in lakegate (Trino: 2,147,483,647); "
+    "DuckDB would build larger strings outside its memory limit."
+)
 
 
 def _strpos(call: Call) -> TType:
@@ -1040,70 +1362,138 @@ def _render_trim(name: str) -> Render:
     def render(g, node, args):
         chars = g.sql(args[1]) if len(args) == 2 else tf.string(tf.WHITESPACE)
         return f"{name}({g.sql(args[0])}, {chars})"
+
     return render
 
 
-register("length", "string", "length(string) -> bigint", fixed(tt.BIGINT, "string"),
-         lambda g, node, args: f"CAST(length({g.sql(args[0])}) AS BIGINT)")
+register(
+    "length",
+    "string",
+    "length(string) -> bigint",
+    fixed(tt.BIGINT, "string"),
+    lambda g, node, args: f"CAST(length({g.sql(args[0])}) AS BIGINT)",
+)
 register("lower", "string", "lower(string) -> varchar", _string_same, call_as("lower"))
 register("upper", "string", "upper(string) -> varchar", _string_same, call_as("upper"))
 register("trim", "string", "trim(string) -> varchar", _string_same, _render_trim("trim"))
 register("ltrim", "string", "ltrim(string) -> varchar", _string_same, _render_trim("ltrim"))
 register("rtrim", "string", "rtrim(string) -> varchar", _string_same, _render_trim("rtrim"))
-register("substr", "string", "substr(string, start[, length]) -> varchar", _substr, _render_substr,
-         aliases=("substring",))
+register(
+    "substr", "string", "substr(string, start[, length]) -> varchar", _substr, _render_substr, aliases=("substring",)
+)
 register("replace", "string", "replace(string, search[, replace]) -> varchar", _replace, _render_replace)
-register("strpos", "string", "strpos(string, substring) -> bigint", _strpos,
-         lambda g, node, args: f"CAST(strpos({g.sql(args[0])}, {g.sql(args[1])}) AS BIGINT)")
-register("starts_with", "string", "starts_with(string, prefix) -> boolean", fixed(tt.BOOLEAN, "string", "string"),
-         call_as("starts_with"))
-register("concat", "string", "concat(string1, ..., stringN) -> varchar; concat(array1, ..., arrayN) -> array",
-         _concat, _render_concat, notes="NULL when any argument is NULL, as in Trino (DuckDB's concat skips NULLs).")
-register("concat_ws", "string", "concat_ws(separator, string1, ...) -> varchar",
-         lambda c: tt.VARCHAR if len(c.args) >= 2 and all(t is not None and t.base in ("varchar", "unknown")
-                                                             for t in c.types) else c.mismatch(),
-         call_as("concat_ws"))
-register("lpad", "string", "lpad(string, size, padstring) -> varchar", _pad, _render_pad,
-         notes=_PAD_NOTE)
-register("rpad", "string", "rpad(string, size, padstring) -> varchar", _pad, _render_pad,
-         notes=_PAD_NOTE)
+register(
+    "strpos",
+    "string",
+    "strpos(string, substring) -> bigint",
+    _strpos,
+    lambda g, node, args: f"CAST(strpos({g.sql(args[0])}, {g.sql(args[1])}) AS BIGINT)",
+)
+register(
+    "starts_with",
+    "string",
+    "starts_with(string, prefix) -> boolean",
+    fixed(tt.BOOLEAN, "string", "string"),
+    call_as("starts_with"),
+)
+register(
+    "concat",
+    "string",
+    "concat(string1, ..., stringN) -> varchar; concat(array1, ..., arrayN) -> array",
+    _concat,
+    _render_concat,
+    notes="NULL when any argument is NULL, as in Trino (DuckDB's concat skips NULLs).",
+)
+register(
+    "concat_ws",
+    "string",
+    "concat_ws(separator, string1, ...) -> varchar",
+    lambda c: (
+        tt.VARCHAR
+        if len(c.args) >= 2 and all(t is not None and t.base in ("varchar", "unknown") for t in c.types)
+        else c.mismatch()
+    ),
+    call_as("concat_ws"),
+)
+register("lpad", "string", "lpad(string, size, padstring) -> varchar", _pad, _render_pad, notes=_PAD_NOTE)
+register("rpad", "string", "rpad(string, size, padstring) -> varchar", _pad, _render_pad, notes=_PAD_NOTE)
 register("split", "string", "split(string, delimiter[, limit]) -> array(varchar)", _split, _render_split)
-register("split_part", "string", "split_part(string, delimiter, index) -> varchar",
-         lambda c: need(c, "string", "string", "integral")[0] if c.types and c.types[0] is not None
-         and c.types[0].base == "varchar" else fixed(tt.VARCHAR, "string", "string", "integral")(c),
-         _render_split_part, notes="NULL when the index is beyond the last field, as in Trino (DuckDB gives '').")
+register(
+    "split_part",
+    "string",
+    "split_part(string, delimiter, index) -> varchar",
+    lambda c: (
+        need(c, "string", "string", "integral")[0]
+        if c.types and c.types[0] is not None and c.types[0].base == "varchar"
+        else fixed(tt.VARCHAR, "string", "string", "integral")(c)
+    ),
+    _render_split_part,
+    notes="NULL when the index is beyond the last field, as in Trino (DuckDB gives '').",
+)
 register("chr", "string", "chr(n) -> varchar(1)", fixed(tt.varchar(1), "integral"), call_as("chr"))
-register("codepoint", "string", "codepoint(string) -> integer", fixed(tt.INTEGER, "string"),
-         lambda g, node, args: f"CASE WHEN length({g.sql(args[0])}) <> 1 THEN "
-                               f"{g.fail(tf.string('Input string must be a single character string'))} "
-                               f"ELSE CAST(unicode({g.sql(args[0])}) AS INTEGER) END")
+register(
+    "codepoint",
+    "string",
+    "codepoint(string) -> integer",
+    fixed(tt.INTEGER, "string"),
+    lambda g, node, args: (
+        f"CASE WHEN length({g.sql(args[0])}) <> 1 THEN "
+        f"{g.fail(tf.string('Input string must be a single character string'))} "
+        f"ELSE CAST(unicode({g.sql(args[0])}) AS INTEGER) END"
+    ),
+)
+
+
 def _render_levenshtein(g, node, args) -> str:
     """Edits counted in characters (StringFunctions.levenshteinDistance); DuckDB's levenshtein counts
     bytes, so non-ASCII text runs a row-by-row dynamic programme over the characters."""
     a, b = sqls(g, args)
-    by_chars = (f"list_reduce(string_split({a}, ''), lambda \"_prev\", \"_ch\": list_reduce(range(1, length({b}) + 1), "
-                f"lambda \"_cur\", \"_j\": list_append(\"_cur\", least(\"_prev\"[\"_j\" + 1] + 1, \"_cur\"[\"_j\"] + 1, "
-                f"\"_prev\"[\"_j\"] + CASE WHEN \"_ch\" = substr({b}, \"_j\", 1) THEN 0 ELSE 1 END)), "
-                f"[\"_prev\"[1] + 1]), range(0, length({b}) + 1))[length({b}) + 1]")
-    return (f"CAST(CASE WHEN strlen({a}) = length({a}) AND strlen({b}) = length({b}) THEN levenshtein({a}, {b}) "
-            f"ELSE {by_chars} END AS BIGINT)")
+    by_chars = (
+        f'list_reduce(string_split({a}, \'\'), lambda "_prev", "_ch": list_reduce(range(1, length({b}) + 1), '
+        f'lambda "_cur", "_j": list_append("_cur", least("_prev"["_j" + 1] + 1, "_cur"["_j"] + 1, '
+        f'"_prev"["_j"] + CASE WHEN "_ch" = substr({b}, "_j", 1) THEN 0 ELSE 1 END)), '
+        f'["_prev"[1] + 1]), range(0, length({b}) + 1))[length({b}) + 1]'
+    )
+    return (
+        f"CAST(CASE WHEN strlen({a}) = length({a}) AND strlen({b}) = length({b}) THEN levenshtein({a}, {b}) "
+        f"ELSE {by_chars} END AS BIGINT)"
+    )
 
 
 def _render_hamming(g, node, args) -> str:
     """Positions counted in characters (StringFunctions.hammingDistance); DuckDB's hamming counts bytes."""
     a, b = sqls(g, args)
     same_length = "The input strings to hamming_distance function must have the same length"
-    differing = f"list_filter(range(1, length({a}) + 1), lambda \"_i\": substr({a}, \"_i\", 1) <> substr({b}, \"_i\", 1))"
-    return (f"CASE WHEN length({a}) <> length({b}) THEN {g.fail(tf.string(same_length))} "
-            f"ELSE CAST(len({differing}) AS BIGINT) END")
+    differing = f'list_filter(range(1, length({a}) + 1), lambda "_i": substr({a}, "_i", 1) <> substr({b}, "_i", 1))'
+    return (
+        f"CASE WHEN length({a}) <> length({b}) THEN {g.fail(tf.string(same_length))} "
+        f"ELSE CAST(len({differing}) AS BIGINT) END"
+    )
 
 
-register("levenshtein_distance", "string", "levenshtein_distance(string1, string2) -> bigint",
-         fixed(tt.BIGINT, "string", "string"), _render_levenshtein, notes="Counts characters, as Trino does.")
-register("hamming_distance", "string", "hamming_distance(string1, string2) -> bigint",
-         fixed(tt.BIGINT, "string", "string"), _render_hamming, notes="Counts characters, as Trino does.")
-register("translate", "string", "translate(source, from, to) -> varchar", fixed(tt.VARCHAR, "string", "string", "string"),
-         call_as("translate"))
+register(
+    "levenshtein_distance",
+    "string",
+    "levenshtein_distance(string1, string2) -> bigint",
+    fixed(tt.BIGINT, "string", "string"),
+    _render_levenshtein,
+    notes="Counts characters, as Trino does.",
+)
+register(
+    "hamming_distance",
+    "string",
+    "hamming_distance(string1, string2) -> bigint",
+    fixed(tt.BIGINT, "string", "string"),
+    _render_hamming,
+    notes="Counts characters, as Trino does.",
+)
+register(
+    "translate",
+    "string",
+    "translate(source, from, to) -> varchar",
+    fixed(tt.VARCHAR, "string", "string", "string"),
+    call_as("translate"),
+)
 
 
 # --- regular expressions -------------------------------------------------------------------------
@@ -1115,14 +1505,25 @@ def _regexp(call: Call, result: TType, arity: tuple[int, ...], *kinds: str) -> T
     if pattern is not None:
         java_only = re.search(r"\(\?<[=!]|\(\?[=!>]|\\[1-9]|[*+?}]\+|\\[zZGhHvRXk]|\\p\{(?:java|Is)", pattern)
         if java_only:
-            call.fail(f"unsupported in lakegate: regular expression construct '{java_only.group(0)}' "
-                      "(lakegate uses RE2, which has no lookaround, backreferences or possessive quantifiers)",
-                      "NOT_SUPPORTED")
+            call.fail(
+                f"unsupported in lakegate: regular expression construct '{java_only.group(0)}' "
+                "(lakegate uses RE2, which has no lookaround, backreferences or possessive quantifiers)",
+                "NOT_SUPPORTED",
+            )
         try:
             re.compile(pattern)
         except re.error as error:
-            if any(word in str(error) for word in ("missing", "unbalanced", "unterminated", "nothing to repeat",
-                                                   "multiple repeat", "bad character range")):
+            if any(
+                word in str(error)
+                for word in (
+                    "missing",
+                    "unbalanced",
+                    "unterminated",
+                    "nothing to repeat",
+                    "multiple repeat",
+                    "bad character range",
+                )
+            ):
                 call.fail(f"invalid regular expression '{pattern}': {error}", "INVALID_FUNCTION_ARGUMENT")
     source = call.types[0]
     text = source if source is not None and source.base == "varchar" else tt.VARCHAR
@@ -1133,7 +1534,7 @@ def capturing_groups(pattern: str) -> list[tuple[str, bool]]:
     """Each capturing group of a regular expression: (body, optional), optional when the group
     may not take part in a match (quantified by ?, * or {0,...}, or inside an alternation)."""
     groups: list[tuple[str, bool]] = []
-    stack: list[tuple[bool, int, int]] = []      # (capturing, body start, index in groups)
+    stack: list[tuple[bool, int, int]] = []  # (capturing, body start, index in groups)
     alternation_depths: set[int] = set()
     i = 0
     while i < len(pattern):
@@ -1150,7 +1551,9 @@ def capturing_groups(pattern: str) -> list[tuple[str, bool]]:
             while i < len(pattern) and pattern[i] != "]":
                 i += 2 if pattern[i] == "\\" else 1
         elif ch == "(":
-            named = pattern.startswith("(?P<", i) or (pattern.startswith("(?<", i) and pattern[i + 3:i + 4] not in "=!")
+            named = pattern.startswith("(?P<", i) or (
+                pattern.startswith("(?<", i) and pattern[i + 3 : i + 4] not in "=!"
+            )
             capturing = not pattern.startswith("(?", i) or named
             start = pattern.index(">", i) + 1 if named else (i + 1 if capturing else pattern.find(":", i) + 1 or i + 2)
             if capturing:
@@ -1161,7 +1564,7 @@ def capturing_groups(pattern: str) -> list[tuple[str, bool]]:
         elif ch == ")" and stack:
             capturing, start, index = stack.pop()
             if capturing:
-                rest = pattern[i + 1:]
+                rest = pattern[i + 1 :]
                 optional = rest.startswith(("?", "*", "{0")) or any(d <= len(stack) for d in alternation_depths)
                 groups[index] = (pattern[start:i], optional)
         i += 1
@@ -1190,8 +1593,11 @@ def _group_semantics(call: Call, group_index: int) -> None:
         except re.error:
             can_be_empty = True
         if can_be_empty:
-            call.fail(f"unsupported in lakegate: regexp group {group} is optional and can match the empty string, "
-                      "so a missing group cannot be told from an empty one", "NOT_SUPPORTED")
+            call.fail(
+                f"unsupported in lakegate: regexp group {group} is optional and can match the empty string, "
+                "so a missing group cannot be told from an empty one",
+                "NOT_SUPPORTED",
+            )
         call.node.meta["null_if_empty"] = True
 
 
@@ -1222,7 +1628,7 @@ def _render_regexp_extract(g, node, args) -> str:
 def _render_regexp_extract_all(g, node, args) -> str:
     sql = f"regexp_extract_all({g.sql(args[0])}, {g.sql(args[1])}, {_group(g, args, 2)})"
     if node.meta.get("null_if_empty"):
-        sql = f"list_transform({sql}, lambda \"_e\": nullif(\"_e\", ''))"
+        sql = f'list_transform({sql}, lambda "_e": nullif("_e", \'\'))'
     return sql
 
 
@@ -1299,25 +1705,49 @@ def _render_regexp_replace(g, node, args) -> str:
     return f"regexp_replace({value}, {pattern}, {replacement}, 'g')"
 
 
-register("regexp_like", "regexp", "regexp_like(string, pattern) -> boolean",
-         lambda c: _regexp(c, tt.BOOLEAN, (2,), "string", "string"), call_as("regexp_matches"),
-         notes="Patterns run on RE2; Java-only constructs (lookaround, backreferences) are rejected.")
-register("regexp_extract", "regexp", "regexp_extract(string, pattern[, group]) -> varchar",
-         _regexp_extract, _render_regexp_extract,
-         notes="NULL when the pattern does not match or the group takes no part, as in Trino (DuckDB gives ''); "
-               "an optional group that can match '' is rejected.")
-register("regexp_extract_all", "regexp", "regexp_extract_all(string, pattern[, group]) -> array(varchar)",
-         _regexp_extract_all, _render_regexp_extract_all)
-register("regexp_replace", "regexp", "regexp_replace(string, pattern[, replacement]) -> varchar", _regexp_replace,
-         _render_regexp_replace, notes="Replaces every match; Java's $1 group references are translated.")
+register(
+    "regexp_like",
+    "regexp",
+    "regexp_like(string, pattern) -> boolean",
+    lambda c: _regexp(c, tt.BOOLEAN, (2,), "string", "string"),
+    call_as("regexp_matches"),
+    notes="Patterns run on RE2; Java-only constructs (lookaround, backreferences) are rejected.",
+)
+register(
+    "regexp_extract",
+    "regexp",
+    "regexp_extract(string, pattern[, group]) -> varchar",
+    _regexp_extract,
+    _render_regexp_extract,
+    notes="NULL when the pattern does not match or the group takes no part, as in Trino (DuckDB gives ''); "
+    "an optional group that can match '' is rejected.",
+)
+register(
+    "regexp_extract_all",
+    "regexp",
+    "regexp_extract_all(string, pattern[, group]) -> array(varchar)",
+    _regexp_extract_all,
+    _render_regexp_extract_all,
+)
+register(
+    "regexp_replace",
+    "regexp",
+    "regexp_replace(string, pattern[, replacement]) -> varchar",
+    _regexp_replace,
+    _render_regexp_replace,
+    notes="Replaces every match; Java's $1 group references are translated.",
+)
+
+
 def _regexp_split(call: Call) -> TType:
     """Splits at matches; a pattern that can match the empty string is refused: Trino then splits
     between characters and adds '' at both ends (JoniRegexpFunctions.regexpSplit), DuckDB does not."""
     result = _regexp(call, "array", (2,), "string", "string")
     pattern = literal_str(call, 1)
     if pattern is not None and (re.search(r"\\[bB]|\^|\$", pattern) or _matches_empty(pattern)):
-        call.fail("unsupported in lakegate: regexp_split with a pattern that can match the empty string",
-                  "NOT_SUPPORTED")
+        call.fail(
+            "unsupported in lakegate: regexp_split with a pattern that can match the empty string", "NOT_SUPPORTED"
+        )
     return result
 
 
@@ -1337,16 +1767,32 @@ def _render_regexp_split(g, node, args) -> str:
     return f"CASE WHEN regexp_full_match('', {pattern}) THEN {g.fail(message, 'NOT_SUPPORTED')} ELSE {split} END"
 
 
-register("regexp_split", "regexp", "regexp_split(string, pattern) -> array(varchar)", _regexp_split,
-         _render_regexp_split, notes="A pattern that can match the empty string is refused.")
-register("regexp_count", "regexp", "regexp_count(string, pattern) -> bigint",
-         lambda c: _regexp(c, tt.BIGINT, (2,), "string", "string"),
-         lambda g, node, args: f"CAST(len(regexp_extract_all({g.sql(args[0])}, {g.sql(args[1])})) AS BIGINT)")
+register(
+    "regexp_split",
+    "regexp",
+    "regexp_split(string, pattern) -> array(varchar)",
+    _regexp_split,
+    _render_regexp_split,
+    notes="A pattern that can match the empty string is refused.",
+)
+register(
+    "regexp_count",
+    "regexp",
+    "regexp_count(string, pattern) -> bigint",
+    lambda c: _regexp(c, tt.BIGINT, (2,), "string", "string"),
+    lambda g, node, args: f"CAST(len(regexp_extract_all({g.sql(args[0])}, {g.sql(args[1])})) AS BIGINT)",
+)
 
 
 # --- JSON ----------------------------------------------------------------------------------------
-_EXACT_NUMBER_TARGETS = {exp.DataType.Type.TINYINT, exp.DataType.Type.SMALLINT, exp.DataType.Type.INT,
-                         exp.DataType.Type.BIGINT, exp.DataType.Type.FLOAT, exp.DataType.Type.DOUBLE}
+_EXACT_NUMBER_TARGETS = {
+    exp.DataType.Type.TINYINT,
+    exp.DataType.Type.SMALLINT,
+    exp.DataType.Type.INT,
+    exp.DataType.Type.BIGINT,
+    exp.DataType.Type.FLOAT,
+    exp.DataType.Type.DOUBLE,
+}
 
 
 def _render_json_extract_scalar(g, node, args) -> str:
@@ -1358,13 +1804,18 @@ def _render_json_extract_scalar(g, node, args) -> str:
     parent = node.parent
     if isinstance(parent, (exp.Cast, exp.TryCast)) and parent.to.this in _EXACT_NUMBER_TARGETS:
         # Any spelling of a number casts to the same integer (or the same error) and the same double.
-        return (f"CASE WHEN NOT json_valid({value}) THEN NULL WHEN {kind} IN ('OBJECT', 'ARRAY') THEN NULL "
-                f"ELSE {text} END")
-    refuse = tf.string("NOT_SUPPORTED: json_extract_scalar of a non-integer (or negative zero) JSON number "
-                       "is not supported: its text as written is not kept")
-    return (f"CASE WHEN NOT json_valid({value}) THEN NULL WHEN {kind} IN ('OBJECT', 'ARRAY') THEN NULL "
-            f"WHEN {kind} = 'DOUBLE' OR ({kind} = 'BIGINT' AND {text} = '0' AND contains({value}, '-0')) "
-            f"THEN error({refuse}) ELSE {text} END")
+        return (
+            f"CASE WHEN NOT json_valid({value}) THEN NULL WHEN {kind} IN ('OBJECT', 'ARRAY') THEN NULL ELSE {text} END"
+        )
+    refuse = tf.string(
+        "NOT_SUPPORTED: json_extract_scalar of a non-integer (or negative zero) JSON number "
+        "is not supported: its text as written is not kept"
+    )
+    return (
+        f"CASE WHEN NOT json_valid({value}) THEN NULL WHEN {kind} IN ('OBJECT', 'ARRAY') THEN NULL "
+        f"WHEN {kind} = 'DOUBLE' OR ({kind} = 'BIGINT' AND {text} = '0' AND contains({value}, '-0')) "
+        f"THEN error({refuse}) ELSE {text} END"
+    )
 
 
 def _json_path(call: Call) -> TType:
@@ -1376,15 +1827,27 @@ def _json_path(call: Call) -> TType:
     return source if source.base == "varchar" else tt.VARCHAR
 
 
-register("is_json_scalar", "json", "is_json_scalar(json) -> boolean", fixed(tt.BOOLEAN, "json"),
-         lambda g, node, args: (f"CASE WHEN NOT json_valid({g.sql(args[0])}) THEN "
-                                f"{g.fail(tf.string('Invalid JSON value: ') + ' || ' + g.sql(args[0]))} "
-                                f"ELSE json_type({g.sql(args[0])}) NOT IN ('OBJECT', 'ARRAY') END"))
-register("json_extract_scalar", "json", "json_extract_scalar(json, json_path) -> varchar", _json_path,
-         _render_json_extract_scalar,
-         notes="NULL for objects, arrays, missing keys and invalid JSON text, as in Trino. A non-integer "
-               "number is refused at run time (NOT_SUPPORTED): Trino returns its text as written "
-               "(2.50), which DuckDB does not keep.")
+register(
+    "is_json_scalar",
+    "json",
+    "is_json_scalar(json) -> boolean",
+    fixed(tt.BOOLEAN, "json"),
+    lambda g, node, args: (
+        f"CASE WHEN NOT json_valid({g.sql(args[0])}) THEN "
+        f"{g.fail(tf.string('Invalid JSON value: ') + ' || ' + g.sql(args[0]))} "
+        f"ELSE json_type({g.sql(args[0])}) NOT IN ('OBJECT', 'ARRAY') END"
+    ),
+)
+register(
+    "json_extract_scalar",
+    "json",
+    "json_extract_scalar(json, json_path) -> varchar",
+    _json_path,
+    _render_json_extract_scalar,
+    notes="NULL for objects, arrays, missing keys and invalid JSON text, as in Trino. A non-integer "
+    "number is refused at run time (NOT_SUPPORTED): Trino returns its text as written "
+    "(2.50), which DuckDB does not keep.",
+)
 
 
 # === array ========================================================================================
@@ -1417,8 +1880,10 @@ def _render_contains(g, node, args) -> str:
     found = f"list_contains({arr}, {value})"
     if ttype(args[1]).is_approx:  # Trino's EQUAL: NaN is never found (io.trino.operator.scalar.ArrayContains)
         found += f" AND NOT isnan({value})"
-    return (f"CASE WHEN ({value}) IS NULL OR ({arr}) IS NULL THEN NULL WHEN {found} THEN true "
-            f"WHEN list_count({arr}) < len({arr}) THEN NULL ELSE false END")
+    return (
+        f"CASE WHEN ({value}) IS NULL OR ({arr}) IS NULL THEN NULL WHEN {found} THEN true "
+        f"WHEN list_count({arr}) < len({arr}) THEN NULL ELSE false END"
+    )
 
 
 def _array_position(call: Call) -> TType:
@@ -1428,8 +1893,10 @@ def _array_position(call: Call) -> TType:
 
 def _render_array_position(g, node, args) -> str:
     arr, value = g.sql(args[0]), g.sql(args[1])
-    return (f"CASE WHEN ({arr}) IS NULL OR ({value}) IS NULL THEN NULL "
-            f"ELSE CAST(coalesce(list_position({arr}, {value}), 0) AS BIGINT) END")
+    return (
+        f"CASE WHEN ({arr}) IS NULL OR ({value}) IS NULL THEN NULL "
+        f"ELSE CAST(coalesce(list_position({arr}, {value}), 0) AS BIGINT) END"
+    )
 
 
 def _array_join(call: Call) -> TType:
@@ -1446,7 +1913,7 @@ def _render_array_join(g, node, args) -> str:
     text = tf.varchar_of(g, '"_e"', element)
     if len(args) == 3:
         text = f"coalesce({text}, {g.sql(args[2])})"
-    items = arr if text == '"_e"' else f"list_transform({arr}, lambda \"_e\": {text})"
+    items = arr if text == '"_e"' else f'list_transform({arr}, lambda "_e": {text})'
     # NULL elements are skipped, so an all-NULL array joins to '' (io.trino.operator.scalar.ArrayJoin)
     return null_if_any_null(g, args[:2], f"coalesce(array_to_string({items}, {delim}), '')")
 
@@ -1476,8 +1943,10 @@ def _unparen(node):
 
 
 def _uses(node: exp.Expression, name: str) -> bool:
-    return any(isinstance(n, (exp.Identifier, exp.Column)) and n._meta and n.meta.get("lambda")
-               and n.name.lower() == name for n in node.walk())
+    return any(
+        isinstance(n, (exp.Identifier, exp.Column)) and n._meta and n.meta.get("lambda") and n.name.lower() == name
+        for n in node.walk()
+    )
 
 
 def _renamed(node: exp.Expression, old: str, new: str) -> exp.Expression:
@@ -1495,8 +1964,11 @@ def _comparator_key(call: Call) -> tuple[exp.Expression, bool]:
     x, y = (p.name.lower() for p in lam.expressions)
 
     def reject():
-        call.fail("unsupported in lakegate: array_sort comparator other than IF/CASE comparisons of one "
-                  "expression of x with the same expression of y returning -1, 0, 1", "NOT_SUPPORTED")
+        call.fail(
+            "unsupported in lakegate: array_sort comparator other than IF/CASE comparisons of one "
+            "expression of x with the same expression of y returning -1, 0, 1",
+            "NOT_SUPPORTED",
+        )
 
     branches, body = [], _unparen(lam.this)
     while True:
@@ -1547,9 +2019,9 @@ def _render_array_sort(g, node, args) -> str:
     key, descending = node.meta["sort_key"]
     x = tf.quote(args[1].expressions[0].name.lower())
     position = '-"_i"' if descending else '"_i"'
-    keyed = f"list_transform({arr}, lambda {x}, \"_i\": struct_pack(k := {g.sql(key)}, i := {position}, v := {x}))"
+    keyed = f'list_transform({arr}, lambda {x}, "_i": struct_pack(k := {g.sql(key)}, i := {position}, v := {x}))'
     direction = "'DESC'" if descending else "'ASC'"
-    return f"list_transform(list_sort({keyed}, {direction}), lambda \"_s\": struct_extract(\"_s\", 'v'))"
+    return f'list_transform(list_sort({keyed}, {direction}), lambda "_s": struct_extract("_s", \'v\'))'
 
 
 def _array_distinct(call: Call) -> TType:
@@ -1559,9 +2031,11 @@ def _array_distinct(call: Call) -> TType:
 
 def _render_array_distinct(g, node, args) -> str:
     arr = g.sql(args[0])
-    return (f"list_transform(list_filter(list_zip({arr}, range(1, len({arr}) + 1)), "
-            f"lambda \"_p\": list_position({arr}, struct_extract(\"_p\", 1)) = struct_extract(\"_p\", 2)), "
-            f"lambda \"_p\": struct_extract(\"_p\", 1))")
+    return (
+        f"list_transform(list_filter(list_zip({arr}, range(1, len({arr}) + 1)), "
+        f'lambda "_p": list_position({arr}, struct_extract("_p", 1)) = struct_extract("_p", 2)), '
+        f'lambda "_p": struct_extract("_p", 1))'
+    )
 
 
 def _trim_array(call: Call) -> TType:
@@ -1574,10 +2048,13 @@ def _render_trim_array(g, node, args) -> str:
     cardinality is INVALID_FUNCTION_ARGUMENT."""
     arr, size = g.sql(args[0]), f"CAST({g.sql(args[1])} AS BIGINT)"
     negative = g.fail(f"{tf.string('size must not be negative: ')} || {size}")
-    too_big = g.fail(f"{tf.string('size must not exceed array cardinality ')} || len({arr}) || "
-                     f"{tf.string(': ')} || {size}")
-    return (f"CASE WHEN {size} < 0 THEN {negative} WHEN {size} > len({arr}) THEN {too_big} "
-            f"ELSE list_slice({arr}, 1, len({arr}) - {size}) END")
+    too_big = g.fail(
+        f"{tf.string('size must not exceed array cardinality ')} || len({arr}) || {tf.string(': ')} || {size}"
+    )
+    return (
+        f"CASE WHEN {size} < 0 THEN {negative} WHEN {size} > len({arr}) THEN {too_big} "
+        f"ELSE list_slice({arr}, 1, len({arr}) - {size}) END"
+    )
 
 
 def _array_histogram(call: Call) -> TType:
@@ -1591,7 +2068,7 @@ def _array_histogram(call: Call) -> TType:
 def _render_array_histogram(g, node, args) -> str:
     """NULL elements are ignored; an array without non-NULL elements gives an empty map."""
     arr = g.sql(args[0])
-    counted = f"(SELECT histogram(\"_e\") FROM (SELECT unnest({arr}) AS \"_e\"))"
+    counted = f'(SELECT histogram("_e") FROM (SELECT unnest({arr}) AS "_e"))'
     return tf.cast(f"CASE WHEN ({arr}) IS NULL THEN NULL ELSE coalesce({counted}, map()) END", ttype(node))
 
 
@@ -1608,8 +2085,10 @@ def _render_array_minmax(g, node, args) -> str:
     name = "list_max" if node.name.lower() == "array_max" else "list_min"
     if name == "list_max" and ttype(node).is_approx:  # NaN only when all are NaN (ArrayMaxFunction)
         nan = tf.cast("'NaN'", ttype(node))
-        return (f"CASE WHEN list_count({arr}) < len({arr}) OR len({arr}) = 0 THEN NULL ELSE "
-                f"coalesce(list_max(list_filter({arr}, lambda \"_x\": NOT isnan(\"_x\"))), {nan}) END")
+        return (
+            f"CASE WHEN list_count({arr}) < len({arr}) OR len({arr}) = 0 THEN NULL ELSE "
+            f'coalesce(list_max(list_filter({arr}, lambda "_x": NOT isnan("_x"))), {nan}) END'
+        )
     return f"CASE WHEN list_count({arr}) < len({arr}) THEN NULL ELSE {name}({arr}) END"
 
 
@@ -1631,8 +2110,10 @@ def _render_element_at(g, node, args) -> str:
         return f"map_extract_value({container}, {g.coerce(args[1], ttype(args[0]).args[0])})"
     if isinstance(args[1], exp.Literal) and args[1].name != "0":
         return f"list_extract({container}, {index})"
-    return (f"CASE WHEN ({index}) = 0 THEN {g.fail(tf.string('SQL array indices start at 1'))} "
-            f"ELSE list_extract({container}, {index}) END")
+    return (
+        f"CASE WHEN ({index}) = 0 THEN {g.fail(tf.string('SQL array indices start at 1'))} "
+        f"ELSE list_extract({container}, {index}) END"
+    )
 
 
 def _filter(call: Call) -> TType:
@@ -1654,6 +2135,7 @@ def _transform(call: Call) -> TType:
 def _render_lambda_call(duck: str) -> Render:
     def render(g, node, args):
         return f"{duck}({g.sql(args[0])}, {g.lambda_(args[1])})"
+
     return render
 
 
@@ -1697,13 +2179,19 @@ def _render_match(g, node, args) -> str:
     name = node.name.lower()
     has_null = f"list_count({flags}) < len({flags})"
     if name == "any_match":
-        return (f"CASE WHEN ({arr}) IS NULL THEN NULL WHEN list_contains({flags}, true) THEN true "
-                f"WHEN {has_null} THEN NULL ELSE false END")
+        return (
+            f"CASE WHEN ({arr}) IS NULL THEN NULL WHEN list_contains({flags}, true) THEN true "
+            f"WHEN {has_null} THEN NULL ELSE false END"
+        )
     if name == "all_match":
-        return (f"CASE WHEN ({arr}) IS NULL THEN NULL WHEN list_contains({flags}, false) THEN false "
-                f"WHEN {has_null} THEN NULL ELSE true END")
-    return (f"CASE WHEN ({arr}) IS NULL THEN NULL WHEN list_contains({flags}, true) THEN false "
-            f"WHEN {has_null} THEN NULL ELSE true END")
+        return (
+            f"CASE WHEN ({arr}) IS NULL THEN NULL WHEN list_contains({flags}, false) THEN false "
+            f"WHEN {has_null} THEN NULL ELSE true END"
+        )
+    return (
+        f"CASE WHEN ({arr}) IS NULL THEN NULL WHEN list_contains({flags}, true) THEN false "
+        f"WHEN {has_null} THEN NULL ELSE true END"
+    )
 
 
 def _zip_with(call: Call) -> TType:
@@ -1719,10 +2207,14 @@ def _render_zip_with(g, node, args) -> str:
     x, y = (p.name.lower() for p in fn.expressions)
     body = g.sql(fn.this)
     pair = '"_z"'
-    inner = (f"list_transform([struct_extract({pair}, 1)], lambda {tf.quote(x)}: "
-             f"list_transform([struct_extract({pair}, 2)], lambda {tf.quote(y)}: {body})[1])[1]")
-    return (f"CASE WHEN ({a}) IS NULL OR ({b}) IS NULL THEN NULL "
-            f"ELSE list_transform(list_zip({a}, {b}), lambda {pair}: {inner}) END")
+    inner = (
+        f"list_transform([struct_extract({pair}, 1)], lambda {tf.quote(x)}: "
+        f"list_transform([struct_extract({pair}, 2)], lambda {tf.quote(y)}: {body})[1])[1]"
+    )
+    return (
+        f"CASE WHEN ({a}) IS NULL OR ({b}) IS NULL THEN NULL "
+        f"ELSE list_transform(list_zip({a}, {b}), lambda {pair}: {inner}) END"
+    )
 
 
 def _sequence(call: Call) -> TType:
@@ -1735,16 +2227,27 @@ def _render_sequence(g, node, args) -> str:
     bounds = ", ".join(f"CAST({g.sql(a)} AS BIGINT)" for a in args)
     start, stop = '"_s"[1]', '"_s"[2]'
     step = '"_s"[3]' if len(args) == 3 else f"CASE WHEN {stop} >= {start} THEN 1 ELSE -1 END"
-    wrong_way = ("sequence stop value should be greater than or equal to start value if step is greater than zero "
-                 "otherwise stop should be less than or equal to start")
-    checked_stop = checked(g, stop, (
-        (f"{step} = 0", "step must not be zero"),
-        (f"{step} > 0 AND {start} > {stop}", wrong_way),
-        (f"{step} < 0 AND {start} < {stop}", wrong_way),
-        (f"(CAST({stop} AS HUGEINT) - {start}) // {step} + 1 > {MAX_SEQUENCE_ENTRIES}",
-         f"result of sequence function must not have more than {MAX_SEQUENCE_ENTRIES} entries")))
-    return (f"list_transform([[{bounds}]], lambda \"_s\": "
-            f"CAST(generate_series({start}, {checked_stop}, {step}) AS BIGINT[]))[1]")
+    wrong_way = (
+        "sequence stop value should be greater than or equal to start value if step is greater than zero "
+        "otherwise stop should be less than or equal to start"
+    )
+    checked_stop = checked(
+        g,
+        stop,
+        (
+            (f"{step} = 0", "step must not be zero"),
+            (f"{step} > 0 AND {start} > {stop}", wrong_way),
+            (f"{step} < 0 AND {start} < {stop}", wrong_way),
+            (
+                f"(CAST({stop} AS HUGEINT) - {start}) // {step} + 1 > {MAX_SEQUENCE_ENTRIES}",
+                f"result of sequence function must not have more than {MAX_SEQUENCE_ENTRIES} entries",
+            ),
+        ),
+    )
+    return (
+        f'list_transform([[{bounds}]], lambda "_s": '
+        f"CAST(generate_series({start}, {checked_stop}, {step}) AS BIGINT[]))[1]"
+    )
 
 
 def _slice(call: Call) -> TType:
@@ -1755,10 +2258,12 @@ def _slice(call: Call) -> TType:
 def _render_slice(g, node, args) -> str:
     arr, start, length = sqls(g, args)
     begin = f"CASE WHEN ({start}) > 0 THEN ({start}) ELSE len({arr}) + ({start}) + 1 END"
-    return (f"CASE WHEN ({start}) = 0 THEN {g.fail(tf.string('SQL array indices start at 1'))} "
-            f"WHEN ({length}) < 0 THEN {g.fail(tf.string('length must be greater than or equal to 0'))} "
-            f"WHEN ({start}) < 0 AND -({start}) > len({arr}) THEN list_slice({arr}, 1, 0) "
-            f"ELSE list_slice({arr}, {begin}, {begin} + ({length}) - 1) END")
+    return (
+        f"CASE WHEN ({start}) = 0 THEN {g.fail(tf.string('SQL array indices start at 1'))} "
+        f"WHEN ({length}) < 0 THEN {g.fail(tf.string('length must be greater than or equal to 0'))} "
+        f"WHEN ({start}) < 0 AND -({start}) > len({arr}) THEN list_slice({arr}, 1, 0) "
+        f"ELSE list_slice({arr}, {begin}, {begin} + ({length}) - 1) END"
+    )
 
 
 def _flatten(call: Call) -> TType:
@@ -1792,8 +2297,10 @@ def _render_array_remove(g, node, args) -> str:
     arr, value = g.sql(args[0]), g.sql(args[1])
     # Trino's EQUAL: a NaN is unequal to everything and stays (io.trino.operator.scalar.ArrayRemoveFunction)
     keep_nan = ' OR isnan("_e")' if ttype(args[1]).is_approx else ""
-    return (f"CASE WHEN ({value}) IS NULL THEN NULL ELSE list_filter({arr}, lambda \"_e\": "
-            f"\"_e\" IS NULL OR \"_e\" <> {value}{keep_nan}) END")
+    return (
+        f'CASE WHEN ({value}) IS NULL THEN NULL ELSE list_filter({arr}, lambda "_e": '
+        f'"_e" IS NULL OR "_e" <> {value}{keep_nan}) END'
+    )
 
 
 def _arrays_overlap(call: Call) -> TType:
@@ -1805,9 +2312,11 @@ def _arrays_overlap(call: Call) -> TType:
 
 def _render_arrays_overlap(g, node, args) -> str:
     a, b = g.sql(args[0]), g.sql(args[1])
-    return (f"CASE WHEN ({a}) IS NULL OR ({b}) IS NULL THEN NULL WHEN list_has_any({a}, {b}) THEN true "
-            f"WHEN len({a}) > 0 AND len({b}) > 0 AND (list_count({a}) < len({a}) OR list_count({b}) < len({b})) "
-            f"THEN NULL ELSE false END")
+    return (
+        f"CASE WHEN ({a}) IS NULL OR ({b}) IS NULL THEN NULL WHEN list_has_any({a}, {b}) THEN true "
+        f"WHEN len({a}) > 0 AND len({b}) > 0 AND (list_count({a}) < len({a}) OR list_count({b}) < len({b})) "
+        f"THEN NULL ELSE false END"
+    )
 
 
 def _repeat(call: Call) -> TType:
@@ -1817,13 +2326,21 @@ def _repeat(call: Call) -> TType:
 
 def _render_repeat(g, node, args) -> str:
     value, count = g.sql(args[0]), g.sql(args[1])
-    checks = [(f"({count}) > {MAX_REPEAT_ENTRIES}",
-               f"count argument of repeat function must be less than or equal to {MAX_REPEAT_ENTRIES}"),
-              (f"({count}) < 0", "count argument of repeat function must be greater than or equal to 0")]
+    checks = [
+        (
+            f"({count}) > {MAX_REPEAT_ENTRIES}",
+            f"count argument of repeat function must be less than or equal to {MAX_REPEAT_ENTRIES}",
+        ),
+        (f"({count}) < 0", "count argument of repeat function must be greater than or equal to 0"),
+    ]
     if ttype(args[0]).base == "varchar":  # Trino counts each entry's bytes plus 5 (offset and null flag)
-        checks.append((f"({count}) > 0 AND strlen({value}) + 5 > ({MAX_REPEAT_BYTES} + ({count})) // ({count})",
-                       f"result of repeat function must not take more than {MAX_REPEAT_BYTES} bytes"))
-    return f"list_transform(range({checked(g, f'CAST({count} AS BIGINT)', checks)}), lambda \"_i\": {value})"
+        checks.append(
+            (
+                f"({count}) > 0 AND strlen({value}) + 5 > ({MAX_REPEAT_BYTES} + ({count})) // ({count})",
+                f"result of repeat function must not take more than {MAX_REPEAT_BYTES} bytes",
+            )
+        )
+    return f'list_transform(range({checked(g, f"CAST({count} AS BIGINT)", checks)}), lambda "_i": {value})'
 
 
 def _map(call: Call) -> TType:
@@ -1842,11 +2359,13 @@ def _render_map(g, node, args) -> str:
     if not args:
         return "map()"
     keys, values = g.sql(args[0]), g.sql(args[1])
-    return (f"CASE WHEN len({keys}) <> len({values}) THEN "
-            f"{g.fail(tf.string('Key and value arrays must be the same length'))} "
-            f"WHEN list_count({keys}) < len({keys}) THEN {g.fail(tf.string('map key cannot be null'))} "
-            f"WHEN len(list_distinct({keys})) < len({keys}) THEN "
-            f"{g.fail(tf.string('Duplicate map keys are not allowed'))} ELSE map({keys}, {values}) END")
+    return (
+        f"CASE WHEN len({keys}) <> len({values}) THEN "
+        f"{g.fail(tf.string('Key and value arrays must be the same length'))} "
+        f"WHEN list_count({keys}) < len({keys}) THEN {g.fail(tf.string('map key cannot be null'))} "
+        f"WHEN len(list_distinct({keys})) < len({keys}) THEN "
+        f"{g.fail(tf.string('Duplicate map keys are not allowed'))} ELSE map({keys}, {values}) END"
+    )
 
 
 def _map_part(call: Call) -> TType:
@@ -1856,53 +2375,120 @@ def _map_part(call: Call) -> TType:
     return tt.array(t.args[0] if call.name == "map_keys" else t.args[1])
 
 
-register("map", "map", "map(array(K), array(V)) -> map(K, V)", _map, _render_map,
-         notes="Duplicate or NULL keys fail as in Trino.")
+register(
+    "map",
+    "map",
+    "map(array(K), array(V)) -> map(K, V)",
+    _map,
+    _render_map,
+    notes="Duplicate or NULL keys fail as in Trino.",
+)
 register("map_keys", "map", "map_keys(map(K, V)) -> array(K)", _map_part, call_as("map_keys"))
 register("map_values", "map", "map_values(map(K, V)) -> array(V)", _map_part, call_as("map_values"))
 register("trim_array", "array", "trim_array(x, n) -> array", _trim_array, _render_trim_array)
-register("array_histogram", "array", "array_histogram(x) -> map(K, bigint)", _array_histogram,
-         _render_array_histogram)
-register("cardinality", "array", "cardinality(array) -> bigint; cardinality(map) -> bigint", _cardinality,
-         lambda g, node, args: f"CAST({'cardinality' if ttype(args[0]).base == 'map' else 'len'}({g.sql(args[0])}) AS BIGINT)")
-register("contains", "array", "contains(array, element) -> boolean", _contains, _render_contains,
-         notes="NULL when the element is absent and the array holds a NULL, as in Trino.")
-register("array_position", "array", "array_position(array, element) -> bigint", _array_position,
-         _render_array_position, notes="0 when absent, as in Trino (DuckDB gives NULL).")
-register("array_join", "array", "array_join(array, delimiter[, null_replacement]) -> varchar", _array_join,
-         _render_array_join, notes="Elements render as CAST(... AS VARCHAR) does in Trino; NULLs are skipped.")
-register("array_sort", "array", "array_sort(array[, function(T, T, integer)]) -> array", _array_sort,
-         _render_array_sort, notes="NULLs last. A comparator is translated when it compares one expression of x "
-                                   "with the same expression of y (a sort key, ascending or descending, stable); "
-                                   "other comparators are rejected.")
-register("array_distinct", "array", "array_distinct(array) -> array", _array_distinct, _render_array_distinct,
-         notes="Keeps the first occurrence of each value in order, as in Trino.")
+register("array_histogram", "array", "array_histogram(x) -> map(K, bigint)", _array_histogram, _render_array_histogram)
+register(
+    "cardinality",
+    "array",
+    "cardinality(array) -> bigint; cardinality(map) -> bigint",
+    _cardinality,
+    lambda g, node, args: (
+        f"CAST({'cardinality' if ttype(args[0]).base == 'map' else 'len'}({g.sql(args[0])}) AS BIGINT)"
+    ),
+)
+register(
+    "contains",
+    "array",
+    "contains(array, element) -> boolean",
+    _contains,
+    _render_contains,
+    notes="NULL when the element is absent and the array holds a NULL, as in Trino.",
+)
+register(
+    "array_position",
+    "array",
+    "array_position(array, element) -> bigint",
+    _array_position,
+    _render_array_position,
+    notes="0 when absent, as in Trino (DuckDB gives NULL).",
+)
+register(
+    "array_join",
+    "array",
+    "array_join(array, delimiter[, null_replacement]) -> varchar",
+    _array_join,
+    _render_array_join,
+    notes="Elements render as CAST(... AS VARCHAR) does in Trino; NULLs are skipped.",
+)
+register(
+    "array_sort",
+    "array",
+    "array_sort(array[, function(T, T, integer)]) -> array",
+    _array_sort,
+    _render_array_sort,
+    notes="NULLs last. A comparator is translated when it compares one expression of x "
+    "with the same expression of y (a sort key, ascending or descending, stable); "
+    "other comparators are rejected.",
+)
+register(
+    "array_distinct",
+    "array",
+    "array_distinct(array) -> array",
+    _array_distinct,
+    _render_array_distinct,
+    notes="Keeps the first occurrence of each value in order, as in Trino.",
+)
 register("array_max", "array", "array_max(array) -> element", _array_minmax, _render_array_minmax)
 register("array_min", "array", "array_min(array) -> element", _array_minmax, _render_array_minmax)
-register("element_at", "array", "element_at(array, index) -> element; element_at(map, key) -> value", _element_at,
-         _render_element_at, notes="NULL beyond the end; negative indexes count from the end.")
-register("filter", "array", "filter(array, function(T, boolean)) -> array", _filter,
-         _render_lambda_call("list_filter"))
-register("transform", "array", "transform(array, function(T, U)) -> array(U)", _transform,
-         _render_lambda_call("list_transform"))
-register("reduce", "array", "reduce(array, initialState, inputFunction, outputFunction) -> R", _reduce,
-         _render_reduce, notes="The output function is applied to the final state.")
+register(
+    "element_at",
+    "array",
+    "element_at(array, index) -> element; element_at(map, key) -> value",
+    _element_at,
+    _render_element_at,
+    notes="NULL beyond the end; negative indexes count from the end.",
+)
+register("filter", "array", "filter(array, function(T, boolean)) -> array", _filter, _render_lambda_call("list_filter"))
+register(
+    "transform",
+    "array",
+    "transform(array, function(T, U)) -> array(U)",
+    _transform,
+    _render_lambda_call("list_transform"),
+)
+register(
+    "reduce",
+    "array",
+    "reduce(array, initialState, inputFunction, outputFunction) -> R",
+    _reduce,
+    _render_reduce,
+    notes="The output function is applied to the final state.",
+)
 register("any_match", "array", "any_match(array, function(T, boolean)) -> boolean", _match, _render_match)
 register("all_match", "array", "all_match(array, function(T, boolean)) -> boolean", _match, _render_match)
 register("none_match", "array", "none_match(array, function(T, boolean)) -> boolean", _match, _render_match)
-register("zip_with", "array", "zip_with(array(T), array(U), function(T, U, R)) -> array(R)", _zip_with,
-         _render_zip_with, notes="The shorter array is padded with NULLs, as in Trino.")
+register(
+    "zip_with",
+    "array",
+    "zip_with(array(T), array(U), function(T, U, R)) -> array(R)",
+    _zip_with,
+    _render_zip_with,
+    notes="The shorter array is padded with NULLs, as in Trino.",
+)
 register("sequence", "array", "sequence(start, stop[, step]) -> array(bigint)", _sequence, _render_sequence)
 register("slice", "array", "slice(array, start, length) -> array", _slice, _render_slice)
 register("flatten", "array", "flatten(array(array(T))) -> array(T)", _flatten, call_as("flatten"))
 register("reverse", "array", "reverse(array) -> array; reverse(string) -> varchar", _reverse, _render_reverse)
 register("array_remove", "array", "array_remove(array, element) -> array", _array_remove, _render_array_remove)
-register("arrays_overlap", "array", "arrays_overlap(array, array) -> boolean", _arrays_overlap,
-         _render_arrays_overlap)
+register("arrays_overlap", "array", "arrays_overlap(array, array) -> boolean", _arrays_overlap, _render_arrays_overlap)
 register("repeat", "array", "repeat(element, count) -> array", _repeat, _render_repeat)
-register("row", "conditional", "row(value1, ...) -> row",
-         lambda c: tt.row([(None, t) for t in c.types]) if c.types and None not in c.types else c.mismatch(),
-         lambda g, node, args: f"row({', '.join(sqls(g, args))})")
+register(
+    "row",
+    "conditional",
+    "row(value1, ...) -> row",
+    lambda c: tt.row([(None, t) for t in c.types]) if c.types and None not in c.types else c.mismatch(),
+    lambda g, node, args: f"row({', '.join(sqls(g, args))})",
+)
 
 
 # === date and time ================================================================================
@@ -1944,16 +2530,27 @@ def _date_add(call: Call) -> TType:
     return types[2]
 
 
-_INTERVAL_OF = {"millisecond": "to_milliseconds", "second": "to_seconds", "minute": "to_minutes",
-                "hour": "to_hours", "day": "to_days", "week": "to_weeks", "month": "to_months",
-                "quarter": None, "year": "to_years"}
+_INTERVAL_OF = {
+    "millisecond": "to_milliseconds",
+    "second": "to_seconds",
+    "minute": "to_minutes",
+    "hour": "to_hours",
+    "day": "to_days",
+    "week": "to_weeks",
+    "month": "to_months",
+    "quarter": None,
+    "year": "to_years",
+}
 
 
 def _render_date_add(g, node, args) -> str:
     unit = args[0].name.lower()
     amount, value = g.sql(args[1]), g.sql(args[2])
-    interval = f"to_months(3 * CAST({amount} AS INTEGER))" if unit == "quarter" else \
-        f"{_INTERVAL_OF[unit]}(CAST({amount} AS {'INTEGER' if unit in ('month', 'year', 'week', 'day') else 'BIGINT'}))"
+    interval = (
+        f"to_months(3 * CAST({amount} AS INTEGER))"
+        if unit == "quarter"
+        else f"{_INTERVAL_OF[unit]}(CAST({amount} AS {'INTEGER' if unit in ('month', 'year', 'week', 'day') else 'BIGINT'}))"
+    )
     return tf.cast(f"({value} + {interval})", ttype(node))
 
 
@@ -1972,10 +2569,32 @@ def _render_date_trunc(g, node, args) -> str:
 
 
 #: MySQL date_format specifiers Trino supports, as DuckDB strftime specifiers.
-MYSQL_FORMAT = {"a": "%a", "b": "%b", "c": "%-m", "d": "%d", "e": "%-d", "f": "%f", "H": "%H", "h": "%I",
-                "I": "%I", "i": "%M", "j": "%j", "k": "%-H", "l": "%-I", "M": "%B", "m": "%m", "p": "%p",
-                "r": "%I:%M:%S %p", "S": "%S", "s": "%S", "T": "%H:%M:%S", "W": "%A", "Y": "%Y", "y": "%y",
-                "%": "%%"}
+MYSQL_FORMAT = {
+    "a": "%a",
+    "b": "%b",
+    "c": "%-m",
+    "d": "%d",
+    "e": "%-d",
+    "f": "%f",
+    "H": "%H",
+    "h": "%I",
+    "I": "%I",
+    "i": "%M",
+    "j": "%j",
+    "k": "%-H",
+    "l": "%-I",
+    "M": "%B",
+    "m": "%m",
+    "p": "%p",
+    "r": "%I:%M:%S %p",
+    "S": "%S",
+    "s": "%S",
+    "T": "%H:%M:%S",
+    "W": "%A",
+    "Y": "%Y",
+    "y": "%y",
+    "%": "%%",
+}
 
 
 def mysql_to_strftime(fmt: str) -> str:
@@ -2092,10 +2711,25 @@ def _field(call: Call) -> TType:
     return tt.BIGINT
 
 
-_FIELD_OF = {"year": "year", "quarter": "quarter", "month": "month", "week": "week", "week_of_year": "week",
-             "day": "day", "day_of_month": "day", "day_of_week": "isodow", "dow": "isodow", "day_of_year": "doy",
-             "doy": "doy", "year_of_week": "isoyear", "yow": "isoyear", "hour": "hour", "minute": "minute",
-             "second": "second", "millisecond": "millisecond"}
+_FIELD_OF = {
+    "year": "year",
+    "quarter": "quarter",
+    "month": "month",
+    "week": "week",
+    "week_of_year": "week",
+    "day": "day",
+    "day_of_month": "day",
+    "day_of_week": "isodow",
+    "dow": "isodow",
+    "day_of_year": "doy",
+    "doy": "doy",
+    "year_of_week": "isoyear",
+    "yow": "isoyear",
+    "hour": "hour",
+    "minute": "minute",
+    "second": "second",
+    "millisecond": "millisecond",
+}
 
 
 def _render_field(g, node, args) -> str:
@@ -2109,17 +2743,36 @@ def _render_field(g, node, args) -> str:
     return f"CAST(date_part({tf.string(part)}, {value}) AS BIGINT)"
 
 
-register("date_diff", "datetime", "date_diff(unit, timestamp1, timestamp2) -> bigint", _date_diff,
-         _render_date_diff, notes="Counts whole units between the values, as Trino does (DuckDB's date_diff counts "
-                                  "boundaries; lakegate uses date_sub).")
-register("date_add", "datetime", "date_add(unit, value, timestamp) -> same as timestamp", _date_add,
-         _render_date_add)
+register(
+    "date_diff",
+    "datetime",
+    "date_diff(unit, timestamp1, timestamp2) -> bigint",
+    _date_diff,
+    _render_date_diff,
+    notes="Counts whole units between the values, as Trino does (DuckDB's date_diff counts "
+    "boundaries; lakegate uses date_sub).",
+)
+register("date_add", "datetime", "date_add(unit, value, timestamp) -> same as timestamp", _date_add, _render_date_add)
 register("date_trunc", "datetime", "date_trunc(unit, x) -> same as x", _date_trunc, _render_date_trunc)
-register("date_format", "datetime", "date_format(timestamp, format) -> varchar", _date_format,
-         _render_date_format, notes="MySQL-style specifiers with an exact strftime equivalent; others are rejected.")
+register(
+    "date_format",
+    "datetime",
+    "date_format(timestamp, format) -> varchar",
+    _date_format,
+    _render_date_format,
+    notes="MySQL-style specifiers with an exact strftime equivalent; others are rejected.",
+)
 register("date_parse", "datetime", "date_parse(string, format) -> timestamp(3)", _date_parse, _render_date_parse)
-register("from_unixtime", "datetime", "from_unixtime(unixtime) -> timestamp(3) with time zone", _from_unixtime,
-         _render_from_unixtime, notes="In the session time zone, which is UTC in lakegate.")
+register(
+    "from_unixtime",
+    "datetime",
+    "from_unixtime(unixtime) -> timestamp(3) with time zone",
+    _from_unixtime,
+    _render_from_unixtime,
+    notes="In the session time zone, which is UTC in lakegate.",
+)
+
+
 def _render_from_iso8601_date(g, node, args) -> str:
     v = '"_iso"'
     y, m, d = _iso_parts(v, _ISO_DAY)
@@ -2132,46 +2785,75 @@ def _render_from_iso8601_date(g, node, args) -> str:
     invalid = g.fail(f"'Invalid format: ' || {quoted}")
     out_of_range = g.fail(f"'Cannot parse ' || {quoted} || ': a field value is out of range'")
     too_far = g.fail(f"'from_iso8601_date of a year outside 1..9999: ' || {quoted}", "NOT_SUPPORTED")
-    body = (f"CASE WHEN {v} IS NULL THEN NULL "
-            f"WHEN NOT regexp_full_match({v}, '[+-]?[0-9]{{1,9}}(-.*)?') THEN {invalid} "
-            f"WHEN CAST(regexp_extract({v}, '^[+-]?[0-9]+') AS BIGINT) NOT BETWEEN 1 AND 9999 THEN {too_far} "
-            f"WHEN regexp_full_match({v}, {tf.string(_ISO_DAY)}) THEN "
-            f"coalesce(try(make_date({y}, {m}, {d})), {out_of_range}) "
-            f"WHEN regexp_full_match({v}, {tf.string(_ISO_WEEK)}) THEN CASE "
-            f"WHEN {w} BETWEEN 1 AND week(make_date({wy}, 12, 28)) AND {e} BETWEEN 1 AND 7 THEN {week_date} "
-            f"ELSE {out_of_range} END "
-            f"WHEN regexp_full_match({v}, {tf.string(_ISO_ORDINAL)}) THEN CASE "
-            f"WHEN {doy} >= 1 AND year({ordinal_date}) = {oy} THEN {ordinal_date} ELSE {out_of_range} END "
-            f"ELSE {invalid} END")
+    body = (
+        f"CASE WHEN {v} IS NULL THEN NULL "
+        f"WHEN NOT regexp_full_match({v}, '[+-]?[0-9]{{1,9}}(-.*)?') THEN {invalid} "
+        f"WHEN CAST(regexp_extract({v}, '^[+-]?[0-9]+') AS BIGINT) NOT BETWEEN 1 AND 9999 THEN {too_far} "
+        f"WHEN regexp_full_match({v}, {tf.string(_ISO_DAY)}) THEN "
+        f"coalesce(try(make_date({y}, {m}, {d})), {out_of_range}) "
+        f"WHEN regexp_full_match({v}, {tf.string(_ISO_WEEK)}) THEN CASE "
+        f"WHEN {w} BETWEEN 1 AND week(make_date({wy}, 12, 28)) AND {e} BETWEEN 1 AND 7 THEN {week_date} "
+        f"ELSE {out_of_range} END "
+        f"WHEN regexp_full_match({v}, {tf.string(_ISO_ORDINAL)}) THEN CASE "
+        f"WHEN {doy} >= 1 AND year({ordinal_date}) = {oy} THEN {ordinal_date} ELSE {out_of_range} END "
+        f"ELSE {invalid} END"
+    )
     return f"list_transform([{g.sql(args[0])}], lambda {v}: {body})[1]"
 
 
-register("from_iso8601_date", "datetime", "from_iso8601_date(string) -> date",
-         lambda c: need(c, "string") and tt.DATE, _render_from_iso8601_date,
-         notes="Joda's ISO 8601 date forms, as Trino: 2020-05-11, 2020-05, 2020, 2020-W10[-5], 2020-130.")
+register(
+    "from_iso8601_date",
+    "datetime",
+    "from_iso8601_date(string) -> date",
+    lambda c: need(c, "string") and tt.DATE,
+    _render_from_iso8601_date,
+    notes="Joda's ISO 8601 date forms, as Trino: 2020-05-11, 2020-05, 2020, 2020-W10[-5], 2020-130.",
+)
 register("to_unixtime", "datetime", "to_unixtime(timestamp) -> double", _to_unixtime, _render_to_unixtime)
-register("now", "datetime", "now() -> timestamp(3) with time zone", fixed(tt.timestamp(3, True)),
-         lambda g, node, args: "date_trunc('millisecond', current_timestamp)")
-register("current_timezone", "datetime", "current_timezone() -> varchar", fixed(tt.VARCHAR),
-         lambda g, node, args: "'UTC'")
-register("date", "datetime", "date(x) -> date",
-         lambda c: tt.DATE if len(c.args) == 1 and c.types[0] is not None and c.types[0].base in
-         ("varchar", "timestamp", "timestamp_tz", "date", "unknown") else c.mismatch(),
-         lambda g, node, args: tf.cast_value(g, g.sql(args[0]), ttype(args[0]), tt.DATE))
-register("last_day_of_month", "datetime", "last_day_of_month(x) -> date", fixed(tt.DATE, "temporal"),
-         lambda g, node, args: f"last_day({g.sql(args[0])})")
+register(
+    "now",
+    "datetime",
+    "now() -> timestamp(3) with time zone",
+    fixed(tt.timestamp(3, True)),
+    lambda g, node, args: "date_trunc('millisecond', current_timestamp)",
+)
+register(
+    "current_timezone", "datetime", "current_timezone() -> varchar", fixed(tt.VARCHAR), lambda g, node, args: "'UTC'"
+)
+register(
+    "date",
+    "datetime",
+    "date(x) -> date",
+    lambda c: (
+        tt.DATE
+        if len(c.args) == 1
+        and c.types[0] is not None
+        and c.types[0].base in ("varchar", "timestamp", "timestamp_tz", "date", "unknown")
+        else c.mismatch()
+    ),
+    lambda g, node, args: tf.cast_value(g, g.sql(args[0]), ttype(args[0]), tt.DATE),
+)
+register(
+    "last_day_of_month",
+    "datetime",
+    "last_day_of_month(x) -> date",
+    fixed(tt.DATE, "temporal"),
+    lambda g, node, args: f"last_day({g.sql(args[0])})",
+)
 for _name in _FIELD_OF:
     register(_name, "datetime", f"{_name}(x) -> bigint", _field, _render_field)
 
 
 # === rejected =====================================================================================
-_GEO = ("ST_Area ST_AsBinary ST_AsText ST_Boundary ST_Buffer ST_Centroid ST_Contains ST_ConvexHull ST_CoordDim "
-        "ST_Crosses ST_Difference ST_Dimension ST_Disjoint ST_Distance ST_EndPoint ST_Envelope ST_Equals "
-        "ST_ExteriorRing ST_GeometryFromText ST_GeomFromBinary ST_Intersection ST_Intersects ST_IsClosed "
-        "ST_IsEmpty ST_IsRing ST_IsSimple ST_IsValid ST_Length ST_LineFromText ST_LineString ST_MultiPoint "
-        "ST_NumPoints ST_Overlaps ST_Point ST_PointN ST_Points ST_Polygon ST_Relate ST_StartPoint ST_Touches "
-        "ST_Union ST_Within ST_X ST_Y ST_XMax ST_XMin ST_YMax ST_YMin bing_tile bing_tile_at bing_tile_quadkey "
-        "great_circle_distance geometry_union spatial_partitioning to_spherical_geography to_geometry").split()
+_GEO = (
+    "ST_Area ST_AsBinary ST_AsText ST_Boundary ST_Buffer ST_Centroid ST_Contains ST_ConvexHull ST_CoordDim "
+    "ST_Crosses ST_Difference ST_Dimension ST_Disjoint ST_Distance ST_EndPoint ST_Envelope ST_Equals "
+    "ST_ExteriorRing ST_GeometryFromText ST_GeomFromBinary ST_Intersection ST_Intersects ST_IsClosed "
+    "ST_IsEmpty ST_IsRing ST_IsSimple ST_IsValid ST_Length ST_LineFromText ST_LineString ST_MultiPoint "
+    "ST_NumPoints ST_Overlaps ST_Point ST_PointN ST_Points ST_Polygon ST_Relate ST_StartPoint ST_Touches "
+    "ST_Union ST_Within ST_X ST_Y ST_XMax ST_XMin ST_YMax ST_YMin bing_tile bing_tile_at bing_tile_quadkey "
+    "great_circle_distance geometry_union spatial_partitioning to_spherical_geography to_geometry"
+).split()
 
 REJECTED: dict[str, str] = {
     **{name.lower(): "geospatial functions are not available in lakegate" for name in _GEO},

@@ -6,6 +6,7 @@ functions, no table functions but UNNEST). `classify` tells the server which kin
 text is: 'query', 'show', 'describe', 'explain', 'session' (SET SESSION, USE, PREPARE, EXECUTE,
 START TRANSACTION, ... which the server answers itself), 'call', or 'other' (refused).
 """
+
 from __future__ import annotations
 
 import re
@@ -32,33 +33,159 @@ _SESSION_WORDS = {"USE", "PREPARE", "EXECUTE", "DEALLOCATE", "COMMIT", "ROLLBACK
 _SESSION_SET = {"SESSION", "TIME", "PATH", "ROLE"}  # SET SESSION / SET TIME ZONE / SET PATH / SET ROLE
 #: First words of statements that change something or reach outside the lake: refused by name.
 _REFUSED_WORDS = {
-    "INSERT", "UPDATE", "DELETE", "MERGE", "TRUNCATE", "CREATE", "DROP", "ALTER", "COMMENT", "GRANT",
-    "REVOKE", "DENY", "ANALYZE", "VACUUM", "CHECKPOINT", "FORCE", "REFRESH", "COPY", "ATTACH", "DETACH",
-    "INSTALL", "LOAD", "UNLOAD", "PRAGMA", "EXPORT", "IMPORT", "SET", "RESET", "BEGIN", "END", "ABORT",
-    "SUMMARIZE", "PIVOT", "UNPIVOT", "FROM",
+    "INSERT",
+    "UPDATE",
+    "DELETE",
+    "MERGE",
+    "TRUNCATE",
+    "CREATE",
+    "DROP",
+    "ALTER",
+    "COMMENT",
+    "GRANT",
+    "REVOKE",
+    "DENY",
+    "ANALYZE",
+    "VACUUM",
+    "CHECKPOINT",
+    "FORCE",
+    "REFRESH",
+    "COPY",
+    "ATTACH",
+    "DETACH",
+    "INSTALL",
+    "LOAD",
+    "UNLOAD",
+    "PRAGMA",
+    "EXPORT",
+    "IMPORT",
+    "SET",
+    "RESET",
+    "BEGIN",
+    "END",
+    "ABORT",
+    "SUMMARIZE",
+    "PIVOT",
+    "UNPIVOT",
+    "FROM",
 }
 #: Second words that belong to a statement's name in messages (CREATE TABLE, SET SESSION, ...).
-_NAME_WORDS = {"TABLE", "VIEW", "SCHEMA", "DATABASE", "MACRO", "FUNCTION", "SEQUENCE", "INDEX", "TYPE", "SECRET",
-               "MATERIALIZED", "OR", "TEMP", "TEMPORARY", "ROLE", "SESSION", "TRANSACTION", "TIME", "PATH",
-               "CHECKPOINT", "TABLES", "SCHEMAS", "CATALOGS", "COLUMNS", "FUNCTIONS", "STATS", "GRANTS",
-               "INPUT", "OUTPUT", "IMMEDIATE", "PREPARE", "VARIABLE", "EXTENSIONS"}
+_NAME_WORDS = {
+    "TABLE",
+    "VIEW",
+    "SCHEMA",
+    "DATABASE",
+    "MACRO",
+    "FUNCTION",
+    "SEQUENCE",
+    "INDEX",
+    "TYPE",
+    "SECRET",
+    "MATERIALIZED",
+    "OR",
+    "TEMP",
+    "TEMPORARY",
+    "ROLE",
+    "SESSION",
+    "TRANSACTION",
+    "TIME",
+    "PATH",
+    "CHECKPOINT",
+    "TABLES",
+    "SCHEMAS",
+    "CATALOGS",
+    "COLUMNS",
+    "FUNCTIONS",
+    "STATS",
+    "GRANTS",
+    "INPUT",
+    "OUTPUT",
+    "IMMEDIATE",
+    "PREPARE",
+    "VARIABLE",
+    "EXTENSIONS",
+}
 
 #: Statement node types that are never a query.
-_STATEMENT_NODES = tuple(getattr(exp, name) for name in (
-    "Insert", "Update", "Delete", "Merge", "Create", "Drop", "Alter", "Copy", "Command", "Set", "Pragma",
-    "Use", "Transaction", "Commit", "Rollback", "Attach", "Detach", "Install", "LoadData", "Export", "Into",
-    "Grant", "Revoke", "TruncateTable", "Analyze", "Summarize", "Refresh", "Comment", "Cache", "Uncache",
-    "Declare") if hasattr(exp, name))
+_STATEMENT_NODES = tuple(
+    getattr(exp, name)
+    for name in (
+        "Insert",
+        "Update",
+        "Delete",
+        "Merge",
+        "Create",
+        "Drop",
+        "Alter",
+        "Copy",
+        "Command",
+        "Set",
+        "Pragma",
+        "Use",
+        "Transaction",
+        "Commit",
+        "Rollback",
+        "Attach",
+        "Detach",
+        "Install",
+        "LoadData",
+        "Export",
+        "Into",
+        "Grant",
+        "Revoke",
+        "TruncateTable",
+        "Analyze",
+        "Summarize",
+        "Refresh",
+        "Comment",
+        "Cache",
+        "Uncache",
+        "Declare",
+    )
+    if hasattr(exp, name)
+)
 
 #: DuckDB functions that read files, run SQL, or expose settings and internals; refused anywhere.
 _DENIED_FUNCTIONS = {
-    "glob", "sniff_csv", "query", "query_table", "getenv", "current_setting", "getvariable", "set_variable",
-    "which_secret", "load_aws_credentials", "json_execute_serialized_sql", "json_serialize_sql",
-    "json_deserialize_sql", "json_serialize_plan", "checkpoint", "force_checkpoint", "enable_logging",
-    "disable_logging", "truncate_duckdb_logs", "sql_auto_complete", "test_all_types", "summary", "st_read",
+    "glob",
+    "sniff_csv",
+    "query",
+    "query_table",
+    "getenv",
+    "current_setting",
+    "getvariable",
+    "set_variable",
+    "which_secret",
+    "load_aws_credentials",
+    "json_execute_serialized_sql",
+    "json_serialize_sql",
+    "json_deserialize_sql",
+    "json_serialize_plan",
+    "checkpoint",
+    "force_checkpoint",
+    "enable_logging",
+    "disable_logging",
+    "truncate_duckdb_logs",
+    "sql_auto_complete",
+    "test_all_types",
+    "summary",
+    "st_read",
 }
-_DENIED_PREFIXES = ("read_", "parquet_", "duckdb_", "pragma_", "sqlite_", "postgres_", "mysql_", "iceberg_",
-                    "delta_", "ducklake_", "arrow_scan", "pandas_", "python_")
+_DENIED_PREFIXES = (
+    "read_",
+    "parquet_",
+    "duckdb_",
+    "pragma_",
+    "sqlite_",
+    "postgres_",
+    "mysql_",
+    "iceberg_",
+    "delta_",
+    "ducklake_",
+    "arrow_scan",
+    "pandas_",
+    "python_",
+)
 
 #: One lexeme of a query text: blanks, a comment, a string, a quoted name, a word, a number, any other character.
 _LEXEME = re.compile(r"""\s+|--[^\n]*|/\*.*?(?:\*/|\Z)|'(?:[^']|'')*'?|"(?:[^"]|"")*"?|\w+|.""", re.S)
@@ -123,8 +250,12 @@ def _statement(sql: str, offset: int = 0) -> tuple[str, str, int]:
         if kind != "query":
             return "other", f"EXPLAIN {inner}".strip(), inner_start
         return "explain", "EXPLAIN", start
-    if first in _SESSION_WORDS or (first == "START" and second == "TRANSACTION") or \
-            (first == "SET" and second in _SESSION_SET) or (first == "RESET" and second == "SESSION"):
+    if (
+        first in _SESSION_WORDS
+        or (first == "START" and second == "TRANSACTION")
+        or (first == "SET" and second in _SESSION_SET)
+        or (first == "RESET" and second == "SESSION")
+    ):
         return "session", name, start
     if first == "CALL":
         return "call", name, start
@@ -164,11 +295,19 @@ def explained_query(sql: str) -> tuple[str, bool]:
 def _refuse_statement(kind: str, name: str, sql: str, start: int) -> None:
     line, column = _where(sql, start)
     if kind == "session":
-        raise DialectError(f"{name} is a session statement, handled by the server, not a query",
-                           line=line, column=column, error_name="NOT_SUPPORTED")
-    raise DialectError(f"Access Denied: {name} statements are not allowed: lakegate serves the lake read-only "
-                       "and runs queries only (SELECT, WITH, VALUES, SHOW, DESCRIBE, EXPLAIN)",
-                       line=line, column=column, error_name="PERMISSION_DENIED")
+        raise DialectError(
+            f"{name} is a session statement, handled by the server, not a query",
+            line=line,
+            column=column,
+            error_name="NOT_SUPPORTED",
+        )
+    raise DialectError(
+        f"Access Denied: {name} statements are not allowed: lakegate serves the lake read-only "
+        "and runs queries only (SELECT, WITH, VALUES, SHOW, DESCRIBE, EXPLAIN)",
+        line=line,
+        column=column,
+        error_name="PERMISSION_DENIED",
+    )
 
 
 def _check_size(sql: str) -> None:
@@ -188,22 +327,40 @@ def _check_size(sql: str) -> None:
         if depth > MAX_NESTING or tokens > MAX_TOKENS:
             line, column = _where(sql, lexeme.start())
             if tokens > MAX_TOKENS:
-                raise DialectError(f"Query text has more than {MAX_TOKENS} tokens (lakegate's limit)",
-                                   line=line, column=column, error_name="QUERY_TEXT_TOO_LARGE")
-            raise DialectError(f"statement is too large (stack overflow while parsing): brackets and CASE "
-                               f"nested more than {MAX_NESTING} levels deep (lakegate's limit)",
-                               line=line, column=column, error_name="SYNTAX_ERROR")
+                raise DialectError(
+                    f"Query text has more than {MAX_TOKENS} tokens (lakegate's limit)",
+                    line=line,
+                    column=column,
+                    error_name="QUERY_TEXT_TOO_LARGE",
+                )
+            raise DialectError(
+                f"statement is too large (stack overflow while parsing): brackets and CASE "
+                f"nested more than {MAX_NESTING} levels deep (lakegate's limit)",
+                line=line,
+                column=column,
+                error_name="SYNTAX_ERROR",
+            )
 
 
 def _refuse_no_statement(sql: str) -> None:
     """Trino's SYNTAX_ERROR for a text that does not start with a statement's keyword: its first
     token, or '<EOF>' for a text of blanks and comments."""
-    first = next((lexeme for lexeme in _LEXEME.finditer(sql)
-                  if not lexeme.group()[0].isspace() and not lexeme.group().startswith(("--", "/*"))), None)
+    first = next(
+        (
+            lexeme
+            for lexeme in _LEXEME.finditer(sql)
+            if not lexeme.group()[0].isspace() and not lexeme.group().startswith(("--", "/*"))
+        ),
+        None,
+    )
     line, column = _where(sql, first.start()) if first else (1, 1)
     token = first.group() if first else "<EOF>"
-    raise DialectError(f"mismatched input '{token}'. Expecting: a query (SELECT, WITH, VALUES, TABLE), SHOW, "
-                       "DESCRIBE or EXPLAIN", line=line, column=column, error_name="SYNTAX_ERROR")
+    raise DialectError(
+        f"mismatched input '{token}'. Expecting: a query (SELECT, WITH, VALUES, TABLE), SHOW, DESCRIBE or EXPLAIN",
+        line=line,
+        column=column,
+        error_name="SYNTAX_ERROR",
+    )
 
 
 def _check_single_statement(sql: str) -> None:
@@ -216,8 +373,12 @@ def _check_single_statement(sql: str) -> None:
     for token, following in zip(tokens, tokens[1:]):
         if token.token_type == TokenType.SEMICOLON and following.token_type != TokenType.SEMICOLON:
             line, column = following.line, max(1, following.col - len(following.text) + 1)
-            raise DialectError("Access Denied: multiple statements in one query text are not allowed",
-                               line=line, column=column, error_name="PERMISSION_DENIED")
+            raise DialectError(
+                "Access Denied: multiple statements in one query text are not allowed",
+                line=line,
+                column=column,
+                error_name="PERMISSION_DENIED",
+            )
 
 
 def check_text(sql: str | bytes) -> str:
@@ -231,32 +392,47 @@ def check_text(sql: str | bytes) -> str:
         try:
             sql = bytes(sql).decode("utf-8")
         except UnicodeDecodeError as error:
-            good = bytes(sql[:error.start]).decode("utf-8")
+            good = bytes(sql[: error.start]).decode("utf-8")
             line, column = _where(good, len(good))
-            raise DialectError(f"the query text is not valid UTF-8 (byte {error.start})",
-                               line=line, column=column, error_name="SYNTAX_ERROR") from None
+            raise DialectError(
+                f"the query text is not valid UTF-8 (byte {error.start})",
+                line=line,
+                column=column,
+                error_name="SYNTAX_ERROR",
+            ) from None
     try:
         size = len(sql.encode("utf-8"))
     except UnicodeEncodeError as error:
         line, column = _where(sql, error.start)
-        raise DialectError("the query text is not valid Unicode (a lone surrogate character)",
-                           line=line, column=column, error_name="SYNTAX_ERROR") from None
+        raise DialectError(
+            "the query text is not valid Unicode (a lone surrogate character)",
+            line=line,
+            column=column,
+            error_name="SYNTAX_ERROR",
+        ) from None
     if size > MAX_TEXT_BYTES:
-        raise DialectError(f"Query text length ({size}) exceeds the maximum length ({MAX_TEXT_BYTES})",
-                           error_name="QUERY_TEXT_TOO_LARGE")
+        raise DialectError(
+            f"Query text length ({size}) exceeds the maximum length ({MAX_TEXT_BYTES})",
+            error_name="QUERY_TEXT_TOO_LARGE",
+        )
     nul = sql.find("\x00")
     if nul >= 0:
         line, column = _where(sql, nul)
-        raise DialectError("the query text contains a NUL character", line=line, column=column,
-                           error_name="SYNTAX_ERROR")
+        raise DialectError(
+            "the query text contains a NUL character", line=line, column=column, error_name="SYNTAX_ERROR"
+        )
     _check_size(sql)
     kind, name, start = _statement(sql)
     if kind == "other" and not name:
         _refuse_no_statement(sql)
     if kind == "other" and name == "FROM":
         line, column = _where(sql, start)
-        raise DialectError("syntax error: a query starts with SELECT, WITH, VALUES or TABLE, not FROM",
-                           line=line, column=column, error_name="SYNTAX_ERROR")
+        raise DialectError(
+            "syntax error: a query starts with SELECT, WITH, VALUES or TABLE, not FROM",
+            line=line,
+            column=column,
+            error_name="SYNTAX_ERROR",
+        )
     if kind in ("session", "call", "other"):
         _refuse_statement(kind, name, sql, start)
     _check_single_statement(sql)
@@ -270,11 +446,13 @@ def _function_name(node: exp.Expression) -> str:
 
 
 #: Trino's words for syntax that sqlglot parses into nodes named otherwise.
-_TRINO_SYNTAX = {exp.HexString: "binary literal X'...' (varbinary)",
-                 exp.ByteString: "binary literal X'...' (varbinary)",
-                 exp.UnicodeString: "Unicode string literal U&'...'",
-                 exp.JSONValue: "function 'json_value'",
-                 exp.GroupingSets: "GROUPING SETS"}
+_TRINO_SYNTAX = {
+    exp.HexString: "binary literal X'...' (varbinary)",
+    exp.ByteString: "binary literal X'...' (varbinary)",
+    exp.UnicodeString: "Unicode string literal U&'...'",
+    exp.JSONValue: "function 'json_value'",
+    exp.GroupingSets: "GROUPING SETS",
+}
 _LEADING_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 
@@ -329,8 +507,9 @@ def check(expression: exp.Expression) -> None:
             if isinstance(source, exp.Func) and not isinstance(source, exp.Unnest):
                 name = _function_name(source)
                 label = "TABLE(...)" if name == "table" else f"'{name}'"
-                _fail(f"Access Denied: table function {label} is not allowed (only UNNEST and tables of the lake)",
-                      source)
+                _fail(
+                    f"Access Denied: table function {label} is not allowed (only UNNEST and tables of the lake)", source
+                )
             if isinstance(node, exp.Table) and any(sep in node.name for sep in "/\\"):
                 _fail(f"Access Denied: reading files is not allowed: '{node.name}'", node)
         elif isinstance(node, exp.Func):

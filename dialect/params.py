@@ -6,16 +6,17 @@ float -> DOUBLE (`1.5E0`), Decimal -> DECIMAL(p,s) of its digits (`1.25`), str -
 datetime -> TIMESTAMP(6) (WITH TIME ZONE when aware), date -> DATE, time -> TIME(6), UUID -> UUID,
 list -> ARRAY, tuple -> ROW, dict -> MAP, TypedLiteral -> its type, as the trino client formats them.
 """
+
 from __future__ import annotations
 
 import datetime as dt
 import math
 import re
 import uuid
+from collections.abc import Sequence
 from dataclasses import dataclass
 from decimal import Decimal
 from numbers import Integral
-from typing import Sequence
 from zoneinfo import ZoneInfo
 
 import sqlglot
@@ -71,9 +72,11 @@ def literal(value: object) -> exp.Expression:
         return exp.Boolean(this=value)
     if isinstance(value, Integral):  # int, numpy integers
         value = int(value)
-        if not -2**63 <= value < 2**63:
-            raise DialectError(f"Invalid numeric literal: {value} (beyond the bigint range)", error_name="INVALID_LITERAL")
-        if value == -2**63:
+        if not -(2**63) <= value < 2**63:
+            raise DialectError(
+                f"Invalid numeric literal: {value} (beyond the bigint range)", error_name="INVALID_LITERAL"
+            )
+        if value == -(2**63):
             return _cast(str(value), "BIGINT")
         number = exp.Literal.number(abs(value))
         return exp.Neg(this=number) if value < 0 else number
@@ -119,8 +122,10 @@ def literal(value: object) -> exp.Expression:
         return exp.Anonymous(this="ROW", expressions=[literal(v) for v in value])
     if isinstance(value, dict):
         return exp.Anonymous(this="MAP", expressions=[literal(list(value)), literal(list(value.values()))])
-    raise DialectError(f"a value of Python type {type(value).__name__} cannot be a query parameter",
-                       error_name="INVALID_PARAMETER_USAGE")
+    raise DialectError(
+        f"a value of Python type {type(value).__name__} cannot be a query parameter",
+        error_name="INVALID_PARAMETER_USAGE",
+    )
 
 
 def _in_text_order(placeholders: list[exp.Placeholder], expression: exp.Expression) -> list[exp.Placeholder]:
@@ -140,8 +145,10 @@ def bind(expression: exp.Expression, params: Sequence[object]) -> exp.Expression
     INVALID_PARAMETER_USAGE error naming both."""
     placeholders = [node for node in expression.find_all(exp.Placeholder) if not node.this]
     if len(placeholders) != len(params):
-        raise DialectError(f"Incorrect number of parameters: expected {len(placeholders)} but found {len(params)}",
-                           error_name="INVALID_PARAMETER_USAGE")
+        raise DialectError(
+            f"Incorrect number of parameters: expected {len(placeholders)} but found {len(params)}",
+            error_name="INVALID_PARAMETER_USAGE",
+        )
     if not placeholders:
         return expression
     nodes = [literal(value) for value in params]
@@ -157,12 +164,13 @@ def bind(expression: exp.Expression, params: Sequence[object]) -> exp.Expression
 
 # --- EXECUTE ... USING ---------------------------------------------------------------------------
 
+
 @dataclass(frozen=True)
 class Execute:
     """An `EXECUTE name USING ...` or `EXECUTE IMMEDIATE 'statement' USING ...`."""
 
-    name: str | None        # the prepared statement's name (EXECUTE name)
-    statement: str | None   # the statement text (EXECUTE IMMEDIATE)
+    name: str | None  # the prepared statement's name (EXECUTE name)
+    statement: str | None  # the statement text (EXECUTE IMMEDIATE)
     params: list[object]
 
 
@@ -210,14 +218,16 @@ def _value(node: exp.Expression) -> object:
     elif isinstance(node, exp.Map) or (isinstance(node, exp.Anonymous) and node.name.lower() == "map"):
         parts = [node.args.get("keys"), node.args.get("values")] if isinstance(node, exp.Map) else node.expressions
         if len(parts) != 2 or not all(isinstance(part, exp.Array) for part in parts):
-            raise DialectError("a MAP parameter is written MAP(ARRAY[...], ARRAY[...])",
-                               error_name="INVALID_PARAMETER_USAGE")
+            raise DialectError(
+                "a MAP parameter is written MAP(ARRAY[...], ARRAY[...])", error_name="INVALID_PARAMETER_USAGE"
+            )
         keys, values = _value(parts[0]), _value(parts[1])
         if len(keys) != len(values):
             raise DialectError("MAP keys and values differ in number", error_name="INVALID_PARAMETER_USAGE")
         return dict(zip(keys, values))
-    raise DialectError(f"a parameter must be a literal, not '{node.sql(dialect='trino')}'",
-                       error_name="INVALID_PARAMETER_USAGE")
+    raise DialectError(
+        f"a parameter must be a literal, not '{node.sql(dialect='trino')}'", error_name="INVALID_PARAMETER_USAGE"
+    )
 
 
 def _date(text: str) -> dt.date | TypedLiteral:
@@ -233,9 +243,10 @@ def parse_execute(text: str) -> Execute:
     """Read `EXECUTE name [USING lit, ...]` or `EXECUTE IMMEDIATE 'sql' [USING lit, ...]`."""
     head = _EXECUTE.match(text)
     if not head:
-        raise DialectError("syntax error: expected EXECUTE name [USING ...]", line=1, column=1,
-                           error_name="SYNTAX_ERROR")
-    body = text[head.end():]
+        raise DialectError(
+            "syntax error: expected EXECUTE name [USING ...]", line=1, column=1, error_name="SYNTAX_ERROR"
+        )
+    body = text[head.end() :]
     try:
         tokens = sqlglot.Dialect.get_or_raise("trino").tokenize(body)
     except TokenError as error:
@@ -246,21 +257,22 @@ def parse_execute(text: str) -> Execute:
     target = tokens[1] if immediate and len(tokens) > 1 else tokens[0] if tokens else None
     if target is None or target.token_type != (TokenType.STRING if immediate else TokenType.VAR):
         what = "the statement as a string literal" if immediate else "a prepared statement name"
-        raise DialectError(f"syntax error: EXECUTE{' IMMEDIATE' if immediate else ''} takes {what}",
-                           error_name="SYNTAX_ERROR")
-    rest = tokens[tokens.index(target) + 1:]
+        raise DialectError(
+            f"syntax error: EXECUTE{' IMMEDIATE' if immediate else ''} takes {what}", error_name="SYNTAX_ERROR"
+        )
+    rest = tokens[tokens.index(target) + 1 :]
     params: list[object] = []
     if rest:
         if rest[0].text.upper() != "USING" or len(rest) < 2:
             raise DialectError(f"syntax error: expected USING, found '{rest[0].text}'", error_name="SYNTAX_ERROR")
         try:
-            select = sqlglot.parse_one("SELECT " + body[rest[1].start:rest[-1].end + 1], read="trino")
+            select = sqlglot.parse_one("SELECT " + body[rest[1].start : rest[-1].end + 1], read="trino")
         except (ParseError, TokenError) as error:
-            raise DialectError(f"syntax error in the USING list: {str(error).splitlines()[0]}",
-                               error_name="SYNTAX_ERROR") from None
+            raise DialectError(
+                f"syntax error in the USING list: {str(error).splitlines()[0]}", error_name="SYNTAX_ERROR"
+            ) from None
         params = [_value(e) for e in select.expressions]
-    return Execute(name=None if immediate else target.text, statement=target.text if immediate else None,
-                   params=params)
+    return Execute(name=None if immediate else target.text, statement=target.text if immediate else None, params=params)
 
 
 def parse_using(text: str) -> list[object]:

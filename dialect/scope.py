@@ -14,10 +14,11 @@ A scope may also carry job statuses a dashboard session computed without writing
 (`Scope.statuses`): `metadata` then shows those statuses in place of the stored ones, so batch
 metrics that count them agree with `lakegate metrics run` while the lake stays untouched.
 """
+
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
-from typing import Iterable, Mapping
 
 from sqlglot import exp
 
@@ -35,8 +36,11 @@ class Scope:
 
     def conditions(self) -> list[tuple[str, str]]:
         """(column, value) pairs every lake row in scope satisfies."""
-        return [(column, value) for column, value in (("batch_id", self.batch_id), ("job_id", self.job_id))
-                if value is not None]
+        return [
+            (column, value)
+            for column, value in (("batch_id", self.batch_id), ("job_id", self.job_id))
+            if value is not None
+        ]
 
 
 def _references(expression: exp.Expression, tables: set[str]) -> list[exp.Table]:
@@ -90,8 +94,13 @@ def _status_overlay(columns: Iterable[str], statuses: tuple[tuple[str, str, str]
 def _filtered(table: exp.Table, scope: Scope, columns: Iterable[str] | None) -> exp.Subquery:
     source = table.copy()
     source.set("alias", None)
-    condition = exp.and_(*(exp.EQ(this=exp.column(column), expression=exp.Literal.string(value))
-                           for column, value in scope.conditions()), copy=False)
+    condition = exp.and_(
+        *(
+            exp.EQ(this=exp.column(column), expression=exp.Literal.string(value))
+            for column, value in scope.conditions()
+        ),
+        copy=False,
+    )
     overlay = scope.statuses and columns and table.name.lower() == "metadata"
     shown = _status_overlay(columns, scope.statuses) if overlay else [exp.Star()]
     select = exp.Select(expressions=shown, from_=exp.From(this=source), where=exp.Where(this=condition))
@@ -101,8 +110,9 @@ def _filtered(table: exp.Table, scope: Scope, columns: Iterable[str] | None) -> 
     return exp.Subquery(this=select, alias=alias.copy())
 
 
-def restrict(expression: exp.Expression, scope: Scope,
-             tables: Iterable[str] | Mapping[str, Mapping[str, str]]) -> exp.Expression:
+def restrict(
+    expression: exp.Expression, scope: Scope, tables: Iterable[str] | Mapping[str, Mapping[str, str]]
+) -> exp.Expression:
     """Rewrite (in place, and return) `expression` so that every lake table in `tables` it reads
     shows only the rows of `scope`. Values are string literal nodes, never pasted text. `tables`
     with their columns (table -> column -> type) lets `metadata` show `scope.statuses`."""

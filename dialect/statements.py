@@ -7,6 +7,7 @@ the line and column of the token it did not expect. Which statement a text is co
 words (`guard.first_words`, `guard.classify`); what each statement means is its answerer's (the
 engine's sessions, planner and system tables).
 """
+
 from __future__ import annotations
 
 import re
@@ -114,7 +115,7 @@ class Reader:
         token = self.peek()
         if token is None:
             self.fail("a statement")
-        return self.sql[token.start:self.tokens[-1].end + 1]
+        return self.sql[token.start : self.tokens[-1].end + 1]
 
     def end(self) -> None:
         if self.peek() is not None:
@@ -127,5 +128,6 @@ class Reader:
             line, column, found = None, None, "the end"
         else:
             line, column, found = token.line, max(1, token.col - len(token.text) + 1), f"'{token.text}'"
-        raise DialectError(f"syntax error: expected {expected}, found {found}", line=line, column=column,
-                           error_name="SYNTAX_ERROR")
+        raise DialectError(
+            f"syntax error: expected {expected}, found {found}", line=line, column=column, error_name="SYNTAX_ERROR"
+        )

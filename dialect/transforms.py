@@ -7,6 +7,7 @@ writes DuckDB SQL that gives Trino's answer: integer division truncates, decimal
 prints them, NULLs order last. Runtime failures are raised with DuckDB's `error()` and Trino's
 message text; inside `try(...)` the same transforms yield NULL instead (`Writer.fail`).
 """
+
 from __future__ import annotations
 
 from sqlglot import exp
@@ -70,9 +71,11 @@ class Writer(DuckDBGenerator):
         text = super().sql(expression, key, comment)
         self._written[memo] = (expression, text)  # the node is kept so that its id is not reused
         if len(text) > MAX_SQL_CHARS:
-            raise DialectError(f"unsupported in lakegate: the query translates to more than {MAX_SQL_CHARS} "
-                               "characters of DuckDB SQL (deeply nested function calls); simplify it",
-                               error_name="NOT_SUPPORTED")
+            raise DialectError(
+                f"unsupported in lakegate: the query translates to more than {MAX_SQL_CHARS} "
+                "characters of DuckDB SQL (deeply nested function calls); simplify it",
+                error_name="NOT_SUPPORTED",
+            )
         return text
 
     # --- helpers for transforms and the function registry ---------------------------------------
@@ -148,10 +151,12 @@ class Writer(DuckDBGenerator):
 
 def transform(*types: type):
     """Register a named transform for the given expression types."""
+
     def register(fn):
         for t in types:
             Writer.TRANSFORMS[t] = fn
         return fn
+
     return register
 
 
@@ -211,16 +216,22 @@ def _operands(g: Writer, node: exp.Binary) -> tuple[str, str]:
     return g.sql(node.this), g.sql(node.expression)
 
 
-_RANGES = {"tinyint": (-2**7, 2**7 - 1), "smallint": (-2**15, 2**15 - 1), "integer": (-2**31, 2**31 - 1),
-           "bigint": (-2**63, 2**63 - 1)}
+_RANGES = {
+    "tinyint": (-(2**7), 2**7 - 1),
+    "smallint": (-(2**15), 2**15 - 1),
+    "integer": (-(2**31), 2**31 - 1),
+    "bigint": (-(2**63), 2**63 - 1),
+}
 
 
 def checked_integer(g: Writer, sql: str, t: TType, what: str) -> str:
     """`sql` (computed wider, as HUGEINT) as integral type `t`, failing with Trino's
     NUMERIC_VALUE_OUT_OF_RANGE when it does not fit."""
     low, high = _RANGES[t.base]
-    return (f"CASE WHEN {sql} NOT BETWEEN {low} AND {high} THEN {g.fail(what, 'NUMERIC_VALUE_OUT_OF_RANGE')} "
-            f"ELSE {cast(sql, t)} END")
+    return (
+        f"CASE WHEN {sql} NOT BETWEEN {low} AND {high} THEN {g.fail(what, 'NUMERIC_VALUE_OUT_OF_RANGE')} "
+        f"ELSE {cast(sql, t)} END"
+    )
 
 
 @transform(exp.Add, exp.Sub, exp.Mul)
@@ -247,8 +258,10 @@ def whole_days(g: Writer, node: exp.Binary, sql: str) -> str:
     interval = g.sql(side)
     if ttype(side) == tt.INTERVAL_YM:
         return f"CAST({sql} AS DATE)"
-    return (f"CASE WHEN epoch({interval}) % 86400 <> 0 THEN {g.fail(string(f'Cannot {verb} a date'))} "
-            f"ELSE CAST({sql} AS DATE) END")
+    return (
+        f"CASE WHEN epoch({interval}) % 86400 <> 0 THEN {g.fail(string(f'Cannot {verb} a date'))} "
+        f"ELSE CAST({sql} AS DATE) END"
+    )
 
 
 @transform(exp.Div)
@@ -287,8 +300,10 @@ def rounded_quotient(g: Writer, numerator: str, denominator: str, result: TType)
     """numerator / denominator (HUGEINT unscaled values) rounded HALF_UP, as a decimal of type
     `result` whose unscaled value is the quotient."""
     denominator = nonzero(g, denominator)
-    quotient = (f"({numerator}) // ({denominator}) + CASE WHEN 2 * abs(({numerator}) % ({denominator})) >= "
-                f"abs({denominator}) THEN sign({numerator}) * sign({denominator}) ELSE 0 END")
+    quotient = (
+        f"({numerator}) // ({denominator}) + CASE WHEN 2 * abs(({numerator}) % ({denominator})) >= "
+        f"abs({denominator}) THEN sign({numerator}) * sign({denominator}) ELSE 0 END"
+    )
     scale = result.args[1]
     value = f"CAST({quotient} AS DECIMAL(38,0))"
     if scale:
@@ -329,7 +344,10 @@ def concat_operator(g: Writer, node: exp.DPipe) -> str:
     if lt.base == "array" and rt.base == "array":
         a, b = g.coerce(left, t), g.coerce(right, t)
         return f"CASE WHEN {a} IS NULL OR {b} IS NULL THEN NULL ELSE list_concat({a}, {b}) END"
-    a, b = g.coerce(left, t if lt.base == "array" else t.element), g.coerce(right, t if rt.base == "array" else t.element)
+    a, b = (
+        g.coerce(left, t if lt.base == "array" else t.element),
+        g.coerce(right, t if rt.base == "array" else t.element),
+    )
     appended = f"list_append({a}, {b})" if lt.base == "array" else f"list_prepend({a}, {b})"
     return f"CASE WHEN {a} IS NULL OR {b} IS NULL THEN NULL ELSE {appended} END"  # a NULL element too
 
@@ -350,8 +368,11 @@ def ieee_comparison(g: Writer, node: exp.Binary) -> str:
         return f"{left} {op} {right}"
     if common.is_approx:
         # number literals are never NaN: only the other sides need the check
-        sides = [sql for sql, side in ((left, node.this), (right, node.expression))
-                 if not (isinstance(side, exp.Literal) or isinstance(side, exp.Neg) and isinstance(side.this, exp.Literal))]
+        sides = [
+            sql
+            for sql, side in ((left, node.this), (right, node.expression))
+            if not (isinstance(side, exp.Literal) or isinstance(side, exp.Neg) and isinstance(side.this, exp.Literal))
+        ]
         if not sides:
             return f"{left} {op} {right}"
         if op == "<>":
@@ -372,22 +393,31 @@ def trino_equal(left: str, right: str, t: TType, depth: int = 0) -> str:
     if t.base in ("double", "real"):
         return f"CASE WHEN {nulls} THEN NULL ELSE ({left}) = ({right}) AND NOT isnan({left}) END"
     if t.base == "row":
-        fields = [trino_equal(f"struct_extract_at({left}, {i + 1})", f"struct_extract_at({right}, {i + 1})", f, depth)
-                  for i, (_, f) in enumerate(t.args)]
+        fields = [
+            trino_equal(f"struct_extract_at({left}, {i + 1})", f"struct_extract_at({right}, {i + 1})", f, depth)
+            for i, (_, f) in enumerate(t.args)
+        ]
         return f"CASE WHEN {nulls} THEN NULL ELSE ({' AND '.join(fields)}) END"
     z = quote(f"_z{depth}")
     if t.base == "array":
         element = trino_equal(f"struct_extract({z}, 1)", f"struct_extract({z}, 2)", t.element, depth + 1)
-        flags, size = f"list_transform(list_zip({left}, {right}), lambda {z}: {element})", f"len({left}) <> len({right})"
+        flags, size = (
+            f"list_transform(list_zip({left}, {right}), lambda {z}: {element})",
+            f"len({left}) <> len({right})",
+        )
     elif t.base == "map":
         value = trino_equal(f"({left})[{z}]", f"({right})[{z}]", t.args[1], depth + 1)
-        flags = (f"list_transform(map_keys({left}), lambda {z}: CASE WHEN NOT list_contains(map_keys({right}), {z}) "
-                 f"THEN false ELSE {value} END)")
+        flags = (
+            f"list_transform(map_keys({left}), lambda {z}: CASE WHEN NOT list_contains(map_keys({right}), {z}) "
+            f"THEN false ELSE {value} END)"
+        )
         size = f"cardinality({left}) <> cardinality({right})"
     else:
         return f"({left}) = ({right})"
-    return (f"CASE WHEN {nulls} THEN NULL WHEN {size} THEN false WHEN list_contains({flags}, false) THEN false "
-            f"WHEN list_count({flags}) < len({flags}) THEN NULL ELSE true END")
+    return (
+        f"CASE WHEN {nulls} THEN NULL WHEN {size} THEN false WHEN list_contains({flags}, false) THEN false "
+        f"WHEN list_count({flags}) < len({flags}) THEN NULL ELSE true END"
+    )
 
 
 @transform(exp.In)
@@ -455,16 +485,21 @@ def subscript(g: Writer, array_sql: str, index_node: exp.Expression) -> str:
     literal = index_node if isinstance(index_node, exp.Literal) else None
     if literal is not None and literal.name.isdigit() and int(literal.name) >= 1:
         n = literal.name
-        message = string(f"Array subscript must be less than or equal to array length: {n} > ") + \
-            f" || len({array_sql})"
+        message = (
+            string(f"Array subscript must be less than or equal to array length: {n} > ") + f" || len({array_sql})"
+        )
         return f"CASE WHEN len({array_sql}) < {n} THEN {g.fail(message)} ELSE {array_sql}[{n}] END"
-    too_big = (string("Array subscript must be less than or equal to array length: ") +
-               f" || ({index_sql}) || ' > ' || len({array_sql})")
+    too_big = (
+        string("Array subscript must be less than or equal to array length: ")
+        + f" || ({index_sql}) || ' > ' || len({array_sql})"
+    )
     negative = string("Array subscript is negative: ") + f" || ({index_sql})"
-    return (f"CASE WHEN ({index_sql}) = 0 THEN {g.fail(string('SQL array indices start at 1'))} "
-            f"WHEN ({index_sql}) < 0 THEN {g.fail(negative)} "
-            f"WHEN ({index_sql}) > len({array_sql}) THEN {g.fail(too_big)} "
-            f"ELSE {array_sql}[{index_sql}] END")
+    return (
+        f"CASE WHEN ({index_sql}) = 0 THEN {g.fail(string('SQL array indices start at 1'))} "
+        f"WHEN ({index_sql}) < 0 THEN {g.fail(negative)} "
+        f"WHEN ({index_sql}) > len({array_sql}) THEN {g.fail(too_big)} "
+        f"ELSE {array_sql}[{index_sql}] END"
+    )
 
 
 @transform(exp.Bracket)
@@ -474,8 +509,10 @@ def array_subscript(g: Writer, node: exp.Bracket) -> str:
     if container.base == "map":
         map_sql, key = g.sql(node.this), g.coerce(node.expressions[0], container.args[0])
         missing = string("Key not present in map: ") + f" || ({key})"
-        return (f"CASE WHEN NOT map_contains({map_sql}, {key}) THEN {g.fail(missing)} "
-                f"ELSE map_extract_value({map_sql}, {key}) END")
+        return (
+            f"CASE WHEN NOT map_contains({map_sql}, {key}) THEN {g.fail(missing)} "
+            f"ELSE map_extract_value({map_sql}, {key}) END"
+        )
     return subscript(g, g.sql(node.this), node.expressions[0])
 
 
@@ -515,9 +552,37 @@ def try_wrap(sql: str) -> str:
     return f"TRY({sql})"
 
 
-_AGGREGATE_NAMES = ("sum", "avg", "count", "min", "max", "any_value", "arg_max", "arg_min", "list", "array_agg",
-                    "quantile", "stddev", "var_", "corr", "covar", "bool_", "string_agg", "approx", "geometric",
-                    "kurtosis", "skewness", "regr_", "bit_", "first", "last", "entropy", "mode", "median", "product")
+_AGGREGATE_NAMES = (
+    "sum",
+    "avg",
+    "count",
+    "min",
+    "max",
+    "any_value",
+    "arg_max",
+    "arg_min",
+    "list",
+    "array_agg",
+    "quantile",
+    "stddev",
+    "var_",
+    "corr",
+    "covar",
+    "bool_",
+    "string_agg",
+    "approx",
+    "geometric",
+    "kurtosis",
+    "skewness",
+    "regr_",
+    "bit_",
+    "first",
+    "last",
+    "entropy",
+    "mode",
+    "median",
+    "product",
+)
 
 _INTEGRAL_RANGE = {"tinyint": "TINYINT", "smallint": "SMALLINT", "integer": "INT", "bigint": "BIGINT"}
 
@@ -536,8 +601,7 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
         if source.base == "varchar":
             return f"left({text}, {length})"
         message = f"'Value ' || ({text}) || ' cannot be represented as varchar({length})'"
-        return (f"CASE WHEN length({text}) > {length} THEN {g.fail(message, 'INVALID_CAST_ARGUMENT')} "
-                f"ELSE {text} END")
+        return f"CASE WHEN length({text}) > {length} THEN {g.fail(message, 'INVALID_CAST_ARGUMENT')} ELSE {text} END"
     if source.base == "varchar":
         return parse_varchar(g, sql, target)
     if target.is_integral and source.is_approx:
@@ -563,7 +627,7 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
         inner = cast_value(g, '"_e"', source.element, target.element)
         if inner == cast('"_e"', target.element):
             return cast(sql, target)
-        return f"list_transform({sql}, lambda \"_e\": {inner})"
+        return f'list_transform({sql}, lambda "_e": {inner})'
     if target.base == "row":
         fields = []
         for index, ((_, s), (name, t)) in enumerate(zip(source.args, target.args)):
@@ -584,8 +648,10 @@ def checked_cast(g: Writer, sql: str, source: TType, target: TType) -> str:
         error_name, message = "NUMERIC_VALUE_OUT_OF_RANGE", f"'Out of range for {target}: ' || ({sql})"
     else:
         error_name, message = "INVALID_CAST_ARGUMENT", f"'Cannot cast {source} ''' || ({sql}) || ''' to {target}'"
-    return (f"CASE WHEN ({sql}) IS NOT NULL AND TRY_CAST({sql} AS {duck}) IS NULL THEN "
-            f"{g.fail(message, error_name)} ELSE CAST({sql} AS {duck}) END")
+    return (
+        f"CASE WHEN ({sql}) IS NOT NULL AND TRY_CAST({sql} AS {duck}) IS NULL THEN "
+        f"{g.fail(message, error_name)} ELSE CAST({sql} AS {duck}) END"
+    )
 
 
 def _fits(source: TType, target: TType) -> bool:
@@ -614,25 +680,34 @@ def parse_varchar(g: Writer, sql: str, target: TType) -> str:
     bad = g.fail(f"'Cannot cast ''' || {sql} || ''' to {name}'", "INVALID_CAST_ARGUMENT")
     if target.is_integral:
         pattern = "^[\\x00-\\x20]*([+-]?[0-9]+)[\\x00-\\x20]*$"
-        return (f"CASE WHEN regexp_matches({sql}, {string(pattern)}) THEN "
-                f"{cast(f'regexp_extract({sql}, {string(pattern)}, 1)', target)} ELSE {bad} END")
+        return (
+            f"CASE WHEN regexp_matches({sql}, {string(pattern)}) THEN "
+            f"{cast(f'regexp_extract({sql}, {string(pattern)}, 1)', target)} ELSE {bad} END"
+        )
     if target.is_approx or target.is_decimal:
         number = "[+-]?([0-9]+[.]?[0-9]*|[.][0-9]+)([eE][+-]?[0-9]+)?"
         if target.is_approx:
             number = f"([+-]?(NaN|Infinity)|{number}[fFdD]?)"
         pattern = f"^[\\x00-\\x20]*{number}[\\x00-\\x20]*$"
-        value = f"regexp_replace(trim({sql}, chr(32) || chr(9) || chr(10) || chr(13)), '[fFdD]$', '')" \
-            if target.is_approx else f"trim({sql}, chr(32) || chr(9) || chr(10) || chr(13))"
+        value = (
+            f"regexp_replace(trim({sql}, chr(32) || chr(9) || chr(10) || chr(13)), '[fFdD]$', '')"
+            if target.is_approx
+            else f"trim({sql}, chr(32) || chr(9) || chr(10) || chr(13))"
+        )
         return f"CASE WHEN regexp_matches({sql}, {string(pattern)}) THEN {cast(value, target)} ELSE {bad} END"
     if target.base == "boolean":
-        return (f"CASE WHEN lower({sql}) IN ('t', '1', 'true') THEN true "
-                f"WHEN lower({sql}) IN ('f', '0', 'false') THEN false ELSE {bad} END")
+        return (
+            f"CASE WHEN lower({sql}) IN ('t', '1', 'true') THEN true "
+            f"WHEN lower({sql}) IN ('f', '0', 'false') THEN false ELSE {bad} END"
+        )
     if target.base == "date":
         pattern = "^[\\x00-\\x20]*[0-9]{4}-[0-9]{1,2}-[0-9]{1,2}[\\x00-\\x20]*$"
-        return (f"CASE WHEN regexp_matches({sql}, {string(pattern)}) AND TRY_CAST(trim({sql}) AS DATE) IS NOT NULL "
-                f"THEN CAST(trim({sql}) AS DATE) ELSE {bad} END")
+        return (
+            f"CASE WHEN regexp_matches({sql}, {string(pattern)}) AND TRY_CAST(trim({sql}) AS DATE) IS NOT NULL "
+            f"THEN CAST(trim({sql}) AS DATE) ELSE {bad} END"
+        )
     if target.base == "timestamp":
-        pattern = ("^[0-9]{4}-[0-9]{1,2}-[0-9]{1,2}( [0-9]{1,2}:[0-9]{1,2}(:[0-9]{1,2}([.][0-9]{1,12})?)?)?$")
+        pattern = "^[0-9]{4}-[0-9]{1,2}-[0-9]{1,2}( [0-9]{1,2}:[0-9]{1,2}(:[0-9]{1,2}([.][0-9]{1,12})?)?)?$"
         value = f"CAST({sql} AS {tt.duckdb_type(target)})"
         if target.args[0] < 6:
             value = round_timestamp(value, target.args[0])
@@ -673,13 +748,15 @@ def approx_text(sql: str, source: TType) -> str:
     round-trip digits (1.5E0, 1.0E10, -2.5E-4, 0E0, NaN, Infinity)."""
     value = f"CAST({sql} AS {'FLOAT' if source.base == 'real' else 'DOUBLE'})"
     text = f"CAST(abs({value}) AS VARCHAR)"
-    digits = (f"regexp_replace(replace(split_part({text}, 'e', 1), '.', ''), '^0+|0+$', '', 'g')")
+    digits = f"regexp_replace(replace(split_part({text}, 'e', 1), '.', ''), '^0+|0+$', '', 'g')"
     exponent = f"CAST(split_part(format('{{:.16e}}', CAST(abs({value}) AS DOUBLE)), 'e', 2) AS INTEGER)"
     mantissa = f"left({digits}, 1) || '.' || coalesce(nullif(substr({digits}, 2), ''), '0')"
-    return (f"CASE WHEN isnan({value}) THEN 'NaN' "
-            f"WHEN isinf({value}) THEN CASE WHEN {value} > 0 THEN 'Infinity' ELSE '-Infinity' END "
-            f"WHEN {value} = 0 THEN CASE WHEN starts_with(CAST({value} AS VARCHAR), '-') THEN '-0E0' ELSE '0E0' END "
-            f"ELSE CASE WHEN {value} < 0 THEN '-' ELSE '' END || {mantissa} || 'E' || CAST({exponent} AS VARCHAR) END")
+    return (
+        f"CASE WHEN isnan({value}) THEN 'NaN' "
+        f"WHEN isinf({value}) THEN CASE WHEN {value} > 0 THEN 'Infinity' ELSE '-Infinity' END "
+        f"WHEN {value} = 0 THEN CASE WHEN starts_with(CAST({value} AS VARCHAR), '-') THEN '-0E0' ELSE '0E0' END "
+        f"ELSE CASE WHEN {value} < 0 THEN '-' ELSE '' END || {mantissa} || 'E' || CAST({exponent} AS VARCHAR) END"
+    )
 
 
 # --- function calls ------------------------------------------------------------------------------
@@ -720,8 +797,16 @@ def current_date_utc(g: Writer, node: exp.Expression) -> str:
     return "CAST(timezone('UTC', current_timestamp) AS DATE)"
 
 
-_EXTRACT = {"DAY_OF_MONTH": "day", "DAY_OF_WEEK": "isodow", "DOW": "isodow", "DAY_OF_YEAR": "doy", "DOY": "doy",
-            "YEAR_OF_WEEK": "isoyear", "YOW": "isoyear", "WEEK": "week"}
+_EXTRACT = {
+    "DAY_OF_MONTH": "day",
+    "DAY_OF_WEEK": "isodow",
+    "DOW": "isodow",
+    "DAY_OF_YEAR": "doy",
+    "DOY": "doy",
+    "YEAR_OF_WEEK": "isoyear",
+    "YOW": "isoyear",
+    "WEEK": "week",
+}
 
 
 @transform(exp.Extract)
@@ -757,13 +842,43 @@ def substring_from(g: Writer, node: exp.Substring) -> str:
     if length is None:
         return f"CASE WHEN ({start}) = 0 OR abs({start}) > length({value}) THEN '' ELSE substr({value}, {start}) END"
     length_sql = g.sql(length)
-    return (f"CASE WHEN ({start}) = 0 OR ({length_sql}) <= 0 OR abs({start}) > length({value}) THEN '' "
-            f"ELSE substr({value}, {start}, {length_sql}) END")
+    return (
+        f"CASE WHEN ({start}) = 0 OR ({length_sql}) <= 0 OR abs({start}) > length({value}) THEN '' "
+        f"ELSE substr({value}, {start}, {length_sql}) END"
+    )
 
 
 #: Characters Trino's trim/ltrim/rtrim remove (Unicode whitespace, io.airlift.slice.SliceUtf8).
-WHITESPACE = "".join(chr(c) for c in (9, 10, 11, 12, 13, 28, 29, 30, 31, 32, 0x1680, 0x2000, 0x2001, 0x2002, 0x2003,
-                                      0x2004, 0x2005, 0x2006, 0x2008, 0x2009, 0x200A, 0x2028, 0x2029, 0x205F, 0x3000))
+WHITESPACE = "".join(
+    chr(c)
+    for c in (
+        9,
+        10,
+        11,
+        12,
+        13,
+        28,
+        29,
+        30,
+        31,
+        32,
+        0x1680,
+        0x2000,
+        0x2001,
+        0x2002,
+        0x2003,
+        0x2004,
+        0x2005,
+        0x2006,
+        0x2008,
+        0x2009,
+        0x200A,
+        0x2028,
+        0x2029,
+        0x205F,
+        0x3000,
+    )
+)
 
 
 @transform(exp.Trim)
@@ -903,6 +1018,7 @@ def _first_select(node: exp.Expression) -> exp.Select | None:
 
 def _aggregates_or_windows(select: exp.Select) -> bool:
     from lakegate.dialect.functions import SUPPORTED
+
     for item in select.expressions:
         for node in item.walk():
             if isinstance(node, exp.Window):
@@ -955,10 +1071,19 @@ def hoist_derived_order(tree: exp.Expression) -> bool:
             if alias is None or not alias.name:
                 alias = exp.TableAlias(this=exp.to_identifier("_ordered"))
                 derived.set("alias", alias)
-            select.set("order", exp.Order(expressions=[
-                exp.Ordered(this=exp.column(exp.to_identifier(name, quoted=True), table=alias.this.copy()),
-                            desc=ordered.args.get("desc"), nulls_first=ordered.args.get("nulls_first"))
-                for name, ordered in hoisted]))
+            select.set(
+                "order",
+                exp.Order(
+                    expressions=[
+                        exp.Ordered(
+                            this=exp.column(exp.to_identifier(name, quoted=True), table=alias.this.copy()),
+                            desc=ordered.args.get("desc"),
+                            nulls_first=ordered.args.get("nulls_first"),
+                        )
+                        for name, ordered in hoisted
+                    ]
+                ),
+            )
             if inner.args.get("limit") is None and inner.args.get("offset") is None:
                 inner.set("order", None)
             hoisted_any = True
@@ -977,8 +1102,13 @@ def _single_row(query: exp.Expression) -> bool:
         for node in item.walk():
             if isinstance(node, (exp.Subquery, exp.Window)):
                 break
-            if isinstance(node, exp.Anonymous) and node._meta and node.meta.get("spec") is not None \
-                    and node.meta["spec"].kind == "aggregate" and node.meta.get("over") is None:
+            if (
+                isinstance(node, exp.Anonymous)
+                and node._meta
+                and node.meta.get("spec") is not None
+                and node.meta["spec"].kind == "aggregate"
+                and node.meta.get("over") is None
+            ):
                 return True
     return False
 
@@ -990,5 +1120,7 @@ def scalar_subquery_single_row(g: Writer, node: exp.Subquery) -> str:
     if not node._meta or "t" not in node.meta or _single_row(node.this):
         return inner
     message = string("Scalar sub-query has returned multiple rows")
-    return (f"(SELECT CASE WHEN count(*) OVER () > 1 THEN {g.fail(message, 'SUBQUERY_MULTIPLE_ROWS')} "
-            f"ELSE \"_s\".\"_v\" END FROM {inner} AS \"_s\"(\"_v\") LIMIT 1)")
+    return (
+        f"(SELECT CASE WHEN count(*) OVER () > 1 THEN {g.fail(message, 'SUBQUERY_MULTIPLE_ROWS')} "
+        f'ELSE "_s"."_v" END FROM {inner} AS "_s"("_v") LIMIT 1)'
+    )

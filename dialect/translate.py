@@ -5,19 +5,22 @@ Pipeline: text checks -> parse (sqlglot, Trino) -> one statement -> read-only gu
 rewrite -> `?` parameters -> Trino SQL for forwarding -> name resolution and Trino type inference
 (`analyze`) -> DuckDB SQL by the named transforms (`transforms`).
 """
+
 from __future__ import annotations
 
 import threading
 from collections import OrderedDict
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Mapping, Sequence
+from typing import TYPE_CHECKING
 
 from sqlglot import exp
 from sqlglot.dialects.trino import Trino
 from sqlglot.errors import ParseError, TokenError
 from sqlglot.tokens import TokenType
 
-from lakegate.dialect import guard, params as parameters
+from lakegate.dialect import guard
+from lakegate.dialect import params as parameters
 from lakegate.dialect import scope as scoping
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import analyze
@@ -35,8 +38,8 @@ CACHE_SIZE = 1024
 class Translation:
     """One translated query."""
 
-    duckdb_sql: str                       # one DuckDB statement
-    trino_sql: str                        # the scoped, parameter-bound query in Trino dialect
+    duckdb_sql: str  # one DuckDB statement
+    trino_sql: str  # the scoped, parameter-bound query in Trino dialect
     columns: tuple[tuple[str, str], ...]  # output (name, Trino type name)
 
 
@@ -47,25 +50,49 @@ class _Parser(Trino.Parser):
     # grouping(...) is not a function but the GROUPING operation, checked against the GROUP BY keys.
     FUNCTIONS: dict = {"GROUPING": lambda args: exp.Grouping(expressions=args)}
     # Keep only the special call syntaxes Trino has (CAST(x AS t), EXTRACT(f FROM x), ...).
-    FUNCTION_PARSERS = {name: parser for name, parser in Trino.Parser.FUNCTION_PARSERS.items()
-                        if name in ("CAST", "TRY_CAST", "EXTRACT", "POSITION", "SUBSTRING", "TRIM", "LISTAGG",
-                                    "JSON_OBJECT", "JSON_QUERY", "JSON_VALUE", "JSON_TABLE")}
+    FUNCTION_PARSERS = {
+        name: parser
+        for name, parser in Trino.Parser.FUNCTION_PARSERS.items()
+        if name
+        in (
+            "CAST",
+            "TRY_CAST",
+            "EXTRACT",
+            "POSITION",
+            "SUBSTRING",
+            "TRIM",
+            "LISTAGG",
+            "JSON_OBJECT",
+            "JSON_QUERY",
+            "JSON_VALUE",
+            "JSON_TABLE",
+        )
+    }
 
     def _parse_types(self, check_func: bool = False, **kwargs):
         # In a Trino expression a type name is only ever followed by a string (DATE '2024-01-01'; SqlBase.g4
         # #typeConstructor), so `ARRAY[`, `ROW(`, `date(`, `decimal(` ... start a constructor or a call.
         # sqlglot first reads them as a type, parsing every argument before it backs off and parses them
         # again: twice the work per nesting level, 2^depth for nested calls.
-        if check_func and self._next and (
+        if (
+            check_func
+            and self._next
+            and (
                 (self._curr.token_type == TokenType.ARRAY and self._next.token_type == TokenType.L_BRACKET)
-                or (self._curr.token_type in self.TYPE_TOKENS and self._next.token_type == TokenType.L_PAREN)):
+                or (self._curr.token_type in self.TYPE_TOKENS and self._next.token_type == TokenType.L_PAREN)
+            )
+        ):
             return None
         return super()._parse_types(check_func=check_func, **kwargs)
 
     def _parse_bracket(self, this=None):
         # DuckDB's list literal [1, 2]; Trino has only ARRAY[1, 2] (SqlBase.g4 #arrayConstructor)
-        if this is None and self._curr and self._curr.token_type == TokenType.L_BRACKET and \
-                not (self._prev and self._prev.token_type == TokenType.ARRAY):
+        if (
+            this is None
+            and self._curr
+            and self._curr.token_type == TokenType.L_BRACKET
+            and not (self._prev and self._prev.token_type == TokenType.ARRAY)
+        ):
             self.raise_error("mismatched input '['. Expecting: an expression (an array is ARRAY[...])")
         return super()._parse_bracket(this)
 
@@ -88,8 +115,14 @@ _schemas: OrderedDict = OrderedDict()
 _lock = threading.Lock()
 
 
-def translate(sql: str, schema: Mapping[str, Mapping[str, str]], *, scope: "Scope | None" = None,
-              params: Sequence[object] = (), schema_version: object = None) -> Translation:
+def translate(
+    sql: str,
+    schema: Mapping[str, Mapping[str, str]],
+    *,
+    scope: Scope | None = None,
+    params: Sequence[object] = (),
+    schema_version: object = None,
+) -> Translation:
     """Translate one Trino query over `schema` (table -> column -> Trino type name) to DuckDB.
 
     `scope` restricts every table to a batch or job, `params` bind the `?` placeholders, and
@@ -150,8 +183,10 @@ def _typed_schema(schema: Mapping[str, Mapping[str, str]], key: object) -> dict[
             try:
                 cols.append((name, tt.parse_type(type_name)))
             except ValueError:
-                raise DialectError(f"column '{name}' of table '{table}' has an unknown type '{type_name}'",
-                                   error_name="GENERIC_USER_ERROR") from None
+                raise DialectError(
+                    f"column '{name}' of table '{table}' has an unknown type '{type_name}'",
+                    error_name="GENERIC_USER_ERROR",
+                ) from None
         typed[table.lower()] = cols
     with _lock:
         _schemas[key] = typed
@@ -161,9 +196,12 @@ def _typed_schema(schema: Mapping[str, Mapping[str, str]], key: object) -> dict[
 
 
 #: DuckDB-only operators that sqlglot's Trino tokenizer accepts, with the hint shown (SqlBase.g4 has none of them).
-_DUCKDB_OPERATORS = {TokenType.DCOLON: "'::' casts are not Trino syntax (use CAST(x AS type))",
-                     TokenType.NULLSAFE_EQ: "use IS NOT DISTINCT FROM", TokenType.DARROW: "use json_extract_scalar",
-                     TokenType.L_BRACE: "Trino has no struct literals (use ROW(...))"}
+_DUCKDB_OPERATORS = {
+    TokenType.DCOLON: "'::' casts are not Trino syntax (use CAST(x AS type))",
+    TokenType.NULLSAFE_EQ: "use IS NOT DISTINCT FROM",
+    TokenType.DARROW: "use json_extract_scalar",
+    TokenType.L_BRACE: "Trino has no struct literals (use ROW(...))",
+}
 _SET_OPERATIONS = {TokenType.UNION, TokenType.INTERSECT, TokenType.EXCEPT}
 
 
@@ -186,15 +224,23 @@ def _refuse_duckdb_syntax(tokens: list) -> None:
         if kind == TokenType.EQ and token.text == "==":
             raise _mismatched(token, "use '='", text="=")
         if kind in (TokenType.SLASH, TokenType.STAR) and adjacent and following.token_type == kind:
-            raise _mismatched(following, "use power(a, b)" if kind == TokenType.STAR else
-                              "integer division is a / b on integers")
+            raise _mismatched(
+                following, "use power(a, b)" if kind == TokenType.STAR else "integer division is a / b on integers"
+            )
         if kind in _SET_OPERATIONS:
-            by = tokens[i + 2] if following is not None and following.token_type in (TokenType.ALL, TokenType.DISTINCT) \
+            by = (
+                tokens[i + 2]
+                if following is not None and following.token_type in (TokenType.ALL, TokenType.DISTINCT)
                 else following
+            )
             if by is not None and by.text.upper() == "BY":
                 raise _mismatched(by, "UNION BY NAME is DuckDB syntax")
-        if kind == TokenType.LIMIT and following is not None and i + 2 < len(tokens) and \
-                tokens[i + 2].token_type in (TokenType.MOD, TokenType.PERCENT):
+        if (
+            kind == TokenType.LIMIT
+            and following is not None
+            and i + 2 < len(tokens)
+            and tokens[i + 2].token_type in (TokenType.MOD, TokenType.PERCENT)
+        ):
             raise _mismatched(tokens[i + 2], "LIMIT takes a row count (Trino has no LIMIT n PERCENT)")
 
 
@@ -212,8 +258,12 @@ def _parse_error(error: ParseError) -> DialectError:
             column += len(token)  # sqlglot points at the last token; what is missing comes after it
         token = "<EOF>" if at_end and message.startswith("Required keyword") or not token else token
         message = f"mismatched input '{token}'"
-    return DialectError(message if message.startswith("mismatched") else f"syntax error: {message}",
-                        line=line, column=column, error_name="SYNTAX_ERROR")
+    return DialectError(
+        message if message.startswith("mismatched") else f"syntax error: {message}",
+        line=line,
+        column=column,
+        error_name="SYNTAX_ERROR",
+    )
 
 
 def parse(sql: str) -> exp.Expression:
@@ -222,8 +272,9 @@ def parse(sql: str) -> exp.Expression:
     try:
         tokens = dialect.tokenize(sql)
         _refuse_duckdb_syntax(tokens)
-        statements = [s for s in dialect.parser().parse(tokens, sql)
-                      if s is not None and not isinstance(s, exp.Semicolon)]  # `; -- comment` is no statement
+        statements = [
+            s for s in dialect.parser().parse(tokens, sql) if s is not None and not isinstance(s, exp.Semicolon)
+        ]  # `; -- comment` is no statement
     except ParseError as error:
         raise _parse_error(error) from None
     except TokenError as error:
@@ -237,8 +288,13 @@ def parse(sql: str) -> exp.Expression:
     return statements[0]
 
 
-def _translate(sql: str, schema: Mapping[str, Mapping[str, str]], schema_key: object, scope: "Scope | None",
-               params: Sequence[object]) -> Translation:
+def _translate(
+    sql: str,
+    schema: Mapping[str, Mapping[str, str]],
+    schema_key: object,
+    scope: Scope | None,
+    params: Sequence[object],
+) -> Translation:
     sql = guard.check_text(sql)
     tree = parse(sql)
     guard.check(tree)
@@ -248,27 +304,42 @@ def _translate(sql: str, schema: Mapping[str, Mapping[str, str]], schema_key: ob
     rewritten = scope is not None or bool(params) or ";" in sql  # Trino refuses a trailing ';'
     if isinstance(tree, exp.Values):
         rewritten = True
-        tree = exp.select("*").from_(exp.Subquery(this=tree, alias=exp.TableAlias(
-            this=exp.to_identifier("_values"),
-            columns=[exp.to_identifier(f"_col{i}") for i in range(len(tree.expressions[0].expressions)
-                                                                   if isinstance(tree.expressions[0], exp.Tuple)
-                                                                   else 1)])))
+        tree = exp.select("*").from_(
+            exp.Subquery(
+                this=tree,
+                alias=exp.TableAlias(
+                    this=exp.to_identifier("_values"),
+                    columns=[
+                        exp.to_identifier(f"_col{i}")
+                        for i in range(
+                            len(tree.expressions[0].expressions) if isinstance(tree.expressions[0], exp.Tuple) else 1
+                        )
+                    ],
+                ),
+            )
+        )
     if not isinstance(tree, exp.Query):
-        raise DialectError(f"unsupported in lakegate: statement {tree.key.upper()} (only queries are translated)",
-                           line=1, column=1, error_name="NOT_SUPPORTED")
+        raise DialectError(
+            f"unsupported in lakegate: statement {tree.key.upper()} (only queries are translated)",
+            line=1,
+            column=1,
+            error_name="NOT_SUPPORTED",
+        )
     rewritten |= hoist_derived_order(tree)
     # the text as given is the Trino SQL unless a rewrite changed the tree (regenerating costs ~1 ms)
     trino_sql = tree.sql(dialect=LakegateTrino) if rewritten else sql.strip()
     try:
         outputs = analyze(tree, _typed_schema(schema, schema_key), sql)
     except RecursionError:
-        raise DialectError("unsupported in lakegate: the query is nested too deeply",
-                           error_name="NOT_SUPPORTED") from None
+        raise DialectError(
+            "unsupported in lakegate: the query is nested too deeply", error_name="NOT_SUPPORTED"
+        ) from None
     finalize(tree, outputs)
     try:
         duckdb_sql = Writer().generate(tree, copy=False)
     except RecursionError:
-        raise DialectError("unsupported in lakegate: the query is nested too deeply",
-                           error_name="NOT_SUPPORTED") from None
+        raise DialectError(
+            "unsupported in lakegate: the query is nested too deeply", error_name="NOT_SUPPORTED"
+        ) from None
     columns = tuple((name if name is not None else f"_col{i}", str(t)) for i, (name, _, t) in enumerate(outputs))
     return Translation(duckdb_sql=duckdb_sql, trino_sql=trino_sql, columns=columns)

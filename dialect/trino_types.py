@@ -4,6 +4,7 @@
 A `TType` is immutable and hashable. Its `str()` is the Trino type name exactly as Trino prints it
 (`decimal(6,2)`, `varchar(3)`, `array(row(name varchar, x double))`, `timestamp(3) with time zone`).
 """
+
 from __future__ import annotations
 
 import re
@@ -81,7 +82,7 @@ class TType:
         return self.base in ("date", "timestamp", "timestamp_tz", "time")
 
     @property
-    def element(self) -> "TType":
+    def element(self) -> TType:
         """The element type of an array."""
         return self.args[0]
 
@@ -144,9 +145,19 @@ def as_decimal(t: TType) -> TType:
 # --- parsing type names -----------------------------------------------------------------------
 _TOKEN = re.compile(r'\s*(?:("(?:[^"]|"")*")|([A-Za-z_][A-Za-z0-9_]*)|(\d+)|([(),]))')
 _SIMPLE = {
-    "boolean": BOOLEAN, "tinyint": TINYINT, "smallint": SMALLINT, "integer": INTEGER, "int": INTEGER,
-    "bigint": BIGINT, "real": REAL, "double": DOUBLE, "date": DATE, "json": JSON, "varbinary": VARBINARY,
-    "uuid": UUID, "unknown": UNKNOWN,
+    "boolean": BOOLEAN,
+    "tinyint": TINYINT,
+    "smallint": SMALLINT,
+    "integer": INTEGER,
+    "int": INTEGER,
+    "bigint": BIGINT,
+    "real": REAL,
+    "double": DOUBLE,
+    "date": DATE,
+    "json": JSON,
+    "varbinary": VARBINARY,
+    "uuid": UUID,
+    "unknown": UNKNOWN,
 }
 
 
@@ -178,7 +189,7 @@ def _parse_tokens(tokens: list[str], pos: int, text: str) -> tuple[TType, int]:
                 raise ValueError(f"invalid type name {text!r}")
             values.append(int(tokens[pos]))
             pos += 1
-            if tokens[pos:pos + 1] == [","]:
+            if tokens[pos : pos + 1] == [","]:
                 pos += 1
                 continue
             expect(")")
@@ -188,8 +199,8 @@ def _parse_tokens(tokens: list[str], pos: int, text: str) -> tuple[TType, int]:
         raise ValueError(f"invalid type name {text!r}")
     word = tokens[pos].lower()
     pos += 1
-    has_args = tokens[pos:pos + 1] == ["("]
-    if word == "double" and tokens[pos:pos + 1] and tokens[pos].lower() == "precision":
+    has_args = tokens[pos : pos + 1] == ["("]
+    if word == "double" and tokens[pos : pos + 1] and tokens[pos].lower() == "precision":
         return DOUBLE, pos + 1
     if word in _SIMPLE and not has_args:
         return _SIMPLE[word], pos
@@ -204,14 +215,14 @@ def _parse_tokens(tokens: list[str], pos: int, text: str) -> tuple[TType, int]:
         return (varchar(length) if word == "varchar" else TType("char", (length,))), pos
     if word in ("timestamp", "time"):
         precision = numbers()[0] if has_args else 3
-        words = [t.lower() for t in tokens[pos:pos + 3]]
+        words = [t.lower() for t in tokens[pos : pos + 3]]
         if words == ["with", "time", "zone"]:
             return TType(f"{word}_tz" if word == "timestamp" else "time_tz", (precision,)), pos + 3
         if words == ["without", "time", "zone"]:
             pos += 3
         return TType(word, (precision,)), pos
     if word == "interval":
-        words = [t.lower() for t in tokens[pos:pos + 3]]
+        words = [t.lower() for t in tokens[pos : pos + 3]]
         if words == ["day", "to", "second"]:
             return INTERVAL_DS, pos + 3
         if words == ["year", "to", "month"]:
@@ -221,13 +232,17 @@ def _parse_tokens(tokens: list[str], pos: int, text: str) -> tuple[TType, int]:
         items: list = []
         while True:
             name = None
-            if word == "row" and pos + 1 < len(tokens) and tokens[pos + 1] not in ("(", ",", ")") \
-                    and tokens[pos].lower() not in ("double", "timestamp", "time", "interval"):
+            if (
+                word == "row"
+                and pos + 1 < len(tokens)
+                and tokens[pos + 1] not in ("(", ",", ")")
+                and tokens[pos].lower() not in ("double", "timestamp", "time", "interval")
+            ):
                 name = tokens[pos][1:-1].replace('""', '"') if tokens[pos].startswith('"') else tokens[pos].lower()
                 pos += 1
             item, pos = _parse_tokens(tokens, pos, text)
             items.append((name, item) if word == "row" else item)
-            if tokens[pos:pos + 1] == [","]:
+            if tokens[pos : pos + 1] == [","]:
                 pos += 1
                 continue
             expect(")")
@@ -244,9 +259,18 @@ def _parse_tokens(tokens: list[str], pos: int, text: str) -> tuple[TType, int]:
 # --- sqlglot data types (CAST targets) -----------------------------------------------------
 _DTYPE = exp.DataType.Type
 _FROM_DTYPE = {
-    _DTYPE.BOOLEAN: BOOLEAN, _DTYPE.TINYINT: TINYINT, _DTYPE.SMALLINT: SMALLINT, _DTYPE.INT: INTEGER,
-    _DTYPE.BIGINT: BIGINT, _DTYPE.FLOAT: REAL, _DTYPE.DOUBLE: DOUBLE, _DTYPE.DATE: DATE,
-    _DTYPE.JSON: JSON, _DTYPE.VARBINARY: VARBINARY, _DTYPE.UUID: UUID, _DTYPE.UNKNOWN: UNKNOWN,
+    _DTYPE.BOOLEAN: BOOLEAN,
+    _DTYPE.TINYINT: TINYINT,
+    _DTYPE.SMALLINT: SMALLINT,
+    _DTYPE.INT: INTEGER,
+    _DTYPE.BIGINT: BIGINT,
+    _DTYPE.FLOAT: REAL,
+    _DTYPE.DOUBLE: DOUBLE,
+    _DTYPE.DATE: DATE,
+    _DTYPE.JSON: JSON,
+    _DTYPE.VARBINARY: VARBINARY,
+    _DTYPE.UUID: UUID,
+    _DTYPE.UNKNOWN: UNKNOWN,
 }
 
 
@@ -262,7 +286,9 @@ def from_datatype(dt: exp.DataType) -> TType:
         if len(numbers) == 1:
             scale = 0
         if not 1 <= precision <= MAX_PRECISION or scale > precision:
-            raise ValueError(f"DECIMAL precision must be in range [1, 38] and scale at most the precision: {dt.sql('trino')}")
+            raise ValueError(
+                f"DECIMAL precision must be in range [1, 38] and scale at most the precision: {dt.sql('trino')}"
+            )
         return decimal(precision, scale)
     if kind in (_DTYPE.VARCHAR, _DTYPE.TEXT):
         return varchar(numbers[0] if numbers else None)
@@ -282,7 +308,9 @@ def from_datatype(dt: exp.DataType) -> TType:
         fields = []
         for field in dt.expressions:
             if isinstance(field, exp.ColumnDef):
-                fields.append((field.name.lower() if not field.this.quoted else field.name, from_datatype(field.args["kind"])))
+                fields.append(
+                    (field.name.lower() if not field.this.quoted else field.name, from_datatype(field.args["kind"]))
+                )
             else:
                 fields.append((None, from_datatype(field)))
         return row(fields)
@@ -295,10 +323,23 @@ def from_datatype(dt: exp.DataType) -> TType:
 
 # --- DuckDB equivalents ------------------------------------------------------------------------
 _DUCK = {
-    "boolean": "BOOLEAN", "tinyint": "TINYINT", "smallint": "SMALLINT", "integer": "INTEGER",
-    "bigint": "BIGINT", "real": "FLOAT", "double": "DOUBLE", "varchar": "VARCHAR", "char": "VARCHAR",
-    "date": "DATE", "json": "JSON", "varbinary": "BLOB", "uuid": "UUID", "interval_ds": "INTERVAL",
-    "interval_ym": "INTERVAL", "time": "TIME", "timestamp_tz": "TIMESTAMPTZ",
+    "boolean": "BOOLEAN",
+    "tinyint": "TINYINT",
+    "smallint": "SMALLINT",
+    "integer": "INTEGER",
+    "bigint": "BIGINT",
+    "real": "FLOAT",
+    "double": "DOUBLE",
+    "varchar": "VARCHAR",
+    "char": "VARCHAR",
+    "date": "DATE",
+    "json": "JSON",
+    "varbinary": "BLOB",
+    "uuid": "UUID",
+    "interval_ds": "INTERVAL",
+    "interval_ym": "INTERVAL",
+    "time": "TIME",
+    "timestamp_tz": "TIMESTAMPTZ",
 }
 
 
@@ -333,9 +374,9 @@ def duckdb_type(t: TType) -> str | None:
 def integer_literal_type(text: str) -> TType:
     """`integer` when the literal fits 32 bits, else `bigint`; ValueError beyond 64 bits."""
     value = int(text)
-    if -2**31 <= value < 2**31:
+    if -(2**31) <= value < 2**31:
         return INTEGER
-    if -2**63 <= value < 2**63:
+    if -(2**63) <= value < 2**63:
         return BIGINT
     raise ValueError(f"Invalid numeric literal: {text}")
 

@@ -13,11 +13,13 @@ DuckDB would otherwise read every file's footer at each query); the columns each
 come from the record, so building views opens no file. `metric_results` (evaluated
 metrics, one file per batch, written by the metrics engine) is a table once the branch has any.
 """
+
 from __future__ import annotations
 
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Collection, NamedTuple, Sequence
+from typing import NamedTuple
 
 import duckdb
 import pyarrow as pa
@@ -71,11 +73,15 @@ def _in_scope(entry: FileEntry, batch_id: str | None, job_id: str | None) -> boo
 def _unreadable_sql(spec: _Spec, entry: FileEntry) -> str:
     """A SELECT standing for an unreadable file: it raises HIVE_BAD_DATA when a query reads its job."""
     keys = {"batch_id": entry.batch_id, "job_id": entry.job_id} if entry.job_id else {"batch_id": entry.batch_id}
-    items = [_quote_ident(c) if c in keys else f"CAST(NULL AS {duckdb_type(t)}) AS {_quote_ident(c)}"
-             for c, t in spec.columns]
+    items = [
+        _quote_ident(c) if c in keys else f"CAST(NULL AS {duckdb_type(t)}) AS {_quote_ident(c)}"
+        for c, t in spec.columns
+    ]
     constants = ", ".join(f"{_quote_text(value)} AS {_quote_ident(key)}" for key, value in keys.items())
-    message = _quote_text(f"HIVE_BAD_DATA: Cannot read the Parquet file of {entry.where}: it is corrupt, truncated or "
-                          "missing (ingest the job again)")
+    message = _quote_text(
+        f"HIVE_BAD_DATA: Cannot read the Parquet file of {entry.where}: it is corrupt, truncated or "
+        "missing (ingest the job again)"
+    )
     return f"SELECT {', '.join(items)} FROM (SELECT {constants}) WHERE error({message}) IS NULL"
 
 
@@ -107,8 +113,15 @@ class Catalog:
                     continue
         return sorted(names)
 
-    def snapshot(self, branch: str, record: Record | None = None, *, batch_id: str | None = None,
-                 job_id: str | None = None, files: bool = True) -> Snapshot:
+    def snapshot(
+        self,
+        branch: str,
+        record: Record | None = None,
+        *,
+        batch_id: str | None = None,
+        job_id: str | None = None,
+        files: bool = True,
+    ) -> Snapshot:
         """The branch's files now, or only those of one scope, or none (`Record.snapshot`);
         `record`: an open record of the branch to read them from."""
         if record is None:
@@ -121,8 +134,7 @@ class Catalog:
             found = record.snapshot(batch_id, job_id, files=files)
         if not self.pending:
             return found
-        pending = {key: entry for key, entry in self.pending.items()
-                   if files and _in_scope(entry, batch_id, job_id)}
+        pending = {key: entry for key, entry in self.pending.items() if files and _in_scope(entry, batch_id, job_id)}
         files = {entry.key: entry for entry in found.files} | pending
         tables = found.tables | {entry.table for entry in self.pending.values()}
         return Snapshot(found.generation, tuple(files.values()), tables)
@@ -131,8 +143,9 @@ class Catalog:
         """The jobs (those with a metadata row) of a branch, or of one batch, sorted."""
         if batch_id is not None:
             paths.check_segment(batch_id, "batch id")
-        return sorted(JobRef(e.batch_id, e.job_id)
-                      for e in self.snapshot(branch, batch_id=batch_id).of(paths.METADATA_TABLE))
+        return sorted(
+            JobRef(e.batch_id, e.job_id) for e in self.snapshot(branch, batch_id=batch_id).of(paths.METADATA_TABLE)
+        )
 
     def batches(self, branch: str) -> list[str]:
         """The batches of a branch that have at least one job, sorted (no file list is read)."""
@@ -181,11 +194,14 @@ class Catalog:
     def tables(self, branch: str) -> list[TableInfo]:
         """Every table of the branch with its columns and row count (from the record: no file is read)."""
         snapshot = self.snapshot(branch)
-        return [TableInfo(spec.name, spec.kind, list(spec.columns), sum(e.rows for e in snapshot.of(spec.name)))
-                for spec in self._specs(branch, snapshot)]
+        return [
+            TableInfo(spec.name, spec.kind, list(spec.columns), sum(e.rows for e in snapshot.of(spec.name)))
+            for spec in self._specs(branch, snapshot)
+        ]
 
-    def view_sql(self, branch: str, snapshot: Snapshot | None = None,
-                 unreadable: Collection[str] = ()) -> dict[str, str]:
+    def view_sql(
+        self, branch: str, snapshot: Snapshot | None = None, unreadable: Collection[str] = ()
+    ) -> dict[str, str]:
         """Table -> a DuckDB SELECT of its rows, columns as in `schema`, over exactly the files of
         `snapshot` (default: the record now, read through `paths.reader_path`; a scope's snapshot gives
         every table of the branch, over the scope's files only); no file is opened to
@@ -210,8 +226,10 @@ class Catalog:
     def _files_sql(spec: _Spec, root: Path, files: Sequence[FileEntry]) -> str:
         hive_types = ", ".join(f"'{key}': VARCHAR" for key in paths.partition_keys(spec.name))
         listed = ", ".join(_quote_text(str(paths.reader_path(root, entry.path))) for entry in files)
-        source = (f"read_parquet([{listed}], hive_partitioning = true, hive_types = {{{hive_types}}}"
-                  f"{', union_by_name = true' if spec.varied else ''})")
+        source = (
+            f"read_parquet([{listed}], hive_partitioning = true, hive_types = {{{hive_types}}}"
+            f"{', union_by_name = true' if spec.varied else ''})"
+        )
         present = None
         if spec.varied:
             present = {column for entry in files for column in entry.columns} | set(paths.partition_keys(spec.name))

@@ -6,6 +6,7 @@ file, the YAML line and column, and what was expected. The keys each section all
 are described once in `config_schema` (which also yields the JSON Schema); the YAML
 walking lives in `config_yaml`.
 """
+
 from __future__ import annotations
 
 import re
@@ -78,7 +79,9 @@ class Metric:
     query_string: str
     description: str = ""
     template_type: str = "system"  # system | custom
-    template: str | None = None  # line | bar | table | scalar | image | state_timeline | histogram | pie | video | artifact
+    template: str | None = (
+        None  # line | bar | table | scalar | image | state_timeline | histogram | pie | video | artifact
+    )
     template_file: str | None = None
     template_settings: dict[str, Any] = field(default_factory=dict)
     units: str | None = None
@@ -127,8 +130,11 @@ class Config:
 
     def summary(self) -> str:
         """`10 topics, 14 metrics, 1 metrics set` (and dashboards, when there are any)."""
-        parts = [_count(len(self.topics), "topic"), _count(len(self.metrics), "metric"),
-                 _count(len(self.metrics_sets), "metrics set", "metrics sets")]
+        parts = [
+            _count(len(self.topics), "topic"),
+            _count(len(self.metrics), "metric"),
+            _count(len(self.metrics_sets), "metrics set", "metrics sets"),
+        ]
         if self.dashboards:
             parts.append(_count(len(self.dashboards), "dashboard"))
         return ", ".join(parts)
@@ -204,8 +210,14 @@ class _Builder:
             return Location(reader.path, *reader.position(node))
 
         for named in _value(entries, "topics", []):
-            self._add_topic(Topic(named.name, _value(named.entries, "schema", {}),
-                                  _value(named.entries, "event", False), at(named.key)))
+            self._add_topic(
+                Topic(
+                    named.name,
+                    _value(named.entries, "schema", {}),
+                    _value(named.entries, "event", False),
+                    at(named.key),
+                )
+            )
         for named in _value(entries, "metrics", []):
             self._add("metric", self.config.metrics, self._metric(named, at))
         for named in _value(entries, "metrics sets", []):
@@ -226,8 +238,11 @@ class _Builder:
                 self._error(topic.location, str(exc))
         other = self._topic_names.get(topic.name.lower())
         if other is not None and other.name != topic.name:
-            self._error(topic.location, f"topic '{topic.name}' differs only in letter case from topic "
-                                        f"'{other.name}' ({other.location}); SQL table names ignore case")
+            self._error(
+                topic.location,
+                f"topic '{topic.name}' differs only in letter case from topic "
+                f"'{other.name}' ({other.location}); SQL table names ignore case",
+            )
         elif self._add("topic", self.config.topics, topic):
             self._topic_names[topic.name.lower()] = topic
 
@@ -276,18 +291,23 @@ class _Builder:
             self._error(location, f"status query_string of metric '{metric}' has an {exc}")
             return
         if count != 1:
-            self._error(location, f"status query_string of metric '{metric}' must have exactly one ? "
-                                  f"placeholder (replaced by the block and warn thresholds), found {count}")
+            self._error(
+                location,
+                f"status query_string of metric '{metric}' must have exactly one ? "
+                f"placeholder (replaced by the block and warn thresholds), found {count}",
+            )
 
-    def _merge_data(self, section: str, entry: Entry, into: dict[str, Any], reader: FileReader,
-                    at: Callable[[Any], Location]) -> None:
+    def _merge_data(
+        self, section: str, entry: Entry, into: dict[str, Any], reader: FileReader, at: Callable[[Any], Location]
+    ) -> None:
         """Merge a plain-data section; a key another file defined already is an error."""
         key_nodes = reader.plain_keys(entry.node) if entry.value else {}
         for name, value in entry.value.items():
             location = at(key_nodes.get(name, entry.node))
             if name in into:
-                self._error(location, f"'{name}' in {section} is already defined at "
-                                      f"{self._data_locations[section, name]}")
+                self._error(
+                    location, f"'{name}' in {section} is already defined at {self._data_locations[section, name]}"
+                )
             else:
                 into[name] = value
                 self._data_locations[section, name] = location
@@ -298,8 +318,10 @@ class _Builder:
         for metrics_set, items in self._set_items:
             for name, location in items:
                 if name not in metrics:
-                    self._error(location, f"metrics set '{metrics_set.name}' names unknown metric "
-                                          f"'{name}'{did_you_mean(name, metrics)}")
+                    self._error(
+                        location,
+                        f"metrics set '{metrics_set.name}' names unknown metric '{name}'{did_you_mean(name, metrics)}",
+                    )
 
 
 def _value(entries: dict[str, Entry], key: str, default: Any) -> Any:

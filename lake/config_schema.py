@@ -6,6 +6,7 @@ their values must be. The loader (`lakegate.lake.config`) checks files against i
 cannot drift apart. Checks a JSON Schema cannot express (one `?` in a status query,
 sets naming defined metrics, duplicates across files) live in the loader only.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -103,8 +104,12 @@ class Section:
 STATUS = Section(
     "status",
     {
-        "query_string": Key("query", "SQL query with exactly one ? placeholder, replaced by the threshold. "
-                            "The check fails when the query returns rows.", required=True),
+        "query_string": Key(
+            "query",
+            "SQL query with exactly one ? placeholder, replaced by the threshold. "
+            "The check fails when the query returns rows.",
+            required=True,
+        ),
         "block": Key("threshold", "Threshold for a blocking failure."),
         "warn": Key("threshold", "Threshold for a warning (a check may have only warn, as in ReSim)."),
     },
@@ -114,12 +119,17 @@ STATUS = Section(
 METRIC = Section(
     "metric",
     {
-        "type": Key("string", "test: one job's data; batch: every job of a batch; dashboard and report: "
-                    "shown on dashboards and reports.", required=True, choices=METRIC_TYPES),
+        "type": Key(
+            "string",
+            "test: one job's data; batch: every job of a batch; dashboard and report: shown on dashboards and reports.",
+            required=True,
+            choices=METRIC_TYPES,
+        ),
         "description": Key("string", "What the metric shows (optional, as in ReSim)."),
         "query_string": Key("query", "SQL query in the Trino dialect.", required=True),
-        "template_type": Key("string", "system: a built-in template; custom: a template file.",
-                             choices=TEMPLATE_TYPES, default="system"),
+        "template_type": Key(
+            "string", "system: a built-in template; custom: a template file.", choices=TEMPLATE_TYPES, default="system"
+        ),
         "template": Key("string", "How the query result is rendered.", choices=TEMPLATES),
         "template_file": Key("string", "The custom template file (with template_type: custom)."),
         "template_settings": Key("data", "Settings passed to the template.", nullable=True),
@@ -143,19 +153,31 @@ TOPIC = Section(
 
 METRICS_SET = Section(
     "metrics set",
-    {"metrics": Key("names", "Names of the metrics of this set (dashboard and report metrics are not evaluated "
-                             "yet).", required=True, nullable=True, what="metric")},
+    {
+        "metrics": Key(
+            "names",
+            "Names of the metrics of this set (dashboard and report metrics are not evaluated yet).",
+            required=True,
+            nullable=True,
+            what="metric",
+        )
+    },
 )
 
 FILE = Section(
     "the config file",
     {
         "version": Key("version", "Version of the config format; must be 1.", required=True),
-        "topics": Key("named", "Topics that can be emitted, by name.", nullable=True, section=TOPIC,
-                      what="topic", name_rules=TOPIC_NAME_RULES),
+        "topics": Key(
+            "named",
+            "Topics that can be emitted, by name.",
+            nullable=True,
+            section=TOPIC,
+            what="topic",
+            name_rules=TOPIC_NAME_RULES,
+        ),
         "metrics": Key("named", "Metrics, by name.", nullable=True, section=METRIC, what="metric"),
-        "metrics sets": Key("named", "Metrics sets, by name.", nullable=True, section=METRICS_SET,
-                            what="metrics set"),
+        "metrics sets": Key("named", "Metrics sets, by name.", nullable=True, section=METRICS_SET, what="metrics set"),
         "dashboards": Key("data", "Dashboards (loaded, not evaluated yet).", nullable=True),
         "global": Key("data", "Settings for the whole config (loaded, not used yet).", nullable=True),
     },

@@ -6,6 +6,7 @@ unknown keys (with a did-you-mean), missing keys, value types, duplicate keys an
 Every problem is appended to a shared list; nothing here raises for bad input. The dashboard
 edits configs with the same library (round-trip mode), so what it writes reads back the same.
 """
+
 from __future__ import annotations
 
 import difflib
@@ -129,8 +130,9 @@ class FileReader:
 
     # -- mappings ------------------------------------------------------------------
 
-    def items(self, node: MappingNode, noun: str, where: str, *, string_keys: bool = True
-              ) -> list[tuple[ScalarNode, Node]]:
+    def items(
+        self, node: MappingNode, noun: str, where: str, *, string_keys: bool = True
+    ) -> list[tuple[ScalarNode, Node]]:
         """The (key, value) nodes of a mapping, `<<` merges applied; duplicates are reported.
 
         A duplicate reads `duplicate {noun} 'k'{where} (first at ...)`; explicit keys
@@ -224,9 +226,12 @@ class FileReader:
             if kind == "query" and not node.value.strip():
                 return self._wrong(node, f"{where} must not be empty")
             if spec.choices and node.value not in spec.choices:
-                return self._wrong(node, f"unknown {name} '{node.value}' in {label}"
-                                         f"{did_you_mean(node.value, spec.choices)}; expected one of "
-                                         f"{', '.join(spec.choices)}")
+                return self._wrong(
+                    node,
+                    f"unknown {name} '{node.value}' in {label}"
+                    f"{did_you_mean(node.value, spec.choices)}; expected one of "
+                    f"{', '.join(spec.choices)}",
+                )
             return node.value
         if kind == "boolean":
             if _is(node, "bool"):
@@ -289,28 +294,38 @@ class FileReader:
                 continue
             if name.lower() in folded:
                 other = folded[name.lower()]
-                self.error(key, f"field '{name}' of {label} differs only in letter case from field "
-                                f"'{other.value}' ({self._first_at(other).removeprefix('first ')}); "
-                                "SQL column names ignore case")
+                self.error(
+                    key,
+                    f"field '{name}' of {label} differs only in letter case from field "
+                    f"'{other.value}' ({self._first_at(other).removeprefix('first ')}); "
+                    "SQL column names ignore case",
+                )
                 continue
             folded[name.lower()] = key
             if not _is(value, "str"):
-                self.error(value, f"field '{name}' of {label} needs a type, got {describe(value)}; "
-                                  f"expected one of {', '.join(FIELD_TYPE_NAMES)}")
+                self.error(
+                    value,
+                    f"field '{name}' of {label} needs a type, got {describe(value)}; "
+                    f"expected one of {', '.join(FIELD_TYPE_NAMES)}",
+                )
                 continue
             field_type = canonical_type(value.value)
             if field_type is None:
-                self.error(value, f"unknown field type '{value.value}' for field '{name}' of {label}"
-                                  f"{did_you_mean(value.value, FIELD_TYPE_NAMES)}; expected one of "
-                                  f"{', '.join(FIELD_TYPE_NAMES)}")
+                self.error(
+                    value,
+                    f"unknown field type '{value.value}' for field '{name}' of {label}"
+                    f"{did_you_mean(value.value, FIELD_TYPE_NAMES)}; expected one of "
+                    f"{', '.join(FIELD_TYPE_NAMES)}",
+                )
                 continue
             fields[name] = field_type
         return fields
 
     def _named(self, spec: Key, node: Node, where: str) -> Any:
         if not isinstance(node, MappingNode):
-            return self._wrong(node, f"{where} must be a mapping of {spec.what} names to "
-                                     f"{spec.what} definitions, got {describe(node)}")
+            return self._wrong(
+                node, f"{where} must be a mapping of {spec.what} names to {spec.what} definitions, got {describe(node)}"
+            )
         assert spec.section is not None
         named = []
         for key, value in self.items(node, spec.what, ""):
@@ -333,8 +348,11 @@ class FileReader:
 
     def plain_keys(self, node: MappingNode) -> dict[Any, ScalarNode]:
         """The keys of a plain-data mapping as Python values, with their nodes (merges left out)."""
-        return {self._constructor.construct_object(key): key for key, _ in node.value
-                if isinstance(key, ScalarNode) and key.tag != _MERGE_TAG}
+        return {
+            self._constructor.construct_object(key): key
+            for key, _ in node.value
+            if isinstance(key, ScalarNode) and key.tag != _MERGE_TAG
+        }
 
     def _check_plain(self, node: Node, where: str, active: set[int]) -> bool:
         if id(node) in active:

@@ -26,6 +26,7 @@ As in the reference, `emit()` and `emit_series()` on an event topic write plain 
 (no `"event": true`); only `emit_event()` marks a line as an event, and with a config it
 must name an event topic.
 """
+
 from __future__ import annotations
 
 import atexit
@@ -38,11 +39,11 @@ import threading
 import warnings
 import weakref
 from collections import deque
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from json.encoder import encode_basestring_ascii as _json_str
 from pathlib import Path
 from types import TracebackType
-from typing import Any, Callable
+from typing import Any
 
 from lakegate.lake.config import Topic, load_config
 from lakegate.lake.types import MAX_JSON_DEPTH, MAX_LINE_BYTES, check_value, is_utf8, json_too_deep
@@ -144,8 +145,11 @@ _TOO_DEEP = f"nested too deep: an emissions line has at most {MAX_JSON_DEPTH} le
 def _check_length(topic: str, line: str) -> None:
     """ValidationError if `line` (with its newline) is longer than ingestion accepts."""
     if len(line) > MAX_LINE_BYTES + 1:  # the text is ASCII: characters are bytes
-        raise ValidationError(f"the record's line would be {len(line) - 1:,} bytes, more than the limit of "
-                              f"{MAX_LINE_BYTES:,} bytes of an emissions line", topic=topic)
+        raise ValidationError(
+            f"the record's line would be {len(line) - 1:,} bytes, more than the limit of "
+            f"{MAX_LINE_BYTES:,} bytes of an emissions line",
+            topic=topic,
+        )
 
 
 # Per field type: the test under which `check_value` certainly accepts the value @ as it is
@@ -229,9 +233,16 @@ class _Codec:
             "    return lines",
         ]
         namespace: dict[str, Any] = {
-            "_json_str": _json_str, "_checked": _checked, "_json_text": _json_text, "ValidationError": ValidationError,
-            "_check_timestamp": _check_timestamp, "_fields_of": self.fields_of, "TOPIC": self.topic.name,
-            "PLAIN_END": _PLAIN_END, "MAX_TEXT": MAX_LINE_BYTES + 1, "_check_length": _check_length,
+            "_json_str": _json_str,
+            "_checked": _checked,
+            "_json_text": _json_text,
+            "ValidationError": ValidationError,
+            "_check_timestamp": _check_timestamp,
+            "_fields_of": self.fields_of,
+            "TOPIC": self.topic.name,
+            "PLAIN_END": _PLAIN_END,
+            "MAX_TEXT": MAX_LINE_BYTES + 1,
+            "_check_length": _check_length,
         }
         exec("\n".join(source), namespace)  # noqa: S102 - names are repr()'d, texts escaped by _literal
         return namespace["line"], namespace["series"]
@@ -250,14 +261,17 @@ def check_field_names(topic: Topic, names: Iterable[Any]) -> None:
     declared = f"the topic has {', '.join(map(repr, topic.fields))}" if topic.fields else "the topic has no fields"
     missing = [f for f in topic.fields if f not in names]
     if missing:
-        raise ValidationError(f"missing field(s) {', '.join(map(repr, missing))}; {declared}",
-                              topic=topic.name, field=missing[0])
+        raise ValidationError(
+            f"missing field(s) {', '.join(map(repr, missing))}; {declared}", topic=topic.name, field=missing[0]
+        )
     extra = [n for n in names if n not in topic.fields]
     if extra:
         hint = difflib.get_close_matches(str(extra[0]), list(topic.fields), n=1)
-        raise ValidationError(f"unknown field(s) {', '.join(map(repr, extra))}; "
-                              + (f"did you mean {hint[0]!r}?" if hint else declared),
-                              topic=topic.name, field=str(extra[0]))
+        raise ValidationError(
+            f"unknown field(s) {', '.join(map(repr, extra))}; " + (f"did you mean {hint[0]!r}?" if hint else declared),
+            topic=topic.name,
+            field=str(extra[0]),
+        )
 
 
 def _plain_data_json(topic: Any, data: Any) -> str:
@@ -280,8 +294,9 @@ def _plain_data_json(topic: Any, data: Any) -> str:
         error = ValueError(_LONE_SURROGATE)
     for name, value in data.items():  # find the field to blame
         if not isinstance(name, str) or not is_utf8(name):
-            raise ValidationError(f"field names must be strings of valid Unicode text, got {_describe(name)}",
-                                  topic=topic)
+            raise ValidationError(
+                f"field names must be strings of valid Unicode text, got {_describe(name)}", topic=topic
+            )
         try:
             _dumps(value)
             if not _utf8_everywhere(value):
@@ -322,8 +337,9 @@ def _as_column(topic: str, field: str, values: Any) -> list[Any]:
     tolist = getattr(values, "tolist", None)  # numpy arrays
     column = tolist() if tolist is not None else None
     if not isinstance(column, list):
-        raise ValidationError(f"emit_series needs a list or 1-D array per field, got {_describe(values)}",
-                              topic=topic, field=field)
+        raise ValidationError(
+            f"emit_series needs a list or 1-D array per field, got {_describe(values)}", topic=topic, field=field
+        )
     return column
 
 
@@ -413,8 +429,10 @@ class Emitter:
         self._stopped = False  # closed, or _error set: emit must look before queuing
         if max_queued > 1:
             threading.Thread(
-                target=_flush_periodically, args=(weakref.ref(self), self._wake, self.flush_interval),
-                name=f"emitter-flush {self.output_path.name}", daemon=True,
+                target=_flush_periodically,
+                args=(weakref.ref(self), self._wake, self.flush_interval),
+                name=f"emitter-flush {self.output_path.name}",
+                daemon=True,
             ).start()
 
     # --- emitting -----------------------------------------------------------------------
@@ -451,8 +469,9 @@ class Emitter:
         for each i, except that nothing is written unless every record is valid.
         """
         if timestamps is None:
-            raise ValidationError("emit_series needs timestamps (int nanoseconds >= 0), one per value",
-                                  topic=topic_name)
+            raise ValidationError(
+                "emit_series needs timestamps (int nanoseconds >= 0), one per value", topic=topic_name
+            )
         if not isinstance(data, Mapping):
             raise ValidationError(f"data must be a dict of lists, got {_describe(data)}", topic=topic_name)
         columns = {name: _as_column(topic_name, name, values) for name, values in data.items()}
@@ -460,8 +479,9 @@ class Emitter:
         wrong = [name for name, column in columns.items() if len(column) != len(stamps)]
         if wrong:
             shown = ", ".join(f"{name!r}: {len(column)}" for name, column in columns.items())
-            raise ValidationError(f"series differ in length: {len(stamps)} timestamps, {shown}",
-                                  topic=topic_name, field=wrong[0])
+            raise ValidationError(
+                f"series differ in length: {len(stamps)} timestamps, {shown}", topic=topic_name, field=wrong[0]
+            )
         codec = self._codecs.get(topic_name)
         if codec is not None:
             check_field_names(codec.topic, columns)
@@ -537,10 +557,13 @@ class Emitter:
             if partial:
                 with contextlib.suppress(OSError):  # with O_APPEND the file offset is where our write ended
                     os.ftruncate(self._fd, os.lseek(self._fd, 0, os.SEEK_CUR) - partial)
-            unwritten = lines[data.count(b"\n", 0, done):]
+            unwritten = lines[data.count(b"\n", 0, done) :]
             queue.extendleft(reversed(unwritten))
-            raise OSError(exc.errno, f"the Emitter could not write {self.output_path}: {exc.strerror} "
-                                     f"({len(unwritten)} line(s) not written)") from exc
+            raise OSError(
+                exc.errno,
+                f"the Emitter could not write {self.output_path}: {exc.strerror} "
+                f"({len(unwritten)} line(s) not written)",
+            ) from exc
 
     def flush(self) -> None:
         """Append every queued line to the file now; OSError if that fails (the lines stay queued)."""
@@ -578,8 +601,9 @@ class Emitter:
     def __enter__(self) -> Emitter:
         return self
 
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
         self.close()
 
     def __del__(self) -> None:

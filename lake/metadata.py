@@ -9,6 +9,7 @@ random uuid4), `branch_name` (the branch), `job_status` ('SUCCEEDED'), and
 columns with it); `stage_metadata_row` adds a new row to a larger record change (`metrics run`
 switches every job's statuses and the batch's results at once).
 """
+
 from __future__ import annotations
 
 import datetime as dt
@@ -89,7 +90,7 @@ def _timestamp(value: Any) -> dt.datetime:
     else:
         raise ValueError(f"expected an ISO 8601 timestamp, got {type(value).__name__} {value!r}")
     if moment.tzinfo is not None:
-        moment = moment.astimezone(dt.timezone.utc).replace(tzinfo=None)
+        moment = moment.astimezone(dt.UTC).replace(tzinfo=None)
     return moment.replace(microsecond=moment.microsecond // 1000 * 1000)
 
 
@@ -171,8 +172,9 @@ def _name_id(kind: str, *names: Any) -> str:
     return str(uuid.uuid5(ID_NAMESPACE, kind + ":" + "\0".join("" if n is None else str(n) for n in names)))
 
 
-def build_metadata_row(values: dict[str, Any], *, lake: Path, branch: str, batch_id: str, job_id: str,
-                       now: dt.datetime | None = None) -> dict[str, Any]:
+def build_metadata_row(
+    values: dict[str, Any], *, lake: Path, branch: str, batch_id: str, job_id: str, now: dt.datetime | None = None
+) -> dict[str, Any]:
     """A complete metadata row for one job: `values` (checked) plus defaults and generated ids.
 
     org_id and project_id default to ids derived from the lake's location, so every job of
@@ -196,24 +198,30 @@ def build_metadata_row(values: dict[str, Any], *, lake: Path, branch: str, batch
     for id_column, name_columns in _ID_SOURCES.items():
         names = [row.get(c) for c in name_columns]
         if not row.get(id_column):
-            row[id_column] = _name_id(id_column, project, *names) if any(n is not None for n in names) else str(uuid.uuid4())
+            row[id_column] = (
+                _name_id(id_column, project, *names) if any(n is not None for n in names) else str(uuid.uuid4())
+            )
     tag_names = row.setdefault("experience_tag_names", [])
     if "experience_tag_ids" not in row or (not row["experience_tag_ids"] and tag_names):
         row["experience_tag_ids"] = [_name_id("tag", project, name) for name in tag_names]
     if len(row["experience_tag_ids"]) != len(tag_names):
-        problems.append(f"experience_tag_ids has {len(row['experience_tag_ids'])} ids but experience_tag_names "
-                        f"has {len(tag_names)} names; they are parallel lists")
+        problems.append(
+            f"experience_tag_ids has {len(row['experience_tag_ids'])} ids but experience_tag_names "
+            f"has {len(tag_names)} names; they are parallel lists"
+        )
     keys, custom_values = row.setdefault("custom_field_keys", []), row.setdefault("custom_field_values", [])
     if len(keys) != len(custom_values):
-        problems.append(f"custom_field_keys has {len(keys)} keys but custom_field_values has {len(custom_values)} "
-                        "values; they are parallel lists")
+        problems.append(
+            f"custom_field_keys has {len(keys)} keys but custom_field_values has {len(custom_values)} "
+            "values; they are parallel lists"
+        )
     if problems:
         raise MetadataError(problems)
     row["job_status"] = row.get("job_status") or "SUCCEEDED"
     if "job_conflated_status" not in row:
         row["job_conflated_status"] = "ERROR" if row["job_status"].upper() == "FAILED" else None
     if row.get("time") is None:
-        row["time"] = _timestamp(now or dt.datetime.now(dt.timezone.utc))
+        row["time"] = _timestamp(now or dt.datetime.now(dt.UTC))
     return {name: row.get(name) for name in COLUMN_NAMES}
 
 

@@ -19,6 +19,7 @@ and `\\`. Writers prepare files under `_staging/`, `publish` each with `os.repla
 fresh name (`new_data_file`, never overwriting a file a reader may use), and make them current
 in the branch's record (`lake.record`); a killed writer leaves only files no record row holds.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -53,9 +54,16 @@ BATCH_TABLES = frozenset({METRIC_RESULTS_TABLE})
 _SAFE = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_.")
 _MAX_SEGMENT = 240  # bytes; file systems allow 255
 _FORBIDDEN = {
-    "/": "'/'", "\\": "'\\'", "=": "'='", "%": "'%'",
-    "*": "a glob character '*'", "?": "a glob character '?'", "[": "a glob character '['",
-    "]": "a glob character ']'", "{": "a glob character '{'", "}": "a glob character '}'",
+    "/": "'/'",
+    "\\": "'\\'",
+    "=": "'='",
+    "%": "'%'",
+    "*": "a glob character '*'",
+    "?": "a glob character '?'",
+    "[": "a glob character '['",
+    "]": "a glob character ']'",
+    "{": "a glob character '{'",
+    "}": "a glob character '}'",
 }
 
 
@@ -84,7 +92,9 @@ def encode_branch(name: str) -> str:
             parts.append(f"%{byte:02X}")
     segment = "".join(parts)
     if len(segment) > _MAX_SEGMENT:
-        raise LakePathError(f"branch name {name[:40]!r}... is too long for the lake ({len(segment)} bytes encoded, at most {_MAX_SEGMENT})")
+        raise LakePathError(
+            f"branch name {name[:40]!r}... is too long for the lake ({len(segment)} bytes encoded, at most {_MAX_SEGMENT})"
+        )
     return segment
 
 
@@ -94,8 +104,8 @@ def decode_branch(segment: str) -> str:
     i = 0
     while i < len(segment):
         char = segment[i]
-        if char == "%" and _is_hex(segment[i + 1:i + 3]):
-            data.append(int(segment[i + 1:i + 3], 16))
+        if char == "%" and _is_hex(segment[i + 1 : i + 3]):
+            data.append(int(segment[i + 1 : i + 3], 16))
             i += 3
         elif char in _SAFE:
             data.append(ord(char))
@@ -237,7 +247,7 @@ def logs_dir(lake: Path, branch: str, batch_id: str, job_id: str) -> Path:
 def partition_value(directory: Path, key: str) -> str | None:
     """`B` for a directory named `<key>=B`, else None."""
     prefix = f"{key}="
-    return directory.name[len(prefix):] if directory.name.startswith(prefix) else None
+    return directory.name[len(prefix) :] if directory.name.startswith(prefix) else None
 
 
 def publish(source: Path, target: Path) -> None:

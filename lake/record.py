@@ -15,6 +15,7 @@ and the next writer of that job removes them. See docs/lake-format.md.
 A lake written before the record existed (`data.parquet` files, no record) is migrated when the
 record is first opened: its files are listed once, inside the record's first write transaction.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -113,12 +114,18 @@ class Record:
         if self._db is None:
             path = self.root / RECORD
             if path.is_file() and not os.access(self.root, os.W_OK):  # a read-only lake
-                db = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True, timeout=BUSY_TIMEOUT_MS / 1000,
-                                     isolation_level=None, check_same_thread=False)
+                db = sqlite3.connect(
+                    f"{path.resolve().as_uri()}?mode=ro",
+                    uri=True,
+                    timeout=BUSY_TIMEOUT_MS / 1000,
+                    isolation_level=None,
+                    check_same_thread=False,
+                )
             else:
                 self.root.mkdir(parents=True, exist_ok=True)
-                db = sqlite3.connect(path, timeout=BUSY_TIMEOUT_MS / 1000, isolation_level=None,
-                                     check_same_thread=False)
+                db = sqlite3.connect(
+                    path, timeout=BUSY_TIMEOUT_MS / 1000, isolation_level=None, check_same_thread=False
+                )
             db.execute(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
             if not _created(db):
                 with _transaction(db, immediate=True):
@@ -149,8 +156,15 @@ class Record:
         db = self._connect()
         with _transaction(db):
             generation = db.execute("SELECT max(commit_id) FROM commits").fetchone()[0]
-            rows = db.execute("SELECT table_name, batch_id, job_id, path, rows, min_ts, max_ts, columns FROM files "
-                              f"{where} ORDER BY table_name, batch_id, job_id", args).fetchall() if files else []
+            rows = (
+                db.execute(
+                    "SELECT table_name, batch_id, job_id, path, rows, min_ts, max_ts, columns FROM files "
+                    f"{where} ORDER BY table_name, batch_id, job_id",
+                    args,
+                ).fetchall()
+                if files
+                else []
+            )
             tables = frozenset(row[0] for row in db.execute(_TABLES) if row[0] is not None)
         return Snapshot(generation, tuple(_entry(row) for row in rows), tables)
 
@@ -158,16 +172,26 @@ class Record:
         """The batches with at least one job (a `metadata` row), sorted (read from the index alone)."""
         if not self.root.is_dir():
             return []
-        return [row[0] for row in self._connect().execute(
-            "SELECT DISTINCT batch_id FROM files WHERE table_name = ? ORDER BY batch_id", (paths.METADATA_TABLE,))]
+        return [
+            row[0]
+            for row in self._connect().execute(
+                "SELECT DISTINCT batch_id FROM files WHERE table_name = ? ORDER BY batch_id", (paths.METADATA_TABLE,)
+            )
+        ]
 
     def find(self, table: str, batch_id: str, job_id: str = "") -> FileEntry | None:
         """The file of one table's job (or batch), if any."""
         if not self.root.is_dir():
             return None
-        row = self._connect().execute(
-            "SELECT table_name, batch_id, job_id, path, rows, min_ts, max_ts, columns FROM files "
-            "WHERE table_name = ? AND batch_id = ? AND job_id = ?", (table, batch_id, job_id)).fetchone()
+        row = (
+            self._connect()
+            .execute(
+                "SELECT table_name, batch_id, job_id, path, rows, min_ts, max_ts, columns FROM files "
+                "WHERE table_name = ? AND batch_id = ? AND job_id = ?",
+                (table, batch_id, job_id),
+            )
+            .fetchone()
+        )
         return None if row is None else _entry(row)
 
     def commit(self, what: str, entries: Sequence[FileEntry], drop_jobs: Iterable[tuple[str, str]] = ()) -> list[str]:
@@ -177,19 +201,35 @@ class Record:
         with _transaction(db, immediate=True):
             old: set[str] = set()
             for batch_id, job_id in drop_jobs:
-                old.update(r[0] for r in db.execute("SELECT path FROM files WHERE batch_id = ? AND job_id = ?",
-                                                    (batch_id, job_id)))
+                old.update(
+                    r[0]
+                    for r in db.execute("SELECT path FROM files WHERE batch_id = ? AND job_id = ?", (batch_id, job_id))
+                )
                 db.execute("DELETE FROM files WHERE batch_id = ? AND job_id = ?", (batch_id, job_id))
             commit_id = db.execute("INSERT INTO commits (what) VALUES (?)", (what,)).lastrowid
             for entry in entries:
-                old.update(r[0] for r in db.execute("SELECT path FROM files WHERE table_name = ? AND batch_id = ? "
-                                                    "AND job_id = ?", entry.key))
-                db.execute("INSERT OR REPLACE INTO files VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
-                           (*entry.key, entry.path, entry.rows, entry.min_ts, entry.max_ts,
-                            json.dumps(entry.columns), commit_id))
+                old.update(
+                    r[0]
+                    for r in db.execute(
+                        "SELECT path FROM files WHERE table_name = ? AND batch_id = ? AND job_id = ?", entry.key
+                    )
+                )
+                db.execute(
+                    "INSERT OR REPLACE INTO files VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                    (
+                        *entry.key,
+                        entry.path,
+                        entry.rows,
+                        entry.min_ts,
+                        entry.max_ts,
+                        json.dumps(entry.columns),
+                        commit_id,
+                    ),
+                )
             superseded = sorted(old - {entry.path for entry in entries})
-            db.executemany("INSERT OR REPLACE INTO trash VALUES (?, ?)",
-                           [(_hidden(path), time.time()) for path in superseded])
+            db.executemany(
+                "INSERT OR REPLACE INTO trash VALUES (?, ?)", [(_hidden(path), time.time()) for path in superseded]
+            )
         return superseded
 
     def expired(self, grace: float) -> list[str]:
@@ -207,8 +247,12 @@ class Record:
 
     def referenced(self, batch_id: str, job_id: str = "") -> set[str]:
         """The paths the record holds for one job (or batch)."""
-        return {r[0] for r in self._connect().execute(
-            "SELECT path FROM files WHERE batch_id = ? AND job_id = ?", (batch_id, job_id))}
+        return {
+            r[0]
+            for r in self._connect().execute(
+                "SELECT path FROM files WHERE batch_id = ? AND job_id = ?", (batch_id, job_id)
+            )
+        }
 
 
 def current_file(lake: Path, branch: str, table: str, batch_id: str, job_id: str = "") -> Path | None:
@@ -343,13 +387,16 @@ def _migrate(db: sqlite3.Connection, root: Path) -> None:
     db.execute("INSERT INTO commits (what) VALUES ('create')")
     for table in paths.table_names(lake, branch):
         for file in paths.data_files(lake, branch, table):
-            batch_id = paths.partition_value(file.parent if table in paths.BATCH_TABLES else file.parent.parent,
-                                             "batch_id")
+            batch_id = paths.partition_value(
+                file.parent if table in paths.BATCH_TABLES else file.parent.parent, "batch_id"
+            )
             job_id = "" if table in paths.BATCH_TABLES else paths.partition_value(file.parent, "job_id")
             paths.link_reader(file)
             try:
                 entry = describe_file(root, table, batch_id, job_id, file)
             except (OSError, ValueError):  # unreadable: recorded, so a query of it says which file
                 entry = FileEntry(table, batch_id, job_id, file.relative_to(root).as_posix(), 0)
-            db.execute("INSERT OR REPLACE INTO files VALUES (?, ?, ?, ?, ?, ?, ?, ?, 1)",
-                       (*entry.key, entry.path, entry.rows, entry.min_ts, entry.max_ts, json.dumps(entry.columns)))
+            db.execute(
+                "INSERT OR REPLACE INTO files VALUES (?, ?, ?, ?, ?, ?, ?, ?, 1)",
+                (*entry.key, entry.path, entry.rows, entry.min_ts, entry.max_ts, json.dumps(entry.columns)),
+            )

@@ -8,6 +8,7 @@ see half of one and two writers never share a number. The newest version is `cur
 the catalog uses it (and older versions, for topics no longer declared) to know every
 table's columns.
 """
+
 from __future__ import annotations
 
 import datetime as dt
@@ -16,8 +17,8 @@ import json
 import os
 import shutil
 import uuid
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 from lakegate.lake import paths
 from lakegate.lake.config import Config, ConfigError, load_config
@@ -40,7 +41,7 @@ class BranchConfigs:
             return []
         found = []
         for entry in self.root.iterdir():
-            number = entry.name[len(_PREFIX):]
+            number = entry.name[len(_PREFIX) :]
             if entry.name.startswith(_PREFIX) and number.isdigit() and (entry / MANIFEST).is_file():
                 found.append(int(number))
         return sorted(found)
@@ -95,7 +96,7 @@ class BranchConfigs:
                 "templates": [name for name, _ in templates],
                 "sources": [str(Path(p).resolve()) for p in sources],
                 "sha256": digest,
-                "stored_at": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
+                "stored_at": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
             }
             (scratch / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
             number = (latest or 0) + 1

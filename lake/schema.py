@@ -6,9 +6,10 @@ type a lake column can have is listed once here with its Arrow type (`arrow_type
 type the catalog's views cast to (`duckdb_type`). A topic field's Trino type comes from its config
 type (`types.trino_type`).
 """
+
 from __future__ import annotations
 
-from typing import Iterable
+from collections.abc import Iterable
 
 import pyarrow as pa
 
@@ -119,8 +120,12 @@ def duckdb_type(trino: str) -> str:
 
 def topic_columns(topic: Topic) -> Columns:
     """A topic table's columns (name, Trino type) in order."""
-    return [(TIMESTAMP, "bigint"), *[(f, trino_type(t)) for f, t in topic.fields.items()],
-            *[(c, "varchar") for c in JOB_COLUMNS], *[(c, "varchar") for c in PARTITIONS]]
+    return [
+        (TIMESTAMP, "bigint"),
+        *[(f, trino_type(t)) for f, t in topic.fields.items()],
+        *[(c, "varchar") for c in JOB_COLUMNS],
+        *[(c, "varchar") for c in PARTITIONS],
+    ]
 
 
 def file_schema(table: str, columns: Iterable[tuple[str, str]]) -> pa.Schema:

@@ -3,6 +3,7 @@
 One table of types serves the Emitter (validation before writing), ingestion
 (validation) and the catalog (Trino column types); `schema` gives their Arrow types.
 """
+
 from __future__ import annotations
 
 import json

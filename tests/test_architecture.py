@@ -5,6 +5,7 @@ engine -> dialect, lake. An arrow may be followed further (the dashboard may use
 metrics use), never backwards: nothing imports cli, and nothing in lake or dialect imports gateway.
 No module imports another module's private (`_name`) names, and every import is absolute.
 """
+
 from __future__ import annotations
 
 import ast
@@ -66,8 +67,11 @@ def _violations(path: str, source: str) -> list[str]:
             wrong.append(f"{path}:{line}: relative import {module}; write lakegate.…")
         elif _package(module) not in allowed | {None}:
             wrong.append(f"{path}:{line}: {own} must not import {module}")
-        wrong += [f"{path}:{line}: imports the private name {module}.{name}" for name in names
-                  if name.startswith("_") and not name.startswith("__")]
+        wrong += [
+            f"{path}:{line}: imports the private name {module}.{name}"
+            for name in names
+            if name.startswith("_") and not name.startswith("__")
+        ]
     return wrong
 
 
@@ -77,8 +81,9 @@ def _module(path: str) -> str:
 
 
 def _sources() -> list[str]:
-    return sorted(str(p.relative_to(ROOT)) for folder in ("lake", "dialect", "gateway")
-                  for p in (ROOT / folder).rglob("*.py"))
+    return sorted(
+        str(p.relative_to(ROOT)) for folder in ("lake", "dialect", "gateway") for p in (ROOT / folder).rglob("*.py")
+    )
 
 
 @pytest.mark.parametrize("path", _sources())
@@ -93,10 +98,12 @@ def test_every_module_belongs_to_a_package() -> None:
 
 def test_a_wrong_arrow_is_reported() -> None:
     """The check itself: upward arrows, a relative import and a private name are each reported."""
-    source = ("from lakegate.gateway.server.app import create_app\n"
-              "import lakegate.gateway.cli.main\n"
-              "from .backend import Backend\n"
-              "from lakegate.gateway.engine.backend import _Run\n")
+    source = (
+        "from lakegate.gateway.server.app import create_app\n"
+        "import lakegate.gateway.cli.main\n"
+        "from .backend import Backend\n"
+        "from lakegate.gateway.engine.backend import _Run\n"
+    )
     assert _violations("gateway/engine/probe.py", source) == [
         "gateway/engine/probe.py:1: gateway.engine must not import lakegate.gateway.server.app",
         "gateway/engine/probe.py:2: gateway.engine must not import lakegate.gateway.cli.main",
@@ -104,14 +111,18 @@ def test_a_wrong_arrow_is_reported() -> None:
         "gateway/engine/probe.py:4: imports the private name lakegate.gateway.engine.backend._Run",
     ]
     assert _violations("dialect/probe.py", "from lakegate.gateway.engine.engine import Engine\n") == [
-        "dialect/probe.py:1: dialect must not import lakegate.gateway.engine.engine"]
+        "dialect/probe.py:1: dialect must not import lakegate.gateway.engine.engine"
+    ]
 
 
 @pytest.mark.parametrize("package", sorted(p for p in ARROWS if p.startswith("gateway.")))
 def test_each_package_imports_on_its_own(package: str) -> None:
     """Every module of a package imports in a fresh interpreter, that package first (no import cycle)."""
-    modules = [_module(p) for p in _sources()
-               if p.startswith(package.replace(".", "/") + "/") and not p.endswith("__main__.py")]
-    code = "import importlib\nfor m in %r: importlib.import_module(m)" % modules
+    modules = [
+        _module(p)
+        for p in _sources()
+        if p.startswith(package.replace(".", "/") + "/") and not p.endswith("__main__.py")
+    ]
+    code = f"import importlib\nfor m in {modules!r}: importlib.import_module(m)"
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr

@@ -8,6 +8,7 @@ The case files are also loaded from here by the conformance runner (`load_cases`
 the page read them the same way. A repository tool: it reads tests/ and writes docs/, so it is not
 part of the installed package (pytest finds it through `pythonpath` in pyproject.toml).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -28,8 +29,7 @@ REPO = Path(__file__).resolve().parent.parent
 CASES_DIR = REPO / "tests" / "dialect" / "cases"
 OUTPUT = REPO / "docs" / "functions.md"
 
-_CASE_KEYS = {"name", "sql", "columns", "rows", "error", "message", "line", "column", "ordered",
-              "tolerance", "note"}
+_CASE_KEYS = {"name", "sql", "columns", "rows", "error", "message", "line", "column", "ordered", "tolerance", "note"}
 _FILE_KEYS = {"family", "title", "description", "cases"}
 
 
@@ -44,13 +44,13 @@ class Case:
     family: str
     name: str
     sql: str
-    columns: tuple[tuple[str, str], ...] | None = None   # (output name, Trino type) per column
-    rows: tuple[tuple, ...] | None = None                # values in the client-protocol JSON encoding
-    errors: tuple[str, ...] = ()                         # accepted Trino error names
-    message: str | None = None                           # substring of the error message
+    columns: tuple[tuple[str, str], ...] | None = None  # (output name, Trino type) per column
+    rows: tuple[tuple, ...] | None = None  # values in the client-protocol JSON encoding
+    errors: tuple[str, ...] = ()  # accepted Trino error names
+    message: str | None = None  # substring of the error message
     line: int | None = None
     column: int | None = None
-    ordered: bool | None = None                          # None: ordered iff a top-level ORDER BY
+    ordered: bool | None = None  # None: ordered iff a top-level ORDER BY
     tolerance: float | None = None
     note: str | None = None
 
@@ -106,11 +106,20 @@ def _case(family: str, raw: dict, where: str) -> Case:
                 raise CaseFileError(f"{where}: row {list(row)} does not have {len(columns)} values")
     errors = raw.get("error", ())
     errors = (errors,) if isinstance(errors, str) else tuple(errors)
-    return Case(family=family, name=raw["name"], sql=raw["sql"], columns=columns, rows=rows,
-                errors=errors, message=raw.get("message"), line=raw.get("line"),
-                column=raw.get("column"), ordered=raw.get("ordered"),
-                tolerance=float(raw["tolerance"]) if "tolerance" in raw else None,
-                note=raw.get("note"))
+    return Case(
+        family=family,
+        name=raw["name"],
+        sql=raw["sql"],
+        columns=columns,
+        rows=rows,
+        errors=errors,
+        message=raw.get("message"),
+        line=raw.get("line"),
+        column=raw.get("column"),
+        ordered=raw.get("ordered"),
+        tolerance=float(raw["tolerance"]) if "tolerance" in raw else None,
+        note=raw.get("note"),
+    )
 
 
 def load_family(path: Path) -> Family:
@@ -128,8 +137,7 @@ def load_family(path: Path) -> Family:
             raise CaseFileError(f"{where}: duplicate case name")
         seen.add(case.name)
         cases.append(case)
-    return Family(family, data.get("title", family), " ".join(str(data.get("description", "")).split()),
-                  tuple(cases))
+    return Family(family, data.get("title", family), " ".join(str(data.get("description", "")).split()), tuple(cases))
 
 
 def load_families(directory: Path = CASES_DIR) -> list[Family]:
@@ -143,8 +151,16 @@ def load_cases(directory: Path = CASES_DIR) -> list[Case]:
 
 
 # --- which functions and operators a query uses ---------------------------------------------------
-_NOT_NAMES = {TokenType.STRING, TokenType.NUMBER, TokenType.IDENTIFIER, TokenType.L_PAREN,
-              TokenType.R_PAREN, TokenType.L_BRACKET, TokenType.R_BRACKET, TokenType.COMMA}
+_NOT_NAMES = {
+    TokenType.STRING,
+    TokenType.NUMBER,
+    TokenType.IDENTIFIER,
+    TokenType.L_PAREN,
+    TokenType.R_PAREN,
+    TokenType.L_BRACKET,
+    TokenType.R_BRACKET,
+    TokenType.COMMA,
+}
 
 
 def called_names(sql: str) -> set[str]:
@@ -218,55 +234,60 @@ def used_operators(sql: str) -> set[str]:
 #: function is registered.
 CATALOGUE: dict[str, str] = {
     "math": "abs acos asin atan atan2 cbrt ceil ceiling cos cosh cosine_similarity degrees e exp floor "
-            "from_base infinity is_finite is_infinite is_nan ln log log10 log2 mod nan pi pow power "
-            "radians rand random round sign sin sinh sqrt tan tanh to_base truncate width_bucket "
-            "beta_cdf inverse_beta_cdf normal_cdf inverse_normal_cdf wilson_interval_lower "
-            "wilson_interval_upper bit_count bitwise_and bitwise_not bitwise_or bitwise_xor "
-            "bitwise_left_shift bitwise_right_shift bitwise_right_shift_arithmetic",
+    "from_base infinity is_finite is_infinite is_nan ln log log10 log2 mod nan pi pow power "
+    "radians rand random round sign sin sinh sqrt tan tanh to_base truncate width_bucket "
+    "beta_cdf inverse_beta_cdf normal_cdf inverse_normal_cdf wilson_interval_lower "
+    "wilson_interval_upper bit_count bitwise_and bitwise_not bitwise_or bitwise_xor "
+    "bitwise_left_shift bitwise_right_shift bitwise_right_shift_arithmetic",
     "comparison": "greatest least",
     "conditional": "coalesce if nullif try",
     "conversion": "cast try_cast typeof format format_number parse_data_size",
     "string": "chr codepoint concat concat_ws hamming_distance length levenshtein_distance lower lpad "
-              "ltrim luhn_check normalize position replace reverse rpad rtrim soundex split split_part "
-              "split_to_map split_to_multimap starts_with strpos substr substring translate trim upper "
-              "word_stem to_utf8 from_utf8 url_extract_fragment url_extract_host url_extract_parameter "
-              "url_extract_path url_extract_port url_extract_protocol url_extract_query url_encode "
-              "url_decode md5 sha1 sha256 sha512 to_hex from_hex to_base64 from_base64 crc32 xxhash64",
-    "regexp": "regexp_count regexp_extract regexp_extract_all regexp_like regexp_position "
-              "regexp_replace regexp_split",
+    "ltrim luhn_check normalize position replace reverse rpad rtrim soundex split split_part "
+    "split_to_map split_to_multimap starts_with strpos substr substring translate trim upper "
+    "word_stem to_utf8 from_utf8 url_extract_fragment url_extract_host url_extract_parameter "
+    "url_extract_path url_extract_port url_extract_protocol url_extract_query url_encode "
+    "url_decode md5 sha1 sha256 sha512 to_hex from_hex to_base64 from_base64 crc32 xxhash64",
+    "regexp": "regexp_count regexp_extract regexp_extract_all regexp_like regexp_position regexp_replace regexp_split",
     "json": "is_json_scalar json_array_contains json_array_get json_array_length json_extract "
-            "json_extract_scalar json_format json_parse json_size json_exists json_query json_value "
-            "json_object json_array",
+    "json_extract_scalar json_format json_parse json_size json_exists json_query json_value "
+    "json_object json_array",
     "datetime": "current_date current_time current_timestamp current_timezone date date_add date_diff "
-                "date_format date_parse date_trunc day day_of_month day_of_week day_of_year dow doy "
-                "extract format_datetime from_iso8601_date from_iso8601_timestamp from_unixtime "
-                "from_unixtime_nanos hour human_readable_seconds last_day_of_month localtime "
-                "localtimestamp millisecond minute month now parse_datetime parse_duration quarter "
-                "second timezone_hour timezone_minute to_iso8601 to_milliseconds to_unixtime week "
-                "week_of_year with_timezone at_timezone year year_of_week yow",
+    "date_format date_parse date_trunc day day_of_month day_of_week day_of_year dow doy "
+    "extract format_datetime from_iso8601_date from_iso8601_timestamp from_unixtime "
+    "from_unixtime_nanos hour human_readable_seconds last_day_of_month localtime "
+    "localtimestamp millisecond minute month now parse_datetime parse_duration quarter "
+    "second timezone_hour timezone_minute to_iso8601 to_milliseconds to_unixtime week "
+    "week_of_year with_timezone at_timezone year year_of_week yow",
     "array": "all_match any_match array_distinct array_except array_histogram array_intersect "
-             "array_join array_max array_min array_position array_remove array_sort array_union "
-             "arrays_overlap cardinality combinations contains contains_sequence element_at filter "
-             "flatten ngrams none_match reduce repeat reverse sequence shuffle slice transform "
-             "trim_array zip zip_with",
+    "array_join array_max array_min array_position array_remove array_sort array_union "
+    "arrays_overlap cardinality combinations contains contains_sequence element_at filter "
+    "flatten ngrams none_match reduce repeat reverse sequence shuffle slice transform "
+    "trim_array zip zip_with",
     "map": "map map_concat map_entries map_filter map_from_entries map_keys map_values map_zip_with "
-           "multimap_from_entries transform_keys transform_values",
+    "multimap_from_entries transform_keys transform_values",
     "aggregate": "any_value approx_distinct approx_most_frequent approx_percentile approx_set arbitrary "
-                 "array_agg avg bitwise_and_agg bitwise_or_agg bool_and bool_or checksum corr count "
-                 "count_if covar_pop covar_samp every geometric_mean histogram kurtosis listagg map_agg "
-                 "map_union max max_by min min_by multimap_agg numeric_histogram reduce_agg "
-                 "regr_intercept regr_slope skewness stddev stddev_pop stddev_samp sum var_pop var_samp "
-                 "variance",
-    "window": "cume_dist dense_rank first_value lag last_value lead nth_value ntile percent_rank rank "
-              "row_number",
+    "array_agg avg bitwise_and_agg bitwise_or_agg bool_and bool_or checksum corr count "
+    "count_if covar_pop covar_samp every geometric_mean histogram kurtosis listagg map_agg "
+    "map_union max max_by min min_by multimap_agg numeric_histogram reduce_agg "
+    "regr_intercept regr_slope skewness stddev stddev_pop stddev_samp sum var_pop var_samp "
+    "variance",
+    "window": "cume_dist dense_rank first_value lag last_value lead nth_value ntile percent_rank rank row_number",
 }
 
 _FAMILY_TITLES = {
-    "math": "Mathematical functions", "comparison": "Comparison functions",
-    "conditional": "Conditional expressions", "conversion": "Conversion functions",
-    "string": "String functions", "regexp": "Regular expression functions", "json": "JSON functions",
-    "datetime": "Date and time functions", "array": "Array functions and lambdas",
-    "map": "Map functions", "aggregate": "Aggregate functions", "window": "Window functions",
+    "math": "Mathematical functions",
+    "comparison": "Comparison functions",
+    "conditional": "Conditional expressions",
+    "conversion": "Conversion functions",
+    "string": "String functions",
+    "regexp": "Regular expression functions",
+    "json": "JSON functions",
+    "datetime": "Date and time functions",
+    "array": "Array functions and lambdas",
+    "map": "Map functions",
+    "aggregate": "Aggregate functions",
+    "window": "Window functions",
 }
 
 
@@ -326,21 +347,28 @@ def generate(families: list[Family], supported: dict, rejected: dict[str, str]) 
         "|---|---:|---|",
     ]
     for family in families:
-        out.append(f"| {family.name} | {len(family.cases)} | {_cell(family.title)}: "
-                   f"{_cell(family.description)} |")
+        out.append(f"| {family.name} | {len(family.cases)} | {_cell(family.title)}: {_cell(family.description)} |")
 
     counts = {"supported": 0, "rejected": 0, "not implemented": 0}
     sections = []
     order = [f for f in CATALOGUE if f in by_family] + sorted(set(by_family) - set(CATALOGUE))
     for family in order:
-        sections += ["", f"## {_FAMILY_TITLES.get(family, family.capitalize())} (`{family}`)", "",
-                     "| function | status | cases | signature / notes |", "|---|---|---:|---|"]
+        sections += [
+            "",
+            f"## {_FAMILY_TITLES.get(family, family.capitalize())} (`{family}`)",
+            "",
+            "| function | status | cases | signature / notes |",
+            "|---|---|---:|---|",
+        ]
         for name in sorted(by_family[family]):
             if name in supported:
                 spec = supported[name]
-                status, detail = "supported", " ".join(
-                    part for part in (f"`{spec.signature}`" if spec.signature else "",
-                                      _cell(spec.notes)) if part)
+                status, detail = (
+                    "supported",
+                    " ".join(
+                        part for part in (f"`{spec.signature}`" if spec.signature else "", _cell(spec.notes)) if part
+                    ),
+                )
                 counts["supported"] += 1
             elif name in rejected:
                 status, detail = f"rejected ({_cell(rejected[name])})", ""
@@ -350,13 +378,22 @@ def generate(families: list[Family], supported: dict, rejected: dict[str, str]) 
                 counts["not implemented"] += 1
             sections.append(f"| `{name}` | {status} | {calls.get(name, 0)} | {detail} |")
 
-    out += ["", f"Functions: {counts['supported']} supported, {counts['rejected']} rejected with a "
-            f"reason, {counts['not implemented']} not implemented."]
+    out += [
+        "",
+        f"Functions: {counts['supported']} supported, {counts['rejected']} rejected with a "
+        f"reason, {counts['not implemented']} not implemented.",
+    ]
     out += sections
-    out += ["", "## Operators and syntax", "",
-            "Handled by the translator itself rather than the function registry; their Trino "
-            "semantics are pinned by the cases counted here.", "",
-            "| operator / construct | cases |", "|---|---:|"]
+    out += [
+        "",
+        "## Operators and syntax",
+        "",
+        "Handled by the translator itself rather than the function registry; their Trino "
+        "semantics are pinned by the cases counted here.",
+        "",
+        "| operator / construct | cases |",
+        "|---|---:|",
+    ]
     out += [f"| {_cell(label)} | {operators.get(label, 0)} |" for label in OPERATORS]
     return "\n".join(out) + "\n"
 
@@ -370,8 +407,9 @@ def render_current(cases_dir: Path = CASES_DIR) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python tools/functions_doc.py", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--check", action="store_true",
-                        help="do not write; exit 1 if the file differs from what would be generated")
+    parser.add_argument(
+        "--check", action="store_true", help="do not write; exit 1 if the file differs from what would be generated"
+    )
     parser.add_argument("--cases", type=Path, default=CASES_DIR, help="directory of the case files")
     parser.add_argument("--output", type=Path, default=OUTPUT, help="the Markdown file to write or check")
     args = parser.parse_args(argv)

@@ -1,37 +1,58 @@
 """The command-line options that choose a backend: embedded DuckDB over the lake (default) or
 forwarding to a Trino cluster (`--backend trino --trino-url URL ...`), shared by the commands that
 run queries."""
+
 from __future__ import annotations
 
 import argparse
 import os
 from pathlib import Path
 
-from lakegate.gateway.engine.backend import Backend, DuckDBBackend
 from lakegate.gateway.cli.errors import UserError
+from lakegate.gateway.engine.backend import Backend, DuckDBBackend
 from lakegate.gateway.engine.trino_backend import TrinoBackend
 
 
 def add_backend_arguments(parser: argparse.ArgumentParser) -> None:
     """Add `--backend` and the `--trino-*` options to a command's parser."""
-    parser.add_argument("--backend", choices=("duckdb", "trino"), default="duckdb",
-                        help="where the queries run: embedded DuckDB over the lake (duckdb, the default) or a "
-                             "Trino cluster that has the lake's tables (trino: see 'lakegate trino-ddl')")
+    parser.add_argument(
+        "--backend",
+        choices=("duckdb", "trino"),
+        default="duckdb",
+        help="where the queries run: embedded DuckDB over the lake (duckdb, the default) or a "
+        "Trino cluster that has the lake's tables (trino: see 'lakegate trino-ddl')",
+    )
     trino = parser.add_argument_group("forwarding to Trino (--backend trino)")
     trino.add_argument("--trino-url", metavar="URL", help="the cluster's coordinator, http(s)://host:port")
     trino.add_argument("--trino-user", default="lakegate", metavar="U", help="the Trino user (default: lakegate)")
-    trino.add_argument("--trino-catalog", default="hive", metavar="C",
-                       help="the catalog that holds the lake's schemas (default: hive)")
-    trino.add_argument("--trino-schema-prefix", default="", metavar="P",
-                       help="the --schema-prefix given to 'lakegate trino-ddl' (default: none)")
-    trino.add_argument("--trino-schema-map", action="append", default=[], metavar="BRANCH=SCHEMA",
-                       help="the schema of a branch, instead of the name 'lakegate trino-ddl' gives it (repeat for "
-                            "several); '*={branch}' maps every branch to a schema of its own name (another "
-                            "'lakegate serve', catalog lake)")
-    trino.add_argument("--trino-password-env", metavar="VAR",
-                       help="HTTP Basic authentication with the password in environment variable VAR (needs https)")
-    trino.add_argument("--trino-jwt-env", metavar="VAR",
-                       help="JWT authentication with the token in environment variable VAR (needs https)")
+    trino.add_argument(
+        "--trino-catalog", default="hive", metavar="C", help="the catalog that holds the lake's schemas (default: hive)"
+    )
+    trino.add_argument(
+        "--trino-schema-prefix",
+        default="",
+        metavar="P",
+        help="the --schema-prefix given to 'lakegate trino-ddl' (default: none)",
+    )
+    trino.add_argument(
+        "--trino-schema-map",
+        action="append",
+        default=[],
+        metavar="BRANCH=SCHEMA",
+        help="the schema of a branch, instead of the name 'lakegate trino-ddl' gives it (repeat for "
+        "several); '*={branch}' maps every branch to a schema of its own name (another "
+        "'lakegate serve', catalog lake)",
+    )
+    trino.add_argument(
+        "--trino-password-env",
+        metavar="VAR",
+        help="HTTP Basic authentication with the password in environment variable VAR (needs https)",
+    )
+    trino.add_argument(
+        "--trino-jwt-env",
+        metavar="VAR",
+        help="JWT authentication with the token in environment variable VAR (needs https)",
+    )
     trino.add_argument("--trino-ca", type=Path, metavar="FILE", help="CA bundle that signed the cluster's certificate")
     trino.add_argument("--trino-insecure", action="store_true", help="do not verify the cluster's TLS certificate")
 
@@ -66,8 +87,15 @@ def backend_from_args(args: argparse.Namespace, lake: Path | None) -> Backend:
         raise UserError(f"--trino-ca {args.trino_ca}: no such file")
     verify: bool | str = False if args.trino_insecure else str(args.trino_ca) if args.trino_ca else True
     try:
-        return TrinoBackend(args.trino_url, user=args.trino_user, catalog=args.trino_catalog,
-                            schema_map=schema_map(args.trino_schema_map), schema_prefix=args.trino_schema_prefix,
-                            password=_secret(args.trino_password_env), jwt=_secret(args.trino_jwt_env), verify=verify)
+        return TrinoBackend(
+            args.trino_url,
+            user=args.trino_user,
+            catalog=args.trino_catalog,
+            schema_map=schema_map(args.trino_schema_map),
+            schema_prefix=args.trino_schema_prefix,
+            password=_secret(args.trino_password_env),
+            jwt=_secret(args.trino_jwt_env),
+            verify=verify,
+        )
     except ValueError as error:
         raise UserError(str(error)) from None

@@ -1,4 +1,5 @@
 """`lakegate config check|schema`: check config files, or write the config's JSON Schema."""
+
 from __future__ import annotations
 
 import argparse
@@ -11,25 +12,37 @@ from lakegate.lake.config_schema import json_schema
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("config", help="check metrics config files, or write their JSON Schema",
-                                   description="Check metrics config files, or write their JSON Schema.")
+    parser = subparsers.add_parser(
+        "config",
+        help="check metrics config files, or write their JSON Schema",
+        description="Check metrics config files, or write their JSON Schema.",
+    )
     commands = parser.add_subparsers(dest="config_command", metavar="SUBCOMMAND")
     commands.required = True
 
     check = commands.add_parser(
-        "check", help="check config files and print every problem (file:line:column: message)",
+        "check",
+        help="check config files and print every problem (file:line:column: message)",
         description="Load and merge the given config files; print every problem, one per line, and exit 1, "
-                    "or print a one-line summary and exit 0.")
-    check.add_argument("paths", nargs="*", metavar="PATH",
-                       help="config files to check together (default: .resim/metrics/config.resim.yaml "
-                            "or .yml, in this folder or a parent)")
+        "or print a one-line summary and exit 0.",
+    )
+    check.add_argument(
+        "paths",
+        nargs="*",
+        metavar="PATH",
+        help="config files to check together (default: .resim/metrics/config.resim.yaml "
+        "or .yml, in this folder or a parent)",
+    )
     check.set_defaults(func=check_command)
 
     schema = commands.add_parser(
-        "schema", help="write the JSON Schema (draft 2020-12) of the config file, for editors",
-        description="Write the JSON Schema (draft 2020-12) of the metrics config file, for editors.")
-    schema.add_argument("-o", "--output", metavar="FILE", type=Path,
-                        help="file to write the schema to (default: standard output)")
+        "schema",
+        help="write the JSON Schema (draft 2020-12) of the config file, for editors",
+        description="Write the JSON Schema (draft 2020-12) of the metrics config file, for editors.",
+    )
+    schema.add_argument(
+        "-o", "--output", metavar="FILE", type=Path, help="file to write the schema to (default: standard output)"
+    )
     schema.set_defaults(func=schema_command)
 
 
@@ -38,8 +51,10 @@ def check_command(args: argparse.Namespace) -> int:
     if not paths:
         found = find_default_config()
         if found is None:
-            raise UserError("no config file given and no .resim/metrics/config.resim.yaml (or .yml) found "
-                            "in this folder or its parents")
+            raise UserError(
+                "no config file given and no .resim/metrics/config.resim.yaml (or .yml) found "
+                "in this folder or its parents"
+            )
         paths = [str(found)]
     try:
         config = load_config(paths)

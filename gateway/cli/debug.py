@@ -13,6 +13,7 @@ as `Dashboard: http://127.0.0.1:PORT/dashboard/?session=...`. When the config fi
 reloading the page shows the new config (and ingests the emissions again if its topics or the
 emissions file changed); edits made in the page stay layered on top.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -27,11 +28,12 @@ import sys
 import tempfile
 import uuid
 import webbrowser
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
-from lakegate.gateway.server.auth import is_loopback
 from lakegate.gateway.cli.errors import UserError, port_number
+from lakegate.gateway.server.auth import is_loopback
 from lakegate.lake import paths
 from lakegate.lake.config import Config, ConfigError, find_default_config, load_config
 from lakegate.lake.ingest import IngestError, ingest_job
@@ -46,34 +48,66 @@ SHUTDOWN_SECONDS = 3
 def add_debug_parser(commands: argparse._SubParsersAction) -> None:
     """Add `debug` to the `lakegate metrics` subcommands."""
     debug = commands.add_parser(
-        "debug", help="serve a live dashboard of a metrics set on one emissions file",
+        "debug",
+        help="serve a live dashboard of a metrics set on one emissions file",
         description="Ingest an emissions file as a debug job (into a scratch lake, or --lake) and serve the "
-                    "metrics dashboard on it: every metric of the set rendered with its status, queries "
-                    "editable and re-runnable in place, new metrics, a data explorer, the job's events, and "
-                    "'Export Config' to download the edited config. Prints the dashboard URL; Ctrl+C stops.")
-    debug.add_argument("--emissions-file", required=True, type=Path, metavar="FILE",
-                       help="the emissions file (JSON lines, as the Emitter writes them)")
-    debug.add_argument("--metrics-config-path", action="append", type=Path, metavar="P", dest="config_paths",
-                       help="the config file (repeat to merge several; default: .resim/metrics/config.resim.yaml "
-                            "in this folder or a parent); changes to it show on reload")
+        "metrics dashboard on it: every metric of the set rendered with its status, queries "
+        "editable and re-runnable in place, new metrics, a data explorer, the job's events, and "
+        "'Export Config' to download the edited config. Prints the dashboard URL; Ctrl+C stops.",
+    )
+    debug.add_argument(
+        "--emissions-file",
+        required=True,
+        type=Path,
+        metavar="FILE",
+        help="the emissions file (JSON lines, as the Emitter writes them)",
+    )
+    debug.add_argument(
+        "--metrics-config-path",
+        action="append",
+        type=Path,
+        metavar="P",
+        dest="config_paths",
+        help="the config file (repeat to merge several; default: .resim/metrics/config.resim.yaml "
+        "in this folder or a parent); changes to it show on reload",
+    )
     which = debug.add_mutually_exclusive_group(required=True)
     which.add_argument("--metrics-set", metavar="S", help="the metrics set to show (a name from 'metrics sets')")
-    which.add_argument("--all-metrics", action="store_true",
-                       help="show every test and batch metric of the config (for configs without metrics sets)")
-    debug.add_argument("--logs-dir", "--logs", type=Path, metavar="DIR",
-                       help="the job's log files, where image metrics find their files (default: the 'logs' "
-                            "folder beside the emissions file if there is one, else only the files beside it "
-                            "that the emissions name in image fields)")
-    debug.add_argument("--metadata", type=Path, metavar="FILE",
-                       help="YAML mapping of the job's metadata columns (experience_name, build_name, tags ...)")
-    debug.add_argument("--lake", type=Path, metavar="DIR",
-                       help="ingest into this lake (kept) instead of a scratch lake removed on exit")
-    debug.add_argument("--branch", default=BRANCH, metavar="B",
-                       help=f"the branch of the debug job (default {BRANCH!r})")
-    debug.add_argument("--host", default="127.0.0.1",
-                       help="the loopback address to listen on (default 127.0.0.1; the page has no authentication)")
-    debug.add_argument("--port", type=port_number, default=0, metavar="N",
-                       help="the port (default 0: any free port)")
+    which.add_argument(
+        "--all-metrics",
+        action="store_true",
+        help="show every test and batch metric of the config (for configs without metrics sets)",
+    )
+    debug.add_argument(
+        "--logs-dir",
+        "--logs",
+        type=Path,
+        metavar="DIR",
+        help="the job's log files, where image metrics find their files (default: the 'logs' "
+        "folder beside the emissions file if there is one, else only the files beside it "
+        "that the emissions name in image fields)",
+    )
+    debug.add_argument(
+        "--metadata",
+        type=Path,
+        metavar="FILE",
+        help="YAML mapping of the job's metadata columns (experience_name, build_name, tags ...)",
+    )
+    debug.add_argument(
+        "--lake",
+        type=Path,
+        metavar="DIR",
+        help="ingest into this lake (kept) instead of a scratch lake removed on exit",
+    )
+    debug.add_argument(
+        "--branch", default=BRANCH, metavar="B", help=f"the branch of the debug job (default {BRANCH!r})"
+    )
+    debug.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="the loopback address to listen on (default 127.0.0.1; the page has no authentication)",
+    )
+    debug.add_argument("--port", type=port_number, default=0, metavar="N", help="the port (default 0: any free port)")
     debug.add_argument("--no-browser", action="store_true", help="do not open the dashboard in a web browser")
     debug.set_defaults(func=debug_command)
 
@@ -154,13 +188,22 @@ class DebugJob:
         """Ingest the emissions file (replacing the job); returns the rows written. ValueError if it fails."""
         stamp = self._stamp(config)
         try:
-            report = ingest_job(self.lake, self.branch, self.batch_id, self.job_id, [self.emissions], config=config,
-                                metadata=self.metadata)
+            report = ingest_job(
+                self.lake,
+                self.branch,
+                self.batch_id,
+                self.job_id,
+                [self.emissions],
+                config=config,
+                metadata=self.metadata,
+            )
         except IngestError as error:
             if error.problems:
                 more = error.total - 1
-                raise ValueError(f"bad emissions file: {error.problems[0]}"
-                                 + (f" (and {more} more bad line{'s' if more > 1 else ''})" if more else "")) from None
+                raise ValueError(
+                    f"bad emissions file: {error.problems[0]}"
+                    + (f" (and {more} more bad line{'s' if more > 1 else ''})" if more else "")
+                ) from None
             raise ValueError(error.summary) from None
         except MetadataError as error:
             raise ValueError(f"bad metadata: {error.problems[0]}") from None
@@ -212,13 +255,15 @@ def _can_open_browser() -> bool:
 
 def debug_command(args: argparse.Namespace) -> int:
     # the web stack is imported here, so that other commands start without it
-    from lakegate.gateway.dashboard.routes import DashboardState, dashboard_router
     from lakegate.gateway.dashboard.debug_session import DashboardSession, FileConfig, SessionError
+    from lakegate.gateway.dashboard.routes import DashboardState, dashboard_router
     from lakegate.gateway.server.app import create_app
 
     if not is_loopback(args.host):
-        raise UserError(f"refusing to serve the dashboard on {args.host}: it has no authentication; listen on a "
-                        "loopback address such as 127.0.0.1")
+        raise UserError(
+            f"refusing to serve the dashboard on {args.host}: it has no authentication; listen on a "
+            "loopback address such as 127.0.0.1"
+        )
     emissions = args.emissions_file
     if not emissions.is_file():
         raise UserError(f"emissions file {str(emissions)!r} does not exist or is not a file")
@@ -253,9 +298,16 @@ def debug_command(args: argparse.Namespace) -> int:
             raise UserError(str(error)) from None
         state = DashboardState(lake)
         try:
-            session = DashboardSession(state.new_id(), state.engine, branch=args.branch, batch_id=job.batch_id,
-                                       source=FileConfig(config_paths), metrics_set=args.metrics_set, debug=True,
-                                       refresh_data=job.refresh)
+            session = DashboardSession(
+                state.new_id(),
+                state.engine,
+                branch=args.branch,
+                batch_id=job.batch_id,
+                source=FileConfig(config_paths),
+                metrics_set=args.metrics_set,
+                debug=True,
+                refresh_data=job.refresh,
+            )
         except SessionError as error:
             raise UserError(str(error.problems[0] if error.problems else error)) from None
         state.add(session, debug=True)
@@ -265,14 +317,21 @@ def debug_command(args: argparse.Namespace) -> int:
         url = f"http://{shown_host}:{port}/dashboard/?session={session.id}"
         results = [r for per_job in session.results.values() for r in per_job.values()]
         counts = {s: sum(1 for r in results if r["status"] == s) for s in ("PASSED", "WARNING", "BLOCKER", "ERROR")}
-        print(f"ingested {emissions} as job {job.job_id} of batch {job.batch_id} on branch {args.branch!r} "
-              f"({rows:,} rows) in {'a scratch lake' if scratch else 'the lake'} {lake}")
-        print(f"metrics set {args.metrics_set or '(all metrics)'}: {len(results)} evaluated ("
-              + ", ".join(f"{n} {s}" for s, n in counts.items() if n) + f") in {session.seconds:.2f} s")
+        print(
+            f"ingested {emissions} as job {job.job_id} of batch {job.batch_id} on branch {args.branch!r} "
+            f"({rows:,} rows) in {'a scratch lake' if scratch else 'the lake'} {lake}"
+        )
+        print(
+            f"metrics set {args.metrics_set or '(all metrics)'}: {len(results)} evaluated ("
+            + ", ".join(f"{n} {s}" for s, n in counts.items() if n)
+            + f") in {session.seconds:.2f} s"
+        )
         server = _server(create_app(state.backend, dashboard_router=dashboard_router(state)))
         with _stop_on_signals(server):  # from here on Ctrl+C and SIGTERM stop the server, never interrupt
-            print(f"SQL endpoint (Trino protocol): http://{shown_host}:{port} (catalog lake, schema "
-                  f"{args.branch!r})", flush=True)
+            print(
+                f"SQL endpoint (Trino protocol): http://{shown_host}:{port} (catalog lake, schema {args.branch!r})",
+                flush=True,
+            )
             print(f"Dashboard: {url}", flush=True)
             print("Press Ctrl+C to stop.", flush=True)
             if not args.no_browser and _can_open_browser():
@@ -293,8 +352,8 @@ def _server(app: Any) -> Any:
     """A uvicorn server for `app` that gives open requests at most SHUTDOWN_SECONDS once stopped."""
     import uvicorn
 
-    from lakegate.gateway.server.http_limits import server_config
     from lakegate.gateway.engine.limits import Limits
+    from lakegate.gateway.server.http_limits import server_config
 
     return uvicorn.Server(server_config(app, Limits(), timeout_graceful_shutdown=SHUTDOWN_SECONDS))
 
@@ -303,6 +362,7 @@ def _server(app: Any) -> Any:
 def _stop_on_signals(server: Any) -> Iterator[None]:
     """SIGINT and SIGTERM make `server` stop (uvicorn takes them over while it runs, and raises them
     again when it has stopped: they land here too), instead of raising in the middle of whatever runs."""
+
     def stop(signum: int, frame: Any) -> None:
         server.should_exit = True
 

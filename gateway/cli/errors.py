@@ -1,9 +1,11 @@
 """Errors the command line prints as one line (no traceback), and argument checks shared by commands."""
+
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 
 class UserError(Exception):
@@ -23,6 +25,7 @@ def port_number(text: str) -> int:
 
 def positive(kind: type) -> Callable[[str], Any]:
     """An argparse `type` that reads a `kind` (int or float) greater than 0."""
+
     def parse(text: str) -> Any:
         try:
             value = kind(text)
@@ -31,6 +34,7 @@ def positive(kind: type) -> Callable[[str], Any]:
         if not value > 0:
             raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
         return value
+
     return parse
 
 

@@ -1,10 +1,12 @@
 """`lakegate ingest` (emissions files of one job -> the lake) and `lakegate lake ls` (what is in it)."""
+
 from __future__ import annotations
 
 import argparse
 import sys
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 from lakegate.gateway.cli.errors import UserError, writable_lake
 from lakegate.lake.catalog import Catalog
@@ -22,44 +24,77 @@ SHOWN_PROBLEMS = 20
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     ingest = subparsers.add_parser(
-        "ingest", help="ingest the emissions files of one job into the lake",
+        "ingest",
+        help="ingest the emissions files of one job into the lake",
         description="Validate the emissions files (JSON lines) of one job against the branch's topics and write "
-                    "them to the lake as Parquet, with the job's metadata row and events. Re-ingesting a job "
-                    "replaces it. A bad line fails the job (nothing is written) unless --skip-bad-lines.")
-    ingest.add_argument("emissions", nargs="+", type=Path, metavar="EMISSIONS",
-                        help="emissions files of the job (JSON lines, as the Emitter writes them)")
+        "them to the lake as Parquet, with the job's metadata row and events. Re-ingesting a job "
+        "replaces it. A bad line fails the job (nothing is written) unless --skip-bad-lines.",
+    )
+    ingest.add_argument(
+        "emissions",
+        nargs="+",
+        type=Path,
+        metavar="EMISSIONS",
+        help="emissions files of the job (JSON lines, as the Emitter writes them)",
+    )
     ingest.add_argument("--lake", required=True, type=Path, metavar="DIR", help="the lake's directory")
     ingest.add_argument("--branch", required=True, metavar="B", help="the branch the job ran on (any name)")
     ingest.add_argument("--batch", required=True, metavar="ID", help="the id of the job's batch")
     ingest.add_argument("--job", required=True, metavar="ID", help="the job's id")
-    ingest.add_argument("--metadata", type=Path, metavar="FILE",
-                        help="YAML mapping of metadata columns to values (experience_name, build_version, "
-                             "experience_tag_names, time ...); flags below override it")
-    ingest.add_argument("--metrics-config-path", action="append", type=Path, metavar="P", dest="config_paths",
-                        help="config file declaring the topics (repeat to merge several; default: the branch's "
-                             "current config in the lake, else .resim/metrics/config.resim.yaml)")
+    ingest.add_argument(
+        "--metadata",
+        type=Path,
+        metavar="FILE",
+        help="YAML mapping of metadata columns to values (experience_name, build_version, "
+        "experience_tag_names, time ...); flags below override it",
+    )
+    ingest.add_argument(
+        "--metrics-config-path",
+        action="append",
+        type=Path,
+        metavar="P",
+        dest="config_paths",
+        help="config file declaring the topics (repeat to merge several; default: the branch's "
+        "current config in the lake, else .resim/metrics/config.resim.yaml)",
+    )
     ingest.add_argument("--experience-name", help="the experience (scenario) the job ran")
     ingest.add_argument("--build-name", help="the name of the build under test")
     ingest.add_argument("--build-version", help="the version of the build under test")
-    ingest.add_argument("--tag", action="append", dest="tags", metavar="TAG",
-                        help="an experience tag name (repeatable); sets experience_tag_names")
-    ingest.add_argument("--job-status", type=str.upper, choices=JOB_STATUSES,
-                        help="the job's raw status: SUCCEEDED (the default) or FAILED (makes its conflated status "
-                             "ERROR)")
-    ingest.add_argument("--skip-bad-lines", action="store_true",
-                        help="write the good rows and put bad lines, with reasons, in a quarantine file")
-    ingest.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
-                        help="show a progress bar on standard error (default: when it is a terminal)")
+    ingest.add_argument(
+        "--tag",
+        action="append",
+        dest="tags",
+        metavar="TAG",
+        help="an experience tag name (repeatable); sets experience_tag_names",
+    )
+    ingest.add_argument(
+        "--job-status",
+        type=str.upper,
+        choices=JOB_STATUSES,
+        help="the job's raw status: SUCCEEDED (the default) or FAILED (makes its conflated status ERROR)",
+    )
+    ingest.add_argument(
+        "--skip-bad-lines",
+        action="store_true",
+        help="write the good rows and put bad lines, with reasons, in a quarantine file",
+    )
+    ingest.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="show a progress bar on standard error (default: when it is a terminal)",
+    )
     ingest.set_defaults(func=ingest_command)
 
-    lake = subparsers.add_parser("lake", help="look at what is in a lake",
-                                 description="Look at what is in a lake.")
+    lake = subparsers.add_parser("lake", help="look at what is in a lake", description="Look at what is in a lake.")
     commands = lake.add_subparsers(dest="lake_command", metavar="SUBCOMMAND")
     commands.required = True
     ls = commands.add_parser(
-        "ls", help="list branches, or a branch's batches, jobs and tables with row counts",
+        "ls",
+        help="list branches, or a branch's batches, jobs and tables with row counts",
         description="Without --branch, list the lake's branches; with it, the branch's batches, jobs and "
-                    "tables (columns and row counts).")
+        "tables (columns and row counts).",
+    )
     ls.add_argument("--lake", required=True, type=Path, metavar="DIR", help="the lake's directory")
     ls.add_argument("--branch", metavar="B", help="the branch to describe")
     ls.set_defaults(func=ls_command)
@@ -76,8 +111,10 @@ def _config(args: argparse.Namespace) -> Config:
             return current
         found = find_default_config()
         if found is None:
-            raise UserError(f"no config: branch {args.branch!r} has none in the lake yet, and there is no "
-                            ".resim/metrics/config.resim.yaml here; pass --metrics-config-path")
+            raise UserError(
+                f"no config: branch {args.branch!r} has none in the lake yet, and there is no "
+                ".resim/metrics/config.resim.yaml here; pass --metrics-config-path"
+            )
         paths = [found]
     for path in paths:
         if not path.is_file():
@@ -91,8 +128,13 @@ def _metadata(args: argparse.Namespace) -> dict[str, Any]:
         if not args.metadata.is_file():
             raise UserError(f"metadata file {str(args.metadata)!r} does not exist")
         values.update(load_metadata_file(args.metadata))
-    flags = {"experience_name": args.experience_name, "build_name": args.build_name,
-             "build_version": args.build_version, "experience_tag_names": args.tags, "job_status": args.job_status}
+    flags = {
+        "experience_name": args.experience_name,
+        "build_name": args.build_name,
+        "build_version": args.build_version,
+        "experience_tag_names": args.tags,
+        "job_status": args.job_status,
+    }
     values.update({k: v for k, v in flags.items() if v is not None})
     return values
 
@@ -116,8 +158,17 @@ def ingest_command(args: argparse.Namespace) -> int:
     writable_lake(args.lake)
     try:
         config = _config(args)
-        report = ingest_job(args.lake, args.branch, args.batch, args.job, args.emissions, config=config,
-                            metadata=_metadata(args), skip_bad_lines=args.skip_bad_lines, progress=progress)
+        report = ingest_job(
+            args.lake,
+            args.branch,
+            args.batch,
+            args.job,
+            args.emissions,
+            config=config,
+            metadata=_metadata(args),
+            skip_bad_lines=args.skip_bad_lines,
+            progress=progress,
+        )
     except ConfigError as exc:
         _print_problems(f"the config has {len(exc.problems)} problem(s):", [str(p) for p in exc.problems])
         return 1
@@ -126,8 +177,11 @@ def ingest_command(args: argparse.Namespace) -> int:
         return 1
     except IngestError as exc:
         causes = exc.bad_lines.causes.values()
-        _print_problems(exc.summary, [_cause(first, count) for first, count in causes] or
-                        [str(p) for p in exc.problems], len(causes) or exc.total)
+        _print_problems(
+            exc.summary,
+            [_cause(first, count) for first, count in causes] or [str(p) for p in exc.problems],
+            len(causes) or exc.total,
+        )
         return 1
     except (LakePathError, OSError) as exc:
         raise UserError(str(exc)) from None
@@ -139,17 +193,20 @@ def summary(report: IngestReport) -> str:
     """A few lines saying what an ingest wrote."""
     written = {name: rows for name, rows in report.rows.items() if rows}
     total = sum(written.values())
-    lines = [f"ingested job {report.job_id!r} of batch {report.batch_id!r} on branch {report.branch!r}: "
-             f"{total:,} rows in {len(written)} topic(s), {report.events:,} event(s), from {report.lines:,} lines "
-             f"in {report.seconds:.2f} s (config version {report.config_version})"]
+    lines = [
+        f"ingested job {report.job_id!r} of batch {report.batch_id!r} on branch {report.branch!r}: "
+        f"{total:,} rows in {len(written)} topic(s), {report.events:,} event(s), from {report.lines:,} lines "
+        f"in {report.seconds:.2f} s (config version {report.config_version})"
+    ]
     width = max((len(name) for name in written), default=0)
     lines += [f"  {name:<{width}}  {rows:>12,}" for name, rows in written.items()]
     empty = [name for name, rows in report.rows.items() if not rows]
     if empty:
         lines.append(f"  no rows for: {', '.join(empty)}")
     if report.bad_lines:
-        lines.append(f"skipped {report.bad_lines:,} bad line(s), dropping {report.skipped}; they are in "
-                     f"{report.quarantine}")
+        lines.append(
+            f"skipped {report.bad_lines:,} bad line(s), dropping {report.skipped}; they are in {report.quarantine}"
+        )
         lines += [f"  {_cause(first, count)}" for first, count in report.causes[:SHOWN_PROBLEMS]]
         if len(report.causes) > SHOWN_PROBLEMS:
             lines.append(f"  ... and {len(report.causes) - SHOWN_PROBLEMS} more")
@@ -167,7 +224,9 @@ def ls_command(args: argparse.Namespace) -> int:
         for branch in branches:
             jobs = catalog.jobs(branch)
             batches = len({job.batch_id for job in jobs})
-            print(f"{branch}  ({batches} batch{'es' if batches != 1 else ''}, {len(jobs)} job{'s' if len(jobs) != 1 else ''})")
+            print(
+                f"{branch}  ({batches} batch{'es' if batches != 1 else ''}, {len(jobs)} job{'s' if len(jobs) != 1 else ''})"
+            )
         return 0
     if args.branch not in catalog.branches():
         raise UserError(f"no branch {args.branch!r} in {args.lake}")

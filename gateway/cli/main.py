@@ -6,6 +6,7 @@ for the user are raised as `UserError` and printed as one line, without a traceb
 are the `OSError`s of files the user named (a missing folder, a full or read-only disk).
 Exit code 1 for both.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -52,4 +53,3 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("lakegate: interrupted", file=sys.stderr)
         return 130
-

@@ -6,19 +6,27 @@ usage and config errors (nothing evaluated) and when the results or the report c
 written (a read-only or full disk; the lake keeps what it had). Malformed command lines are argparse's: usage
 on standard error and exit code 2, like any argparse program.
 """
+
 from __future__ import annotations
 
 import argparse
 import json
 import sys
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 from lakegate.dialect.errors import DialectError
 from lakegate.gateway.cli.backends import add_backend_arguments, backend_from_args
 from lakegate.gateway.cli.errors import UserError, os_error_text, positive, writable_lake
-from lakegate.gateway.metrics.evaluation import (BLOCKER, ERROR, SEVERITY, BatchEvaluation, MetricResult, MetricsEngine,
-                                      select_metrics)
+from lakegate.gateway.metrics.evaluation import (
+    BLOCKER,
+    ERROR,
+    SEVERITY,
+    BatchEvaluation,
+    MetricResult,
+    MetricsEngine,
+    select_metrics,
+)
 from lakegate.gateway.metrics.report import job_title, write_report
 from lakegate.gateway.metrics.templates import display_value
 from lakegate.lake.catalog import Catalog
@@ -30,50 +38,84 @@ EXIT_OK, EXIT_USAGE, EXIT_BLOCKER, EXIT_ERROR = 0, 1, 2, 3
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    metrics = subparsers.add_parser("metrics", help="store a branch's metrics config, evaluate metrics on a batch",
-                                    description="Store a branch's metrics config, or evaluate a metrics set on a "
-                                                "batch that is in the lake.")
+    metrics = subparsers.add_parser(
+        "metrics",
+        help="store a branch's metrics config, evaluate metrics on a batch",
+        description="Store a branch's metrics config, or evaluate a metrics set on a batch that is in the lake.",
+    )
     commands = metrics.add_subparsers(dest="metrics_command", metavar="SUBCOMMAND")
     commands.required = True
 
     sync = commands.add_parser(
-        "sync", help="store a config as the branch's current metrics config",
+        "sync",
+        help="store a config as the branch's current metrics config",
         description="Check a config file and store it as the branch's current config (earlier versions are "
-                    "kept). Later runs and ingests on the branch use it. Prints the version number.")
+        "kept). Later runs and ingests on the branch use it. Prints the version number.",
+    )
     _lake_and_branch(sync)
-    sync.add_argument("--metrics-config-path", action="append", type=Path, metavar="P", dest="config_paths",
-                      help="the config file (repeat to merge several; default: .resim/metrics/config.resim.yaml "
-                           "in this folder or a parent)")
+    sync.add_argument(
+        "--metrics-config-path",
+        action="append",
+        type=Path,
+        metavar="P",
+        dest="config_paths",
+        help="the config file (repeat to merge several; default: .resim/metrics/config.resim.yaml "
+        "in this folder or a parent)",
+    )
     sync.set_defaults(func=sync_command)
 
     run = commands.add_parser(
-        "run", help="evaluate a metrics set on a batch in the lake",
+        "run",
+        help="evaluate a metrics set on a batch in the lake",
         description="Evaluate a metrics set on a batch already in the lake (no re-ingesting): test metrics on "
-                    "each job, then batch metrics; write the jobs' statuses to their metadata and the results "
-                    "to the metric_results table (replacing the batch's earlier results). Exit code: 0 nothing "
-                    "blocks (warnings allowed), 2 a metric is a BLOCKER, 3 a metric errored or a job failed "
-                    "(and nothing blocks), 1 usage or config error, or the results or report could not be written.")
+        "each job, then batch metrics; write the jobs' statuses to their metadata and the results "
+        "to the metric_results table (replacing the batch's earlier results). Exit code: 0 nothing "
+        "blocks (warnings allowed), 2 a metric is a BLOCKER, 3 a metric errored or a job failed "
+        "(and nothing blocks), 1 usage or config error, or the results or report could not be written.",
+    )
     _lake_and_branch(run)
     run.add_argument("--batch", required=True, metavar="ID", help="the batch to evaluate")
     which = run.add_mutually_exclusive_group(required=True)
     which.add_argument("--metrics-set", metavar="S", help="the metrics set to evaluate (a name from 'metrics sets')")
-    which.add_argument("--all-metrics", action="store_true",
-                       help="evaluate every metric of the config (for configs without metrics sets)")
-    run.add_argument("--metrics-config-path", action="append", type=Path, metavar="P", dest="config_paths",
-                     help="evaluate this config instead of the branch's stored one (repeat to merge several)")
-    run.add_argument("--format", choices=("table", "json"), default="table",
-                     help="output: a table of job x metric -> status and value (default), or JSON with every "
-                          "evaluated metric (batch, job, metric, type, template, status, scalar value, error "
-                          "with line and column)")
-    run.add_argument("--report", type=Path, metavar="FILE.html",
-                     help="also write an offline HTML report with every figure to this file")
+    which.add_argument(
+        "--all-metrics",
+        action="store_true",
+        help="evaluate every metric of the config (for configs without metrics sets)",
+    )
+    run.add_argument(
+        "--metrics-config-path",
+        action="append",
+        type=Path,
+        metavar="P",
+        dest="config_paths",
+        help="evaluate this config instead of the branch's stored one (repeat to merge several)",
+    )
+    run.add_argument(
+        "--format",
+        choices=("table", "json"),
+        default="table",
+        help="output: a table of job x metric -> status and value (default), or JSON with every "
+        "evaluated metric (batch, job, metric, type, template, status, scalar value, error "
+        "with line and column)",
+    )
+    run.add_argument(
+        "--report",
+        type=Path,
+        metavar="FILE.html",
+        help="also write an offline HTML report with every figure to this file",
+    )
     add_backend_arguments(run)
     run.add_argument("--threads", type=positive(int), default=2, metavar="N", help="jobs evaluated at once (default 2)")
-    run.add_argument("--progress", action=argparse.BooleanOptionalAction, default=None,
-                     help="show a progress bar on standard error (default: when it is a terminal)")
+    run.add_argument(
+        "--progress",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="show a progress bar on standard error (default: when it is a terminal)",
+    )
     run.set_defaults(func=run_command)
 
     from lakegate.gateway.cli.debug import add_debug_parser  # `metrics debug` lives in its own module
+
     add_debug_parser(commands)
 
 
@@ -126,8 +168,9 @@ def _run_config(args: argparse.Namespace) -> tuple[Config, int | None]:
     registry = BranchConfigs(args.lake, args.branch)
     version = registry.current_version()
     if version is None:
-        raise UserError(f"branch {args.branch!r} has no stored config: run 'lakegate metrics sync' or pass "
-                        "--metrics-config-path")
+        raise UserError(
+            f"branch {args.branch!r} has no stored config: run 'lakegate metrics sync' or pass --metrics-config-path"
+        )
     return registry.load(version), version
 
 
@@ -159,14 +202,22 @@ def run_command(args: argparse.Namespace) -> int:
     except LakePathError as error:
         raise UserError(str(error)) from None
     if args.batch not in batches:
-        raise UserError(f"no batch {args.batch!r} on branch {args.branch!r} (batches: "
-                        f"{', '.join(repr(b) for b in batches) or 'none'})")
+        raise UserError(
+            f"no batch {args.batch!r} on branch {args.branch!r} (batches: "
+            f"{', '.join(repr(b) for b in batches) or 'none'})"
+        )
     progress = sys.stderr.isatty() if args.progress is None else args.progress
     backend = backend_from_args(args, args.lake)
     try:
         evaluation = MetricsEngine(args.lake, backend, threads=args.threads).evaluate_batch(
-            args.branch, args.batch, metrics, metrics_set=args.metrics_set, config_version=version,
-            progress=progress, keep_figures=args.report is not None)
+            args.branch,
+            args.batch,
+            metrics,
+            metrics_set=args.metrics_set,
+            config_version=version,
+            progress=progress,
+            keep_figures=args.report is not None,
+        )
     except DialectError as error:
         raise UserError(str(error)) from None
     except OSError as error:
@@ -182,8 +233,10 @@ def run_command(args: argparse.Namespace) -> int:
         try:
             path = write_report(evaluation, args.report)
         except OSError as error:
-            raise UserError(f"cannot write the report {str(args.report)!r}: {error.strerror or error} (the "
-                            "results are stored in the lake)") from None
+            raise UserError(
+                f"cannot write the report {str(args.report)!r}: {error.strerror or error} (the "
+                "results are stored in the lake)"
+            ) from None
         print(f"report: {path.resolve()}", file=sys.stderr if args.format == "json" else sys.stdout)
     return exit_code(evaluation)
 
@@ -220,12 +273,14 @@ def format_table(evaluation: BatchEvaluation) -> str:
         if not job.results:
             rows.append((label, "", "(no test metrics)", ""))
     for i, result in enumerate(evaluation.batch_results):
-        rows.append((f"batch {evaluation.batch_metrics_status}" if i == 0 else "", result.status, result.metric,
-                     _value(result)))
+        rows.append(
+            (f"batch {evaluation.batch_metrics_status}" if i == 0 else "", result.status, result.metric, _value(result))
+        )
     header = ("JOB", "STATUS", "METRIC", "VALUE")
     widths = [max(len(row[i]) for row in [header, *rows]) for i in range(3)]
-    lines = ["  ".join(cell.ljust(width) for cell, width in zip(row[:3], widths)) + "  " + row[3]
-             for row in [header, *rows]]
+    lines = [
+        "  ".join(cell.ljust(width) for cell, width in zip(row[:3], widths)) + "  " + row[3] for row in [header, *rows]
+    ]
     counts: dict[str, int] = {}
     for job in evaluation.jobs:
         counts[job.conflated_status] = counts.get(job.conflated_status, 0) + 1
@@ -233,7 +288,9 @@ def format_table(evaluation: BatchEvaluation) -> str:
     metric_set = f"metrics set {evaluation.metrics_set!r}" if evaluation.metrics_set else "all metrics"
     version = f"config version {evaluation.config_version}" if evaluation.config_version else "config not stored"
     lines.append("")
-    lines.append(f"batch {evaluation.batch_id!r} on branch {evaluation.branch!r}: {evaluation.status} "
-                 f"({len(evaluation.jobs)} jobs: {jobs}; {len(evaluation.results())} metric results; "
-                 f"{metric_set}, {version}; {evaluation.seconds:.1f} s)")
+    lines.append(
+        f"batch {evaluation.batch_id!r} on branch {evaluation.branch!r}: {evaluation.status} "
+        f"({len(evaluation.jobs)} jobs: {jobs}; {len(evaluation.results())} metric results; "
+        f"{metric_set}, {version}; {evaluation.seconds:.1f} s)"
+    )
     return "\n".join(line.rstrip() for line in lines)

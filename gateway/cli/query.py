@@ -1,4 +1,5 @@
 """`lakegate query`: run one Trino-dialect query on the embedded DuckDB backend and print the result."""
+
 from __future__ import annotations
 
 import argparse
@@ -10,27 +11,37 @@ from typing import Any, TextIO
 
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
+from lakegate.gateway.cli.errors import UserError
 from lakegate.gateway.engine.backend import QueryResult
 from lakegate.gateway.engine.engine import Engine
-from lakegate.gateway.cli.errors import UserError
 from lakegate.gateway.engine.trino_values import encode_rows
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        "query", help="run one Trino-dialect SQL statement on the lake and print the result",
+        "query",
+        help="run one Trino-dialect SQL statement on the lake and print the result",
         description="Run one Trino-dialect SQL statement on the embedded DuckDB backend and print the result, "
-                    "answered exactly as `lakegate serve` answers it (catalog lake, schema = the branch). "
-                    "Without --lake only constant queries work (SELECT 1 + 1).")
-    parser.add_argument("sql", metavar="SQL", help="the query, in Trino's SQL dialect ('-' reads it from standard input)")
-    parser.add_argument("--lake", type=Path, metavar="DIR",
-                        help="the lake's directory (omit it for queries that read no table)")
+        "answered exactly as `lakegate serve` answers it (catalog lake, schema = the branch). "
+        "Without --lake only constant queries work (SELECT 1 + 1).",
+    )
+    parser.add_argument(
+        "sql", metavar="SQL", help="the query, in Trino's SQL dialect ('-' reads it from standard input)"
+    )
+    parser.add_argument(
+        "--lake", type=Path, metavar="DIR", help="the lake's directory (omit it for queries that read no table)"
+    )
     parser.add_argument("--branch", default="main", metavar="B", help="the branch to query (default: main)")
-    parser.add_argument("--format", choices=("table", "json", "csv"), default="table",
-                        help="output: aligned columns (table, the default), JSON with the Trino protocol's "
-                             "value encoding (json), or RFC 4180 CSV with a header (csv)")
-    parser.add_argument("--explain", action="store_true",
-                        help="print the DuckDB SQL the query translates to instead of running it")
+    parser.add_argument(
+        "--format",
+        choices=("table", "json", "csv"),
+        default="table",
+        help="output: aligned columns (table, the default), JSON with the Trino protocol's "
+        "value encoding (json), or RFC 4180 CSV with a header (csv)",
+    )
+    parser.add_argument(
+        "--explain", action="store_true", help="print the DuckDB SQL the query translates to instead of running it"
+    )
     parser.add_argument("--batch", metavar="ID", help="restrict every table to the rows of this batch")
     parser.add_argument("--job", metavar="ID", help="restrict every table to the rows of this job")
     parser.set_defaults(func=query_command)
@@ -80,8 +91,9 @@ def _text(value: Any, null: str) -> str:
 def write_json(result: QueryResult, out: TextIO) -> None:
     """`{"columns": [{"name", "type"}], "rows": [[...]]}`, values encoded as the Trino protocol does."""
     rows = list(_encoded_rows(result))  # all rows first: an error mid-way must not leave half a document
-    columns = json.dumps([{"name": name, "type": trino_type} for name, trino_type in result.columns],
-                         ensure_ascii=False)
+    columns = json.dumps(
+        [{"name": name, "type": trino_type} for name, trino_type in result.columns], ensure_ascii=False
+    )
     out.write(f'{{"columns": {columns}, "rows": [')
     for i, row in enumerate(rows):
         out.write(("," if i else "") + "\n  " + json.dumps(row, ensure_ascii=False, allow_nan=False))
@@ -100,8 +112,10 @@ def write_csv(result: QueryResult, out: TextIO) -> None:
 def write_table(result: QueryResult, out: TextIO) -> None:
     """Aligned columns under a header, numbers right-aligned, NULL as `NULL`, then the row count."""
     names = [name for name, _ in result.columns]
-    numeric = [t.split("(")[0] in ("tinyint", "smallint", "integer", "bigint", "real", "double", "decimal")
-               for _, t in result.columns]
+    numeric = [
+        t.split("(")[0] in ("tinyint", "smallint", "integer", "bigint", "real", "double", "decimal")
+        for _, t in result.columns
+    ]
     rows = [[_text(value, "NULL").split("\n") for value in row] for row in _encoded_rows(result)]
     widths = [max([len(name), *(len(line) for row in rows for line in row[i])]) for i, name in enumerate(names)]
     out.write(" " + " | ".join(name.center(w) for name, w in zip(names, widths)).rstrip() + "\n")

@@ -8,6 +8,7 @@ Once listening it prints one line, `lakegate: serving <lake> at <url> ...`, to s
 SIGINT / SIGTERM stop it within `STOP_GRACE` seconds whatever its queries do: a shutdown that has
 not finished by then ends the process with a message and exit code 1.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -20,11 +21,11 @@ import sys
 import threading
 from pathlib import Path
 
-from lakegate.gateway.server.auth import Users, UsersFileError, check_listen
 from lakegate.gateway.cli.errors import UserError, port_number
 from lakegate.gateway.cli.errors import positive as _positive
 from lakegate.gateway.engine.introspection import CATALOG
 from lakegate.gateway.engine.limits import Limits
+from lakegate.gateway.server.auth import Users, UsersFileError, check_listen
 
 _DEFAULTS = Limits()
 #: Seconds after the first stop signal when a shutdown still running ends the process.
@@ -33,55 +34,117 @@ STOP_GRACE = 3.5
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser(
-        "serve", help="serve the lake over the Trino client protocol (trino, SQLAlchemy, pandas, BI tools)",
+        "serve",
+        help="serve the lake over the Trino client protocol (trino, SQLAlchemy, pandas, BI tools)",
         description="Serve the lake as a read-only, Trino-compatible SQL endpoint: catalog 'lake' (see --catalog) "
-                    "with one schema per branch, information_schema and the system catalog. Connect with "
-                    "e.g. trino.dbapi.connect(host='127.0.0.1', port=8080, user='me', catalog='lake', "
-                    "schema='main') or the URL trino://me@127.0.0.1:8080/lake/main.")
+        "with one schema per branch, information_schema and the system catalog. Connect with "
+        "e.g. trino.dbapi.connect(host='127.0.0.1', port=8080, user='me', catalog='lake', "
+        "schema='main') or the URL trino://me@127.0.0.1:8080/lake/main.",
+    )
     parser.add_argument("--lake", type=Path, required=True, metavar="DIR", help="the lake's directory")
-    parser.add_argument("--host", default="127.0.0.1",
-                        help="address to listen on (default 127.0.0.1; any other needs --users and TLS)")
-    parser.add_argument("--port", type=port_number, default=8080,
-                        help="port to listen on (default 8080; 0 picks a free one)")
-    parser.add_argument("--allowed-host", action="append", default=[], metavar="NAME[:PORT]",
-                        help="a Host name clients may use besides 127.0.0.1, localhost, [::1] and the address "
-                             "connected to (e.g. a reverse proxy's name; repeatable); others get 421")
+    parser.add_argument(
+        "--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1; any other needs --users and TLS)"
+    )
+    parser.add_argument(
+        "--port", type=port_number, default=8080, help="port to listen on (default 8080; 0 picks a free one)"
+    )
+    parser.add_argument(
+        "--allowed-host",
+        action="append",
+        default=[],
+        metavar="NAME[:PORT]",
+        help="a Host name clients may use besides 127.0.0.1, localhost, [::1] and the address "
+        "connected to (e.g. a reverse proxy's name; repeatable); others get 421",
+    )
     parser.add_argument("--catalog", default=CATALOG, help=f"the lake's catalog name (default: {CATALOG})")
-    parser.add_argument("--users", type=Path, metavar="FILE",
-                        help="require HTTP Basic authentication against this file of 'user:bcrypt-hash' lines")
+    parser.add_argument(
+        "--users",
+        type=Path,
+        metavar="FILE",
+        help="require HTTP Basic authentication against this file of 'user:bcrypt-hash' lines",
+    )
     parser.add_argument("--tls-cert", type=Path, metavar="FILE", help="serve https with this PEM certificate (chain)")
     parser.add_argument("--tls-key", type=Path, metavar="FILE", help="the PEM private key of --tls-cert")
-    parser.add_argument("--query-timeout", type=_positive(float), default=_DEFAULTS.query_timeout, metavar="S",
-                        help=f"seconds a query may run before it fails with EXCEEDED_TIME_LIMIT "
-                             f"(default {_DEFAULTS.query_timeout:g})")
-    parser.add_argument("--max-rows", type=_positive(int), default=_DEFAULTS.max_rows, metavar="N",
-                        help=f"rows a result may have (default {_DEFAULTS.max_rows})")
-    parser.add_argument("--memory-limit", default="2GB", metavar="SIZE",
-                        help="DuckDB memory limit of the server, all branches together, e.g. 2GB or 512MB "
-                             "(default 2GB); a query that needs more fails with EXCEEDED_GLOBAL_MEMORY_LIMIT")
-    parser.add_argument("--threads", type=_positive(int), default=os.cpu_count() or 1, metavar="N",
-                        help="DuckDB threads of the server (all branches together; default: the number of CPUs)")
-    parser.add_argument("--max-concurrent-queries", type=_positive(int), default=_DEFAULTS.max_concurrent_queries,
-                        metavar="N", help=f"queries that run at once; more wait in a queue "
-                                          f"(default {_DEFAULTS.max_concurrent_queries})")
-    parser.add_argument("--client-timeout", type=_positive(float), default=_DEFAULTS.client_timeout, metavar="S",
-                        help=f"seconds a query may go without its client asking for results before it fails with "
-                             f"ABANDONED_QUERY (Trino's query.client.timeout; default {_DEFAULTS.client_timeout:g})")
-    parser.add_argument("--max-queued-queries", type=_positive(int), default=_DEFAULTS.max_queued_queries,
-                        metavar="N", help=f"queries that may wait; more fail with QUERY_QUEUE_FULL "
-                                          f"(default {_DEFAULTS.max_queued_queries})")
-    parser.add_argument("--max-body", type=_positive(int), default=_DEFAULTS.max_body, metavar="BYTES",
-                        help=f"bytes a request body may have; a larger one gets HTTP 413, for /v1/statement with "
-                             f"QUERY_TEXT_TOO_LARGE (default {_DEFAULTS.max_body:,}, Trino's query.max-length)")
-    parser.add_argument("--max-header-bytes", type=_positive(int), default=_DEFAULTS.max_header_bytes,
-                        metavar="BYTES", help=f"bytes a request's line and headers may have; more get HTTP 431 "
-                                              f"(default {_DEFAULTS.max_header_bytes:,})")
-    parser.add_argument("--request-timeout", type=_positive(float), default=_DEFAULTS.request_timeout, metavar="S",
-                        help=f"seconds a request's headers and body may take to arrive; a slower one gets HTTP 408 "
-                             f"and its connection is closed (default {_DEFAULTS.request_timeout:g})")
-    parser.add_argument("--max-connections", type=_positive(int), default=_DEFAULTS.max_connections, metavar="N",
-                        help=f"open connections; more are answered HTTP 503 and closed "
-                             f"(default {_DEFAULTS.max_connections})")
+    parser.add_argument(
+        "--query-timeout",
+        type=_positive(float),
+        default=_DEFAULTS.query_timeout,
+        metavar="S",
+        help=f"seconds a query may run before it fails with EXCEEDED_TIME_LIMIT (default {_DEFAULTS.query_timeout:g})",
+    )
+    parser.add_argument(
+        "--max-rows",
+        type=_positive(int),
+        default=_DEFAULTS.max_rows,
+        metavar="N",
+        help=f"rows a result may have (default {_DEFAULTS.max_rows})",
+    )
+    parser.add_argument(
+        "--memory-limit",
+        default="2GB",
+        metavar="SIZE",
+        help="DuckDB memory limit of the server, all branches together, e.g. 2GB or 512MB "
+        "(default 2GB); a query that needs more fails with EXCEEDED_GLOBAL_MEMORY_LIMIT",
+    )
+    parser.add_argument(
+        "--threads",
+        type=_positive(int),
+        default=os.cpu_count() or 1,
+        metavar="N",
+        help="DuckDB threads of the server (all branches together; default: the number of CPUs)",
+    )
+    parser.add_argument(
+        "--max-concurrent-queries",
+        type=_positive(int),
+        default=_DEFAULTS.max_concurrent_queries,
+        metavar="N",
+        help=f"queries that run at once; more wait in a queue (default {_DEFAULTS.max_concurrent_queries})",
+    )
+    parser.add_argument(
+        "--client-timeout",
+        type=_positive(float),
+        default=_DEFAULTS.client_timeout,
+        metavar="S",
+        help=f"seconds a query may go without its client asking for results before it fails with "
+        f"ABANDONED_QUERY (Trino's query.client.timeout; default {_DEFAULTS.client_timeout:g})",
+    )
+    parser.add_argument(
+        "--max-queued-queries",
+        type=_positive(int),
+        default=_DEFAULTS.max_queued_queries,
+        metavar="N",
+        help=f"queries that may wait; more fail with QUERY_QUEUE_FULL (default {_DEFAULTS.max_queued_queries})",
+    )
+    parser.add_argument(
+        "--max-body",
+        type=_positive(int),
+        default=_DEFAULTS.max_body,
+        metavar="BYTES",
+        help=f"bytes a request body may have; a larger one gets HTTP 413, for /v1/statement with "
+        f"QUERY_TEXT_TOO_LARGE (default {_DEFAULTS.max_body:,}, Trino's query.max-length)",
+    )
+    parser.add_argument(
+        "--max-header-bytes",
+        type=_positive(int),
+        default=_DEFAULTS.max_header_bytes,
+        metavar="BYTES",
+        help=f"bytes a request's line and headers may have; more get HTTP 431 (default {_DEFAULTS.max_header_bytes:,})",
+    )
+    parser.add_argument(
+        "--request-timeout",
+        type=_positive(float),
+        default=_DEFAULTS.request_timeout,
+        metavar="S",
+        help=f"seconds a request's headers and body may take to arrive; a slower one gets HTTP 408 "
+        f"and its connection is closed (default {_DEFAULTS.request_timeout:g})",
+    )
+    parser.add_argument(
+        "--max-connections",
+        type=_positive(int),
+        default=_DEFAULTS.max_connections,
+        metavar="N",
+        help=f"open connections; more are answered HTTP 503 and closed (default {_DEFAULTS.max_connections})",
+    )
     parser.set_defaults(func=serve_command)
 
 
@@ -90,8 +153,12 @@ def _interrupt(signum: int, frame: object) -> None:
 
 
 def _force_exit() -> None:
-    print(f"lakegate: stopped: shutdown did not finish within {STOP_GRACE:g}s of the stop signal "
-          "(query work still running)", file=sys.stderr, flush=True)
+    print(
+        f"lakegate: stopped: shutdown did not finish within {STOP_GRACE:g}s of the stop signal "
+        "(query work still running)",
+        file=sys.stderr,
+        flush=True,
+    )
     os._exit(1)
 
 
@@ -140,7 +207,9 @@ def _check_options(args: argparse.Namespace) -> Users | None:
         try:
             ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER).load_cert_chain(args.tls_cert, args.tls_key)
         except (OSError, ssl.SSLError) as error:
-            raise UserError(f"cannot use the TLS certificate {args.tls_cert} with key {args.tls_key}: {error}") from None
+            raise UserError(
+                f"cannot use the TLS certificate {args.tls_cert} with key {args.tls_key}: {error}"
+            ) from None
     try:
         duckdb.connect(config={"memory_limit": args.memory_limit}).close()
     except duckdb.Error as error:
@@ -159,31 +228,50 @@ def _check_options(args: argparse.Namespace) -> Users | None:
 def serve_command(args: argparse.Namespace) -> int:
     import uvicorn  # the server's imports cost every other command their start-up time: load them here
 
-    from lakegate.gateway.engine.backend import DuckDBBackend
     from lakegate.gateway.dashboard.routes import DashboardState, dashboard_router
-    from lakegate.gateway.server.http_limits import server_config
+    from lakegate.gateway.engine.backend import DuckDBBackend
     from lakegate.gateway.server.app import create_app
+    from lakegate.gateway.server.http_limits import server_config
 
     users = _check_options(args)
-    limits = Limits(query_timeout=args.query_timeout, max_rows=args.max_rows,
-                    max_concurrent_queries=args.max_concurrent_queries, max_queued_queries=args.max_queued_queries,
-                    max_body=args.max_body, max_header_bytes=args.max_header_bytes,
-                    request_timeout=args.request_timeout, max_connections=args.max_connections,
-                    client_timeout=args.client_timeout)
+    limits = Limits(
+        query_timeout=args.query_timeout,
+        max_rows=args.max_rows,
+        max_concurrent_queries=args.max_concurrent_queries,
+        max_queued_queries=args.max_queued_queries,
+        max_body=args.max_body,
+        max_header_bytes=args.max_header_bytes,
+        request_timeout=args.request_timeout,
+        max_connections=args.max_connections,
+        client_timeout=args.client_timeout,
+    )
     sock = _listen(args.host, args.port)
     backend = DuckDBBackend(args.lake, memory_limit=args.memory_limit, threads=args.threads, limits=limits)
     dashboard = DashboardState(args.lake, backend)
     try:
-        app = create_app(backend, catalog_name=args.catalog, limits=limits, users=users,
-                         dashboard_router=dashboard_router(dashboard), allowed_hosts=args.allowed_host)
-        config = server_config(app, limits, timeout_graceful_shutdown=1,
-                               ssl_certfile=str(args.tls_cert) if args.tls_cert else None,
-                               ssl_keyfile=str(args.tls_key) if args.tls_key else None)
+        app = create_app(
+            backend,
+            catalog_name=args.catalog,
+            limits=limits,
+            users=users,
+            dashboard_router=dashboard_router(dashboard),
+            allowed_hosts=args.allowed_host,
+        )
+        config = server_config(
+            app,
+            limits,
+            timeout_graceful_shutdown=1,
+            ssl_certfile=str(args.tls_cert) if args.tls_cert else None,
+            ssl_keyfile=str(args.tls_key) if args.tls_key else None,
+        )
         host, port = sock.getsockname()[:2]
         shown = f"[{host}]" if ":" in host else host
         scheme = "https" if args.tls_cert else "http"
-        print(f"lakegate: serving {args.lake.resolve()} at {scheme}://{shown}:{port} (catalog {args.catalog}); "
-              "Ctrl-C stops", flush=True)
+        print(
+            f"lakegate: serving {args.lake.resolve()} at {scheme}://{shown}:{port} (catalog {args.catalog}); "
+            "Ctrl-C stops",
+            flush=True,
+        )
         # uvicorn shuts down gracefully on SIGINT / SIGTERM, then raises the signal again: both end here
         previous = signal.signal(signal.SIGTERM, _interrupt)
         try:

@@ -18,6 +18,7 @@ on disk stay as `metrics run` left them. A session on a stored batch first shows
 stored `metric_results` when they were evaluated with the same config version and metrics set
 (and nothing was edited).
 """
+
 from __future__ import annotations
 
 import io
@@ -38,7 +39,7 @@ from ruamel.yaml.scalarstring import LiteralScalarString
 
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
-from lakegate.gateway.metrics.evaluation import (EVALUATED_TYPES, MetricResult, MetricsEngine, conflated_status, worst)
+from lakegate.gateway.metrics.evaluation import EVALUATED_TYPES, MetricResult, MetricsEngine, conflated_status, worst
 from lakegate.gateway.metrics.results import read_results
 from lakegate.gateway.metrics.templates import TEMPLATES, json_value
 from lakegate.lake.config import Config, ConfigError, Metric, load_config
@@ -86,8 +87,9 @@ class FileConfig:
             return None
 
     def read(self) -> ConfigFiles:
-        return ConfigFiles(list(self.paths), [p.name for p in self.paths],
-                           [p.read_text(encoding="utf-8") for p in self.paths])
+        return ConfigFiles(
+            list(self.paths), [p.name for p in self.paths], [p.read_text(encoding="utf-8") for p in self.paths]
+        )
 
 
 class BranchConfig:
@@ -102,8 +104,9 @@ class BranchConfig:
     def read(self) -> ConfigFiles:
         version = self.registry.current_version()
         if version is None:
-            raise SessionError(f"branch {self.registry.branch!r} has no stored config "
-                               "(store one with 'lakegate metrics sync')")
+            raise SessionError(
+                f"branch {self.registry.branch!r} has no stored config (store one with 'lakegate metrics sync')"
+            )
         files = self.registry.files(version)
         names = [re.sub(r"^\d+-", "", f.name) for f in files]  # stored as 00-<name>, 01-<name> ...
         return ConfigFiles(files, names, [f.read_text(encoding="utf-8") for f in files], version)
@@ -172,7 +175,7 @@ def _set_keys(node: CommentedMap, fields: dict[str, Any]) -> None:
         if key in node:
             node[key] = _node_value(key, value)
         else:
-            earlier = METRIC_KEYS[:METRIC_KEYS.index(key)]
+            earlier = METRIC_KEYS[: METRIC_KEYS.index(key)]
             position = max((i + 1 for i, k in enumerate(node) if k in earlier), default=0)
             node.insert(position, key, _node_value(key, value))
 
@@ -210,8 +213,9 @@ def _append_entry(mapping: CommentedMap, key: str, value: CommentedMap) -> None:
         after[0].ca.items[after[1]] = [None, None, moved, None]
 
 
-def edited_documents(files: ConfigFiles, base: Config, edits: dict[str, dict], added: dict[str, dict],
-                     metrics_set: str | None) -> list[str]:
+def edited_documents(
+    files: ConfigFiles, base: Config, edits: dict[str, dict], added: dict[str, dict], metrics_set: str | None
+) -> list[str]:
     """The texts of the config files with the session's edits and added metrics applied.
 
     Edits go to the file that defines the metric; added metrics to the file that defines the
@@ -265,9 +269,16 @@ def _images(paths: list[str], root: Path | None) -> list[str]:
 def result_json(result: MetricResult, logs_dir: Path | None) -> dict[str, Any]:
     """One evaluated metric for the page: status, text, figure or table or images, problems, error."""
     rendered = result.rendered
-    out: dict[str, Any] = {"status": result.status, "text": result.value_text, "figure": None, "table": None,
-                           "images": [], "problems": [], "seconds": round(result.seconds, 4),
-                           "error": None if result.error is None else result.error.as_dict()}
+    out: dict[str, Any] = {
+        "status": result.status,
+        "text": result.value_text,
+        "figure": None,
+        "table": None,
+        "images": [],
+        "problems": [],
+        "seconds": round(result.seconds, 4),
+        "error": None if result.error is None else result.error.as_dict(),
+    }
     if rendered is not None:
         out["problems"] = list(rendered.problems)
         if rendered.template == "table":
@@ -285,10 +296,18 @@ def stored_json(row: dict[str, Any], logs_dir: Path | None) -> dict[str, Any]:
     template = row.get("template")
     error = None
     if row.get("error_message") is not None:
-        error = {"message": row["error_message"], "line": row.get("error_line"), "column": row.get("error_column"),
-                 "location": row.get("error_location"), "query": "query" if row.get("error_line") else None}
+        error = {
+            "message": row["error_message"],
+            "line": row.get("error_line"),
+            "column": row.get("error_column"),
+            "location": row.get("error_location"),
+            "query": "query" if row.get("error_line") else None,
+        }
     return {
-        "status": row["status"], "text": row.get("value_text"), "seconds": None, "error": error,
+        "status": row["status"],
+        "text": row.get("value_text"),
+        "seconds": None,
+        "error": error,
         "figure": json.loads(row["figure_json"]) if row.get("figure_json") and template != "table" else None,
         "table": details.get("table") if template == "table" else None,
         "images": _images(details.get("images") or [], logs_dir.resolve() if logs_dir else None),
@@ -300,12 +319,18 @@ def metric_json(metric: Metric, origin: str) -> dict[str, Any]:
     """A metric's definition for the page."""
     status = metric.status
     return {
-        "name": metric.name, "type": metric.type, "template": metric.template,
-        "template_type": metric.template_type, "description": metric.description, "units": metric.units,
-        "query_string": metric.query_string, "origin": origin,
+        "name": metric.name,
+        "type": metric.type,
+        "template": metric.template,
+        "template_type": metric.template_type,
+        "description": metric.description,
+        "units": metric.units,
+        "query_string": metric.query_string,
+        "origin": origin,
         "location": str(metric.location) if metric.location else None,
-        "status": None if status is None else {"query_string": status.query_string,
-                                               "block": json_value(status.block), "warn": json_value(status.warn)},
+        "status": None
+        if status is None
+        else {"query_string": status.query_string, "block": json_value(status.block), "warn": json_value(status.warn)},
     }
 
 
@@ -320,9 +345,18 @@ class DashboardSession:
     returns True when it re-ingested the job (so everything is evaluated again).
     """
 
-    def __init__(self, session_id: str, engine: MetricsEngine, *, branch: str, batch_id: str,
-                 source: FileConfig | BranchConfig, metrics_set: str | None, debug: bool = False,
-                 refresh_data: Callable[[Config], bool] | None = None):
+    def __init__(
+        self,
+        session_id: str,
+        engine: MetricsEngine,
+        *,
+        branch: str,
+        batch_id: str,
+        source: FileConfig | BranchConfig,
+        metrics_set: str | None,
+        debug: bool = False,
+        refresh_data: Callable[[Config], bool] | None = None,
+    ):
         self.id = session_id
         self.engine = engine
         self.branch, self.batch_id = branch, batch_id
@@ -357,8 +391,10 @@ class DashboardSession:
             raise SessionError("the config has problems", [str(p) for p in error.problems]) from None
         if self.metrics_set is not None and self.metrics_set not in base.metrics_sets:
             known = ", ".join(repr(n) for n in base.metrics_sets) or "none"
-            raise SessionError(f"no metrics set {self.metrics_set!r} in the config (sets: {known})",
-                               [f"{files.paths[0]}: no metrics set {self.metrics_set!r} (sets: {known})"])
+            raise SessionError(
+                f"no metrics set {self.metrics_set!r} in the config (sets: {known})",
+                [f"{files.paths[0]}: no metrics set {self.metrics_set!r} (sets: {known})"],
+            )
         dropped = [name for name in self.edits if name not in base.metrics]
         for name in dropped:
             del self.edits[name]
@@ -366,8 +402,9 @@ class DashboardSession:
         clashes = [name for name in self.added if name in base.metrics]
         for name in clashes:
             del self.added[name]
-            self.notices.append(f"metric {name!r} is now defined in the config file; the session's metric of "
-                                "that name was dropped")
+            self.notices.append(
+                f"metric {name!r} is now defined in the config file; the session's metric of that name was dropped"
+            )
         self.config = self._with_edits(files, base, self.edits, self.added)
         self.files, self.base = files, base
 
@@ -386,9 +423,13 @@ class DashboardSession:
             try:
                 config = load_config(paths)
             except ConfigError as error:
-                raise SessionError(error.problems[0].message,
-                                   [f"{Path(p.location.path).name}:{p.location.line}:{p.location.column}: "
-                                    f"{p.message}" for p in error.problems]) from None
+                raise SessionError(
+                    error.problems[0].message,
+                    [
+                        f"{Path(p.location.path).name}:{p.location.line}:{p.location.column}: {p.message}"
+                        for p in error.problems
+                    ],
+                ) from None
         for name, metric in config.metrics.items():
             if name in edits or name in added:
                 metric.location = metric.query_location = None  # the text is the session's, not a file's
@@ -440,7 +481,10 @@ class DashboardSession:
     def _job_rows(self) -> list[dict[str, Any]]:
         answer = self.engine.backend.execute(
             "SELECT job_id, experience_name, job_status, job_metrics_status, job_conflated_status "
-            "FROM metadata ORDER BY time, job_id", branch=self.branch, scope=Scope(batch_id=self.batch_id))
+            "FROM metadata ORDER BY time, job_id",
+            branch=self.branch,
+            scope=Scope(batch_id=self.batch_id),
+        )
         keys = ("job_id", "experience_name", "job_status", "metrics_status", "conflated_status")
         return [dict(zip(keys, row)) for row in answer.rows()]
 
@@ -460,8 +504,10 @@ class DashboardSession:
     def _judge(self, job: dict[str, Any]) -> None:
         """Set a job's statuses (in the session only) from its test metrics."""
         metrics_status = worst(r["status"] for r in self.results.get(job["job_id"], {}).values())
-        job["metrics_status"], job["conflated_status"] = metrics_status, conflated_status(job["job_status"],
-                                                                                          metrics_status)
+        job["metrics_status"], job["conflated_status"] = (
+            metrics_status,
+            conflated_status(job["job_status"], metrics_status),
+        )
 
     def _rejudge(self) -> None:
         """Judge every job again; when a status changed, evaluate the batch metrics again (they may count them)."""
@@ -485,8 +531,9 @@ class DashboardSession:
             metrics = self.metrics()
             self.results = {}
             for job in self.jobs:
-                self.results[job["job_id"]] = {m.name: self._evaluate(m, job["job_id"])
-                                               for m in metrics if m.type == "test"}
+                self.results[job["job_id"]] = {
+                    m.name: self._evaluate(m, job["job_id"]) for m in metrics if m.type == "test"
+                }
                 self._judge(job)
             self.results[None] = {m.name: self._evaluate(m, None) for m in metrics if m.type != "test"}
             self.origin, self.evaluated_at = "evaluated", time.strftime("%Y-%m-%d %H:%M:%S")
@@ -587,25 +634,46 @@ class DashboardSession:
             items = []
             for metric in metrics:
                 where = job_id if metric.type == "test" else None
-                items.append({**metric_json(metric, self.origin_of(metric.name)),
-                              "result": self.results.get(where, {}).get(metric.name)})
+                items.append(
+                    {
+                        **metric_json(metric, self.origin_of(metric.name)),
+                        "result": self.results.get(where, {}).get(metric.name),
+                    }
+                )
             test_names = [m.name for m in metrics if m.type == "test"]
             batch_results = self.results.get(None, {})
             batch_status = worst(r["status"] for r in batch_results.values())
             return {
-                "id": self.id, "debug": self.debug, "branch": self.branch, "batch_id": self.batch_id,
-                "job_id": job_id, "jobs": self.jobs, "metrics_set": self.metrics_set,
+                "id": self.id,
+                "debug": self.debug,
+                "branch": self.branch,
+                "batch_id": self.batch_id,
+                "job_id": job_id,
+                "jobs": self.jobs,
+                "metrics_set": self.metrics_set,
                 "metrics_sets": list(self.config.metrics_sets),
-                "config": {"files": self.files.names, "paths": [str(p) for p in self.files.paths],
-                           "version": self.files.version, "problems": self.problems, "notices": self.notices,
-                           "edited": list(self.edits), "added": list(self.added)},
-                "origin": self.origin, "evaluated_at": self.evaluated_at, "seconds": round(self.seconds, 3),
+                "config": {
+                    "files": self.files.names,
+                    "paths": [str(p) for p in self.files.paths],
+                    "version": self.files.version,
+                    "problems": self.problems,
+                    "notices": self.notices,
+                    "edited": list(self.edits),
+                    "added": list(self.added),
+                },
+                "origin": self.origin,
+                "evaluated_at": self.evaluated_at,
+                "seconds": round(self.seconds, 3),
                 "batch_metrics_status": batch_status,
                 "status": worst([batch_status, *(job["conflated_status"] or "PASSED" for job in self.jobs)]),
                 "metrics": items,
-                "matrix": {"metrics": test_names, "rows": [
-                    {**job, "cells": [_cell(self.results.get(job["job_id"], {}).get(n)) for n in test_names]}
-                    for job in self.jobs]},
+                "matrix": {
+                    "metrics": test_names,
+                    "rows": [
+                        {**job, "cells": [_cell(self.results.get(job["job_id"], {}).get(n)) for n in test_names]}
+                        for job in self.jobs
+                    ],
+                },
                 "templates": list(TEMPLATES),
                 "types": list(EVALUATED_TYPES),
             }
@@ -643,10 +711,15 @@ class DashboardSession:
                 continue
             path = None if "\0" in metric.template_file else (folder / metric.template_file).resolve()
             if path is None or not path.is_relative_to(folder) or path == folder:
-                where = f" ({Path(metric.location.path).name}:{metric.location.line}:{metric.location.column})" \
-                    if metric.location else ""
-                raise SessionError(f"metric {metric.name!r}{where}: template_file {metric.template_file!r} is "
-                                   "outside the config's folder; only files inside it are exported")
+                where = (
+                    f" ({Path(metric.location.path).name}:{metric.location.line}:{metric.location.column})"
+                    if metric.location
+                    else ""
+                )
+                raise SessionError(
+                    f"metric {metric.name!r}{where}: template_file {metric.template_file!r} is "
+                    "outside the config's folder; only files inside it are exported"
+                )
             path = metric.template_path()  # beside the config, else in its templates/ folder
             if path is not None and path.is_relative_to(folder):
                 found[path.relative_to(folder).as_posix()] = path
@@ -666,11 +739,19 @@ class DashboardSession:
         """Every table of the branch with its columns and its row count in `scope`."""
         schema = self.engine.backend.schema(self.branch)
         names = list(schema)
-        sql = " UNION ALL ".join(f"SELECT {i} AS n, count(*) AS c FROM \"{name.replace(chr(34), chr(34) * 2)}\""
-                                 for i, name in enumerate(names))
+        sql = " UNION ALL ".join(
+            f'SELECT {i} AS n, count(*) AS c FROM "{name.replace(chr(34), chr(34) * 2)}"'
+            for i, name in enumerate(names)
+        )
         counts = dict(self.engine.backend.execute(sql, branch=self.branch, scope=scope).rows()) if names else {}
-        return [{"name": name, "columns": [{"name": c, "type": t} for c, t in schema[name].items()],
-                 "rows": counts.get(i, 0)} for i, name in enumerate(names)]
+        return [
+            {
+                "name": name,
+                "columns": [{"name": c, "type": t} for c, t in schema[name].items()],
+                "rows": counts.get(i, 0),
+            }
+            for i, name in enumerate(names)
+        ]
 
     def query(self, sql: str, scope: Scope, limit: int = QUERY_ROWS) -> dict[str, Any]:
         """An ad hoc query: the first `limit` rows and the total row count, or the error with its position."""
@@ -686,10 +767,21 @@ class DashboardSession:
                     columns = [column.to_pylist() for column in part.columns]
                     rows.extend([json_value(v) for v in row] for row in zip(*columns))
         except DialectError as error:
-            return {"error": {"message": error.message, "line": error.line, "column": error.column,
-                              "name": error.error_name}}
-        return {"columns": [{"name": n, "type": t} for n, t in answer.columns], "rows": rows, "total": total,
-                "limit": limit, "seconds": round(time.perf_counter() - started, 4)}
+            return {
+                "error": {
+                    "message": error.message,
+                    "line": error.line,
+                    "column": error.column,
+                    "name": error.error_name,
+                }
+            }
+        return {
+            "columns": [{"name": n, "type": t} for n, t in answer.columns],
+            "rows": rows,
+            "total": total,
+            "limit": limit,
+            "seconds": round(time.perf_counter() - started, 4),
+        }
 
     def events(self, job_id: str) -> list[dict[str, Any]]:
         """The job's events in time order, with their attached metrics."""
@@ -711,8 +803,11 @@ class DashboardSession:
 def _cell(result: dict[str, Any] | None) -> dict[str, Any] | None:
     if result is None:
         return None
-    return {"status": result["status"], "text": result["text"],
-            "error": result["error"]["message"] if result["error"] else None}
+    return {
+        "status": result["status"],
+        "text": result["text"],
+        "error": result["error"]["message"] if result["error"] else None,
+    }
 
 
 def _clean(fields: dict[str, Any]) -> dict[str, Any]:
@@ -726,8 +821,11 @@ def _clean(fields: dict[str, Any]) -> dict[str, Any]:
         if not (status.get("query_string") or "").strip():
             out["status"] = None
         else:
-            out["status"] = {"query_string": status["query_string"], "block": _threshold(status.get("block")),
-                             "warn": _threshold(status.get("warn"))}
+            out["status"] = {
+                "query_string": status["query_string"],
+                "block": _threshold(status.get("block")),
+                "warn": _threshold(status.get("warn")),
+            }
     for key in ("units", "template"):
         if key in out and isinstance(out[key], str) and not out[key].strip():
             out[key] = None

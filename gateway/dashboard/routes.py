@@ -22,6 +22,7 @@ A session (`debug_session.DashboardSession`) is one batch seen through a config 
 made in the page. `lakegate metrics debug` opens one on its debug job; `lakegate serve` mounts
 the same router, and the page opens a session for whichever branch / batch is picked.
 """
+
 from __future__ import annotations
 
 import re
@@ -37,8 +38,8 @@ from fastapi import APIRouter, Body, HTTPException
 from fastapi.responses import FileResponse, JSONResponse, RedirectResponse, Response
 
 from lakegate.dialect.errors import DialectError
-from lakegate.gateway.engine.backend import Backend, DuckDBBackend
 from lakegate.gateway.dashboard.debug_session import BranchConfig, DashboardSession, SessionError
+from lakegate.gateway.engine.backend import Backend, DuckDBBackend
 from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.gateway.metrics.results import read_results
 from lakegate.lake.catalog import Catalog
@@ -83,7 +84,7 @@ class DashboardState:
             if debug:
                 self.debug_session = session
             stored = [sid for sid, s in self.sessions.items() if s is not self.debug_session]
-            for sid in stored[:max(0, len(stored) - MAX_SESSIONS)]:
+            for sid in stored[: max(0, len(stored) - MAX_SESSIONS)]:
                 del self.sessions[sid]
         return session
 
@@ -97,14 +98,19 @@ class DashboardState:
         """A session on a stored batch, seen through the branch's current config (reused when open)."""
         with self._lock:
             for session in self.sessions.values():
-                if (session.branch, session.batch_id) == (branch, batch_id) and not session.debug and (
-                        metrics_set is None or session.metrics_set == metrics_set):
+                if (
+                    (session.branch, session.batch_id) == (branch, batch_id)
+                    and not session.debug
+                    and (metrics_set is None or session.metrics_set == metrics_set)
+                ):
                     self.sessions.move_to_end(session.id)
                     return session
         debug = self.debug_session
         if debug is not None and (debug.branch, debug.batch_id) == (branch, batch_id):
-            raise SessionError("this batch is the debug job of 'lakegate metrics debug': open the Dashboard URL it "
-                               "printed (the one with ?session=...)")
+            raise SessionError(
+                "this batch is the debug job of 'lakegate metrics debug': open the Dashboard URL it "
+                "printed (the one with ?session=...)"
+            )
         if branch not in self.catalog.branches():
             raise SessionError(f"no branch {branch!r} in the lake")
         if batch_id not in self.catalog.batches(branch):
@@ -113,10 +119,12 @@ class DashboardState:
         if metrics_set is None:  # the set of the stored results, else the config's first set
             sets = list(source.registry.current().metrics_sets) if source.registry.current_version() else []
             stored = read_results(self.lake, branch, batch_id)
-            metrics_set = stored[0]["metrics_set"] if stored and stored[0]["metrics_set"] in sets else \
-                sets[0] if sets else None
-        session = DashboardSession(self.new_id(), self.engine, branch=branch, batch_id=batch_id, source=source,
-                                   metrics_set=metrics_set)
+            metrics_set = (
+                stored[0]["metrics_set"] if stored and stored[0]["metrics_set"] in sets else sets[0] if sets else None
+            )
+        session = DashboardSession(
+            self.new_id(), self.engine, branch=branch, batch_id=batch_id, source=source, metrics_set=metrics_set
+        )
         return self.add(session)
 
     def listing(self) -> dict[str, Any]:
@@ -158,14 +166,12 @@ def dashboard_router(state: DashboardState) -> APIRouter:
 
     @router.get("/", include_in_schema=False)
     def page() -> FileResponse:
-        return FileResponse(STATIC / "dashboard.html", media_type="text/html",
-                            headers={"Cache-Control": "no-cache"})
+        return FileResponse(STATIC / "dashboard.html", media_type="text/html", headers={"Cache-Control": "no-cache"})
 
     @router.get("/static/{name}", include_in_schema=False)
     def static(name: str) -> FileResponse:
         if name == "plotly.min.js":
-            return FileResponse(plotly_js(), media_type="text/javascript",
-                                headers={"Cache-Control": "max-age=86400"})
+            return FileResponse(plotly_js(), media_type="text/javascript", headers={"Cache-Control": "max-age=86400"})
         if name not in PAGE_FILES:
             raise HTTPException(404, f"no file {name!r}")
         return FileResponse(STATIC / name, media_type=PAGE_FILES[name], headers={"Cache-Control": "no-cache"})
@@ -176,8 +182,9 @@ def dashboard_router(state: DashboardState) -> APIRouter:
 
     @router.post("/api/sessions")
     def open_session(body: dict[str, Any] = Body(...)) -> dict[str, Any]:
-        session = call(state.open_batch, str(body.get("branch", "")), str(body.get("batch", "")),
-                       body.get("metrics_set") or None)
+        session = call(
+            state.open_batch, str(body.get("branch", "")), str(body.get("batch", "")), body.get("metrics_set") or None
+        )
         return call(session.state, body.get("job"))
 
     @router.get("/api/sessions/{session_id}")
@@ -200,8 +207,9 @@ def dashboard_router(state: DashboardState) -> APIRouter:
         return call(session.state, job)
 
     @router.put("/api/sessions/{session_id}/metrics/{name:path}")
-    def update_metric(session_id: str, name: str, body: dict[str, Any] = Body(...),
-                      job: str | None = None) -> dict[str, Any]:
+    def update_metric(
+        session_id: str, name: str, body: dict[str, Any] = Body(...), job: str | None = None
+    ) -> dict[str, Any]:
         session = state.session(session_id)
         call(session.update_metric, name, body)
         return call(session.state, job)
@@ -217,8 +225,9 @@ def dashboard_router(state: DashboardState) -> APIRouter:
         session = state.session(session_id)
         data = call(session.export_zip)
         stem = Path(session.files.names[0]).name.split(".")[0] if session.files else "config"
-        return Response(data, media_type="application/zip",
-                        headers={"Content-Disposition": attachment(f"{stem}-export.zip")})
+        return Response(
+            data, media_type="application/zip", headers={"Content-Disposition": attachment(f"{stem}-export.zip")}
+        )
 
     @router.get("/api/sessions/{session_id}/tables")
     def tables(session_id: str, scope: str = "job", job: str | None = None) -> dict[str, Any]:
@@ -245,4 +254,3 @@ def dashboard_router(state: DashboardState) -> APIRouter:
             raise HTTPException(404, str(error)) from None
 
     return router
-

@@ -20,8 +20,10 @@ DuckDB's allowed directories cannot be made read-only: raw DuckDB SQL on these c
 still COPY or ATTACH inside the lake directory. No such statement reaches them: the guard refuses
 it, and only a single statement that DuckDB itself parses as a SELECT is ever run.
 """
+
 from __future__ import annotations
 
+import functools
 import hashlib
 import itertools
 import os
@@ -32,9 +34,10 @@ import threading
 import time
 import weakref
 from collections import OrderedDict
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Iterable, Iterator, Protocol, Sequence
+from typing import Protocol
 
 import duckdb
 import pyarrow as pa
@@ -91,8 +94,9 @@ class Backend(Protocol):
     def schema(self, branch: str) -> dict[str, dict[str, str]]:
         """Table -> column -> Trino type name of a branch."""
 
-    def execute(self, sql: str, *, branch: str, scope: Scope | None = None,
-                params: Sequence[object] = ()) -> QueryResult:
+    def execute(
+        self, sql: str, *, branch: str, scope: Scope | None = None, params: Sequence[object] = ()
+    ) -> QueryResult:
         """Start one Trino-dialect query; raises DialectError when it is refused or fails."""
 
 
@@ -105,8 +109,9 @@ def _static(columns: list[tuple[str, str]], rows: list[tuple]) -> QueryResult:
 
 def time_limit_error(seconds: float) -> DialectError:
     """The EXCEEDED_TIME_LIMIT error of a query that ran longer than `seconds`."""
-    return DialectError(f"Query exceeded the maximum execution time limit of {seconds:.2f}s",
-                        error_name="EXCEEDED_TIME_LIMIT")
+    return DialectError(
+        f"Query exceeded the maximum execution time limit of {seconds:.2f}s", error_name="EXCEEDED_TIME_LIMIT"
+    )
 
 
 def _failure(error: BaseException) -> DialectError:
@@ -139,9 +144,16 @@ class Run:
     the first read (so it can be canceled first), holding one of the backend's slots until it ends
     (`release`), and interrupted by a timer when its time is up (it then fails EXCEEDED_TIME_LIMIT)."""
 
-    def __init__(self, cursor: duckdb.DuckDBPyConnection, produce: Callable[[], Iterable[pa.RecordBatch]], *,
-                 release: Callable[[], None] = lambda: None, timeout: float | None = None, remaining: float = 0.0,
-                 failure: Callable[[BaseException], DialectError] = _failure):
+    def __init__(
+        self,
+        cursor: duckdb.DuckDBPyConnection,
+        produce: Callable[[], Iterable[pa.RecordBatch]],
+        *,
+        release: Callable[[], None] = lambda: None,
+        timeout: float | None = None,
+        remaining: float = 0.0,
+        failure: Callable[[BaseException], DialectError] = _failure,
+    ):
         self.cursor, self._produce, self._release, self._failure = cursor, produce, release, failure
         self.timeout = timeout
         self.reason: DialectError | None = None  # why the query was stopped, if it was
@@ -153,7 +165,7 @@ class Run:
             self._timer.start()
         self._batches = self._read()
 
-    def __iter__(self) -> "Run":
+    def __iter__(self) -> Run:
         return self
 
     def __next__(self) -> pa.RecordBatch:
@@ -237,11 +249,13 @@ class _Branch:
         for path in named:
             message = message.replace(f"'{path}'", path).replace(f'"{path}"', path).replace(path, files[path])
         if vanished:
-            return DialectError(f"The data of {files[named[0]]} was replaced while the query read it, "
-                                "again and again; run the query again", error_name="HIVE_FILE_NOT_FOUND")
+            return DialectError(
+                f"The data of {files[named[0]]} was replaced while the query read it, "
+                "again and again; run the query again",
+                error_name="HIVE_FILE_NOT_FOUND",
+            )
         first = message.strip().splitlines()[0].split(": ", 1)[-1]
-        return DialectError(f"Cannot read the Parquet file of {files[named[0]]}: {first}",
-                            error_name="HIVE_BAD_DATA")
+        return DialectError(f"Cannot read the Parquet file of {files[named[0]]}: {first}", error_name="HIVE_BAD_DATA")
 
     def vanished(self, error: BaseException) -> bool:
         """Whether the error is about a listed file that is gone (a writer replaced it)."""
@@ -266,8 +280,16 @@ class DuckDBBackend:
     files of their keys (`with_pending`).
     """
 
-    def __init__(self, lake: Path | None, *, memory_limit: str = "2GB", threads: int = 2, limits: Limits = Limits(),
-                 pending: Sequence[FileEntry] = (), idle_seconds: float = IDLE_SECONDS):
+    def __init__(
+        self,
+        lake: Path | None,
+        *,
+        memory_limit: str = "2GB",
+        threads: int = 2,
+        limits: Limits = Limits(),
+        pending: Sequence[FileEntry] = (),
+        idle_seconds: float = IDLE_SECONDS,
+    ):
         self.lake = Path(lake).resolve() if lake is not None else None
         self.catalog = Catalog(self.lake, pending) if self.lake is not None else None
         self.memory_limit, self.threads, self.limits = memory_limit, threads, limits
@@ -285,10 +307,16 @@ class DuckDBBackend:
         self._temp = tempfile.mkdtemp(prefix="lakegate-duckdb-")
         self._cleanup = weakref.finalize(self, shutil.rmtree, self._temp, ignore_errors=True)
 
-    def with_pending(self, pending: Sequence[FileEntry]) -> "DuckDBBackend":
+    def with_pending(self, pending: Sequence[FileEntry]) -> DuckDBBackend:
         """A new backend over the same lake that already shows `pending` (close it after use)."""
-        return DuckDBBackend(self.lake, memory_limit=self.memory_limit, threads=self.threads, limits=self.limits,
-                             pending=pending, idle_seconds=self.idle_seconds)
+        return DuckDBBackend(
+            self.lake,
+            memory_limit=self.memory_limit,
+            threads=self.threads,
+            limits=self.limits,
+            pending=pending,
+            idle_seconds=self.idle_seconds,
+        )
 
     # -- branches -------------------------------------------------------------------------
 
@@ -320,8 +348,10 @@ class DuckDBBackend:
         directory, configs = found
         if not os.path.isdir(directory):
             known = ", ".join(self.branches()) or "none"
-            raise DialectError(f"Schema '{branch}' does not exist: no branch '{branch}' in the lake "
-                               f"(branches: {known})", error_name="SCHEMA_NOT_FOUND")
+            raise DialectError(
+                f"Schema '{branch}' does not exist: no branch '{branch}' in the lake (branches: {known})",
+                error_name="SCHEMA_NOT_FOUND",
+            )
         self._paths[branch] = found  # only branches that exist
         record = self._records.setdefault(branch, Record(self.lake, branch))
         try:
@@ -332,10 +362,17 @@ class DuckDBBackend:
     def _connect(self) -> duckdb.DuckDBPyConnection:
         """The backend's one database, locked down (made on first use; called under `_lock`)."""
         if self._database is None:
-            database = duckdb.connect(":memory:", config={
-                "threads": self.threads, "memory_limit": self.memory_limit, "temp_directory": self._temp,
-                "autoinstall_known_extensions": False, "autoload_known_extensions": False,
-                "python_enable_replacements": False})
+            database = duckdb.connect(
+                ":memory:",
+                config={
+                    "threads": self.threads,
+                    "memory_limit": self.memory_limit,
+                    "temp_directory": self._temp,
+                    "autoinstall_known_extensions": False,
+                    "autoload_known_extensions": False,
+                    "python_enable_replacements": False,
+                },
+            )
             self._lock_down(database)
             self._database = database
         return self._database
@@ -382,8 +419,9 @@ class DuckDBBackend:
         snapshot = self._load_views(state, branch) if views else self.catalog.snapshot(branch, record, files=False)
         schema = self.catalog.schema(branch, snapshot)
         state.schema, state.stamp, state.loaded = schema, (snapshot.generation, stamp[1]), views
-        state.version = hashlib.sha1(repr(sorted((t, sorted(c.items())) for t, c in schema.items()))
-                                     .encode()).hexdigest()
+        state.version = hashlib.sha1(
+            repr(sorted((t, sorted(c.items())) for t, c in schema.items())).encode()
+        ).hexdigest()
 
     def _load_views(self, state: _Branch, branch: str) -> Snapshot:
         """Replace the branch-wide views by those of the record's current snapshot (a newer one when
@@ -399,16 +437,20 @@ class DuckDBBackend:
         state.views = set(self.catalog.schema(branch, snapshot))
         return snapshot
 
-    def _create_views(self, state: _Branch, branch: str, snapshot: Snapshot, old: Iterable[str] = (),
-                      schema: str | None = None) -> bool:
+    def _create_views(
+        self, state: _Branch, branch: str, snapshot: Snapshot, old: Iterable[str] = (), schema: str | None = None
+    ) -> bool:
         """Create the views of `snapshot` in one transaction (in DuckDB schema `schema`, default the
         branch's own views, dropping the `old` views it no longer has). A file that cannot be read is
         left out (queries of its job fail, `Catalog.view_sql`); False when one was replaced
         meanwhile (a writer committed after the snapshot was read): take a newer snapshot."""
         root = paths.branch_dir(self.lake, branch)
         unreadable: set[str] = set()
-        while (failed := self._swap_views(state, self.catalog.view_sql(branch, snapshot, unreadable=unreadable),
-                                          old, schema)) is not None:
+        while (
+            failed := self._swap_views(
+                state, self.catalog.view_sql(branch, snapshot, unreadable=unreadable), old, schema
+            )
+        ) is not None:
             files = (str(paths.reader_path(root, e.path)) for e in snapshot.files)
             named = {path for path in files if path in failed}
             if named <= unreadable:
@@ -452,8 +494,9 @@ class DuckDBBackend:
                 return found[0]
             name = f"{state.name}.scope_{next(self._scope_ids)}"
             while True:  # a writer may commit meanwhile: the scope's files are then those of its generation
-                snapshot = self.catalog.snapshot(branch, self._records[branch], batch_id=scope.batch_id,
-                                                 job_id=scope.job_id)
+                snapshot = self.catalog.snapshot(
+                    branch, self._records[branch], batch_id=scope.batch_id, job_id=scope.job_id
+                )
                 if self._create_views(state, branch, snapshot, schema=name):
                     break
             root = paths.branch_dir(self.lake, branch)
@@ -477,8 +520,9 @@ class DuckDBBackend:
 
     # -- queries --------------------------------------------------------------------------
 
-    def translate(self, sql: str, *, branch: str = "main", scope: Scope | None = None,
-                  params: Sequence[object] = ()) -> Translation:
+    def translate(
+        self, sql: str, *, branch: str = "main", scope: Scope | None = None, params: Sequence[object] = ()
+    ) -> Translation:
         """The translation of one query over `branch`'s schema (cached by text, scope, params and schema)."""
         return self._translate(self._state(branch), sql, scope, params)
 
@@ -486,8 +530,9 @@ class DuckDBBackend:
     def _translate(state: _Branch, sql: str, scope: Scope | None, params: Sequence[object]) -> Translation:
         return translate(sql, state.schema, scope=scope, params=params, schema_version=state.version)
 
-    def execute(self, sql: str, *, branch: str = "main", scope: Scope | None = None,
-                params: Sequence[object] = ()) -> QueryResult:
+    def execute(
+        self, sql: str, *, branch: str = "main", scope: Scope | None = None, params: Sequence[object] = ()
+    ) -> QueryResult:
         """Translate and start one Trino-dialect query on `branch`, restricted to `scope`, with
         `params` bound to its `?`. Raises DialectError (with position) when refused or failing."""
         deadline = time.monotonic() + self.limits.query_timeout
@@ -496,8 +541,9 @@ class DuckDBBackend:
         except DialectError as error:
             raise self._for_client(error) from None
 
-    def _execute(self, sql: str | bytes, branch: str, scope: Scope | None, params: Sequence[object],
-                 deadline: float) -> QueryResult:
+    def _execute(
+        self, sql: str | bytes, branch: str, scope: Scope | None, params: Sequence[object], deadline: float
+    ) -> QueryResult:
         if not isinstance(sql, str):
             sql = guard.check_text(sql)  # bytes: decoded (or refused) first
         kind = guard.classify(sql)
@@ -507,12 +553,21 @@ class DuckDBBackend:
             return _static(answer.columns, answer.rows)
         if kind == "explain":
             translation, analyze = self._explain(guard.check_text(sql), state, scope, params)
-            return self._start(branch, state, translation, deadline, scope,
-                               explain="EXPLAIN ANALYZE " if analyze else "EXPLAIN ")
+            return self._start(
+                branch, state, translation, deadline, scope, explain="EXPLAIN ANALYZE " if analyze else "EXPLAIN "
+            )
         return self._start(branch, state, self._translate(state, sql, scope, params), deadline, scope)
 
-    def _start(self, branch: str, state: _Branch, translation: Translation, deadline: float,
-               scope: Scope | None, *, explain: str | None = None) -> QueryResult:
+    def _start(
+        self,
+        branch: str,
+        state: _Branch,
+        translation: Translation,
+        deadline: float,
+        scope: Scope | None,
+        *,
+        explain: str | None = None,
+    ) -> QueryResult:
         """Take a slot (waiting at most until `deadline`) and start the translated query on its own
         cursor, reading the views of its `scope` (`_scope_views`); with `explain` ("EXPLAIN " or
         "EXPLAIN ANALYZE "), its plan is the result."""
@@ -523,31 +578,39 @@ class DuckDBBackend:
         cursor = state.cursor()
         try:
             if explain is None:
-                produce: Callable[[], Iterable[pa.RecordBatch]] = self._rows(branch, state, cursor,
-                                                                             translation.duckdb_sql, scope)
+                produce: Callable[[], Iterable[pa.RecordBatch]] = self._rows(
+                    branch, state, cursor, translation.duckdb_sql, scope
+                )
                 columns = list(translation.columns)
             else:
                 if self._scoped(scope):
                     self._use_views(cursor, self._scope_views(state, branch, scope))
                 self._single_select(cursor, translation.duckdb_sql)
-                produce = lambda: [self._plan(cursor, explain + translation.duckdb_sql)]
+                produce = functools.partial(self._plan_batches, cursor, explain + translation.duckdb_sql)
                 columns = [("Query Plan", "varchar")]
         except BaseException as error:
             cursor.close()
             self._slots.release()
-            raise self._for_client(state.failure(error)) if isinstance(error, duckdb.Error) else error
-        run = Run(cursor, produce, release=self._slots.release, timeout=timeout,
-                   remaining=max(0.0, deadline - time.monotonic()),
-                   failure=lambda error: self._for_client(state.failure(error)))
+            raise self._for_client(state.failure(error)) if isinstance(error, duckdb.Error) else error from None
+        run = Run(
+            cursor,
+            produce,
+            release=self._slots.release,
+            timeout=timeout,
+            remaining=max(0.0, deadline - time.monotonic()),
+            failure=lambda error: self._for_client(state.failure(error)),
+        )
         self._runs.add(run)
         return QueryResult(columns=columns, batches=run, duckdb_sql=translation.duckdb_sql, _cancel=run.cancel)
 
-    def _rows(self, branch: str, state: _Branch, cursor: duckdb.DuckDBPyConnection,
-              duckdb_sql: str, scope: Scope | None) -> Callable[[], Iterator[pa.RecordBatch]]:
+    def _rows(
+        self, branch: str, state: _Branch, cursor: duckdb.DuckDBPyConnection, duckdb_sql: str, scope: Scope | None
+    ) -> Callable[[], Iterator[pa.RecordBatch]]:
         """Bind the query on `cursor` now, over the views of its `scope`; the returned function reads
         its record batches. A query that finds a listed file gone before its first row (a writer
         replaced it after the query's views were read) starts again on the branch's views as they
         are now, up to RETRIES times."""
+
         def bind(attempt: _Branch, retries: int) -> duckdb.DuckDBPyRelation:
             try:
                 if self._scoped(scope):
@@ -578,12 +641,16 @@ class DuckDBBackend:
                     if started:
                         raise
                     relation, retries = again(state, error, retries), retries - 1
+
         return read
 
     @staticmethod
     def _use_views(cursor: duckdb.DuckDBPyConnection, schema: str) -> None:
         """Make the cursor's table names resolve to the views of `schema`."""
         cursor.execute(f"SET search_path = '{schema}'")
+
+    def _plan_batches(self, cursor: duckdb.DuckDBPyConnection, explain_sql: str) -> list[pa.RecordBatch]:
+        return [self._plan(cursor, explain_sql)]
 
     def _plan(self, cursor: duckdb.DuckDBPyConnection, explain_sql: str) -> pa.RecordBatch:
         """DuckDB's plan (EXPLAIN [ANALYZE] runs here) as one row, lake paths made relative."""
@@ -621,12 +688,15 @@ class DuckDBBackend:
         statements = cursor.extract_statements(duckdb_sql)
         if len(statements) != 1 or statements[0].type != duckdb.StatementType.SELECT:
             kinds = ", ".join(s.type.name for s in statements)
-            raise DialectError(f"internal error: the translation is not one SELECT ({kinds}); refused",
-                               error_name="GENERIC_INTERNAL_ERROR")
+            raise DialectError(
+                f"internal error: the translation is not one SELECT ({kinds}); refused",
+                error_name="GENERIC_INTERNAL_ERROR",
+            )
         return statements[0]
 
-    def _explain(self, sql: str, state: _Branch, scope: Scope | None, params: Sequence[object]
-                 ) -> tuple[Translation, bool]:
+    def _explain(
+        self, sql: str, state: _Branch, scope: Scope | None, params: Sequence[object]
+    ) -> tuple[Translation, bool]:
         """The translation of the query an EXPLAIN [ANALYZE] explains (errors positioned in the
         whole EXPLAIN text), and whether it is ANALYZE."""
         query, analyze = guard.explained_query(sql)
@@ -638,8 +708,9 @@ class DuckDBBackend:
                 before = sql[:start]
                 line = before.count("\n")
                 column = error.column + (len(before) - before.rfind("\n") - 1 if error.line == 1 else 0)
-                raise DialectError(error.message, line=error.line + line, column=column,
-                                   error_name=error.error_name) from None
+                raise DialectError(
+                    error.message, line=error.line + line, column=column, error_name=error.error_name
+                ) from None
             raise
 
     def stop_all(self) -> None:

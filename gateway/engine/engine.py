@@ -3,10 +3,11 @@ limits, and answers statements as the SQL server does. `lakegate query`, `lakega
 `server.app.create_app`) and the dashboard use it, so they agree on catalog names, on what SHOW,
 DESCRIBE and `information_schema` answer, and on every error.
 """
+
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Callable, Sequence
 
 from lakegate.dialect import guard
 from lakegate.dialect.scope import Scope
@@ -29,16 +30,24 @@ class Engine:
     server has any. The backend stays open when the engine closes unless the engine opened it.
     """
 
-    def __init__(self, backend: Backend, *, catalog: str = CATALOG, limits: Limits = Limits(),
-                 queries: Callable[[str | None], list[tuple]] = lambda user: [], owns_backend: bool = False):
+    def __init__(
+        self,
+        backend: Backend,
+        *,
+        catalog: str = CATALOG,
+        limits: Limits = Limits(),
+        queries: Callable[[str | None], list[tuple]] = lambda user: [],
+        owns_backend: bool = False,
+    ):
         self.backend, self.catalog, self.limits = backend, catalog, limits
-        self.metadata = Metadata(backend, catalog=catalog, queries=queries,
-                                 memory_limit=getattr(backend, "memory_limit", "1GB"))
+        self.metadata = Metadata(
+            backend, catalog=catalog, queries=queries, memory_limit=getattr(backend, "memory_limit", "1GB")
+        )
         self.planner = Planner(backend, self.metadata)
         self._owns_backend = owns_backend
 
     @classmethod
-    def open(cls, lake: Path | None, *, limits: Limits = Limits()) -> "Engine":
+    def open(cls, lake: Path | None, *, limits: Limits = Limits()) -> Engine:
         """An engine over the embedded DuckDB backend of `lake` (None: no tables, constant queries only)."""
         return cls(DuckDBBackend(lake, limits=limits), limits=limits, owns_backend=True)
 
@@ -47,8 +56,11 @@ class Engine:
         has no such branch), with `scope` as its session properties."""
         if branch is not None:
             branch = self.metadata.schema_name(self.catalog, branch)
-        properties = {name: value for name, value in (("batch_id", scope and scope.batch_id),
-                                                        ("job_id", scope and scope.job_id)) if value is not None}
+        properties = {
+            name: value
+            for name, value in (("batch_id", scope and scope.batch_id), ("job_id", scope and scope.job_id))
+            if value is not None
+        }
         return Session(user=user, catalog=self.catalog, schema=branch, properties=properties)
 
     def answer(self, sql: str, session: Session) -> Answer:
@@ -68,4 +80,3 @@ class Engine:
         self.metadata.close()
         if self._owns_backend:
             self.backend.close()
-

@@ -5,11 +5,12 @@ the optional FROM/IN and LIKE 'pattern' [ESCAPE 'c'] Trino allows). Other SHOW s
 NOT_SUPPORTED. What a backend answers to a caller without a session (metrics, the dashboard);
 `lakegate query` and the SQL server answer these statements through the Engine's system tables.
 """
+
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Mapping, Sequence
 
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.statements import Reader
@@ -38,15 +39,17 @@ def _filtered(names: Sequence[str], pattern: re.Pattern | None) -> list[tuple]:
     return [(n,) for n in sorted(names) if pattern is None or pattern.fullmatch(n)]
 
 
-def answer(sql: str, schema: Mapping[str, Mapping[str, str]], *, schemas: Sequence[str] = ("main",),
-           catalog: str = CATALOG) -> Answer:
+def answer(
+    sql: str, schema: Mapping[str, Mapping[str, str]], *, schemas: Sequence[str] = ("main",), catalog: str = CATALOG
+) -> Answer:
     """Answer one SHOW or DESCRIBE statement over `schema` (table -> column -> Trino type);
     `schemas` are the names SHOW SCHEMAS lists (the lake's branches)."""
     reader = Reader(sql)
     if reader.take("DESCRIBE", "DESC"):
         if reader.word() in ("INPUT", "OUTPUT") and len(reader.tokens) > reader.pos + 1:
-            raise DialectError(f"DESCRIBE {reader.word()} is handled by the server (prepared statements)",
-                               error_name="NOT_SUPPORTED")
+            raise DialectError(
+                f"DESCRIBE {reader.word()} is handled by the server (prepared statements)", error_name="NOT_SUPPORTED"
+            )
         parts = reader.parts()
         reader.end()
         return _columns(schema, parts, None)
@@ -75,12 +78,14 @@ def answer(sql: str, schema: Mapping[str, Mapping[str, str]], *, schemas: Sequen
         pattern = reader.like()
         reader.end()
         return Answer([("Catalog", "varchar")], _filtered([catalog], pattern))
-    raise DialectError(f"unsupported in lakegate: SHOW {reader.word()}".rstrip(), line=1, column=1,
-                       error_name="NOT_SUPPORTED")
+    raise DialectError(
+        f"unsupported in lakegate: SHOW {reader.word()}".rstrip(), line=1, column=1, error_name="NOT_SUPPORTED"
+    )
 
 
 def _columns(schema: Mapping[str, Mapping[str, str]], parts: Sequence[str], pattern: re.Pattern | None) -> Answer:
     _, columns = _table(schema, parts)
-    rows = [(name, trino_type, "", "") for name, trino_type in columns.items()
-            if pattern is None or pattern.fullmatch(name)]
+    rows = [
+        (name, trino_type, "", "") for name, trino_type in columns.items() if pattern is None or pattern.fullmatch(name)
+    ]
     return Answer([("Column", "varchar"), ("Type", "varchar"), ("Extra", "varchar"), ("Comment", "varchar")], rows)

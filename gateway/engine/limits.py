@@ -1,4 +1,5 @@
 """What one query and the SQL endpoint may use (`lakegate serve` options; kept free of heavy imports)."""
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -8,17 +9,17 @@ from dataclasses import dataclass
 class Limits:
     """What one query and the server may use; every limit gives a Trino error when exceeded."""
 
-    query_timeout: float = 300.0        # seconds a query may run (queued time not counted)
-    max_rows: int = 10_000_000          # rows a result may have
-    max_concurrent_queries: int = 8     # queries running at once; more wait in a queue
-    max_queued_queries: int = 200       # queries waiting to run; more fail with QUERY_QUEUE_FULL
-    client_timeout: float = 30.0        # a query whose client stops polling for this long is abandoned
-    retention: float = 15.0             # a finished query is kept this long for retried requests
-    page_bytes: int = 1_000_000         # target size of one page of rows
-    wait: float = 1.0                   # longest a GET waits for the next page
-    answer_wait: float = 0.02           # longest a POST waits to answer a fast query (whole) in its reply
-    max_body: int = 1_000_000           # bytes of a request body (Trino's query.max-length); more: HTTP 413
-    max_header_bytes: int = 65_536      # bytes of a request's line and headers; more: HTTP 431
-    request_timeout: float = 30.0       # seconds a request's headers and body may take to arrive; then 408
-    keep_alive: int = 5                 # seconds an idle keep-alive connection stays open
-    max_connections: int = 1000         # open connections; more are answered 503 and closed
+    query_timeout: float = 300.0  # seconds a query may run (queued time not counted)
+    max_rows: int = 10_000_000  # rows a result may have
+    max_concurrent_queries: int = 8  # queries running at once; more wait in a queue
+    max_queued_queries: int = 200  # queries waiting to run; more fail with QUERY_QUEUE_FULL
+    client_timeout: float = 30.0  # a query whose client stops polling for this long is abandoned
+    retention: float = 15.0  # a finished query is kept this long for retried requests
+    page_bytes: int = 1_000_000  # target size of one page of rows
+    wait: float = 1.0  # longest a GET waits for the next page
+    answer_wait: float = 0.02  # longest a POST waits to answer a fast query (whole) in its reply
+    max_body: int = 1_000_000  # bytes of a request body (Trino's query.max-length); more: HTTP 413
+    max_header_bytes: int = 65_536  # bytes of a request's line and headers; more: HTTP 431
+    request_timeout: float = 30.0  # seconds a request's headers and body may take to arrive; then 408
+    keep_alive: int = 5  # seconds an idle keep-alive connection stays open
+    max_connections: int = 1000  # open connections; more are answered 503 and closed

@@ -7,11 +7,12 @@ and 9). Session properties `batch_id` and `job_id` narrow every lake table to on
 (DESIGN.md, "Scopes"). PREPARE is stateless: its SQL travels in `X-Trino-Added-Prepare` and comes
 back in `X-Trino-Prepared-Statement`. Transactions are accepted and do nothing (the lake is read-only).
 """
+
 from __future__ import annotations
 
 import uuid
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Callable, Mapping
 from urllib.parse import quote_plus, unquote_plus
 
 from sqlglot.tokens import TokenType
@@ -27,8 +28,16 @@ PROPERTIES = {
     "job_id": "Narrow every lake table to the rows of this job",
 }
 #: The statements `answer` handles (first words, upper case).
-STATEMENTS = ("USE", "SET SESSION", "RESET SESSION", "PREPARE", "DEALLOCATE PREPARE", "START TRANSACTION",
-              "COMMIT", "ROLLBACK")
+STATEMENTS = (
+    "USE",
+    "SET SESSION",
+    "RESET SESSION",
+    "PREPARE",
+    "DEALLOCATE PREPARE",
+    "START TRANSACTION",
+    "COMMIT",
+    "ROLLBACK",
+)
 
 
 class HeaderError(ValueError):
@@ -98,13 +107,17 @@ def check_properties(session: Session) -> None:
     """Refuse session properties lakegate does not know (as Trino refuses unknown ones), and a session
     time zone other than UTC (zone-dependent functions and casts are evaluated in UTC)."""
     if session.time_zone is not None and session.time_zone.strip().upper() not in ("UTC", "Z", "ETC/UTC", "+00:00"):
-        raise DialectError(f"unsupported in lakegate: session time zone '{session.time_zone}' (X-Trino-Time-Zone); "
-                           "lakegate evaluates time zone dependent functions and casts in UTC only",
-                           error_name="NOT_SUPPORTED")
+        raise DialectError(
+            f"unsupported in lakegate: session time zone '{session.time_zone}' (X-Trino-Time-Zone); "
+            "lakegate evaluates time zone dependent functions and casts in UTC only",
+            error_name="NOT_SUPPORTED",
+        )
     for name in session.properties:
         if name not in PROPERTIES:
-            raise DialectError(f"Session property '{name}' does not exist (lakegate knows {', '.join(PROPERTIES)})",
-                               error_name="INVALID_SESSION_PROPERTY")
+            raise DialectError(
+                f"Session property '{name}' does not exist (lakegate knows {', '.join(PROPERTIES)})",
+                error_name="INVALID_SESSION_PROPERTY",
+            )
 
 
 @dataclass
@@ -125,6 +138,7 @@ def _done(update_type: str, *headers: tuple[str, str]) -> Answer:
 
 # --- reading the statements ------------------------------------------------------------------
 
+
 def statement_name(sql: str) -> str | None:
     """Which of `STATEMENTS` `sql` is (None for any other statement)."""
     first, second = (guard.first_words(sql, 2) + ["", ""])[:2]
@@ -135,8 +149,9 @@ def statement_name(sql: str) -> str | None:
     return None
 
 
-def answer(sql: str, session: Session, resolve_schema: Callable[[str | None, tuple[str, bool]], tuple[str, str]]
-           ) -> Answer:
+def answer(
+    sql: str, session: Session, resolve_schema: Callable[[str | None, tuple[str, bool]], tuple[str, str]]
+) -> Answer:
     """Answer one of `STATEMENTS`. `resolve_schema(catalog, (schema, quoted))` checks a USE target
     and returns the (catalog, schema) names to set (DialectError when either does not exist)."""
     tokens = Reader(sql)
@@ -146,21 +161,30 @@ def answer(sql: str, session: Session, resolve_schema: Callable[[str | None, tup
         parts = tokens.name()
         tokens.end()
         if len(parts) > 2:
-            raise DialectError(f"USE takes schema or catalog.schema, not '{'.'.join(p for p, _ in parts)}'",
-                               line=1, column=5, error_name="SYNTAX_ERROR")
+            raise DialectError(
+                f"USE takes schema or catalog.schema, not '{'.'.join(p for p, _ in parts)}'",
+                line=1,
+                column=5,
+                error_name="SYNTAX_ERROR",
+            )
         catalog = parts[0][0] if len(parts) == 2 else session.catalog
         catalog, schema = resolve_schema(catalog, parts[-1])
         if not schema.isascii():  # HTTP headers carry ASCII only
-            raise DialectError(f"unsupported in lakegate: USE of the schema '{schema}', whose name is not ASCII; "
-                               "qualify the table names instead", error_name="NOT_SUPPORTED")
+            raise DialectError(
+                f"unsupported in lakegate: USE of the schema '{schema}', whose name is not ASCII; "
+                "qualify the table names instead",
+                error_name="NOT_SUPPORTED",
+            )
         return _done("USE", ("X-Trino-Set-Catalog", catalog), ("X-Trino-Set-Schema", schema))
     if name == "SET SESSION":
         prop = _property(tokens.name())
         tokens.expect("=")
         token = tokens.peek()
         if token is None or token.token_type != TokenType.STRING or tokens.pos != len(tokens.tokens) - 1:
-            raise DialectError(f"Session property '{prop}' must be set to a varchar literal ('...')",
-                               error_name="INVALID_SESSION_PROPERTY")
+            raise DialectError(
+                f"Session property '{prop}' must be set to a varchar literal ('...')",
+                error_name="INVALID_SESSION_PROPERTY",
+            )
         return _done("SET SESSION", ("X-Trino-Set-Session", f"{prop}={quote_plus(token.text)}"))
     if name == "RESET SESSION":
         prop = _property(tokens.name())
@@ -191,8 +215,10 @@ def answer(sql: str, session: Session, resolve_schema: Callable[[str | None, tup
 def _property(parts: list[tuple[str, bool]]) -> str:
     name = ".".join(text for text, _ in parts)
     if name not in PROPERTIES:
-        raise DialectError(f"Session property '{name}' does not exist (lakegate knows {', '.join(PROPERTIES)})",
-                           error_name="INVALID_SESSION_PROPERTY")
+        raise DialectError(
+            f"Session property '{name}' does not exist (lakegate knows {', '.join(PROPERTIES)})",
+            error_name="INVALID_SESSION_PROPERTY",
+        )
     return name
 
 

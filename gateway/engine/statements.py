@@ -13,11 +13,12 @@ reads no table runs on the session's branch. Qualifiers (`lake.main.odom`, `"fea
 character keeps its line and column: errors the dialect reports still point into the user's
 original SQL. `version()` is replaced the same way, by a literal as long as the call.
 """
+
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
-from typing import Sequence
 
 import pyarrow as pa
 from sqlglot import exp
@@ -31,22 +32,31 @@ from lakegate.dialect.params import parse_execute
 from lakegate.dialect.statements import Reader
 from lakegate.dialect.translate import parse
 from lakegate.gateway.engine.backend import Backend, QueryResult
-from lakegate.gateway.engine.trino_values import arrow_type
 from lakegate.gateway.engine.session import Answer, Session, check_properties
 from lakegate.gateway.engine.system_tables import Metadata, TableRef
+from lakegate.gateway.engine.trino_values import arrow_type
 
 #: The Trino release whose behaviour lakegate follows, reported by /v1/info and `version()`.
 TRINO_VERSION = "476"
 #: What `version()` becomes: a varchar expression no longer than the call's text `version()`.
 _VERSION = f"'{TRINO_VERSION}'||''"
-_DESCRIBE_OUTPUT = [("Column Name", "varchar"), ("Catalog", "varchar"), ("Schema", "varchar"),
-                    ("Table", "varchar"), ("Type", "varchar"), ("Type Size", "bigint"), ("Aliased", "boolean")]
+_DESCRIBE_OUTPUT = [
+    ("Column Name", "varchar"),
+    ("Catalog", "varchar"),
+    ("Schema", "varchar"),
+    ("Table", "varchar"),
+    ("Type", "varchar"),
+    ("Type Size", "bigint"),
+    ("Aliased", "boolean"),
+]
 
 
 def static_result(answer: Answer) -> QueryResult:
     """A result computed in Python (varchar, bigint and boolean columns) as a QueryResult."""
-    arrays = [pa.array([row[i] for row in answer.rows], arrow_type(tt.parse_type(trino_type)))
-              for i, (_, trino_type) in enumerate(answer.columns)]
+    arrays = [
+        pa.array([row[i] for row in answer.rows], arrow_type(tt.parse_type(trino_type)))
+        for i, (_, trino_type) in enumerate(answer.columns)
+    ]
     batch = pa.record_batch(arrays, names=[name for name, _ in answer.columns])
     return QueryResult(columns=list(answer.columns), batches=iter([batch]))
 
@@ -55,15 +65,15 @@ def static_result(answer: Answer) -> QueryResult:
 class _Reference:
     """A (possibly qualified) table name in the SQL text, or the table qualifier of a column."""
 
-    parts: tuple[str, ...]   # [[catalog.]schema.]table as Trino reads them: unquoted parts lower-cased
-    start: int               # offset of the first part in the text
-    name_start: int          # offset of the table part: [start, name_start) is the qualifier to blank out
+    parts: tuple[str, ...]  # [[catalog.]schema.]table as Trino reads them: unquoted parts lower-cased
+    start: int  # offset of the first part in the text
+    name_start: int  # offset of the table part: [start, name_start) is the qualifier to blank out
 
 
 @dataclass(frozen=True)
 class _Parsed:
     tables: tuple[_Reference, ...]
-    columns: tuple[_Reference, ...]        # columns written `schema.table.column` (or longer)
+    columns: tuple[_Reference, ...]  # columns written `schema.table.column` (or longer)
     ctes: frozenset[str]
     versions: tuple[tuple[int, int], ...]  # (start, end) of each `version()` call
 
@@ -101,8 +111,12 @@ def _parse(sql: str) -> _Parsed:
     if "version" in sql.lower():
         tokens = Trino().tokenize(sql)
         for first, second, third in zip(tokens, tokens[1:], tokens[2:]):
-            if first.token_type in (TokenType.VAR, TokenType.IDENTIFIER) and first.text.lower() == "version" and \
-                    second.token_type == TokenType.L_PAREN and third.token_type == TokenType.R_PAREN:
+            if (
+                first.token_type in (TokenType.VAR, TokenType.IDENTIFIER)
+                and first.text.lower() == "version"
+                and second.token_type == TokenType.L_PAREN
+                and third.token_type == TokenType.R_PAREN
+            ):
                 versions.append((first.start, third.end))
     return _Parsed(tuple(sorted(tables, key=lambda r: r.start)), tuple(columns), ctes, tuple(versions))
 
@@ -127,9 +141,9 @@ def _shifted(error: DialectError, sql: str, offset: int) -> DialectError:
 
 @dataclass
 class _Plan:
-    sql: str                      # the text to run (same length and line breaks as the original)
-    branch: str | None            # the branch whose tables it reads
-    system: list[TableRef]        # the system tables it reads
+    sql: str  # the text to run (same length and line breaks as the original)
+    branch: str | None  # the branch whose tables it reads
+    system: list[TableRef]  # the system tables it reads
 
 
 class Planner:
@@ -157,14 +171,17 @@ class Planner:
                 return static_result(self._describe_prepared(*prepared, session))
         if kind in ("show", "describe"):
             if params:
-                raise DialectError(f"Incorrect number of parameters: expected 0 but found {len(params)}",
-                                   error_name="INVALID_PARAMETER_USAGE")
+                raise DialectError(
+                    f"Incorrect number of parameters: expected 0 but found {len(params)}",
+                    error_name="INVALID_PARAMETER_USAGE",
+                )
             return static_result(self.metadata.show(guard.check_text(sql), session))
         if kind in ("query", "explain"):
             return self._query(sql, session, params, kind)
         if kind in ("session", "call"):
-            raise DialectError("a session statement or CALL cannot be run by EXECUTE; send it on its own",
-                               error_name="NOT_SUPPORTED")
+            raise DialectError(
+                "a session statement or CALL cannot be run by EXECUTE; send it on its own", error_name="NOT_SUPPORTED"
+            )
         guard.check_text(sql)  # refuses writes and unknown statements with Trino's message
         raise DialectError("unsupported in lakegate: this statement", line=1, column=1, error_name="NOT_SUPPORTED")
 
@@ -182,8 +199,12 @@ class Planner:
         if branch is not None:
             return self.backend.execute(plan.sql, branch=branch, scope=session.scope(), params=params)
         if kind == "explain":
-            raise DialectError("unsupported in lakegate: EXPLAIN of a query over system tables",
-                               line=1, column=1, error_name="NOT_SUPPORTED")
+            raise DialectError(
+                "unsupported in lakegate: EXPLAIN of a query over system tables",
+                line=1,
+                column=1,
+                error_name="NOT_SUPPORTED",
+            )
         return self.metadata.run(plan.sql, plan.system, params, user=session.user)
 
     def _default_branch(self, session: Session) -> str | None:
@@ -221,25 +242,41 @@ class Planner:
             read.add(table)
             if len(reference.parts) > 1:
                 if table.table.lower() in parsed.ctes:
-                    raise DialectError(f"unsupported in lakegate: the WITH query '{table.table}' has the name of the "
-                                       f"table '{table}' that this query also reads; rename the WITH query",
-                                       line=line, column=column, error_name="NOT_SUPPORTED")
+                    raise DialectError(
+                        f"unsupported in lakegate: the WITH query '{table.table}' has the name of the "
+                        f"table '{table}' that this query also reads; rename the WITH query",
+                        line=line,
+                        column=column,
+                        error_name="NOT_SUPPORTED",
+                    )
                 edits.append(self._unqualify(sql, start, offset + reference.name_start))
             if table.system:
                 known = system.setdefault(table.table.lower(), table)
                 if known != table:
-                    raise DialectError(f"unsupported in lakegate: a query reads one table named '{table.table}', "
-                                       f"not both {known} and {table}", line=line, column=column,
-                                       error_name="NOT_SUPPORTED")
+                    raise DialectError(
+                        f"unsupported in lakegate: a query reads one table named '{table.table}', "
+                        f"not both {known} and {table}",
+                        line=line,
+                        column=column,
+                        error_name="NOT_SUPPORTED",
+                    )
             elif branch is None:
                 branch = table.schema
             elif branch != table.schema:
-                raise DialectError(f"unsupported in lakegate: a query reads the tables of one schema (branch); this one "
-                                   f"reads '{branch}' and '{table.schema}'", line=line, column=column,
-                                   error_name="NOT_SUPPORTED")
+                raise DialectError(
+                    f"unsupported in lakegate: a query reads the tables of one schema (branch); this one "
+                    f"reads '{branch}' and '{table.schema}'",
+                    line=line,
+                    column=column,
+                    error_name="NOT_SUPPORTED",
+                )
             if branch is not None and system:
-                raise DialectError("unsupported in lakegate: a query cannot read lake tables and system tables "
-                                   "together", line=line, column=column, error_name="NOT_SUPPORTED")
+                raise DialectError(
+                    "unsupported in lakegate: a query cannot read lake tables and system tables together",
+                    line=line,
+                    column=column,
+                    error_name="NOT_SUPPORTED",
+                )
         for reference in parsed.columns:  # schema.table.column: the table must be one the query reads
             start = offset + reference.start
             line, column = _where(sql, start)
@@ -248,8 +285,12 @@ class Planner:
             except DialectError:
                 table = None
             if table not in read:
-                raise DialectError(f"Column prefix '{'.'.join(reference.parts)}' cannot be resolved (no such table "
-                                   "in FROM)", line=line, column=column, error_name="COLUMN_NOT_FOUND")
+                raise DialectError(
+                    f"Column prefix '{'.'.join(reference.parts)}' cannot be resolved (no such table in FROM)",
+                    line=line,
+                    column=column,
+                    error_name="COLUMN_NOT_FOUND",
+                )
             edits.append(self._unqualify(sql, start, offset + reference.name_start))
         for start, end in parsed.versions:
             edits.append((offset + start, offset + end + 1, _VERSION + " " * (end + 1 - start - len(_VERSION))))
@@ -275,8 +316,10 @@ class Planner:
         result = self.start(statement, session, [None] * count)
         result.cancel()
         aliased = _aliased(statement, len(result.columns))
-        rows = [(column, "", "", "", trino_type, _type_size(trino_type), alias)
-                for (column, trino_type), alias in zip(result.columns, aliased)]
+        rows = [
+            (column, "", "", "", trino_type, _type_size(trino_type), alias)
+            for (column, trino_type), alias in zip(result.columns, aliased)
+        ]
         return Answer(_DESCRIBE_OUTPUT, rows)
 
 
@@ -310,8 +353,12 @@ def _aliased(statement: str, count: int) -> list[bool]:
         tree = parse(statement)
     except DialectError:
         return [False] * count
-    if isinstance(tree, exp.Query) and isinstance(tree, exp.Select) and len(tree.expressions) == count \
-            and not any(isinstance(e, exp.Star) for e in tree.expressions):
+    if (
+        isinstance(tree, exp.Query)
+        and isinstance(tree, exp.Select)
+        and len(tree.expressions) == count
+        and not any(isinstance(e, exp.Star) for e in tree.expressions)
+    ):
         return [isinstance(e, exp.Alias) for e in tree.expressions]
     return [False] * count
 
@@ -320,8 +367,21 @@ def _type_size(trino_type: str) -> int:
     """Trino's fixed size in bytes of a type (0 for variable-width types), for DESCRIBE OUTPUT."""
     t = tt.parse_type(trino_type)
     base, args = t.base, t.args
-    sizes = {"bigint": 8, "integer": 4, "smallint": 2, "tinyint": 1, "double": 8, "real": 4, "boolean": 1,
-             "date": 4, "uuid": 16, "interval_ds": 8, "interval_ym": 4, "time": 8, "time_tz": 8}
+    sizes = {
+        "bigint": 8,
+        "integer": 4,
+        "smallint": 2,
+        "tinyint": 1,
+        "double": 8,
+        "real": 4,
+        "boolean": 1,
+        "date": 4,
+        "uuid": 16,
+        "interval_ds": 8,
+        "interval_ym": 4,
+        "time": 8,
+        "time_tz": 8,
+    }
     if base == "decimal":
         return 8 if args[0] <= 18 else 16
     if base == "timestamp":

@@ -11,12 +11,13 @@ System tables are small: a query over them runs on an in-memory DuckDB database 
 `memory_limit`) in which the referenced tables are materialised from the lake's catalog (as Arrow
 tables) for that query, after the same Trino-to-DuckDB translation as any query.
 """
+
 from __future__ import annotations
 
 import re
 import threading
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
-from typing import Callable, Iterable, Sequence
 
 import duckdb
 import pyarrow as pa
@@ -36,16 +37,41 @@ V, B = "varchar", "bigint"
 
 #: information_schema tables (in every catalog): name -> (column, Trino type).
 INFORMATION_SCHEMA_TABLES: dict[str, list[tuple[str, str]]] = {
-    "columns": [("table_catalog", V), ("table_schema", V), ("table_name", V), ("column_name", V),
-                ("ordinal_position", B), ("column_default", V), ("is_nullable", V), ("data_type", V),
-                ("comment", V), ("extra_info", V), ("column_comment", V)],
-    "tables": [("table_catalog", V), ("table_schema", V), ("table_name", V), ("table_type", V),
-               ("trino_relation_type", V), ("table_comment", V)],
+    "columns": [
+        ("table_catalog", V),
+        ("table_schema", V),
+        ("table_name", V),
+        ("column_name", V),
+        ("ordinal_position", B),
+        ("column_default", V),
+        ("is_nullable", V),
+        ("data_type", V),
+        ("comment", V),
+        ("extra_info", V),
+        ("column_comment", V),
+    ],
+    "tables": [
+        ("table_catalog", V),
+        ("table_schema", V),
+        ("table_name", V),
+        ("table_type", V),
+        ("trino_relation_type", V),
+        ("table_comment", V),
+    ],
     "views": [("table_catalog", V), ("table_schema", V), ("table_name", V), ("view_definition", V)],
     "schemata": [("catalog_name", V), ("schema_name", V)],
-    "table_privileges": [("grantor", V), ("grantor_type", V), ("grantee", V), ("grantee_type", V),
-                         ("table_catalog", V), ("table_schema", V), ("table_name", V), ("privilege_type", V),
-                         ("is_grantable", V), ("with_hierarchy", V)],
+    "table_privileges": [
+        ("grantor", V),
+        ("grantor_type", V),
+        ("grantee", V),
+        ("grantee_type", V),
+        ("table_catalog", V),
+        ("table_schema", V),
+        ("table_name", V),
+        ("privilege_type", V),
+        ("is_grantable", V),
+        ("with_hierarchy", V),
+    ],
     "roles": [("role_name", V)],
     "applicable_roles": [("grantee", V), ("grantee_type", V), ("role_name", V), ("is_grantable", V)],
     "enabled_roles": [("role_name", V)],
@@ -56,16 +82,44 @@ SYSTEM_SCHEMAS: dict[str, dict[str, list[tuple[str, str]]]] = {
     "jdbc": {
         "catalogs": [("table_cat", V)],
         "schemas": [("table_schem", V), ("table_catalog", V)],
-        "tables": [("table_cat", V), ("table_schem", V), ("table_name", V), ("table_type", V), ("remarks", V),
-                   ("type_cat", V), ("type_schem", V), ("type_name", V), ("self_referencing_col_name", V),
-                   ("ref_generation", V)],
-        "columns": [("table_cat", V), ("table_schem", V), ("table_name", V), ("column_name", V), ("data_type", B),
-                    ("type_name", V), ("column_size", B), ("buffer_length", B), ("decimal_digits", B),
-                    ("num_prec_radix", B), ("nullable", B), ("remarks", V), ("column_def", V),
-                    ("sql_data_type", B), ("sql_datetime_sub", B), ("char_octet_length", B),
-                    ("ordinal_position", B), ("is_nullable", V), ("scope_catalog", V), ("scope_schema", V),
-                    ("scope_table", V), ("source_data_type", B), ("is_autoincrement", V),
-                    ("is_generatedcolumn", V)],
+        "tables": [
+            ("table_cat", V),
+            ("table_schem", V),
+            ("table_name", V),
+            ("table_type", V),
+            ("remarks", V),
+            ("type_cat", V),
+            ("type_schem", V),
+            ("type_name", V),
+            ("self_referencing_col_name", V),
+            ("ref_generation", V),
+        ],
+        "columns": [
+            ("table_cat", V),
+            ("table_schem", V),
+            ("table_name", V),
+            ("column_name", V),
+            ("data_type", B),
+            ("type_name", V),
+            ("column_size", B),
+            ("buffer_length", B),
+            ("decimal_digits", B),
+            ("num_prec_radix", B),
+            ("nullable", B),
+            ("remarks", V),
+            ("column_def", V),
+            ("sql_data_type", B),
+            ("sql_datetime_sub", B),
+            ("char_octet_length", B),
+            ("ordinal_position", B),
+            ("is_nullable", V),
+            ("scope_catalog", V),
+            ("scope_schema", V),
+            ("scope_table", V),
+            ("source_data_type", B),
+            ("is_autoincrement", V),
+            ("is_generatedcolumn", V),
+        ],
         "table_types": [("table_type", V)],
     },
     "metadata": {
@@ -73,18 +127,55 @@ SYSTEM_SCHEMAS: dict[str, dict[str, list[tuple[str, str]]]] = {
         "table_comments": [("catalog_name", V), ("schema_name", V), ("table_name", V), ("comment", V)],
     },
     "runtime": {
-        "queries": [("query_id", V), ("state", V), ("user", V), ("source", V), ("query", V),
-                    ("resource_group_id", "array(varchar)"), ("queued_time_ms", B), ("analysis_time_ms", B),
-                    ("planning_time_ms", B), ("created", _TS), ("started", _TS), ("last_heartbeat", _TS),
-                    ("end", _TS), ("error_type", V), ("error_code", V)],
+        "queries": [
+            ("query_id", V),
+            ("state", V),
+            ("user", V),
+            ("source", V),
+            ("query", V),
+            ("resource_group_id", "array(varchar)"),
+            ("queued_time_ms", B),
+            ("analysis_time_ms", B),
+            ("planning_time_ms", B),
+            ("created", _TS),
+            ("started", _TS),
+            ("last_heartbeat", _TS),
+            ("end", _TS),
+            ("error_type", V),
+            ("error_code", V),
+        ],
     },
 }
 #: java.sql.Types of Trino base types (system.jdbc.columns.data_type; JAVA_OBJECT otherwise).
-_JDBC_TYPES = {"boolean": 16, "bigint": -5, "integer": 4, "smallint": 5, "tinyint": -6, "real": 7, "double": 8,
-               "decimal": 3, "varchar": 12, "char": 1, "varbinary": -3, "date": 91, "time": 92, "time_tz": 2013,
-               "timestamp": 93, "timestamp_tz": 2014, "array": 2003}
-_FIXED_SIZE = {"bigint": 19, "integer": 10, "smallint": 5, "tinyint": 3, "real": 24, "double": 53, "date": 14,
-               "varbinary": 2147483647}
+_JDBC_TYPES = {
+    "boolean": 16,
+    "bigint": -5,
+    "integer": 4,
+    "smallint": 5,
+    "tinyint": -6,
+    "real": 7,
+    "double": 8,
+    "decimal": 3,
+    "varchar": 12,
+    "char": 1,
+    "varbinary": -3,
+    "date": 91,
+    "time": 92,
+    "time_tz": 2013,
+    "timestamp": 93,
+    "timestamp_tz": 2014,
+    "array": 2003,
+}
+_FIXED_SIZE = {
+    "bigint": 19,
+    "integer": 10,
+    "smallint": 5,
+    "tinyint": 3,
+    "real": 24,
+    "double": 53,
+    "date": 14,
+    "varbinary": 2147483647,
+}
 
 
 @dataclass(frozen=True)
@@ -105,12 +196,25 @@ class Metadata:
     and the system tables. `queries(user)` lists the server's queries that `user` (the session's
     user) may see, as rows of system.runtime.queries."""
 
-    def __init__(self, backend: Backend, *, catalog: str = CATALOG,
-                 queries: Callable[[str | None], list[tuple]] = lambda user: [], memory_limit: str = "1GB"):
+    def __init__(
+        self,
+        backend: Backend,
+        *,
+        catalog: str = CATALOG,
+        queries: Callable[[str | None], list[tuple]] = lambda user: [],
+        memory_limit: str = "1GB",
+    ):
         self.backend, self.catalog, self.queries = backend, catalog, queries
-        self._db = duckdb.connect(":memory:", config={
-            "threads": 1, "memory_limit": memory_limit, "autoinstall_known_extensions": False,
-            "autoload_known_extensions": False, "python_enable_replacements": False})
+        self._db = duckdb.connect(
+            ":memory:",
+            config={
+                "threads": 1,
+                "memory_limit": memory_limit,
+                "autoinstall_known_extensions": False,
+                "autoload_known_extensions": False,
+                "python_enable_replacements": False,
+            },
+        )
         self._db.execute("SET TimeZone = 'UTC'")
         self._db.execute("SET enable_external_access = false")
         self._db.execute("SET lock_configuration = true")
@@ -139,42 +243,53 @@ class Metadata:
 
     def check_catalog(self, catalog: str | None, *, line: int | None = None, column: int | None = None) -> str:
         if catalog is None:
-            raise DialectError("Catalog must be specified when session catalog is not set", line=line,
-                               column=column, error_name="MISSING_CATALOG_NAME")
+            raise DialectError(
+                "Catalog must be specified when session catalog is not set",
+                line=line,
+                column=column,
+                error_name="MISSING_CATALOG_NAME",
+            )
         name = catalog.lower()
         if name not in (self.catalog, SYSTEM):
-            raise DialectError(f"Catalog '{catalog}' not found", line=line, column=column,
-                               error_name="CATALOG_NOT_FOUND")
+            raise DialectError(
+                f"Catalog '{catalog}' not found", line=line, column=column, error_name="CATALOG_NOT_FOUND"
+            )
         return name
 
-    def schema_name(self, catalog: str, schema: str | None, *, line: int | None = None,
-                    column: int | None = None) -> str:
+    def schema_name(
+        self, catalog: str, schema: str | None, *, line: int | None = None, column: int | None = None
+    ) -> str:
         """The existing schema `schema` of `catalog` names (the branch's exact name), else DialectError."""
         if schema is None:
-            raise DialectError("Schema must be specified when session schema is not set", line=line, column=column,
-                               error_name="MISSING_SCHEMA_NAME")
+            raise DialectError(
+                "Schema must be specified when session schema is not set",
+                line=line,
+                column=column,
+                error_name="MISSING_SCHEMA_NAME",
+            )
         names = self.schemas(catalog)
         if schema in names:
             return schema
         matches = [name for name in names if name.lower() == schema.lower()]
         if len(matches) == 1:
             return matches[0]
-        raise DialectError(f"Schema '{schema}' does not exist", line=line, column=column,
-                           error_name="SCHEMA_NOT_FOUND")
+        raise DialectError(f"Schema '{schema}' does not exist", line=line, column=column, error_name="SCHEMA_NOT_FOUND")
 
     def resolve_schema(self, catalog: str | None, schema: tuple[str, bool]) -> tuple[str, str]:
         """USE's target: the (catalog, schema) names to set."""
         catalog = self.check_catalog(catalog)
         return catalog, self.schema_name(catalog, schema[0])
 
-    def resolve(self, parts: Sequence[str], session: Session, *, line: int | None = None,
-                column: int | None = None) -> TableRef:
+    def resolve(
+        self, parts: Sequence[str], session: Session, *, line: int | None = None, column: int | None = None
+    ) -> TableRef:
         """The table `parts` ([[catalog.]schema.]table) names in `session`; DialectError (at
         line/column) when its catalog, schema or table does not exist."""
         table = parts[-1].lower()
         if len(parts) > 3:
-            raise DialectError(f"Too many dots in table name: {'.'.join(parts)}", line=line, column=column,
-                               error_name="SYNTAX_ERROR")
+            raise DialectError(
+                f"Too many dots in table name: {'.'.join(parts)}", line=line, column=column, error_name="SYNTAX_ERROR"
+            )
         catalog = self.check_catalog(parts[0] if len(parts) == 3 else session.catalog, line=line, column=column)
         if len(parts) == 1 and session.schema is None:
             self.schema_name(catalog, None, line=line, column=column)
@@ -182,8 +297,12 @@ class Metadata:
         tables = self.tables(catalog, schema)
         name = next((t for t in tables if t.lower() == table), None)
         if name is None:
-            raise DialectError(f"Table '{catalog}.{schema}.{table}' does not exist", line=line, column=column,
-                               error_name="TABLE_NOT_FOUND")
+            raise DialectError(
+                f"Table '{catalog}.{schema}.{table}' does not exist",
+                line=line,
+                column=column,
+                error_name="TABLE_NOT_FOUND",
+            )
         return TableRef(catalog, schema, name, system=catalog == SYSTEM or schema == INFORMATION_SCHEMA)
 
     # -- system table rows ----------------------------------------------------------------
@@ -203,9 +322,11 @@ class Metadata:
             if table == "tables":
                 return [(c, s, t, "BASE TABLE", "TABLE", None) for c, s, t, _ in self._all_tables([catalog])]
             if table == "columns":
-                return [(c, s, t, name, i, None, "YES", trino_type, None, None, None)
-                        for c, s, t, cols in self._all_tables([catalog])
-                        for i, (name, trino_type) in enumerate(cols, 1)]
+                return [
+                    (c, s, t, name, i, None, "YES", trino_type, None, None, None)
+                    for c, s, t, cols in self._all_tables([catalog])
+                    for i, (name, trino_type) in enumerate(cols, 1)
+                ]
             return []  # views, privileges and roles: none
         everything = self.catalogs()
         if (schema, table) == ("jdbc", "catalogs"):
@@ -213,10 +334,15 @@ class Metadata:
         if (schema, table) == ("jdbc", "schemas"):
             return [(s, c) for c in everything for s in self.schemas(c)]
         if (schema, table) == ("jdbc", "tables"):
-            return [(c, s, t, "TABLE", None, None, None, None, None, None) for c, s, t, _ in self._all_tables(everything)]
+            return [
+                (c, s, t, "TABLE", None, None, None, None, None, None) for c, s, t, _ in self._all_tables(everything)
+            ]
         if (schema, table) == ("jdbc", "columns"):
-            return [_jdbc_column(c, s, t, name, trino_type, i) for c, s, t, cols in self._all_tables(everything)
-                    for i, (name, trino_type) in enumerate(cols, 1)]
+            return [
+                _jdbc_column(c, s, t, name, trino_type, i)
+                for c, s, t, cols in self._all_tables(everything)
+                for i, (name, trino_type) in enumerate(cols, 1)
+            ]
         if (schema, table) == ("jdbc", "table_types"):
             return [("TABLE",), ("VIEW",)]
         if (schema, table) == ("metadata", "catalogs"):
@@ -230,13 +356,18 @@ class Metadata:
     def arrow(self, ref: TableRef, user: str | None = None) -> pa.Table:
         columns = self.tables(ref.catalog, ref.schema)[ref.table]
         rows = self.rows(ref, user)
-        return pa.table({name: pa.array([row[i] for row in rows], arrow_type(tt.parse_type(trino_type)))
-                         for i, (name, trino_type) in enumerate(columns)})
+        return pa.table(
+            {
+                name: pa.array([row[i] for row in rows], arrow_type(tt.parse_type(trino_type)))
+                for i, (name, trino_type) in enumerate(columns)
+            }
+        )
 
     # -- queries over system tables -------------------------------------------------------
 
-    def run(self, sql: str, refs: Sequence[TableRef], params: Sequence[object] = (),
-            user: str | None = None) -> QueryResult:
+    def run(
+        self, sql: str, refs: Sequence[TableRef], params: Sequence[object] = (), user: str | None = None
+    ) -> QueryResult:
         """Start one Trino query whose (unqualified) table names are the `refs`' table names, over
         those system tables as `user` sees them. Raises DialectError; the result streams and can be
         canceled."""
@@ -250,10 +381,11 @@ class Metadata:
             relation = cursor.sql(translation.duckdb_sql)
         except BaseException as error:
             cursor.close()
-            raise runtime_error(str(error)) if isinstance(error, duckdb.Error) else error
+            raise runtime_error(str(error)) if isinstance(error, duckdb.Error) else error from None
         run = Run(cursor, lambda: relation.to_arrow_reader(BATCH_ROWS))
-        return QueryResult(columns=list(translation.columns), batches=run,
-                           duckdb_sql=translation.duckdb_sql, _cancel=run.cancel)
+        return QueryResult(
+            columns=list(translation.columns), batches=run, duckdb_sql=translation.duckdb_sql, _cancel=run.cancel
+        )
 
     def close(self) -> None:
         self._db.close()
@@ -297,16 +429,23 @@ class Metadata:
         if reader.take("SESSION"):
             pattern = reader.like()
             reader.end()
-            rows = [(name, session.properties.get(name, ""), "", V, description)
-                    for name, description in PROPERTIES.items() if pattern is None or pattern.fullmatch(name)]
+            rows = [
+                (name, session.properties.get(name, ""), "", V, description)
+                for name, description in PROPERTIES.items()
+                if pattern is None or pattern.fullmatch(name)
+            ]
             return Answer([("Name", V), ("Value", V), ("Default", V), ("Type", V), ("Description", V)], rows)
-        raise DialectError(f"unsupported in lakegate: SHOW {reader.word()}".rstrip(), line=1, column=1,
-                           error_name="NOT_SUPPORTED")
+        raise DialectError(
+            f"unsupported in lakegate: SHOW {reader.word()}".rstrip(), line=1, column=1, error_name="NOT_SUPPORTED"
+        )
 
     def _columns(self, parts: list[str], session: Session, pattern: re.Pattern | None) -> Answer:
         ref = self.resolve(parts, session)
-        rows = [(name, trino_type, "", "") for name, trino_type in self.tables(ref.catalog, ref.schema)[ref.table]
-                if pattern is None or pattern.fullmatch(name)]
+        rows = [
+            (name, trino_type, "", "")
+            for name, trino_type in self.tables(ref.catalog, ref.schema)[ref.table]
+            if pattern is None or pattern.fullmatch(name)
+        ]
         return Answer([("Column", V), ("Type", V), ("Extra", V), ("Comment", V)], rows)
 
 
@@ -331,7 +470,36 @@ def _jdbc_column(catalog: str, schema: str, table: str, name: str, trino_type: s
     elif base == "timestamp_tz":
         size, digits = 23 + min(args[0], 1) + args[0] + 32, args[0]
     radix = 10 if t.is_integral or base == "decimal" else 2 if base in ("real", "double") else None
-    octets = (args[0] if args else tt.MAX_VARCHAR) if base in ("varchar", "char") else \
-        2147483647 if base == "varbinary" else None
-    return (catalog, schema, table, name, _JDBC_TYPES.get(base, 2000), trino_type, size, 0, digits, radix, 2,
-            None, None, None, None, octets, position, "", None, None, None, None, None, None)
+    octets = (
+        (args[0] if args else tt.MAX_VARCHAR)
+        if base in ("varchar", "char")
+        else 2147483647
+        if base == "varbinary"
+        else None
+    )
+    return (
+        catalog,
+        schema,
+        table,
+        name,
+        _JDBC_TYPES.get(base, 2000),
+        trino_type,
+        size,
+        0,
+        digits,
+        radix,
+        2,
+        None,
+        None,
+        None,
+        None,
+        octets,
+        position,
+        "",
+        None,
+        None,
+        None,
+        None,
+        None,
+        None,
+    )

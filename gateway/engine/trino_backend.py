@@ -10,12 +10,14 @@ The text sent is the user's text with only the scope and parameter edits spliced
 `odom o` becomes `(SELECT * FROM odom WHERE batch_id = 'B') o`, each `?` its literal, a trailing `;`
 dropped), so an error position the cluster reports maps back exactly to the user's SQL.
 """
+
 from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterator, Mapping, Sequence
+from typing import Any
 from urllib.parse import urlparse
 
 import pyarrow as pa
@@ -24,7 +26,8 @@ import trino
 from sqlglot import exp
 from sqlglot.tokens import TokenType
 
-from lakegate.dialect import guard, params as parameters
+from lakegate.dialect import guard
+from lakegate.dialect import params as parameters
 from lakegate.dialect.errors import ERROR_CODES, DialectError
 from lakegate.dialect.scope import Scope, restrict
 from lakegate.dialect.translate import LakegateTrino, parse
@@ -40,6 +43,7 @@ TABLES_TTL = 1.0
 
 
 # --- the forwarded text ---------------------------------------------------------------------------
+
 
 def _offset(text: str, line: int, column: int) -> int:
     """The character offset of a 1-based (line, column) in `text`, clamped to the text."""
@@ -91,15 +95,17 @@ def _span(table: exp.Table) -> tuple[int, int] | None:
 
 
 def _scoped_reference(text: str, table: exp.Table, span: tuple[int, int], scope: Scope) -> str:
-    name = text[span[0]:span[1]]
-    condition = " AND ".join(f"{column} = {exp.Literal.string(value).sql(dialect=LakegateTrino)}"
-                             for column, value in scope.conditions())
-    alias = "" if table.args.get("alias") else " " + text[table.this.meta["start"]:table.this.meta["end"] + 1]
+    name = text[span[0] : span[1]]
+    condition = " AND ".join(
+        f"{column} = {exp.Literal.string(value).sql(dialect=LakegateTrino)}" for column, value in scope.conditions()
+    )
+    alias = "" if table.args.get("alias") else " " + text[table.this.meta["start"] : table.this.meta["end"] + 1]
     return f"(SELECT * FROM {name} WHERE {condition}){alias}"
 
 
-def _edits(text: str, tree: exp.Expression, scope: Scope | None, params: Sequence[object],
-           tables: set[str]) -> list[tuple[int, int, str]] | None:
+def _edits(
+    text: str, tree: exp.Expression, scope: Scope | None, params: Sequence[object], tables: set[str]
+) -> list[tuple[int, int, str]] | None:
     """(start, end, replacement) edits of one statement's text; None when a position is unknown."""
     edits = []
     before = list(tree.find_all(exp.Table))
@@ -123,8 +129,13 @@ def _edits(text: str, tree: exp.Expression, scope: Scope | None, params: Sequenc
     return sorted(edits)
 
 
-def forwarded_sql(sql: str | bytes, *, scope: Scope | None = None, params: Sequence[object] = (),
-                  tables: set[str] | Callable[[exp.Expression], set[str]] = frozenset()) -> Forwarded:
+def forwarded_sql(
+    sql: str | bytes,
+    *,
+    scope: Scope | None = None,
+    params: Sequence[object] = (),
+    tables: set[str] | Callable[[exp.Expression], set[str]] = frozenset(),
+) -> Forwarded:
     """The Trino text to send for one query: guard-checked (read-only: queries, SHOW, DESCRIBE,
     EXPLAIN), every lake table in `tables` restricted to `scope`, `?` bound to `params`. `tables`
     may be a function of the parsed query. Raises DialectError with the position in `sql`."""
@@ -170,6 +181,7 @@ def forwarded_sql(sql: str | bytes, *, scope: Scope | None = None, params: Seque
 
 # --- values ---------------------------------------------------------------------------------------
 
+
 def _converter(t: TType) -> Callable[[Any], Any] | None:
     """How to turn one client value of `t` into what `pa.array` takes (None: as it is)."""
     base, args = t.base, t.args
@@ -207,8 +219,10 @@ def _result_column(name: str, type_name: str) -> _Column:
         t = parse_type(type_name)
         return _Column(name, str(t), arrow_type(t), _converter(t))
     except ValueError:
-        raise DialectError(f"result column '{name}' has type {type_name}, which lakegate cannot carry "
-                           "(cast it to varchar)", error_name="NOT_SUPPORTED") from None
+        raise DialectError(
+            f"result column '{name}' has type {type_name}, which lakegate cannot carry (cast it to varchar)",
+            error_name="NOT_SUPPORTED",
+        ) from None
 
 
 def _batch(columns: list[_Column], rows: list[list[Any]]) -> pa.RecordBatch:
@@ -223,12 +237,22 @@ def _batch(columns: list[_Column], rows: list[list[Any]]) -> pa.RecordBatch:
 
 # --- errors ---------------------------------------------------------------------------------------
 
+
 class RemoteQueryError(DialectError):
     """An error the Trino cluster reported for a forwarded query: its error name, code and type,
     and its position mapped back to the user's SQL."""
 
-    def __init__(self, message: str, *, line: int | None, column: int | None, error_name: str,
-                 error_code: int | None, error_type: str | None, query_id: str | None):
+    def __init__(
+        self,
+        message: str,
+        *,
+        line: int | None,
+        column: int | None,
+        error_name: str,
+        error_code: int | None,
+        error_type: str | None,
+        query_id: str | None,
+    ):
         super().__init__(message, line=line, column=column, error_name=error_name)
         self.remote_code, self.error_type, self.query_id = error_code, error_type, query_id
 
@@ -247,6 +271,7 @@ def _strip_location(message: str) -> str:
 
 
 # --- the backend ----------------------------------------------------------------------------------
+
 
 class _Session(requests.Session):
     """An HTTP session whose own `verify` (a CA bundle, or False) wins over REQUESTS_CA_BUNDLE and
@@ -275,10 +300,19 @@ class TrinoBackend:
     CA bundle path. Results are read in UTC, like the DuckDB backend's.
     """
 
-    def __init__(self, url: str, *, user: str = "lakegate", catalog: str = "hive",
-                 schema_map: Mapping[str, str] | None = None, schema_prefix: str = "",
-                 password: str | None = None, jwt: str | None = None, verify: bool | str = True,
-                 request_timeout: float = 60.0):
+    def __init__(
+        self,
+        url: str,
+        *,
+        user: str = "lakegate",
+        catalog: str = "hive",
+        schema_map: Mapping[str, str] | None = None,
+        schema_prefix: str = "",
+        password: str | None = None,
+        jwt: str | None = None,
+        verify: bool | str = True,
+        request_timeout: float = 60.0,
+    ):
         parsed = urlparse(url)
         if parsed.scheme not in ("http", "https") or not parsed.hostname:
             raise ValueError(f"--trino-url {url!r} is not an http:// or https:// URL")
@@ -291,8 +325,13 @@ class TrinoBackend:
         schema_name("main", schema_prefix)  # checks the prefix
         self._host, self._scheme = parsed.hostname, parsed.scheme
         self._port = parsed.port or (443 if parsed.scheme == "https" else 8080)
-        self._auth = (trino.auth.BasicAuthentication(user, password) if password is not None
-                      else trino.auth.JWTAuthentication(jwt) if jwt is not None else None)
+        self._auth = (
+            trino.auth.BasicAuthentication(user, password)
+            if password is not None
+            else trino.auth.JWTAuthentication(jwt)
+            if jwt is not None
+            else None
+        )
         self._verify, self._timeout = verify, request_timeout
         self._local = threading.local()
         self._connections: list = []
@@ -327,10 +366,18 @@ class TrinoBackend:
             session = _Session()
             session.verify = self._verify
             connection = trino.dbapi.connect(
-                host=self._host, port=self._port, http_scheme=self._scheme, user=self.user,
-                catalog=self.catalog, schema=self.schema_for(branch) if branch is not None else None,
-                auth=self._auth, http_session=session, source="lakegate", timezone="UTC",
-                request_timeout=self._timeout)
+                host=self._host,
+                port=self._port,
+                http_scheme=self._scheme,
+                user=self.user,
+                catalog=self.catalog,
+                schema=self.schema_for(branch) if branch is not None else None,
+                auth=self._auth,
+                http_session=session,
+                source="lakegate",
+                timezone="UTC",
+                request_timeout=self._timeout,
+            )
             connections[branch] = connection
             with self._lock:
                 self._connections.append(connection)
@@ -344,10 +391,15 @@ class TrinoBackend:
             line = column = None
             if error.error_location is not None and forwarded is not None:
                 line, column = forwarded.user_position(*error.error_location)
-            return RemoteQueryError(_strip_location(error.message), line=line, column=column,
-                                    error_name=error.error_name or "GENERIC_INTERNAL_ERROR",
-                                    error_code=error.error_code, error_type=error.error_type,
-                                    query_id=error.query_id)
+            return RemoteQueryError(
+                _strip_location(error.message),
+                line=line,
+                column=column,
+                error_name=error.error_name or "GENERIC_INTERNAL_ERROR",
+                error_code=error.error_code,
+                error_type=error.error_type,
+                query_id=error.query_id,
+            )
         return DialectError(f"the Trino cluster at {self.url} failed: {error}", error_name="GENERIC_INTERNAL_ERROR")
 
     def _query(self, branch: str | None, sql: str) -> list[list[Any]]:
@@ -363,10 +415,13 @@ class TrinoBackend:
 
     def schema(self, branch: str = "main") -> dict[str, dict[str, str]]:
         """Table -> column -> Trino type name of the branch's schema in the cluster."""
-        rows = self._query(branch, "SELECT table_name, column_name, data_type "
-                                   f"FROM {quote_ident(self.catalog)}.information_schema.columns "
-                                   f"WHERE table_schema = {quote_text(self.schema_for(branch))} "
-                                   "ORDER BY table_name, ordinal_position")
+        rows = self._query(
+            branch,
+            "SELECT table_name, column_name, data_type "
+            f"FROM {quote_ident(self.catalog)}.information_schema.columns "
+            f"WHERE table_schema = {quote_text(self.schema_for(branch))} "
+            "ORDER BY table_name, ordinal_position",
+        )
         schema: dict[str, dict[str, str]] = {}
         for table, column, type_name in rows:
             try:
@@ -393,14 +448,20 @@ class TrinoBackend:
 
     # -- queries --------------------------------------------------------------------------
 
-    def forward(self, sql: str | bytes, *, branch: str = "main", scope: Scope | None = None,
-                params: Sequence[object] = ()) -> Forwarded:
+    def forward(
+        self, sql: str | bytes, *, branch: str = "main", scope: Scope | None = None, params: Sequence[object] = ()
+    ) -> Forwarded:
         """The text `execute` sends for one query."""
-        return forwarded_sql(sql, scope=scope, params=params,
-                             tables=lambda tree: self._scoped_tables(branch, scope, tree) if scope else set())
+        return forwarded_sql(
+            sql,
+            scope=scope,
+            params=params,
+            tables=lambda tree: self._scoped_tables(branch, scope, tree) if scope else set(),
+        )
 
-    def execute(self, sql: str | bytes, *, branch: str = "main", scope: Scope | None = None,
-                params: Sequence[object] = ()) -> QueryResult:
+    def execute(
+        self, sql: str | bytes, *, branch: str = "main", scope: Scope | None = None, params: Sequence[object] = ()
+    ) -> QueryResult:
         """Send one Trino-dialect query, restricted to `scope` with `params` bound, to the cluster;
         its rows stream back as Arrow batches. Raises DialectError (remote errors as
         RemoteQueryError, positions in `sql`)."""
@@ -413,8 +474,7 @@ class TrinoBackend:
             raise self._failure(error, forwarded) from None
         columns = [_result_column(d[0], d[1]) for d in description]
         run = _Run(self, cursor, columns, forwarded)
-        return QueryResult(columns=[(c.name, c.trino_type) for c in columns], batches=run.batches(),
-                           _cancel=run.cancel)
+        return QueryResult(columns=[(c.name, c.trino_type) for c in columns], batches=run.batches(), _cancel=run.cancel)
 
     def close(self) -> None:
         """Close every connection's HTTP session."""

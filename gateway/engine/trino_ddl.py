@@ -10,13 +10,14 @@ and every other character becomes `_`; a name that changed gets a short hash of 
 (`feature/x` -> `feature_x_45239254`) so that two branches never share a schema. The forwarding
 backend (`trino_backend`) maps branches to schemas with the same `schema_name`.
 """
+
 from __future__ import annotations
 
 import hashlib
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable
 
 from lakegate.dialect.trino_types import TType, parse_type
 from lakegate.lake import paths
@@ -26,11 +27,25 @@ from lakegate.lake.catalog import Catalog
 MAX_SCHEMA = 100
 #: Scalar Trino types the Hive connector stores in Parquet (timestamps at the connector's default
 #: precision, `hive.timestamp-precision=MILLISECONDS`).
-HIVE_SCALARS = frozenset({"boolean", "tinyint", "smallint", "integer", "bigint", "real", "double", "decimal",
-                          "varchar", "char", "varbinary", "date"})
+HIVE_SCALARS = frozenset(
+    {
+        "boolean",
+        "tinyint",
+        "smallint",
+        "integer",
+        "bigint",
+        "real",
+        "double",
+        "decimal",
+        "varchar",
+        "char",
+        "varbinary",
+        "date",
+    }
+)
 #: Characters Hive escapes in partition directory names (FileUtils.escapePathName); a lake directory
 #: with one of them unescaped can break `sync_partition_metadata` (a ':' even Hadoop paths).
-_HIVE_ESCAPED = frozenset('"#%\'*/:=?\\\x7f{[]^')
+_HIVE_ESCAPED = frozenset("\"#%'*/:=?\\\x7f{[]^")
 _PREFIX = re.compile(r"[a-z0-9_]*")
 
 
@@ -56,7 +71,7 @@ def schema_name(branch: str, prefix: str = "") -> str:
     clean = re.sub(r"[^a-z0-9_]", "_", branch.lower())
     if clean != branch or len(prefix + clean) > MAX_SCHEMA:
         digest = hashlib.sha1(branch.encode("utf-8")).hexdigest()[:8]
-        clean = f"{clean[:MAX_SCHEMA - len(prefix) - 9]}_{digest}"
+        clean = f"{clean[: MAX_SCHEMA - len(prefix) - 9]}_{digest}"
     return prefix + clean
 
 
@@ -90,7 +105,7 @@ class TableDDL:
 
     schema: str
     name: str
-    columns: list[tuple[str, str]]   # (name, Hive column type), partition columns last
+    columns: list[tuple[str, str]]  # (name, Hive column type), partition columns last
     partition_keys: tuple[str, ...]
     location: str
     has_files: bool
@@ -101,8 +116,9 @@ def _check_unique(names: Iterable[str], what: str) -> None:
     for name in names:
         other = seen.setdefault(name.lower(), name)
         if other != name:
-            raise DDLError(f"{what} {other!r} and {name!r} would be the same name in Trino (names are "
-                           "case-insensitive there)")
+            raise DDLError(
+                f"{what} {other!r} and {name!r} would be the same name in Trino (names are case-insensitive there)"
+            )
 
 
 def branch_tables(catalog: Catalog, branch: str, location: str, prefix: str = "") -> list[TableDDL]:
@@ -136,8 +152,15 @@ def _escaped_ids(catalog: Catalog, branch: str) -> list[str]:
     return sorted(ids)
 
 
-def ddl(lake: Path, location: str, *, catalog: str = "hive", schema_prefix: str = "",
-        branches: Iterable[str] | None = None, skip_empty: bool = False) -> str:
+def ddl(
+    lake: Path,
+    location: str,
+    *,
+    catalog: str = "hive",
+    schema_prefix: str = "",
+    branches: Iterable[str] | None = None,
+    skip_empty: bool = False,
+) -> str:
     """The DDL script (statements ending in `;`, `--` comments) that registers `branches` (default:
     every branch) of the lake at `lake`, copied to `location`, in the Trino Hive catalog `catalog`."""
     if not re.match(r"[A-Za-z][A-Za-z0-9+.-]*://", location):
@@ -149,28 +172,38 @@ def ddl(lake: Path, location: str, *, catalog: str = "hive", schema_prefix: str 
         if branch not in known:
             raise DDLError(f"no branch {branch!r} in the lake {lake} (branches: {', '.join(known) or 'none'})")
     schemas = {branch: schema_name(branch, schema_prefix) for branch in chosen}
-    lines = [f"-- Trino Hive-connector DDL for the lakegate lake {lake}, copied to {location}.",
-             "-- Run it again after ingesting: CREATE ... IF NOT EXISTS keeps what exists, the calls add new partitions."]
+    lines = [
+        f"-- Trino Hive-connector DDL for the lakegate lake {lake}, copied to {location}.",
+        "-- Run it again after ingesting: CREATE ... IF NOT EXISTS keeps what exists, the calls add new partitions.",
+    ]
     for branch in chosen:
         schema = quote_ident(catalog) + "." + quote_ident(schemas[branch])
         branch_location = f"{location.rstrip('/')}/{paths.encode_branch(branch)}"
         lines += ["", f"-- branch {branch!r} -> schema {schema}"]
         for bad in _escaped_ids(lake_catalog, branch):
-            lines.append(f"-- warning: id {bad!r} has a character Hive escapes in directory names; "
-                         "sync_partition_metadata may fail on its partitions or register them wrongly")
+            lines.append(
+                f"-- warning: id {bad!r} has a character Hive escapes in directory names; "
+                "sync_partition_metadata may fail on its partitions or register them wrongly"
+            )
         lines.append(f"CREATE SCHEMA IF NOT EXISTS {schema} WITH (location = {quote_text(branch_location)});")
         for table in branch_tables(lake_catalog, branch, location, schema_prefix):
             if not table.has_files:
                 if skip_empty:
                     lines.append(f"-- table {table.name!r} has no data files yet: left out (--skip-empty)")
                     continue
-                lines.append(f"-- table {table.name!r} has no data files yet: its location must exist as a "
-                             "directory for CREATE TABLE on HDFS or local storage")
+                lines.append(
+                    f"-- table {table.name!r} has no data files yet: its location must exist as a "
+                    "directory for CREATE TABLE on HDFS or local storage"
+                )
             columns = ",\n".join(f"  {quote_ident(name)} {t}" for name, t in table.columns)
             keys = ", ".join(quote_text(key) for key in table.partition_keys)
-            lines.append(f"CREATE TABLE IF NOT EXISTS {schema}.{quote_ident(table.name)} (\n{columns}\n)\n"
-                         f"WITH (\n  external_location = {quote_text(table.location)},\n  format = 'PARQUET',\n"
-                         f"  partitioned_by = ARRAY[{keys}]\n);")
-            lines.append(f"CALL {quote_ident(catalog)}.system.sync_partition_metadata("
-                         f"{quote_text(table.schema)}, {quote_text(table.name)}, 'ADD');")
+            lines.append(
+                f"CREATE TABLE IF NOT EXISTS {schema}.{quote_ident(table.name)} (\n{columns}\n)\n"
+                f"WITH (\n  external_location = {quote_text(table.location)},\n  format = 'PARQUET',\n"
+                f"  partitioned_by = ARRAY[{keys}]\n);"
+            )
+            lines.append(
+                f"CALL {quote_ident(catalog)}.system.sync_partition_metadata("
+                f"{quote_text(table.schema)}, {quote_text(table.name)}, 'ADD');"
+            )
     return "\n".join(lines) + "\n"

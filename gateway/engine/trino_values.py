@@ -5,15 +5,17 @@ the Arrow type carrying a Trino type's values (any Trino type; the lake's own co
 gives the JSON encoding of one Python value of a type; `encode_rows` encodes a whole Arrow record
 batch column by column, with Arrow's vectorised casts for the common types (the server's hot path).
 """
+
 from __future__ import annotations
 
 import base64
 import datetime as dt
 import math
 import uuid
+from collections.abc import Callable, Sequence
 from decimal import Decimal
 from functools import lru_cache
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import pyarrow as pa
 import pyarrow.compute as pc
@@ -22,10 +24,27 @@ from lakegate.dialect.trino_types import MAX_VARCHAR, TType, parse_type
 
 Encoder = Callable[[Any], Any]
 
-_RAW_TYPES = {"timestamp_tz": "timestamp with time zone", "time_tz": "time with time zone",
-              "interval_ds": "interval day to second", "interval_ym": "interval year to month"}
-_UTC_NAMES = {"UTC", "Etc/UTC", "Etc/UCT", "UCT", "Etc/Universal", "Universal", "Etc/Zulu", "Zulu", "Z",
-              "GMT", "Etc/GMT", "+00:00", "+0000"}
+_RAW_TYPES = {
+    "timestamp_tz": "timestamp with time zone",
+    "time_tz": "time with time zone",
+    "interval_ds": "interval day to second",
+    "interval_ym": "interval year to month",
+}
+_UTC_NAMES = {
+    "UTC",
+    "Etc/UTC",
+    "Etc/UCT",
+    "UCT",
+    "Etc/Universal",
+    "Universal",
+    "Etc/Zulu",
+    "Zulu",
+    "Z",
+    "GMT",
+    "Etc/GMT",
+    "+00:00",
+    "+0000",
+}
 
 
 def _long(value: int) -> dict:
@@ -63,11 +82,24 @@ def type_signature(trino_type: str) -> dict:
 def arrow_type(t: TType) -> pa.DataType:
     """The Arrow type that carries values of a Trino type (as the DuckDB backend's batches do)."""
     base, args = t.base, t.args
-    simple = {"boolean": pa.bool_(), "tinyint": pa.int8(), "smallint": pa.int16(), "integer": pa.int32(),
-              "bigint": pa.int64(), "real": pa.float32(), "double": pa.float64(), "varchar": pa.string(),
-              "char": pa.string(), "json": pa.string(), "uuid": pa.string(), "varbinary": pa.binary(),
-              "date": pa.date32(), "unknown": pa.null(), "interval_ds": pa.month_day_nano_interval(),
-              "interval_ym": pa.month_day_nano_interval()}
+    simple = {
+        "boolean": pa.bool_(),
+        "tinyint": pa.int8(),
+        "smallint": pa.int16(),
+        "integer": pa.int32(),
+        "bigint": pa.int64(),
+        "real": pa.float32(),
+        "double": pa.float64(),
+        "varchar": pa.string(),
+        "char": pa.string(),
+        "json": pa.string(),
+        "uuid": pa.string(),
+        "varbinary": pa.binary(),
+        "date": pa.date32(),
+        "unknown": pa.null(),
+        "interval_ds": pa.month_day_nano_interval(),
+        "interval_ym": pa.month_day_nano_interval(),
+    }
     if base in simple:
         return simple[base]
     if base == "decimal":
@@ -89,6 +121,7 @@ def arrow_type(t: TType) -> pa.DataType:
 
 # --- per-value encoders --------------------------------------------------------------------------
 
+
 def _double(value: Any) -> Any:
     if value is None or math.isfinite(value):
         return value
@@ -105,6 +138,7 @@ def _decimal(scale: int) -> Encoder:
         if number.as_tuple().exponent != -scale:
             number = number.quantize(quantum)
         return format(number, "f")
+
     return encode
 
 
@@ -136,9 +170,11 @@ def _timestamp(precision: int, with_zone: bool) -> Encoder:
     def encode(value: Any) -> Any:
         if value is None:
             return None
-        text = value.strftime("%Y-%m-%d %H:%M:%S") + _fraction(value.microsecond, getattr(value, "nanosecond", 0),
-                                                                 precision)
+        text = value.strftime("%Y-%m-%d %H:%M:%S") + _fraction(
+            value.microsecond, getattr(value, "nanosecond", 0), precision
+        )
         return f"{text} {_zone(value)}" if with_zone else text
+
     return encode
 
 
@@ -148,6 +184,7 @@ def _time(precision: int, with_zone: bool) -> Encoder:
             return None
         text = value.strftime("%H:%M:%S") + _fraction(value.microsecond, 0, precision)
         return text + _offset(value) if with_zone else text
+
     return encode
 
 
@@ -229,6 +266,7 @@ def _make_encoder(t: TType) -> Encoder:
                 return None
             pairs = value.items() if isinstance(value, dict) else value
             return {_map_key(key_encoder(k)): value_encoder(v) for k, v in pairs}
+
         return encode_map
     if base == "row":
         fields = [_make_encoder(field) for _, field in args]
@@ -238,6 +276,7 @@ def _make_encoder(t: TType) -> Encoder:
                 return None
             values = value.values() if isinstance(value, dict) else value
             return [encode(v) for encode, v in zip(fields, values)]
+
         return encode_row
     return _identity  # boolean, integers, varchar, char, json, unknown
 
@@ -252,6 +291,7 @@ def encoder(trino_type: str) -> Encoder:
 
 
 # --- whole record batches ------------------------------------------------------------------------
+
 
 def _fit_fraction(texts: list, precision: int) -> list:
     """Make every `...HH:MM:SS[.fff...]` text carry exactly `precision` fraction digits."""
@@ -270,8 +310,9 @@ def _fit_fraction(texts: list, precision: int) -> list:
 _UNITS = {0: "s", 3: "ms", 6: "us", 9: "ns"}
 
 
-def _temporal_texts(column: pa.Array, precision: int, to_text: Callable[[pa.Array], pa.Array],
-                    suffix: str = "") -> list:
+def _temporal_texts(
+    column: pa.Array, precision: int, to_text: Callable[[pa.Array], pa.Array], suffix: str = ""
+) -> list:
     """Timestamps or times as text with exactly `precision` fraction digits (then `suffix`): by Arrow,
     after a cast to the unit with that many digits (which truncates: the SQL already rounded), when
     there is one."""
@@ -318,8 +359,9 @@ def _column(t: TType, column: pa.Array) -> list:
     if base == "timestamp" and pa.types.is_timestamp(arrow_type) and arrow_type.tz is None:
         return _temporal_texts(column, t.args[0], _as_string)
     if base == "timestamp_tz" and pa.types.is_timestamp(arrow_type) and arrow_type.tz is not None:
-        return _temporal_texts(column, t.args[0], lambda c: pc.strftime(c, format="%Y-%m-%d %H:%M:%S"),
-                               " " + _zone_name(arrow_type.tz))
+        return _temporal_texts(
+            column, t.args[0], lambda c: pc.strftime(c, format="%Y-%m-%d %H:%M:%S"), " " + _zone_name(arrow_type.tz)
+        )
     if base == "date" and pa.types.is_date(arrow_type):
         return column.cast(pa.string()).to_pylist()
     if base == "time" and pa.types.is_time(arrow_type):

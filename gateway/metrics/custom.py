@@ -8,6 +8,7 @@ name wins) and `units`. Its output must be a Plotly figure as JSON, `{"data": [.
 "layout": {...}}`; the `json` filter writes a value as JSON (`"x": {{ time | json }}`).
 Errors name the template file with the line and column in it.
 """
+
 from __future__ import annotations
 
 import functools
@@ -56,19 +57,22 @@ def render_custom(metric: Metric, columns: list[tuple[str, str]], rows: list[tup
     except LiquidError as error:
         raise TemplateError(f"metric {metric.name!r}: {shown_as}{_position(error.token)}: {error.message}") from None
     except (OSError, UnicodeDecodeError) as error:
-        raise TemplateError(f"metric {metric.name!r}: cannot read custom template {shown_as!r}: "
-                            f"{getattr(error, 'strerror', None) or error}") from None
+        raise TemplateError(
+            f"metric {metric.name!r}: cannot read custom template {shown_as!r}: "
+            f"{getattr(error, 'strerror', None) or error}"
+        ) from None
     figure = _figure(metric, shown_as, output)
     traces = figure["data"]
-    return Rendered(template=CUSTOM, figure=figure,
-                    text=f"{len(traces)} trace{'s' if len(traces) != 1 else ''} from {shown_as}")
+    return Rendered(
+        template=CUSTOM, figure=figure, text=f"{len(traces)} trace{'s' if len(traces) != 1 else ''} from {shown_as}"
+    )
 
 
 def _position(token: Token | None) -> str:
     """`:line:column` of a Liquid token in its template ('' when the error has no token)."""
     if token is None:
         return ""
-    before = token.source[:token.start_index]
+    before = token.source[: token.start_index]
     line = before.count("\n") + 1
     return f":{line}:{token.start_index - (before.rfind(chr(10)) + 1) + 1}"
 
@@ -78,11 +82,18 @@ def _figure(metric: Metric, shown_as: str, output: str) -> dict:
     try:
         figure = json.loads(output)
     except json.JSONDecodeError as error:
-        raise TemplateError(f"metric {metric.name!r}: the output of {shown_as} is not JSON "
-                            f"(output line {error.lineno}, column {error.colno}: {error.msg})") from None
-    if not isinstance(figure, dict) or not isinstance(figure.get("data"), list) \
-            or not all(isinstance(trace, dict) for trace in figure["data"]) \
-            or not isinstance(figure.get("layout", {}), dict):
-        raise TemplateError(f"metric {metric.name!r}: the output of {shown_as} is not a Plotly figure "
-                            f'(expected an object {{"data": [{{...}}, ...], "layout": {{...}}}})')
+        raise TemplateError(
+            f"metric {metric.name!r}: the output of {shown_as} is not JSON "
+            f"(output line {error.lineno}, column {error.colno}: {error.msg})"
+        ) from None
+    if (
+        not isinstance(figure, dict)
+        or not isinstance(figure.get("data"), list)
+        or not all(isinstance(trace, dict) for trace in figure["data"])
+        or not isinstance(figure.get("layout", {}), dict)
+    ):
+        raise TemplateError(
+            f"metric {metric.name!r}: the output of {shown_as} is not a Plotly figure "
+            f'(expected an object {{"data": [{{...}}, ...], "layout": {{...}}}})'
+        )
     return figure

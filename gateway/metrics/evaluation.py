@@ -35,6 +35,7 @@ supported) counts for nothing. One metric:
 Events (`JobOutcome.events`, `job_events`): the rows of the `events` table for one job (topics
 with `event: true`), with their attached metrics parsed (image lists and Plotly JSON).
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -44,11 +45,12 @@ import json
 import sys
 import threading
 import time
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from decimal import Decimal
 from pathlib import Path
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
 from tqdm import tqdm
@@ -106,8 +108,13 @@ class MetricError:
         return f"{what}{self.message}"
 
     def as_dict(self) -> dict[str, Any]:
-        return {"message": self.message, "query": self.query, "line": self.line, "column": self.column,
-                "location": None if self.location is None else str(self.location)}
+        return {
+            "message": self.message,
+            "query": self.query,
+            "line": self.line,
+            "column": self.column,
+            "location": None if self.location is None else str(self.location),
+        }
 
 
 @dataclass
@@ -145,10 +152,16 @@ class MetricResult:
         """JSON-ready: batch, job, metric, type, template, status, scalar value, value, error."""
         scalar = self.scalar_value
         return {
-            "batch_id": self.batch_id, "job_id": self.job_id, "metric": self.metric, "type": self.metric_type,
-            "template": self.template, "status": self.status,
-            "scalar_value": None if scalar is None else json_value(scalar), "value": self.value_text,
-            "units": self.units, "problems": list(self.rendered.problems) if self.rendered else [],
+            "batch_id": self.batch_id,
+            "job_id": self.job_id,
+            "metric": self.metric,
+            "type": self.metric_type,
+            "template": self.template,
+            "status": self.status,
+            "scalar_value": None if scalar is None else json_value(scalar),
+            "value": self.value_text,
+            "units": self.units,
+            "problems": list(self.rendered.problems) if self.rendered else [],
             "error": None if self.error is None else self.error.as_dict(),
         }
 
@@ -178,10 +191,18 @@ class Event:
     metrics: list[EventMetric]
 
     def as_dict(self) -> dict[str, Any]:
-        return {"timestamp": self.timestamp, "topic": self.topic, "name": self.name,
-                "description": self.description, "status": self.status, "tags": list(self.tags),
-                "metrics": [{"name": m.name, "type": m.type, "value": m.value, "description": m.description,
-                             "status": m.status} for m in self.metrics]}
+        return {
+            "timestamp": self.timestamp,
+            "topic": self.topic,
+            "name": self.name,
+            "description": self.description,
+            "status": self.status,
+            "tags": list(self.tags),
+            "metrics": [
+                {"name": m.name, "type": m.type, "value": m.value, "description": m.description, "status": m.status}
+                for m in self.metrics
+            ],
+        }
 
 
 @dataclass
@@ -198,9 +219,14 @@ class JobOutcome:
     logs_dir: Path | None = None  # the job's log files, where image file names are found
 
     def as_dict(self) -> dict[str, Any]:
-        return {"job_id": self.job_id, "experience_name": self.experience_name, "job_status": self.job_status,
-                "job_metrics_status": self.metrics_status, "job_conflated_status": self.conflated_status,
-                "events": [e.as_dict() for e in self.events]}
+        return {
+            "job_id": self.job_id,
+            "experience_name": self.experience_name,
+            "job_status": self.job_status,
+            "job_metrics_status": self.metrics_status,
+            "job_conflated_status": self.conflated_status,
+            "events": [e.as_dict() for e in self.events],
+        }
 
 
 @dataclass
@@ -236,9 +262,13 @@ class BatchEvaluation:
 
     def as_dict(self) -> dict[str, Any]:
         return {
-            "branch": self.branch, "batch_id": self.batch_id, "metrics_set": self.metrics_set,
-            "config_version": self.config_version, "evaluated_at": self.evaluated_at.isoformat() + "Z",
-            "status": self.status, "batch_metrics_status": self.batch_metrics_status,
+            "branch": self.branch,
+            "batch_id": self.batch_id,
+            "metrics_set": self.metrics_set,
+            "config_version": self.config_version,
+            "evaluated_at": self.evaluated_at.isoformat() + "Z",
+            "status": self.status,
+            "batch_metrics_status": self.batch_metrics_status,
             "jobs": [job.as_dict() for job in self.jobs],
             "metrics": [r.as_dict() for r in self.results()],
         }
@@ -281,12 +311,12 @@ def config_position(start: Location | None, sql: str, line: int | None, column: 
         return None
     try:
         lines = _file_lines(start.path, Path(start.path).stat().st_mtime)
-        head = lines[start.line - 1][start.column - 1:]
+        head = lines[start.line - 1][start.column - 1 :]
         wanted = sql.splitlines()[line - 1]
     except (OSError, UnicodeDecodeError, IndexError):
         return None
     if head.startswith("|"):
-        first = next((text for text in lines[start.line:] if text.strip()), None)
+        first = next((text for text in lines[start.line :] if text.strip()), None)
         if first is None or start.line + line > len(lines):
             return None
         indent = len(first) - len(first.lstrip(" "))
@@ -322,7 +352,7 @@ class MetricsEngine:
         if self._own_backend and hasattr(self.backend, "close"):
             self.backend.close()
 
-    def __enter__(self) -> "MetricsEngine":
+    def __enter__(self) -> MetricsEngine:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -334,9 +364,16 @@ class MetricsEngine:
         """Evaluate one metric in one scope: run its query, render it, judge its status."""
         started = time.perf_counter()
         template = CUSTOM if metric.template_type == CUSTOM else metric.template
-        result = MetricResult(metric=metric.name, metric_type=metric.type, template=template,
-                              batch_id=scope.batch_id or "", job_id=scope.job_id, status=PASSED,
-                              units=metric.units, description=metric.description)
+        result = MetricResult(
+            metric=metric.name,
+            metric_type=metric.type,
+            template=template,
+            batch_id=scope.batch_id or "",
+            job_id=scope.job_id,
+            status=PASSED,
+            units=metric.units,
+            description=metric.description,
+        )
         reason = unsupported_reason(metric)
         if reason is not None:
             result.status, result.error = NOT_RUN, MetricError(reason)
@@ -350,7 +387,10 @@ class MetricsEngine:
             answer = self.backend.execute(metric.query_string, branch=branch, scope=scope)
             rows = answer.rows()
         except DialectError as error:
-            result.status, result.error = ERROR, _query_error(error, metric.query_string, metric.query_location, "query")
+            result.status, result.error = (
+                ERROR,
+                _query_error(error, metric.query_string, metric.query_location, "query"),
+            )
             return
         if not rows and metric.skip_if_no_data:
             result.status = NOT_RUN
@@ -360,8 +400,9 @@ class MetricsEngine:
             if metric.template_type == CUSTOM:
                 result.rendered = render_custom(metric, answer.columns, rows)
             else:
-                result.rendered = render(metric.name, metric.template or "", answer.columns, rows,
-                                         units=metric.units, logs_dir=logs_dir)
+                result.rendered = render(
+                    metric.name, metric.template or "", answer.columns, rows, units=metric.units, logs_dir=logs_dir
+                )
         except TemplateError as error:
             result.status, result.error = ERROR, MetricError(str(error), query="template")
             return
@@ -389,7 +430,9 @@ class MetricsEngine:
         """(job_id, experience_name, job_status) of every job of a batch, by start time."""
         answer = self.backend.execute(
             "SELECT job_id, experience_name, job_status FROM metadata ORDER BY time, job_id",
-            branch=branch, scope=Scope(batch_id=batch_id))
+            branch=branch,
+            scope=Scope(batch_id=batch_id),
+        )
         return [(job_id, experience, status) for job_id, experience, status in answer.rows()]
 
     def job_events(self, branch: str, batch_id: str, job_id: str) -> list[Event]:
@@ -400,11 +443,23 @@ class MetricsEngine:
         """Job id -> its events in `scope`, by time (then name)."""
         answer = self.backend.execute(
             "SELECT job_id, timestamp, topic, name, description, status, tags, metrics FROM events "
-            "ORDER BY job_id, timestamp, name", branch=branch, scope=scope)
+            "ORDER BY job_id, timestamp, name",
+            branch=branch,
+            scope=scope,
+        )
         events: dict[str, list[Event]] = {}
         for job_id, timestamp, topic, name, description, status, tags, metrics in answer.rows():
-            events.setdefault(job_id, []).append(Event(timestamp, topic, name, description, status, list(tags or []),
-                                                       [_event_metric(m) for m in metrics or []]))
+            events.setdefault(job_id, []).append(
+                Event(
+                    timestamp,
+                    topic,
+                    name,
+                    description,
+                    status,
+                    list(tags or []),
+                    [_event_metric(m) for m in metrics or []],
+                )
+            )
         return events
 
     def logs_dir(self, branch: str, batch_id: str, job_id: str) -> Path | None:
@@ -414,9 +469,18 @@ class MetricsEngine:
 
     # -- a batch --------------------------------------------------------------------------------
 
-    def evaluate_batch(self, branch: str, batch_id: str, metrics: Sequence[Metric], *,
-                       metrics_set: str | None = None, config_version: int | None = None,
-                       progress: bool = False, store: bool = True, keep_figures: bool = True) -> BatchEvaluation:
+    def evaluate_batch(
+        self,
+        branch: str,
+        batch_id: str,
+        metrics: Sequence[Metric],
+        *,
+        metrics_set: str | None = None,
+        config_version: int | None = None,
+        progress: bool = False,
+        store: bool = True,
+        keep_figures: bool = True,
+    ) -> BatchEvaluation:
         """Evaluate `metrics` on every job of a batch and on the batch (see the module docstring).
 
         With `store`, replaces the batch's rows of `metric_results` (written job by job while the
@@ -425,7 +489,7 @@ class MetricsEngine:
         stored (they can be large). LookupError when the batch has no jobs.
         """
         started = time.perf_counter()
-        evaluated_at = dt.datetime.now(dt.timezone.utc).replace(tzinfo=None)
+        evaluated_at = dt.datetime.now(dt.UTC).replace(tzinfo=None)
         test_metrics = [m for m in metrics if m.type == "test"]
         batch_metrics = [m for m in metrics if m.type != "test"]
         lock = threading.Lock()
@@ -451,12 +515,30 @@ class MetricsEngine:
             jobs = self.jobs(branch, batch_id)
             if not jobs:
                 raise LookupError(f"batch {batch_id!r} has no jobs on branch {branch!r}")
-            bar = stack.enter_context(tqdm(total=len(jobs) * len(test_metrics) + len(batch_metrics),
-                                           desc="evaluating metrics", unit="metric", disable=not progress,
-                                           file=sys.stderr, leave=False))
-            writer = stack.enter_context(ResultsWriter(
-                self.lake, branch, batch_id, metrics_set=metrics_set, config_version=config_version,
-                evaluated_at=evaluated_at)) if store else None
+            bar = stack.enter_context(
+                tqdm(
+                    total=len(jobs) * len(test_metrics) + len(batch_metrics),
+                    desc="evaluating metrics",
+                    unit="metric",
+                    disable=not progress,
+                    file=sys.stderr,
+                    leave=False,
+                )
+            )
+            writer = (
+                stack.enter_context(
+                    ResultsWriter(
+                        self.lake,
+                        branch,
+                        batch_id,
+                        metrics_set=metrics_set,
+                        config_version=config_version,
+                        evaluated_at=evaluated_at,
+                    )
+                )
+                if store
+                else None
+            )
             pool = stack.enter_context(ThreadPoolExecutor(self.threads, thread_name_prefix="lakegate-metrics"))
             stack.callback(pool.shutdown, cancel_futures=True)  # on an error, start no further job
             outcomes = []
@@ -474,21 +556,29 @@ class MetricsEngine:
         events = self._events(branch, Scope(batch_id=batch_id))
         for outcome in outcomes:
             outcome.events = events.get(outcome.job_id, [])
-        evaluation = BatchEvaluation(branch=branch, batch_id=batch_id, metrics_set=metrics_set,
-                                     config_version=config_version, evaluated_at=evaluated_at, jobs=outcomes,
-                                     batch_results=batch_results)
+        evaluation = BatchEvaluation(
+            branch=branch,
+            batch_id=batch_id,
+            metrics_set=metrics_set,
+            config_version=config_version,
+            evaluated_at=evaluated_at,
+            jobs=outcomes,
+            batch_results=batch_results,
+        )
         evaluation.seconds = time.perf_counter() - started
         return evaluation
 
-    def _batch_engine(self, stack: contextlib.ExitStack, writer: ResultsWriter | None,
-                      outcomes: Sequence[JobOutcome]) -> "MetricsEngine":
+    def _batch_engine(
+        self, stack: contextlib.ExitStack, writer: ResultsWriter | None, outcomes: Sequence[JobOutcome]
+    ) -> MetricsEngine:
         """Stage the jobs' statuses; the engine for batch metrics, which sees them before they are
         committed with the results (DuckDB backend; another backend gets them committed first)."""
         if writer is None:
             return self
         for outcome in outcomes:
-            writer.stage_statuses(outcome.job_id, job_metrics_status=outcome.metrics_status,
-                                  job_conflated_status=outcome.conflated_status)
+            writer.stage_statuses(
+                outcome.job_id, job_metrics_status=outcome.metrics_status, job_conflated_status=outcome.conflated_status
+            )
         if not isinstance(self.backend, DuckDBBackend):  # a Trino cluster reads only committed files
             writer.commit_statuses()
             return self
@@ -496,8 +586,14 @@ class MetricsEngine:
         stack.callback(backend.close)
         return MetricsEngine(self.lake, backend, threads=self.threads)
 
-    def _evaluate_job(self, branch: str, batch_id: str, job: tuple[str, str | None, str | None],
-                      metrics: Sequence[Metric], advance: Callable[[], None]) -> JobOutcome:
+    def _evaluate_job(
+        self,
+        branch: str,
+        batch_id: str,
+        job: tuple[str, str | None, str | None],
+        metrics: Sequence[Metric],
+        advance: Callable[[], None],
+    ) -> JobOutcome:
         job_id, experience, job_status = job
         scope = Scope(batch_id=batch_id, job_id=job_id)
         logs = self.logs_dir(branch, batch_id, job_id)
@@ -507,14 +603,21 @@ class MetricsEngine:
             advance()
         metrics_status = worst(r.status for r in job_results)
         conflated = conflated_status(job_status, metrics_status)
-        return JobOutcome(job_id=job_id, experience_name=experience, job_status=job_status,
-                          metrics_status=metrics_status, conflated_status=conflated, results=job_results,
-                          logs_dir=logs)
+        return JobOutcome(
+            job_id=job_id,
+            experience_name=experience,
+            job_status=job_status,
+            metrics_status=metrics_status,
+            conflated_status=conflated,
+            results=job_results,
+            logs_dir=logs,
+        )
 
 
 def _query_error(error: DialectError, sql: str, start: Location | None, which: str) -> MetricError:
-    return MetricError(error.message, error.line, error.column,
-                       config_position(start, sql, error.line, error.column), which)
+    return MetricError(
+        error.message, error.line, error.column, config_position(start, sql, error.line, error.column), which
+    )
 
 
 def _event_metric(item: dict[str, Any]) -> EventMetric:
@@ -526,5 +629,10 @@ def _event_metric(item: dict[str, Any]) -> EventMetric:
             pass  # shown as the text it is
     if kind == "image" and isinstance(value, str):
         value = [value]
-    return EventMetric(name=item.get("name") or "", type=kind or "", value=value,
-                       description=item.get("description"), status=item.get("status"))
+    return EventMetric(
+        name=item.get("name") or "",
+        type=kind or "",
+        value=value,
+        description=item.get("description"),
+        status=item.get("status"),
+    )

@@ -5,6 +5,7 @@ most once per page, images are embedded as data URIs, and nothing is loaded from
 network. Tables are HTML tables (readable with many columns, copyable); charts are
 Plotly figures drawn by `Plotly.newPlot`.
 """
+
 from __future__ import annotations
 
 import base64
@@ -58,9 +59,7 @@ def _plotlyjs() -> str:
     return get_plotlyjs()
 
 
-def figure_html(
-    rendered: Rendered, *, title: str, include_plotlyjs: str | bool = True, full_html: bool = True
-) -> str:
+def figure_html(rendered: Rendered, *, title: str, include_plotlyjs: str | bool = True, full_html: bool = True) -> str:
     """One rendered metric as HTML under a heading `title`.
 
     `include_plotlyjs`: True embeds plotly.js (only when the metric has a chart), False
@@ -93,10 +92,10 @@ def report_html(title: str, sections: list[tuple[str, list[tuple[str, Rendered |
             parts.append(_metric_article(name, rendered, info, f"lg-figure-{figure_number}"))
         parts.append("</section>")
     summary = " ".join(
-        f'<span>{_badge(status)} {count}</span>' for status, count in sorted(counts.items(), key=_status_order)
+        f"<span>{_badge(status)} {count}</span>" for status, count in sorted(counts.items(), key=_status_order)
     )
     charts = any(_has_chart(rendered) for _, metrics in sections for _, rendered, _ in metrics if rendered)
-    body = f"<h1>{html.escape(title)}</h1>\n<p class=\"lg-summary\">{summary}</p>\n" + "\n".join(parts)
+    body = f'<h1>{html.escape(title)}</h1>\n<p class="lg-summary">{summary}</p>\n' + "\n".join(parts)
     return _page(title, _plotly_script(True) if charts else "", body)
 
 
@@ -106,7 +105,7 @@ def _status_order(item: tuple[str, int]) -> int:
 
 def _page(title: str, head_script: str, body: str) -> str:
     return (
-        "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
+        '<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
         f"<title>{html.escape(title)}</title>\n<style>{_CSS}</style>\n{head_script}</head>\n"
         f"<body>\n{body}\n</body>\n</html>\n"
     )
@@ -194,8 +193,10 @@ def _table(rendered: Rendered) -> str:
     more = ""
     if len(rows) > MAX_TABLE_ROWS:
         more = f'<p class="lg-meta">Showing the first {MAX_TABLE_ROWS} of {len(rows)} rows.</p>'
-    return f'<div class="lg-table-wrap"><table class="lg-table"><thead><tr>{head}</tr></thead>' \
-           f"<tbody>{body}</tbody></table></div>{more}"
+    return (
+        f'<div class="lg-table-wrap"><table class="lg-table"><thead><tr>{head}</tr></thead>'
+        f"<tbody>{body}</tbody></table></div>{more}"
+    )
 
 
 def _images(paths: list[str]) -> tuple[str, list[str]]:

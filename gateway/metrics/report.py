@@ -4,13 +4,14 @@ Sections: an overview of the jobs and their statuses, the batch metrics, then on
 job with its test metrics and its events (attached scalar and text metrics as a table, images
 and Plotly figures drawn). Built from a `BatchEvaluation` with `figures_html.report_html`.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any
 
-from lakegate.gateway.metrics.figures_html import report_html
 from lakegate.gateway.metrics.evaluation import BatchEvaluation, Event, JobOutcome, MetricResult
+from lakegate.gateway.metrics.figures_html import report_html
 from lakegate.gateway.metrics.templates import Rendered, TemplateError, render
 
 Item = tuple[str, "Rendered | None", dict[str, Any]]
@@ -37,18 +38,25 @@ def _metric_item(result: MetricResult) -> Item:
 
 def _overview(evaluation: BatchEvaluation) -> Item:
     columns = [(name, "varchar") for name in ("Job", "Experience", "Job status", "Metrics status", "Conflated status")]
-    rows = [(job.job_id, job.experience_name, job.job_status, job.metrics_status, job.conflated_status)
-            for job in evaluation.jobs]
-    info = {"description": f"Batch status {evaluation.status} (batch metrics: {evaluation.batch_metrics_status}); "
-                           f"metrics set {evaluation.metrics_set or '(all metrics)'}, "
-                           f"config version {evaluation.config_version or '(not stored)'}"}
+    rows = [
+        (job.job_id, job.experience_name, job.job_status, job.metrics_status, job.conflated_status)
+        for job in evaluation.jobs
+    ]
+    info = {
+        "description": f"Batch status {evaluation.status} (batch metrics: {evaluation.batch_metrics_status}); "
+        f"metrics set {evaluation.metrics_set or '(all metrics)'}, "
+        f"config version {evaluation.config_version or '(not stored)'}"
+    }
     return "Jobs", render("Jobs", "table", columns, rows), info
 
 
 def _event_items(event: Event, logs_dir: Path | None) -> list[Item]:
     title = f"{event.name or event.topic} at {event.timestamp / 1e9:.3f} s"
-    words = [event.description or "", f"status {event.status}" if event.status else "",
-             f"tags: {', '.join(event.tags)}" if event.tags else ""]
+    words = [
+        event.description or "",
+        f"status {event.status}" if event.status else "",
+        f"tags: {', '.join(event.tags)}" if event.tags else "",
+    ]
     info: dict[str, Any] = {"description": " · ".join(w for w in words if w)}  # no badge: the summary counts metrics
     texts = [m for m in event.metrics if m.type in ("scalar", "text")]
     table = None
@@ -63,8 +71,13 @@ def _event_items(event: Event, logs_dir: Path | None) -> list[Item]:
         if attached.type == "image":
             files = attached.value if isinstance(attached.value, list) else [attached.value]
             try:
-                items.append((name, render(name, "image", [("file", "varchar")], [(f,) for f in files],
-                                           logs_dir=logs_dir), extra))
+                items.append(
+                    (
+                        name,
+                        render(name, "image", [("file", "varchar")], [(f,) for f in files], logs_dir=logs_dir),
+                        extra,
+                    )
+                )
             except TemplateError as error:
                 items.append((name, None, {**extra, "error": str(error)}))
         elif attached.type == "plotly":

@@ -15,6 +15,7 @@ the branch, so trends across batches and builds are one SQL query away::
 `error_message` says why a metric errored or was not run; `error_line` / `error_column` are
 the position in the failing query, `error_location` the same place in the config file.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -44,8 +45,9 @@ def _json(value: Any) -> str | None:
     return None if value is None else orjson.dumps(value, option=orjson.OPT_SERIALIZE_NUMPY).decode()
 
 
-def result_row(result: "MetricResult", *, metrics_set: str | None, config_version: int | None,
-               evaluated_at: dt.datetime) -> dict[str, Any]:
+def result_row(
+    result: MetricResult, *, metrics_set: str | None, config_version: int | None, evaluated_at: dt.datetime
+) -> dict[str, Any]:
     """The `metric_results` row of one evaluated metric."""
     rendered, error = result.rendered, result.error
     details = None
@@ -80,8 +82,16 @@ class ResultsWriter:
     `commit`, nothing changes. The caller holds the batch's lock (`paths.batch_lock`).
     """
 
-    def __init__(self, lake: Path, branch: str, batch_id: str, *, metrics_set: str | None,
-                 config_version: int | None, evaluated_at: dt.datetime):
+    def __init__(
+        self,
+        lake: Path,
+        branch: str,
+        batch_id: str,
+        *,
+        metrics_set: str | None,
+        config_version: int | None,
+        evaluated_at: dt.datetime,
+    ):
         self.lake, self.branch, self.batch_id = Path(lake), branch, batch_id
         self._row = {"metrics_set": metrics_set, "config_version": config_version, "evaluated_at": evaluated_at}
         self._change = Change(lake, branch)
@@ -90,7 +100,7 @@ class ResultsWriter:
         self._staged = self._scratch / "metric_results.parquet"
         self._writer = self._stack.enter_context(pq.ParquetWriter(self._staged, SCHEMA, compression="zstd"))
 
-    def write(self, results: "Sequence[MetricResult]") -> None:
+    def write(self, results: Sequence[MetricResult]) -> None:
         rows = [result_row(r, **self._row) for r in results]
         self._writer.write_table(pa.Table.from_pylist(rows, schema=SCHEMA))
 
@@ -125,7 +135,7 @@ class ResultsWriter:
         self._change.discard()
         self._stack.close()
 
-    def __enter__(self) -> "ResultsWriter":
+    def __enter__(self) -> ResultsWriter:
         return self
 
     def __exit__(self, *exc: object) -> None:

@@ -7,15 +7,17 @@ format (`{"data": [...], "layout": {...}}`), built directly rather than through
 `plotly.graph_objects`, which is several times slower on 100k-point traces; the tests
 check them against Plotly's schema. The HTML pages are made in `figures_html`.
 """
+
 from __future__ import annotations
 
 import datetime as dt
 import math
 import zlib
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from decimal import Decimal
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -26,8 +28,22 @@ UNSUPPORTED_TEMPLATES = ("video", "artifact")
 
 #: Colours of states in a state timeline; a state's colour is PALETTE[crc32(name) % len].
 PALETTE = (
-    "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#7f7f7f",
-    "#bcbd22", "#17becf", "#393b79", "#ad494a", "#637939", "#7b4173", "#3182bd", "#e6550d",
+    "#1f77b4",
+    "#ff7f0e",
+    "#2ca02c",
+    "#d62728",
+    "#9467bd",
+    "#8c564b",
+    "#e377c2",
+    "#7f7f7f",
+    "#bcbd22",
+    "#17becf",
+    "#393b79",
+    "#ad494a",
+    "#637939",
+    "#7b4173",
+    "#3182bd",
+    "#e6550d",
 )
 
 _IMAGE_MAGIC = (
@@ -209,7 +225,7 @@ class _Result:
         problems = []
         if undrawable:
             problems.append(
-                f"{_plural(undrawable, 'value')} of \"{self.names[column]}\" "
+                f'{_plural(undrawable, "value")} of "{self.names[column]}" '
                 f"{'is' if undrawable == 1 else 'are'} NaN or infinite and not drawn"
             )
         return values, problems
@@ -218,7 +234,7 @@ class _Result:
         value = self.rows[row_number - 1][column]
         got = "NULL" if value is None else f"{value!r} ({self.types[column]})"
         return self.error(
-            f"needs {wanted} in column {column + 1} \"{self.names[column]}\", but row {row_number} has {got}"
+            f'needs {wanted} in column {column + 1} "{self.names[column]}", but row {row_number} has {got}'
         )
 
 
@@ -304,13 +320,15 @@ def _line(result: _Result) -> Rendered:
         problems += x_problems
     traces = []
     for name, indexes in _series(result, 0).items():
-        traces.append({
-            "type": "scatter",
-            "mode": "lines" if len(indexes) > 1 else "markers",
-            "name": name,
-            "x": [xs[i] for i in indexes],
-            "y": [ys[i] for i in indexes],
-        })
+        traces.append(
+            {
+                "type": "scatter",
+                "mode": "lines" if len(indexes) > 1 else "markers",
+                "name": name,
+                "x": [xs[i] for i in indexes],
+                "y": [ys[i] for i in indexes],
+            }
+        )
     layout = _layout(result.names[1], result.names[2], hovermode="closest")
     if dates or categorical:
         layout["xaxis"]["type"] = "date" if dates else "category"
@@ -354,11 +372,13 @@ def _table(result: _Result) -> Rendered:
         raise result.error("needs at least 1 column, got 0")
     cells = [[display_value(row[c]) for row in result.rows] for c in range(len(result.names))]
     figure = {
-        "data": [{
-            "type": "table",
-            "header": {"values": list(result.names), "align": "left"},
-            "cells": {"values": cells, "align": "left"},
-        }],
+        "data": [
+            {
+                "type": "table",
+                "header": {"values": list(result.names), "align": "left"},
+                "cells": {"values": cells, "align": "left"},
+            }
+        ],
         "layout": _layout(),
     }
     return Rendered(
@@ -384,9 +404,7 @@ def _scalar(result: _Result, units: str | None) -> Rendered:
             f"only the first value is shown"
         )
     text = display_value(value)
-    return Rendered(
-        template="scalar", scalar=value, text=f"{text} {units}" if units else text, problems=problems
-    )
+    return Rendered(template="scalar", scalar=value, text=f"{text} {units}" if units else text, problems=problems)
 
 
 def _image(result: _Result, logs_dir: Path | None) -> Rendered:
@@ -442,7 +460,7 @@ def _nanoseconds(value: Any) -> int | float | None:
     """A timestamp as nanoseconds: integers as they are, timestamps from the Unix epoch (naive = UTC)."""
     if isinstance(value, dt.datetime):
         if value.tzinfo is not None:
-            value = value.astimezone(dt.timezone.utc).replace(tzinfo=None)
+            value = value.astimezone(dt.UTC).replace(tzinfo=None)
         return (value - _EPOCH) // dt.timedelta(microseconds=1) * 1000
     number = _number(value)
     if number is None or number is _NOT_A_NUMBER or not math.isfinite(number):
@@ -482,14 +500,20 @@ def _state_timeline(result: _Result) -> Rendered:
     min_width = span / 200 if span > 0 else 1.0  # a state seen only at the very end stays visible
     traces: dict[str, dict] = {}
     for system, state, start, end in segments:
-        trace = traces.setdefault(state, {
-            "type": "bar",
-            "orientation": "h",
-            "name": state,
-            "marker": {"color": state_colour(state)},
-            "y": [], "x": [], "base": [], "customdata": [],
-            "hovertemplate": "%{y}: %{fullData.name}<br>%{customdata[0]:.3f} s to %{customdata[1]:.3f} s<extra></extra>",
-        })
+        trace = traces.setdefault(
+            state,
+            {
+                "type": "bar",
+                "orientation": "h",
+                "name": state,
+                "marker": {"color": state_colour(state)},
+                "y": [],
+                "x": [],
+                "base": [],
+                "customdata": [],
+                "hovertemplate": "%{y}: %{fullData.name}<br>%{customdata[0]:.3f} s to %{customdata[1]:.3f} s<extra></extra>",
+            },
+        )
         trace["y"].append(system)
         trace["base"].append(start)
         trace["x"].append(max(end - start, min_width))

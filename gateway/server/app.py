@@ -24,6 +24,7 @@ Routes: /v1/statement, /v1/statement/executing/{id}/{slug}/{token} (GET, HEAD, D
 /v1/query/{id} (GET, DELETE), /v1/info, /v1/info/state. With `users`, every route but /v1/info and
 /v1/info/state needs HTTP Basic credentials (checked by `http_limits.Guard` before a body is read).
 """
+
 from __future__ import annotations
 
 import asyncio
@@ -34,10 +35,10 @@ import secrets
 import threading
 import time
 from collections import deque
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import asynccontextmanager
 from dataclasses import dataclass
-from datetime import datetime, timezone
-from typing import Callable, Iterator, Sequence
+from datetime import UTC, datetime
 
 import orjson
 import pyarrow as pa
@@ -48,17 +49,23 @@ from starlette.concurrency import run_in_threadpool
 from lakegate.dialect import guard
 from lakegate.dialect.errors import DialectError
 from lakegate.gateway.engine import session as sessions
-from lakegate.gateway.server.auth import Users
 from lakegate.gateway.engine.backend import Backend, QueryResult, hide_paths, time_limit_error
-from lakegate.gateway.server.http_limits import Guard, authenticated_user
-from lakegate.gateway.server.host_check import HostCheck
+from lakegate.gateway.engine.engine import CATALOG, Engine
 from lakegate.gateway.engine.limits import Limits
-from lakegate.gateway.server.protocol import (Failure, Progress, QueryIds, columns_document, info_document,
-                                       results_document)
 from lakegate.gateway.engine.session import Answer, Session
 from lakegate.gateway.engine.statements import Planner, static_result
-from lakegate.gateway.engine.engine import CATALOG, Engine
 from lakegate.gateway.engine.trino_values import encode_columns, encode_rows
+from lakegate.gateway.server.auth import Users
+from lakegate.gateway.server.host_check import HostCheck
+from lakegate.gateway.server.http_limits import Guard, authenticated_user
+from lakegate.gateway.server.protocol import (
+    Failure,
+    Progress,
+    QueryIds,
+    columns_document,
+    info_document,
+    results_document,
+)
 
 log = logging.getLogger("lakegate.server")
 
@@ -94,12 +101,13 @@ class _Abandoned(BaseException):
 def _raise_in(thread_id: int, exception: type[BaseException] | None) -> None:
     """Raise `exception` in the thread `thread_id` at its next Python instruction (None: forget one
     raised there and not yet delivered)."""
-    ctypes.pythonapi.PyThreadState_SetAsyncExc(ctypes.c_ulong(thread_id),
-                                               None if exception is None else ctypes.py_object(exception))
+    ctypes.pythonapi.PyThreadState_SetAsyncExc(
+        ctypes.c_ulong(thread_id), None if exception is None else ctypes.py_object(exception)
+    )
 
 
 def _now() -> datetime:
-    return datetime.now(timezone.utc)
+    return datetime.now(UTC)
 
 
 def _resolve(future: asyncio.Future) -> None:
@@ -145,11 +153,11 @@ class Query:
         self.columns: list[dict] | None = None
         self.failure: Failure | None = None
         self.started = False
-        self.working = False       # a worker runs the statement
-        self.zombie = False        # the query ended but its worker still runs, counted apart
+        self.working = False  # a worker runs the statement
+        self.zombie = False  # the query ended but its worker still runs, counted apart
         self._planner: int | None = None  # the worker thread while it plans the query
-        self.done = False          # the worker produced everything, or the query failed
-        self.final = False         # the last document was served
+        self.done = False  # the worker produced everything, or the query failed
+        self.final = False  # the last document was served
         self.rows = 0
         self.bytes = 0
         self.created = _now()
@@ -290,12 +298,23 @@ class Query:
 
     def document(self, base: str, token: int, *, data: bytes | None = None, last: bool = False) -> bytes:
         """The QueryResults document `token` of the query's current state (`last`: no nextUri)."""
-        progress = Progress(self.state(), queued_ms=int(self.queued_seconds() * 1000),
-                            elapsed_ms=int(self.elapsed() * 1000),
-                            rows=self.rows, bytes=self.bytes)
+        progress = Progress(
+            self.state(),
+            queued_ms=int(self.queued_seconds() * 1000),
+            elapsed_ms=int(self.elapsed() * 1000),
+            rows=self.rows,
+            bytes=self.bytes,
+        )
         next_uri = None if last else f"{base}/v1/statement/executing/{self.id}/{self.slug}/{token + 1}"
-        return results_document(query_id=self.id, info_uri=f"{base}/v1/query/{self.id}", progress=progress,
-                                next_uri=next_uri, columns=self.columns, data=data, failure=self.failure)
+        return results_document(
+            query_id=self.id,
+            info_uri=f"{base}/v1/query/{self.id}",
+            progress=progress,
+            next_uri=next_uri,
+            columns=self.columns,
+            data=data,
+            failure=self.failure,
+        )
 
     def first_document(self, base: str) -> bytes:
         """The POST's reply (token 0) of the query as it is: the last document when the query ended
@@ -347,8 +366,7 @@ class Query:
                 page = self._pages.popleft() if self._pages else None
                 if page is not None:
                     self._space.notify_all()
-                    last = self.done and not self._pages and self.failure is None and \
-                        len(page.data) <= FINAL_PAGE_BYTES
+                    last = self.done and not self._pages and self.failure is None and len(page.data) <= FINAL_PAGE_BYTES
                     self.final = last
                     return self.document(base, token, data=page.data, last=last)
                 version, done = self._version, self.done
@@ -374,7 +392,7 @@ class Query:
             self._waiters.append(future)
         try:
             await asyncio.wait_for(future, timeout)
-        except asyncio.TimeoutError:
+        except TimeoutError:
             pass
         finally:
             with self.lock:
@@ -383,9 +401,16 @@ class Query:
 
     def info(self) -> dict:
         """What GET /v1/query/{id} tells about the query."""
-        info = {"queryId": self.id, "state": self.state(), "query": self.sql, "user": self.session.user,
-                "source": self.session.source, "created": self.created.isoformat(),
-                "elapsedTimeMillis": int(self.elapsed() * 1000), "processedRows": self.rows}
+        info = {
+            "queryId": self.id,
+            "state": self.state(),
+            "query": self.sql,
+            "user": self.session.user,
+            "source": self.session.source,
+            "created": self.created.isoformat(),
+            "elapsedTimeMillis": int(self.elapsed() * 1000),
+            "processedRows": self.rows,
+        }
         if self.failure is not None:
             info["error"] = self.failure.document()
         return info
@@ -393,15 +418,26 @@ class Query:
     def row(self) -> tuple:
         """The query as a row of system.runtime.queries."""
         failure = self.failure
-        return (self.id, self.state(), self.session.user, self.session.source, self.sql, None,
-                int(self.queued_seconds() * 1000),
-                0, 0, self.created, self.started_at, _now(), self.ended,
-                None if failure is None else failure.error_type,
-                None if failure is None else failure.error_name)
+        return (
+            self.id,
+            self.state(),
+            self.session.user,
+            self.session.source,
+            self.sql,
+            None,
+            int(self.queued_seconds() * 1000),
+            0,
+            0,
+            self.created,
+            self.started_at,
+            _now(),
+            self.ended,
+            None if failure is None else failure.error_type,
+            None if failure is None else failure.error_name,
+        )
 
 
-def _pages(columns: Sequence[tuple[str, str]], batches: Iterator[pa.RecordBatch], limits: Limits
-           ) -> Iterator[_Page]:
+def _pages(columns: Sequence[tuple[str, str]], batches: Iterator[pa.RecordBatch], limits: Limits) -> Iterator[_Page]:
     """The result's rows as pages of JSON (sized to about limits.page_bytes); a result with more
     than limits.max_rows rows fails."""
     seen, chunk = 0, FIRST_PAGE_ROWS
@@ -411,9 +447,11 @@ def _pages(columns: Sequence[tuple[str, str]], batches: Iterator[pa.RecordBatch]
             part = batch.slice(offset, chunk)
             seen += part.num_rows
             if seen > limits.max_rows:
-                raise DialectError(f"Query exceeded the result limit of {limits.max_rows} rows (lakegate serve "
-                                   "--max-rows): narrow it with WHERE, LIMIT or an aggregate",
-                                   error_name="GENERIC_INSUFFICIENT_RESOURCES")
+                raise DialectError(
+                    f"Query exceeded the result limit of {limits.max_rows} rows (lakegate serve "
+                    "--max-rows): narrow it with WHERE, LIMIT or an aggregate",
+                    error_name="GENERIC_INSUFFICIENT_RESOURCES",
+                )
             data = orjson.dumps(list(zip(*encode_columns(columns, part))))  # rows as tuples: cheaper than lists
             yield _Page(data, part.num_rows)
             offset += part.num_rows
@@ -527,8 +565,9 @@ class QueryManager:
         except Exception as error:  # a bug: the client gets GENERIC_INTERNAL_ERROR, the log the traceback
             log.exception("query %s failed", query.id)
             failure = Failure.of(error)
-            query.fail(Failure(hide_paths(failure.message, getattr(self.planner.backend, "lake", None)),
-                               failure.error_name))
+            query.fail(
+                Failure(hide_paths(failure.message, getattr(self.planner.backend, "lake", None)), failure.error_name)
+            )
         finally:
             close = getattr(batches, "close", None)
             if close is not None:
@@ -540,8 +579,9 @@ class QueryManager:
         if query is None:
             raise sessions.query_not_found(query_id)
         if owner_only and query.session.user != session.user:
-            raise DialectError(f"Access Denied: Cannot kill query owned by {query.session.user}",
-                               error_name="PERMISSION_DENIED")
+            raise DialectError(
+                f"Access Denied: Cannot kill query owned by {query.session.user}", error_name="PERMISSION_DENIED"
+            )
         text = f"Query killed. Message: {message}" if message else "Query killed. No message provided."
         if query.done or not query.fail(Failure(text, "ADMINISTRATIVELY_KILLED")):
             raise DialectError(f"Target query is not running: {query_id}", error_name="NOT_SUPPORTED")
@@ -555,8 +595,13 @@ class QueryManager:
                 if query.running and query.elapsed("started") > limits.query_timeout:
                     query.fail(Failure.of(time_limit_error(limits.query_timeout)))
                 elif not query.done and idle > limits.client_timeout:
-                    query.fail(Failure(f"Query {query.id} was abandoned by the client: its results have not "
-                                       f"been accessed for {limits.client_timeout:g}s", "ABANDONED_QUERY"))
+                    query.fail(
+                        Failure(
+                            f"Query {query.id} was abandoned by the client: its results have not "
+                            f"been accessed for {limits.client_timeout:g}s",
+                            "ABANDONED_QUERY",
+                        )
+                    )
                 if query.failure is not None and query.working:
                     query.interrupt()
                     self._bury(query)
@@ -584,6 +629,7 @@ class QueryManager:
 
 # --- immediate answers --------------------------------------------------------------------------
 
+
 def _immediate(query_id: str, base: str, answer: Answer | None = None, failure: Failure | None = None) -> bytes:
     """The one document of a statement answered at once (session statements, CALL, refusals)."""
     progress = Progress("FAILED" if failure is not None else "FINISHED")
@@ -592,9 +638,15 @@ def _immediate(query_id: str, base: str, answer: Answer | None = None, failure: 
         result = static_result(answer)
         columns = columns_document(result.columns)
         data = orjson.dumps([row for batch in result.batches for row in encode_rows(result.columns, batch)])
-    return results_document(query_id=query_id, info_uri=f"{base}/v1/query/{query_id}", progress=progress,
-                            columns=columns, data=data, failure=failure,
-                            update_type=answer.update_type if answer is not None else None)
+    return results_document(
+        query_id=query_id,
+        info_uri=f"{base}/v1/query/{query_id}",
+        progress=progress,
+        columns=columns,
+        data=data,
+        failure=failure,
+        update_type=answer.update_type if answer is not None else None,
+    )
 
 
 def _call(sql: str, session: Session, manager: QueryManager, *, owner_only: bool) -> Answer:
@@ -605,6 +657,7 @@ def _call(sql: str, session: Session, manager: QueryManager, *, owner_only: bool
 
 
 # --- the app ------------------------------------------------------------------------------------
+
 
 class _Endpoints:
     """The protocol's routes (plain Starlette endpoints: no per-request validation work)."""
@@ -625,8 +678,9 @@ class _Endpoints:
     async def post_statement(self, request: Request) -> Response:
         user = authenticated_user(request.scope)
         if user is not None and request.headers.get("x-trino-user") not in (None, user):
-            return PlainTextResponse(f"Access Denied: User {user} cannot impersonate user "
-                                     f"{request.headers['x-trino-user']}", 403)
+            return PlainTextResponse(
+                f"Access Denied: User {user} cannot impersonate user {request.headers['x-trino-user']}", 403
+            )
         try:
             session = sessions.from_headers(request.headers, user)
         except sessions.HeaderError as error:
@@ -666,8 +720,9 @@ class _Endpoints:
         token = request.path_params["token"]
         body = None if query is None else await query.fetch(token, _base_url(request), self.limits.wait)
         if body is None:
-            return PlainTextResponse(f"Query {request.path_params['query_id']} has no document {token} "
-                                     "(unknown, finished or expired)", 404)
+            return PlainTextResponse(
+                f"Query {request.path_params['query_id']} has no document {token} (unknown, finished or expired)", 404
+            )
         return Response(body, media_type=JSON)
 
     async def head_results(self, request: Request) -> Response:
@@ -704,9 +759,15 @@ def _base_url(request: Request) -> str:
     return f"{scope['scheme']}://{host}{scope.get('root_path', '')}".rstrip("/")
 
 
-def create_app(backend: Backend, *, catalog_name: str = CATALOG, limits: Limits = Limits(),
-               users: Users | None = None, dashboard_router: APIRouter | None = None,
-               allowed_hosts: Sequence[str] = ()) -> FastAPI:
+def create_app(
+    backend: Backend,
+    *,
+    catalog_name: str = CATALOG,
+    limits: Limits = Limits(),
+    users: Users | None = None,
+    dashboard_router: APIRouter | None = None,
+    allowed_hosts: Sequence[str] = (),
+) -> FastAPI:
     """The SQL endpoint over `backend` (which must also list its branches: `backend.branches()`).
 
     `catalog_name` is the lake's catalog; `limits` bound queries and requests (`http_limits.Guard`);
@@ -718,9 +779,17 @@ def create_app(backend: Backend, *, catalog_name: str = CATALOG, limits: Limits 
     and stops the workers; the backend stays open (its owner closes it).
     """
     queries: list[QueryManager] = []
-    engine = Engine(backend, catalog=catalog_name, limits=limits,
-                    queries=lambda user: [query.row() for manager in queries for query in manager.queries()
-                                          if users is None or query.session.user == user])
+    engine = Engine(
+        backend,
+        catalog=catalog_name,
+        limits=limits,
+        queries=lambda user: [
+            query.row()
+            for manager in queries
+            for query in manager.queries()
+            if users is None or query.session.user == user
+        ],
+    )
     metadata = engine.metadata
     manager = QueryManager(engine.planner, limits)
     queries.append(manager)

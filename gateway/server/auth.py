@@ -8,6 +8,7 @@ cost is paid once per client, not on every page request. An unknown user costs a
 (against a dummy hash), so that answer times do not tell which users exist; a password over 72
 bytes (bcrypt's limit) never matches. `LoginFailures` makes a client wait after repeated failures.
 """
+
 from __future__ import annotations
 
 import base64
@@ -45,7 +46,7 @@ class Users:
         self._lock = threading.Lock()
 
     @classmethod
-    def load(cls, path: Path) -> "Users":
+    def load(cls, path: Path) -> Users:
         """Read a users file (`user:bcrypt-hash` lines); UsersFileError says where it is wrong."""
         path = Path(path)
         try:
@@ -124,8 +125,10 @@ class LoginFailures:
         """Seconds the client must still wait before trying `user` again (0: it may try now)."""
         now = time.monotonic()
         with self._lock:
-            return max(self._wait((client, user), self.FREE_FAILURES, now),
-                       self._wait((client, None), self.CLIENT_FREE_FAILURES, now))
+            return max(
+                self._wait((client, user), self.FREE_FAILURES, now),
+                self._wait((client, None), self.CLIENT_FREE_FAILURES, now),
+            )
 
     def _wait(self, key: tuple[str, str | None], free: int, now: float) -> int:
         count, last = self._failures.get(key, (0, 0.0))
@@ -180,8 +183,12 @@ def check_listen(host: str, *, users: bool, tls: bool) -> None:
     if is_loopback(host):
         return
     if not users:
-        raise ValueError(f"refusing to serve on {host} without authentication: pass --users FILE and "
-                         "--tls-cert/--tls-key (or listen on 127.0.0.1)")
+        raise ValueError(
+            f"refusing to serve on {host} without authentication: pass --users FILE and "
+            "--tls-cert/--tls-key (or listen on 127.0.0.1)"
+        )
     if not tls:
-        raise ValueError(f"refusing to serve on {host} without TLS: passwords would cross the network in clear "
-                         "text; pass --tls-cert and --tls-key")
+        raise ValueError(
+            f"refusing to serve on {host} without TLS: passwords would cross the network in clear "
+            "text; pass --tls-cert and --tls-key"
+        )

@@ -15,11 +15,13 @@ A state-changing request (POST, PUT, PATCH, DELETE) that carries an `Origin` hea
 an allowed host too. Refused requests get 421 (wrong Host) or 403 (wrong Origin) with a message
 saying which header was wrong and how to allow it.
 """
+
 from __future__ import annotations
 
 import ipaddress
 import json
-from typing import Any, Awaitable, Callable, Iterable
+from collections.abc import Awaitable, Callable, Iterable
+from typing import Any
 from urllib.parse import urlsplit
 
 LOOPBACK_NAMES = ("127.0.0.1", "localhost", "[::1]")
@@ -40,8 +42,9 @@ def _split(host: str) -> tuple[str, str | None]:
     return host[:close] + name, port if colon else None
 
 
-def host_allowed(host: str, server: tuple[str, int] | None, allowed: Iterable[str] = (),
-                 default_port: int | None = None) -> bool:
+def host_allowed(
+    host: str, server: tuple[str, int] | None, allowed: Iterable[str] = (), default_port: int | None = None
+) -> bool:
     """Whether a `Host` value (`name[:port]`) names this server, reached at `server` (address, port).
 
     A missing port means `default_port` (an Origin's scheme default), or for a Host header the
@@ -77,23 +80,37 @@ class HostCheck:
         server = scope.get("server")
         host = headers.get("host", "")
         if not host_allowed(host, server, self.allowed):
-            await _refuse(send, 421, f"Host header {host!r} does not name this server (use "
-                                     f"127.0.0.1:{server[1] if server else 'PORT'} or localhost; a reverse proxy's "
-                                     "name must be allowed with --allowed-host)")
+            await _refuse(
+                send,
+                421,
+                f"Host header {host!r} does not name this server (use "
+                f"127.0.0.1:{server[1] if server else 'PORT'} or localhost; a reverse proxy's "
+                "name must be allowed with --allowed-host)",
+            )
             return
         origin = headers.get("origin")
         if origin is not None and scope.get("method") in STATE_CHANGING:
             parts = urlsplit(origin)
-            if not parts.netloc or not host_allowed(parts.netloc, server, self.allowed,
-                                                                  {"http": 80, "https": 443}.get(parts.scheme, 0)):
-                await _refuse(send, 403, f"Origin {origin!r} may not change anything here (cross-site "
-                                         "requests are refused; allow a proxy's name with --allowed-host)")
+            if not parts.netloc or not host_allowed(
+                parts.netloc, server, self.allowed, {"http": 80, "https": 443}.get(parts.scheme, 0)
+            ):
+                await _refuse(
+                    send,
+                    403,
+                    f"Origin {origin!r} may not change anything here (cross-site "
+                    "requests are refused; allow a proxy's name with --allowed-host)",
+                )
                 return
         await self.app(scope, receive, send)
 
 
 async def _refuse(send: Callable, status: int, message: str) -> None:
     body = json.dumps({"detail": message}).encode()
-    await send({"type": "http.response.start", "status": status,
-                "headers": [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode())]})
+    await send(
+        {
+            "type": "http.response.start",
+            "status": status,
+            "headers": [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode())],
+        }
+    )
     await send({"type": "http.response.body", "body": body})

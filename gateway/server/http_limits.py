@@ -11,18 +11,20 @@ have not all arrived `Limits.request_timeout` seconds after it began (or after t
 opened) gets 408 and is closed, and connections beyond `Limits.max_connections` are answered 503
 and closed at once, so idle or trickling clients cannot hold file descriptors or memory.
 """
+
 from __future__ import annotations
 
 import asyncio
 import logging
-from typing import Any, Awaitable, Callable
+from collections.abc import Awaitable, Callable
+from typing import Any
 
 from starlette.concurrency import run_in_threadpool
 from starlette.requests import ClientDisconnect
 from uvicorn.protocols.http.httptools_impl import HttpToolsProtocol
 
-from lakegate.gateway.server.auth import LoginFailures, Users, basic_credentials
 from lakegate.gateway.engine.limits import Limits
+from lakegate.gateway.server.auth import LoginFailures, Users, basic_credentials
 
 log = logging.getLogger("lakegate.server")
 
@@ -43,12 +45,26 @@ def authenticated_user(scope: Scope) -> str | None:
     return scope.get("state", {}).get("user")
 
 
-async def _respond(send: Send, status: int, body: bytes, content_type: bytes = b"text/plain; charset=utf-8",
-                   headers: tuple[tuple[bytes, bytes], ...] = ()) -> None:
+async def _respond(
+    send: Send,
+    status: int,
+    body: bytes,
+    content_type: bytes = b"text/plain; charset=utf-8",
+    headers: tuple[tuple[bytes, bytes], ...] = (),
+) -> None:
     """Send a whole response and close the connection (what is left of the request is not read)."""
-    await send({"type": "http.response.start", "status": status,
-                "headers": [(b"content-type", content_type), (b"content-length", str(len(body)).encode()),
-                            (b"connection", b"close"), *headers]})
+    await send(
+        {
+            "type": "http.response.start",
+            "status": status,
+            "headers": [
+                (b"content-type", content_type),
+                (b"content-length", str(len(body)).encode()),
+                (b"connection", b"close"),
+                *headers,
+            ],
+        }
+    )
     await send({"type": "http.response.body", "body": body})
 
 
@@ -80,8 +96,12 @@ class Guard:
                 return True
             wait = self.failures.wait(client, user)
             if wait > 0:
-                await _respond(send, 429, f"Too many failed logins for {user!r}: retry in {wait} s".encode(),
-                               headers=((b"retry-after", str(wait).encode()),))
+                await _respond(
+                    send,
+                    429,
+                    f"Too many failed logins for {user!r}: retry in {wait} s".encode(),
+                    headers=((b"retry-after", str(wait).encode()),),
+                )
                 return False
             self.failures.attempt(client, user)
             if await run_in_threadpool(self.users.verify, user, password):  # bcrypt: off the event loop
@@ -173,8 +193,11 @@ class GuardedProtocol(HttpToolsProtocol):
             self._header_bytes += len(data)
             self._arm()
         super().data_received(data)
-        if not self._headers_done and self._header_bytes > self.limits.max_header_bytes and \
-                not self.transport.is_closing():
+        if (
+            not self._headers_done
+            and self._header_bytes > self.limits.max_header_bytes
+            and not self.transport.is_closing()
+        ):
             self._refuse(431, f"Request headers too large (the limit is {self.limits.max_header_bytes} bytes)")
 
     def on_message_begin(self) -> None:
@@ -212,11 +235,15 @@ class GuardedProtocol(HttpToolsProtocol):
             if cycle is not None and not cycle.response_complete:
                 cycle.disconnected = True  # the app's request ends here: it may not answer any more
                 cycle.message_event.set()
-            phrase = {408: "Request Timeout", 431: "Request Header Fields Too Large",
-                      503: "Service Unavailable"}[status]
+            phrase = {408: "Request Timeout", 431: "Request Header Fields Too Large", 503: "Service Unavailable"}[
+                status
+            ]
             body = message.encode()
-            self.transport.write(f"HTTP/1.1 {status} {phrase}\r\ncontent-type: text/plain; charset=utf-8\r\n"
-                                 f"content-length: {len(body)}\r\nconnection: close\r\n\r\n".encode() + body)
+            self.transport.write(
+                f"HTTP/1.1 {status} {phrase}\r\ncontent-type: text/plain; charset=utf-8\r\n"
+                f"content-length: {len(body)}\r\nconnection: close\r\n\r\n".encode()
+                + body
+            )
         self.transport.close()
 
 
@@ -229,5 +256,12 @@ def server_config(app: Any, limits: Limits, **options: Any) -> Any:
     """The uvicorn.Config that serves `app` within `limits` (`options`: other uvicorn settings)."""
     import uvicorn
 
-    return uvicorn.Config(app, http=guarded_protocol(limits), timeout_keep_alive=limits.keep_alive,
-                          log_level="warning", access_log=False, lifespan="on", **options)
+    return uvicorn.Config(
+        app,
+        http=guarded_protocol(limits),
+        timeout_keep_alive=limits.keep_alive,
+        log_level="warning",
+        access_log=False,
+        lifespan="on",
+        **options,
+    )

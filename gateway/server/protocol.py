@@ -4,15 +4,16 @@ the server info (shared/notes/trino-protocol.md, sections 4-6).
 Documents are built as bytes with orjson; a page's `data` arrives already serialised (the query
 worker encodes rows off the event loop) and is spliced in with `orjson.Fragment`.
 """
+
 from __future__ import annotations
 
 import random
 import string
 import threading
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
-from datetime import datetime, timezone
-from typing import Sequence
+from datetime import UTC, datetime
 
 import orjson
 
@@ -25,18 +26,48 @@ ENVIRONMENT = "lakegate"
 USER_ERROR, INTERNAL_ERROR, INSUFFICIENT_RESOURCES = "USER_ERROR", "INTERNAL_ERROR", "INSUFFICIENT_RESOURCES"
 #: Trino's StandardErrorCode values for the error names lakegate reports (name -> code, type).
 ERRORS: dict[str, tuple[int, str]] = {
-    **{name: (code, USER_ERROR) for name, code in (
-        ("GENERIC_USER_ERROR", 0), ("SYNTAX_ERROR", 1), ("ABANDONED_QUERY", 2), ("USER_CANCELED", 3),
-        ("PERMISSION_DENIED", 4), ("NOT_FOUND", 5), ("FUNCTION_NOT_FOUND", 6), ("INVALID_FUNCTION_ARGUMENT", 7),
-        ("DIVISION_BY_ZERO", 8), ("INVALID_CAST_ARGUMENT", 9), ("NOT_SUPPORTED", 13),
-        ("INVALID_SESSION_PROPERTY", 14), ("NUMERIC_VALUE_OUT_OF_RANGE", 19), ("NOT_IN_TRANSACTION", 21),
-        ("SUBQUERY_MULTIPLE_ROWS", 28), ("PROCEDURE_NOT_FOUND", 29), ("INVALID_PROCEDURE_ARGUMENT", 30),
-        ("QUERY_TEXT_TOO_LARGE", 35), ("ADMINISTRATIVELY_KILLED", 38), ("CATALOG_NOT_FOUND", 44),
-        ("SCHEMA_NOT_FOUND", 45), ("TABLE_NOT_FOUND", 46), ("COLUMN_NOT_FOUND", 47), ("DUPLICATE_NAMED_QUERY", 53),
-        ("MISSING_CATALOG_NAME", 56), ("MISSING_SCHEMA_NAME", 57), ("TYPE_MISMATCH", 58), ("INVALID_LITERAL", 59),
-        ("MISMATCHED_COLUMN_ALIASES", 61), ("AMBIGUOUS_NAME", 62), ("INVALID_COLUMN_REFERENCE", 63),
-        ("MISSING_OVER", 66), ("FUNCTION_NOT_WINDOW", 71), ("FUNCTION_NOT_AGGREGATE", 72),
-        ("EXPRESSION_NOT_AGGREGATE", 73), ("INVALID_PARAMETER_USAGE", 80), ("NULL_TREATMENT_NOT_ALLOWED", 83))},
+    **{
+        name: (code, USER_ERROR)
+        for name, code in (
+            ("GENERIC_USER_ERROR", 0),
+            ("SYNTAX_ERROR", 1),
+            ("ABANDONED_QUERY", 2),
+            ("USER_CANCELED", 3),
+            ("PERMISSION_DENIED", 4),
+            ("NOT_FOUND", 5),
+            ("FUNCTION_NOT_FOUND", 6),
+            ("INVALID_FUNCTION_ARGUMENT", 7),
+            ("DIVISION_BY_ZERO", 8),
+            ("INVALID_CAST_ARGUMENT", 9),
+            ("NOT_SUPPORTED", 13),
+            ("INVALID_SESSION_PROPERTY", 14),
+            ("NUMERIC_VALUE_OUT_OF_RANGE", 19),
+            ("NOT_IN_TRANSACTION", 21),
+            ("SUBQUERY_MULTIPLE_ROWS", 28),
+            ("PROCEDURE_NOT_FOUND", 29),
+            ("INVALID_PROCEDURE_ARGUMENT", 30),
+            ("QUERY_TEXT_TOO_LARGE", 35),
+            ("ADMINISTRATIVELY_KILLED", 38),
+            ("CATALOG_NOT_FOUND", 44),
+            ("SCHEMA_NOT_FOUND", 45),
+            ("TABLE_NOT_FOUND", 46),
+            ("COLUMN_NOT_FOUND", 47),
+            ("DUPLICATE_NAMED_QUERY", 53),
+            ("MISSING_CATALOG_NAME", 56),
+            ("MISSING_SCHEMA_NAME", 57),
+            ("TYPE_MISMATCH", 58),
+            ("INVALID_LITERAL", 59),
+            ("MISMATCHED_COLUMN_ALIASES", 61),
+            ("AMBIGUOUS_NAME", 62),
+            ("INVALID_COLUMN_REFERENCE", 63),
+            ("MISSING_OVER", 66),
+            ("FUNCTION_NOT_WINDOW", 71),
+            ("FUNCTION_NOT_AGGREGATE", 72),
+            ("EXPRESSION_NOT_AGGREGATE", 73),
+            ("INVALID_PARAMETER_USAGE", 80),
+            ("NULL_TREATMENT_NOT_ALLOWED", 83),
+        )
+    },
     "GENERIC_INTERNAL_ERROR": (65536, INTERNAL_ERROR),
     "SERVER_SHUTTING_DOWN": (65545, INTERNAL_ERROR),
     "GENERIC_INSUFFICIENT_RESOURCES": (131072, INSUFFICIENT_RESOURCES),
@@ -58,7 +89,7 @@ class Failure:
     column: int | None = None
 
     @classmethod
-    def of(cls, error: BaseException) -> "Failure":
+    def of(cls, error: BaseException) -> Failure:
         """The failure for an exception: a DialectError keeps its name and position; anything
         else is a GENERIC_INTERNAL_ERROR."""
         if isinstance(error, DialectError):
@@ -83,10 +114,19 @@ class Failure:
             location = {"lineNumber": self.line, "columnNumber": self.column}
             error["message"] = message = f"line {self.line}:{self.column}: {message}"
             error["errorLocation"] = location
-        exception = "io.trino.sql.parser.ParsingException" if self.error_name == "SYNTAX_ERROR" \
+        exception = (
+            "io.trino.sql.parser.ParsingException"
+            if self.error_name == "SYNTAX_ERROR"
             else "io.trino.spi.TrinoException"
-        error["failureInfo"] = {"type": exception, "message": message, "suppressed": [], "stack": [],
-                                "errorLocation": location, "cause": None}
+        )
+        error["failureInfo"] = {
+            "type": exception,
+            "message": message,
+            "suppressed": [],
+            "stack": [],
+            "errorLocation": location,
+            "cause": None,
+        }
         return error
 
 
@@ -104,14 +144,15 @@ class QueryIds:
         with self._lock:
             self._counter = self._counter % 99_999 + 1
             if second != self._second:
-                self._second, self._prefix = second, f"{datetime.fromtimestamp(second, timezone.utc):%Y%m%d_%H%M%S}"
+                self._second, self._prefix = second, f"{datetime.fromtimestamp(second, UTC):%Y%m%d_%H%M%S}"
             return f"{self._prefix}_{self._counter:05d}_{self._server}"
 
 
 def columns_document(columns: Sequence[tuple[str, str]]) -> list[dict]:
     """QueryResults `columns`: name, Trino type name and full typeSignature of each column."""
-    return [{"name": name, "type": trino_type, "typeSignature": type_signature(trino_type)}
-            for name, trino_type in columns]
+    return [
+        {"name": name, "type": trino_type, "typeSignature": type_signature(trino_type)} for name, trino_type in columns
+    ]
 
 
 @dataclass
@@ -129,20 +170,40 @@ def stats_document(progress: Progress) -> dict:
     """QueryResults `stats` (clients read `state`; Superset shows completedSplits / totalSplits)."""
     done = progress.state in ("FINISHED", "FAILED")
     return {
-        "state": progress.state, "queued": progress.state == "QUEUED", "scheduled": progress.state != "QUEUED",
-        "nodes": 1, "totalSplits": 1, "queuedSplits": int(progress.state == "QUEUED"),
-        "runningSplits": int(progress.state == "RUNNING"), "completedSplits": int(done),
-        "cpuTimeMillis": 0, "wallTimeMillis": progress.elapsed_ms, "queuedTimeMillis": progress.queued_ms,
-        "elapsedTimeMillis": progress.elapsed_ms, "processedRows": progress.rows,
-        "processedBytes": progress.bytes, "physicalInputBytes": 0, "peakMemoryBytes": 0, "spilledBytes": 0,
-        "progressPercentage": 100.0 if done else None, "rootStage": None,
+        "state": progress.state,
+        "queued": progress.state == "QUEUED",
+        "scheduled": progress.state != "QUEUED",
+        "nodes": 1,
+        "totalSplits": 1,
+        "queuedSplits": int(progress.state == "QUEUED"),
+        "runningSplits": int(progress.state == "RUNNING"),
+        "completedSplits": int(done),
+        "cpuTimeMillis": 0,
+        "wallTimeMillis": progress.elapsed_ms,
+        "queuedTimeMillis": progress.queued_ms,
+        "elapsedTimeMillis": progress.elapsed_ms,
+        "processedRows": progress.rows,
+        "processedBytes": progress.bytes,
+        "physicalInputBytes": 0,
+        "peakMemoryBytes": 0,
+        "spilledBytes": 0,
+        "progressPercentage": 100.0 if done else None,
+        "rootStage": None,
     }
 
 
-def results_document(*, query_id: str, info_uri: str, progress: Progress, next_uri: str | None = None,
-                     columns: list[dict] | None = None, data: bytes | None = None,
-                     failure: Failure | None = None, update_type: str | None = None,
-                     update_count: int | None = None) -> bytes:
+def results_document(
+    *,
+    query_id: str,
+    info_uri: str,
+    progress: Progress,
+    next_uri: str | None = None,
+    columns: list[dict] | None = None,
+    data: bytes | None = None,
+    failure: Failure | None = None,
+    update_type: str | None = None,
+    update_count: int | None = None,
+) -> bytes:
     """One QueryResults document as JSON bytes. `data` is the already serialised JSON array of rows;
     `next_uri` is absent on the last document of a query."""
     document: dict = {"id": query_id, "infoUri": info_uri}
@@ -165,8 +226,15 @@ def results_document(*, query_id: str, info_uri: str, progress: Progress, next_u
 
 def info_document(started: float) -> bytes:
     """GET /v1/info: the node version, environment and uptime (`started` is a time.monotonic())."""
-    return orjson.dumps({"nodeVersion": {"version": TRINO_VERSION}, "environment": ENVIRONMENT,
-                         "coordinator": True, "starting": False, "uptime": _duration(time.monotonic() - started)})
+    return orjson.dumps(
+        {
+            "nodeVersion": {"version": TRINO_VERSION},
+            "environment": ENVIRONMENT,
+            "coordinator": True,
+            "starting": False,
+            "uptime": _duration(time.monotonic() - started),
+        }
+    )
 
 
 def _duration(seconds: float) -> str:

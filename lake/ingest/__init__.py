@@ -30,6 +30,7 @@ The modules: `rules` (whether one line is accepted, exactly), `scan` (blocks of 
 Arrow tables), `write` (tables -> staged Parquet files, events included), `publish` (`ingest_job`:
 the staged files become the job's tables in one record commit).
 """
+
 from lakegate.lake.ingest.publish import IngestReport, ingest_job
 from lakegate.lake.ingest.rules import MAX_PROBLEMS, IngestError, LineProblem, check_line
 

@@ -1,5 +1,6 @@
 """Ingestion of one job: scan, write to staging, then publish the staged files as the job's tables
 in one commit of the branch's record."""
+
 from __future__ import annotations
 
 import json
@@ -81,10 +82,19 @@ def ingest_job(
     with paths.job_lock(lake, branch, batch_id, job_id), paths.staging(lake, branch) as scratch:
         writer = JobWriter(scratch, plans, {c: row[c] for c in JOB_COLUMNS})
         quarantine = scratch / "quarantine.jsonl"
-        with open(quarantine, "w", encoding="utf-8") as bad_lines, \
-                ThreadPoolExecutor(scan.THREADS, thread_name_prefix="lakegate-ingest") as pool, \
-                tqdm(total=sum(p.stat().st_size for p in files), unit="B", unit_scale=True, desc="ingest",
-                     disable=not progress, file=sys.stderr, dynamic_ncols=True) as bar:
+        with (
+            open(quarantine, "w", encoding="utf-8") as bad_lines,
+            ThreadPoolExecutor(scan.THREADS, thread_name_prefix="lakegate-ingest") as pool,
+            tqdm(
+                total=sum(p.stat().st_size for p in files),
+                unit="B",
+                unit_scale=True,
+                desc="ingest",
+                disable=not progress,
+                file=sys.stderr,
+                dynamic_ncols=True,
+            ) as bar,
+        ):
             pending: deque[tuple[Block, list[Future[Result]]]] = deque()
 
             def collect() -> None:
@@ -94,12 +104,14 @@ def ingest_job(
                 found = sorted((p for r in results for p in r.problems), key=lambda p: p.line)
                 if found:
                     bad += len(found)
-                    problems.extend(found[:max(0, MAX_PROBLEMS - len(problems))])
+                    problems.extend(found[: max(0, MAX_PROBLEMS - len(problems))])
                     for problem in found:
                         grouped.add(problem)
                     if skip_bad_lines:
-                        bad_lines.writelines(json.dumps({"file": p.path, "line": p.line, "reason": p.reason,
-                                                         "text": p.text}) + "\n" for p in found)
+                        bad_lines.writelines(
+                            json.dumps({"file": p.path, "line": p.line, "reason": p.reason, "text": p.text}) + "\n"
+                            for p in found
+                        )
                     else:
                         writer.enabled = False  # the job fails: keep counting problems, write nothing
                 for index, table in merge_results(results).items():
@@ -119,9 +131,14 @@ def ingest_job(
                 collect()
         if bad and not skip_bad_lines:
             writer.close()
-            raise IngestError(f"{bad} bad line{'s' if bad > 1 else ''} in the emissions of job {job_id!r}; nothing "
-                              "was written (--skip-bad-lines would keep the good rows and drop "
-                              f"{grouped.what_skipping_drops(topics)})", problems, bad, grouped)
+            raise IngestError(
+                f"{bad} bad line{'s' if bad > 1 else ''} in the emissions of job {job_id!r}; nothing "
+                "was written (--skip-bad-lines would keep the good rows and drop "
+                f"{grouped.what_skipping_drops(topics)})",
+                problems,
+                bad,
+                grouped,
+            )
         staged = writer.close()
         metadata_file = scratch / "metadata.parquet"
         write_metadata_file(metadata_table(row), metadata_file)
@@ -134,10 +151,20 @@ def ingest_job(
         else:
             quarantine_target.unlink(missing_ok=True)
     return IngestReport(
-        branch=branch, batch_id=batch_id, job_id=job_id, rows=writer.rows, events=writer.events, lines=lines,
-        bad_lines=bad, quarantine=quarantine_target if bad else None, seconds=time.perf_counter() - started,
-        config_version=version, files=published, problems=problems if bad else [],
-        skipped=grouped.what_skipping_drops(topics) if bad else "", causes=list(grouped.causes.values()),
+        branch=branch,
+        batch_id=batch_id,
+        job_id=job_id,
+        rows=writer.rows,
+        events=writer.events,
+        lines=lines,
+        bad_lines=bad,
+        quarantine=quarantine_target if bad else None,
+        seconds=time.perf_counter() - started,
+        config_version=version,
+        files=published,
+        problems=problems if bad else [],
+        skipped=grouped.what_skipping_drops(topics) if bad else "",
+        causes=list(grouped.causes.values()),
     )
 
 

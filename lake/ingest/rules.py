@@ -1,4 +1,5 @@
 """Ingestion rules: whether one emissions line is accepted, exactly (the Emitter's rules, `types.check_value`)."""
+
 from __future__ import annotations
 
 import json
@@ -61,8 +62,9 @@ class IngestError(ValueError):
     `total` counts every bad line found, even beyond the `MAX_PROBLEMS` kept.
     """
 
-    def __init__(self, message: str, problems: Sequence[LineProblem] = (), total: int = 0,
-                 bad_lines: BadLines | None = None):
+    def __init__(
+        self, message: str, problems: Sequence[LineProblem] = (), total: int = 0, bad_lines: BadLines | None = None
+    ):
         self.problems = list(problems)
         self.total = total
         self.bad_lines = bad_lines or BadLines()
@@ -100,8 +102,9 @@ def _what(value: Any) -> str:
     return f"{type(value).__name__} {text[:40]}{'...' if len(text) > 40 else ''}"
 
 
-def check_line(raw: bytes, topics: dict[str, Topic], *, unterminated: bool = False
-               ) -> tuple[str, int, list[Any]] | None:
+def check_line(
+    raw: bytes, topics: dict[str, Topic], *, unterminated: bool = False
+) -> tuple[str, int, list[Any]] | None:
     """Check one emissions line: (topic, timestamp, field values as stored), or None if blank.
 
     Raises ValueError with the reason when the line is refused. `unterminated` says the
@@ -123,7 +126,9 @@ def topic_of(text: str, topics: dict[str, Topic]) -> str | None:
 
 
 def too_long(size: int) -> BadLine:
-    return BadLine(f"line too long: {size:,} bytes, more than the limit of {MAX_LINE_BYTES:,} bytes of an emissions line")
+    return BadLine(
+        f"line too long: {size:,} bytes, more than the limit of {MAX_LINE_BYTES:,} bytes of an emissions line"
+    )
 
 
 def parse_line(raw: bytes, topics: dict[str, Topic], unterminated: bool) -> tuple[str, int, list[Any]] | None:
@@ -136,8 +141,9 @@ def parse_line(raw: bytes, topics: dict[str, Topic], unterminated: bool) -> tupl
     if not text.strip(" \t\r\n"):
         return None
     if json_too_deep(text):
-        raise BadLine(f"nested too deep: more than {MAX_JSON_DEPTH} levels of arrays and objects, the limit of an "
-                   "emissions line")
+        raise BadLine(
+            f"nested too deep: more than {MAX_JSON_DEPTH} levels of arrays and objects, the limit of an emissions line"
+        )
     try:
         record = _DECODER.decode(text)
     except json.JSONDecodeError as exc:
@@ -171,8 +177,10 @@ def parse_line(raw: bytes, topics: dict[str, Topic], unterminated: bool) -> tupl
         raise BadLine(f"topic {name!r}: bad timestamp: $metadata has no timestamp")
     timestamp = meta["timestamp"]
     if type(timestamp) is not int or not 0 <= timestamp <= INT64_MAX:
-        raise BadLine(f"topic {name!r}: bad timestamp: expected an integer number of nanoseconds "
-                   f"from 0 to 2^63-1, got {_what(timestamp)}")
+        raise BadLine(
+            f"topic {name!r}: bad timestamp: expected an integer number of nanoseconds "
+            f"from 0 to 2^63-1, got {_what(timestamp)}"
+        )
     event = meta.get("event")
     if event is not None and not isinstance(event, bool):
         raise BadLine(f"topic {name!r}: event must be true or false, got {_what(event)}")

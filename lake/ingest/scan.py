@@ -1,6 +1,7 @@
 """Ingestion scan: emissions files read in blocks of whole lines, each topic's lines turned into an
 Arrow table by the fast paths (Arrow's JSON reader) or, for what they do not certainly accept,
 by `rules.check_line`'s exact check (the package docstring says how)."""
+
 from __future__ import annotations
 
 import json
@@ -41,11 +42,16 @@ class Plan:
         if self.fast:
             meta = pa.struct([("topic", pa.string()), ("timestamp", pa.int64()), ("event", pa.bool_())])
             data = pa.struct([(f, field_arrow_type(t)) for f, t in topic.fields.items()])
-            self.line_options = pj.ParseOptions(explicit_schema=pa.schema([("$metadata", meta), ("$data", data)]),
-                                                unexpected_field_behavior="error")
-            self.data_options = pj.ParseOptions(explicit_schema=pa.schema(list(data)), unexpected_field_behavior="error")
+            self.line_options = pj.ParseOptions(
+                explicit_schema=pa.schema([("$metadata", meta), ("$data", data)]), unexpected_field_behavior="error"
+            )
+            self.data_options = pj.ParseOptions(
+                explicit_schema=pa.schema(list(data)), unexpected_field_behavior="error"
+            )
         # how the topic's name may be written between quotes in a line
-        self.spellings = sorted({json.dumps(self.name)[1:-1].encode(), json.dumps(self.name, ensure_ascii=False)[1:-1].encode()})
+        self.spellings = sorted(
+            {json.dumps(self.name)[1:-1].encode(), json.dumps(self.name, ensure_ascii=False)[1:-1].encode()}
+        )
 
 
 def topic_plans(config: Config) -> list[Plan]:
@@ -54,8 +60,10 @@ def topic_plans(config: Config) -> list[Plan]:
         paths.check_table_name(topic.name)
         clash = RESERVED_FIELDS.intersection(topic.fields)
         if clash:
-            raise IngestError(f"topic {topic.name!r} declares field {sorted(clash)[0]!r}, a column lakegate adds "
-                              "to every topic row; rename the field")
+            raise IngestError(
+                f"topic {topic.name!r} declares field {sorted(clash)[0]!r}, a column lakegate adds "
+                "to every topic row; rename the field"
+            )
         plans.append(Plan(index, topic))
     return plans
 
@@ -74,7 +82,7 @@ class Block:
 
     def line_bytes(self, i: int) -> bytes:
         """Line i of the block, without its newline."""
-        return self.data[self.offsets[i]:self.offsets[i + 1] - 1]
+        return self.data[self.offsets[i] : self.offsets[i + 1] - 1]
 
 
 def read_blocks(path: Path) -> Iterator[Block]:
@@ -108,7 +116,7 @@ def read_blocks(path: Path) -> Iterator[Block]:
                 if end < 0:
                     rest, skipped = (b"", len(data)) if len(data) > max_line else (data, 0)
                     continue
-                data, rest = data[:end + 1], data[end + 1:]
+                data, rest = data[: end + 1], data[end + 1 :]
             block = _block(str(path), first, data, unterminated, max_line)
             if skipped:
                 block.too_long[0], skipped = skipped, 0
@@ -191,11 +199,16 @@ class Hinter:
 
 _TIMESTAMP_KEY = b', "timestamp": '
 #: What may follow the timestamp's digits in the Emitter's layout, and whether it makes the line an event.
-_DATA_KEYS = ((b'}, "$data": ', False), (b', "event": true}, "$data": ', True), (b', "event": false}, "$data": ', False))
+_DATA_KEYS = (
+    (b'}, "$data": ', False),
+    (b', "event": true}, "$data": ', True),
+    (b', "event": false}, "$data": ', False),
+)
 
 
-def _emitter_layout(block: Block, lines: np.ndarray, after: np.ndarray, event_topic: bool
-                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _emitter_layout(
+    block: Block, lines: np.ndarray, after: np.ndarray, event_topic: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Which of the given lines are exactly `{"$metadata": {"topic": T, "timestamp": N[, "event": B]}, "$data": X}`.
 
     `after` is where each line's topic name ends (-1: not this layout); `"event": true` is
@@ -240,7 +253,9 @@ def _payloads(scratch: bytearray, start: np.ndarray, close: np.ndarray) -> pa.Bu
     offsets = np.empty(2 * len(start), np.int64)
     offsets[0::2] = start
     offsets[1::2] = close + 1
-    texts = pa.Array.from_buffers(pa.large_binary(), len(offsets) - 1, [None, pa.py_buffer(offsets), pa.py_buffer(scratch)])
+    texts = pa.Array.from_buffers(
+        pa.large_binary(), len(offsets) - 1, [None, pa.py_buffer(offsets), pa.py_buffer(scratch)]
+    )
     return _gather(texts, np.arange(0, len(offsets) - 1, 2))
 
 
@@ -267,7 +282,7 @@ def _slow(plans: list[Plan], topics: dict[str, Topic], block: Block, lines: Sequ
                 raise too_long(block.too_long[int(i)])
             checked = parse_line(raw, topics, unterminated=number == block.unterminated)
         except BadLine as exc:
-            text = raw[:1000 if int(i) in block.too_long else None].decode("utf-8", "surrogateescape")
+            text = raw[: 1000 if int(i) in block.too_long else None].decode("utf-8", "surrogateescape")
             result.problems.append(LineProblem(block.path, number, str(exc), text, topic_of(text, topics)))
             continue
         if checked is not None:
@@ -286,15 +301,18 @@ def _slow(plans: list[Plan], topics: dict[str, Topic], block: Block, lines: Sequ
 def _gather(texts: pa.Array, indexes: np.ndarray) -> pa.Buffer:
     """The given elements of a binary array, one after the other, as one buffer."""
     taken = texts.take(pa.array(indexes))
-    offsets = np.frombuffer(taken.buffers()[1], np.int64)[taken.offset:taken.offset + len(taken) + 1]
+    offsets = np.frombuffer(taken.buffers()[1], np.int64)[taken.offset : taken.offset + len(taken) + 1]
     return taken.buffers()[2].slice(int(offsets[0]), int(offsets[-1] - offsets[0]))
 
 
 def _parse(buffer: pa.Buffer, options: pj.ParseOptions, rows: int) -> pa.Table | None:
     """Arrow's strict parse of newline-separated JSON objects; None unless it gives exactly `rows` rows."""
     try:
-        parsed = pj.read_json(pa.BufferReader(buffer), parse_options=options,
-                              read_options=pj.ReadOptions(use_threads=False, block_size=max(buffer.size + 1, 1 << 16)))
+        parsed = pj.read_json(
+            pa.BufferReader(buffer),
+            parse_options=options,
+            read_options=pj.ReadOptions(use_threads=False, block_size=max(buffer.size + 1, 1 << 16)),
+        )
     except (pa.ArrowInvalid, pa.ArrowNotImplementedError, pa.ArrowTypeError):
         return None
     if parsed.num_rows != rows or parsed.schema != options.explicit_schema:
@@ -317,12 +335,14 @@ def _valid_values(plan: Plan, values: Sequence[pa.Array], good: pa.Array) -> pa.
     return good
 
 
-def _accept(plan: Plan, numbers: np.ndarray, timestamp: pa.Array, values: Sequence[pa.Array],
-            good: pa.Array) -> tuple[pa.Table, np.ndarray]:
+def _accept(
+    plan: Plan, numbers: np.ndarray, timestamp: pa.Array, values: Sequence[pa.Array], good: pa.Array
+) -> tuple[pa.Table, np.ndarray]:
     """(table of the good rows, with line numbers; positions of the other rows)."""
     good = _valid_values(plan, values, good)
-    table = pa.Table.from_arrays([pa.array(numbers, pa.int64()), timestamp, *values],
-                                 schema=pa.schema([(LINE, pa.int64()), *plan.schema]))
+    table = pa.Table.from_arrays(
+        [pa.array(numbers, pa.int64()), timestamp, *values], schema=pa.schema([(LINE, pa.int64()), *plan.schema])
+    )
     if good.null_count == 0 and pc.all(good).as_py():
         return table, np.array([], np.int64)
     return table.filter(good), np.flatnonzero(~good.to_numpy(zero_copy_only=False))
@@ -344,8 +364,9 @@ def _fast_lines(plan: Plan, buffer: pa.Buffer, numbers: np.ndarray) -> tuple[pa.
     return _accept(plan, numbers, timestamp, data.flatten(), good)
 
 
-def _fast_payloads(plan: Plan, buffer: pa.Buffer, numbers: np.ndarray, timestamps: np.ndarray
-                   ) -> tuple[pa.Table | None, np.ndarray]:
+def _fast_payloads(
+    plan: Plan, buffer: pa.Buffer, numbers: np.ndarray, timestamps: np.ndarray
+) -> tuple[pa.Table | None, np.ndarray]:
     """The `$data` objects of lines in the Emitter's layout parsed by Arrow: as `_fast_lines`."""
     parsed = _parse(buffer, plan.data_options, len(numbers))
     if parsed is None:
@@ -354,11 +375,14 @@ def _fast_payloads(plan: Plan, buffer: pa.Buffer, numbers: np.ndarray, timestamp
     return _accept(plan, numbers, pa.array(timestamps, pa.int64()), values, pa.repeat(True, len(numbers)))
 
 
-def process_block(plans: list[Plan], topics: dict[str, Topic], block: Block, pool: ThreadPoolExecutor,
-             hinter: Hinter) -> list[Future[Result]]:
+def process_block(
+    plans: list[Plan], topics: dict[str, Topic], block: Block, pool: ThreadPoolExecutor, hinter: Hinter
+) -> list[Future[Result]]:
     """Start the work of one block; its futures give _Results."""
     count = len(block.offsets) - 1
-    lines = pa.Array.from_buffers(pa.large_binary(), count, [None, pa.py_buffer(block.offsets), pa.py_buffer(block.data)])
+    lines = pa.Array.from_buffers(
+        pa.large_binary(), count, [None, pa.py_buffer(block.offsets), pa.py_buffer(block.data)]
+    )
     try:
         lines.cast(pa.large_string())  # validates UTF-8 of the whole block
         codes, after = hinter.codes_of(block, lines)
@@ -371,16 +395,24 @@ def process_block(plans: list[Plan], topics: dict[str, Topic], block: Block, poo
     bounds = np.searchsorted(codes[order], np.arange(-1, len(plans) + 1))
     futures = []
     if bounds[1]:
-        futures.append(pool.submit(_slow, plans, topics, block, order[:bounds[1]]))
+        futures.append(pool.submit(_slow, plans, topics, block, order[: bounds[1]]))
     for plan in plans:
-        group = order[bounds[plan.index + 1]:bounds[plan.index + 2]]
+        group = order[bounds[plan.index + 1] : bounds[plan.index + 2]]
         if len(group):
             futures.append(pool.submit(_check_group, plans, topics, block, plan, lines, group, after[group], scratch))
     return futures
 
 
-def _check_group(plans: list[Plan], topics: dict[str, Topic], block: Block, plan: Plan, lines: pa.Array,
-                 group: np.ndarray, after: np.ndarray, scratch: bytearray | None) -> Result:
+def _check_group(
+    plans: list[Plan],
+    topics: dict[str, Topic],
+    block: Block,
+    plan: Plan,
+    lines: pa.Array,
+    group: np.ndarray,
+    after: np.ndarray,
+    scratch: bytearray | None,
+) -> Result:
     """Check one topic's lines of a block: Arrow for what it certainly accepts, check_line for the rest."""
     parts, refused = [], []
     layout, timestamps, start, close = _emitter_layout(block, group, after, plan.topic.event)
@@ -409,5 +441,7 @@ def merge_results(results: Sequence[Result]) -> dict[int, pa.Table]:
     for result in results:
         for index, table in result.tables.items():
             pieces.setdefault(index, []).append(table)
-    return {index: tables[0] if len(tables) == 1 else pa.concat_tables(tables).sort_by(LINE)
-            for index, tables in pieces.items()}
+    return {
+        index: tables[0] if len(tables) == 1 else pa.concat_tables(tables).sort_by(LINE)
+        for index, tables in pieces.items()
+    }

@@ -1,5 +1,6 @@
 """Ingestion write: a job's checked rows -> Parquet files in the staging directory (each topic's, and
 the `events` rows of its event topics)."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -79,8 +80,9 @@ class JobWriter:
         writer = self.writers.get(name)
         if writer is None:
             strings = [f.name for f in table.schema if pa.types.is_string(f.type)]  # numbers rarely repeat
-            writer = pq.ParquetWriter(self.scratch / f"{name}.parquet", table.schema, compression="zstd",
-                                      use_dictionary=strings)
+            writer = pq.ParquetWriter(
+                self.scratch / f"{name}.parquet", table.schema, compression="zstd", use_dictionary=strings
+            )
             self.writers[name] = writer
         writer.write_table(table, row_group_size=1 << 20)
 

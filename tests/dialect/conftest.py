@@ -10,14 +10,15 @@ Tables (session-scoped, written once per test process):
 
 The session time zone of every connection is UTC, as the conformance cases assume.
 """
+
 from __future__ import annotations
 
 import datetime as dt
+from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from decimal import Decimal
 from pathlib import Path
-from typing import Iterator
 
 import duckdb
 import pyarrow as pa
@@ -78,17 +79,82 @@ def _ts(text: str) -> dt.datetime:
 
 _ROWS = {
     "t": [
-        (1, 5, 2, 10, 1.5, Decimal("12.34"), "apple", "g1", ["x", "y"], [1, 2, 3],
-         _ts("2024-01-02 03:04:05.123"), True, _J1),
-        (2, -7, 3, -4, -2.25, Decimal("0.50"), "Banana", "g1", ["y"], [10, 20],
-         _ts("2024-01-15 12:00:00.000"), False, '{"name": "beta", "n": 2.50, "tags": []}'),
-        (3, 9, 0, 0, 0.0, Decimal("-3.10"), "cherry pie", "g2", [], [],
-         _ts("2024-02-29 23:59:59.999"), True, '{"name": null}'),
+        (
+            1,
+            5,
+            2,
+            10,
+            1.5,
+            Decimal("12.34"),
+            "apple",
+            "g1",
+            ["x", "y"],
+            [1, 2, 3],
+            _ts("2024-01-02 03:04:05.123"),
+            True,
+            _J1,
+        ),
+        (
+            2,
+            -7,
+            3,
+            -4,
+            -2.25,
+            Decimal("0.50"),
+            "Banana",
+            "g1",
+            ["y"],
+            [10, 20],
+            _ts("2024-01-15 12:00:00.000"),
+            False,
+            '{"name": "beta", "n": 2.50, "tags": []}',
+        ),
+        (
+            3,
+            9,
+            0,
+            0,
+            0.0,
+            Decimal("-3.10"),
+            "cherry pie",
+            "g2",
+            [],
+            [],
+            _ts("2024-02-29 23:59:59.999"),
+            True,
+            '{"name": null}',
+        ),
         (4, None, 4, 7, None, None, None, "g2", None, None, None, None, None),
-        (5, 12, None, None, 3.0, Decimal("100.00"), "", "g3", ["z", None], [5, None, 7],
-         _ts("2023-12-31 00:00:00.000"), False, "not json"),
-        (6, 12, 5, 3, 10.0, Decimal("7.25"), "Äpfel ü", None, ["x"], [4],
-         _ts("2024-03-10 08:30:00.500"), True, '{"name": "ü", "n": -3}'),
+        (
+            5,
+            12,
+            None,
+            None,
+            3.0,
+            Decimal("100.00"),
+            "",
+            "g3",
+            ["z", None],
+            [5, None, 7],
+            _ts("2023-12-31 00:00:00.000"),
+            False,
+            "not json",
+        ),
+        (
+            6,
+            12,
+            5,
+            3,
+            10.0,
+            Decimal("7.25"),
+            "Äpfel ü",
+            None,
+            ["x"],
+            [4],
+            _ts("2024-03-10 08:30:00.500"),
+            True,
+            '{"name": "ü", "n": -3}',
+        ),
     ],
     "odom": [
         (0, 3.0, 4.0, 0.0, "b1", "j1"),
@@ -102,11 +168,9 @@ _ROWS = {
         (2_000_000_000, -1.0, 0.0, 0.0, "b2", "j3"),
     ],
     "metadata": [
-        ("j1", "b1", "Parking lot", "v1.2.0", ["night", "rain"], ["t1", "t2"], ["weather"], ["rain"],
-         "SUCCEEDED"),
+        ("j1", "b1", "Parking lot", "v1.2.0", ["night", "rain"], ["t1", "t2"], ["weather"], ["rain"], "SUCCEEDED"),
         ("j2", "b1", "Highway merge", "v1.2.0", ["day"], ["t3"], [], [], "FAILED"),
-        ("j3", "b2", "Parking lot", "v1.3.0", [], [], ["weather", "driver"], ["sun", "bot"],
-         "SUCCEEDED"),
+        ("j3", "b2", "Parking lot", "v1.3.0", [], [], ["weather", "driver"], ["sun", "bot"], "SUCCEEDED"),
     ],
     "events": [
         (100, 3, 1.5, "first", 1.25),
@@ -136,7 +200,7 @@ class FixtureLake:
         con.execute("SET TimeZone = 'UTC'")
         for table in self.schema:
             path = str(self.root / f"{table}.parquet").replace("'", "''")
-            con.execute(f'CREATE VIEW "{table}" AS SELECT * FROM read_parquet(\'{path}\')')
+            con.execute(f"CREATE VIEW \"{table}\" AS SELECT * FROM read_parquet('{path}')")
         con.execute("SET allowed_directories = ?", [[str(self.root)]])
         con.execute("SET enable_external_access = false")
         con.execute("SET lock_configuration = true")

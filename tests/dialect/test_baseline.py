@@ -5,13 +5,14 @@ expected types, as the conformance runner does), lakegate must answer too: a ref
 construct lifted cheaply by a plain translation (issue 14). Where lakegate answers, the conformance
 suite already checks the answer, so only refusals are compared here.
 """
+
 from __future__ import annotations
 
 import duckdb
 import pytest
 import sqlglot
-
 from functions_doc import Case, load_cases
+
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.translate import translate
 from tests.dialect.test_conformance import _sort_key, is_ordered, parse_type, same, to_protocol
@@ -66,8 +67,11 @@ def test_no_refusal_where_plain_translation_is_right(case: Case, fixture_lake):
         translate(case.sql, fixture_lake.schema)
     except DialectError as e:
         if baseline_is_right(case, fixture_lake):
-            pytest.fail(f"lakegate refuses ({e.error_name}: {e}) what plain sqlglot + DuckDB answers "
-                        f"exactly\nTrino SQL: {case.sql.strip()}", pytrace=False)
+            pytest.fail(
+                f"lakegate refuses ({e.error_name}: {e}) what plain sqlglot + DuckDB answers "
+                f"exactly\nTrino SQL: {case.sql.strip()}",
+                pytrace=False,
+            )
 
 
 def test_baseline_runner_detects_right_and_wrong(fixture_lake):

@@ -9,6 +9,7 @@ true`), otherwise as a multiset. Doubles compare exactly unless the case gives `
 A case whose query uses a function the registry lists in `functions.REJECTED`, and that is refused
 naming that function, is reported as xfail (a documented gap), never as a pass.
 """
+
 from __future__ import annotations
 
 import base64
@@ -24,8 +25,8 @@ from decimal import Context, Decimal
 import duckdb
 import pytest
 import sqlglot
-
 from functions_doc import Case, called_names, load_cases
+
 from lakegate.dialect.errors import DialectError, runtime_error
 
 CASES = load_cases()
@@ -52,9 +53,30 @@ def _split_top(text: str) -> list[str]:
     return parts
 
 
-_BASES = {"boolean", "tinyint", "smallint", "integer", "bigint", "real", "double", "decimal", "varchar",
-          "char", "varbinary", "json", "date", "time", "timestamp", "interval", "array", "map", "row",
-          "uuid", "unknown", "ipaddress"}
+_BASES = {
+    "boolean",
+    "tinyint",
+    "smallint",
+    "integer",
+    "bigint",
+    "real",
+    "double",
+    "decimal",
+    "varchar",
+    "char",
+    "varbinary",
+    "json",
+    "date",
+    "time",
+    "timestamp",
+    "interval",
+    "array",
+    "map",
+    "row",
+    "uuid",
+    "unknown",
+    "ipaddress",
+}
 
 
 def parse_type(text: str) -> tuple:
@@ -83,7 +105,7 @@ def parse_type(text: str) -> tuple:
 def _field_type(field: str) -> str:
     """The type of a row field spec: `name type`, `"name" type` or just `type`."""
     if field.startswith('"'):
-        return field[field.index('"', 1) + 1:].strip()
+        return field[field.index('"', 1) + 1 :].strip()
     head, _, tail = field.partition(" ")
     if tail and "(" not in head and head.lower() not in _BASES:
         return tail
@@ -182,6 +204,7 @@ def _sort_key(row) -> str:
         if isinstance(v, dict):
             return {k: norm(x) for k, x in v.items()}
         return repr(v)
+
     return json.dumps(norm(row), sort_keys=True, ensure_ascii=False)
 
 
@@ -236,8 +259,11 @@ def _run_result_case(case: Case, translate, rejected: dict, lake) -> None:
     try:
         translation = translate(case.sql, lake.schema)
     except DialectError as e:
-        gaps = [name for name in sorted(called_names(case.sql) & set(rejected))
-                if re.search(rf"\b{re.escape(name)}\b", str(e), re.IGNORECASE)]
+        gaps = [
+            name
+            for name in sorted(called_names(case.sql) & set(rejected))
+            if re.search(rf"\b{re.escape(name)}\b", str(e), re.IGNORECASE)
+        ]
         if e.error_name in _GAP_ERRORS and gaps:
             pytest.xfail(f"documented gap: {gaps[0]} ({rejected[gaps[0]]})")
         pytest.fail(f"refused with {e.error_name}: {e}\nTrino SQL: {case.sql.strip()}", pytrace=False)
@@ -277,30 +303,36 @@ def _run_error_case(case: Case, translate, lake) -> None:
         if e.error_name not in case.errors:
             problems.append(f"error {e.error_name}, expected {names}")
         if case.line is not None and (e.line, e.column) != (case.line, case.column):
-            problems.append(f"position line {e.line}, column {e.column}, expected line {case.line}, "
-                            f"column {case.column}")
+            problems.append(
+                f"position line {e.line}, column {e.column}, expected line {case.line}, column {case.column}"
+            )
         if case.message and case.message.lower() not in str(e).lower():
             problems.append(f"message does not mention {case.message!r}")
         if problems:
             pytest.fail("; ".join(problems) + f"\nerror: {e}\nTrino SQL: {case.sql.strip()}", pytrace=False)
         return
     if case.line is not None:
-        pytest.fail(f"expected {names} at translation (line {case.line}, column {case.column}), but it "
-                    f"translated{_translated(case, translation)}", pytrace=False)
+        pytest.fail(
+            f"expected {names} at translation (line {case.line}, column {case.column}), but it "
+            f"translated{_translated(case, translation)}",
+            pytrace=False,
+        )
     with lake.transaction() as con:
         try:
             rows = con.execute(translation.duckdb_sql).fetchall()
         except duckdb.Error as e:
             message = str(e)
-            if not any(name in message for name in case.errors) and \
-                    runtime_error(message).error_name not in case.errors:
-                pytest.fail(f"DuckDB error does not name {names}: {message}{_translated(case, translation)}",
-                            pytrace=False)
+            if (
+                not any(name in message for name in case.errors)
+                and runtime_error(message).error_name not in case.errors
+            ):
+                pytest.fail(
+                    f"DuckDB error does not name {names}: {message}{_translated(case, translation)}", pytrace=False
+                )
             if case.message and case.message.lower() not in message.lower():
                 pytest.fail(f"error does not mention {case.message!r}: {message}", pytrace=False)
             return
-    pytest.fail(f"expected {names}, but the query returned {rows}{_translated(case, translation)}",
-                pytrace=False)
+    pytest.fail(f"expected {names}, but the query returned {rows}{_translated(case, translation)}", pytrace=False)
 
 
 # --- the runner's own pieces -----------------------------------------------------------------------
@@ -308,8 +340,10 @@ def test_parse_type():
     assert parse_type("decimal(6,2)") == ("decimal", (6, 2))
     assert parse_type("varchar") == ("varchar", ())
     assert parse_type("timestamp(3) with time zone") == ("timestamp_tz", (3,))
-    assert parse_type("array(row(x integer, \"y z\" varchar(3)))") == (
-        "array", (("row", (("integer", ()), ("varchar", (3,)))),))
+    assert parse_type('array(row(x integer, "y z" varchar(3)))') == (
+        "array",
+        (("row", (("integer", ()), ("varchar", (3,)))),),
+    )
     assert parse_type("row(integer, varchar(1))") == ("row", (("integer", ()), ("varchar", (1,))))
     assert parse_type("map(varchar(1), double)") == ("map", (("varchar", (1,)), ("double", ())))
     assert parse_type("interval day to second") == ("interval day to second", ())
@@ -321,11 +355,14 @@ def test_to_protocol_encodings():
     assert to_protocol(1.5, parse_type("decimal(2,1)")) == repr(1.5)  # a float is not a decimal value
     assert to_protocol(float("nan"), ("double", ())) == "NaN"
     assert to_protocol(float("-inf"), ("double", ())) == "-Infinity"
-    assert to_protocol(dt.datetime(2024, 1, 2, 3, 4, 5, 123456), parse_type("timestamp(3)")) == \
-        "2024-01-02 03:04:05.123"
+    assert (
+        to_protocol(dt.datetime(2024, 1, 2, 3, 4, 5, 123456), parse_type("timestamp(3)")) == "2024-01-02 03:04:05.123"
+    )
     assert to_protocol(dt.datetime(2024, 1, 2, 3, 4, 5), parse_type("timestamp(0)")) == "2024-01-02 03:04:05"
-    assert to_protocol(dt.datetime(1970, 1, 1, tzinfo=dt.timezone.utc),
-                       parse_type("timestamp(3) with time zone")) == "1970-01-01 00:00:00.000 UTC"
+    assert (
+        to_protocol(dt.datetime(1970, 1, 1, tzinfo=dt.UTC), parse_type("timestamp(3) with time zone"))
+        == "1970-01-01 00:00:00.000 UTC"
+    )
     assert to_protocol(dt.timedelta(days=2, seconds=3), ("interval day to second", ())) == "2 00:00:03.000"
     assert to_protocol({"x": 1, "y": "a"}, parse_type("row(x integer, y varchar)")) == [1, "a"]
     assert to_protocol([Decimal("1"), None], parse_type("array(decimal(3,1))")) == ["1.0", None]

@@ -1,5 +1,6 @@
 """docs/functions.md is generated from the function registry and the conformance cases, and the
 committed file is up to date."""
+
 from __future__ import annotations
 
 import importlib.util
@@ -7,21 +8,23 @@ import subprocess
 import sys
 from pathlib import Path
 
-import pytest
-
 import functions_doc as docs
+import pytest
 
 REPO = Path(__file__).resolve().parents[2]
 TOOL = REPO / "tools" / "functions_doc.py"
 
-needs_registry = pytest.mark.skipif(importlib.util.find_spec("lakegate.dialect.functions") is None,
-                                    reason="lakegate.dialect.functions (the registry) is not written yet")
+needs_registry = pytest.mark.skipif(
+    importlib.util.find_spec("lakegate.dialect.functions") is None,
+    reason="lakegate.dialect.functions (the registry) is not written yet",
+)
 
 
 @needs_registry
 def test_committed_functions_doc_is_up_to_date():
-    result = subprocess.run([sys.executable, str(TOOL), "--check"], cwd=REPO,
-                            capture_output=True, text=True, timeout=120)
+    result = subprocess.run(
+        [sys.executable, str(TOOL), "--check"], cwd=REPO, capture_output=True, text=True, timeout=120
+    )
     assert result.returncode == 0, result.stderr + "\nregenerate with: python tools/functions_doc.py"
 
 
@@ -29,8 +32,13 @@ def test_committed_functions_doc_is_up_to_date():
 def test_check_fails_on_a_stale_file(tmp_path):
     stale = tmp_path / "functions.md"
     stale.write_text("# an old page\n", encoding="utf-8")
-    result = subprocess.run([sys.executable, str(TOOL), "--check", "--output", str(stale)],
-                            cwd=REPO, capture_output=True, text=True, timeout=120)
+    result = subprocess.run(
+        [sys.executable, str(TOOL), "--check", "--output", str(stale)],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert result.returncode == 1
     assert "stale" in result.stderr
 
@@ -45,10 +53,14 @@ def test_generate_lists_statuses_and_counts_calls(tmp_path):
         "family: demo\ntitle: Demo\ndescription: two cases\ncases:\n"
         "  - name: one\n    sql: SELECT cardinality(ARRAY[1]), ngrams(x, 2) FROM t\n    error: NOT_SUPPORTED\n"
         "  - name: two\n    sql: SELECT CARDINALITY(a) FILTER (WHERE b) FROM t AS v(a)\n"
-        "    columns: [_col0 bigint]\n    rows: [[1]]\n", encoding="utf-8")
-    text = docs.generate(docs.load_families(tmp_path),
-                         {"cardinality": _Spec("array", "cardinality(array(E)) -> bigint", "1-based")},
-                         {"ngrams": "not translated"})
+        "    columns: [_col0 bigint]\n    rows: [[1]]\n",
+        encoding="utf-8",
+    )
+    text = docs.generate(
+        docs.load_families(tmp_path),
+        {"cardinality": _Spec("array", "cardinality(array(E)) -> bigint", "1-based")},
+        {"ngrams": "not translated"},
+    )
     assert "| `cardinality` | supported | 2 | `cardinality(array(E)) -> bigint` 1-based |" in text
     assert "| `ngrams` | rejected (not translated) | 1 |" in text
     assert "| `zip_with` | rejected (not implemented) | 0 |" in text
@@ -63,6 +75,7 @@ def test_called_names_uses_tokens_not_strings():
 
 def test_malformed_case_file_is_reported(tmp_path):
     (tmp_path / "bad.yaml").write_text(
-        "family: bad\ncases:\n  - name: x\n    sql: SELECT 1\n    rows: [[1]]\n", encoding="utf-8")
+        "family: bad\ncases:\n  - name: x\n    sql: SELECT 1\n    rows: [[1]]\n", encoding="utf-8"
+    )
     with pytest.raises(docs.CaseFileError, match="bad.yaml: case 1 \\(x\\)"):
         docs.load_families(tmp_path)

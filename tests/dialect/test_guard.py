@@ -2,6 +2,7 @@
 several statements, oversized or deeply nested texts, bad encodings are refused with a clear error
 and its position. Runs through the real translate() as well, since sqlglot parses some DuckDB-only
 syntax leniently as Trino."""
+
 from __future__ import annotations
 
 import pytest
@@ -20,71 +21,80 @@ def refused(sql, **kwargs) -> DialectError:
     return caught.value
 
 
-@pytest.mark.parametrize("sql, kind", [
-    ("SELECT 1", "query"),
-    ("  -- comment\n/* block */ ((SELECT 1))", "query"),
-    ("WITH a AS (SELECT 1) SELECT * FROM a", "query"),
-    ("VALUES (1, 2)", "query"),
-    ("TABLE odom", "query"),
-    ("SHOW TABLES", "show"),
-    ("show columns from odom", "show"),
-    ("DESCRIBE odom", "describe"),
-    ("DESC odom", "describe"),
-    ("EXPLAIN SELECT 1", "explain"),
-    ("EXPLAIN ANALYZE VERBOSE (TYPE DISTRIBUTED, FORMAT TEXT) SELECT 1", "explain"),
-    ("EXPLAIN (SELECT 1)", "explain"),
-    ("EXPLAIN INSERT INTO t VALUES 1", "other"),
-    ("SET SESSION query_max_run_time = '1h'", "session"),
-    ("RESET SESSION query_max_run_time", "session"),
-    ("SET TIME ZONE 'UTC'", "session"),
-    ("USE lakegate.main", "session"),
-    ("PREPARE st FROM SELECT ?", "session"),
-    ("EXECUTE st USING 1", "session"),
-    ("EXECUTE IMMEDIATE 'SELECT 1'", "session"),
-    ("DEALLOCATE PREPARE st", "session"),
-    ("START TRANSACTION", "session"),
-    ("COMMIT", "session"),
-    ("ROLLBACK", "session"),
-    ("CALL system.runtime.kill_query('q1')", "call"),
-    ("INSERT INTO odom VALUES (1)", "other"),
-    ("SET threads = 64", "other"),
-    ("PRAGMA version", "other"),
-    ("frobnicate everything", "other"),
-])
+@pytest.mark.parametrize(
+    "sql, kind",
+    [
+        ("SELECT 1", "query"),
+        ("  -- comment\n/* block */ ((SELECT 1))", "query"),
+        ("WITH a AS (SELECT 1) SELECT * FROM a", "query"),
+        ("VALUES (1, 2)", "query"),
+        ("TABLE odom", "query"),
+        ("SHOW TABLES", "show"),
+        ("show columns from odom", "show"),
+        ("DESCRIBE odom", "describe"),
+        ("DESC odom", "describe"),
+        ("EXPLAIN SELECT 1", "explain"),
+        ("EXPLAIN ANALYZE VERBOSE (TYPE DISTRIBUTED, FORMAT TEXT) SELECT 1", "explain"),
+        ("EXPLAIN (SELECT 1)", "explain"),
+        ("EXPLAIN INSERT INTO t VALUES 1", "other"),
+        ("SET SESSION query_max_run_time = '1h'", "session"),
+        ("RESET SESSION query_max_run_time", "session"),
+        ("SET TIME ZONE 'UTC'", "session"),
+        ("USE lakegate.main", "session"),
+        ("PREPARE st FROM SELECT ?", "session"),
+        ("EXECUTE st USING 1", "session"),
+        ("EXECUTE IMMEDIATE 'SELECT 1'", "session"),
+        ("DEALLOCATE PREPARE st", "session"),
+        ("START TRANSACTION", "session"),
+        ("COMMIT", "session"),
+        ("ROLLBACK", "session"),
+        ("CALL system.runtime.kill_query('q1')", "call"),
+        ("INSERT INTO odom VALUES (1)", "other"),
+        ("SET threads = 64", "other"),
+        ("PRAGMA version", "other"),
+        ("frobnicate everything", "other"),
+    ],
+)
 def test_classify(sql, kind):
     assert guard.classify(sql) == kind
 
 
 def test_explained_query():
-    assert guard.explained_query("EXPLAIN ANALYZE (TYPE DISTRIBUTED) SELECT x FROM odom") == ("SELECT x FROM odom", True)
+    assert guard.explained_query("EXPLAIN ANALYZE (TYPE DISTRIBUTED) SELECT x FROM odom") == (
+        "SELECT x FROM odom",
+        True,
+    )
     assert guard.explained_query("explain\n  SELECT 1") == ("SELECT 1", False)
 
 
-@pytest.mark.parametrize("sql, name", [
-    ("INSERT INTO odom SELECT * FROM odom", "INSERT"),
-    ("UPDATE odom SET x = 1", "UPDATE"),
-    ("DELETE FROM odom", "DELETE"),
-    ("MERGE INTO odom USING odom s ON true WHEN MATCHED THEN DELETE", "MERGE"),
-    ("CREATE TABLE t AS SELECT 1", "CREATE TABLE"),
-    ("CREATE OR REPLACE VIEW v AS SELECT 1", "CREATE OR"),
-    ("DROP TABLE odom", "DROP TABLE"),
-    ("ALTER TABLE odom ADD COLUMN y DOUBLE", "ALTER TABLE"),
-    ("COPY odom TO '/tmp/out.csv'", "COPY"),
-    ("ATTACH '/tmp/other.duckdb' AS other", "ATTACH"),
-    ("DETACH other", "DETACH"),
-    ("INSTALL httpfs", "INSTALL"),
-    ("LOAD httpfs", "LOAD"),
-    ("SET threads = 64", "SET"),
-    ("RESET threads", "RESET"),
-    ("SET VARIABLE x = 1", "SET VARIABLE"),
-    ("PRAGMA enable_profiling", "PRAGMA"),
-    ("CALL system.runtime.kill_query('q1')", "CALL"),
-    ("EXPORT DATABASE '/tmp/dump'", "EXPORT DATABASE"),
-    ("IMPORT DATABASE '/tmp/dump'", "IMPORT DATABASE"),
-    ("CHECKPOINT", "CHECKPOINT"),
-    ("EXPLAIN DROP TABLE odom", "EXPLAIN DROP TABLE"),
-    ("  /* hidden */ (COPY odom TO 'x')", "COPY"),
-])
+@pytest.mark.parametrize(
+    "sql, name",
+    [
+        ("INSERT INTO odom SELECT * FROM odom", "INSERT"),
+        ("UPDATE odom SET x = 1", "UPDATE"),
+        ("DELETE FROM odom", "DELETE"),
+        ("MERGE INTO odom USING odom s ON true WHEN MATCHED THEN DELETE", "MERGE"),
+        ("CREATE TABLE t AS SELECT 1", "CREATE TABLE"),
+        ("CREATE OR REPLACE VIEW v AS SELECT 1", "CREATE OR"),
+        ("DROP TABLE odom", "DROP TABLE"),
+        ("ALTER TABLE odom ADD COLUMN y DOUBLE", "ALTER TABLE"),
+        ("COPY odom TO '/tmp/out.csv'", "COPY"),
+        ("ATTACH '/tmp/other.duckdb' AS other", "ATTACH"),
+        ("DETACH other", "DETACH"),
+        ("INSTALL httpfs", "INSTALL"),
+        ("LOAD httpfs", "LOAD"),
+        ("SET threads = 64", "SET"),
+        ("RESET threads", "RESET"),
+        ("SET VARIABLE x = 1", "SET VARIABLE"),
+        ("PRAGMA enable_profiling", "PRAGMA"),
+        ("CALL system.runtime.kill_query('q1')", "CALL"),
+        ("EXPORT DATABASE '/tmp/dump'", "EXPORT DATABASE"),
+        ("IMPORT DATABASE '/tmp/dump'", "IMPORT DATABASE"),
+        ("CHECKPOINT", "CHECKPOINT"),
+        ("EXPLAIN DROP TABLE odom", "EXPLAIN DROP TABLE"),
+        ("  /* hidden */ (COPY odom TO 'x')", "COPY"),
+    ],
+)
 def test_writes_and_duckdb_statements_are_denied_by_name(sql, name):
     error = refused(sql)
     assert error.error_name == "PERMISSION_DENIED"
@@ -98,34 +108,48 @@ def test_a_write_behind_a_with_is_denied_by_its_name():
     assert error.error_name == "PERMISSION_DENIED" and error.message.startswith("Access Denied: INSERT statements")
 
 
-@pytest.mark.parametrize("sql", [
-    "SET SESSION query_max_run_time = '1h'", "RESET SESSION x", "USE lakegate.main", "PREPARE st FROM SELECT 1",
-    "EXECUTE st", "EXECUTE IMMEDIATE 'SELECT 1'", "DEALLOCATE PREPARE st", "START TRANSACTION", "COMMIT",
-    "ROLLBACK", "SET TIME ZONE 'UTC'",
-])
+@pytest.mark.parametrize(
+    "sql",
+    [
+        "SET SESSION query_max_run_time = '1h'",
+        "RESET SESSION x",
+        "USE lakegate.main",
+        "PREPARE st FROM SELECT 1",
+        "EXECUTE st",
+        "EXECUTE IMMEDIATE 'SELECT 1'",
+        "DEALLOCATE PREPARE st",
+        "START TRANSACTION",
+        "COMMIT",
+        "ROLLBACK",
+        "SET TIME ZONE 'UTC'",
+    ],
+)
 def test_session_statements_are_left_to_the_server(sql):
     error = refused(sql)
     assert error.error_name == "NOT_SUPPORTED"
     assert "handled by the server" in error.message
 
 
-@pytest.mark.parametrize("sql, function, column", [
-    ("SELECT * FROM read_csv('/etc/passwd')", "read_csv", 15),
-    ("SELECT * FROM read_csv_auto('/etc/passwd')", "read_csv_auto", 15),
-    ("SELECT * FROM read_json('x.json')", "read_json", 15),
-    ("SELECT * FROM read_text('/etc/passwd')", "read_text", 15),
-    ("SELECT * FROM read_blob('/etc/passwd')", "read_blob", 15),
-    ("SELECT * FROM read_parquet('/tmp/x.parquet')", "read_parquet", 15),
-    ("SELECT * FROM parquet_scan('/tmp/x.parquet')", "parquet_scan", 15),
-    ("SELECT * FROM sniff_csv('/etc/passwd')", "sniff_csv", 15),
-    ("SELECT * FROM duckdb_settings()", "duckdb_settings", 15),
-    ("SELECT * FROM pragma_version()", "pragma_version", 15),
-    ("SELECT * FROM query('SELECT 1')", "query", 15),
-    ("SELECT * FROM sqlite_scan('x.db', 't')", "sqlite_scan", 15),
-    ("SELECT * FROM iceberg_scan('s3://b/t')", "iceberg_scan", 15),
-    ("SELECT * FROM odom, range(10)", "range", 21),
-    ("SELECT * FROM odom CROSS JOIN LATERAL generate_series(1, 3)", "generate_series", 39),
-])
+@pytest.mark.parametrize(
+    "sql, function, column",
+    [
+        ("SELECT * FROM read_csv('/etc/passwd')", "read_csv", 15),
+        ("SELECT * FROM read_csv_auto('/etc/passwd')", "read_csv_auto", 15),
+        ("SELECT * FROM read_json('x.json')", "read_json", 15),
+        ("SELECT * FROM read_text('/etc/passwd')", "read_text", 15),
+        ("SELECT * FROM read_blob('/etc/passwd')", "read_blob", 15),
+        ("SELECT * FROM read_parquet('/tmp/x.parquet')", "read_parquet", 15),
+        ("SELECT * FROM parquet_scan('/tmp/x.parquet')", "parquet_scan", 15),
+        ("SELECT * FROM sniff_csv('/etc/passwd')", "sniff_csv", 15),
+        ("SELECT * FROM duckdb_settings()", "duckdb_settings", 15),
+        ("SELECT * FROM pragma_version()", "pragma_version", 15),
+        ("SELECT * FROM query('SELECT 1')", "query", 15),
+        ("SELECT * FROM sqlite_scan('x.db', 't')", "sqlite_scan", 15),
+        ("SELECT * FROM iceberg_scan('s3://b/t')", "iceberg_scan", 15),
+        ("SELECT * FROM odom, range(10)", "range", 21),
+        ("SELECT * FROM odom CROSS JOIN LATERAL generate_series(1, 3)", "generate_series", 39),
+    ],
+)
 def test_table_functions_other_than_unnest_are_denied(sql, function, column):
     error = refused(sql)
     assert error.error_name == "PERMISSION_DENIED"
@@ -133,13 +157,16 @@ def test_table_functions_other_than_unnest_are_denied(sql, function, column):
     assert (error.line, error.column) == (1, column)
 
 
-@pytest.mark.parametrize("sql, function", [
-    ("SELECT getenv('HOME')", "getenv"),
-    ("SELECT current_setting('threads')", "current_setting"),
-    ("SELECT x FROM odom WHERE x > (SELECT count(*) FROM (SELECT read_text('/etc/passwd')))", "read_text"),
-    ("SELECT json_execute_serialized_sql('{}')", "json_execute_serialized_sql"),
-    ("SELECT glob('*')", "glob"),
-])
+@pytest.mark.parametrize(
+    "sql, function",
+    [
+        ("SELECT getenv('HOME')", "getenv"),
+        ("SELECT current_setting('threads')", "current_setting"),
+        ("SELECT x FROM odom WHERE x > (SELECT count(*) FROM (SELECT read_text('/etc/passwd')))", "read_text"),
+        ("SELECT json_execute_serialized_sql('{}')", "json_execute_serialized_sql"),
+        ("SELECT glob('*')", "glob"),
+    ],
+)
 def test_file_and_internals_functions_are_denied_anywhere(sql, function):
     error = refused(sql)
     assert error.error_name == "PERMISSION_DENIED"
@@ -207,8 +234,14 @@ def test_text_checks():
 
 
 def test_check_on_parsed_trees():
-    for sql in ("SELECT x FROM odom", "SELECT 1 UNION ALL SELECT 2", "VALUES 1", "(SELECT 1)", "SHOW TABLES",
-                "DESCRIBE odom"):
+    for sql in (
+        "SELECT x FROM odom",
+        "SELECT 1 UNION ALL SELECT 2",
+        "VALUES 1",
+        "(SELECT 1)",
+        "SHOW TABLES",
+        "DESCRIBE odom",
+    ):
         guard.check(sqlglot.parse_one(sql, read="trino"))
     for sql in ("INSERT INTO t VALUES (1)", "SET x = 1", "CREATE TABLE t (a INT)", "USE a.b"):
         with pytest.raises(DialectError):

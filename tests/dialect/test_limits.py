@@ -7,6 +7,7 @@ RepeatFunction.java, SequenceFunction.java, StringFunctions.java (pad); see case
 Parsing and translation are bounded: nesting and token count are checked before parsing, and no
 construct takes exponential time up to the nesting limit.
 """
+
 from __future__ import annotations
 
 import json
@@ -32,7 +33,7 @@ from lakegate.lake.ingest import ingest_job
 
 #: Address space of the `lakegate query` process: enough to run it, far below what the queries
 #: below would allocate unchecked (4 to 24 GB).
-ADDRESS_SPACE = 2 * 1024 ** 3
+ADDRESS_SPACE = 2 * 1024**3
 CONFIG = "version: 1\ntopics:\n  sample:\n    schema: {n: int}\n"
 
 
@@ -42,10 +43,20 @@ def tiny_lake(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("tiny-lake")
     (root / "config.resim.yaml").write_text(CONFIG)
     emissions = root / "emissions.jsonl"
-    emissions.write_text("".join(json.dumps({"$metadata": {"topic": "sample", "timestamp": i}, "$data": {"n": i}})
-                                 + "\n" for i in (1, 2)))
-    ingest_job(root / "lake", "main", "b1", "j1", [emissions], config=load_config([root / "config.resim.yaml"]),
-               metadata={"experience_name": "tiny"})
+    emissions.write_text(
+        "".join(
+            json.dumps({"$metadata": {"topic": "sample", "timestamp": i}, "$data": {"n": i}}) + "\n" for i in (1, 2)
+        )
+    )
+    ingest_job(
+        root / "lake",
+        "main",
+        "b1",
+        "j1",
+        [emissions],
+        config=load_config([root / "config.resim.yaml"]),
+        metadata={"experience_name": "tiny"},
+    )
     return root / "lake"
 
 
@@ -68,9 +79,12 @@ def query(lake: Path, sql: str, tmp_path: Path) -> Run:
     (killed after 120 s)."""
     out, err = tmp_path / "stdout", tmp_path / "stderr"
     with open(out, "w") as stdout, open(err, "w") as stderr:
-        process = subprocess.Popen([sys.executable, "-m", "lakegate.gateway.cli", "query", "--lake", str(lake),
-                                    "--format", "json", sql], stdout=stdout, stderr=stderr,
-                                   preexec_fn=_cap_address_space)
+        process = subprocess.Popen(
+            [sys.executable, "-m", "lakegate.gateway.cli", "query", "--lake", str(lake), "--format", "json", sql],
+            stdout=stdout,
+            stderr=stderr,
+            preexec_fn=_cap_address_space,
+        )
     killer = threading.Timer(120, process.kill)
     killer.start()
     _, status, usage = os.wait4(process.pid, 0)  # wait4 gives this child's own peak memory
@@ -84,18 +98,30 @@ def query(lake: Path, sql: str, tmp_path: Path) -> Run:
 PEAK_MB = 400
 
 
-@pytest.mark.parametrize("sql, message", [
-    ("SELECT cardinality(repeat(1, 1000000000))", "count argument of repeat function must be less than or equal to 10000"),
-    ("SELECT repeat('x', 1000000000)", "count argument of repeat function must be less than or equal to 10000"),
-    ("SELECT cardinality(repeat(1, 50000000))", "count argument of repeat function must be less than or equal to 10000"),
-    ("SELECT cardinality(repeat(n, 50000000)) FROM sample", "count argument of repeat function must be less than"),
-    ("SELECT cardinality(repeat(lpad('', 100000, 'x'), 10000))", "result of repeat function must not take more than"),
-    ("SELECT cardinality(sequence(1, 1000000000))", "result of sequence function must not have more than 10000"),
-    ("SELECT cardinality(sequence(1, 50000000))", "result of sequence function must not have more than 10000"),
-    ("SELECT cardinality(sequence(n, n * 50000000)) FROM sample", "result of sequence function must not have"),
-    ("SELECT length(lpad('x', 1000000000, 'y'))", "Target length must be at most 1000000 in lakegate"),
-    ("SELECT length(rpad('x', 2000000000, 'y'))", "Target length must be at most 1000000 in lakegate"),
-])
+@pytest.mark.parametrize(
+    "sql, message",
+    [
+        (
+            "SELECT cardinality(repeat(1, 1000000000))",
+            "count argument of repeat function must be less than or equal to 10000",
+        ),
+        ("SELECT repeat('x', 1000000000)", "count argument of repeat function must be less than or equal to 10000"),
+        (
+            "SELECT cardinality(repeat(1, 50000000))",
+            "count argument of repeat function must be less than or equal to 10000",
+        ),
+        ("SELECT cardinality(repeat(n, 50000000)) FROM sample", "count argument of repeat function must be less than"),
+        (
+            "SELECT cardinality(repeat(lpad('', 100000, 'x'), 10000))",
+            "result of repeat function must not take more than",
+        ),
+        ("SELECT cardinality(sequence(1, 1000000000))", "result of sequence function must not have more than 10000"),
+        ("SELECT cardinality(sequence(1, 50000000))", "result of sequence function must not have more than 10000"),
+        ("SELECT cardinality(sequence(n, n * 50000000)) FROM sample", "result of sequence function must not have"),
+        ("SELECT length(lpad('x', 1000000000, 'y'))", "Target length must be at most 1000000 in lakegate"),
+        ("SELECT length(rpad('x', 2000000000, 'y'))", "Target length must be at most 1000000 in lakegate"),
+    ],
+)
 def test_oversized_allocation_is_refused_before_allocating(tiny_lake, tmp_path, sql, message):
     run = query(tiny_lake, sql, tmp_path)
     assert run.code == 1, run.stdout + run.stderr
@@ -105,8 +131,12 @@ def test_oversized_allocation_is_refused_before_allocating(tiny_lake, tmp_path, 
 
 
 def test_capped_process_still_answers_within_the_limits(tiny_lake, tmp_path):
-    run = query(tiny_lake, "SELECT cardinality(repeat(n, 10000)), cardinality(sequence(1, 10000)), "
-                           "length(lpad('x', 1000000, 'y')) FROM sample ORDER BY n", tmp_path)
+    run = query(
+        tiny_lake,
+        "SELECT cardinality(repeat(n, 10000)), cardinality(sequence(1, 10000)), "
+        "length(lpad('x', 1000000, 'y')) FROM sample ORDER BY n",
+        tmp_path,
+    )
     assert run.code == 0, run.stderr
     assert json.loads(run.stdout)["rows"] == [[10000, 10000, 1000000], [10000, 10000, 1000000]]
 
@@ -119,11 +149,20 @@ def test_capped_process_still_answers_within_the_limits(tiny_lake, tmp_path):
 BOUND_S = 5
 #: Constructs that nest (opening, closing); each adds one level of brackets or CASE.
 NESTINGS = {
-    "array": ("ARRAY[", "]"), "row": ("ROW(", ")"), "paren": ("(", ")"), "call": ("abs(", ")"),
-    "type-named-call": ("date(", ")"), "decimal-call": ("decimal(", ")"), "cast": ("CAST(", " AS bigint)"),
-    "case": ("CASE WHEN true THEN ", " END"), "lambda": ("transform(ARRAY[1], x -> ", ")"),
-    "subquery": ("(SELECT ", ")"), "subscript": ("ARRAY[", "][1]"), "if": ("if(true, ", ", 1)"),
-    "greatest": ("greatest(", ", 1)"), "sequence": ("cardinality(sequence(1, ", "))"),
+    "array": ("ARRAY[", "]"),
+    "row": ("ROW(", ")"),
+    "paren": ("(", ")"),
+    "call": ("abs(", ")"),
+    "type-named-call": ("date(", ")"),
+    "decimal-call": ("decimal(", ")"),
+    "cast": ("CAST(", " AS bigint)"),
+    "case": ("CASE WHEN true THEN ", " END"),
+    "lambda": ("transform(ARRAY[1], x -> ", ")"),
+    "subquery": ("(SELECT ", ")"),
+    "subscript": ("ARRAY[", "][1]"),
+    "if": ("if(true, ", ", 1)"),
+    "greatest": ("greatest(", ", 1)"),
+    "sequence": ("cardinality(sequence(1, ", "))"),
 }
 
 
@@ -165,7 +204,12 @@ def test_nesting_up_to_the_limit_translates_and_deeper_is_refused_before_parsing
     inner = "DATE '2024-01-01'" if name == "type-named-call" else "1"
     levels = max(n for n in range(1, guard.MAX_NESTING + 1) if _depth(_nest(opening, closing, n)) <= guard.MAX_NESTING)
     assert _translate_within_bound(_nest(opening, closing, levels, inner)) in (
-        "ok", "NOT_SUPPORTED", "INVALID_FUNCTION_ARGUMENT", "TYPE_MISMATCH", "FUNCTION_NOT_FOUND")
+        "ok",
+        "NOT_SUPPORTED",
+        "INVALID_FUNCTION_ARGUMENT",
+        "TYPE_MISMATCH",
+        "FUNCTION_NOT_FOUND",
+    )
     deeper = guard.MAX_NESTING + 1
     with pytest.raises(DialectError) as refused:
         translate(_nest(opening, closing, deeper, inner), {})
@@ -198,7 +242,8 @@ def test_query_text_over_the_token_budget_is_refused_before_parsing():
     # the token past the budget is the comma after the 10,000th `1`
     assert (error.line, error.column) == (1, len("SELECT ") + 3 * guard.MAX_TOKENS // 2 - 1)
     assert translate("SELECT 1 IN (" + ", ".join(str(i) for i in range(5_000)) + ")", {}).columns == (
-        ("_col0", "boolean"),)
+        ("_col0", "boolean"),
+    )
 
 
 def test_nested_calls_that_repeat_their_arguments_stay_bounded():

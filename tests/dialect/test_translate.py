@@ -1,13 +1,13 @@
 """The translator's entry point: the Translation it returns (DuckDB SQL, Trino SQL, Trino columns),
 the cache, rejections with Trino's error names and positions in the original text, the rows of the
 issue's table, and the product guide's example queries run for real on DuckDB over Parquet."""
+
 from __future__ import annotations
 
 from decimal import Decimal
 
 import duckdb
 import pytest
-
 
 from lakegate.dialect import translate as translate_module
 from lakegate.dialect.errors import DialectError, runtime_error
@@ -20,8 +20,12 @@ GUIDE_SCHEMA = {
     "covariance_accuracy": {"timestamp": "bigint", "within_1_sigma": "bigint", "job_id": "varchar"},
     "pose_difference": {"timestamp": "bigint", "position_diff_m": "double", "job_id": "varchar"},
     "goal_status": {"timestamp": "bigint", "state": "varchar", "job_id": "varchar"},
-    "metadata": {"job_id": "varchar", "experience_name": "varchar", "experience_tag_names": "array(varchar)",
-                 "job_conflated_status": "varchar"},
+    "metadata": {
+        "job_id": "varchar",
+        "experience_name": "varchar",
+        "experience_tag_names": "array(varchar)",
+        "job_conflated_status": "varchar",
+    },
 }
 
 
@@ -33,21 +37,21 @@ def guide(tmp_path_factory):
     con.execute("SET TimeZone = 'UTC'")
     data = {
         "odom_linear_velocity": "SELECT * FROM (VALUES (0::BIGINT, 3.0::DOUBLE, 4.0::DOUBLE, 0.0::DOUBLE, 'j1'), "
-                                "(2000000000, 6.0, 8.0, 0.0, 'j1')) v(timestamp, x, y, z, job_id)",
+        "(2000000000, 6.0, 8.0, 0.0, 'j1')) v(timestamp, x, y, z, job_id)",
         "time_to_goal": "SELECT * FROM (VALUES (1::BIGINT, 10.5::DOUBLE, 'j1'), (2, 20.25, 'j1')) v(timestamp, time_s, job_id)",
         "covariance_accuracy": "SELECT * FROM (VALUES (1::BIGINT, 1::BIGINT, 'j1'), (2, 1, 'j1'), (3, 0, 'j1')) "
-                               "v(timestamp, within_1_sigma, job_id)",
+        "v(timestamp, within_1_sigma, job_id)",
         "pose_difference": "SELECT * FROM (VALUES (1::BIGINT, 0.5::DOUBLE, 'j1'), (2, 1.25, 'j2'), (3, 0.75, 'j3')) "
-                           "v(timestamp, position_diff_m, job_id)",
+        "v(timestamp, position_diff_m, job_id)",
         "goal_status": "SELECT * FROM (VALUES (1::BIGINT, 'DRIVING', 'j1')) v(timestamp, state, job_id)",
         "metadata": "SELECT * FROM (VALUES ('j1', 'Parking', ['my_prefix_a', 'my_tag'], 'PASSED'), "
-                    "('j2', 'Highway', ['my_tag', 'my_prefix_a'], 'PASSED'), ('j3', 'Parking', ['my_prefix_b'], 'BLOCKER')) "
-                    "v(job_id, experience_name, experience_tag_names, job_conflated_status)",
+        "('j2', 'Highway', ['my_tag', 'my_prefix_a'], 'PASSED'), ('j3', 'Parking', ['my_prefix_b'], 'BLOCKER')) "
+        "v(job_id, experience_name, experience_tag_names, job_conflated_status)",
     }
     for table, select in data.items():
         path = root / f"{table}.parquet"
         con.execute(f"COPY ({select}) TO '{path}' (FORMAT parquet)")
-        con.execute(f'CREATE VIEW "{table}" AS SELECT * FROM read_parquet(\'{path}\')')
+        con.execute(f"CREATE VIEW \"{table}\" AS SELECT * FROM read_parquet('{path}')")
     yield con
     con.close()
 
@@ -83,20 +87,23 @@ def test_cached_translation_is_reused_and_keyed_by_schema_and_params():
 
 
 # --- rejections with positions ----------------------------------------------------------------------
-@pytest.mark.parametrize("sql, name, line, column, words", [
-    ("SELECT x,\n         ngrams(x, 2) FROM odom_linear_velocity", "NOT_SUPPORTED", 2, 10, "function 'ngrams'"),
-    ("SELECT frobnicate(x) FROM odom_linear_velocity", "FUNCTION_NOT_FOUND", 1, 8, "'frobnicate'"),
-    ("SELECT x FROM nowhere", "TABLE_NOT_FOUND", 1, 15, "'nowhere'"),
-    ("SELECT x,\n  \"Missing Col\" FROM odom_linear_velocity", "COLUMN_NOT_FOUND", 2, 3, "'Missing Col'"),
-    ("SELECT job_id FROM time_to_goal t JOIN metadata m ON t.job_id = m.job_id", "AMBIGUOUS_NAME", 1, 8, "job_id"),
-    ("SELECT 'a' = 1", "TYPE_MISMATCH", 1, 8, "varchar(1) = integer"),
-    ("SELECT x FROM odom_linear_velocity WHERE", "SYNTAX_ERROR", 1, 41, "mismatched input '<EOF>'"),
-    ("SELECT 1; SELECT 2", ("SYNTAX_ERROR", "PERMISSION_DENIED"), 1, 11, "statement"),
-    ("SELECT 1::integer", "SYNTAX_ERROR", 1, 9, "'::'"),
-    ("SELECT regexp_like(job_id, '(?=a)') FROM time_to_goal", "NOT_SUPPORTED", 1, 8, "lookaround"),
-    ("SELECT job_id, count(*) FROM time_to_goal", "EXPRESSION_NOT_AGGREGATE", 1, 8, "job_id"),
-    ("SELECT time_s FROM time_to_goal HAVING count(*) < ?", "INVALID_PARAMETER_USAGE", None, None, "parameters"),
-])
+@pytest.mark.parametrize(
+    "sql, name, line, column, words",
+    [
+        ("SELECT x,\n         ngrams(x, 2) FROM odom_linear_velocity", "NOT_SUPPORTED", 2, 10, "function 'ngrams'"),
+        ("SELECT frobnicate(x) FROM odom_linear_velocity", "FUNCTION_NOT_FOUND", 1, 8, "'frobnicate'"),
+        ("SELECT x FROM nowhere", "TABLE_NOT_FOUND", 1, 15, "'nowhere'"),
+        ('SELECT x,\n  "Missing Col" FROM odom_linear_velocity', "COLUMN_NOT_FOUND", 2, 3, "'Missing Col'"),
+        ("SELECT job_id FROM time_to_goal t JOIN metadata m ON t.job_id = m.job_id", "AMBIGUOUS_NAME", 1, 8, "job_id"),
+        ("SELECT 'a' = 1", "TYPE_MISMATCH", 1, 8, "varchar(1) = integer"),
+        ("SELECT x FROM odom_linear_velocity WHERE", "SYNTAX_ERROR", 1, 41, "mismatched input '<EOF>'"),
+        ("SELECT 1; SELECT 2", ("SYNTAX_ERROR", "PERMISSION_DENIED"), 1, 11, "statement"),
+        ("SELECT 1::integer", "SYNTAX_ERROR", 1, 9, "'::'"),
+        ("SELECT regexp_like(job_id, '(?=a)') FROM time_to_goal", "NOT_SUPPORTED", 1, 8, "lookaround"),
+        ("SELECT job_id, count(*) FROM time_to_goal", "EXPRESSION_NOT_AGGREGATE", 1, 8, "job_id"),
+        ("SELECT time_s FROM time_to_goal HAVING count(*) < ?", "INVALID_PARAMETER_USAGE", None, None, "parameters"),
+    ],
+)
 def test_rejections_name_the_construct_and_its_position(sql, name, line, column, words):
     with pytest.raises(DialectError) as caught:
         translate(sql, GUIDE_SCHEMA)
@@ -118,9 +125,10 @@ def test_position_of_a_function_in_a_multiline_query_with_unicode():
 def test_runtime_errors_map_to_trino_names():
     assert runtime_error("Invalid Input Error: DIVISION_BY_ZERO: Division by zero").error_name == "DIVISION_BY_ZERO"
     assert runtime_error("Invalid Input Error: DIVISION_BY_ZERO: Division by zero").message == "Division by zero"
-    assert runtime_error("Conversion Error: Could not convert string 'x' to INT32").error_name == "INVALID_CAST_ARGUMENT"
-    assert runtime_error("Out of Range Error: Overflow in addition of INT32").error_name == \
-        "NUMERIC_VALUE_OUT_OF_RANGE"
+    assert (
+        runtime_error("Conversion Error: Could not convert string 'x' to INT32").error_name == "INVALID_CAST_ARGUMENT"
+    )
+    assert runtime_error("Out of Range Error: Overflow in addition of INT32").error_name == "NUMERIC_VALUE_OUT_OF_RANGE"
 
 
 # --- the issue's table -------------------------------------------------------------------------------
@@ -148,15 +156,20 @@ def test_issue_table_rows_answer_as_trino(guide):
 
 # --- the product guide's examples, unchanged ------------------------------------------------------------
 def test_guide_speed_line(guide):
-    columns, rows = run(guide, 'SELECT \'Speed\', timestamp / 1E9 AS "Time (s)", SQRT(POWER(x, 2) + POWER(y, 2)) '
-                               'AS "Speed (m/s)" FROM odom_linear_velocity;')
+    columns, rows = run(
+        guide,
+        "SELECT 'Speed', timestamp / 1E9 AS \"Time (s)\", SQRT(POWER(x, 2) + POWER(y, 2)) "
+        'AS "Speed (m/s)" FROM odom_linear_velocity;',
+    )
     assert columns == (("_col0", "varchar(5)"), ("Time (s)", "double"), ("Speed (m/s)", "double"))
     assert sorted(rows) == [("Speed", 0.0, 5.0), ("Speed", 2.0, 10.0)]
 
 
 def test_guide_scalar_with_subquery(guide):
-    columns, rows = run(guide, "SELECT CASE WHEN (SELECT COUNT(*) FROM time_to_goal) != 3 THEN 75.0 "
-                               "ELSE sum(time_s) END FROM time_to_goal;")
+    columns, rows = run(
+        guide,
+        "SELECT CASE WHEN (SELECT COUNT(*) FROM time_to_goal) != 3 THEN 75.0 ELSE sum(time_s) END FROM time_to_goal;",
+    )
     assert columns == (("_col0", "double"),) and rows == [(75.0,)]
 
 
@@ -167,19 +180,25 @@ def test_guide_status_query_with_parameter(guide, threshold, returned):
 
 
 def test_guide_batch_bar_with_join(guide):
-    columns, rows = run(guide, 'SELECT \'Maximum\', m.experience_name as "Experience Name", MAX(position_diff_m) as '
-                               '"Maximum Localization Error (m)" FROM pose_difference pd JOIN metadata m on '
-                               'pd.job_id = m.job_id GROUP BY m.experience_name ORDER BY m.experience_name;')
+    columns, rows = run(
+        guide,
+        "SELECT 'Maximum', m.experience_name as \"Experience Name\", MAX(position_diff_m) as "
+        '"Maximum Localization Error (m)" FROM pose_difference pd JOIN metadata m on '
+        "pd.job_id = m.job_id GROUP BY m.experience_name ORDER BY m.experience_name;",
+    )
     assert [c[0] for c in columns] == ["_col0", "Experience Name", "Maximum Localization Error (m)"]
     assert rows == [("Maximum", "Highway", 1.25), ("Maximum", "Parking", 0.75)]
 
 
 def test_guide_table_keeps_the_inner_order(guide):
-    columns, rows = run(guide, """SELECT "Metric", "Value" FROM (
+    columns, rows = run(
+        guide,
+        """SELECT "Metric", "Value" FROM (
   SELECT 1 as sort_order, 'Total Samples' as "Metric", CAST(COUNT(*) AS VARCHAR) as "Value" FROM covariance_accuracy
   UNION ALL
   SELECT 2 as sort_order, 'Within 1σ (target: ~68%)' as "Metric", CONCAT(CAST(ROUND(100.0 * AVG(CASE WHEN within_1_sigma = 1 THEN 1.0 ELSE 0.0 END), 1) AS VARCHAR), '%') as "Value" FROM covariance_accuracy
-  ORDER BY sort_order);""")
+  ORDER BY sort_order);""",
+    )
     assert columns == (("Metric", "varchar(24)"), ("Value", "varchar"))
     assert rows == [("Total Samples", "3"), ("Within 1σ (target: ~68%)", "70.00%")]
 
@@ -188,26 +207,33 @@ def test_guide_state_timeline_and_min_avg_max(guide):
     columns, rows = run(guide, "SELECT 'Navigation' as \"System\", timestamp, state FROM goal_status;")
     assert columns == (("System", "varchar(10)"), ("timestamp", "bigint"), ("state", "varchar"))
     assert rows == [("Navigation", 1, "DRIVING")]
-    columns, rows = run(guide, "SELECT m.experience_name, MIN(position_diff_m), AVG(position_diff_m), "
-                               "MAX(position_diff_m) FROM pose_difference d JOIN metadata m on d.job_id = m.job_id "
-                               "GROUP BY m.experience_name")
+    columns, rows = run(
+        guide,
+        "SELECT m.experience_name, MIN(position_diff_m), AVG(position_diff_m), "
+        "MAX(position_diff_m) FROM pose_difference d JOIN metadata m on d.job_id = m.job_id "
+        "GROUP BY m.experience_name",
+    )
     assert [t for _, t in columns] == ["varchar", "double", "double", "double"]
     assert sorted(rows) == [("Highway", 1.25, 1.25, 1.25), ("Parking", 0.5, 0.625, 0.75)]
 
 
 def test_guide_classified_tags_with_filter_and_count_if(guide):
-    columns, rows = run(guide, "WITH classified AS (SELECT filter(experience_tag_names, x -> starts_with(x, "
-                               "'my_prefix_'))[1] AS group_name, job_conflated_status FROM metadata WHERE "
-                               "contains(experience_tag_names, 'my_tag')) SELECT group_name, count_if("
-                               "job_conflated_status = 'PASSED') AS passed FROM classified WHERE group_name IS NOT "
-                               "NULL GROUP BY group_name")
+    columns, rows = run(
+        guide,
+        "WITH classified AS (SELECT filter(experience_tag_names, x -> starts_with(x, "
+        "'my_prefix_'))[1] AS group_name, job_conflated_status FROM metadata WHERE "
+        "contains(experience_tag_names, 'my_tag')) SELECT group_name, count_if("
+        "job_conflated_status = 'PASSED') AS passed FROM classified WHERE group_name IS NOT "
+        "NULL GROUP BY group_name",
+    )
     assert columns == (("group_name", "varchar"), ("passed", "bigint"))
     assert rows == [("my_prefix_a", 2)]
 
 
 def test_guide_classified_tags_fails_like_trino_on_an_empty_filter(guide):
-    translation = translate("SELECT filter(experience_tag_names, x -> starts_with(x, 'none_'))[1] "
-                            "FROM metadata", GUIDE_SCHEMA)
+    translation = translate(
+        "SELECT filter(experience_tag_names, x -> starts_with(x, 'none_'))[1] FROM metadata", GUIDE_SCHEMA
+    )
     with pytest.raises(duckdb.Error) as caught:
         guide.execute(translation.duckdb_sql).fetchall()
     assert "Array subscript must be less than or equal to array length: 1 > 0" in str(caught.value)

@@ -10,6 +10,7 @@ session. The lake: branch `main` holds a generated navigation batch (fixtures/ge
 in batch `b1`, job 2 in batch `b2`. Branch `feature/all-types` holds one topic, `sample`, with a
 field of every topic type (two rows, values in ALL_TYPES_ROWS) in batch `b1`, job `j1`.
 """
+
 from __future__ import annotations
 
 import json
@@ -19,9 +20,9 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 import pytest
 
@@ -31,7 +32,6 @@ from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file
 
 CLI = [sys.executable, "-m", "lakegate.gateway.cli"]
-
 
 
 class Output:
@@ -90,8 +90,10 @@ def nav_jobs(tmp_path_factory) -> NavJobs:
 @pytest.fixture
 def run_lakegate() -> Callable[[list[str], Path], subprocess.CompletedProcess]:
     """Run `lakegate ARGS` in `cwd` as a subprocess and return its completed process (text output)."""
+
     def run(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
         return subprocess.run([*CLI, *args], cwd=cwd, capture_output=True, text=True, timeout=300)
+
     return run
 
 
@@ -122,8 +124,13 @@ def debug_processes() -> Callable[[list[str], Path], DebugProcess]:
     started: list[DebugProcess] = []
 
     def start(args: list[str], cwd: Path, timeout: float = 120) -> DebugProcess:
-        process = subprocess.Popen([*CLI, "metrics", "debug", "--no-browser", *args], cwd=cwd, text=True,
-                                   stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+        process = subprocess.Popen(
+            [*CLI, "metrics", "debug", "--no-browser", *args],
+            cwd=cwd,
+            text=True,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+        )
         output = Output(process)
         line = output.wait_for("Dashboard: ", timeout)
         if line is None:
@@ -149,15 +156,25 @@ topics:
     schema: {flag: boolean, n: int, x: float, s: string, st: status, img: image, tags: "string[]", metrics: "metric[]"}
 """
 ALL_TYPES_ROWS = [
-    {"flag": True, "n": 2**62, "x": 1.5, "s": "héllo, wörld", "st": "PASSED", "img": "a.png", "tags": ["a", "b"],
-     "metrics": [{"name": "m", "type": "scalar", "value": "1.5", "status": "PASSED"}]},
+    {
+        "flag": True,
+        "n": 2**62,
+        "x": 1.5,
+        "s": "héllo, wörld",
+        "st": "PASSED",
+        "img": "a.png",
+        "tags": ["a", "b"],
+        "metrics": [{"name": "m", "type": "scalar", "value": "1.5", "status": "PASSED"}],
+    },
     {"flag": False, "n": -1, "x": -0.25, "s": "", "st": "BLOCKER", "img": "b.png", "tags": [], "metrics": []},
 ]
 #: (batch, job index in the generated batch) of branch main.
 MAIN_JOBS = (("b1", 0), ("b1", 1), ("b2", 2))
 #: A query that keeps DuckDB busy for far longer than any test runs (10^12 rows, no output).
-ENDLESS = ("SELECT count(*) FROM UNNEST(sequence(1, 10000)) AS a(x) CROSS JOIN UNNEST(sequence(1, 10000)) AS b(y) "
-           "CROSS JOIN UNNEST(sequence(1, 10000)) AS c(z) WHERE a.x + b.y + c.z = 7")
+ENDLESS = (
+    "SELECT count(*) FROM UNNEST(sequence(1, 10000)) AS a(x) CROSS JOIN UNNEST(sequence(1, 10000)) AS b(y) "
+    "CROSS JOIN UNNEST(sequence(1, 10000)) AS c(z) WHERE a.x + b.y + c.z = 7"
+)
 
 
 def build_server_lake(root: Path) -> Path:
@@ -165,16 +182,34 @@ def build_server_lake(root: Path) -> Path:
     lake = root / "lake"
     generated = generate_batch(root / "generated", jobs=len(MAIN_JOBS), samples_per_goal=5)
     config = load_config([CONFIG_PATH])
-    for (batch, index), job in zip(MAIN_JOBS, [generated[i] for _, i in MAIN_JOBS]):
-        ingest_job(lake, "main", batch, job.job_id, [job.emissions_path], config=config,
-                   metadata=load_metadata_file(job.metadata_path))
+    for (batch, _index), job in zip(MAIN_JOBS, [generated[i] for _, i in MAIN_JOBS]):
+        ingest_job(
+            lake,
+            "main",
+            batch,
+            job.job_id,
+            [job.emissions_path],
+            config=config,
+            metadata=load_metadata_file(job.metadata_path),
+        )
     config_file = root / "all-types.resim.yaml"
     config_file.write_text(ALL_TYPES_CONFIG)
     emissions = root / "all-types.jsonl"
-    emissions.write_text("".join(json.dumps({"$metadata": {"topic": "sample", "timestamp": i}, "$data": row}) + "\n"
-                                 for i, row in enumerate(ALL_TYPES_ROWS)))
-    ingest_job(lake, ALL_TYPES_BRANCH, "b1", "j1", [emissions], config=load_config([config_file]),
-               metadata={"experience_name": "all types"})
+    emissions.write_text(
+        "".join(
+            json.dumps({"$metadata": {"topic": "sample", "timestamp": i}, "$data": row}) + "\n"
+            for i, row in enumerate(ALL_TYPES_ROWS)
+        )
+    )
+    ingest_job(
+        lake,
+        ALL_TYPES_BRANCH,
+        "b1",
+        "j1",
+        [emissions],
+        config=load_config([config_file]),
+        metadata={"experience_name": "all types"},
+    )
     return lake
 
 
@@ -273,18 +308,24 @@ def write_self_signed_certificate(folder: Path, name: str = "lakegate test") -> 
 
     key = ec.generate_private_key(ec.SECP256R1())
     subject = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, name)])
-    now = dt.datetime.now(dt.timezone.utc)
-    cert = (x509.CertificateBuilder().subject_name(subject).issuer_name(subject).public_key(key.public_key())
-            .serial_number(x509.random_serial_number()).not_valid_before(now - dt.timedelta(days=1))
-            .not_valid_after(now + dt.timedelta(days=1))
-            .add_extension(x509.SubjectAlternativeName([x509.IPAddress(ipaddress.ip_address("127.0.0.1"))]),
-                           critical=False)
-            .add_extension(x509.BasicConstraints(ca=True, path_length=None), critical=True)
-            .sign(key, hashes.SHA256()))
+    now = dt.datetime.now(dt.UTC)
+    cert = (
+        x509.CertificateBuilder()
+        .subject_name(subject)
+        .issuer_name(subject)
+        .public_key(key.public_key())
+        .serial_number(x509.random_serial_number())
+        .not_valid_before(now - dt.timedelta(days=1))
+        .not_valid_after(now + dt.timedelta(days=1))
+        .add_extension(x509.SubjectAlternativeName([x509.IPAddress(ipaddress.ip_address("127.0.0.1"))]), critical=False)
+        .add_extension(x509.BasicConstraints(ca=True, path_length=None), critical=True)
+        .sign(key, hashes.SHA256())
+    )
     cert_file, key_file = folder / "cert.pem", folder / "key.pem"
     cert_file.write_bytes(cert.public_bytes(serialization.Encoding.PEM))
-    key_file.write_bytes(key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8,
-                                           serialization.NoEncryption()))
+    key_file.write_bytes(
+        key.private_bytes(serialization.Encoding.PEM, serialization.PrivateFormat.PKCS8, serialization.NoEncryption())
+    )
     return cert_file, key_file
 
 

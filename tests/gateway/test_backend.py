@@ -1,6 +1,7 @@
 """The embedded DuckDB backend over a real lake (ingested Parquet): translated queries streamed as
 Arrow batches with Trino column types, scopes, parameters, SHOW / DESCRIBE / EXPLAIN, cancelation,
 refreshed views, and the locked-down connection: hostile input is refused and the lake unchanged."""
+
 from __future__ import annotations
 
 import hashlib
@@ -21,8 +22,8 @@ from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
 from lakegate.gateway.engine.backend import DuckDBBackend
 from lakegate.gateway.engine.limits import Limits
-from lakegate.lake.config import load_config
 from lakegate.lake import paths
+from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
 
 CONFIG = """\
@@ -50,8 +51,10 @@ def build_lake(root: Path, jobs=JOBS, config_text: str = CONFIG) -> Path:
     config = load_config([config_file])
     for batch, job, n in jobs:
         emissions = root / f"{job}.jsonl"
-        emissions.write_text("".join(line("odom", i * 10**9, {"x": float(i), "y": 1.0}) for i in range(n)) +
-                             "".join(line("time_to_goal", i, {"goal_name": f"g{i}", "time_s": 1.5 * i}) for i in range(n)))
+        emissions.write_text(
+            "".join(line("odom", i * 10**9, {"x": float(i), "y": 1.0}) for i in range(n))
+            + "".join(line("time_to_goal", i, {"goal_name": f"g{i}", "time_s": 1.5 * i}) for i in range(n))
+        )
         ingest_job(lake, "main", batch, job, [emissions], config=config, metadata={"experience_name": f"exp {job}"})
     return lake
 
@@ -59,8 +62,11 @@ def build_lake(root: Path, jobs=JOBS, config_text: str = CONFIG) -> Path:
 def snapshot(root: Path) -> dict[str, tuple[int, int, str]]:
     """Every file under `root`: size, modification time and content digest (not the record's
     SQLite WAL and shared-memory files, which come and go with its readers' connections)."""
-    return {str(p.relative_to(root)): (p.stat().st_size, p.stat().st_mtime_ns, hashlib.sha256(p.read_bytes()).hexdigest())
-            for p in sorted(root.rglob("*")) if p.is_file() and not p.name.endswith(("-wal", "-shm"))}
+    return {
+        str(p.relative_to(root)): (p.stat().st_size, p.stat().st_mtime_ns, hashlib.sha256(p.read_bytes()).hexdigest())
+        for p in sorted(root.rglob("*"))
+        if p.is_file() and not p.name.endswith(("-wal", "-shm"))
+    }
 
 
 @pytest.fixture(scope="module")
@@ -82,15 +88,17 @@ def refused(backend, sql, **kwargs) -> DialectError:
 
 
 def test_a_query_streams_arrow_batches_with_trino_column_types(backend):
-    result = backend.execute("SELECT job_id, count(*) AS n, avg(x), sum(timestamp) / 1E9 AS s "
-                             "FROM odom GROUP BY 1 ORDER BY 1")
+    result = backend.execute(
+        "SELECT job_id, count(*) AS n, avg(x), sum(timestamp) / 1E9 AS s FROM odom GROUP BY 1 ORDER BY 1"
+    )
     assert result.columns == [("job_id", "varchar"), ("n", "bigint"), ("_col2", "double"), ("s", "double")]
     batches = list(result.batches)
     assert batches and all(isinstance(b, pa.RecordBatch) for b in batches)
     assert pa.Table.from_batches(batches).to_pylist() == [
         {"job_id": "j1", "n": 3, "_col2": 1.0, "s": 3.0},
         {"job_id": "j2", "n": 2, "_col2": 0.5, "s": 1.0},
-        {"job_id": "j3", "n": 4, "_col2": 1.5, "s": 6.0}]
+        {"job_id": "j3", "n": 4, "_col2": 1.5, "s": 6.0},
+    ]
 
 
 def test_the_schema_is_the_catalogs(backend):
@@ -101,8 +109,7 @@ def test_the_schema_is_the_catalogs(backend):
 
 
 def test_scopes_restrict_every_table(backend):
-    sql = ("SELECT m.experience_name, count(*) FROM odom o JOIN metadata m ON o.job_id = m.job_id "
-           "GROUP BY 1 ORDER BY 1")
+    sql = "SELECT m.experience_name, count(*) FROM odom o JOIN metadata m ON o.job_id = m.job_id GROUP BY 1 ORDER BY 1"
     assert backend.execute(sql, scope=Scope(batch_id="b1", job_id="j2")).rows() == [("exp j2", 2)]
     assert backend.execute(sql, scope=Scope(batch_id="b1")).rows() == [("exp j1", 3), ("exp j2", 2)]
     assert backend.execute(sql).rows() == [("exp j1", 3), ("exp j2", 2), ("exp j3", 4)]
@@ -110,8 +117,9 @@ def test_scopes_restrict_every_table(backend):
 
 @pytest.mark.parametrize("threshold, blocks", [(3, False), (3.5, True), (4, True)])
 def test_status_check_parameters(backend, threshold, blocks):
-    result = backend.execute("SELECT '1' FROM time_to_goal HAVING COUNT(*) < ?", scope=Scope(job_id="j1"),
-                             params=[threshold])
+    result = backend.execute(
+        "SELECT '1' FROM time_to_goal HAVING COUNT(*) < ?", scope=Scope(job_id="j1"), params=[threshold]
+    )
     assert result.rows() == ([("1",)] if blocks else [])
 
 
@@ -131,15 +139,22 @@ def test_an_unknown_branch_is_a_clear_error(backend):
 
 
 def test_show_and_describe(backend):
-    assert backend.execute("SHOW TABLES").rows() == [("events",), ("metadata",), ("never_emitted",), ("odom",),
-                                                     ("time_to_goal",)]
+    assert backend.execute("SHOW TABLES").rows() == [
+        ("events",),
+        ("metadata",),
+        ("never_emitted",),
+        ("odom",),
+        ("time_to_goal",),
+    ]
     result = backend.execute("SHOW TABLES FROM lake.main LIKE 'o%'")
     assert result.columns == [("Table", "varchar")] and result.rows() == [("odom",)]
     result = backend.execute("DESCRIBE odom")
     assert result.columns == [("Column", "varchar"), ("Type", "varchar"), ("Extra", "varchar"), ("Comment", "varchar")]
     assert result.rows()[:3] == [("timestamp", "bigint", "", ""), ("x", "double", "", ""), ("y", "double", "", "")]
     assert backend.execute("SHOW COLUMNS FROM main.odom LIKE '%\\_id' ESCAPE '\\'").rows() == [
-        ("batch_id", "varchar", "", ""), ("job_id", "varchar", "", "")]
+        ("batch_id", "varchar", "", ""),
+        ("job_id", "varchar", "", ""),
+    ]
     assert backend.execute("SHOW SCHEMAS").rows() == [("main",)]
     assert backend.execute("SHOW CATALOGS").rows() == [("lake",)]
     assert refused(backend, "DESCRIBE nothing").error_name == "TABLE_NOT_FOUND"
@@ -161,8 +176,10 @@ def test_runtime_errors_carry_trinos_error_names(backend):
 
 
 def test_cancel_interrupts_a_running_query(backend):
-    result = backend.execute("SELECT count(*) FROM UNNEST(sequence(1, 10000)) AS a(x) "
-                             "CROSS JOIN UNNEST(sequence(1, 10000)) AS b(y) CROSS JOIN UNNEST(sequence(1, 10000)) AS c(z)")
+    result = backend.execute(
+        "SELECT count(*) FROM UNNEST(sequence(1, 10000)) AS a(x) "
+        "CROSS JOIN UNNEST(sequence(1, 10000)) AS b(y) CROSS JOIN UNNEST(sequence(1, 10000)) AS c(z)"
+    )
     threading.Timer(0.2, result.cancel).start()
     started = time.monotonic()
     with pytest.raises(DialectError) as caught:
@@ -222,11 +239,19 @@ def test_branches_follow_the_lake(tmp_path):
 def test_the_duckdb_connection_is_locked_down(backend, lake, tmp_path):
     con = backend.connection("main")
     try:
-        settings = dict(con.execute("SELECT name, value FROM duckdb_settings() WHERE name IN "
-                                    "('enable_external_access', 'lock_configuration', 'autoload_known_extensions', "
-                                    "'autoinstall_known_extensions')").fetchall())
-        assert settings == {"enable_external_access": "false", "lock_configuration": "true",
-                            "autoload_known_extensions": "false", "autoinstall_known_extensions": "false"}
+        settings = dict(
+            con.execute(
+                "SELECT name, value FROM duckdb_settings() WHERE name IN "
+                "('enable_external_access', 'lock_configuration', 'autoload_known_extensions', "
+                "'autoinstall_known_extensions')"
+            ).fetchall()
+        )
+        assert settings == {
+            "enable_external_access": "false",
+            "lock_configuration": "true",
+            "autoload_known_extensions": "false",
+            "autoinstall_known_extensions": "false",
+        }
         outside = tmp_path / "out.csv"
         for sql, error in [
             ("SELECT * FROM read_csv('/etc/passwd')", duckdb.PermissionException),
@@ -248,30 +273,33 @@ def test_the_duckdb_connection_is_locked_down(backend, lake, tmp_path):
         con.close()
 
 
-@pytest.mark.parametrize("sql", [
-    "SELECT * FROM read_csv('/etc/passwd')",
-    "SELECT * FROM read_text('{lake}/main/odom/batch_id=b1/job_id=j1/data.parquet')",
-    "SELECT * FROM read_parquet('{lake}/main/odom/*/*/*.parquet')",
-    "SELECT * FROM '{lake}/main/odom/batch_id=b1/job_id=j1/data.parquet'",
-    "SELECT * FROM glob('{lake}/*')",
-    "COPY odom TO '{lake}/main/odom/batch_id=b1/job_id=j1/data.parquet' (FORMAT parquet)",
-    "COPY (SELECT 1) TO '{lake}/evil.csv'",
-    "INSERT INTO odom SELECT * FROM odom",
-    "DELETE FROM odom",
-    "DROP VIEW odom",
-    "CREATE OR REPLACE VIEW odom AS SELECT 1 AS x",
-    "ATTACH '{lake}/evil.duckdb' AS evil",
-    "EXPORT DATABASE '{lake}/dump'",
-    "SET allowed_directories = ['/']",
-    "SET enable_external_access = true",
-    "PRAGMA threads = 1",
-    "INSTALL httpfs",
-    "SELECT 1; COPY (SELECT 1) TO '{lake}/evil.csv'",
-    "SELECT count(*) FROM odom; DROP VIEW odom",
-    "SELECT " + "(" * 499_990 + "1" + ")" * 499_990,
-    b"SELECT '\xc3\x28' FROM odom",
-    "SELECT 'a\x00' FROM odom",
-])
+@pytest.mark.parametrize(
+    "sql",
+    [
+        "SELECT * FROM read_csv('/etc/passwd')",
+        "SELECT * FROM read_text('{lake}/main/odom/batch_id=b1/job_id=j1/data.parquet')",
+        "SELECT * FROM read_parquet('{lake}/main/odom/*/*/*.parquet')",
+        "SELECT * FROM '{lake}/main/odom/batch_id=b1/job_id=j1/data.parquet'",
+        "SELECT * FROM glob('{lake}/*')",
+        "COPY odom TO '{lake}/main/odom/batch_id=b1/job_id=j1/data.parquet' (FORMAT parquet)",
+        "COPY (SELECT 1) TO '{lake}/evil.csv'",
+        "INSERT INTO odom SELECT * FROM odom",
+        "DELETE FROM odom",
+        "DROP VIEW odom",
+        "CREATE OR REPLACE VIEW odom AS SELECT 1 AS x",
+        "ATTACH '{lake}/evil.duckdb' AS evil",
+        "EXPORT DATABASE '{lake}/dump'",
+        "SET allowed_directories = ['/']",
+        "SET enable_external_access = true",
+        "PRAGMA threads = 1",
+        "INSTALL httpfs",
+        "SELECT 1; COPY (SELECT 1) TO '{lake}/evil.csv'",
+        "SELECT count(*) FROM odom; DROP VIEW odom",
+        "SELECT " + "(" * 499_990 + "1" + ")" * 499_990,
+        b"SELECT '\xc3\x28' FROM odom",
+        "SELECT 'a\x00' FROM odom",
+    ],
+)
 def test_hostile_input_is_refused_and_the_lake_unchanged(backend, lake, sql):
     before = snapshot(lake)
     text = sql.replace(b"{lake}", str(lake).encode()) if isinstance(sql, bytes) else sql.replace("{lake}", str(lake))
@@ -312,8 +340,15 @@ def ingest_one(root: Path, lake: Path, job: str, lines: str, name: str = "exp") 
     (root / "config.resim.yaml").write_text(CONFIG)
     emissions = root / f"{job}-{len(lines)}.jsonl"
     emissions.write_text(lines)
-    ingest_job(lake, "main", "b1", job, [emissions], config=load_config([root / "config.resim.yaml"]),
-               metadata={"experience_name": name})
+    ingest_job(
+        lake,
+        "main",
+        "b1",
+        job,
+        [emissions],
+        config=load_config([root / "config.resim.yaml"]),
+        metadata={"experience_name": name},
+    )
 
 
 def test_a_query_never_sees_a_job_half_re_ingested(tmp_path):
@@ -322,11 +357,16 @@ def test_a_query_never_sees_a_job_half_re_ingested(tmp_path):
     answer is one version of the job (issue 9, item 12)."""
     lake = build_lake(tmp_path, jobs=[("b1", "j1", 3)])
     emissions = tmp_path / "j1.jsonl"
-    process = subprocess.Popen([sys.executable, "-c", REINGEST_SCRIPT, str(lake), str(tmp_path / "config.resim.yaml"),
-                                str(emissions), "200"], stderr=subprocess.PIPE, text=True)
-    sql = ("SELECT (SELECT array_agg(DISTINCT experience_name) FROM odom), "
-           "(SELECT array_agg(DISTINCT experience_name) FROM time_to_goal), "
-           "(SELECT array_agg(experience_name) FROM metadata)")
+    process = subprocess.Popen(
+        [sys.executable, "-c", REINGEST_SCRIPT, str(lake), str(tmp_path / "config.resim.yaml"), str(emissions), "200"],
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    sql = (
+        "SELECT (SELECT array_agg(DISTINCT experience_name) FROM odom), "
+        "(SELECT array_agg(DISTINCT experience_name) FROM time_to_goal), "
+        "(SELECT array_agg(experience_name) FROM metadata)"
+    )
     answers, mixed = 0, []
     backend = DuckDBBackend(lake, memory_limit="256MB", threads=1)
     try:
@@ -348,8 +388,12 @@ def test_a_backend_sees_files_that_appear_in_an_emptied_topic(tmp_path):
     """A topic whose only job was re-ingested without it, then written again: the same backend
     answers its new rows (issue 9, item 11: no stale catalog)."""
     lake = tmp_path / "lake"
-    ingest_one(tmp_path, lake, "j1", line("odom", 1, {"x": 1.0, "y": 1.0}) +
-               line("time_to_goal", 1, {"goal_name": "g", "time_s": 1.0}))
+    ingest_one(
+        tmp_path,
+        lake,
+        "j1",
+        line("odom", 1, {"x": 1.0, "y": 1.0}) + line("time_to_goal", 1, {"goal_name": "g", "time_s": 1.0}),
+    )
     ingest_one(tmp_path, lake, "j1", line("odom", 1, {"x": 1.0, "y": 1.0}))  # the topic's directory stays
     backend = DuckDBBackend(lake, memory_limit="256MB", threads=1)
     try:
@@ -364,8 +408,12 @@ def test_a_topic_dropped_by_a_re_ingest_reads_as_empty(tmp_path):
     """The same backend, after the re-ingest that removed a topic's files: 0 rows, not an error
     naming a server path (issue 9, item 11)."""
     lake = tmp_path / "lake"
-    ingest_one(tmp_path, lake, "j1", line("odom", 1, {"x": 1.0, "y": 1.0}) +
-               line("time_to_goal", 1, {"goal_name": "g", "time_s": 1.0}))
+    ingest_one(
+        tmp_path,
+        lake,
+        "j1",
+        line("odom", 1, {"x": 1.0, "y": 1.0}) + line("time_to_goal", 1, {"goal_name": "g", "time_s": 1.0}),
+    )
     backend = DuckDBBackend(lake, memory_limit="256MB", threads=1)
     try:
         assert backend.execute("SELECT count(*) FROM time_to_goal", branch="main").rows() == [(1,)]
@@ -421,8 +469,12 @@ def test_query_serve_and_lake_ls_with_a_corrupt_file(tmp_path):
     assert "unreadable files (1)" in listed.stdout and "table odom, batch b1, job j1: " in listed.stdout
     assert "time_to_goal" in listed.stdout
 
-    server = subprocess.Popen([*cli, "serve", "--lake", str(lake), "--port", "0"], stdout=subprocess.PIPE,
-                              stderr=subprocess.DEVNULL, text=True)
+    server = subprocess.Popen(
+        [*cli, "serve", "--lake", str(lake), "--port", "0"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
     try:
         line = server.stdout.readline()
         host, port = line.split(" at ", 1)[1].split()[0].split("//", 1)[1].rstrip("/").split(":")
@@ -454,8 +506,10 @@ def test_a_file_deleted_by_hand_fails_only_its_job(tmp_path):
         backend.close()
 
 
-ENDLESS = ("SELECT count(*) FROM UNNEST(sequence(1, 10000)) AS a(x) CROSS JOIN UNNEST(sequence(1, 10000)) AS b(y) "
-           "CROSS JOIN UNNEST(sequence(1, 10000)) AS c(z)")
+ENDLESS = (
+    "SELECT count(*) FROM UNNEST(sequence(1, 10000)) AS a(x) CROSS JOIN UNNEST(sequence(1, 10000)) AS b(y) "
+    "CROSS JOIN UNNEST(sequence(1, 10000)) AS c(z)"
+)
 
 
 def test_the_time_limit_and_the_concurrency_bound_hold_for_every_caller(lake):
@@ -468,7 +522,9 @@ def test_the_time_limit_and_the_concurrency_bound_hold_for_every_caller(lake):
             with pytest.raises(DialectError) as caught:
                 backend.execute(sql).rows()
             assert (caught.value.error_name, caught.value.message) == (
-                "EXCEEDED_TIME_LIMIT", "Query exceeded the maximum execution time limit of 1.00s")
+                "EXCEEDED_TIME_LIMIT",
+                "Query exceeded the maximum execution time limit of 1.00s",
+            )
             assert time.monotonic() - started < 10
     finally:
         backend.close()
@@ -548,8 +604,7 @@ def test_branches_share_one_database_and_idle_ones_are_released(tmp_path):
     branches = [f"team/{i}" for i in range(20)]
     for branch in branches:
         shutil.copytree(lake / "main", paths.branch_dir(lake, branch))
-    backend = DuckDBBackend(lake, memory_limit="300MB", threads=2, limits=Limits(query_timeout=1.0),
-                            idle_seconds=3600)
+    backend = DuckDBBackend(lake, memory_limit="300MB", threads=2, limits=Limits(query_timeout=1.0), idle_seconds=3600)
     expected = duckdb.connect(config={"memory_limit": "300MB", "threads": 2})
     attached = "SELECT count(*) FROM duckdb_databases() WHERE database_name LIKE 'branch_%'"
     try:

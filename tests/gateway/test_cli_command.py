@@ -4,6 +4,7 @@ Careless input: missing files, folders instead of files, empty files, binary gar
 naming a file, a report to a folder or to a full device, a read-only or full lake, and
 argument values out of range. (Unreadable files are not tried: the tests may run as root.)
 """
+
 from __future__ import annotations
 
 import os
@@ -24,8 +25,9 @@ RUN = ["metrics", "run", "--lake", "lake", "--branch", "main", "--batch", "b", "
 
 
 def lakegate(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([*CLI, *args], capture_output=True, text=True, cwd=cwd, timeout=120,
-                          env={**os.environ, "COLUMNS": "200"})
+    return subprocess.run(
+        [*CLI, *args], capture_output=True, text=True, cwd=cwd, timeout=120, env={**os.environ, "COLUMNS": "200"}
+    )
 
 
 @pytest.fixture(scope="module")
@@ -38,8 +40,21 @@ def workspace(tmp_path_factory) -> Path:
     (root / "garbage").write_bytes(random.Random(9).randbytes(4096))
     (root / "good.jsonl").write_text(GOOD_LINE)
     shutil.copy(FIXTURE_CONFIG, root / "config.yaml")
-    done = lakegate("ingest", "--lake", "lake", "--branch", "main", "--batch", "b", "--job", "j",
-                    "--metrics-config-path", "config.yaml", "good.jsonl", cwd=root)
+    done = lakegate(
+        "ingest",
+        "--lake",
+        "lake",
+        "--branch",
+        "main",
+        "--batch",
+        "b",
+        "--job",
+        "j",
+        "--metrics-config-path",
+        "config.yaml",
+        "good.jsonl",
+        cwd=root,
+    )
     assert done.returncode == 0, done.stderr
     return root
 
@@ -54,32 +69,73 @@ CASES = [
     (["config", "check", "garbage"], 1, "garbage: cannot read the file: 'utf-8' codec can't decode"),
     (["config", "schema", "-o", "adir"], 1, "lakegate: cannot write adir: Is a directory"),
     ([*INGEST, "--metrics-config-path", "config.yaml", "missing"], 1, "emissions file 'missing' does not exist"),
-    ([*INGEST, "--metrics-config-path", "config.yaml", "adir"], 1, "emissions file 'adir' does not exist or is not a file"),
+    (
+        [*INGEST, "--metrics-config-path", "config.yaml", "adir"],
+        1,
+        "emissions file 'adir' does not exist or is not a file",
+    ),
     ([*INGEST, "--metrics-config-path", "config.yaml", "garbage"], 1, "invalid UTF-8 at byte"),
     ([*INGEST, "--metrics-config-path", "adir", "good.jsonl"], 1, "config file 'adir' does not exist"),
     ([*INGEST, "--metrics-config-path", "garbage", "good.jsonl"], 1, "garbage: cannot read the file"),
-    ([*INGEST, "--metrics-config-path", "config.yaml", "--metadata", "adir", "good.jsonl"], 1,
-     "metadata file 'adir' does not exist"),
+    (
+        [*INGEST, "--metrics-config-path", "config.yaml", "--metadata", "adir", "good.jsonl"],
+        1,
+        "metadata file 'adir' does not exist",
+    ),
     ([*INGEST, "--metrics-config-path", "config.yaml", "--metadata", "garbage", "good.jsonl"], 1, "bad metadata"),
-    ([*INGEST, "--metrics-config-path", "config.yaml", "--job-status", "WHATEVER", "good.jsonl"], 2,
-     "argument --job-status: invalid choice: 'WHATEVER' (choose from 'SUCCEEDED', 'FAILED')"),
-    (["ingest", "--lake", "README.md", "--branch", "main", "--batch", "b", "--job", "j", "--metrics-config-path",
-      "config.yaml", "good.jsonl"], 1, "--lake 'README.md' is not a directory"),
+    (
+        [*INGEST, "--metrics-config-path", "config.yaml", "--job-status", "WHATEVER", "good.jsonl"],
+        2,
+        "argument --job-status: invalid choice: 'WHATEVER' (choose from 'SUCCEEDED', 'FAILED')",
+    ),
+    (
+        [
+            "ingest",
+            "--lake",
+            "README.md",
+            "--branch",
+            "main",
+            "--batch",
+            "b",
+            "--job",
+            "j",
+            "--metrics-config-path",
+            "config.yaml",
+            "good.jsonl",
+        ],
+        1,
+        "--lake 'README.md' is not a directory",
+    ),
     (["lake", "ls", "--lake", "README.md"], 1, "no lake at 'README.md'"),
     (["query", "--lake", "README.md", "SELECT 1"], 1, "no lake at README.md (not a directory)"),
-    (["metrics", "sync", "--lake", "README.md", "--branch", "main", "--metrics-config-path", "config.yaml"], 1,
-     "--lake 'README.md' is not a directory"),
-    (["metrics", "run", "--lake", "README.md", "--branch", "main", "--batch", "b", "--all-metrics"], 1,
-     "no lake at 'README.md'"),
+    (
+        ["metrics", "sync", "--lake", "README.md", "--branch", "main", "--metrics-config-path", "config.yaml"],
+        1,
+        "--lake 'README.md' is not a directory",
+    ),
+    (
+        ["metrics", "run", "--lake", "README.md", "--branch", "main", "--batch", "b", "--all-metrics"],
+        1,
+        "no lake at 'README.md'",
+    ),
     ([*RUN, "--threads", "0"], 2, "argument --threads: expected a positive number, got '0'"),
     ([*RUN, "--report", "adir"], 1, "--report 'adir' is a directory; name the HTML file to write"),
-    pytest.param([*RUN, "--report", "/dev/full"], 1,
-                 "cannot write the report '/dev/full': No space left on device (the results are stored in the lake)",
-                 marks=pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full")),
-    ([*DEBUG, "--emissions-file", "adir", "--metrics-config-path", "config.yaml"], 1,
-     "emissions file 'adir' does not exist or is not a file"),
-    ([*DEBUG, "--emissions-file", "good.jsonl", "--metrics-config-path", "config.yaml", "--lake", "README.md"], 1,
-     "Not a directory"),
+    pytest.param(
+        [*RUN, "--report", "/dev/full"],
+        1,
+        "cannot write the report '/dev/full': No space left on device (the results are stored in the lake)",
+        marks=pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full"),
+    ),
+    (
+        [*DEBUG, "--emissions-file", "adir", "--metrics-config-path", "config.yaml"],
+        1,
+        "emissions file 'adir' does not exist or is not a file",
+    ),
+    (
+        [*DEBUG, "--emissions-file", "good.jsonl", "--metrics-config-path", "config.yaml", "--lake", "README.md"],
+        1,
+        "Not a directory",
+    ),
     (["demo", "--lake", "README.md"], 1, "--lake 'README.md' is not a directory"),
     (["trino-ddl", "--lake", "README.md", "--location", "s3://x/lake"], 1, "no lake at README.md (not a directory)"),
     (["trino-ddl", "--lake", "lake", "--location", "s3://x/lake", "--output", "adir"], 1, "Is a directory: 'adir'"),
@@ -89,7 +145,9 @@ CASES = [
 ]
 
 
-@pytest.mark.parametrize("args, code, text", CASES, ids=lambda value: " ".join(value) if isinstance(value, list) else None)
+@pytest.mark.parametrize(
+    "args, code, text", CASES, ids=lambda value: " ".join(value) if isinstance(value, list) else None
+)
 def test_careless_input_gets_a_clear_message(workspace: Path, args: list[str], code: int, text: str):
     result = lakegate(*args, cwd=workspace)
     assert "Traceback" not in result.stderr + result.stdout

@@ -1,4 +1,5 @@
 """`lakegate config check|schema`, run as a real subprocess."""
+
 from __future__ import annotations
 
 import json
@@ -92,8 +93,12 @@ def test_schema_to_stdout_and_file_validates_configs(tmp_path):
     validator = jsonschema.Draft202012Validator(schema)
     assert validator.is_valid(yaml.safe_load(FIXTURE.read_text()))
     assert not validator.is_valid({"version": 1, "topics": {"nav/odom": {"schema": {"x": "float"}}}})
-    assert not validator.is_valid({"version": 1, "metrics": {"M": {"type": "test", "description": "d",
-                                                                   "querystring": "SELECT 1", "template": "line"}}})
+    assert not validator.is_valid(
+        {
+            "version": 1,
+            "metrics": {"M": {"type": "test", "description": "d", "querystring": "SELECT 1", "template": "line"}},
+        }
+    )
 
 
 def test_schema_unwritable_output_is_a_user_error(tmp_path):
@@ -102,8 +107,23 @@ def test_schema_unwritable_output_is_a_user_error(tmp_path):
     assert result.stderr.startswith("lakegate: cannot write ") and "Traceback" not in result.stderr
 
 
-TOPIC_NAMES = ["odom*", "a=b", "x%41", "a\\b", "t?", "t[1]", "{t}", "é" * 130, "_x", ".x", "Metadata", "a/b",
-               "odom.v1-x", "é" * 120, "Odom Velocity (m/s)2"]
+TOPIC_NAMES = [
+    "odom*",
+    "a=b",
+    "x%41",
+    "a\\b",
+    "t?",
+    "t[1]",
+    "{t}",
+    "é" * 130,
+    "_x",
+    ".x",
+    "Metadata",
+    "a/b",
+    "odom.v1-x",
+    "é" * 120,
+    "Odom Velocity (m/s)2",
+]
 
 
 def test_check_refuses_exactly_the_topic_names_the_lake_cannot_hold(tmp_path):
@@ -111,8 +131,9 @@ def test_check_refuses_exactly_the_topic_names_the_lake_cannot_hold(tmp_path):
     from lakegate.lake.paths import LakePathError, check_table_name
 
     config = tmp_path / "names.resim.yaml"
-    config.write_text("version: 1\ntopics:\n" + "".join(f"  {json.dumps(name)}: {{schema: {{x: float}}}}\n"
-                                                         for name in TOPIC_NAMES))
+    config.write_text(
+        "version: 1\ntopics:\n" + "".join(f"  {json.dumps(name)}: {{schema: {{x: float}}}}\n" for name in TOPIC_NAMES)
+    )
     result = lakegate("config", "check", config)
     refused = {}
     for problem in result.stdout.splitlines():
@@ -128,5 +149,7 @@ def test_check_refuses_exactly_the_topic_names_the_lake_cannot_hold(tmp_path):
         assert (name not in refused) == lake_accepts or name == "Metadata", (name, refused.get(name))
     assert "Metadata" in refused  # SQL table names ignore case: refused even though the lake could store it
     assert result.returncode == 1 and result.stderr == ""
-    assert refused["odom*"] == "topic 'odom*' contains one of \\ = % * ? [ ] { }, which the lake's table paths cannot hold"
+    assert (
+        refused["odom*"] == "topic 'odom*' contains one of \\ = % * ? [ ] { }, which the lake's table paths cannot hold"
+    )
     assert refused["é" * 130].endswith("is too long (at most 240 bytes)")

@@ -1,6 +1,7 @@
 """Custom templates (`template_type: custom`, issue 13 item 8): Liquid files that render a query
 result as Plotly figure JSON, found next to the config, stored with the branch's config, with
 errors that name the template's line. Real template files on disk, a real lake, the real CLI."""
+
 from __future__ import annotations
 
 import datetime as dt
@@ -32,11 +33,14 @@ BARS = """\
 """
 
 
-def config_with(folder: Path, template_file: str, *, query: str = "SELECT goal_name, time_s FROM time_to_goal",
-                units: str = "s") -> Path:
+def config_with(
+    folder: Path, template_file: str, *, query: str = "SELECT goal_name, time_s FROM time_to_goal", units: str = "s"
+) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / "config.resim.yaml"
-    path.write_text(TOPICS + textwrap.dedent(f"""
+    path.write_text(
+        TOPICS
+        + textwrap.dedent(f"""
         metrics:
           Goal Times:
             type: test
@@ -55,7 +59,8 @@ def config_with(folder: Path, template_file: str, *, query: str = "SELECT goal_n
         metrics sets:
           Custom:
             metrics: [Goal Times, Nothing Yet]
-        """))
+        """)
+    )
     return path
 
 
@@ -83,27 +88,37 @@ def test_a_template_beside_the_config_comes_before_its_templates_folder(tmp_path
     (tmp_path / "templates").mkdir()
     (tmp_path / "templates" / "bars.liquid").write_text(BARS)
     assert metric.template_path() == (tmp_path / "bars.liquid").resolve()
-    assert render_custom(metric, [("label", "varchar"), ("value", "bigint")], [("a", 1)]).figure["data"][0]["type"] \
+    assert (
+        render_custom(metric, [("label", "varchar"), ("value", "bigint")], [("a", 1)]).figure["data"][0]["type"]
         == "scatter"
+    )
 
 
 def test_a_template_outside_the_configs_folder_or_missing_is_an_error(tmp_path):
     (tmp_path / "bars.liquid").write_text(BARS)
     metric = load_config(config_with(tmp_path / "project", "../bars.liquid")).metrics["Goal Times"]
-    with pytest.raises(TemplateError, match=r"^metric 'Goal Times': custom template '../bars.liquid' not found in "
-                                            r"the config file's folder or its templates/ folder$"):
+    with pytest.raises(
+        TemplateError,
+        match=r"^metric 'Goal Times': custom template '../bars.liquid' not found in "
+        r"the config file's folder or its templates/ folder$",
+    ):
         render_custom(metric, [("label", "varchar")], [])
 
 
-@pytest.mark.parametrize(("template", "message"), [
-    ('{\n  "data": [\n    {"x": {{ labels | json }}}]}',
-     r"bars.liquid:3:14: 'labels' is undefined"),  # a misspelt column: line and column in the template
-    ("{% if label %}\n{\"data\": []}\n", r"bars.liquid:\d+:\d+: expected tag endif.*"),
-    ('{"data": [{"x": {{ label | nosuch }}}]}', r"bars.liquid:1:28: unknown filter 'nosuch'"),
-    ('{"data": [{"x": {{ label }}}]}', r"the output of bars.liquid is not JSON \(output line 1, column 17: .*\)"),
-    ('[{"type": "bar"}]', r'the output of bars.liquid is not a Plotly figure \(expected an object \{"data"'),
-    ('{"data": [[1, 2]]}', r'the output of bars.liquid is not a Plotly figure \(expected an object \{"data"'),
-])
+@pytest.mark.parametrize(
+    ("template", "message"),
+    [
+        (
+            '{\n  "data": [\n    {"x": {{ labels | json }}}]}',
+            r"bars.liquid:3:14: 'labels' is undefined",
+        ),  # a misspelt column: line and column in the template
+        ('{% if label %}\n{"data": []}\n', r"bars.liquid:\d+:\d+: expected tag endif.*"),
+        ('{"data": [{"x": {{ label | nosuch }}}]}', r"bars.liquid:1:28: unknown filter 'nosuch'"),
+        ('{"data": [{"x": {{ label }}}]}', r"the output of bars.liquid is not JSON \(output line 1, column 17: .*\)"),
+        ('[{"type": "bar"}]', r'the output of bars.liquid is not a Plotly figure \(expected an object \{"data"'),
+        ('{"data": [[1, 2]]}', r'the output of bars.liquid is not a Plotly figure \(expected an object \{"data"'),
+    ],
+)
 def test_template_errors_say_where(tmp_path, template, message):
     metric = metric_in(tmp_path, template)
     with pytest.raises(TemplateError, match=rf"^metric 'Goal Times': {message}"):
@@ -111,41 +126,71 @@ def test_template_errors_say_where(tmp_path, template, message):
 
 
 def lakegate(*args):
-    return subprocess.run([*CLI, *map(str, args)], capture_output=True, text=True,
-                          env={**os.environ, "COLUMNS": "200"}, timeout=120)
+    return subprocess.run(
+        [*CLI, *map(str, args)], capture_output=True, text=True, env={**os.environ, "COLUMNS": "200"}, timeout=120
+    )
 
 
 def test_sync_stores_the_template_and_run_renders_it_into_results_and_report(tmp_path):
     job = generate_batch(tmp_path / "inputs", jobs=1, samples_per_goal=4)[0]
     project = tmp_path / "project"
-    config_path = config_with(project, "bars.liquid", query="SELECT goal_name AS label, time_s AS value "
-                                                            "FROM time_to_goal ORDER BY timestamp")
+    config_path = config_with(
+        project, "bars.liquid", query="SELECT goal_name AS label, time_s AS value FROM time_to_goal ORDER BY timestamp"
+    )
     (project / "templates").mkdir()
     (project / "templates" / "bars.liquid").write_text(BARS)
     lake = tmp_path / "lake"
-    ingest_job(lake, "main", "b1", job.job_id, [job.emissions_path], config=load_config(config_path),
-               metadata=load_metadata_file(job.metadata_path))
-    assert lakegate("metrics", "sync", "--lake", lake, "--branch", "main", "--metrics-config-path",
-                    config_path).returncode == 0
+    ingest_job(
+        lake,
+        "main",
+        "b1",
+        job.job_id,
+        [job.emissions_path],
+        config=load_config(config_path),
+        metadata=load_metadata_file(job.metadata_path),
+    )
+    assert (
+        lakegate("metrics", "sync", "--lake", lake, "--branch", "main", "--metrics-config-path", config_path).returncode
+        == 0
+    )
     (project / "templates" / "bars.liquid").unlink()  # the stored config has its own copy
 
     report = tmp_path / "report.html"
-    run = lakegate("metrics", "run", "--lake", lake, "--branch", "main", "--batch", "b1", "--metrics-set", "Custom",
-                   "--format", "json", "--report", report)
+    run = lakegate(
+        "metrics",
+        "run",
+        "--lake",
+        lake,
+        "--branch",
+        "main",
+        "--batch",
+        "b1",
+        "--metrics-set",
+        "Custom",
+        "--format",
+        "json",
+        "--report",
+        report,
+    )
     assert run.returncode == 0, run.stderr
     metric, skipped = json.loads(run.stdout)["metrics"]
     assert (metric["template"], metric["status"], metric["value"]) == ("custom", "PASSED", "1 trace from bars.liquid")
     assert (skipped["template"], skipped["status"], skipped["error"]["message"]) == (
-        "custom", "NOT_RUN", "skipped: the query returned no rows (skip_if_no_data)")
+        "custom",
+        "NOT_RUN",
+        "skipped: the query returned no rows (skip_if_no_data)",
+    )
 
     emitted = [json.loads(line) for line in job.emissions_path.read_text().splitlines()]
-    goals = [(e["$data"]["goal_name"], e["$data"]["time_s"]) for e in emitted
-             if e["$metadata"]["topic"] == "time_to_goal"]
+    goals = [
+        (e["$data"]["goal_name"], e["$data"]["time_s"]) for e in emitted if e["$metadata"]["topic"] == "time_to_goal"
+    ]
     assert len(goals) >= 2
     stored, _ = read_results(lake, "main", "b1")
     figure = json.loads(stored["figure_json"])
-    assert figure["data"] == [{"type": "bar", "x": [g for g, _ in goals], "y": [t for _, t in goals],
-                               "name": "Goal Times"}]
+    assert figure["data"] == [
+        {"type": "bar", "x": [g for g, _ in goals], "y": [t for _, t in goals], "name": "Goal Times"}
+    ]
     assert (stored["metric_name"], stored["template"], stored["units"]) == ("Goal Times", "custom", "s")
     html = report.read_text()
     assert "Goal Times" in html and '"name":"Goal Times"' in html.replace(", ", ",").replace(": ", ":")

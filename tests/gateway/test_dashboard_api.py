@@ -2,6 +2,7 @@
 
 Expected values come from the emissions files themselves (parsed here with `json`), not from
 the engine, so a wrong scope or a wrong result shows."""
+
 from __future__ import annotations
 
 import io
@@ -23,9 +24,9 @@ import pytest
 import uvicorn
 
 from lakegate.dialect.scope import Scope
-from lakegate.gateway.dashboard.routes import DashboardState, dashboard_router
 from lakegate.gateway.cli.debug import DebugJob
 from lakegate.gateway.dashboard.debug_session import DashboardSession, FileConfig
+from lakegate.gateway.dashboard.routes import DashboardState, dashboard_router
 from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.gateway.server.app import create_app
 from lakegate.lake import paths
@@ -59,8 +60,15 @@ def served(nav_jobs, tmp_path_factory: pytest.TempPathFactory):
     lake = tmp_path_factory.mktemp("dashboard") / "lake"
     config = load_config(nav_jobs.config)
     for job in nav_jobs.jobs:
-        ingest_job(lake, BRANCH, BATCH, job.job_id, [job.emissions_path], config=config,
-                   metadata=load_metadata_file(job.metadata_path))
+        ingest_job(
+            lake,
+            BRANCH,
+            BATCH,
+            job.job_id,
+            [job.emissions_path],
+            config=config,
+            metadata=load_metadata_file(job.metadata_path),
+        )
         shutil.copytree(job.logs_dir, paths.logs_dir(lake, BRANCH, BATCH, job.job_id))
     state = DashboardState(lake)
     sock = socket.socket()
@@ -82,8 +90,9 @@ def served(nav_jobs, tmp_path_factory: pytest.TempPathFactory):
 
 def _request(served: Served, method: str, path: str, body: Any = None) -> tuple[int, Any, bytes]:
     data = None if body is None else json.dumps(body).encode()
-    request = urllib.request.Request(served.url + path, data=data, method=method,
-                                     headers={"Content-Type": "application/json"} if data else {})
+    request = urllib.request.Request(
+        served.url + path, data=data, method=method, headers={"Content-Type": "application/json"} if data else {}
+    )
     try:
         with urllib.request.urlopen(request, timeout=60) as response:
             status, raw = response.status, response.read()
@@ -105,12 +114,20 @@ def _debug(served: Served, nav_jobs, tmp_path: Path, index: int = 0) -> tuple[Da
     shutil.copy(nav_jobs.config, config_path)
     shutil.copytree(nav_jobs.config.parent / "templates", tmp_path / "templates", dirs_exist_ok=True)
     source = nav_jobs.jobs[index]
-    job = DebugJob(served.lake, "debug", source.emissions_path, source.logs_dir,
-                   load_metadata_file(source.metadata_path))
+    job = DebugJob(
+        served.lake, "debug", source.emissions_path, source.logs_dir, load_metadata_file(source.metadata_path)
+    )
     job.ingest(load_config(config_path))
-    session = DashboardSession(served.state.new_id(), served.state.engine, branch="debug", batch_id=job.batch_id,
-                               source=FileConfig([config_path]), metrics_set=NAV_SET, debug=True,
-                               refresh_data=job.refresh)
+    session = DashboardSession(
+        served.state.new_id(),
+        served.state.engine,
+        branch="debug",
+        batch_id=job.batch_id,
+        source=FileConfig([config_path]),
+        metrics_set=NAV_SET,
+        debug=True,
+        refresh_data=job.refresh,
+    )
     served.state.add(session, debug=True)
     return session, config_path
 
@@ -184,8 +201,12 @@ def test_edit_a_query_see_errors_with_position_and_revert(served, nav_jobs, tmp_
     assert metric["result"]["text"] == "12.5 s" and metric["origin"] == "edited" and metric["location"] is None
     assert state["config"]["edited"] == ["Time to reach final goal"]
 
-    state = api(served, "PUT", f"sessions/{session.id}/metrics/{name}",
-                {"query_string": "SELECT sum(time_s)\n  FROM time_to_goals"})
+    state = api(
+        served,
+        "PUT",
+        f"sessions/{session.id}/metrics/{name}",
+        {"query_string": "SELECT sum(time_s)\n  FROM time_to_goals"},
+    )
     result = _metric(state, "Time to reach final goal")["result"]
     assert result["status"] == "ERROR"
     assert result["error"]["query"] == "query"
@@ -196,7 +217,11 @@ def test_edit_a_query_see_errors_with_position_and_revert(served, nav_jobs, tmp_
     line = urllib.parse.quote("Robot Speed")
     state = api(served, "PUT", f"sessions/{session.id}/metrics/{line}", {"query_string": "SELECT 1, 2"})
     result = _metric(state, "Robot Speed")["result"]
-    assert result["status"] == "ERROR" and "line" in result["error"]["message"] and "3 columns" in result["error"]["message"]
+    assert (
+        result["status"] == "ERROR"
+        and "line" in result["error"]["message"]
+        and "3 columns" in result["error"]["message"]
+    )
 
     state = api(served, "DELETE", f"sessions/{session.id}/metrics/{name}")
     metric = _metric(state, "Time to reach final goal")
@@ -208,26 +233,43 @@ def test_edit_a_query_see_errors_with_position_and_revert(served, nav_jobs, tmp_
 def test_add_metric_with_status_and_refusals(served, nav_jobs, tmp_path) -> None:
     session, _ = _debug(served, nav_jobs, tmp_path)
     goal_states = len(_rows(nav_jobs.jobs[0].emissions_path, "goal_status"))
-    spec = {"name": "Goal status changes", "type": "test", "template": "scalar", "description": "How many",
-            "units": "", "query_string": "SELECT COUNT(*) FROM goal_status",
-            "status": {"query_string": "SELECT 1 FROM goal_status HAVING COUNT(*) > ?",
-                       "block": str(goal_states + 10), "warn": str(goal_states - 1)}}
+    spec = {
+        "name": "Goal status changes",
+        "type": "test",
+        "template": "scalar",
+        "description": "How many",
+        "units": "",
+        "query_string": "SELECT COUNT(*) FROM goal_status",
+        "status": {
+            "query_string": "SELECT 1 FROM goal_status HAVING COUNT(*) > ?",
+            "block": str(goal_states + 10),
+            "warn": str(goal_states - 1),
+        },
+    }
     state = api(served, "POST", f"sessions/{session.id}/metrics", spec)
     added = _metric(state, "Goal status changes")
     assert state["metrics"][-1]["name"] == "Goal status changes"
     assert added["origin"] == "added" and added["result"]["text"] == str(goal_states)
     assert added["result"]["status"] == "WARNING"  # above warn, below block
-    assert added["status"] == {"query_string": spec["status"]["query_string"], "block": goal_states + 10,
-                               "warn": goal_states - 1}
+    assert added["status"] == {
+        "query_string": spec["status"]["query_string"],
+        "block": goal_states + 10,
+        "warn": goal_states - 1,
+    }
 
-    bad = api(served, "POST", f"sessions/{session.id}/metrics",
-              {**spec, "name": "Other", "status": {**spec["status"], "query_string": "SELECT 1 FROM goal_status"}},
-              expect=400)
+    bad = api(
+        served,
+        "POST",
+        f"sessions/{session.id}/metrics",
+        {**spec, "name": "Other", "status": {**spec["status"], "query_string": "SELECT 1 FROM goal_status"}},
+        expect=400,
+    )
     assert "exactly one ?" in bad["detail"]["message"]
     duplicate = api(served, "POST", f"sessions/{session.id}/metrics", spec, expect=400)
     assert "already exists" in duplicate["detail"]["message"]
-    bad_template = api(served, "POST", f"sessions/{session.id}/metrics", {**spec, "name": "T", "template": "donut"},
-                       expect=400)
+    bad_template = api(
+        served, "POST", f"sessions/{session.id}/metrics", {**spec, "name": "T", "template": "donut"}, expect=400
+    )
     assert "donut" in bad_template["detail"]["message"]
     assert [m["name"] for m in api(served, "GET", f"sessions/{session.id}")["metrics"]].count("Other") == 0
 
@@ -235,11 +277,20 @@ def test_add_metric_with_status_and_refusals(served, nav_jobs, tmp_path) -> None
 def test_export_loads_back_with_order_and_comments_kept(served, nav_jobs, tmp_path) -> None:
     session, config_path = _debug(served, nav_jobs, tmp_path)
     original = config_path.read_text()
-    speed = "SELECT 'Speed', timestamp / 1E9 AS \"Time (s)\", x AS \"Speed (m/s)\"\nFROM odom_linear_velocity"
+    speed = 'SELECT \'Speed\', timestamp / 1E9 AS "Time (s)", x AS "Speed (m/s)"\nFROM odom_linear_velocity'
     api(served, "PUT", f"sessions/{session.id}/metrics/{urllib.parse.quote('Robot Speed')}", {"query_string": speed})
-    api(served, "POST", f"sessions/{session.id}/metrics",
-        {"name": "Event count", "type": "batch", "template": "scalar", "description": "Events",
-         "query_string": "SELECT COUNT(*) FROM events"})
+    api(
+        served,
+        "POST",
+        f"sessions/{session.id}/metrics",
+        {
+            "name": "Event count",
+            "type": "batch",
+            "template": "scalar",
+            "description": "Events",
+            "query_string": "SELECT COUNT(*) FROM events",
+        },
+    )
     status, _, raw = _request(served, "GET", f"api/sessions/{session.id}/export")
     assert status == 200
     archive = zipfile.ZipFile(io.BytesIO(raw))
@@ -266,12 +317,18 @@ def test_export_loads_back_with_order_and_comments_kept(served, nav_jobs, tmp_pa
 
 def test_config_changes_on_disk_show_on_reload_with_session_edits_on_top(served, nav_jobs, tmp_path) -> None:
     session, config_path = _debug(served, nav_jobs, tmp_path)
-    api(served, "PUT", f"sessions/{session.id}/metrics/{urllib.parse.quote('Average Speed')}",
-        {"query_string": "SELECT 2.5"})
+    api(
+        served,
+        "PUT",
+        f"sessions/{session.id}/metrics/{urllib.parse.quote('Average Speed')}",
+        {"query_string": "SELECT 2.5"},
+    )
     time.sleep(0.01)
-    config_path.write_text(config_path.read_text()
-                           .replace("description: Share of jobs by conflated status.", "description: Shares.")
-                           .replace("    units: \"m/s\"\n", "    units: \"km/h\"\n"))
+    config_path.write_text(
+        config_path.read_text()
+        .replace("description: Share of jobs by conflated status.", "description: Shares.")
+        .replace('    units: "m/s"\n', '    units: "km/h"\n')
+    )
     state = api(served, "GET", f"sessions/{session.id}")
     assert _metric(state, "Job Outcomes")["description"] == "Shares."
     average = _metric(state, "Average Speed")
@@ -287,26 +344,45 @@ def test_data_explorer_tables_and_queries(served, nav_jobs, tmp_path) -> None:
     session, _ = _debug(served, nav_jobs, tmp_path, 1)
     job_id = api(served, "GET", f"sessions/{session.id}")["job_id"]
     counts = Counter(line["$metadata"]["topic"] for line in _emitted(nav_jobs.jobs[1].emissions_path))
-    tables = {t["name"]: t for t in api(served, "GET", f"sessions/{session.id}/tables?scope=job&job={job_id}")["tables"]}
+    tables = {
+        t["name"]: t for t in api(served, "GET", f"sessions/{session.id}/tables?scope=job&job={job_id}")["tables"]
+    }
     for topic, count in counts.items():
         assert tables[topic]["rows"] == count, topic
     assert tables["metadata"]["rows"] == 1
     assert [c["name"] for c in tables["goal_distance"]["columns"]][:3] == ["timestamp", "goal_name", "distance_m"]
-    branch_tables = {t["name"]: t["rows"] for t in api(served, "GET", f"sessions/{session.id}/tables?scope=branch")["tables"]}
+    branch_tables = {
+        t["name"]: t["rows"] for t in api(served, "GET", f"sessions/{session.id}/tables?scope=branch")["tables"]
+    }
     assert branch_tables["metadata"] >= 1
 
     odom, states = counts["odom_linear_velocity"], counts["goal_status"]
     assert odom * states > 1000
-    answer = api(served, "POST", f"sessions/{session.id}/query",
-                 {"sql": "SELECT o.timestamp, s.state FROM odom_linear_velocity o CROSS JOIN goal_status s",
-                  "scope": "job", "job": job_id})
+    answer = api(
+        served,
+        "POST",
+        f"sessions/{session.id}/query",
+        {
+            "sql": "SELECT o.timestamp, s.state FROM odom_linear_velocity o CROSS JOIN goal_status s",
+            "scope": "job",
+            "job": job_id,
+        },
+    )
     assert answer["total"] == odom * states and len(answer["rows"]) == 1000
     assert answer["columns"] == [{"name": "timestamp", "type": "bigint"}, {"name": "state", "type": "varchar"}]
-    answer = api(served, "POST", f"sessions/{session.id}/query",
-                 {"sql": "SELECT 7 / 2 AS q, typeof(7 / 2) AS t", "scope": "batch"})
+    answer = api(
+        served,
+        "POST",
+        f"sessions/{session.id}/query",
+        {"sql": "SELECT 7 / 2 AS q, typeof(7 / 2) AS t", "scope": "batch"},
+    )
     assert answer["rows"] == [[3, "integer"]]  # Trino semantics: integer division
-    error = api(served, "POST", f"sessions/{session.id}/query",
-                {"sql": "SELECT *\nFROM odom\nWHERE x > 1", "scope": "job", "job": job_id})["error"]
+    error = api(
+        served,
+        "POST",
+        f"sessions/{session.id}/query",
+        {"sql": "SELECT *\nFROM odom\nWHERE x > 1", "scope": "job", "job": job_id},
+    )["error"]
     assert (error["line"], error["column"]) == (2, 6) and "odom" in error["message"]
     api(served, "POST", f"sessions/{session.id}/query", {"sql": "SELECT 1", "scope": "job", "job": "nope"}, expect=400)
 
@@ -315,10 +391,13 @@ def test_events_in_time_order_with_their_metrics(served, nav_jobs, tmp_path) -> 
     session, _ = _debug(served, nav_jobs, tmp_path, 0)
     job_id = api(served, "GET", f"sessions/{session.id}")["job_id"]
     events = api(served, "GET", f"sessions/{session.id}/events?job={job_id}")["events"]
-    emitted = [line for line in _emitted(nav_jobs.jobs[0].emissions_path) if line["$metadata"]["topic"] == "goal_reached"]
+    emitted = [
+        line for line in _emitted(nav_jobs.jobs[0].emissions_path) if line["$metadata"]["topic"] == "goal_reached"
+    ]
     assert [e["timestamp"] for e in events] == sorted(line["$metadata"]["timestamp"] for line in emitted)
-    assert [e["name"] for e in events] == [line["$data"]["name"] for line in
-                                           sorted(emitted, key=lambda line: line["$metadata"]["timestamp"])]
+    assert [e["name"] for e in events] == [
+        line["$data"]["name"] for line in sorted(emitted, key=lambda line: line["$metadata"]["timestamp"])
+    ]
     images = [m for m in events[0]["metrics"] if m["type"] == "image"]
     assert images and all(isinstance(m["value"], list) for m in images)
     status, _, _ = _request(served, "GET", f"api/sessions/{session.id}/logs/{job_id}/{images[0]['value'][0]}")
@@ -345,14 +424,22 @@ def test_batch_view_evaluates_then_shows_stored_results(served, nav_jobs) -> Non
 
     registry = BranchConfigs(served.lake, BRANCH)  # evaluate and store the batch, as `lakegate metrics run` does
     with MetricsEngine(served.lake) as engine:
-        engine.evaluate_batch(BRANCH, BATCH, registry.current().metrics_in_set(NAV_SET), metrics_set=NAV_SET,
-                              config_version=registry.current_version())
+        engine.evaluate_batch(
+            BRANCH,
+            BATCH,
+            registry.current().metrics_in_set(NAV_SET),
+            metrics_set=NAV_SET,
+            config_version=registry.current_version(),
+        )
     served.state.sessions.clear()
     stored = api(served, "POST", "sessions", {"branch": BRANCH, "batch": BATCH, "metrics_set": NAV_SET})
     assert stored["origin"] == "stored"
-    assert [r["conflated_status"] for r in stored["matrix"]["rows"]] == [r["conflated_status"] for r in state["matrix"]["rows"]]
-    assert ([_metric(stored, m["name"])["result"]["text"] for m in state["metrics"]]
-            == [m["result"]["text"] for m in state["metrics"]])
+    assert [r["conflated_status"] for r in stored["matrix"]["rows"]] == [
+        r["conflated_status"] for r in state["matrix"]["rows"]
+    ]
+    assert [_metric(stored, m["name"])["result"]["text"] for m in state["metrics"]] == [
+        m["result"]["text"] for m in state["metrics"]
+    ]
 
     api(served, "POST", "sessions", {"branch": BRANCH, "batch": "nope"}, expect=400)
     api(served, "POST", "sessions", {"branch": "nope", "batch": BATCH}, expect=400)
@@ -370,10 +457,13 @@ def test_refuses_unknown_sessions_and_files_outside_the_logs(served, nav_jobs, t
 def test_page_and_static_files(served) -> None:
     status, _, page = _request(served, "GET", "")
     assert status == 200 and b"Export Config" in page and b"static/plotly.min.js" in page
-    for name, marker in (("dashboard.js", b"makeEditor"), ("dashboard.css", b".metric"),
-                         ("plotly.min.js", b"plotly.js v")):
+    for name, marker in (
+        ("dashboard.js", b"makeEditor"),
+        ("dashboard.css", b".metric"),
+        ("plotly.min.js", b"plotly.js v"),
+    ):
         status, _, body = _request(served, "GET", f"static/{name}")
-        assert status == 200 and marker in body[:2000 if name == "plotly.min.js" else None], name
+        assert status == 200 and marker in body[: 2000 if name == "plotly.min.js" else None], name
     status, _, _ = _request(served, "GET", "static/../debug_session.py")
     assert status == 404
 
@@ -393,7 +483,10 @@ def test_scope_statuses_overlay_metadata_without_writing(served, nav_jobs) -> No
     assert (rows[first]["job_metrics_status"], rows[first]["job_conflated_status"]) == ("WARNING", "ERROR")
     assert rows[second] == stored[second]
     statuses = ("job_metrics_status", "job_conflated_status")
-    assert {k: v for k, v in rows[first].items() if k not in statuses} == \
-        {k: v for k, v in stored[first].items() if k not in statuses}
-    assert read_metadata_row(served.lake, BRANCH, BATCH, first)["job_conflated_status"] == \
-        stored[first]["job_conflated_status"]
+    assert {k: v for k, v in rows[first].items() if k not in statuses} == {
+        k: v for k, v in stored[first].items() if k not in statuses
+    }
+    assert (
+        read_metadata_row(served.lake, BRANCH, BATCH, first)["job_conflated_status"]
+        == stored[first]["job_conflated_status"]
+    )

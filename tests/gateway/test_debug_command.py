@@ -1,5 +1,6 @@
 """`lakegate metrics debug` as a real process: bad input refused in one line, the dashboard served,
 config changes on disk picked up, the scratch lake removed on Ctrl+C."""
+
 from __future__ import annotations
 
 import io
@@ -34,8 +35,17 @@ def _one_line_error(result, *words: str) -> str:
 
 
 def _args(emissions: Path, config: Path, metrics_set: str = NAV_SET) -> list[str]:
-    return ["metrics", "debug", "--no-browser", "--emissions-file", str(emissions),
-            "--metrics-config-path", str(config), "--metrics-set", metrics_set]
+    return [
+        "metrics",
+        "debug",
+        "--no-browser",
+        "--emissions-file",
+        str(emissions),
+        "--metrics-config-path",
+        str(config),
+        "--metrics-set",
+        metrics_set,
+    ]
 
 
 def test_missing_emissions_file(tmp_path: Path, nav_jobs, run_lakegate) -> None:
@@ -46,8 +56,18 @@ def test_missing_emissions_file(tmp_path: Path, nav_jobs, run_lakegate) -> None:
 def test_malformed_emissions_file(tmp_path: Path, nav_jobs, run_lakegate) -> None:
     lines = nav_jobs.jobs[0].emissions_path.read_text().splitlines()
     bad = tmp_path / "emissions.resim.jsonl"
-    bad.write_text("\n".join(lines[:3] + ['{"$metadata": {"topic": "odom_linear_velocity", "timestamp": 5}, '
-                                          '"$data": {"x": "left", "y": 1.0, "z": 0.0}}', "not json"] + lines[3:]) + "\n")
+    bad.write_text(
+        "\n".join(
+            lines[:3]
+            + [
+                '{"$metadata": {"topic": "odom_linear_velocity", "timestamp": 5}, '
+                '"$data": {"x": "left", "y": 1.0, "z": 0.0}}',
+                "not json",
+            ]
+            + lines[3:]
+        )
+        + "\n"
+    )
     result = run_lakegate(_args(bad, nav_jobs.config), tmp_path)
     line = _one_line_error(result, "bad emissions file", f"{bad}:4:", "and 1 more bad line")
     assert "'x'" in line or "x:" in line or " x " in line  # names the bad field
@@ -89,8 +109,10 @@ def test_serves_the_dashboard_and_picks_up_config_changes(tmp_path: Path, nav_jo
     config.write_text(nav_jobs.config.read_text())
     shutil.copytree(nav_jobs.config.parent / "templates", tmp_path / "templates")  # its custom template
     job = nav_jobs.jobs[2]  # fewer than 3 goals reached: "Time to reach final goal" blocks
-    server = debug_processes(["--emissions-file", str(job.emissions_path), "--metrics-config-path", str(config),
-                              "--metrics-set", NAV_SET], tmp_path)
+    server = debug_processes(
+        ["--emissions-file", str(job.emissions_path), "--metrics-config-path", str(config), "--metrics-set", NAV_SET],
+        tmp_path,
+    )
     match = re.fullmatch(r"http://127\.0\.0\.1:(\d+)/dashboard/\?session=([\w-]+)", server.url)
     assert match, server.url
     scratch = Path(re.search(r"in a scratch lake (\S+)", "\n".join(server.lines)).group(1))
@@ -114,8 +136,9 @@ def test_serves_the_dashboard_and_picks_up_config_changes(tmp_path: Path, nav_jo
     assert _get(f"{base}api/sessions/{session}/logs/{state['job_id']}/camera.gif").startswith(b"GIF8")
 
     # the same server answers SQL over the Trino protocol, on the debug branch
-    with trino.dbapi.connect(host="127.0.0.1", port=int(match.group(1)), user="test", catalog="lake",
-                             schema="debug") as connection:
+    with trino.dbapi.connect(
+        host="127.0.0.1", port=int(match.group(1)), user="test", catalog="lake", schema="debug"
+    ) as connection:
         cursor = connection.cursor()
         cursor.execute("SELECT count(*) FROM goal_status")
         emitted = [json.loads(line) for line in job.emissions_path.read_text().splitlines()]
@@ -130,8 +153,9 @@ def test_serves_the_dashboard_and_picks_up_config_changes(tmp_path: Path, nav_jo
     robot = next(m for m in state["metrics"] if m["name"] == "Robot Speed")
     assert robot["description"] == "Speed of the robot, changed on disk"
     tables = json.loads(_get(f"{base}api/sessions/{session}/tables?scope=job&job={state['job_id']}"))["tables"]
-    assert {"name": "battery", "rows": 0} == {k: v for k, v in next(t for t in tables if t["name"] == "battery").items()
-                                              if k in ("name", "rows")}
+    assert {"name": "battery", "rows": 0} == {
+        k: v for k, v in next(t for t in tables if t["name"] == "battery").items() if k in ("name", "rows")
+    }
 
     assert server.stop() == 0
     assert not scratch.exists(), "the scratch lake is removed on exit"
@@ -139,9 +163,21 @@ def test_serves_the_dashboard_and_picks_up_config_changes(tmp_path: Path, nav_jo
 
 def test_given_lake_is_kept(tmp_path: Path, nav_jobs, debug_processes) -> None:
     lake = tmp_path / "lake"
-    server = debug_processes(["--emissions-file", str(nav_jobs.jobs[0].emissions_path), "--metrics-config-path",
-                              str(nav_jobs.config), "--metrics-set", NAV_SET, "--lake", str(lake),
-                              "--branch", "feature/dbg"], tmp_path)
+    server = debug_processes(
+        [
+            "--emissions-file",
+            str(nav_jobs.jobs[0].emissions_path),
+            "--metrics-config-path",
+            str(nav_jobs.config),
+            "--metrics-set",
+            NAV_SET,
+            "--lake",
+            str(lake),
+            "--branch",
+            "feature/dbg",
+        ],
+        tmp_path,
+    )
     assert server.stop() == 0
     metadata = list(paths.data_files(lake, "feature/dbg", paths.METADATA_TABLE))
     assert len(metadata) == 1
@@ -157,8 +193,18 @@ def test_refuses_to_listen_beyond_this_machine(tmp_path: Path, nav_jobs, run_lak
 def test_help_lists_every_option(tmp_path: Path, run_lakegate) -> None:
     result = run_lakegate(["metrics", "debug", "--help"], tmp_path)
     assert result.returncode == 0
-    for option in ("--emissions-file", "--metrics-config-path", "--metrics-set", "--port", "--lake", "--host",
-                   "--no-browser", "--logs-dir", "--metadata", "--all-metrics"):
+    for option in (
+        "--emissions-file",
+        "--metrics-config-path",
+        "--metrics-set",
+        "--port",
+        "--lake",
+        "--host",
+        "--no-browser",
+        "--logs-dir",
+        "--metadata",
+        "--all-metrics",
+    ):
         assert option in result.stdout
 
 
@@ -183,22 +229,34 @@ def test_without_a_logs_folder_only_the_referenced_files_are_served(tmp_path: Pa
     (folder / ".ssh").mkdir()
     (folder / ".ssh" / "id_rsa").write_text("-----BEGIN OPENSSH PRIVATE KEY-----\n")
     (folder / "notes.txt").write_text("private")
-    server = debug_processes(["--emissions-file", str(folder / "emissions.resim.jsonl"), "--metrics-config-path",
-                              str(nav_jobs.config), "--metrics-set", NAV_SET], tmp_path)
+    server = debug_processes(
+        [
+            "--emissions-file",
+            str(folder / "emissions.resim.jsonl"),
+            "--metrics-config-path",
+            str(nav_jobs.config),
+            "--metrics-set",
+            NAV_SET,
+        ],
+        tmp_path,
+    )
     base, session = server.url.split("?session=")
     base = base.rstrip("/") + "/"
     state = json.loads(_get(f"{base}api/sessions/{session}"))
     logs = f"{base}api/sessions/{session}/logs/{state['job_id']}/"
     camera = next(m for m in state["metrics"] if m["template"] == "image")["result"]
     assert camera["images"] == ["camera.gif"] and _get(logs + "camera.gif").startswith(b"GIF8")
-    for name in (".ssh/id_rsa", ".ssh%2Fid_rsa", "notes.txt", "emissions.resim.jsonl", "camera.gif%00.png",
-                 "%00"):
+    for name in (".ssh/id_rsa", ".ssh%2Fid_rsa", "notes.txt", "emissions.resim.jsonl", "camera.gif%00.png", "%00"):
         assert _status(logs + name) == 404, name
     assert _status(f"{base}api/sessions/{session}/logs/j%00b/camera.gif") in (400, 404)
     listing = _get(f"{base}api/lake").decode()
     assert session not in listing and state["batch_id"] in listing  # the session id is only in the printed URL
-    request = urllib.request.Request(f"{base}api/sessions", method="POST", headers={"Content-Type": "application/json"},
-                                     data=json.dumps({"branch": "debug", "batch": state["batch_id"]}).encode())
+    request = urllib.request.Request(
+        f"{base}api/sessions",
+        method="POST",
+        headers={"Content-Type": "application/json"},
+        data=json.dumps({"branch": "debug", "batch": state["batch_id"]}).encode(),
+    )
     try:
         urllib.request.urlopen(request, timeout=30)
         raise AssertionError("the debug batch was opened without its session id")
@@ -210,8 +268,17 @@ def test_without_a_logs_folder_only_the_referenced_files_are_served(tmp_path: Pa
 def test_host_and_origin_are_checked(tmp_path: Path, nav_jobs, debug_processes) -> None:
     """Issue 9 item 9: DNS rebinding (a foreign Host) gets 421, a cross-site POST (foreign Origin) 403;
     loopback names, the same origin and the trino client (Host 127.0.0.1:PORT) work."""
-    server = debug_processes(["--emissions-file", str(nav_jobs.jobs[0].emissions_path), "--metrics-config-path",
-                              str(nav_jobs.config), "--metrics-set", NAV_SET], tmp_path)
+    server = debug_processes(
+        [
+            "--emissions-file",
+            str(nav_jobs.jobs[0].emissions_path),
+            "--metrics-config-path",
+            str(nav_jobs.config),
+            "--metrics-set",
+            NAV_SET,
+        ],
+        tmp_path,
+    )
     base, session = server.url.split("?session=")
     port = int(re.search(r":(\d+)/", base).group(1))
     api = f"{base}api/sessions/{session}"
@@ -253,8 +320,17 @@ def test_export_keeps_to_the_config_folder(tmp_path: Path, nav_jobs, debug_proce
     (folder / "templates" / "view.liquid").write_text("{{ value }}")
     config = folder / 'we"ird é.resim.yaml'
     config.write_text(_with_custom_metric(nav_jobs.config.read_text(), "../../../../../../../../etc/passwd"))
-    server = debug_processes(["--emissions-file", str(nav_jobs.jobs[0].emissions_path), "--metrics-config-path",
-                              str(config), "--metrics-set", NAV_SET], tmp_path)
+    server = debug_processes(
+        [
+            "--emissions-file",
+            str(nav_jobs.jobs[0].emissions_path),
+            "--metrics-config-path",
+            str(config),
+            "--metrics-set",
+            NAV_SET,
+        ],
+        tmp_path,
+    )
     base, session = server.url.split("?session=")
     export = f"{base}api/sessions/{session}/export"
     try:
@@ -264,7 +340,9 @@ def test_export_keeps_to_the_config_folder(tmp_path: Path, nav_jobs, debug_proce
         assert error.code == 400
         message = json.loads(error.read())["detail"]["message"]
     line = config.read_text().splitlines().index("  Custom View:") + 1
-    assert "'Custom View'" in message and f"{config.name}:{line}:" in message and "outside the config's folder" in message
+    assert (
+        "'Custom View'" in message and f"{config.name}:{line}:" in message and "outside the config's folder" in message
+    )
     assert str(tmp_path) not in message
 
     config.write_text(_with_custom_metric(nav_jobs.config.read_text(), "templates/view.liquid"))
@@ -288,14 +366,26 @@ def test_exported_edits_load_back_with_the_same_values(tmp_path: Path, nav_jobs,
     units "on" stays a string (YAML 1.1 reads a boolean) and "1:30" stays a string (YAML 1.1: 90)."""
     config = tmp_path / "config.resim.yaml"
     config.write_text(nav_jobs.config.read_text())
-    server = debug_processes(["--emissions-file", str(nav_jobs.jobs[0].emissions_path), "--metrics-config-path",
-                              str(config), "--metrics-set", NAV_SET], tmp_path)
+    server = debug_processes(
+        [
+            "--emissions-file",
+            str(nav_jobs.jobs[0].emissions_path),
+            "--metrics-config-path",
+            str(config),
+            "--metrics-set",
+            NAV_SET,
+        ],
+        tmp_path,
+    )
     base, session = server.url.split("?session=")
     name = "Time to reach final goal"
     edit = {"units": "on", "status": {"query_string": "SELECT 1 WHERE ? = 'never'", "block": "1:30", "warn": "yes"}}
-    request = urllib.request.Request(f"{base}api/sessions/{session}/metrics/{urllib.parse.quote(name)}",
-                                     data=json.dumps(edit).encode(), method="PUT",
-                                     headers={"Content-Type": "application/json"})
+    request = urllib.request.Request(
+        f"{base}api/sessions/{session}/metrics/{urllib.parse.quote(name)}",
+        data=json.dumps(edit).encode(),
+        method="PUT",
+        headers={"Content-Type": "application/json"},
+    )
     with urllib.request.urlopen(request, timeout=60) as response:
         metric = next(m for m in json.loads(response.read())["metrics"] if m["name"] == name)
     assert metric["units"] == "on" and metric["status"]["block"] == "1:30"
@@ -312,8 +402,17 @@ def test_sigterm_stops_the_dashboard_cleanly(tmp_path: Path, nav_jobs, debug_pro
     """SIGTERM (and Ctrl+C) once the URL is printed only asks the server to stop (no KeyboardInterrupt
     raised into whatever runs, e.g. an import or the event loop): exit 0, no traceback, scratch removed."""
     for used in (False, True):
-        server = debug_processes(["--emissions-file", str(nav_jobs.jobs[0].emissions_path), "--metrics-config-path",
-                                  str(nav_jobs.config), "--metrics-set", NAV_SET], tmp_path)
+        server = debug_processes(
+            [
+                "--emissions-file",
+                str(nav_jobs.jobs[0].emissions_path),
+                "--metrics-config-path",
+                str(nav_jobs.config),
+                "--metrics-set",
+                NAV_SET,
+            ],
+            tmp_path,
+        )
         scratch = Path(re.search(r"in a scratch lake (\S+)", "\n".join(server.lines)).group(1))
         if used:  # requests leave worker threads behind, which must not keep the process alive
             _get(server.url.replace("/dashboard/?session=", "/dashboard/api/sessions/"))

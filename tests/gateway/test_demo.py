@@ -1,5 +1,6 @@
 """`lakegate demo`, run as a real subprocess from a folder outside the repository (so the example
 config must come from the installed package), twice on the same lake."""
+
 from __future__ import annotations
 
 import os
@@ -7,8 +8,8 @@ import re
 import subprocess
 import sys
 
-from lakegate.gateway.engine.backend import DuckDBBackend
 from lakegate.gateway.cli.demo import BATCH, BRANCH
+from lakegate.gateway.engine.backend import DuckDBBackend
 from lakegate.gateway.metrics.results import read_results
 from lakegate.lake.catalog import Catalog
 
@@ -16,8 +17,14 @@ CLI = [sys.executable, "-m", "lakegate.gateway.cli"]
 
 
 def demo(*args, cwd):
-    result = subprocess.run([*CLI, "demo", *map(str, args)], capture_output=True, text=True, cwd=cwd,
-                            env={**os.environ, "COLUMNS": "200"}, timeout=300)
+    result = subprocess.run(
+        [*CLI, "demo", *map(str, args)],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        env={**os.environ, "COLUMNS": "200"},
+        timeout=300,
+    )
     assert result.returncode == 0, result.stderr
     return result.stdout
 
@@ -29,12 +36,15 @@ def test_demo_from_anywhere_with_no_arguments_then_again(tmp_path):
     assert f"report: {report}" in out and f"lake:   {lake}" in out
     for name in ("Warehouse Loop", "Robot Speed", "Passed Jobs by Tag Group", "Total Samples: "):
         assert name in out
-    assert re.search(r"batch 'nav-regression-1' on branch 'main': BLOCKER \(6 jobs: 2 PASSED, 2 WARNING, 2 BLOCKER;", out)
+    assert re.search(
+        r"batch 'nav-regression-1' on branch 'main': BLOCKER \(6 jobs: 2 PASSED, 2 WARNING, 2 BLOCKER;", out
+    )
 
     backend = DuckDBBackend(lake)
     try:
-        statuses = backend.execute("SELECT job_conflated_status, COUNT(*) FROM metadata GROUP BY 1 ORDER BY 1",
-                                   branch=BRANCH).rows()
+        statuses = backend.execute(
+            "SELECT job_conflated_status, COUNT(*) FROM metadata GROUP BY 1 ORDER BY 1", branch=BRANCH
+        ).rows()
     finally:
         backend.close()
     assert statuses == [("BLOCKER", 2), ("PASSED", 2), ("WARNING", 2)]

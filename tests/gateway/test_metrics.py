@@ -1,6 +1,7 @@
 """The metrics engine on a real lake: a generated navigation batch ingested as Parquet, evaluated with
 the example config through the dialect layer and DuckDB. Expected values are computed here, in
 plain Python, from the emitted JSON lines (never from the engine's own output)."""
+
 from __future__ import annotations
 
 import json
@@ -16,8 +17,14 @@ import pytest
 
 from lakegate.dialect.scope import Scope
 from lakegate.fixtures.generate import CONFIG_PATH, GeneratedJob, generate_batch
-from lakegate.gateway.metrics.evaluation import (BatchEvaluation, MetricsEngine, config_position, conflated_status, select_metrics,
-                                      worst)
+from lakegate.gateway.metrics.evaluation import (
+    BatchEvaluation,
+    MetricsEngine,
+    config_position,
+    conflated_status,
+    select_metrics,
+    worst,
+)
 from lakegate.lake import paths
 from lakegate.lake.config import Location, Metric, StatusCheck, load_config
 from lakegate.lake.ingest import ingest_job
@@ -81,10 +88,18 @@ def nav(tmp_path_factory) -> Nav:
     for job in jobs:
         ingest(lake, BATCH, job, config)
     engine = MetricsEngine(lake)
-    evaluation = engine.evaluate_batch(BRANCH, BATCH, config.metrics_in_set("Nav Metrics"),
-                                       metrics_set="Nav Metrics", config_version=version)
-    yield Nav(lake, config, jobs, {j.job_id: read_emissions(j.emissions_path) for j in jobs},
-              {j.job_id: load_metadata_file(j.metadata_path) for j in jobs}, engine, evaluation)
+    evaluation = engine.evaluate_batch(
+        BRANCH, BATCH, config.metrics_in_set("Nav Metrics"), metrics_set="Nav Metrics", config_version=version
+    )
+    yield Nav(
+        lake,
+        config,
+        jobs,
+        {j.job_id: read_emissions(j.emissions_path) for j in jobs},
+        {j.job_id: load_metadata_file(j.metadata_path) for j in jobs},
+        engine,
+        evaluation,
+    )
     engine.close()
 
 
@@ -126,8 +141,13 @@ def test_status_checks_block_warn_neither_and_error(nav):
     scope = Scope(BATCH, job.job_id)
 
     def status(block, warn=None, query="SELECT 1 FROM pose_difference HAVING MAX(position_diff_m) > ?"):
-        metric = Metric(name="m", type="test", query_string="SELECT MAX(position_diff_m) FROM pose_difference",
-                        template="scalar", status=StatusCheck(query, block, warn))
+        metric = Metric(
+            name="m",
+            type="test",
+            query_string="SELECT MAX(position_diff_m) FROM pose_difference",
+            template="scalar",
+            status=StatusCheck(query, block, warn),
+        )
         return nav.engine.evaluate(metric, BRANCH, scope)
 
     assert status(top - 0.01).status == "BLOCKER"
@@ -185,7 +205,8 @@ def test_distance_to_goal_line_has_one_series_per_goal(nav):
             series[d["goal_name"]].append((t / 1e9, d["distance_m"]))
         traces = nav.result("Distance to Goal", job_id).rendered.figure["data"]
         assert {t["name"]: flat(zip(t["x"], t["y"])) for t in traces} == {
-            name: pytest.approx(flat(points), rel=1e-12) for name, points in series.items()}
+            name: pytest.approx(flat(points), rel=1e-12) for name, points in series.items()
+        }
 
 
 def covariance_text(flags: list[int]) -> str:
@@ -203,9 +224,10 @@ def test_covariance_table_has_trino_decimal_text(nav):
     for job_id, topics in nav.emissions.items():
         flags = [d["within_1_sigma"] for _, d in topics["covariance_accuracy"]]
         table = nav.result("AMCL Covariance Calibration", job_id).rendered.table
-        assert table == {"columns": ["Metric", "Value"],
-                         "rows": [["Total Samples", str(len(flags))],
-                                  ["Within 1σ (target: ~68%)", covariance_text(flags)]]}
+        assert table == {
+            "columns": ["Metric", "Value"],
+            "rows": [["Total Samples", str(len(flags))], ["Within 1σ (target: ~68%)", covariance_text(flags)]],
+        }
 
 
 def test_camera_image_resolved_in_the_job_logs(nav):
@@ -255,7 +277,9 @@ def test_drone_speed_by_experience_table(nav):
     table = nav.result("Drone Speed by Experience").rendered.table
     assert table["columns"] == ["experience_name", "_col1", "_col2", "_col3"]
     got = {row[0]: row[1:] for row in table["rows"]}
-    assert got == {name: pytest.approx([min(v), math.fsum(v) / len(v), max(v)], rel=1e-12) for name, v in speeds.items()}
+    assert got == {
+        name: pytest.approx([min(v), math.fsum(v) / len(v), max(v)], rel=1e-12) for name, v in speeds.items()
+    }
 
 
 def test_select_star_from_metadata(nav):
@@ -291,9 +315,15 @@ def test_job_outcomes_pie_counts_conflated_statuses(nav):
 
 
 def test_a_test_metric_sees_only_its_job_and_a_batch_metric_sees_the_batch(nav):
-    metric = Metric(name="rows", type="test", template="table", query_string=(
-        "SELECT (SELECT COUNT(DISTINCT job_id) FROM odom_linear_velocity), (SELECT MIN(job_id) FROM metadata), "
-        "(SELECT COUNT(*) FROM odom_linear_velocity o JOIN metadata m ON o.job_id = m.job_id)"))
+    metric = Metric(
+        name="rows",
+        type="test",
+        template="table",
+        query_string=(
+            "SELECT (SELECT COUNT(DISTINCT job_id) FROM odom_linear_velocity), (SELECT MIN(job_id) FROM metadata), "
+            "(SELECT COUNT(*) FROM odom_linear_velocity o JOIN metadata m ON o.job_id = m.job_id)"
+        ),
+    )
     for job in nav.jobs:
         rows = nav.engine.evaluate(metric, BRANCH, Scope(BATCH, job.job_id)).rendered.table["rows"]
         assert rows == [[1, job.job_id, len(nav.emissions[job.job_id]["odom_linear_velocity"])]]
@@ -306,7 +336,9 @@ def test_a_test_metric_sees_only_its_job_and_a_batch_metric_sees_the_batch(nav):
 
 
 def test_errors_are_recorded_with_positions_and_the_rest_of_the_set_runs(nav, tmp_path):
-    config_path = write_config(tmp_path, """\
+    config_path = write_config(
+        tmp_path,
+        """\
       Broken Column:
         description: a metric of this test
         type: test
@@ -336,11 +368,13 @@ def test_errors_are_recorded_with_positions_and_the_rest_of_the_set_runs(nav, tm
         type: batch
         query_string: SELECT count_if(job_conflated_status = 'ERROR') FROM metadata
         template: scalar
-    """, """\
+    """,
+        """\
     metrics sets:
       Mixed:
         metrics: [Broken Column, Broken Table, Wrong Shape, Fine, Batch Count]
-    """)
+    """,
+    )
     lines = config_path.read_text().splitlines()
     column_line = next(i for i, text in enumerate(lines, 1) if "speed_typo" in text)
     table_line = next(i for i, text in enumerate(lines, 1) if "nowhere_topic" in text)
@@ -353,8 +387,9 @@ def test_errors_are_recorded_with_positions_and_the_rest_of_the_set_runs(nav, tm
         by_name = {r.metric: r for r in job.results}
         column = by_name["Broken Column"]
         assert column.status == "ERROR" and (column.error.line, column.error.column) == (3, 3)
-        assert column.error.location == Location(str(config_path), column_line,
-                                                 lines[column_line - 1].index("speed_typo") + 1)
+        assert column.error.location == Location(
+            str(config_path), column_line, lines[column_line - 1].index("speed_typo") + 1
+        )
         assert str(column.error).startswith(f"{config_path}:{column_line}:")
         table = by_name["Broken Table"]
         assert table.status == "ERROR" and table.error.line == 1
@@ -371,7 +406,9 @@ def test_errors_are_recorded_with_positions_and_the_rest_of_the_set_runs(nav, tm
 
 
 def test_skip_if_no_data_and_unsupported_metrics_are_not_run(nav, tmp_path):
-    config_path = write_config(tmp_path, """\
+    config_path = write_config(
+        tmp_path,
+        """\
       Nothing:
         description: a metric of this test
         type: test
@@ -394,7 +431,8 @@ def test_skip_if_no_data_and_unsupported_metrics_are_not_run(nav, tmp_path):
         query_string: SELECT 1
         template_type: custom
         template_file: mine.json
-    """)
+    """,
+    )
     config = load_config(config_path)
     scope = Scope(BATCH, nav.jobs[0].job_id)
     results = {m.name: nav.engine.evaluate(m, BRANCH, scope) for m in select_metrics(config, all_metrics=True)}
@@ -403,8 +441,10 @@ def test_skip_if_no_data_and_unsupported_metrics_are_not_run(nav, tmp_path):
     assert "no rows" in results["Nothing Unskipped"].error.message
     assert results["Later"].status == "NOT_RUN" and "not supported yet" in results["Later"].error.message
     assert results["Custom"].status == "ERROR"  # rendered by its template now: tests/gateway/test_custom_templates.py
-    assert results["Custom"].error.message == "metric 'Custom': custom template 'mine.json' not found in " \
+    assert (
+        results["Custom"].error.message == "metric 'Custom': custom template 'mine.json' not found in "
         "the config file's folder or its templates/ folder"
+    )
     assert worst(r.status for name, r in results.items() if name not in ("Nothing Unskipped", "Custom")) == "PASSED"
 
 
@@ -432,13 +472,16 @@ def test_events_are_listed_per_job(nav):
     for outcome in nav.evaluation.jobs:
         emitted = nav.emissions[outcome.job_id]["goal_reached"]
         assert [(e.timestamp, e.name, e.status, e.tags) for e in outcome.events] == [
-            (t, d["name"], d["status"], d["tags"]) for t, d in emitted]
+            (t, d["name"], d["status"], d["tags"]) for t, d in emitted
+        ]
         for event, (_, data) in zip(outcome.events, emitted):
             assert [(m.name, m.type, m.value) for m in event.metrics] == [
-                (m["name"], m["type"], m["value"]) for m in data["metrics"]]
+                (m["name"], m["type"], m["value"]) for m in data["metrics"]
+            ]
         assert nav.engine.job_events(BRANCH, BATCH, outcome.job_id) == outcome.events
     assert sum(len(j.events) for j in nav.evaluation.jobs) == sum(
-        len(t["goal_reached"]) for t in nav.emissions.values())
+        len(t["goal_reached"]) for t in nav.emissions.values()
+    )
 
 
 # -- config positions ---------------------------------------------------------------------------

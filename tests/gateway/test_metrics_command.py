@@ -1,4 +1,5 @@
 """`lakegate metrics sync` and `lakegate metrics run`, as real subprocesses on real lakes."""
+
 from __future__ import annotations
 
 import json
@@ -26,8 +27,14 @@ TOPICS = CONFIG_PATH.read_text().split("\nmetrics:\n")[0]
 
 
 def lakegate(*args, cwd=None):
-    return subprocess.run([*CLI, *map(str, args)], capture_output=True, text=True, cwd=cwd,
-                          env={**os.environ, "COLUMNS": "200"}, timeout=120)
+    return subprocess.run(
+        [*CLI, *map(str, args)],
+        capture_output=True,
+        text=True,
+        cwd=cwd,
+        env={**os.environ, "COLUMNS": "200"},
+        timeout=120,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -42,8 +49,15 @@ def nav(tmp_path_factory):
 
     def batch(name: str) -> str:
         for job in jobs:
-            ingest_job(lake, "main", name, job.job_id, [job.emissions_path], config=config,
-                       metadata=load_metadata_file(job.metadata_path))
+            ingest_job(
+                lake,
+                "main",
+                name,
+                job.job_id,
+                [job.emissions_path],
+                config=config,
+                metadata=load_metadata_file(job.metadata_path),
+            )
         return name
 
     return lake, jobs, batch
@@ -88,15 +102,34 @@ def test_sync_stores_each_new_version_and_keeps_the_old(tmp_path):
 def test_run_prints_every_metric_as_json_and_exits_2_on_a_blocker(nav, tmp_path):
     lake, jobs, batch = nav
     report = tmp_path / "out" / "report.html"
-    result = lakegate("metrics", "run", "--lake", lake, "--branch", "main", "--batch", batch("json"),
-                      "--metrics-set", "Nav Metrics", "--format", "json", "--report", report)
+    result = lakegate(
+        "metrics",
+        "run",
+        "--lake",
+        lake,
+        "--branch",
+        "main",
+        "--batch",
+        batch("json"),
+        "--metrics-set",
+        "Nav Metrics",
+        "--format",
+        "json",
+        "--report",
+        report,
+    )
     assert result.returncode == 2, result.stderr
     output = json.loads(result.stdout)
     assert (output["batch_id"], output["metrics_set"], output["config_version"], output["status"]) == (
-        "json", "Nav Metrics", 1, "BLOCKER")
+        "json",
+        "Nav Metrics",
+        1,
+        "BLOCKER",
+    )
     assert [j["job_conflated_status"] for j in output["jobs"]] == ["PASSED", "WARNING", "BLOCKER"]
     assert [len(j["events"]) for j in output["jobs"]] == [
-        job.emissions_path.read_text().count('"topic": "goal_reached"') for job in jobs]
+        job.emissions_path.read_text().count('"topic": "goal_reached"') for job in jobs
+    ]
     metrics = output["metrics"]
     assert len(metrics) == 3 * 9 + 6
     assert set(metrics[0]) >= {"batch_id", "job_id", "metric", "type", "template", "status", "scalar_value", "error"}
@@ -109,12 +142,25 @@ def test_run_prints_every_metric_as_json_and_exits_2_on_a_blocker(nav, tmp_path)
 def test_post_hoc_rerun_with_a_changed_config_without_reingesting(nav, tmp_path):
     lake, jobs, batch = nav
     name = batch("posthoc")
-    stored = lakegate("metrics", "run", "--lake", lake, "--branch", "main", "--batch", name, "--metrics-set",
-                      "Nav Metrics")
+    stored = lakegate(
+        "metrics", "run", "--lake", lake, "--branch", "main", "--batch", name, "--metrics-set", "Nav Metrics"
+    )
     assert stored.returncode == 2, stored.stderr
     assert "BLOCKER" in stored.stdout and "Warehouse Loop" in stored.stdout
-    relaxed = lakegate("metrics", "run", "--lake", lake, "--branch", "main", "--batch", name, "--metrics-set",
-                       "Nav Metrics", "--metrics-config-path", relaxed_config(tmp_path))
+    relaxed = lakegate(
+        "metrics",
+        "run",
+        "--lake",
+        lake,
+        "--branch",
+        "main",
+        "--batch",
+        name,
+        "--metrics-set",
+        "Nav Metrics",
+        "--metrics-config-path",
+        relaxed_config(tmp_path),
+    )
     assert relaxed.returncode == 0, relaxed.stderr
     assert f"batch '{name}' on branch 'main': PASSED" in relaxed.stdout
     for job in jobs:
@@ -122,11 +168,29 @@ def test_post_hoc_rerun_with_a_changed_config_without_reingesting(nav, tmp_path)
         assert (row["job_metrics_status"], row["job_conflated_status"]) == ("PASSED", "PASSED")
     rows = read_results(lake, "main", name)
     assert {r["status"] for r in rows} == {"PASSED"} and {r["config_version"] for r in rows} == {None}
-    query = lakegate("query", "--lake", lake, "--format", "json",
-                     f"SELECT status, COUNT(*) FROM metric_results WHERE batch_id = '{name}' GROUP BY status")
+    query = lakegate(
+        "query",
+        "--lake",
+        lake,
+        "--format",
+        "json",
+        f"SELECT status, COUNT(*) FROM metric_results WHERE batch_id = '{name}' GROUP BY status",
+    )
     assert json.loads(query.stdout)["rows"] == [["PASSED", len(rows)]]
-    again = lakegate("metrics", "run", "--lake", lake, "--branch", "main", "--batch", name, "--metrics-set",
-                     "Nav Metrics", "--format", "json")
+    again = lakegate(
+        "metrics",
+        "run",
+        "--lake",
+        lake,
+        "--branch",
+        "main",
+        "--batch",
+        name,
+        "--metrics-set",
+        "Nav Metrics",
+        "--format",
+        "json",
+    )
     assert again.returncode == 2 and json.loads(again.stdout)["config_version"] == 1  # the stored config again
 
 
@@ -134,7 +198,9 @@ def test_config_and_usage_errors_exit_1(nav, tmp_path):
     lake, _, batch = nav
     name = batch("usage")
     bad = tmp_path / "sets.resim.yaml"
-    bad.write_text(TOPICS + textwrap.dedent("""
+    bad.write_text(
+        TOPICS
+        + textwrap.dedent("""
         metrics:
           Later:
             type: dashboard
@@ -149,11 +215,24 @@ def test_config_and_usage_errors_exit_1(nav, tmp_path):
         metrics sets:
           S:
             metrics: [Count, Count, Later, Missing]
-        """))
+        """)
+    )
     lines = bad.read_text().splitlines()
     at, text = len(lines), lines[-1]
-    result = lakegate("metrics", "run", "--lake", lake, "--branch", "main", "--batch", name, "--metrics-set", "S",
-                      "--metrics-config-path", bad)
+    result = lakegate(
+        "metrics",
+        "run",
+        "--lake",
+        lake,
+        "--branch",
+        "main",
+        "--batch",
+        name,
+        "--metrics-set",
+        "S",
+        "--metrics-config-path",
+        bad,
+    )
     assert result.returncode == 1
     assert f"{bad}:{at}:{text.index('Count, L') + 1}: duplicate metric 'Count'" in result.stderr
     assert "'Later'" not in result.stderr  # a set may list a dashboard metric, as in ReSim
@@ -175,7 +254,9 @@ def test_all_metrics_of_a_config_without_sets_and_errors_exit_3(nav, tmp_path):
     lake, jobs, batch = nav
     name = batch("all")
     config = tmp_path / "nosets.resim.yaml"
-    config.write_text(TOPICS + textwrap.dedent("""
+    config.write_text(
+        TOPICS
+        + textwrap.dedent("""
         metrics:
           Count:
             type: test
@@ -189,14 +270,29 @@ def test_all_metrics_of_a_config_without_sets_and_errors_exit_3(nav, tmp_path):
               SELECT AVG(sped)
               FROM robot_speed
             template: scalar
-        """))
-    result = lakegate("metrics", "run", "--lake", lake, "--branch", "main", "--batch", name, "--all-metrics",
-                      "--metrics-config-path", config, "--format", "json")
+        """)
+    )
+    result = lakegate(
+        "metrics",
+        "run",
+        "--lake",
+        lake,
+        "--branch",
+        "main",
+        "--batch",
+        name,
+        "--all-metrics",
+        "--metrics-config-path",
+        config,
+        "--format",
+        "json",
+    )
     assert result.returncode == 3, result.stderr
     output = json.loads(result.stdout)
     counts = [m["scalar_value"] for m in output["metrics"] if m["metric"] == "Count"]
-    assert counts == [sum('"topic": "robot_speed"' in line for line in job.emissions_path.read_text().splitlines())
-                      for job in jobs]
+    assert counts == [
+        sum('"topic": "robot_speed"' in line for line in job.emissions_path.read_text().splitlines()) for job in jobs
+    ]
     (broken,) = [m for m in output["metrics"] if m["metric"] == "Broken"]
     line, text = next((i, text) for i, text in enumerate(config.read_text().splitlines(), 1) if "AVG(sped)" in text)
     assert broken["status"] == "ERROR" and broken["job_id"] is None
@@ -223,16 +319,24 @@ def test_two_branches_with_different_schemas_for_one_topic(tmp_path):
             query_string: SELECT AVG(speed) FROM speed
             template: scalar
         """
-    float_config.write_text("version: 1\ntopics:\n  speed:\n    schema: {speed: float}\nmetrics:\n"
-                            + textwrap.indent(textwrap.dedent(speed) + textwrap.dedent(average), "  "))
-    text_config.write_text("version: 1\ntopics:\n  speed:\n    schema: {speed: string, unit: string}\nmetrics:\n"
-                           + textwrap.indent(textwrap.dedent(speed), "  "))
+    float_config.write_text(
+        "version: 1\ntopics:\n  speed:\n    schema: {speed: float}\nmetrics:\n"
+        + textwrap.indent(textwrap.dedent(speed) + textwrap.dedent(average), "  ")
+    )
+    text_config.write_text(
+        "version: 1\ntopics:\n  speed:\n    schema: {speed: string, unit: string}\nmetrics:\n"
+        + textwrap.indent(textwrap.dedent(speed), "  ")
+    )
     lines = {"main": {"speed": 1.5}, "feature/text": {"speed": "fast", "unit": "m/s"}}
     for branch, config in (("main", float_config), ("feature/text", text_config)):
-        assert lakegate("metrics", "sync", "--lake", lake, "--branch", branch, "--metrics-config-path",
-                        config).returncode == 0
+        assert (
+            lakegate("metrics", "sync", "--lake", lake, "--branch", branch, "--metrics-config-path", config).returncode
+            == 0
+        )
         emissions = tmp_path / f"{branch.replace('/', '_')}.jsonl"
-        emissions.write_text(json.dumps({"$metadata": {"topic": "speed", "timestamp": 1}, "$data": lines[branch]}) + "\n")
+        emissions.write_text(
+            json.dumps({"$metadata": {"topic": "speed", "timestamp": 1}, "$data": lines[branch]}) + "\n"
+        )
         ingested = lakegate("ingest", emissions, "--lake", lake, "--branch", branch, "--batch", "b", "--job", "j")
         assert ingested.returncode == 0, ingested.stderr  # with the branch's stored config
     for branch in lines:
@@ -247,8 +351,21 @@ def test_two_branches_with_different_schemas_for_one_topic(tmp_path):
     assert speed_rows("feature/text") == [["fast", "varchar"]]
     # main's config on the other branch: the queries meet that branch's schema, and main is untouched
     main_before = read_results(lake, "main", "b")
-    cross = lakegate("metrics", "run", "--lake", lake, "--branch", "feature/text", "--batch", "b", "--all-metrics",
-                     "--metrics-config-path", float_config, "--format", "json")
+    cross = lakegate(
+        "metrics",
+        "run",
+        "--lake",
+        lake,
+        "--branch",
+        "feature/text",
+        "--batch",
+        "b",
+        "--all-metrics",
+        "--metrics-config-path",
+        float_config,
+        "--format",
+        "json",
+    )
     assert cross.returncode == 3, cross.stderr
     average = next(m for m in json.loads(cross.stdout)["metrics"] if m["metric"] == "Average")
     assert average["status"] == "ERROR" and "avg" in average["error"]["message"].lower()
@@ -259,10 +376,28 @@ def test_two_branches_with_different_schemas_for_one_topic(tmp_path):
 
 
 def run_process(lake: Path, batch: str, *extra, env: dict | None = None) -> subprocess.Popen:
-    return subprocess.Popen([*CLI, "metrics", "run", "--lake", str(lake), "--branch", "main", "--batch", batch,
-                             "--metrics-set", "Nav Metrics", "--format", "json", *map(str, extra)],
-                            env={**os.environ, **(env or {})}, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+    return subprocess.Popen(
+        [
+            *CLI,
+            "metrics",
+            "run",
+            "--lake",
+            str(lake),
+            "--branch",
+            "main",
+            "--batch",
+            batch,
+            "--metrics-set",
+            "Nav Metrics",
+            "--format",
+            "json",
+            *map(str, extra),
+        ],
+        env={**os.environ, **(env or {})},
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def stored_run(lake: Path, batch: str, jobs) -> tuple[dict, dict]:
@@ -294,12 +429,17 @@ def test_a_killed_run_leaves_the_previous_run_whole(nav, tmp_path, point):
     before = stored_run(lake, name, jobs)
     assert [s[1] for s in before[0].values()] == ["PASSED", "WARNING", "BLOCKER"]
     marker = tmp_path / "paused"
-    killed = run_process(lake, name, "--metrics-config-path", relaxed_config(tmp_path),
-                         env={"LAKEGATE_TEST_PAUSE": f"{point}:{marker}"})
+    killed = run_process(
+        lake, name, "--metrics-config-path", relaxed_config(tmp_path), env={"LAKEGATE_TEST_PAUSE": f"{point}:{marker}"}
+    )
     try:
         deadline = time.monotonic() + 120
-        while killed.poll() is None and time.monotonic() < deadline and not marker.exists() \
-                and stored_run(lake, name, jobs)[0] == before[0]:  # a run that writes statuses early is caught too
+        while (
+            killed.poll() is None
+            and time.monotonic() < deadline
+            and not marker.exists()
+            and stored_run(lake, name, jobs)[0] == before[0]
+        ):  # a run that writes statuses early is caught too
             time.sleep(0.01)
         os.kill(killed.pid, signal.SIGKILL)
     finally:
@@ -314,8 +454,10 @@ def test_a_killed_run_leaves_the_previous_run_whole(nav, tmp_path, point):
 def test_two_concurrent_runs_of_a_batch_end_with_statuses_and_results_agreeing(nav, tmp_path):
     lake, jobs, batch = nav
     name = batch("concurrent")
-    strict, relaxed = run_process(lake, name), run_process(lake, name, "--metrics-config-path",
-                                                           relaxed_config(tmp_path))
+    strict, relaxed = (
+        run_process(lake, name),
+        run_process(lake, name, "--metrics-config-path", relaxed_config(tmp_path)),
+    )
     assert strict.wait(120) == 2, strict.stderr.read()
     assert relaxed.wait(120) == 0, relaxed.stderr.read()
     statuses = assert_agree(lake, name, jobs)

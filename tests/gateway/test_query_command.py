@@ -1,5 +1,6 @@
 """`lakegate query`, run as a real subprocess: the three output formats, --explain, scopes on a real
 lake, SHOW, and one-line errors with their position."""
+
 from __future__ import annotations
 
 import importlib.util
@@ -16,8 +17,13 @@ _spec.loader.exec_module(_backend_tests)
 
 
 def lakegate(*args: str, stdin: str | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "lakegate.gateway.cli", "query", *args], input=stdin,
-                          capture_output=True, text=True, timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "lakegate.gateway.cli", "query", *args],
+        input=stdin,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -28,28 +34,46 @@ def lake(tmp_path_factory) -> Path:
 def test_table_format():
     done = lakegate("SELECT 5 / 2 AS quotient, 'x' AS s, NULL AS nothing, ARRAY[1, 2] AS arr")
     assert done.returncode == 0, done.stderr
-    assert done.stdout == (" quotient | s | nothing |  arr\n"
-                           "----------+---+---------+--------\n"
-                           "        2 | x | NULL    | [1, 2]\n"
-                           "(1 row)\n")
+    assert done.stdout == (
+        " quotient | s | nothing |  arr\n----------+---+---------+--------\n        2 | x | NULL    | [1, 2]\n(1 row)\n"
+    )
 
 
 def test_json_format_encodes_values_as_the_trino_protocol():
-    done = lakegate("--format", "json", "SELECT 7 / 2 AS a, nan() AS b, DECIMAL '1.50' AS c, "
-                    "TIMESTAMP '2024-01-02 03:04:05.1' AS t, ARRAY['x'] AS arr UNION ALL "
-                    "SELECT NULL, 2.5E0, NULL, NULL, ARRAY[]")
+    done = lakegate(
+        "--format",
+        "json",
+        "SELECT 7 / 2 AS a, nan() AS b, DECIMAL '1.50' AS c, "
+        "TIMESTAMP '2024-01-02 03:04:05.1' AS t, ARRAY['x'] AS arr UNION ALL "
+        "SELECT NULL, 2.5E0, NULL, NULL, ARRAY[]",
+    )
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout) == {
-        "columns": [{"name": "a", "type": "integer"}, {"name": "b", "type": "double"},
-                    {"name": "c", "type": "decimal(3,2)"}, {"name": "t", "type": "timestamp(1)"},
-                    {"name": "arr", "type": "array(varchar(1))"}],
-        "rows": [[3, "NaN", "1.50", "2024-01-02 03:04:05.1", ["x"]], [None, 2.5, None, None, []]]}
+        "columns": [
+            {"name": "a", "type": "integer"},
+            {"name": "b", "type": "double"},
+            {"name": "c", "type": "decimal(3,2)"},
+            {"name": "t", "type": "timestamp(1)"},
+            {"name": "arr", "type": "array(varchar(1))"},
+        ],
+        "rows": [[3, "NaN", "1.50", "2024-01-02 03:04:05.1", ["x"]], [None, 2.5, None, None, []]],
+    }
 
 
 def test_csv_format_is_rfc_4180():
-    done = subprocess.run([sys.executable, "-m", "lakegate.gateway.cli", "query", "--format", "csv",
-                           "SELECT 'a,b' AS \"x y\", NULL AS n UNION ALL SELECT 'say \"hi\"', 'z'"],
-                          capture_output=True, timeout=120)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "lakegate.gateway.cli",
+            "query",
+            "--format",
+            "csv",
+            "SELECT 'a,b' AS \"x y\", NULL AS n UNION ALL SELECT 'say \"hi\"', 'z'",
+        ],
+        capture_output=True,
+        timeout=120,
+    )
     assert done.returncode == 0, done.stderr
     assert done.stdout == b'x y,n\r\n"a,b",\r\n"say ""hi""",z\r\n'
 
@@ -93,8 +117,11 @@ def test_show_tables_and_describe(lake):
     done = lakegate("--lake", str(lake), "--format", "json", "DESCRIBE time_to_goal")
     described = json.loads(done.stdout)
     assert [c["name"] for c in described["columns"]] == ["Column", "Type", "Extra", "Comment"]
-    assert described["rows"][:3] == [["timestamp", "bigint", "", ""], ["goal_name", "varchar", "", ""],
-                                     ["time_s", "double", "", ""]]
+    assert described["rows"][:3] == [
+        ["timestamp", "bigint", "", ""],
+        ["goal_name", "varchar", "", ""],
+        ["time_s", "double", "", ""],
+    ]
 
 
 def test_a_missing_lake_or_branch_is_a_user_error(tmp_path, lake):

@@ -7,6 +7,7 @@ real entry point (`lakegate.gateway.cli.main.main`, `--format json`), the server
 `lakegate serve` subprocess read by the official `trino` client with raw protocol values
 (`legacy_primitive_types`). The expected side is the server: neither answer is written here.
 """
+
 from __future__ import annotations
 
 import json
@@ -26,14 +27,14 @@ INTROSPECTION = [
     "SHOW SCHEMAS FROM lakegate",
     "SHOW TABLES",
     "SHOW TABLES FROM lake.main LIKE 'odom%'",
-    "SHOW TABLES FROM \"feature/all-types\"",
+    'SHOW TABLES FROM "feature/all-types"',
     "SHOW TABLES FROM nowhere",
     "SHOW COLUMNS FROM metadata",
     "SHOW COLUMNS FROM lake.main.odom_linear_velocity LIKE '%\\_id' ESCAPE '\\'",
     "SHOW SESSION LIKE 'batch%'",
     "SHOW FUNCTIONS",
     "DESCRIBE odom_linear_velocity",
-    "DESCRIBE lake.\"feature/all-types\".sample",
+    'DESCRIBE lake."feature/all-types".sample',
     "DESCRIBE nothing",
     "DESC main.metadata",
     "SELECT count(*) FROM main.metadata",
@@ -69,8 +70,9 @@ def cli_answer(lake, sql: str, capsys) -> str:
 def server_answer(server, sql: str) -> str:
     """The same as `cli_answer`, from the server: its columns and raw values, or its error as the
     command line would print it."""
-    with trino.dbapi.connect(host=server.host, port=server.port, user="tester", catalog="lake", schema="main",
-                             legacy_primitive_types=True) as connection:
+    with trino.dbapi.connect(
+        host=server.host, port=server.port, user="tester", catalog="lake", schema="main", legacy_primitive_types=True
+    ) as connection:
         cursor = connection.cursor()
         try:
             cursor.execute(sql)

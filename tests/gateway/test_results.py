@@ -1,5 +1,6 @@
 """The `metric_results` table: stored as Parquet per batch, replaced on re-evaluation, queryable
 through the dialect layer and DuckDB (trend queries joining metadata)."""
+
 from __future__ import annotations
 
 import json
@@ -16,8 +17,8 @@ from lakegate.gateway.metrics.results import read_results
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file
-from lakegate.lake.registry import BranchConfigs
 from lakegate.lake.record import current_file
+from lakegate.lake.registry import BranchConfigs
 from lakegate.lake.schema import METRIC_RESULTS_COLUMNS
 
 BRANCH = "main"
@@ -34,8 +35,11 @@ ORDER BY m.build_name
 
 def time_to_goal(emissions: Path) -> float:
     """The documented scalar, from the emitted lines: 75.0 unless exactly 3 goals, else their sum."""
-    times = [json.loads(line)["$data"]["time_s"] for line in emissions.read_text().splitlines()
-             if '"topic": "time_to_goal"' in line]
+    times = [
+        json.loads(line)["$data"]["time_s"]
+        for line in emissions.read_text().splitlines()
+        if '"topic": "time_to_goal"' in line
+    ]
     return math.fsum(times) if len(times) == 3 else 75.0
 
 
@@ -55,11 +59,19 @@ def lake(tmp_path_factory):
 
 def ingest_and_evaluate(lake: Path, branch: str, batch: str, jobs, config, version, **metadata) -> None:
     for job in jobs:
-        ingest_job(lake, branch, batch, job.job_id, [job.emissions_path], config=config,
-                   metadata={**load_metadata_file(job.metadata_path), **metadata})
+        ingest_job(
+            lake,
+            branch,
+            batch,
+            job.job_id,
+            [job.emissions_path],
+            config=config,
+            metadata={**load_metadata_file(job.metadata_path), **metadata},
+        )
     with MetricsEngine(lake) as engine:
-        engine.evaluate_batch(branch, batch, config.metrics_in_set("Nav Metrics"), metrics_set="Nav Metrics",
-                              config_version=version)
+        engine.evaluate_batch(
+            branch, batch, config.metrics_in_set("Nav Metrics"), metrics_set="Nav Metrics", config_version=version
+        )
 
 
 def test_every_evaluated_metric_is_stored(lake):
@@ -97,7 +109,9 @@ def test_the_table_has_trino_types_and_answers_a_trend_query(lake):
             assert mean == pytest.approx(math.fsum(expected[build]) / 3, rel=1e-12)
         statuses = backend.execute(
             "SELECT r.status, m.job_conflated_status FROM metric_results r JOIN metadata m "
-            "ON r.job_id = m.job_id WHERE r.metric_name = 'Time to reach final goal'", branch=BRANCH).rows()
+            "ON r.job_id = m.job_id WHERE r.metric_name = 'Time to reach final goal'",
+            branch=BRANCH,
+        ).rows()
         assert len(statuses) == 6 and all(status in ("PASSED", "BLOCKER") for status, _ in statuses)
     finally:
         backend.close()
@@ -113,7 +127,9 @@ def test_re_evaluating_a_batch_replaces_only_its_results(lake, tmp_path):
     assert len(first) == len(read_results(lake_dir, branch, "r2")) > 4
     config_path = tmp_path / "config.resim.yaml"
     topics = CONFIG_PATH.read_text().split("\nmetrics:\n")[0]
-    config_path.write_text(topics + textwrap.dedent("""
+    config_path.write_text(
+        topics
+        + textwrap.dedent("""
         metrics:
           Broken:
             type: test
@@ -125,7 +141,8 @@ def test_re_evaluating_a_batch_replaces_only_its_results(lake, tmp_path):
             description: rows of the batch
             query_string: SELECT COUNT(*) FROM robot_speed
             template: scalar
-        """))
+        """)
+    )
     config = load_config(config_path)
     before = read_results(lake_dir, branch, "r2")
     with MetricsEngine(lake_dir) as engine:
@@ -141,8 +158,9 @@ def test_re_evaluating_a_batch_replaces_only_its_results(lake, tmp_path):
     assert read_results(lake_dir, branch, "r2") == before
     backend = DuckDBBackend(lake_dir)
     try:
-        counts = backend.execute("SELECT batch_id, COUNT(*) FROM metric_results GROUP BY batch_id ORDER BY 1",
-                                 branch=branch).rows()
+        counts = backend.execute(
+            "SELECT batch_id, COUNT(*) FROM metric_results GROUP BY batch_id ORDER BY 1", branch=branch
+        ).rows()
         assert counts == [("r1", 4), ("r2", len(before))]
     finally:
         backend.close()

@@ -1,4 +1,5 @@
 """`lakegate serve` serves the dashboard beside the SQL endpoint, for every branch and batch of the lake."""
+
 from __future__ import annotations
 
 import hashlib
@@ -39,8 +40,11 @@ def _json(method: str, url: str, body: Any = None) -> Any:
 
 def _digests(folder: Path) -> dict[str, str]:
     """sha256 of every file under `folder`, by relative path."""
-    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
-            for p in sorted(folder.rglob("*")) if p.is_file()}
+    return {
+        str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
 
 
 def test_serve_mounts_the_dashboard_page_and_its_lake_listing(lake_server):
@@ -63,8 +67,15 @@ def evaluated_lake(nav_jobs, tmp_path: Path, run_lakegate) -> Path:
     lake = tmp_path / "lake"
     config = load_config([nav_jobs.config])
     for job in nav_jobs.jobs:
-        ingest_job(lake, "main", "nightly", job.job_id, [job.emissions_path], config=config,
-                   metadata=load_metadata_file(job.metadata_path))
+        ingest_job(
+            lake,
+            "main",
+            "nightly",
+            job.job_id,
+            [job.emissions_path],
+            config=config,
+            metadata=load_metadata_file(job.metadata_path),
+        )
         shutil.copytree(job.logs_dir, paths.logs_dir(lake, "main", "nightly", job.job_id))
     common = ["--lake", str(lake), "--branch", "main"]
     synced = run_lakegate(["metrics", "sync", *common, "--metrics-config-path", str(nav_jobs.config)], tmp_path)
@@ -84,14 +95,18 @@ def test_editing_a_metric_in_the_dashboard_never_writes_the_lake(evaluated_lake:
         status, page = _get(dashboard)
         assert status == 200 and b"Session only, not saved" in page
 
-        state = _json("POST", dashboard + "api/sessions", {"branch": "main", "batch": "nightly",
-                                                           "metrics_set": NAV_SET})
+        state = _json(
+            "POST", dashboard + "api/sessions", {"branch": "main", "batch": "nightly", "metrics_set": NAV_SET}
+        )
         assert state["origin"] == "stored"
         assert sorted(r["conflated_status"] for r in state["matrix"]["rows"]) == ["BLOCKER", "PASSED", "WARNING"]
 
         name = urllib.parse.quote("Time to reach final goal")  # the status check that blocks job 2
-        edited = _json("PUT", f"{dashboard}api/sessions/{state['id']}/metrics/{name}",
-                       {"status": {"query_string": "SELECT 1 WHERE 1 > ?", "block": 1}})
+        edited = _json(
+            "PUT",
+            f"{dashboard}api/sessions/{state['id']}/metrics/{name}",
+            {"status": {"query_string": "SELECT 1 WHERE 1 > ?", "block": 1}},
+        )
         statuses = Counter(r["conflated_status"] for r in edited["matrix"]["rows"])
         assert statuses == {"PASSED": 2, "WARNING": 1}
         pie = next(m for m in edited["metrics"] if m["name"] == "Job Outcomes")["result"]["figure"]["data"][0]

@@ -1,6 +1,7 @@
 """Real clients against a real `lakegate serve` on 127.0.0.1: the official `trino` DBAPI client,
 SQLAlchemy's `trino://` dialect, pandas.read_sql, and aiotrino (a second, asyncio/aiohttp client).
 Expected values come from the emitted rows or from DuckDB reading the lake's Parquet files directly."""
+
 from __future__ import annotations
 
 import asyncio
@@ -24,8 +25,9 @@ from lakegate.lake import paths
 
 
 def connect(server, schema: str = "main", **kwargs) -> trino.dbapi.Connection:
-    return trino.dbapi.connect(host=server.host, port=server.port, user="tester", catalog="lake", schema=schema,
-                               **kwargs)
+    return trino.dbapi.connect(
+        host=server.host, port=server.port, user="tester", catalog="lake", schema=schema, **kwargs
+    )
 
 
 def fetch(server, sql: str, params=None, **kwargs) -> list[list]:
@@ -37,41 +39,70 @@ def fetch(server, sql: str, params=None, **kwargs) -> list[list]:
 
 def parquet(lake, sql: str) -> list[tuple]:
     """`sql` run by DuckDB over the lake's Parquet files of branch main (`{table}` placeholders)."""
-    tables = {name: f"read_parquet('{paths.table_glob(lake, 'main', name)}', hive_partitioning = true, "
-                    "hive_types = {'batch_id': VARCHAR, 'job_id': VARCHAR})"
-              for name in ("metadata", "odom_linear_velocity")}
+    tables = {
+        name: f"read_parquet('{paths.table_glob(lake, 'main', name)}', hive_partitioning = true, "
+        "hive_types = {'batch_id': VARCHAR, 'job_id': VARCHAR})"
+        for name in ("metadata", "odom_linear_velocity")
+    }
     return duckdb.sql(sql.format(**tables)).fetchall()
 
 
 # --- trino.dbapi ------------------------------------------------------------------------------------
 
+
 def test_every_lake_column_type_round_trips(lake_server, all_types):
     branch, emitted = all_types
     with connect(lake_server, schema=branch) as connection:
         cursor = connection.cursor()
-        cursor.execute("SELECT flag, n, x, s, st, img, tags, metrics, timestamp, batch_id FROM sample ORDER BY timestamp")
+        cursor.execute(
+            "SELECT flag, n, x, s, st, img, tags, metrics, timestamp, batch_id FROM sample ORDER BY timestamp"
+        )
         rows = cursor.fetchall()
         description = [(d[0], d[1]) for d in cursor.description]
-    assert description == [("flag", "boolean"), ("n", "bigint"), ("x", "double"), ("s", "varchar"), ("st", "varchar"),
-                           ("img", "varchar"), ("tags", "array(varchar)"),
-                           ("metrics", "array(row(name varchar, description varchar, status varchar, type varchar, "
-                                       "value varchar))"), ("timestamp", "bigint"), ("batch_id", "varchar")]
+    assert description == [
+        ("flag", "boolean"),
+        ("n", "bigint"),
+        ("x", "double"),
+        ("s", "varchar"),
+        ("st", "varchar"),
+        ("img", "varchar"),
+        ("tags", "array(varchar)"),
+        ("metrics", "array(row(name varchar, description varchar, status varchar, type varchar, value varchar))"),
+        ("timestamp", "bigint"),
+        ("batch_id", "varchar"),
+    ]
     for row, source, timestamp in zip(rows, emitted, range(len(emitted))):
         flag, n, x, s, st, img, tags, metrics, ts, batch = row
-        assert (flag, n, x, s, st, img, tags, ts, batch) == (source["flag"], source["n"], source["x"], source["s"],
-                                                             source["st"], source["img"], source["tags"], timestamp, "b1")
+        assert (flag, n, x, s, st, img, tags, ts, batch) == (
+            source["flag"],
+            source["n"],
+            source["x"],
+            source["s"],
+            source["st"],
+            source["img"],
+            source["tags"],
+            timestamp,
+            "b1",
+        )
         assert type(flag) is bool and type(n) is int and type(x) is float and type(tags) is list
-        assert [tuple(m) for m in metrics] == [(m["name"], m.get("description"), m.get("status"), m["type"], m["value"])
-                                                for m in source["metrics"]]
+        assert [tuple(m) for m in metrics] == [
+            (m["name"], m.get("description"), m.get("status"), m["type"], m["value"]) for m in source["metrics"]
+        ]
     first_metric = rows[0][7][0]
     assert (first_metric.name, first_metric.value, first_metric.description) == ("m", "1.5", None)
 
 
 def test_timestamps_and_arrays_of_the_metadata_table(lake_server, server_lake):
-    rows = fetch(lake_server, "SELECT job_id, build_creation_timestamp, time, experience_tag_names, job_metrics_status "
-                              "FROM metadata ORDER BY job_id")
-    expected = parquet(server_lake, "SELECT job_id, build_creation_timestamp, time, experience_tag_names, "
-                                    "job_metrics_status FROM {metadata} ORDER BY job_id")
+    rows = fetch(
+        lake_server,
+        "SELECT job_id, build_creation_timestamp, time, experience_tag_names, job_metrics_status "
+        "FROM metadata ORDER BY job_id",
+    )
+    expected = parquet(
+        server_lake,
+        "SELECT job_id, build_creation_timestamp, time, experience_tag_names, "
+        "job_metrics_status FROM {metadata} ORDER BY job_id",
+    )
     assert [tuple(r) for r in rows] == expected and len(rows) == 3
     assert all(type(r[1]) is dt.datetime and r[1].tzinfo is None and type(r[3]) is list for r in rows)
     with connect(lake_server) as connection:
@@ -84,13 +115,25 @@ def test_timestamps_and_arrays_of_the_metadata_table(lake_server, server_lake):
 
 def test_parameters(lake_server, all_types, server_lake):
     branch, _ = all_types
-    assert fetch(lake_server, "SELECT count(*) FROM sample WHERE flag = ? AND n > ? AND x < ? AND s = ?",
-                 (True, -5, 2.0, "héllo, wörld"), schema=branch) == [[1]]
+    assert fetch(
+        lake_server,
+        "SELECT count(*) FROM sample WHERE flag = ? AND n > ? AND x < ? AND s = ?",
+        (True, -5, 2.0, "héllo, wörld"),
+        schema=branch,
+    ) == [[1]]
     moment = parquet(server_lake, "SELECT min(build_creation_timestamp) FROM {metadata}")[0][0]
-    assert fetch(lake_server, "SELECT count(*) FROM metadata WHERE build_creation_timestamp <= ? AND batch_id IN (?, ?)",
-                 (moment, "b1", "b2")) == [[3]]
-    legacy = fetch(lake_server, "SELECT count(*) FROM sample WHERE contains(tags, ?)", ("a",), schema=branch,
-                   legacy_prepared_statements=True)  # PREPARE / EXECUTE ... USING / DEALLOCATE
+    assert fetch(
+        lake_server,
+        "SELECT count(*) FROM metadata WHERE build_creation_timestamp <= ? AND batch_id IN (?, ?)",
+        (moment, "b1", "b2"),
+    ) == [[3]]
+    legacy = fetch(
+        lake_server,
+        "SELECT count(*) FROM sample WHERE contains(tags, ?)",
+        ("a",),
+        schema=branch,
+        legacy_prepared_statements=True,
+    )  # PREPARE / EXECUTE ... USING / DEALLOCATE
     assert legacy == [[1]]
 
 
@@ -109,8 +152,9 @@ def test_errors_are_programming_errors_with_their_position(lake_server):
 
 
 def test_session_properties_use_and_describe(lake_server):
-    narrowed = fetch(lake_server, "SELECT count(*), count(DISTINCT batch_id) FROM metadata",
-                     session_properties={"batch_id": "b2"})
+    narrowed = fetch(
+        lake_server, "SELECT count(*), count(DISTINCT batch_id) FROM metadata", session_properties={"batch_id": "b2"}
+    )
     assert narrowed == [[1, 1]]
     with connect(lake_server) as connection:
         cursor = connection.cursor()
@@ -119,8 +163,11 @@ def test_session_properties_use_and_describe(lake_server):
         cursor.execute("SELECT count(*) FROM sample")  # the client now sends the new schema
         assert cursor.fetchall() == [[2]]
         described = cursor.describe("SELECT flag AS f, n, x + 1 FROM sample")
-        assert [(d.name, d.type, d.type_size, d.aliased) for d in described] == \
-            [("f", "boolean", 1, True), ("n", "bigint", 8, False), ("_col2", "double", 8, False)]
+        assert [(d.name, d.type, d.type_size, d.aliased) for d in described] == [
+            ("f", "boolean", 1, True),
+            ("n", "bigint", 8, False),
+            ("_col2", "double", 8, False),
+        ]
         cursor.execute("SET SESSION job_id = 'j1'")
         cursor.fetchall()
         cursor.execute("SELECT count(*) FROM sample")
@@ -175,6 +222,7 @@ def test_cancel_stops_a_long_query_and_the_server_stays_healthy(start_server, en
 
 # --- SQLAlchemy and pandas --------------------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def engine(lake_server):
     engine = create_engine(f"trino://tester@{lake_server.host}:{lake_server.port}/lake/main")
@@ -196,8 +244,13 @@ def test_sqlalchemy_inspects_schemas_tables_and_columns(engine, all_types):
     assert isinstance(columns["s"], sqltypes.VARCHAR)
     assert isinstance(columns["tags"], sqltypes.ARRAY) and isinstance(columns["tags"].item_type, sqltypes.VARCHAR)
     assert isinstance(columns["metrics"], sqltypes.ARRAY) and isinstance(columns["metrics"].item_type, datatype.ROW)
-    assert [name for name, _ in columns["metrics"].item_type.attr_types] == ["name", "description", "status", "type",
-                                                                              "value"]
+    assert [name for name, _ in columns["metrics"].item_type.attr_types] == [
+        "name",
+        "description",
+        "status",
+        "type",
+        "value",
+    ]
     timestamp = {c["name"]: c["type"] for c in inspector.get_columns("metadata")}["build_creation_timestamp"]
     assert isinstance(timestamp, datatype.TIMESTAMP) and timestamp.precision == 3
     assert inspector.get_table_comment("metadata") == {"text": None}
@@ -207,10 +260,16 @@ def test_sqlalchemy_inspects_schemas_tables_and_columns(engine, all_types):
 def test_sqlalchemy_text_binds_and_reflected_tables(engine, server_lake, all_types):
     branch, _ = all_types
     with engine.connect() as connection:
-        count = connection.execute(text("SELECT count(*) FROM odom_linear_velocity WHERE batch_id = :batch AND x > :x"),
-                                   {"batch": "b1", "x": 0.5}).scalar()
-        assert count == parquet(server_lake, "SELECT count(*) FROM {odom_linear_velocity} "
-                                             "WHERE batch_id = 'b1' AND x > 0.5")[0][0]
+        count = connection.execute(
+            text("SELECT count(*) FROM odom_linear_velocity WHERE batch_id = :batch AND x > :x"),
+            {"batch": "b1", "x": 0.5},
+        ).scalar()
+        assert (
+            count
+            == parquet(server_lake, "SELECT count(*) FROM {odom_linear_velocity} WHERE batch_id = 'b1' AND x > 0.5")[0][
+                0
+            ]
+        )
         assert connection.execute(text("SELECT version()")).scalar() == engine.dialect.server_version_info[0]
         sample = Table("sample", MetaData(), autoload_with=connection, schema=branch)
         rows = connection.execute(select(sample.c.n, sample.c.tags).where(sample.c.flag == True)).all()  # noqa: E712
@@ -220,14 +279,18 @@ def test_sqlalchemy_text_binds_and_reflected_tables(engine, server_lake, all_typ
 
 
 def test_pandas_reads_a_topic_joined_with_metadata(engine, server_lake):
-    sql = ("SELECT m.experience_name, count(*) AS samples, avg(o.x) AS mean_x "
-           "FROM odom_linear_velocity o JOIN metadata m ON o.job_id = m.job_id AND o.batch_id = m.batch_id "
-           "GROUP BY m.experience_name ORDER BY m.experience_name")
+    sql = (
+        "SELECT m.experience_name, count(*) AS samples, avg(o.x) AS mean_x "
+        "FROM odom_linear_velocity o JOIN metadata m ON o.job_id = m.job_id AND o.batch_id = m.batch_id "
+        "GROUP BY m.experience_name ORDER BY m.experience_name"
+    )
     frame = pd.read_sql(sql, engine)
     assert list(frame.columns) == ["experience_name", "samples", "mean_x"]
     assert str(frame["samples"].dtype) == "int64" and str(frame["mean_x"].dtype) == "float64"
-    expected = parquet(server_lake, sql.replace("odom_linear_velocity o", "{odom_linear_velocity} o")
-                                       .replace("metadata m", "{metadata} m"))
+    expected = parquet(
+        server_lake,
+        sql.replace("odom_linear_velocity o", "{odom_linear_velocity} o").replace("metadata m", "{metadata} m"),
+    )
     assert len(expected) == 3
     for (name, samples, mean_x), row in zip(expected, frame.itertuples(index=False)):
         assert (row.experience_name, row.samples) == (name, samples)
@@ -236,14 +299,17 @@ def test_pandas_reads_a_topic_joined_with_metadata(engine, server_lake):
 
 # --- aiotrino ---------------------------------------------------------------------------------------
 
+
 def test_aiotrino_runs_a_query_and_reports_an_error(lake_server, server_lake):
     async def scenario() -> tuple[list, list, BaseException]:
-        connection = aiotrino.dbapi.connect(host=lake_server.host, port=lake_server.port, user="tester",
-                                            catalog="lake", schema="main")
+        connection = aiotrino.dbapi.connect(
+            host=lake_server.host, port=lake_server.port, user="tester", catalog="lake", schema="main"
+        )
         try:
             cursor = await connection.cursor()
-            await cursor.execute("SELECT job_id, build_creation_timestamp, experience_tag_names FROM metadata "
-                                 "ORDER BY job_id")
+            await cursor.execute(
+                "SELECT job_id, build_creation_timestamp, experience_tag_names FROM metadata ORDER BY job_id"
+            )
             rows = await cursor.fetchall()
             description = [(d.name, d.type_code) for d in await cursor.get_description()]
             try:
@@ -256,9 +322,13 @@ def test_aiotrino_runs_a_query_and_reports_an_error(lake_server, server_lake):
             await connection.close()
 
     rows, description, error = asyncio.run(scenario())
-    expected = parquet(server_lake, "SELECT job_id, build_creation_timestamp, experience_tag_names FROM {metadata} "
-                                    "ORDER BY job_id")
+    expected = parquet(
+        server_lake, "SELECT job_id, build_creation_timestamp, experience_tag_names FROM {metadata} ORDER BY job_id"
+    )
     assert [tuple(r) for r in rows] == expected
-    assert description == [("job_id", "varchar"), ("build_creation_timestamp", "timestamp(3)"),
-                           ("experience_tag_names", "array(varchar)")]
+    assert description == [
+        ("job_id", "varchar"),
+        ("build_creation_timestamp", "timestamp(3)"),
+        ("experience_tag_names", "array(varchar)"),
+    ]
     assert (error.error_name, error.error_location) == ("COLUMN_NOT_FOUND", (1, 35))

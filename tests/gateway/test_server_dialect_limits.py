@@ -4,6 +4,7 @@ INVALID_FUNCTION_ARGUMENT; trinodb/trino core/trino-main/src/main/java/io/trino/
 RepeatFunction.java, SequenceFunction.java, StringFunctions.java), deep nesting is refused at once
 (SqlParser.java's "statement is too large"), DuckDB-only syntax is a SYNTAX_ERROR (SqlBase.g4), and the
 server keeps answering."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -24,16 +25,18 @@ def _peak_mb(pid: int) -> float:
 
 
 def _error(server, sql: str) -> trino.exceptions.TrinoUserError:
-    with trino.dbapi.connect(host=server.host, port=server.port, user="tester", catalog="lake",
-                             schema="main") as connection:
+    with trino.dbapi.connect(
+        host=server.host, port=server.port, user="tester", catalog="lake", schema="main"
+    ) as connection:
         with pytest.raises(trino.exceptions.TrinoUserError) as caught:
             connection.cursor().execute(sql).fetchall()
     return caught.value
 
 
 def _select_1(server) -> list:
-    with trino.dbapi.connect(host=server.host, port=server.port, user="tester", catalog="lake",
-                             schema="main") as connection:
+    with trino.dbapi.connect(
+        host=server.host, port=server.port, user="tester", catalog="lake", schema="main"
+    ) as connection:
         return connection.cursor().execute("SELECT 1").fetchall()
 
 
@@ -43,12 +46,21 @@ def small_server(start_server):
     return start_server("--memory-limit", "256MB")
 
 
-@pytest.mark.parametrize("sql, message", [
-    ("SELECT repeat('x', 50000000)", "count argument of repeat function must be less than or equal to 10000"),
-    ("SELECT cardinality(repeat(1, 50000000))", "count argument of repeat function must be less than or equal to 10000"),
-    ("SELECT cardinality(sequence(1, 50000000))", "result of sequence function must not have more than 10000 entries"),
-    ("SELECT length(lpad('x', 400000000, 'y'))", "Target length must be at most 1000000 in lakegate"),
-])
+@pytest.mark.parametrize(
+    "sql, message",
+    [
+        ("SELECT repeat('x', 50000000)", "count argument of repeat function must be less than or equal to 10000"),
+        (
+            "SELECT cardinality(repeat(1, 50000000))",
+            "count argument of repeat function must be less than or equal to 10000",
+        ),
+        (
+            "SELECT cardinality(sequence(1, 50000000))",
+            "result of sequence function must not have more than 10000 entries",
+        ),
+        ("SELECT length(lpad('x', 400000000, 'y'))", "Target length must be at most 1000000 in lakegate"),
+    ],
+)
 def test_oversized_allocations_are_refused_and_the_server_keeps_answering(small_server, sql, message):
     before = _peak_mb(small_server.process.pid)
     error = _error(small_server, sql)

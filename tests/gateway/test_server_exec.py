@@ -8,6 +8,7 @@ Trino semantics followed (trinodb/trino): `docs/src/main/sphinx/admin/properties
 whose client stops fetching results is cancelled, ABANDONED_QUERY, by `QueryTracker`), and
 `docs/src/main/sphinx/sql/explain-analyze.rst` (EXPLAIN ANALYZE executes the query).
 """
+
 from __future__ import annotations
 
 import os
@@ -101,8 +102,9 @@ def test_queries_past_their_time_limit_while_planning_free_their_workers(start):
 
 def test_sigterm_stops_the_server_while_workers_plan(start):
     server = start("--max-concurrent-queries", "2")
-    posted = [requests.post(f"{server.url}/v1/statement", data=NESTED, headers=HEADERS, timeout=30).json()
-              for _ in range(4)]
+    posted = [
+        requests.post(f"{server.url}/v1/statement", data=NESTED, headers=HEADERS, timeout=30).json() for _ in range(4)
+    ]
     deadline = time.monotonic() + 10
     while time.monotonic() < deadline and requests.get(posted[1]["infoUri"], timeout=30).json()["state"] != "RUNNING":
         time.sleep(0.05)
@@ -114,8 +116,10 @@ def test_explain_analyze_stops_at_the_time_limit(start):
     server = start("--query-timeout", "2")
     started = time.monotonic()
     error = run(server, f"EXPLAIN ANALYZE {ENDLESS}")["error"]
-    assert (error["errorName"], error["message"]) == ("EXCEEDED_TIME_LIMIT",
-                                                      "Query exceeded the maximum execution time limit of 2.00s")
+    assert (error["errorName"], error["message"]) == (
+        "EXCEEDED_TIME_LIMIT",
+        "Query exceeded the maximum execution time limit of 2.00s",
+    )
     assert time.monotonic() - started < 10
     assert cpu_over_a_second(server.process.pid) < 0.3  # DuckDB was interrupted
     assert stop_within(server) == 0
@@ -123,8 +127,9 @@ def test_explain_analyze_stops_at_the_time_limit(start):
 
 def test_explain_analyze_stops_when_canceled(start):
     server = start()
-    first = requests.post(f"{server.url}/v1/statement", data=f"EXPLAIN ANALYZE {ENDLESS}", headers=HEADERS,
-                          timeout=30).json()
+    first = requests.post(
+        f"{server.url}/v1/statement", data=f"EXPLAIN ANALYZE {ENDLESS}", headers=HEADERS, timeout=30
+    ).json()
     document = requests.get(first["nextUri"], timeout=30).json()
     assert document["stats"]["state"] == "RUNNING"
     assert requests.delete(document["nextUri"], timeout=30).status_code == 204
@@ -140,19 +145,24 @@ def test_dashboard_queries_and_metrics_run_under_the_servers_limits(start):
     session = requests.post(f"{api}/sessions", json={"branch": "main", "batch": "b1"}, timeout=60).json()
     assert "id" in session, session
     started = time.monotonic()
-    answer = requests.post(f"{api}/sessions/{session['id']}/query", json={"sql": ENDLESS, "scope": "batch"},
-                           timeout=60).json()
+    answer = requests.post(
+        f"{api}/sessions/{session['id']}/query", json={"sql": ENDLESS, "scope": "batch"}, timeout=60
+    ).json()
     assert answer["error"]["name"] == "EXCEEDED_TIME_LIMIT" and "3.00s" in answer["error"]["message"]
     assert time.monotonic() - started < 10
     assert cpu_over_a_second(server.process.pid) < 0.3
-    state = requests.post(f"{api}/sessions/{session['id']}/metrics", timeout=60, json={
-        "name": "Endless", "type": "batch", "template": "scalar", "description": "", "query_string": ENDLESS}).json()
+    state = requests.post(
+        f"{api}/sessions/{session['id']}/metrics",
+        timeout=60,
+        json={"name": "Endless", "type": "batch", "template": "scalar", "description": "", "query_string": ENDLESS},
+    ).json()
     endless = next(m for m in state["metrics"] if m["name"] == "Endless")["result"]
     assert endless["status"] == "ERROR" and "time limit" in endless["error"]["message"]
     assert cpu_over_a_second(server.process.pid) < 0.3
     running = ThreadPoolExecutor(1)  # a dashboard query still running when SIGTERM comes
-    running.submit(requests.post, f"{api}/sessions/{session['id']}/query", json={"sql": ENDLESS, "scope": "batch"},
-                   timeout=60)
+    running.submit(
+        requests.post, f"{api}/sessions/{session['id']}/query", json={"sql": ENDLESS, "scope": "batch"}, timeout=60
+    )
     time.sleep(0.5)
     assert stop_within(server) == 0
     running.shutdown(wait=True)
@@ -160,15 +170,18 @@ def test_dashboard_queries_and_metrics_run_under_the_servers_limits(start):
 
 
 def test_a_client_that_stops_polling_abandons_its_query(start):
-    server = start("--client-timeout", "4", "--max-concurrent-queries", "1")  # 4 s: a loaded machine still polls in time
+    server = start(
+        "--client-timeout", "4", "--max-concurrent-queries", "1"
+    )  # 4 s: a loaded machine still polls in time
     connection = trino.dbapi.connect(host=server.host, port=server.port, user="tester", catalog="lake", schema="main")
     cursor = connection.cursor()
     cursor.execute("SELECT x, y FROM UNNEST(sequence(1, 2000)) AS a(x) CROSS JOIN UNNEST(sequence(1, 1000)) AS b(y)")
     assert len(cursor.fetchmany(5000)) == 5000  # two pages at least, then the client goes quiet
     query_id = cursor.query_id
     started = time.monotonic()  # the only worker is held by the abandoned query until it fails
-    rows = trino.dbapi.connect(host=server.host, port=server.port, user="tester", catalog="system",
-                               schema="runtime").cursor()
+    rows = trino.dbapi.connect(
+        host=server.host, port=server.port, user="tester", catalog="system", schema="runtime"
+    ).cursor()
     rows.execute(f"SELECT state, error_code FROM queries WHERE query_id = '{query_id}'")
     assert rows.fetchall() == [["FAILED", "ABANDONED_QUERY"]]
     assert time.monotonic() - started < 12  # the client timeout, plus a loaded machine's slack

@@ -9,6 +9,7 @@ own queries.
 The requests are written by hand on raw sockets, so that a test controls exactly which bytes reach
 the server and when.
 """
+
 from __future__ import annotations
 
 import socket
@@ -32,8 +33,12 @@ MB = 1_000_000
 
 def users_file(folder: Path, cost: int = 4) -> Path:
     path = folder / "users.txt"
-    path.write_text("".join(f"{user}:{bcrypt.hashpw(password.encode(), bcrypt.gensalt(cost)).decode()}\n"
-                            for user, password in PASSWORDS.items()))
+    path.write_text(
+        "".join(
+            f"{user}:{bcrypt.hashpw(password.encode(), bcrypt.gensalt(cost)).decode()}\n"
+            for user, password in PASSWORDS.items()
+        )
+    )
     return path
 
 
@@ -79,14 +84,16 @@ def peak_rss(server) -> int:
 
 
 def select_1(server, **kwargs) -> list[list]:
-    with trino.dbapi.connect(host=server.host, port=server.port, user=kwargs.pop("user", "tester"),
-                             catalog="lake", schema="main", **kwargs) as connection:
+    with trino.dbapi.connect(
+        host=server.host, port=server.port, user=kwargs.pop("user", "tester"), catalog="lake", schema="main", **kwargs
+    ) as connection:
         cursor = connection.cursor()
         cursor.execute("SELECT 1")
         return cursor.fetchall()
 
 
 # --- bodies ----------------------------------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def fresh_server(start_server):
@@ -111,8 +118,11 @@ def test_50_mb_bodies_are_refused_with_413_without_being_read(fresh_server):
 
     # no length given: counted while it streams in (or answered at once, without X-Trino-User, and the
     # connection closed: the rest is not read either)
-    for path, user in [("/v1/statement", "X-Trino-User: tester"), ("/v1/statement", "X-Trino-Source: no-user"),
-                       ("/dashboard/api/sessions", "Content-Type: application/json")]:
+    for path, user in [
+        ("/v1/statement", "X-Trino-User: tester"),
+        ("/v1/statement", "X-Trino-Source: no-user"),
+        ("/dashboard/api/sessions", "Content-Type: application/json"),
+    ]:
         with open_socket(fresh_server) as sock:
             sock.sendall(head("POST", path, "Transfer-Encoding: chunked", user))
             sent = stream(sock, 50 * MB, b"10000\r\n" + b"x" * 0x10000 + b"\r\n")
@@ -145,13 +155,20 @@ def test_an_unauthenticated_body_gets_401_before_it_is_read(auth_server):
         assert status == 401 and headers["www-authenticate"] == 'Basic realm="lakegate"', path
     # authenticated, the same body is refused by its size
     with open_socket(auth_server) as sock:
-        sock.sendall(head("POST", "/dashboard/api/sessions", f"Content-Length: {400 * MB}",
-                          "Authorization: Basic YWxpY2U6d29uZGVybGFuZA=="))  # alice:wonderland
+        sock.sendall(
+            head(
+                "POST",
+                "/dashboard/api/sessions",
+                f"Content-Length: {400 * MB}",
+                "Authorization: Basic YWxpY2U6d29uZGVybGFuZA==",
+            )
+        )  # alice:wonderland
         status, _, body = read_response(sock)
     assert status == 413 and b"--max-body" in body
 
 
 # --- headers, slow and idle clients, connections -----------------------------------------------
+
 
 def test_a_huge_header_is_refused_with_431(fresh_server):
     with open_socket(fresh_server) as sock:
@@ -229,8 +246,10 @@ def test_connections_beyond_the_limit_are_refused_and_freed(strict_server):
 def test_a_client_that_goes_away_mid_request_leaves_no_traceback(fresh_server):
     for path in ("/v1/statement", "/dashboard/api/sessions"):
         with open_socket(fresh_server) as sock:
-            sock.sendall(head("POST", path, "Content-Length: 1000", "Content-Type: application/json",
-                              "X-Trino-User: tester") + b"{\"x\": ")
+            sock.sendall(
+                head("POST", path, "Content-Length: 1000", "Content-Type: application/json", "X-Trino-User: tester")
+                + b'{"x": '
+            )
             time.sleep(0.2)
     assert select_1(fresh_server) == [[1]]  # the server went on, and logged nothing about it
     time.sleep(0.2)
@@ -238,6 +257,7 @@ def test_a_client_that_goes_away_mid_request_leaves_no_traceback(fresh_server):
 
 
 # --- logins ------------------------------------------------------------------------------------------
+
 
 def test_a_password_over_72_bytes_gets_401_not_500(auth_server):
     for password in ("w" * 73, PASSWORDS["alice"] + "x" * 100):  # bcrypt checks at most 72 bytes: never a match
@@ -295,16 +315,24 @@ def test_server_state_is_public_as_in_trino(auth_server):
 def test_a_user_sees_only_their_own_queries(auth_server):
     """With --users, system.runtime.queries lists the user's own queries only (Trino filters it by
     the access control's query ownership rules: a user may view the queries they own)."""
+
     def rows(user: str, sql: str) -> list[list]:
-        with trino.dbapi.connect(host=auth_server.host, port=auth_server.port, user=user, catalog="lake",
-                                 schema="main", auth=BasicAuthentication(user, PASSWORDS[user]), http_scheme="http",
-                                 allow_insecure_auth=True) as connection:
+        with trino.dbapi.connect(
+            host=auth_server.host,
+            port=auth_server.port,
+            user=user,
+            catalog="lake",
+            schema="main",
+            auth=BasicAuthentication(user, PASSWORDS[user]),
+            http_scheme="http",
+            allow_insecure_auth=True,
+        ) as connection:
             cursor = connection.cursor()
             cursor.execute(sql)
             return cursor.fetchall()
 
     assert rows("alice", "SELECT 'alice secret 42'") == [["alice secret 42"]]
-    seen_by_bob = rows("bob", "SELECT \"user\", query FROM system.runtime.queries")
+    seen_by_bob = rows("bob", 'SELECT "user", query FROM system.runtime.queries')
     assert seen_by_bob and {user for user, _ in seen_by_bob} == {"bob"}
     assert not any("alice secret" in query for _, query in seen_by_bob)
     assert any("alice secret 42" in query for [query] in rows("alice", "SELECT query FROM system.runtime.queries"))
@@ -312,11 +340,16 @@ def test_a_user_sees_only_their_own_queries(auth_server):
 
 # --- ports -------------------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("command", [["serve", "--lake", "{lake}"], ["metrics", "debug", "--emissions-file", "x"]])
 @pytest.mark.parametrize("port", ["99999", "-1", "http"])
 def test_a_port_outside_0_to_65535_is_refused(server_lake, command, port):
     args = [a.format(lake=server_lake) for a in command]
-    result = subprocess.run([sys.executable, "-m", "lakegate.gateway.cli", *args, "--port", port],
-                            capture_output=True, text=True, timeout=60)
+    result = subprocess.run(
+        [sys.executable, "-m", "lakegate.gateway.cli", *args, "--port", port],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert result.returncode == 2 and "Traceback" not in result.stderr
     assert "argument --port: expected a port number (0 to 65535" in result.stderr and repr(port) in result.stderr

@@ -1,6 +1,7 @@
 """Security and limits of `lakegate serve`, on real servers: where it may listen, HTTP Basic users
 (bcrypt), TLS with the trino client, and the per-query time, row, memory and concurrency limits,
 each a clear Trino error after which the server keeps answering."""
+
 from __future__ import annotations
 
 import subprocess
@@ -19,15 +20,17 @@ HEADERS = {"X-Trino-Catalog": "lake", "X-Trino-Schema": "main"}
 
 
 def lakegate(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "lakegate.gateway.cli", *args], capture_output=True, text=True,
-                          timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "lakegate.gateway.cli", *args], capture_output=True, text=True, timeout=120
+    )
 
 
 @pytest.fixture(scope="module")
 def users_file(tmp_path_factory):
     path = tmp_path_factory.mktemp("users") / "users.txt"
-    lines = ["# lakegate users", ""] + [f"{user}:{bcrypt.hashpw(password.encode(), bcrypt.gensalt(4)).decode()}"
-                                        for user, password in PASSWORDS.items()]
+    lines = ["# lakegate users", ""] + [
+        f"{user}:{bcrypt.hashpw(password.encode(), bcrypt.gensalt(4)).decode()}" for user, password in PASSWORDS.items()
+    ]
     path.write_text("\n".join(lines) + "\n")
     return path
 
@@ -40,6 +43,7 @@ def certificate(tmp_path_factory, make_certificate):
 
 # --- where it may listen ---------------------------------------------------------------------------
 
+
 def _refused(result: subprocess.CompletedProcess, *words: str) -> None:
     assert result.returncode == 1, (result.stdout, result.stderr)
     assert "Traceback" not in result.stderr and result.stderr.startswith("lakegate: ")
@@ -48,20 +52,29 @@ def _refused(result: subprocess.CompletedProcess, *words: str) -> None:
 
 
 def test_listening_beyond_loopback_needs_users_and_tls(server_lake, users_file):
-    _refused(lakegate("serve", "--lake", str(server_lake), "--host", "0.0.0.0", "--port", "0"),
-             "refusing to serve on 0.0.0.0 without authentication", "--users")
-    _refused(lakegate("serve", "--lake", str(server_lake), "--host", "0.0.0.0", "--port", "0", "--users",
-                      str(users_file)), "without TLS", "--tls-cert")
+    _refused(
+        lakegate("serve", "--lake", str(server_lake), "--host", "0.0.0.0", "--port", "0"),
+        "refusing to serve on 0.0.0.0 without authentication",
+        "--users",
+    )
+    _refused(
+        lakegate("serve", "--lake", str(server_lake), "--host", "0.0.0.0", "--port", "0", "--users", str(users_file)),
+        "without TLS",
+        "--tls-cert",
+    )
 
 
-@pytest.mark.parametrize("arguments, words", [
-    (["--tls-cert", "{cert}"], ["go together"]),
-    (["--tls-cert", "{key}", "--tls-key", "{key}"], ["cannot use the TLS certificate"]),
-    (["--users", "{bad_users}"], ["{bad_users}:1:", "bcrypt"]),
-    (["--memory-limit", "lots"], ["--memory-limit", "lots"]),
-    (["--catalog", "System"], ["--catalog", "lower-case identifier"]),
-    (["--host", "::", "--users", "{users}"], ["without TLS"]),
-])
+@pytest.mark.parametrize(
+    "arguments, words",
+    [
+        (["--tls-cert", "{cert}"], ["go together"]),
+        (["--tls-cert", "{key}", "--tls-key", "{key}"], ["cannot use the TLS certificate"]),
+        (["--users", "{bad_users}"], ["{bad_users}:1:", "bcrypt"]),
+        (["--memory-limit", "lots"], ["--memory-limit", "lots"]),
+        (["--catalog", "System"], ["--catalog", "lower-case identifier"]),
+        (["--host", "::", "--users", "{users}"], ["without TLS"]),
+    ],
+)
 def test_bad_options_are_refused_in_one_line(server_lake, users_file, certificate, tmp_path, capsys, arguments, words):
     bad_users = tmp_path / "users.txt"
     bad_users.write_text("alice:$2b$12$abc\n")
@@ -75,14 +88,21 @@ def test_bad_options_are_refused_in_one_line(server_lake, users_file, certificat
 
 # --- users ------------------------------------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def auth_server(start_server, users_file):
     return start_server("--users", str(users_file))
 
 
 def _post(server, sql: str, auth=None, **headers) -> requests.Response:
-    return requests.post(f"{server.url}/v1/statement", data=sql.encode(), auth=auth, timeout=30,
-                         headers={**HEADERS, **headers}, verify=getattr(server, "verify", True))
+    return requests.post(
+        f"{server.url}/v1/statement",
+        data=sql.encode(),
+        auth=auth,
+        timeout=30,
+        headers={**HEADERS, **headers},
+        verify=getattr(server, "verify", True),
+    )
 
 
 def test_missing_or_wrong_credentials_get_401_and_no_data(auth_server, endless):
@@ -117,11 +137,18 @@ def test_the_session_user_is_the_authenticated_one(auth_server, endless):
     refused = _post(auth_server, kill, auth=("bob", "builder")).json()["error"]
     assert refused["errorName"] == "PERMISSION_DENIED"
     assert "error" not in _post(auth_server, kill, auth=("alice", "wonderland")).json()
-    with trino.dbapi.connect(host=auth_server.host, port=auth_server.port, user="bob", catalog="lake", schema="main",
-                             auth=BasicAuthentication("bob", "builder"), http_scheme="http",
-                             allow_insecure_auth=True) as connection:  # loopback: no TLS needed
+    with trino.dbapi.connect(
+        host=auth_server.host,
+        port=auth_server.port,
+        user="bob",
+        catalog="lake",
+        schema="main",
+        auth=BasicAuthentication("bob", "builder"),
+        http_scheme="http",
+        allow_insecure_auth=True,
+    ) as connection:  # loopback: no TLS needed
         cursor = connection.cursor()
-        cursor.execute("SELECT DISTINCT \"user\" FROM system.runtime.queries ORDER BY 1")
+        cursor.execute('SELECT DISTINCT "user" FROM system.runtime.queries ORDER BY 1')
         assert cursor.fetchall() == [["bob"]]  # alice's queries (and their SQL text) are hidden from bob
         cursor.execute("SELECT current_timezone()")
         assert cursor.fetchall() == [["UTC"]]
@@ -136,8 +163,16 @@ def test_tls_with_the_trino_client(start_server, users_file, certificate, monkey
     assert server.url.startswith("https://127.0.0.1:")
 
     def connect(password: str) -> trino.dbapi.Connection:
-        return trino.dbapi.connect(host=server.host, port=server.port, user="alice", catalog="lake", schema="main",
-                                   http_scheme="https", auth=BasicAuthentication("alice", password), verify=str(cert))
+        return trino.dbapi.connect(
+            host=server.host,
+            port=server.port,
+            user="alice",
+            catalog="lake",
+            schema="main",
+            http_scheme="https",
+            auth=BasicAuthentication("alice", password),
+            verify=str(cert),
+        )
 
     with connect("wonderland") as connection:
         cursor = connection.cursor()
@@ -155,15 +190,27 @@ def test_tls_with_the_trino_client(start_server, users_file, certificate, monkey
 
 # --- limits -----------------------------------------------------------------------------------------
 
+
 @pytest.fixture(scope="module")
 def limited(start_server):
-    return start_server("--query-timeout", "3", "--max-rows", "1000", "--memory-limit", "64MB",
-                        "--max-concurrent-queries", "1", "--max-queued-queries", "1")
+    return start_server(
+        "--query-timeout",
+        "3",
+        "--max-rows",
+        "1000",
+        "--memory-limit",
+        "64MB",
+        "--max-concurrent-queries",
+        "1",
+        "--max-queued-queries",
+        "1",
+    )
 
 
 def _fetch(server, sql: str) -> list[list]:
-    with trino.dbapi.connect(host=server.host, port=server.port, user="tester", catalog="lake", schema="main",
-                             request_timeout=60) as connection:
+    with trino.dbapi.connect(
+        host=server.host, port=server.port, user="tester", catalog="lake", schema="main", request_timeout=60
+    ) as connection:
         cursor = connection.cursor()
         cursor.execute(sql)
         return cursor.fetchall()
@@ -181,8 +228,11 @@ def _healthy(server) -> None:
 
 def test_time_limit(limited, endless):
     error = _failure(limited, endless)
-    assert (error.error_name, error.error_type, error.error_code) == ("EXCEEDED_TIME_LIMIT", "INSUFFICIENT_RESOURCES",
-                                                                      131075)
+    assert (error.error_name, error.error_type, error.error_code) == (
+        "EXCEEDED_TIME_LIMIT",
+        "INSUFFICIENT_RESOURCES",
+        131075,
+    )
     assert "3.00s" in error.message
     _healthy(limited)
 
@@ -196,10 +246,16 @@ def test_row_limit(limited):
 
 
 def test_memory_limit(limited):
-    error = _failure(limited, "SELECT length(array_join(array_agg(CAST(x AS varchar)), ',')) "
-                              "FROM UNNEST(sequence(1, 10000)) AS t(x) CROSS JOIN UNNEST(sequence(1, 2000)) AS u(y)")
-    assert (error.error_name, error.error_type, error.error_code) == \
-        ("EXCEEDED_GLOBAL_MEMORY_LIMIT", "INSUFFICIENT_RESOURCES", 131073)
+    error = _failure(
+        limited,
+        "SELECT length(array_join(array_agg(CAST(x AS varchar)), ',')) "
+        "FROM UNNEST(sequence(1, 10000)) AS t(x) CROSS JOIN UNNEST(sequence(1, 2000)) AS u(y)",
+    )
+    assert (error.error_name, error.error_type, error.error_code) == (
+        "EXCEEDED_GLOBAL_MEMORY_LIMIT",
+        "INSUFFICIENT_RESOURCES",
+        131073,
+    )
     assert "--memory-limit" in error.message and "\n" not in error.message
     _healthy(limited)
 
@@ -221,8 +277,10 @@ def test_concurrency_bound_queues_then_refuses(limited, endless):
     assert _state(limited, queued["id"]) == "QUEUED"
     refused = post("SELECT 1")
     assert "nextUri" not in refused and refused["stats"]["state"] == "FAILED"
-    assert (refused["error"]["errorName"], refused["error"]["errorType"]) == ("QUERY_QUEUE_FULL",
-                                                                              "INSUFFICIENT_RESOURCES")
+    assert (refused["error"]["errorName"], refused["error"]["errorType"]) == (
+        "QUERY_QUEUE_FULL",
+        "INSUFFICIENT_RESOURCES",
+    )
     for query in (running, queued):
         assert requests.delete(f"{limited.url}/v1/query/{query['id']}", timeout=30).status_code == 204
     _healthy(limited)

@@ -1,4 +1,5 @@
 """Metric templates: result shapes, Plotly figures, JSON safety and offline HTML pages."""
+
 from __future__ import annotations
 
 import datetime as dt
@@ -37,12 +38,17 @@ NETWORK_SCRIPT = re.compile(r"<script[^>]*\ssrc\s*=\s*[\"']?(https?:)?//", re.IG
 
 def png_bytes() -> bytes:
     """A valid 1x1 red PNG."""
+
     def chunk(kind: bytes, data: bytes) -> bytes:
         return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
 
     header = struct.pack(">IIBBBBB", 1, 1, 8, 2, 0, 0, 0)
-    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(b"\x00\xff\x00\x00")) \
+    return (
+        b"\x89PNG\r\n\x1a\n"
+        + chunk(b"IHDR", header)
+        + chunk(b"IDAT", zlib.compress(b"\x00\xff\x00\x00"))
         + chunk(b"IEND", b"")
+    )
 
 
 def check_figure(figure: dict) -> None:
@@ -84,7 +90,7 @@ def test_line_has_one_trace_per_series_in_first_appearance_order():
 def test_line_accepts_decimal_numpy_and_timestamps_and_stays_json_safe():
     rows = [
         ("a", dt.datetime(2024, 5, 1, 12, 0, 0), Decimal("1.25")),
-        ("a", dt.datetime(2024, 5, 1, 12, 0, 1, 500000, tzinfo=dt.timezone.utc), np.float64(2.5)),
+        ("a", dt.datetime(2024, 5, 1, 12, 0, 1, 500000, tzinfo=dt.UTC), np.float64(2.5)),
         ("a", dt.datetime(2024, 5, 1, 12, 0, 2), np.int64(3)),
         ("a", dt.datetime(2024, 5, 1, 12, 0, 3), float("nan")),
         ("a", dt.datetime(2024, 5, 1, 12, 0, 4), None),
@@ -185,15 +191,31 @@ def test_table_keeps_headers_and_row_order_in_figure_and_dict():
 def test_table_cells_are_json_safe_like_the_trino_protocol():
     columns = [(name, "x") for name in ("dec", "nan", "inf", "ts", "day", "arr", "row", "np", "flag", "bin")]
     row = (
-        Decimal("12.50"), float("nan"), float("-inf"), dt.datetime(2024, 1, 2, 3, 4, 5, 123000), dt.date(2024, 1, 2),
-        ["a", None], {"x": 1, "y": Decimal("2.5")}, np.float32(0.5), np.bool_(True), b"\x01\xff",
+        Decimal("12.50"),
+        float("nan"),
+        float("-inf"),
+        dt.datetime(2024, 1, 2, 3, 4, 5, 123000),
+        dt.date(2024, 1, 2),
+        ["a", None],
+        {"x": 1, "y": Decimal("2.5")},
+        np.float32(0.5),
+        np.bool_(True),
+        b"\x01\xff",
     )
     rendered = render("All types", "table", columns, [row])
     json.dumps(rendered.table, allow_nan=False)
     check_figure(rendered.figure)
     assert rendered.table["rows"][0] == [
-        "12.50", "NaN", "-Infinity", "2024-01-02 03:04:05.123000", "2024-01-02",
-        ["a", None], {"x": 1, "y": "2.5"}, 0.5, True, "01 ff",
+        "12.50",
+        "NaN",
+        "-Infinity",
+        "2024-01-02 03:04:05.123000",
+        "2024-01-02",
+        ["a", None],
+        {"x": 1, "y": "2.5"},
+        0.5,
+        True,
+        "01 ff",
     ]
     cells = [column[0] for column in rendered.figure["data"][0]["cells"]["values"]]
     assert cells[:3] == ["12.5", "NaN", "-Infinity"]
@@ -298,12 +320,15 @@ def test_image_problems_are_one_line_per_cause_with_a_count(tmp_path):
     ]
     assert rendered.text == "0 images, 202 problems"
     rendered = render("Feed", "image", [("filename", "varchar")], rows[:2], logs_dir=tmp_path)
-    assert rendered.problems == [f"2 files: missing from the job's logs ({tmp_path.resolve()}) "
-                                 "(frame_000.png, frame_001.png)"]
+    assert rendered.problems == [
+        f"2 files: missing from the job's logs ({tmp_path.resolve()}) (frame_000.png, frame_001.png)"
+    ]
 
 
 def test_image_shape_errors(tmp_path):
-    with pytest.raises(TemplateError, match=r"template 'image' needs exactly 1 column \[image file name\], got 2 \(a, b\)"):
+    with pytest.raises(
+        TemplateError, match=r"template 'image' needs exactly 1 column \[image file name\], got 2 \(a, b\)"
+    ):
         render("Feed", "image", [("a", "varchar"), ("b", "varchar")], [], logs_dir=tmp_path)
     with pytest.raises(TemplateError, match=r"needs image file names in column 1 \"f\", but row 1 has 7 \(bigint\)"):
         render("Feed", "image", [("f", "bigint")], [(7,)], logs_dir=tmp_path)
@@ -356,25 +381,38 @@ def test_state_timeline_merges_consecutive_states_per_system():
 
 def test_state_colours_are_stable_across_metrics_and_processes():
     first = render("A", "state_timeline", TIMELINE_COLUMNS, [("x", 0, "ACTIVE"), ("x", 5, "FAILED")])
-    second = render("B", "state_timeline", [("Robot", "varchar"), ("t", "bigint"), ("s", "varchar")],
-                    [("y", 9, "FAILED"), ("y", 10, "IDLE"), ("y", 11, "ACTIVE")])
+    second = render(
+        "B",
+        "state_timeline",
+        [("Robot", "varchar"), ("t", "bigint"), ("s", "varchar")],
+        [("y", 9, "FAILED"), ("y", 10, "IDLE"), ("y", 11, "ACTIVE")],
+    )
     colours_a = {t["name"]: t["marker"]["color"] for t in first.figure["data"]}
     colours_b = {t["name"]: t["marker"]["color"] for t in second.figure["data"]}
     assert colours_a["ACTIVE"] == colours_b["ACTIVE"] and colours_a["FAILED"] == colours_b["FAILED"]
     assert set(colours_a.values()) | set(colours_b.values()) <= set(PALETTE)
     code = "from lakegate.gateway.metrics.templates import state_colour; print(state_colour('ACTIVE'), state_colour('FAILED'))"
     outputs = [  # Python's own hash() of a str differs between these processes; the colours must not
-        subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
-                       env={**os.environ, "PYTHONHASHSEED": seed}).stdout.split()
+        subprocess.run(
+            [sys.executable, "-c", code],
+            capture_output=True,
+            text=True,
+            check=True,
+            env={**os.environ, "PYTHONHASHSEED": seed},
+        ).stdout.split()
         for seed in ("1", "2")
     ]
     assert outputs == [[colours_a["ACTIVE"], colours_a["FAILED"]]] * 2
 
 
 def test_state_timeline_errors():
-    with pytest.raises(TemplateError, match=r"needs exactly 3 columns \[system, timestamp, state\], got 2 \(System, state\)"):
+    with pytest.raises(
+        TemplateError, match=r"needs exactly 3 columns \[system, timestamp, state\], got 2 \(System, state\)"
+    ):
         render("Goal Status", "state_timeline", [("System", "varchar"), ("state", "varchar")], [])
-    with pytest.raises(TemplateError, match=r"needs timestamps in nanoseconds in column 2 \"timestamp\", but row 2 has NULL"):
+    with pytest.raises(
+        TemplateError, match=r"needs timestamps in nanoseconds in column 2 \"timestamp\", but row 2 has NULL"
+    ):
         render("Goal Status", "state_timeline", TIMELINE_COLUMNS, [("N", 1, "A"), ("N", None, "B")])
     with pytest.raises(TemplateError, match=r"row 1 has 'soon' \(bigint\)"):
         render("Goal Status", "state_timeline", TIMELINE_COLUMNS, [("N", "soon", "A")])
@@ -391,7 +429,9 @@ def test_histogram_with_and_without_series():
     assert rendered.figure["layout"]["yaxis"]["title"]["text"] == "Count"
     assert rendered.text == "3 values" and rendered.problems == ["1 NULL value not counted"]
 
-    rendered = render("Speed", "histogram", [("v", "double"), ("goal", "varchar")], [(1.0, "b"), (2.0, "a"), (3.0, "b")])
+    rendered = render(
+        "Speed", "histogram", [("v", "double"), ("goal", "varchar")], [(1.0, "b"), (2.0, "a"), (3.0, "b")]
+    )
     check_figure(rendered.figure)
     assert [(t["name"], t["x"]) for t in rendered.figure["data"]] == [("b", [1.0, 3.0]), ("a", [2.0])]
 
@@ -414,7 +454,9 @@ def test_line_draws_text_x_values_as_categories():
 
 
 def test_histogram_errors():
-    with pytest.raises(TemplateError, match=r"needs 1 or 2 columns \[value\], \[value, series\] or \[group, value\], got 3 \(a, b, c\)"):
+    with pytest.raises(
+        TemplateError, match=r"needs 1 or 2 columns \[value\], \[value, series\] or \[group, value\], got 3 \(a, b, c\)"
+    ):
         render("H", "histogram", [("a", "double"), ("b", "double"), ("c", "double")], [])
     with pytest.raises(TemplateError, match=r"needs numeric values in column 1 \"a\", but row 2 has 'x' \(varchar\)"):
         render("H", "histogram", [("a", "varchar")], [(1.0,), ("x",)])
@@ -426,7 +468,10 @@ def test_pie_keeps_query_order():
     check_figure(rendered.figure)
     trace = rendered.figure["data"][0]
     assert (trace["type"], trace["labels"], trace["values"], trace["sort"]) == (
-        "pie", ["PASSED", "BLOCKER", "WARNING"], [7, 2, 1], False
+        "pie",
+        ["PASSED", "BLOCKER", "WARNING"],
+        [7, 2, 1],
+        False,
     )
     assert rendered.text == "3 slices"
 
@@ -492,18 +537,28 @@ def test_report_embeds_plotlyjs_once_for_many_figures(tmp_path):
     scalar = render("Time to goal", "scalar", [("_col0", "double")], [(41.25,)], units="s")
     image = render("Camera", "image", [("filename", "varchar")], [("cam.gif",), ("lost.gif",)], logs_dir=tmp_path)
     sections = [
-        ("Job 1", [
-            ("Robot Speed", line, {"status": "PASSED", "description": "Robot speed over time"}),
-            ("Goal Status", timeline, {"status": "WARNING"}),
-            ("Calibration", table, {"status": "PASSED"}),
-            ("Time to goal", scalar, {"status": "BLOCKER", "units": "s", "description": "Time to reach the goal"}),
-            ("Camera", image, {"status": "PASSED"}),
-        ]),
-        ("Batch", [
-            ("Max Error", bar, {"status": "PASSED"}),
-            ("Broken", None, {"status": "ERROR", "error": "line 1, column 8: Column 'speedd' cannot be resolved <x>"}),
-            ("Skipped", None, {"status": "NOT_RUN"}),
-        ]),
+        (
+            "Job 1",
+            [
+                ("Robot Speed", line, {"status": "PASSED", "description": "Robot speed over time"}),
+                ("Goal Status", timeline, {"status": "WARNING"}),
+                ("Calibration", table, {"status": "PASSED"}),
+                ("Time to goal", scalar, {"status": "BLOCKER", "units": "s", "description": "Time to reach the goal"}),
+                ("Camera", image, {"status": "PASSED"}),
+            ],
+        ),
+        (
+            "Batch",
+            [
+                ("Max Error", bar, {"status": "PASSED"}),
+                (
+                    "Broken",
+                    None,
+                    {"status": "ERROR", "error": "line 1, column 8: Column 'speedd' cannot be resolved <x>"},
+                ),
+                ("Skipped", None, {"status": "NOT_RUN"}),
+            ],
+        ),
     ]
     page = report_html("Batch 42 report", sections)
     assert page.count(PLOTLYJS_HEAD) == 1

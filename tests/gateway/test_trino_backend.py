@@ -4,6 +4,7 @@ of conftest.py), and every answer is compared with the embedded DuckDB backend's
 columns, Trino types, values, scopes, parameters, errors with their positions in the user's SQL,
 cancelation, schemas and branches. `lakegate metrics run --backend trino` gives the results of the
 DuckDB backend, and password authentication over TLS reaches the server."""
+
 from __future__ import annotations
 
 import argparse
@@ -26,13 +27,13 @@ from lakegate.dialect.errors import ERROR_CODES, DialectError
 from lakegate.dialect.scope import Scope
 from lakegate.dialect.translate import parse
 from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
-from lakegate.gateway.engine.backend import DuckDBBackend
 from lakegate.gateway.cli.backends import add_backend_arguments, backend_from_args
 from lakegate.gateway.cli.errors import UserError
-from lakegate.gateway.metrics.results import read_results
 from lakegate.gateway.engine import trino_backend
+from lakegate.gateway.engine.backend import DuckDBBackend
 from lakegate.gateway.engine.trino_backend import RemoteQueryError, TrinoBackend, forwarded_sql
 from lakegate.gateway.engine.trino_ddl import schema_name
+from lakegate.gateway.metrics.results import read_results
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file
@@ -51,8 +52,12 @@ def free_port() -> int:
 
 def start_server(lake: Path, log: Path, *args: str) -> tuple[subprocess.Popen, str]:
     """`lakegate serve` of `lake` on 127.0.0.1 and its URL, once it says it is serving."""
-    process = subprocess.Popen([*CLI, "serve", "--lake", str(lake), "--port", "0", *args], stdout=subprocess.PIPE,
-                               stderr=log.open("w"), text=True)
+    process = subprocess.Popen(
+        [*CLI, "serve", "--lake", str(lake), "--port", "0", *args],
+        stdout=subprocess.PIPE,
+        stderr=log.open("w"),
+        text=True,
+    )
     line = process.stdout.readline()  # `lakegate: serving <lake> at <url> ...`, or nothing when it failed
     if " at " not in line:
         process.kill()
@@ -117,24 +122,41 @@ def job_rows(lake: Path, batch: str, job_id: str) -> int:
 
 
 QUERIES = [
-    ("integers and doubles", f"SELECT job_id, count(*) AS n, avg(x), sum(timestamp), max(y) - min(y) FROM {TOPIC} "
-                             "GROUP BY 1 ORDER BY 1"),
-    ("decimals", f"SELECT job_id, CAST(avg(x) AS decimal(12,4)) AS d, sum(CAST(x AS decimal(10,3))) FROM {TOPIC} "
-                 "GROUP BY 1 ORDER BY 1"),
-    ("varchar, arrays, timestamps", "SELECT job_id, experience_name, experience_tag_names, custom_field_keys, time, "
-                                    "build_creation_timestamp, date_trunc('hour', time) AS hour FROM metadata "
-                                    "ORDER BY job_id"),
+    (
+        "integers and doubles",
+        f"SELECT job_id, count(*) AS n, avg(x), sum(timestamp), max(y) - min(y) FROM {TOPIC} GROUP BY 1 ORDER BY 1",
+    ),
+    (
+        "decimals",
+        f"SELECT job_id, CAST(avg(x) AS decimal(12,4)) AS d, sum(CAST(x AS decimal(10,3))) FROM {TOPIC} "
+        "GROUP BY 1 ORDER BY 1",
+    ),
+    (
+        "varchar, arrays, timestamps",
+        "SELECT job_id, experience_name, experience_tag_names, custom_field_keys, time, "
+        "build_creation_timestamp, date_trunc('hour', time) AS hour FROM metadata "
+        "ORDER BY job_id",
+    ),
     ("every metadata column", "SELECT * FROM metadata ORDER BY job_id"),
-    ("event rows", "SELECT job_id, timestamp, name, status, tags, metrics FROM events ORDER BY job_id, timestamp, name"),
-    ("metadata join", f"SELECT m.experience_name, count(*) AS n, max(o.x) FROM {TOPIC} o JOIN metadata m "
-                      "ON o.job_id = m.job_id AND o.batch_id = m.batch_id GROUP BY 1 ORDER BY 1"),
-    ("literals of every type", "SELECT 1.25 d, nan() n, infinity() i, DATE '2024-01-02' dt, "
-                               "TIMESTAMP '2024-01-02 03:04:05.123456' ts, ARRAY[1, 2, NULL] a, "
-                               "MAP(ARRAY['a'], ARRAY[1.5]) m, CAST(ROW(1, 'x') AS ROW(a bigint, b varchar)) r, "
-                               "CAST(NULL AS bigint) nl, 5 / 2 q, typeof(1) t, CAST(1.5 AS real) re, "
-                               "CAST(3 AS smallint) sm, CAST(3 AS tinyint) ti, "
-                               "TIMESTAMP '2024-01-02 03:04:05.123 UTC' tz, INTERVAL '3' DAY iv, "
-                               "INTERVAL '14' MONTH ym, true b"),
+    (
+        "event rows",
+        "SELECT job_id, timestamp, name, status, tags, metrics FROM events ORDER BY job_id, timestamp, name",
+    ),
+    (
+        "metadata join",
+        f"SELECT m.experience_name, count(*) AS n, max(o.x) FROM {TOPIC} o JOIN metadata m "
+        "ON o.job_id = m.job_id AND o.batch_id = m.batch_id GROUP BY 1 ORDER BY 1",
+    ),
+    (
+        "literals of every type",
+        "SELECT 1.25 d, nan() n, infinity() i, DATE '2024-01-02' dt, "
+        "TIMESTAMP '2024-01-02 03:04:05.123456' ts, ARRAY[1, 2, NULL] a, "
+        "MAP(ARRAY['a'], ARRAY[1.5]) m, CAST(ROW(1, 'x') AS ROW(a bigint, b varchar)) r, "
+        "CAST(NULL AS bigint) nl, 5 / 2 q, typeof(1) t, CAST(1.5 AS real) re, "
+        "CAST(3 AS smallint) sm, CAST(3 AS tinyint) ti, "
+        "TIMESTAMP '2024-01-02 03:04:05.123 UTC' tz, INTERVAL '3' DAY iv, "
+        "INTERVAL '14' MONTH ym, true b",
+    ),
     ("a CTE that shadows a topic", f"WITH {TOPIC} AS (SELECT 7 AS x) SELECT x FROM {TOPIC}"),
     ("no rows", f"SELECT timestamp, x FROM {TOPIC} WHERE x > 1e9"),
     ("SHOW TABLES", "SHOW TABLES"),
@@ -174,15 +196,27 @@ def test_parameters_bind_as_literals(remote, local, params):
 
 
 def test_batches_carry_the_arrow_types_of_the_trino_types(remote):
-    result = remote.execute("SELECT 1.25 d, CAST(2 AS bigint) b, 2 i, 1.5e0 x, 'v' s, DATE '2024-01-02' dt, "
-                            "TIMESTAMP '2024-01-02 03:04:05.123' t3, TIMESTAMP '2024-01-02 03:04:05.123456' t6, "
-                            "ARRAY['a'] a, MAP(ARRAY['k'], ARRAY[1]) m, "
-                            "CAST(ROW(1, 'x') AS ROW(a bigint, b varchar)) r, NULL n")
+    result = remote.execute(
+        "SELECT 1.25 d, CAST(2 AS bigint) b, 2 i, 1.5e0 x, 'v' s, DATE '2024-01-02' dt, "
+        "TIMESTAMP '2024-01-02 03:04:05.123' t3, TIMESTAMP '2024-01-02 03:04:05.123456' t6, "
+        "ARRAY['a'] a, MAP(ARRAY['k'], ARRAY[1]) m, "
+        "CAST(ROW(1, 'x') AS ROW(a bigint, b varchar)) r, NULL n"
+    )
     batch = next(result.batches)
-    assert batch.schema.types == [pa.decimal128(3, 2), pa.int64(), pa.int32(), pa.float64(), pa.string(), pa.date32(),
-                                  pa.timestamp("ms"), pa.timestamp("us"), pa.list_(pa.string()),
-                                  pa.map_(pa.string(), pa.int32()),
-                                  pa.struct([("a", pa.int64()), ("b", pa.string())]), pa.null()]
+    assert batch.schema.types == [
+        pa.decimal128(3, 2),
+        pa.int64(),
+        pa.int32(),
+        pa.float64(),
+        pa.string(),
+        pa.date32(),
+        pa.timestamp("ms"),
+        pa.timestamp("us"),
+        pa.list_(pa.string()),
+        pa.map_(pa.string(), pa.int32()),
+        pa.struct([("a", pa.int64()), ("b", pa.string())]),
+        pa.null(),
+    ]
     assert batch.to_pylist()[0]["t3"].microsecond == 123000
 
 
@@ -192,15 +226,23 @@ def error_of(backend, sql: str, **kwargs) -> DialectError:
     return caught.value
 
 
-@pytest.mark.parametrize("sql, params, name, where", [
-    ("SELECT nope FROM odom_linear_velocity", (), "COLUMN_NOT_FOUND", (1, 8)),
-    ("SELECT x\nFROM odom_linear_velocity o JOIN metadata m ON o.job_id = m.job_id\n  WHERE o.x > ? AND m.nope = ?",
-     (1.5, "it's"), "COLUMN_NOT_FOUND", (3, 21)),
-    ("SELECT count(*) FROM odom_linear_velocity o, nope_table", (), "TABLE_NOT_FOUND", (1, 46)),
-])
+@pytest.mark.parametrize(
+    "sql, params, name, where",
+    [
+        ("SELECT nope FROM odom_linear_velocity", (), "COLUMN_NOT_FOUND", (1, 8)),
+        (
+            "SELECT x\nFROM odom_linear_velocity o JOIN metadata m ON o.job_id = m.job_id\n  WHERE o.x > ? AND m.nope = ?",
+            (1.5, "it's"),
+            "COLUMN_NOT_FOUND",
+            (3, 21),
+        ),
+        ("SELECT count(*) FROM odom_linear_velocity o, nope_table", (), "TABLE_NOT_FOUND", (1, 46)),
+    ],
+)
 @pytest.mark.parametrize("scope", [None, Scope("b1", "j")], ids=["unscoped", "scoped"])
-def test_remote_errors_keep_their_name_and_the_position_in_the_users_sql(remote, local, sql, params, name, where,
-                                                                         scope):
+def test_remote_errors_keep_their_name_and_the_position_in_the_users_sql(
+    remote, local, sql, params, name, where, scope
+):
     ours, theirs = error_of(remote, sql, params=params, scope=scope), error_of(local, sql, params=params, scope=scope)
     assert isinstance(ours, RemoteQueryError)
     assert (ours.error_name, ours.line, ours.column) == (name, *where)
@@ -224,7 +266,9 @@ def test_the_guard_refuses_before_anything_is_sent():
 
 
 def test_cancel_stops_a_streaming_query(remote):
-    result = remote.execute("SELECT a.x * b.x FROM UNNEST(sequence(1, 10000)) a(x) CROSS JOIN UNNEST(sequence(1, 10000)) b(x)")
+    result = remote.execute(
+        "SELECT a.x * b.x FROM UNNEST(sequence(1, 10000)) a(x) CROSS JOIN UNNEST(sequence(1, 10000)) b(x)"
+    )
     first = next(result.batches)
     assert first.num_rows > 0
     result.cancel()
@@ -248,8 +292,11 @@ def test_a_branch_maps_to_its_schema(lake_server, remote, local, all_types):
     explicit = TrinoBackend(lake_server.url, catalog="lake", schema_map={"work": branch})
     default = TrinoBackend(lake_server.url, catalog="lake")
     try:
-        assert answer(explicit, sql, branch="work") == answer(remote, sql, branch=branch) == \
-            answer(local, sql, branch=branch)
+        assert (
+            answer(explicit, sql, branch="work")
+            == answer(remote, sql, branch=branch)
+            == answer(local, sql, branch=branch)
+        )
         assert [row[0] for row in answer(explicit, sql, branch="work")[1]] == [row["s"] for row in emitted]
         assert default.schema_for(branch) == schema_name(branch) != branch
         assert error_of(default, sql, branch=branch).error_name in ("SCHEMA_NOT_FOUND", "TABLE_NOT_FOUND")
@@ -259,12 +306,17 @@ def test_a_branch_maps_to_its_schema(lake_server, remote, local, all_types):
 
 
 def test_the_forwarded_text_is_the_users_with_only_the_edits():
-    forwarded = forwarded_sql("SELECT o.x, ?  -- the threshold\nFROM odom o JOIN lake.main.metadata\n WHERE x > ?;",
-                              scope=Scope("b'1", "j1"), params=[1.5, "it's"], tables={"odom", "metadata"})
+    forwarded = forwarded_sql(
+        "SELECT o.x, ?  -- the threshold\nFROM odom o JOIN lake.main.metadata\n WHERE x > ?;",
+        scope=Scope("b'1", "j1"),
+        params=[1.5, "it's"],
+        tables={"odom", "metadata"},
+    )
     assert forwarded.sql == (
         "SELECT o.x, 1.5E0  -- the threshold\n"
         "FROM (SELECT * FROM odom WHERE batch_id = 'b''1' AND job_id = 'j1') o JOIN "
-        "(SELECT * FROM lake.main.metadata WHERE batch_id = 'b''1' AND job_id = 'j1') metadata\n WHERE x > 'it''s'")
+        "(SELECT * FROM lake.main.metadata WHERE batch_id = 'b''1' AND job_id = 'j1') metadata\n WHERE x > 'it''s'"
+    )
     # positions in the sent text map back to the user's: unchanged text exactly, edits to their start
     sent = forwarded.sql
     line3 = sent.split("\n")[2]
@@ -293,13 +345,31 @@ def test_metrics_run_forwarded_to_trino_gives_the_duckdb_results(tmp_path_factor
     for name in ("duckdb", "trino"):
         BranchConfigs(root / name, "main").store([CONFIG_PATH])
         for job in jobs:
-            ingest_job(root / name, "main", "nav", job.job_id, [job.emissions_path], config=config,
-                       metadata=load_metadata_file(job.metadata_path))
+            ingest_job(
+                root / name,
+                "main",
+                "nav",
+                job.job_id,
+                [job.emissions_path],
+                config=config,
+                metadata=load_metadata_file(job.metadata_path),
+            )
     run = ["metrics", "run", "--branch", "main", "--batch", "nav", "--all-metrics", "--format", "json"]
     process, url = start_server(root / "trino", root / "serve.log")
     try:
-        forwarded = lakegate(*run, "--lake", root / "trino", "--backend", "trino", "--trino-url", url,
-                             "--trino-catalog", "lake", "--trino-schema-map", "*={branch}")
+        forwarded = lakegate(
+            *run,
+            "--lake",
+            root / "trino",
+            "--backend",
+            "trino",
+            "--trino-url",
+            url,
+            "--trino-catalog",
+            "lake",
+            "--trino-schema-map",
+            "*={branch}",
+        )
     finally:
         stop_server(process)
     embedded = lakegate(*run, "--lake", root / "duckdb")
@@ -310,7 +380,9 @@ def test_metrics_run_forwarded_to_trino_gives_the_duckdb_results(tmp_path_factor
     assert same(ours, theirs), [(a, b) for a, b in zip(ours["metrics"], theirs["metrics"]) if a != b]
     statuses = {m["status"] for m in ours["metrics"]}
     assert {"PASSED", "WARNING", "BLOCKER"} <= statuses and "ERROR" not in statuses
-    unordered = {name for name, metric in config.metrics.items() if parse(metric.query_string).args.get("order") is None}
+    unordered = {
+        name for name, metric in config.metrics.items() if parse(metric.query_string).args.get("order") is None
+    }
 
     def comparable(row: dict) -> dict:
         """A stored result without its time; a table of a query without ORDER BY as a set of rows."""
@@ -326,24 +398,53 @@ def test_metrics_run_forwarded_to_trino_gives_the_duckdb_results(tmp_path_factor
 
 
 def test_backend_options_are_checked(server_lake):
-    run = lakegate("metrics", "run", "--lake", server_lake, "--branch", "main", "--batch", "b1", "--all-metrics",
-                   "--backend", "trino")
+    run = lakegate(
+        "metrics",
+        "run",
+        "--lake",
+        server_lake,
+        "--branch",
+        "main",
+        "--batch",
+        "b1",
+        "--all-metrics",
+        "--backend",
+        "trino",
+    )
     assert run.returncode == 1 and run.stderr == "lakegate: --backend trino needs --trino-url\n"
     parser = argparse.ArgumentParser()
     add_backend_arguments(parser)
     for args, message in [
         (["--trino-url", "ftp://x"], "--trino-url 'ftp://x' is not an http:// or https:// URL"),
-        (["--trino-url", "http://h:1", "--trino-password-env", "LAKEGATE_NO_SUCH_VAR"],
-         "environment variable LAKEGATE_NO_SUCH_VAR is not set"),
+        (
+            ["--trino-url", "http://h:1", "--trino-password-env", "LAKEGATE_NO_SUCH_VAR"],
+            "environment variable LAKEGATE_NO_SUCH_VAR is not set",
+        ),
         (["--trino-url", "http://h:1", "--trino-jwt-env", "HOME"], "credentials need an https:// URL"),
-        (["--trino-url", "http://h:1", "--trino-schema-map", "main"], "--trino-schema-map 'main': expected BRANCH=SCHEMA"),
+        (
+            ["--trino-url", "http://h:1", "--trino-schema-map", "main"],
+            "--trino-schema-map 'main': expected BRANCH=SCHEMA",
+        ),
         (["--trino-url", "http://h:1", "--trino-schema-prefix", "A-"], "schema prefix 'A-' may only contain"),
     ]:
         with pytest.raises(UserError, match=re.escape(message)):
             backend_from_args(parser.parse_args(["--backend", "trino", *args]), server_lake)
-    chosen = backend_from_args(parser.parse_args(["--backend", "trino", "--trino-url", "https://h", "--trino-user",
-                                                  "me", "--trino-schema-map", "main=robots", "--trino-insecure"]),
-                               server_lake)
+    chosen = backend_from_args(
+        parser.parse_args(
+            [
+                "--backend",
+                "trino",
+                "--trino-url",
+                "https://h",
+                "--trino-user",
+                "me",
+                "--trino-schema-map",
+                "main=robots",
+                "--trino-insecure",
+            ]
+        ),
+        server_lake,
+    )
     assert isinstance(chosen, TrinoBackend) and chosen.schema_for("main") == "robots" and chosen.user == "me"
     embedded = backend_from_args(parser.parse_args([]), server_lake)
     assert isinstance(embedded, DuckDBBackend)
@@ -365,10 +466,22 @@ def test_a_password_goes_over_tls_to_the_cluster(server_lake, tmp_path, monkeypa
     cert_file, key_file = make_certificate(tmp_path, "lakegate forwarding test")
     users = tmp_path / "users.txt"
     users.write_text(f"alice:{bcrypt.hashpw(b'wonderland', bcrypt.gensalt(4)).decode()}\n")
-    process, url = start_server(server_lake, tmp_path / "serve.log", "--users", str(users), "--tls-cert", str(cert_file),
-                                "--tls-key", str(key_file))
-    backends = [TrinoBackend(url, user="alice", catalog="lake", schema_map={"*": "{branch}"}, password=password,
-                             verify=str(cert_file)) for password in ("wonderland", "nope")]
+    process, url = start_server(
+        server_lake,
+        tmp_path / "serve.log",
+        "--users",
+        str(users),
+        "--tls-cert",
+        str(cert_file),
+        "--tls-key",
+        str(key_file),
+    )
+    backends = [
+        TrinoBackend(
+            url, user="alice", catalog="lake", schema_map={"*": "{branch}"}, password=password, verify=str(cert_file)
+        )
+        for password in ("wonderland", "nope")
+    ]
     try:
         assert url.startswith("https://")
         assert answer(backends[0], "SELECT count(*) FROM metadata", scope=Scope("b1"))[1] == [(2,)]

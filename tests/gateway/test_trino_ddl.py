@@ -1,6 +1,7 @@
 """`lakegate trino-ddl`: the Hive-connector DDL for a real lake, parsed back with sqlglot's Trino dialect
 and checked against the catalog (columns, types, partitions, locations) and against the Parquet files
 the external tables will read."""
+
 from __future__ import annotations
 
 import logging
@@ -16,8 +17,8 @@ import sqlglot
 from sqlglot import exp
 
 from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
-from lakegate.gateway.metrics.evaluation import MetricsEngine, select_metrics
 from lakegate.gateway.engine.trino_ddl import DDLError, hive_type, schema_name
+from lakegate.gateway.metrics.evaluation import MetricsEngine, select_metrics
 from lakegate.lake import paths
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.config import load_config
@@ -38,8 +39,9 @@ SCALARS = {
 
 
 def lakegate(*args):
-    return subprocess.run([*CLI, *map(str, args)], capture_output=True, text=True, timeout=120,
-                          env={**os.environ, "COLUMNS": "200"})
+    return subprocess.run(
+        [*CLI, *map(str, args)], capture_output=True, text=True, timeout=120, env={**os.environ, "COLUMNS": "200"}
+    )
 
 
 @pytest.fixture(scope="module")
@@ -51,8 +53,15 @@ def lake(tmp_path_factory) -> Path:
     lake = root / "lake"
     config = load_config(CONFIG_PATH)
     for branch, batch, job in [("main", "b1", jobs[0]), ("main", "b1", jobs[1]), ("feature/Nav-2", "b2", jobs[2])]:
-        ingest_job(lake, branch, batch, job.job_id, [job.emissions_path], config=config,
-                   metadata=load_metadata_file(job.metadata_path))
+        ingest_job(
+            lake,
+            branch,
+            batch,
+            job.job_id,
+            [job.emissions_path],
+            config=config,
+            metadata=load_metadata_file(job.metadata_path),
+        )
     with MetricsEngine(lake) as engine:
         engine.evaluate_batch("main", "b1", select_metrics(config, None, all_metrics=True))
     assert paths.METRIC_RESULTS_TABLE in Catalog(lake).schema("main")
@@ -75,8 +84,9 @@ def check_hive_type(kind: exp.DataType, where: str) -> None:
     if kind.this in SCALARS:
         return
     if kind.this == exp.DataType.Type.TIMESTAMP:
-        assert [p.this.this for p in kind.expressions] == ["3"] or \
-               [p.sql() for p in kind.expressions] == ["3"], f"{where}: timestamp must be timestamp(3)"
+        assert [p.this.this for p in kind.expressions] == ["3"] or [p.sql() for p in kind.expressions] == ["3"], (
+            f"{where}: timestamp must be timestamp(3)"
+        )
         return
     assert kind.this in (exp.DataType.Type.ARRAY, exp.DataType.Type.STRUCT), f"{where}: {kind.sql('trino')}"
     for child in kind.expressions:
@@ -93,15 +103,21 @@ def matches_parquet(kind: exp.DataType, arrow: pa.DataType) -> bool:
         return pa.types.is_list(arrow) and matches_parquet(kind.expressions[0], arrow.value_type)
     if kind.this == exp.DataType.Type.STRUCT:
         fields = [(c.name, c.args["kind"]) for c in kind.expressions]
-        return (pa.types.is_struct(arrow) and [f.name for f in arrow] == [name for name, _ in fields]
-                and all(matches_parquet(k, arrow.field(name).type) for name, k in fields))
+        return (
+            pa.types.is_struct(arrow)
+            and [f.name for f in arrow] == [name for name, _ in fields]
+            and all(matches_parquet(k, arrow.field(name).type) for name, k in fields)
+        )
     return False
 
 
 def property_value(create: exp.Create, name: str) -> exp.Expression:
     """The value of one WITH (...) property of a CREATE statement, as sqlglot parsed it."""
-    special = {"location": exp.LocationProperty, "format": exp.FileFormatProperty,
-               "partitioned_by": exp.PartitionedByProperty}
+    special = {
+        "location": exp.LocationProperty,
+        "format": exp.FileFormatProperty,
+        "partitioned_by": exp.PartitionedByProperty,
+    }
     for prop in create.args["properties"].expressions:
         if name in special and isinstance(prop, special[name]):
             return prop.this
@@ -147,13 +163,14 @@ def test_the_ddl_registers_every_table_of_every_branch_as_the_catalog_describes_
             check_hive_type(kind, f"{table.name}.{name}")
         assert [k.name for k in property_value(create, "partitioned_by").expressions] == list(keys)
         assert property_value(create, "format").name == "PARQUET"
-        assert property_value(create, "external_location").name == \
-            f"{LOCATION}/{paths.encode_branch(branch)}/{table.name}"
+        assert (
+            property_value(create, "external_location").name == f"{LOCATION}/{paths.encode_branch(branch)}/{table.name}"
+        )
         # the external table reads the lake's files: every data column is in them, with a matching type
         for data_file in paths.data_files(lake, branch, table.name):
             file_schema = pq.read_schema(data_file)
             assert not set(keys) & set(file_schema.names)
-            for name, kind in columns[:-len(keys)]:
+            for name, kind in columns[: -len(keys)]:
                 assert matches_parquet(kind, file_schema.field(name).type), (data_file, name, file_schema.field(name))
     assert seen == expected_tables
 
@@ -171,8 +188,15 @@ def test_types_the_hive_connector_cannot_store_in_parquet_are_refused():
     assert hive_type("array(row(name varchar, type varchar))", "t.c") == 'array(row("name" varchar, "type" varchar))'
     assert hive_type("map(varchar, array(bigint))", "t.c") == "map(varchar, array(bigint))"
     assert hive_type("decimal(10,2)", "t.c") == "decimal(10,2)"
-    for bad in ("timestamp(6)", "timestamp(3) with time zone", "time(3)", "json", "uuid", "interval day to second",
-                "row(bigint, varchar)"):
+    for bad in (
+        "timestamp(6)",
+        "timestamp(3) with time zone",
+        "time(3)",
+        "json",
+        "uuid",
+        "interval day to second",
+        "row(bigint, varchar)",
+    ):
         with pytest.raises(DDLError, match=r"t\.c: type .* cannot be a Hive-connector Parquet column"):
             hive_type(bad, "t.c")
 
@@ -189,8 +213,21 @@ def test_schema_names_are_hive_names_and_never_collide():
 
 def test_options_choose_branches_catalog_prefix_and_output_file(lake, tmp_path):
     output = tmp_path / "ddl.sql"
-    result = lakegate("trino-ddl", "--lake", lake, "--location", "hdfs://nn/lake", "--catalog", "my hive",
-                      "--schema-prefix", "robots_", "--branch", "feature/Nav-2", "--output", output)
+    result = lakegate(
+        "trino-ddl",
+        "--lake",
+        lake,
+        "--location",
+        "hdfs://nn/lake",
+        "--catalog",
+        "my hive",
+        "--schema-prefix",
+        "robots_",
+        "--branch",
+        "feature/Nav-2",
+        "--output",
+        output,
+    )
     assert result.returncode == 0 and result.stdout == "", result.stderr
     parsed = statements(output.read_text())
     targets = {(s.this.this if s.kind == "TABLE" else s.this).sql("trino") for s in parsed if isinstance(s, exp.Create)}
@@ -210,8 +247,9 @@ def test_tables_without_files_are_noted_or_skipped(tmp_path):
     def tables(*args) -> tuple[str, set[str]]:
         result = lakegate("trino-ddl", "--lake", tmp_path / "lake", "--location", "s3://b/l", *args)
         assert result.returncode == 0, result.stderr
-        return result.stdout, {s.this.this.name for s in statements(result.stdout)
-                               if isinstance(s, exp.Create) and s.kind == "TABLE"}
+        return result.stdout, {
+            s.this.this.name for s in statements(result.stdout) if isinstance(s, exp.Create) and s.kind == "TABLE"
+        }
 
     text, every = tables()
     assert every == {"odom", "never", "events", "metadata"}
@@ -221,11 +259,14 @@ def test_tables_without_files_are_noted_or_skipped(tmp_path):
     assert "-- table 'never' has no data files yet: left out (--skip-empty)" in text
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--location", "/local/path"], "--location '/local/path' is not a URI"),
-    (["--location", "s3://b/l", "--branch", "nope"], "no branch 'nope' in the lake"),
-    (["--location", "s3://b/l", "--schema-prefix", "X"], "schema prefix 'X' may only contain"),
-])
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--location", "/local/path"], "--location '/local/path' is not a URI"),
+        (["--location", "s3://b/l", "--branch", "nope"], "no branch 'nope' in the lake"),
+        (["--location", "s3://b/l", "--schema-prefix", "X"], "schema prefix 'X' may only contain"),
+    ],
+)
 def test_bad_options_are_one_line_errors(lake, args, message):
     result = lakegate("trino-ddl", "--lake", lake, *args)
     assert result.returncode == 1 and result.stdout == ""
@@ -258,5 +299,7 @@ def test_ids_hive_would_escape_are_warned_about(tmp_path):
     result = lakegate("trino-ddl", "--lake", tmp_path / "lake", "--location", "s3://b/l")
     assert result.returncode == 0, result.stderr
     warnings = [line for line in result.stdout.splitlines() if line.startswith("-- warning:")]
-    assert warnings == ["-- warning: id '2024-05-01T10:00' has a character Hive escapes in directory names; "
-                        "sync_partition_metadata may fail on its partitions or register them wrongly"]
+    assert warnings == [
+        "-- warning: id '2024-05-01T10:00' has a character Hive escapes in directory names; "
+        "sync_partition_metadata may fail on its partitions or register them wrongly"
+    ]

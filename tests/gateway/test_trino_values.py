@@ -1,5 +1,6 @@
 """Trino protocol encoding: type signatures and values, checked against the real trino client's own
 decoding (trino.mapper.RowMapperFactory) and on real DuckDB Arrow batches."""
+
 from __future__ import annotations
 
 import datetime as dt
@@ -28,33 +29,66 @@ def decoded(columns, rows):
     return RowMapperFactory().create(columns=described, legacy_primitive_types=False).map(wire)
 
 
-@pytest.mark.parametrize("trino_type, signature", [
-    ("bigint", {"rawType": "bigint", "arguments": []}),
-    ("integer", {"rawType": "integer", "arguments": []}),
-    ("double", {"rawType": "double", "arguments": []}),
-    ("boolean", {"rawType": "boolean", "arguments": []}),
-    ("varchar", VARCHAR),
-    ("varchar(10)", {"rawType": "varchar", "arguments": [{"kind": "LONG", "value": 10}]}),
-    ("char(3)", {"rawType": "char", "arguments": [{"kind": "LONG", "value": 3}]}),
-    ("decimal(10,2)", {"rawType": "decimal", "arguments": [{"kind": "LONG", "value": 10}, {"kind": "LONG", "value": 2}]}),
-    ("timestamp(3)", {"rawType": "timestamp", "arguments": [{"kind": "LONG", "value": 3}]}),
-    ("timestamp(6) with time zone", {"rawType": "timestamp with time zone", "arguments": [{"kind": "LONG", "value": 6}]}),
-    ("time(3)", {"rawType": "time", "arguments": [{"kind": "LONG", "value": 3}]}),
-    ("date", {"rawType": "date", "arguments": []}),
-    ("varbinary", {"rawType": "varbinary", "arguments": []}),
-    ("uuid", {"rawType": "uuid", "arguments": []}),
-    ("interval day to second", {"rawType": "interval day to second", "arguments": []}),
-    ("array(varchar)", {"rawType": "array", "arguments": [{"kind": "TYPE", "value": VARCHAR}]}),
-    ("map(varchar, bigint)", {"rawType": "map", "arguments": [
-        {"kind": "TYPE", "value": VARCHAR}, {"kind": "TYPE", "value": {"rawType": "bigint", "arguments": []}}]}),
-    ("row(a bigint, b varchar)", {"rawType": "row", "arguments": [
-        {"kind": "NAMED_TYPE", "value": {"fieldName": {"name": "a"},
-                                         "typeSignature": {"rawType": "bigint", "arguments": []}}},
-        {"kind": "NAMED_TYPE", "value": {"fieldName": {"name": "b"}, "typeSignature": VARCHAR}}]}),
-    ("row(integer, double)", {"rawType": "row", "arguments": [
-        {"kind": "NAMED_TYPE", "value": {"typeSignature": {"rawType": "integer", "arguments": []}}},
-        {"kind": "NAMED_TYPE", "value": {"typeSignature": {"rawType": "double", "arguments": []}}}]}),
-])
+@pytest.mark.parametrize(
+    "trino_type, signature",
+    [
+        ("bigint", {"rawType": "bigint", "arguments": []}),
+        ("integer", {"rawType": "integer", "arguments": []}),
+        ("double", {"rawType": "double", "arguments": []}),
+        ("boolean", {"rawType": "boolean", "arguments": []}),
+        ("varchar", VARCHAR),
+        ("varchar(10)", {"rawType": "varchar", "arguments": [{"kind": "LONG", "value": 10}]}),
+        ("char(3)", {"rawType": "char", "arguments": [{"kind": "LONG", "value": 3}]}),
+        (
+            "decimal(10,2)",
+            {"rawType": "decimal", "arguments": [{"kind": "LONG", "value": 10}, {"kind": "LONG", "value": 2}]},
+        ),
+        ("timestamp(3)", {"rawType": "timestamp", "arguments": [{"kind": "LONG", "value": 3}]}),
+        (
+            "timestamp(6) with time zone",
+            {"rawType": "timestamp with time zone", "arguments": [{"kind": "LONG", "value": 6}]},
+        ),
+        ("time(3)", {"rawType": "time", "arguments": [{"kind": "LONG", "value": 3}]}),
+        ("date", {"rawType": "date", "arguments": []}),
+        ("varbinary", {"rawType": "varbinary", "arguments": []}),
+        ("uuid", {"rawType": "uuid", "arguments": []}),
+        ("interval day to second", {"rawType": "interval day to second", "arguments": []}),
+        ("array(varchar)", {"rawType": "array", "arguments": [{"kind": "TYPE", "value": VARCHAR}]}),
+        (
+            "map(varchar, bigint)",
+            {
+                "rawType": "map",
+                "arguments": [
+                    {"kind": "TYPE", "value": VARCHAR},
+                    {"kind": "TYPE", "value": {"rawType": "bigint", "arguments": []}},
+                ],
+            },
+        ),
+        (
+            "row(a bigint, b varchar)",
+            {
+                "rawType": "row",
+                "arguments": [
+                    {
+                        "kind": "NAMED_TYPE",
+                        "value": {"fieldName": {"name": "a"}, "typeSignature": {"rawType": "bigint", "arguments": []}},
+                    },
+                    {"kind": "NAMED_TYPE", "value": {"fieldName": {"name": "b"}, "typeSignature": VARCHAR}},
+                ],
+            },
+        ),
+        (
+            "row(integer, double)",
+            {
+                "rawType": "row",
+                "arguments": [
+                    {"kind": "NAMED_TYPE", "value": {"typeSignature": {"rawType": "integer", "arguments": []}}},
+                    {"kind": "NAMED_TYPE", "value": {"typeSignature": {"rawType": "double", "arguments": []}}},
+                ],
+            },
+        ),
+    ],
+)
 def test_type_signatures(trino_type, signature):
     assert type_signature(trino_type) == signature
 
@@ -64,56 +98,81 @@ def test_unknown_type_names_are_refused():
         type_signature("VARCHAR[]")
 
 
-@pytest.mark.parametrize("trino_type, value, wire", [
-    ("bigint", 9223372036854775807, 9223372036854775807),
-    ("double", 1.5, 1.5),
-    ("double", math.inf, "Infinity"),
-    ("double", -math.inf, "-Infinity"),
-    ("real", math.nan, "NaN"),
-    ("decimal(10,2)", Decimal("1.5"), "1.50"),
-    ("decimal(38,10)", Decimal("0E-10"), "0.0000000000"),
-    ("decimal(5,0)", Decimal("-12"), "-12"),
-    ("varchar", "héllo", "héllo"),
-    ("boolean", False, False),
-    ("varbinary", b"\x00\xffab", "AP9hYg=="),
-    ("date", dt.date(2024, 2, 29), "2024-02-29"),
-    ("timestamp(3)", dt.datetime(2024, 1, 2, 3, 4, 5, 123000), "2024-01-02 03:04:05.123"),
-    ("timestamp(0)", dt.datetime(2024, 1, 2, 3, 4, 5), "2024-01-02 03:04:05"),
-    ("timestamp(6)", dt.datetime(2024, 1, 2, 3, 4, 5, 7), "2024-01-02 03:04:05.000007"),
-    ("timestamp(9)", dt.datetime(2024, 1, 2, 3, 4, 5, 7), "2024-01-02 03:04:05.000007000"),
-    ("timestamp(3) with time zone", dt.datetime(2024, 1, 2, 3, 4, 5, 123000, tzinfo=dt.timezone.utc),
-     "2024-01-02 03:04:05.123 UTC"),
-    ("timestamp(3) with time zone", dt.datetime(2024, 7, 2, 3, 4, 5, tzinfo=ZoneInfo("Europe/Paris")),
-     "2024-07-02 03:04:05.000 Europe/Paris"),
-    ("timestamp(0) with time zone", dt.datetime(2024, 7, 2, 3, 4, 5, tzinfo=dt.timezone(dt.timedelta(hours=5, minutes=30))),
-     "2024-07-02 03:04:05 +05:30"),
-    ("time(3)", dt.time(1, 2, 3, 500000), "01:02:03.500"),
-    ("uuid", uuid.UUID("12345678-1234-5678-1234-567812345678"), "12345678-1234-5678-1234-567812345678"),
-    ("interval day to second", dt.timedelta(days=1, hours=2, minutes=3, seconds=4, milliseconds=5), "1 02:03:04.005"),
-    ("interval day to second", -dt.timedelta(seconds=1.5), "-0 00:00:01.500"),
-    ("array(double)", [1.0, math.nan, None], [1.0, "NaN", None]),
-    ("array(decimal(4,1))", [Decimal("1.5"), None], ["1.5", None]),
-    ("map(varchar, double)", {"a": math.inf}, {"a": "Infinity"}),
-    ("map(bigint, varchar)", [(1, "x"), (2, None)], {"1": "x", "2": None}),
-    ("map(boolean, bigint)", {True: 1}, {"true": 1}),
-    ("row(a bigint, b decimal(3,1))", {"a": 1, "b": Decimal("2.5")}, [1, "2.5"]),
-    ("array(row(name varchar, value double))", [{"name": "n", "value": math.nan}], [["n", "NaN"]]),
-])
+@pytest.mark.parametrize(
+    "trino_type, value, wire",
+    [
+        ("bigint", 9223372036854775807, 9223372036854775807),
+        ("double", 1.5, 1.5),
+        ("double", math.inf, "Infinity"),
+        ("double", -math.inf, "-Infinity"),
+        ("real", math.nan, "NaN"),
+        ("decimal(10,2)", Decimal("1.5"), "1.50"),
+        ("decimal(38,10)", Decimal("0E-10"), "0.0000000000"),
+        ("decimal(5,0)", Decimal("-12"), "-12"),
+        ("varchar", "héllo", "héllo"),
+        ("boolean", False, False),
+        ("varbinary", b"\x00\xffab", "AP9hYg=="),
+        ("date", dt.date(2024, 2, 29), "2024-02-29"),
+        ("timestamp(3)", dt.datetime(2024, 1, 2, 3, 4, 5, 123000), "2024-01-02 03:04:05.123"),
+        ("timestamp(0)", dt.datetime(2024, 1, 2, 3, 4, 5), "2024-01-02 03:04:05"),
+        ("timestamp(6)", dt.datetime(2024, 1, 2, 3, 4, 5, 7), "2024-01-02 03:04:05.000007"),
+        ("timestamp(9)", dt.datetime(2024, 1, 2, 3, 4, 5, 7), "2024-01-02 03:04:05.000007000"),
+        (
+            "timestamp(3) with time zone",
+            dt.datetime(2024, 1, 2, 3, 4, 5, 123000, tzinfo=dt.UTC),
+            "2024-01-02 03:04:05.123 UTC",
+        ),
+        (
+            "timestamp(3) with time zone",
+            dt.datetime(2024, 7, 2, 3, 4, 5, tzinfo=ZoneInfo("Europe/Paris")),
+            "2024-07-02 03:04:05.000 Europe/Paris",
+        ),
+        (
+            "timestamp(0) with time zone",
+            dt.datetime(2024, 7, 2, 3, 4, 5, tzinfo=dt.timezone(dt.timedelta(hours=5, minutes=30))),
+            "2024-07-02 03:04:05 +05:30",
+        ),
+        ("time(3)", dt.time(1, 2, 3, 500000), "01:02:03.500"),
+        ("uuid", uuid.UUID("12345678-1234-5678-1234-567812345678"), "12345678-1234-5678-1234-567812345678"),
+        (
+            "interval day to second",
+            dt.timedelta(days=1, hours=2, minutes=3, seconds=4, milliseconds=5),
+            "1 02:03:04.005",
+        ),
+        ("interval day to second", -dt.timedelta(seconds=1.5), "-0 00:00:01.500"),
+        ("array(double)", [1.0, math.nan, None], [1.0, "NaN", None]),
+        ("array(decimal(4,1))", [Decimal("1.5"), None], ["1.5", None]),
+        ("map(varchar, double)", {"a": math.inf}, {"a": "Infinity"}),
+        ("map(bigint, varchar)", [(1, "x"), (2, None)], {"1": "x", "2": None}),
+        ("map(boolean, bigint)", {True: 1}, {"true": 1}),
+        ("row(a bigint, b decimal(3,1))", {"a": 1, "b": Decimal("2.5")}, [1, "2.5"]),
+        ("array(row(name varchar, value double))", [{"name": "n", "value": math.nan}], [["n", "NaN"]]),
+    ],
+)
 def test_value_encoding(trino_type, value, wire):
     encode = encoder(trino_type)
     assert encode(value) == wire
     assert encode(None) is None
 
 
-@pytest.mark.parametrize("trino_type, value", [
-    ("double", 2.5), ("double", math.inf), ("decimal(10,2)", Decimal("-7.25")), ("varbinary", b"\x01\x02"),
-    ("date", dt.date(1999, 12, 31)), ("timestamp(3)", dt.datetime(2024, 1, 2, 3, 4, 5, 123000)),
-    ("timestamp(6)", dt.datetime(2024, 1, 2, 3, 4, 5, 123456)),
-    ("timestamp(3) with time zone", dt.datetime(2024, 1, 2, 3, 4, 5, 123000, tzinfo=ZoneInfo("UTC"))),
-    ("uuid", uuid.uuid4()), ("array(bigint)", [1, None, 3]), ("map(varchar, bigint)", {"a": 1}),
-    ("interval day to second", dt.timedelta(days=3, seconds=7, microseconds=250000)),
-    ("time(6)", dt.time(23, 59, 59, 999999)),
-])
+@pytest.mark.parametrize(
+    "trino_type, value",
+    [
+        ("double", 2.5),
+        ("double", math.inf),
+        ("decimal(10,2)", Decimal("-7.25")),
+        ("varbinary", b"\x01\x02"),
+        ("date", dt.date(1999, 12, 31)),
+        ("timestamp(3)", dt.datetime(2024, 1, 2, 3, 4, 5, 123000)),
+        ("timestamp(6)", dt.datetime(2024, 1, 2, 3, 4, 5, 123456)),
+        ("timestamp(3) with time zone", dt.datetime(2024, 1, 2, 3, 4, 5, 123000, tzinfo=ZoneInfo("UTC"))),
+        ("uuid", uuid.uuid4()),
+        ("array(bigint)", [1, None, 3]),
+        ("map(varchar, bigint)", {"a": 1}),
+        ("interval day to second", dt.timedelta(days=3, seconds=7, microseconds=250000)),
+        ("time(6)", dt.time(23, 59, 59, 999999)),
+    ],
+)
 def test_the_trino_client_decodes_what_is_encoded(trino_type, value):
     assert decoded([("c", trino_type)], [[encoder(trino_type)(value)]]) == [[value]]
 
@@ -121,7 +180,8 @@ def test_the_trino_client_decodes_what_is_encoded(trino_type, value):
 def test_encode_rows_of_a_duckdb_batch_match_the_trino_client():
     con = duckdb.connect()
     con.execute("SET TimeZone = 'UTC'")
-    batch = con.sql("""
+    batch = (
+        con.sql("""
         SELECT * FROM (VALUES
           (1::BIGINT, 1.5::DOUBLE, 1.50::DECIMAL(10,2), 'a', TRUE, DATE '2024-01-02',
            CAST(TIMESTAMP '2024-01-02 03:04:05.123' AS TIMESTAMP_MS), TIMESTAMP '2024-01-02 03:04:05.123456',
@@ -131,23 +191,68 @@ def test_encode_rows_of_a_duckdb_batch_match_the_trino_client():
           (-2, '-Infinity'::DOUBLE, -0.05, 'ü', FALSE, DATE '1970-01-01',
            CAST(TIMESTAMP '1970-01-01 00:00:00' AS TIMESTAMP_MS), TIMESTAMP '1970-01-01 00:00:00',
            TIMESTAMPTZ '1970-01-01 00:00:00+00', [], {'k': NULL}, ''::BLOB, 0.0000000001, NULL)
-        ) AS v(i, d, dec, s, b, day, ts3, ts6, tz, arr, st, bin, small, ts9)""").to_arrow_table().to_batches()[0]
-    columns = [("i", "bigint"), ("d", "double"), ("dec", "decimal(10,2)"), ("s", "varchar"), ("b", "boolean"),
-               ("day", "date"), ("ts3", "timestamp(3)"), ("ts6", "timestamp(6)"), ("tz", "timestamp(3) with time zone"),
-               ("arr", "array(varchar)"), ("st", "row(k double)"), ("bin", "varbinary"), ("small", "decimal(20,10)"),
-               ("ts9", "timestamp(9)")]
+        ) AS v(i, d, dec, s, b, day, ts3, ts6, tz, arr, st, bin, small, ts9)""")
+        .to_arrow_table()
+        .to_batches()[0]
+    )
+    columns = [
+        ("i", "bigint"),
+        ("d", "double"),
+        ("dec", "decimal(10,2)"),
+        ("s", "varchar"),
+        ("b", "boolean"),
+        ("day", "date"),
+        ("ts3", "timestamp(3)"),
+        ("ts6", "timestamp(6)"),
+        ("tz", "timestamp(3) with time zone"),
+        ("arr", "array(varchar)"),
+        ("st", "row(k double)"),
+        ("bin", "varbinary"),
+        ("small", "decimal(20,10)"),
+        ("ts9", "timestamp(9)"),
+    ]
     rows = encode_rows(columns, batch)
-    assert rows[0] == [1, 1.5, "1.50", "a", True, "2024-01-02", "2024-01-02 03:04:05.123",
-                       "2024-01-02 03:04:05.123456", "2024-01-02 03:04:05.500 UTC", ["x", None], [2.5], "YWI=",
-                       "0.0000000000", "2024-01-02 03:04:05.123456789"]
+    assert rows[0] == [
+        1,
+        1.5,
+        "1.50",
+        "a",
+        True,
+        "2024-01-02",
+        "2024-01-02 03:04:05.123",
+        "2024-01-02 03:04:05.123456",
+        "2024-01-02 03:04:05.500 UTC",
+        ["x", None],
+        [2.5],
+        "YWI=",
+        "0.0000000000",
+        "2024-01-02 03:04:05.123456789",
+    ]
     assert rows[1] == [None, "NaN"] + [None] * 12
-    assert rows[2][:9] == [-2, "-Infinity", "-0.05", "ü", False, "1970-01-01", "1970-01-01 00:00:00.000",
-                           "1970-01-01 00:00:00.000000", "1970-01-01 00:00:00.000 UTC"]
+    assert rows[2][:9] == [
+        -2,
+        "-Infinity",
+        "-0.05",
+        "ü",
+        False,
+        "1970-01-01",
+        "1970-01-01 00:00:00.000",
+        "1970-01-01 00:00:00.000000",
+        "1970-01-01 00:00:00.000 UTC",
+    ]
     assert rows[2][12] == "0.0000000001"
     client = decoded(columns[:-1], [row[:-1] for row in rows])
-    assert client[0][:9] == [1, 1.5, Decimal("1.50"), "a", True, dt.date(2024, 1, 2),
-                             dt.datetime(2024, 1, 2, 3, 4, 5, 123000), dt.datetime(2024, 1, 2, 3, 4, 5, 123456),
-                             dt.datetime(2024, 1, 2, 3, 4, 5, 500000, tzinfo=ZoneInfo("UTC"))]
+    assert client[0][:9] == [
+        1,
+        1.5,
+        Decimal("1.50"),
+        "a",
+        True,
+        dt.date(2024, 1, 2),
+        dt.datetime(2024, 1, 2, 3, 4, 5, 123000),
+        dt.datetime(2024, 1, 2, 3, 4, 5, 123456),
+        dt.datetime(2024, 1, 2, 3, 4, 5, 500000, tzinfo=ZoneInfo("UTC")),
+    ]
     assert math.isnan(client[1][1]) and client[2][1] == -math.inf
     assert json.dumps(rows, allow_nan=False)
 
@@ -155,16 +260,34 @@ def test_encode_rows_of_a_duckdb_batch_match_the_trino_client():
 def test_temporal_columns_get_exactly_p_fraction_digits():
     con = duckdb.connect()
     con.execute("SET TimeZone = 'UTC'")
-    batch = con.sql("""SELECT TIMESTAMP '2024-01-02 03:04:05.12' AS t, TIMESTAMPTZ '2024-01-02 03:04:05.25+00' AS z,
+    batch = (
+        con.sql("""SELECT TIMESTAMP '2024-01-02 03:04:05.12' AS t, TIMESTAMPTZ '2024-01-02 03:04:05.25+00' AS z,
                               TIME '01:02:03.5' AS c, CAST(TIMESTAMP '2024-01-02 03:04:05' AS TIMESTAMP_S) AS s,
-                              TIMESTAMP_NS '2024-01-02 03:04:05.123456789' AS n""").to_arrow_table().to_batches()[0]
+                              TIMESTAMP_NS '2024-01-02 03:04:05.123456789' AS n""")
+        .to_arrow_table()
+        .to_batches()[0]
+    )
     for types, expected in [
-        (("timestamp(1)", "timestamp(1) with time zone", "time(1)", "timestamp(3)", "timestamp(6)"),
-         ["2024-01-02 03:04:05.1", "2024-01-02 03:04:05.2 UTC", "01:02:03.5", "2024-01-02 03:04:05.000",
-          "2024-01-02 03:04:05.123456"]),
-        (("timestamp(0)", "timestamp(6) with time zone", "time(3)", "timestamp(0)", "timestamp(9)"),
-         ["2024-01-02 03:04:05", "2024-01-02 03:04:05.250000 UTC", "01:02:03.500", "2024-01-02 03:04:05",
-          "2024-01-02 03:04:05.123456789"]),
+        (
+            ("timestamp(1)", "timestamp(1) with time zone", "time(1)", "timestamp(3)", "timestamp(6)"),
+            [
+                "2024-01-02 03:04:05.1",
+                "2024-01-02 03:04:05.2 UTC",
+                "01:02:03.5",
+                "2024-01-02 03:04:05.000",
+                "2024-01-02 03:04:05.123456",
+            ],
+        ),
+        (
+            ("timestamp(0)", "timestamp(6) with time zone", "time(3)", "timestamp(0)", "timestamp(9)"),
+            [
+                "2024-01-02 03:04:05",
+                "2024-01-02 03:04:05.250000 UTC",
+                "01:02:03.500",
+                "2024-01-02 03:04:05",
+                "2024-01-02 03:04:05.123456789",
+            ],
+        ),
     ]:
         assert encode_rows(list(zip("tzcsn", types)), batch) == [expected]
 

@@ -1,4 +1,5 @@
 """The catalog: branches, batches, jobs, tables, Trino schema and DuckDB views over real Parquet."""
+
 from __future__ import annotations
 
 import json
@@ -59,8 +60,15 @@ def test_lists_branches_batches_jobs_and_tables_with_row_counts(tmp_path):
     odom = [line("odom", i, {"x": 1.0 * i, "y": 2.0}) for i in range(3)]
     ingest(tmp_path, lake, V1, "main", "b1", "j1", odom, experience_name="sunny")
     ingest(tmp_path, lake, V1, "main", "b1", "j2", odom[:1])
-    ingest(tmp_path, lake, V1, "main", "b2", "j3", [line("goal_reached", 5, {"name": "g", "status": "PASSED", "tags": [],
-                                                                             "metrics": []}, True)])
+    ingest(
+        tmp_path,
+        lake,
+        V1,
+        "main",
+        "b2",
+        "j3",
+        [line("goal_reached", 5, {"name": "g", "status": "PASSED", "tags": [], "metrics": []}, True)],
+    )
     ingest(tmp_path, lake, V1, "feature/ünï x", "007", "1e5", odom)
     (lake / "not-a-branch%").mkdir()
     catalog = Catalog(lake)
@@ -72,14 +80,27 @@ def test_lists_branches_batches_jobs_and_tables_with_row_counts(tmp_path):
     tables = {t.name: t for t in catalog.tables("main")}
     assert list(tables) == ["odom", "speed", "goal_reached", "never", "events", "metadata"]
     assert {n: (t.kind, t.row_count) for n, t in tables.items()} == {
-        "odom": ("topic", 4), "speed": ("topic", 0), "goal_reached": ("topic", 1), "never": ("topic", 0),
-        "events": ("events", 1), "metadata": ("metadata", 3)}
-    assert tables["odom"].columns == [("timestamp", "bigint"), ("x", "double"), ("y", "double"),
-                                      ("experience_name", "varchar"), ("build_version", "varchar"),
-                                      ("batch_id", "varchar"), ("job_id", "varchar")]
+        "odom": ("topic", 4),
+        "speed": ("topic", 0),
+        "goal_reached": ("topic", 1),
+        "never": ("topic", 0),
+        "events": ("events", 1),
+        "metadata": ("metadata", 3),
+    }
+    assert tables["odom"].columns == [
+        ("timestamp", "bigint"),
+        ("x", "double"),
+        ("y", "double"),
+        ("experience_name", "varchar"),
+        ("build_version", "varchar"),
+        ("batch_id", "varchar"),
+        ("job_id", "varchar"),
+    ]
     # ids stay text: never auto-cast to numbers
     con = catalog.connect("feature/ünï x")
-    assert con.execute("SELECT DISTINCT batch_id, job_id, typeof(batch_id) FROM odom").fetchall() == [("007", "1e5", "VARCHAR")]
+    assert con.execute("SELECT DISTINCT batch_id, job_id, typeof(batch_id) FROM odom").fetchall() == [
+        ("007", "1e5", "VARCHAR")
+    ]
 
 
 def test_schema_speaks_trino_and_views_match_it(tmp_path):
@@ -88,22 +109,53 @@ def test_schema_speaks_trino_and_views_match_it(tmp_path):
     catalog = Catalog(lake)
     schema = catalog.schema("main")
     assert schema["never"] == {
-        "timestamp": "bigint", "n": "bigint", "f": "double", "b": "boolean", "s": "varchar", "tags": "array(varchar)",
+        "timestamp": "bigint",
+        "n": "bigint",
+        "f": "double",
+        "b": "boolean",
+        "s": "varchar",
+        "tags": "array(varchar)",
         "metrics": "array(row(name varchar, description varchar, status varchar, type varchar, value varchar))",
-        "experience_name": "varchar", "build_version": "varchar", "batch_id": "varchar", "job_id": "varchar"}
+        "experience_name": "varchar",
+        "build_version": "varchar",
+        "batch_id": "varchar",
+        "job_id": "varchar",
+    }
     assert list(schema["metadata"].items()) == list(METADATA_COLUMNS)
-    assert schema["metadata"]["time"] == "timestamp(3)" and schema["metadata"]["experience_tag_names"] == "array(varchar)"
-    assert list(schema["events"]) == ["timestamp", "topic", "name", "description", "status", "tags", "metrics",
-                                      "experience_name", "build_version", "batch_id", "job_id"]
+    assert (
+        schema["metadata"]["time"] == "timestamp(3)" and schema["metadata"]["experience_tag_names"] == "array(varchar)"
+    )
+    assert list(schema["events"]) == [
+        "timestamp",
+        "topic",
+        "name",
+        "description",
+        "status",
+        "tags",
+        "metrics",
+        "experience_name",
+        "build_version",
+        "batch_id",
+        "job_id",
+    ]
     con = catalog.connect("main")
-    duck = {"bigint": "BIGINT", "double": "DOUBLE", "boolean": "BOOLEAN", "varchar": "VARCHAR", "array(varchar)": "VARCHAR[]",
-            "timestamp(3)": "TIMESTAMP_MS"}
+    duck = {
+        "bigint": "BIGINT",
+        "double": "DOUBLE",
+        "boolean": "BOOLEAN",
+        "varchar": "VARCHAR",
+        "array(varchar)": "VARCHAR[]",
+        "timestamp(3)": "TIMESTAMP_MS",
+    }
     for table, columns in schema.items():
         described = con.execute(f'DESCRIBE "{table}"').fetchall()
         assert [row[0] for row in described] == list(columns), table  # every column once, in order
         for (name, trino), row in zip(columns.items(), described):
             if trino.startswith("array(row"):
-                assert row[1].replace('"', "") == "STRUCT(name VARCHAR, description VARCHAR, status VARCHAR, type VARCHAR, value VARCHAR)[]"
+                assert (
+                    row[1].replace('"', "")
+                    == "STRUCT(name VARCHAR, description VARCHAR, status VARCHAR, type VARCHAR, value VARCHAR)[]"
+                )
             else:
                 assert row[1] == duck[trino], (table, name)
     # declared but never emitted: an empty table, not an error
@@ -116,9 +168,13 @@ def test_views_only_read_inside_the_lake_and_quote_every_name(tmp_path):
     lake = tmp_path / "it's a lake"
     odd = 'odd "name" it\'s'
     config = V1 + f"  {json.dumps(odd)}:\n    schema: {{x: float}}\n"
-    ingest(tmp_path, lake, config, "main", "b1", "j1", [line("odom", 1, {"x": 1.0, "y": 2.0}), line(odd, 2, {"x": 0.5})])
+    ingest(
+        tmp_path, lake, config, "main", "b1", "j1", [line("odom", 1, {"x": 1.0, "y": 2.0}), line(odd, 2, {"x": 0.5})]
+    )
     views = Catalog(lake).view_sql("main")
-    assert Catalog(lake).connect("main").execute('SELECT x, job_id FROM "odd ""name"" it\'s"').fetchall() == [(0.5, "j1")]
+    assert Catalog(lake).connect("main").execute('SELECT x, job_id FROM "odd ""name"" it\'s"').fetchall() == [
+        (0.5, "j1")
+    ]
     for sql in views.values():
         for piece in sql.split("read_parquet('")[1:]:
             path = piece.split("', hive_partitioning")[0].replace("''", "'")
@@ -135,13 +191,17 @@ def test_two_branches_with_different_schemas_for_one_topic(tmp_path):
     assert catalog.schema("main")["odom"]["y"] == "double" and "z" not in catalog.schema("main")["odom"]
     assert catalog.schema("feature/z")["odom"]["y"] == "bigint"
     assert catalog.connect("main").execute("SELECT x, y FROM odom").fetchall() == [(1.5, 2.5)]
-    assert catalog.connect("feature/z").execute("SELECT x, y, z, typeof(y) FROM odom").fetchall() == [(1.5, 7, 3.5, "BIGINT")]
+    assert catalog.connect("feature/z").execute("SELECT x, y, z, typeof(y) FROM odom").fetchall() == [
+        (1.5, 7, 3.5, "BIGINT")
+    ]
     assert "speed" in catalog.schema("main") and "speed" not in catalog.schema("feature/z")
 
 
 def test_files_of_older_config_versions_still_read(tmp_path):
     lake = tmp_path / "lake"
-    ingest(tmp_path, lake, V1, "main", "b1", "old", [line("odom", 1, {"x": 1.0, "y": 2.0}), line("speed", 1, {"v": 4.0})])
+    ingest(
+        tmp_path, lake, V1, "main", "b1", "old", [line("odom", 1, {"x": 1.0, "y": 2.0}), line("speed", 1, {"v": 4.0})]
+    )
     ingest(tmp_path, lake, V2, "main", "b1", "new", [line("odom", 2, {"x": 3.0, "y": 4, "z": 5.0})])
     catalog = Catalog(lake)
     schema = catalog.schema("main")
@@ -177,4 +237,9 @@ def test_metadata_view_has_each_column_once(tmp_path, branch):
     rows = Catalog(lake).connect(branch).execute("SELECT * FROM metadata").fetchall()
     assert len(rows) == 1 and len(rows[0]) == len(METADATA_COLUMNS)
     row = dict(zip([c for c, _ in METADATA_COLUMNS], rows[0]))
-    assert (row["batch_id"], row["job_id"], row["branch_name"], row["experience_tag_names"]) == ("b1", "j1", branch, ["t1", "t2"])
+    assert (row["batch_id"], row["job_id"], row["branch_name"], row["experience_tag_names"]) == (
+        "b1",
+        "j1",
+        branch,
+        ["t1", "t2"],
+    )

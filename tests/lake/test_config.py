@@ -1,4 +1,5 @@
 """The config model: loading, every error with its line and column, merging, the JSON Schema."""
+
 from __future__ import annotations
 
 import textwrap
@@ -52,16 +53,29 @@ def line_of(path: Path, text: str) -> int:
 def test_fixture_loads_topics_metrics_and_set():
     config = load_config(FIXTURE)
     assert list(config.topics) == [
-        "odom_linear_velocity", "goal_distance", "pose_difference", "covariance_accuracy", "time_to_goal",
-        "goal_status", "camera_gif", "robot_speed", "drone_speed", "goal_reached",
+        "odom_linear_velocity",
+        "goal_distance",
+        "pose_difference",
+        "covariance_accuracy",
+        "time_to_goal",
+        "goal_status",
+        "camera_gif",
+        "robot_speed",
+        "drone_speed",
+        "goal_reached",
     ]
     assert config.topics["odom_linear_velocity"].fields == {"x": "float", "y": "float", "z": "float"}
     assert config.topics["covariance_accuracy"].fields["within_1_sigma"] == "int"
     assert config.topics["camera_gif"].fields == {"filename": "image"}
     goal = config.topics["goal_reached"]
     assert goal.event and not config.topics["goal_status"].event
-    assert goal.fields == {"name": "string", "description": "string", "status": "status",
-                           "tags": "string[]", "metrics": "metric[]"}
+    assert goal.fields == {
+        "name": "string",
+        "description": "string",
+        "status": "status",
+        "tags": "string[]",
+        "metrics": "metric[]",
+    }
     assert goal.location == Location(str(FIXTURE), line_of(FIXTURE, "  goal_reached:"), 3)
 
     assert len(config.metrics) == 15
@@ -93,7 +107,9 @@ def test_metrics_in_set_unknown_name_lists_known_sets():
     config = load_config(FIXTURE)
     with pytest.raises(KeyError) as caught:
         config.metrics_in_set("Nav metrics")
-    assert caught.value.args[0] == "no metrics set 'Nav metrics' (did you mean 'Nav Metrics'?); known sets: 'Nav Metrics'"
+    assert (
+        caught.value.args[0] == "no metrics set 'Nav metrics' (did you mean 'Nav Metrics'?); known sets: 'Nav Metrics'"
+    )
 
 
 def test_only_version_is_required_and_empty_sections_are_fine(tmp_path):
@@ -104,21 +120,37 @@ def test_only_version_is_required_and_empty_sections_are_fine(tmp_path):
 
 
 def test_bigint_is_int_and_every_field_type_loads(tmp_path):
-    config = load_config(write(tmp_path, """
+    config = load_config(
+        write(
+            tmp_path,
+            """
         version: 1
         topics:
           t:
             schema: {a: int, b: bigint, c: float, d: boolean, e: string, f: status, g: image, h: video,
                      i: "string[]", j: "metric[]"}
-    """))
+    """,
+        )
+    )
     assert config.topics["t"].fields == {
-        "a": "int", "b": "int", "c": "float", "d": "boolean", "e": "string", "f": "status", "g": "image",
-        "h": "video", "i": "string[]", "j": "metric[]",
+        "a": "int",
+        "b": "int",
+        "c": "float",
+        "d": "boolean",
+        "e": "string",
+        "f": "status",
+        "g": "image",
+        "h": "video",
+        "i": "string[]",
+        "j": "metric[]",
     }
 
 
 def test_real_world_extras_load(tmp_path):
-    config = load_config(write(tmp_path, """
+    config = load_config(
+        write(
+            tmp_path,
+            """
         version: 1
         global:
           refresh_s: 30
@@ -144,9 +176,16 @@ def test_real_world_extras_load(tmp_path):
           Overview:
             metrics: [Board]
             layout: {columns: 2}
-    """))
+    """,
+        )
+    )
     assert {m.name: m.template for m in config.metrics.values() if m.template} == {
-        "Hist": "histogram", "Share": "pie", "Clip": "video", "Log": "artifact", "Board": "line"}
+        "Hist": "histogram",
+        "Share": "pie",
+        "Clip": "video",
+        "Log": "artifact",
+        "Board": "line",
+    }
     assert config.metrics["Share"].skip_if_no_data and not config.metrics["Hist"].skip_if_no_data
     weekly = config.metrics["Weekly"]
     assert (weekly.type, weekly.template_type, weekly.template_file) == ("report", "custom", "templates/weekly.json")
@@ -158,7 +197,10 @@ def test_real_world_extras_load(tmp_path):
 
 
 def test_yaml_anchors_and_merge_keys(tmp_path):
-    config = load_config(write(tmp_path, """
+    config = load_config(
+        write(
+            tmp_path,
+            """
         version: 1
         metrics:
           Base: &base
@@ -171,7 +213,9 @@ def test_yaml_anchors_and_merge_keys(tmp_path):
             <<: *base
             description: own
             template_settings: *settings
-    """))
+    """,
+        )
+    )
     derived = config.metrics["Derived"]
     assert (derived.type, derived.description, derived.template) == ("test", "own", "scalar")
     assert derived.template_settings == {"digits": 2}
@@ -187,7 +231,10 @@ def test_version_required_and_must_be_1(tmp_path):
 
 
 def test_unknown_keys_everywhere_with_did_you_mean(tmp_path):
-    found = errors(write(tmp_path, """
+    found = errors(
+        write(
+            tmp_path,
+            """
         version: 1
         topcs: {}
         topics:
@@ -204,7 +251,9 @@ def test_unknown_keys_everywhere_with_did_you_mean(tmp_path):
             status: {query_string: 'SELECT ?', block: 1, blok: 2}
         metrics sets:
           S: {metric: [X], metrics: [X]}
-    """))
+    """,
+        )
+    )
     assert found == [
         (2, 1, "unknown key 'topcs' in the config file (did you mean 'topics'?)"),
         (5, 5, "unknown key 'shema' in topic 't' (did you mean 'schema'?)"),
@@ -219,35 +268,51 @@ def test_unknown_key_without_a_close_match_has_no_suggestion(tmp_path):
 
 
 def test_unknown_field_type_with_did_you_mean(tmp_path):
-    assert one_error(tmp_path, """
+    assert one_error(
+        tmp_path,
+        """
         version: 1
         topics:
           odom:
             schema:
               x: flaot
-    """) == (5, 10, "unknown field type 'flaot' for field 'x' of topic 'odom' (did you mean 'float'?); "
-                    "expected one of int, float, boolean, string, status, image, video, string[], metric[], bigint")
+    """,
+    ) == (
+        5,
+        10,
+        "unknown field type 'flaot' for field 'x' of topic 'odom' (did you mean 'float'?); "
+        "expected one of int, float, boolean, string, status, image, video, string[], metric[], bigint",
+    )
     assert one_error(tmp_path, "version: 1\ntopics: {t: {schema: {x: }}}\n") == (
-        2, 25, "field 'x' of topic 't' needs a type, got nothing (null); expected one of int, float, boolean, "
-               "string, status, image, video, string[], metric[], bigint")
+        2,
+        25,
+        "field 'x' of topic 't' needs a type, got nothing (null); expected one of int, float, boolean, "
+        "string, status, image, video, string[], metric[], bigint",
+    )
 
 
-@pytest.mark.parametrize(("name", "message"), [
-    ("nav/odom", "topic 'nav/odom' contains '/', which topic names may not"),
-    ('""', "topic '' has an empty name"),
-    ("_private", "topic '_private' starts with '_' or '.', which topic names may not"),
-    (".hidden", "topic '.hidden' starts with '_' or '.', which topic names may not"),
-    ('"tab\\there"', "topic 'tab\there' contains a control character"),
-    ("metadata", "topic 'metadata' is a reserved table name (metadata, events, metric_results)"),
-    ("Events", "topic 'Events' is a reserved table name (metadata, events, metric_results)"),
-    ("metric_results", "topic 'metric_results' is a reserved table name (metadata, events, metric_results)"),
-])
+@pytest.mark.parametrize(
+    ("name", "message"),
+    [
+        ("nav/odom", "topic 'nav/odom' contains '/', which topic names may not"),
+        ('""', "topic '' has an empty name"),
+        ("_private", "topic '_private' starts with '_' or '.', which topic names may not"),
+        (".hidden", "topic '.hidden' starts with '_' or '.', which topic names may not"),
+        ('"tab\\there"', "topic 'tab\there' contains a control character"),
+        ("metadata", "topic 'metadata' is a reserved table name (metadata, events, metric_results)"),
+        ("Events", "topic 'Events' is a reserved table name (metadata, events, metric_results)"),
+        ("metric_results", "topic 'metric_results' is a reserved table name (metadata, events, metric_results)"),
+    ],
+)
 def test_bad_topic_names(tmp_path, name, message):
     assert one_error(tmp_path, f"version: 1\ntopics:\n  {name}:\n    schema: {{x: float}}\n") == (3, 3, message)
 
 
 def test_bad_field_names(tmp_path):
-    assert errors(write(tmp_path, """
+    assert errors(
+        write(
+            tmp_path,
+            """
         version: 1
         topics:
           pose:
@@ -257,21 +322,38 @@ def test_bad_field_names(tmp_path):
               timestamp: int
               Job_ID: string
               true: boolean
-    """)) == [
-        (6, 7, "field 'X' of topic 'pose' differs only in letter case from field 'x' (at line 5, column 7); "
-               "SQL column names ignore case"),
-        (7, 7, "field 'timestamp' of topic 'pose' is a column every topic row already has "
-               "(timestamp, batch_id, job_id, experience_name, build_version)"),
-        (8, 7, "field 'Job_ID' of topic 'pose' is a column every topic row already has "
-               "(timestamp, batch_id, job_id, experience_name, build_version)"),
+    """,
+        )
+    ) == [
+        (
+            6,
+            7,
+            "field 'X' of topic 'pose' differs only in letter case from field 'x' (at line 5, column 7); "
+            "SQL column names ignore case",
+        ),
+        (
+            7,
+            7,
+            "field 'timestamp' of topic 'pose' is a column every topic row already has "
+            "(timestamp, batch_id, job_id, experience_name, build_version)",
+        ),
+        (
+            8,
+            7,
+            "field 'Job_ID' of topic 'pose' is a column every topic row already has "
+            "(timestamp, batch_id, job_id, experience_name, build_version)",
+        ),
         (9, 7, "field 'true' in topic 'pose' is read by YAML as a boolean, not a string; quote it"),
     ]
 
 
 def test_topic_names_differing_only_in_case(tmp_path):
     assert one_error(tmp_path, "version: 1\ntopics:\n  speed: {schema: {}}\n  Speed: {schema: {}}\n") == (
-        4, 3, f"topic 'Speed' differs only in letter case from topic 'speed' ({tmp_path / 'config.resim.yaml'}:3:3); "
-              "SQL table names ignore case")
+        4,
+        3,
+        f"topic 'Speed' differs only in letter case from topic 'speed' ({tmp_path / 'config.resim.yaml'}:3:3); "
+        "SQL table names ignore case",
+    )
 
 
 METRIC_WITH_STATUS = """
@@ -288,17 +370,23 @@ METRIC_WITH_STATUS = """
 """
 
 
-@pytest.mark.parametrize(("query", "found"), [
-    ("SELECT 1 FROM t", 0),
-    ("SELECT 1 FROM t WHERE a > ? AND b < ?", 2),
-    ("SELECT '?' FROM t WHERE \"a?\" > 1 -- ?", 0),
-    ("SELECT 1 /* ? */ FROM t", 0),
-])
+@pytest.mark.parametrize(
+    ("query", "found"),
+    [
+        ("SELECT 1 FROM t", 0),
+        ("SELECT 1 FROM t WHERE a > ? AND b < ?", 2),
+        ("SELECT '?' FROM t WHERE \"a?\" > 1 -- ?", 0),
+        ("SELECT 1 /* ? */ FROM t", 0),
+    ],
+)
 def test_status_query_needs_exactly_one_placeholder(tmp_path, query, found):
     text = METRIC_WITH_STATUS.replace("{query}", yaml.safe_dump(query).splitlines()[0])
     assert one_error(tmp_path, text) == (
-        9, 21, f"status query_string of metric 'M' must have exactly one ? placeholder "
-               f"(replaced by the block and warn thresholds), found {found}")
+        9,
+        21,
+        f"status query_string of metric 'M' must have exactly one ? placeholder "
+        f"(replaced by the block and warn thresholds), found {found}",
+    )
 
 
 def test_status_query_with_one_placeholder_beside_quoted_ones_is_fine(tmp_path):
@@ -308,7 +396,7 @@ def test_status_query_with_one_placeholder_beside_quoted_ones_is_fine(tmp_path):
 
 
 def test_status_query_unterminated_literal(tmp_path):
-    text = METRIC_WITH_STATUS.replace("{query}", "\"SELECT 'abc FROM t WHERE x < ?\"")
+    text = METRIC_WITH_STATUS.replace("{query}", '"SELECT \'abc FROM t WHERE x < ?"')
     assert one_error(tmp_path, text) == (9, 21, "status query_string of metric 'M' has an unterminated string literal")
 
 
@@ -332,12 +420,17 @@ def test_status_without_block_or_warn(tmp_path):
 
 
 def test_description_is_optional(tmp_path):
-    text = METRIC_WITH_STATUS.replace("{query}", "SELECT 1 FROM t HAVING COUNT(*) < ?").replace("        description: d\n", "")
+    text = METRIC_WITH_STATUS.replace("{query}", "SELECT 1 FROM t HAVING COUNT(*) < ?").replace(
+        "        description: d\n", ""
+    )
     assert load_config(write(tmp_path, text)).metrics["M"].description == ""
 
 
 def test_metrics_set_may_list_dashboard_and_report_metrics(tmp_path):
-    config = load_config(write(tmp_path, """
+    config = load_config(
+        write(
+            tmp_path,
+            """
         version: 1
         metrics:
           A: {type: test, query_string: SELECT 1, template: scalar}
@@ -345,18 +438,25 @@ def test_metrics_set_may_list_dashboard_and_report_metrics(tmp_path):
           Weekly: {type: report, query_string: SELECT 1, template: table}
         metrics sets:
           S: {metrics: [A, Board, Weekly]}
-    """))
+    """,
+        )
+    )
     assert [m.type for m in config.metrics_in_set("S")] == ["test", "dashboard", "report"]
 
 
 def test_status_must_be_a_mapping_and_thresholds_scalars(tmp_path):
-    assert errors(write(tmp_path, """
+    assert errors(
+        write(
+            tmp_path,
+            """
         version: 1
         metrics:
           A: {type: test, description: d, query_string: SELECT 1, template: scalar, status: block}
           B: {type: test, description: d, query_string: SELECT 1, template: scalar,
               status: {query_string: 'SELECT ?', block: [1], warn: true}}
-    """)) == [
+    """,
+        )
+    ) == [
         (3, 85, "status of metric 'A' must be a mapping, got string 'block'"),
         (5, 49, "'block' in status of metric 'B' must be a number or a string, got a list"),
         (5, 60, "'warn' in status of metric 'B' must be a number or a string, got boolean true"),
@@ -364,7 +464,10 @@ def test_status_must_be_a_mapping_and_thresholds_scalars(tmp_path):
 
 
 def test_metrics_set_errors(tmp_path):
-    assert errors(write(tmp_path, """
+    assert errors(
+        write(
+            tmp_path,
+            """
         version: 1
         metrics:
           Robot Speed: {type: test, description: d, query_string: SELECT 1, template: line}
@@ -379,7 +482,9 @@ def test_metrics_set_errors(tmp_path):
               - Board
               - Weekly
               - Nothing Like It
-    """)) == [
+    """,
+        )
+    ) == [
         (9, 9, "metrics set 'S' names unknown metric 'Robot Sped' (did you mean 'Robot Speed'?)"),
         (11, 9, "duplicate metric 'Robot Speed' in metrics set 'S' (first at line 10, column 9)"),
         (14, 9, "metrics set 'S' names unknown metric 'Nothing Like It'"),
@@ -387,7 +492,10 @@ def test_metrics_set_errors(tmp_path):
 
 
 def test_missing_and_empty_query_string(tmp_path):
-    assert errors(write(tmp_path, """
+    assert errors(
+        write(
+            tmp_path,
+            """
         version: 1
         metrics:
           A:
@@ -395,14 +503,19 @@ def test_missing_and_empty_query_string(tmp_path):
             description: d
             template: line
           B: {type: test, description: d, query_string: "  ", template: line}
-    """)) == [
+    """,
+        )
+    ) == [
         (3, 3, "missing required key 'query_string' in metric 'A'"),
         (7, 49, "'query_string' in metric 'B' must not be empty"),
     ]
 
 
 def test_wrong_value_types(tmp_path):
-    assert errors(write(tmp_path, """
+    assert errors(
+        write(
+            tmp_path,
+            """
         version: 1
         topics:
           a:
@@ -420,11 +533,17 @@ def test_wrong_value_types(tmp_path):
             skip_if_no_data: "false"
         metrics sets:
           S: {metrics: Robot Speed}
-    """)) == [
+    """,
+        )
+    ) == [
         (4, 12, "'event' in topic 'a' must be a boolean (true or false), got string 'yes-please'"),
         (5, 13, "'schema' in topic 'a' must be a mapping of field names to types, got a list"),
         (6, 6, "topic 'b' must be a mapping, got string 'just a string'"),
-        (9, 11, "unknown type 'tset' in metric 'M' (did you mean 'test'?); expected one of test, batch, dashboard, report"),
+        (
+            9,
+            11,
+            "unknown type 'tset' in metric 'M' (did you mean 'test'?); expected one of test, batch, dashboard, report",
+        ),
         (10, 18, "'description' in metric 'M' must be a string, got integer 2024 (quote it)"),
         (13, 12, "'units' in metric 'M' must be a string, got a list"),
         (14, 24, "'template_settings' in metric 'M' must be a mapping, got a list"),
@@ -434,23 +553,35 @@ def test_wrong_value_types(tmp_path):
 
 
 def test_template_rules(tmp_path):
-    assert errors(write(tmp_path, """
+    assert errors(
+        write(
+            tmp_path,
+            """
         version: 1
         metrics:
           NoTemplate: {type: test, description: d, query_string: SELECT 1}
           NoFile: {type: test, description: d, query_string: SELECT 1, template_type: custom}
           FileWithSystem: {type: test, description: d, query_string: SELECT 1, template: line, template_file: t.json}
           BadKind: {type: test, description: d, query_string: SELECT 1, template_type: sytem}
-    """)) == [
+    """,
+        )
+    ) == [
         (3, 3, "missing key 'template' in metric 'NoTemplate', needed with template_type: system"),
         (4, 3, "missing key 'template_file' in metric 'NoFile', needed with template_type: custom"),
         (5, 103, "'template_file' in metric 'FileWithSystem' is not used with template_type: system"),
-        (6, 80, "unknown template_type 'sytem' in metric 'BadKind' (did you mean 'system'?); expected one of system, custom"),
+        (
+            6,
+            80,
+            "unknown template_type 'sytem' in metric 'BadKind' (did you mean 'system'?); expected one of system, custom",
+        ),
     ]
 
 
 def test_duplicate_keys_are_detected(tmp_path):
-    assert errors(write(tmp_path, """
+    assert errors(
+        write(
+            tmp_path,
+            """
         version: 1
         topics:
           t:
@@ -468,7 +599,9 @@ def test_duplicate_keys_are_detected(tmp_path):
           M:
             type: batch
         topics: {}
-    """)) == [
+    """,
+        )
+    ) == [
         (6, 7, "duplicate field 'x' in topic 't' (first at line 5, column 7)"),
         (12, 5, "duplicate key 'query_string' in metric 'M' (first at line 11, column 5)"),
         (14, 31, "duplicate key 'a' in template_settings of metric 'M' (first at line 14, column 25)"),
@@ -487,7 +620,10 @@ def test_invalid_yaml_reports_the_parser_position(tmp_path):
 
 
 def test_yaml_edge_cases(tmp_path):
-    assert errors(write(tmp_path, """
+    assert errors(
+        write(
+            tmp_path,
+            """
         version: 1
         topics:
           1: {schema: {}}
@@ -495,7 +631,9 @@ def test_yaml_edge_cases(tmp_path):
             <<: 5
             schema: {}
         dashboards: &d {loop: *d}
-    """)) == [
+    """,
+        )
+    ) == [
         (3, 3, "topic '1' is read by YAML as an integer, not a string; quote it"),
         (5, 9, "'<<' can only merge mappings, got integer 5"),
         (7, 13, "recursive alias in dashboards of the config file"),
@@ -505,7 +643,10 @@ def test_yaml_edge_cases(tmp_path):
 def test_yaml_1_2_scalars_stay_strings(tmp_path):
     """YAML 1.2 (ruamel.yaml, the library the dashboard edits configs with): `on`, `yes` and `1:30`
     are strings, as they come back from an edit; YAML 1.1 would read True, True and 90."""
-    config = load_config(write(tmp_path, """
+    config = load_config(
+        write(
+            tmp_path,
+            """
         version: 1
         topics:
           t: {schema: {on: string}}
@@ -517,7 +658,9 @@ def test_yaml_1_2_scalars_stay_strings(tmp_path):
             template: scalar
             units: on
             status: {query_string: "SELECT 1 WHERE ? = 'x'", block: 1:30, warn: yes}
-    """))
+    """,
+        )
+    )
     metric = config.metrics["M"]
     assert (metric.units, metric.status.block, metric.status.warn) == ("on", "1:30", "yes")
     assert list(config.topics["t"].fields) == ["on"]
@@ -525,7 +668,10 @@ def test_yaml_1_2_scalars_stay_strings(tmp_path):
 
 def test_file_level_problems(tmp_path):
     assert one_error(tmp_path, "# nothing here\n") == (
-        1, 1, "the file is empty; expected a mapping starting with 'version: 1'")
+        1,
+        1,
+        "the file is empty; expected a mapping starting with 'version: 1'",
+    )
     assert one_error(tmp_path, "- version: 1\n") == (1, 1, "the config file must be a mapping, got a list")
     missing = tmp_path / "missing.yaml"
     [(line, column, message)] = errors(missing)
@@ -536,7 +682,9 @@ def test_file_level_problems(tmp_path):
 
 
 def test_all_errors_are_reported_at_once(tmp_path):
-    path = write(tmp_path, """
+    path = write(
+        tmp_path,
+        """
         version: 1
         topics:
           a/b: {schema: {x: flaot}}
@@ -544,7 +692,8 @@ def test_all_errors_are_reported_at_once(tmp_path):
           M: {type: test, description: d, querystring: SELECT 1, template: line}
         metrics sets:
           S: {metrics: [Missing]}
-    """)
+    """,
+    )
     with pytest.raises(ConfigError) as caught:
         load_config(path)
     text = str(caught.value).splitlines()
@@ -557,18 +706,26 @@ def test_all_errors_are_reported_at_once(tmp_path):
 
 
 def test_merge_two_files(tmp_path):
-    topics = write(tmp_path, """
+    topics = write(
+        tmp_path,
+        """
         version: 1
         topics:
           speed: {schema: {v: float}}
-    """, "topics.resim.yaml")
-    metrics = write(tmp_path, """
+    """,
+        "topics.resim.yaml",
+    )
+    metrics = write(
+        tmp_path,
+        """
         version: 1
         metrics:
           Top Speed: {type: test, description: d, query_string: SELECT MAX(v) FROM speed, template: scalar}
         metrics sets:
           Fast: {metrics: [Top Speed]}
-    """, "metrics.resim.yaml")
+    """,
+        "metrics.resim.yaml",
+    )
     config = load_config([topics, str(metrics)])
     assert list(config.topics) == ["speed"] and list(config.metrics) == ["Top Speed"]
     assert config.paths == [str(topics), str(metrics)]
@@ -578,7 +735,9 @@ def test_merge_two_files(tmp_path):
 
 
 def test_merge_duplicates_name_both_files(tmp_path):
-    first = write(tmp_path, """
+    first = write(
+        tmp_path,
+        """
         version: 1
         topics:
           speed: {schema: {v: float}}
@@ -588,8 +747,12 @@ def test_merge_duplicates_name_both_files(tmp_path):
           S: {metrics: [M]}
         dashboards:
           D: {}
-    """, "a.resim.yaml")
-    second = write(tmp_path, """
+    """,
+        "a.resim.yaml",
+    )
+    second = write(
+        tmp_path,
+        """
         version: 1
         metrics sets:
           S: {metrics: []}
@@ -600,7 +763,9 @@ def test_merge_duplicates_name_both_files(tmp_path):
           SPEED: {schema: {v: int}}
         dashboards:
           D: {}
-    """, "b.resim.yaml")
+    """,
+        "b.resim.yaml",
+    )
     with pytest.raises(ConfigError) as caught:
         load_config([first, second])
     assert [str(p) for p in caught.value.problems] == [
@@ -665,8 +830,11 @@ AGREEMENT = [
     (True, "version: 1\ntopics: {t: {event: true, schema: {a: bigint, b: 'string[]'}}}\n"),
     (True, f"version: 1\nmetrics: {{M: {M}, status: {{query_string: 'SELECT ?', block: 1.5, warn: abc}}}}}}\n"),
     (True, f"version: 1\nmetrics: {{M: {M}, skip_if_no_data: true, template_settings: {{a: 1}}, units: s}}}}\n"),
-    (True, "version: 1\nmetrics: {M: {type: report, description: d, query_string: x, template_type: custom, "
-           "template_file: f.json}}\n"),
+    (
+        True,
+        "version: 1\nmetrics: {M: {type: report, description: d, query_string: x, template_type: custom, "
+        "template_file: f.json}}\n",
+    ),
     (True, "version: 1\ndashboards: {D: {any: [thing]}}\nglobal: {x: 1}\n"),
     (False, "topics: {}\n"),
     (False, "version: 2\n"),

@@ -1,4 +1,5 @@
 """The Emitter: line format, every validation rule, numpy inputs, threads, and the flush policy."""
+
 from __future__ import annotations
 
 import gc
@@ -81,13 +82,38 @@ def test_lines_are_the_documented_json(emitter: Emitter, out: Path):
 
 
 def test_every_field_type_serializes_like_json_dumps(out: Path, tmp_path: Path):
-    config = write_config(tmp_path / "c.yaml", {"all": {"schema": {
-        "i": "int", "f": "float", "b": "boolean", "s": "string", "st": "status", "im": "image", "v": "video",
-        "ss": "string[]", "m": "metric[]"}}})
-    data = {"i": -(2**63), "f": 1e-300, "b": False, "s": 'quote " backslash \\ newline \n é ✓', "st": "PASSED",
-            "im": "a.png", "v": "b.mp4", "ss": ["x", "ÿ"],
-            "m": [{"name": "n", "type": "scalar", "value": 2.5, "description": None},
-                  {"name": "p", "type": "plotly", "value": {"data": []}}]}
+    config = write_config(
+        tmp_path / "c.yaml",
+        {
+            "all": {
+                "schema": {
+                    "i": "int",
+                    "f": "float",
+                    "b": "boolean",
+                    "s": "string",
+                    "st": "status",
+                    "im": "image",
+                    "v": "video",
+                    "ss": "string[]",
+                    "m": "metric[]",
+                }
+            }
+        },
+    )
+    data = {
+        "i": -(2**63),
+        "f": 1e-300,
+        "b": False,
+        "s": 'quote " backslash \\ newline \n é ✓',
+        "st": "PASSED",
+        "im": "a.png",
+        "v": "b.mp4",
+        "ss": ["x", "ÿ"],
+        "m": [
+            {"name": "n", "type": "scalar", "value": 2.5, "description": None},
+            {"name": "p", "type": "plotly", "value": {"data": []}},
+        ],
+    }
     with Emitter(config, out) as em:
         em.emit("all", data, timestamp=2**63 - 1)
     expected = {"$metadata": {"topic": "all", "timestamp": 2**63 - 1}, "$data": data}
@@ -95,7 +121,7 @@ def test_every_field_type_serializes_like_json_dumps(out: Path, tmp_path: Path):
 
 
 def test_odd_topic_and_field_names_are_escaped(out: Path, tmp_path: Path):
-    topic, field = "it's \"odd\" é", "f'{x}\"\\"  # a topic name is a table folder: no braces or backslash
+    topic, field = 'it\'s "odd" é', "f'{x}\"\\"  # a topic name is a table folder: no braces or backslash
     config = write_config(tmp_path / "c.yaml", {topic: {"schema": {field: "string", "n": "float"}}})
     with Emitter(config, out) as em:
         em.emit(topic, {field: "{v}", "n": 1}, timestamp=3)
@@ -113,10 +139,44 @@ def test_output_is_appended_and_folders_created(out: Path):
 
 # Values tried against every field type: the Emitter must accept exactly what check_value accepts.
 VALUE_TABLE = [
-    0, 1, -7, 2**63 - 1, -(2**63), 2**63, 2**80, True, False, 0.0, -0.0, 1.5, 1e308, float("nan"), float("inf"),
-    -float("inf"), "", "text", "NaN", b"bytes", None, [], ["a", "b"], ["a", 1], ("a",), {"a": 1}, object(),
-    np.int8(3), np.int64(-4), np.uint64(2**64 - 1), np.float32(1.25), np.float64(2.5), np.float64("nan"),
-    np.float32("inf"), np.bool_(True), np.str_("np"), np.array(["a", "b"]), np.array([1.0, 2.0]),
+    0,
+    1,
+    -7,
+    2**63 - 1,
+    -(2**63),
+    2**63,
+    2**80,
+    True,
+    False,
+    0.0,
+    -0.0,
+    1.5,
+    1e308,
+    float("nan"),
+    float("inf"),
+    -float("inf"),
+    "",
+    "text",
+    "NaN",
+    b"bytes",
+    None,
+    [],
+    ["a", "b"],
+    ["a", 1],
+    ("a",),
+    {"a": 1},
+    object(),
+    np.int8(3),
+    np.int64(-4),
+    np.uint64(2**64 - 1),
+    np.float32(1.25),
+    np.float64(2.5),
+    np.float64("nan"),
+    np.float32("inf"),
+    np.bool_(True),
+    np.str_("np"),
+    np.array(["a", "b"]),
+    np.array([1.0, 2.0]),
     [{"name": "m", "type": "scalar", "value": 1.5}],
     [{"name": "m", "type": "text", "value": "ok", "description": "d", "status": "PASSED"}],
     [{"name": "m", "type": "image", "value": ["1.jpg", "2.jpg"]}],
@@ -130,7 +190,12 @@ VALUE_TABLE = [
     [{"name": "m", "type": "scalar", "value": np.float64(3.5)}],
     ["not a metric"],
     # text that is not valid Unicode (a lone surrogate) in every string position, and valid non-ASCII text
-    "\ud800", "a\udfffb", np.str_("\udc00"), "é ✓ \U0001F600", ["ok", "\ud800"], np.array(["ok", "\ud800"]),
+    "\ud800",
+    "a\udfffb",
+    np.str_("\udc00"),
+    "é ✓ \U0001f600",
+    ["ok", "\ud800"],
+    np.array(["ok", "\ud800"]),
     [{"name": "\ud800", "type": "scalar", "value": 1}],
     [{"name": "m", "type": "text", "value": "\udbff"}],
     [{"name": "m", "type": "scalar", "value": 1, "description": "\ud800"}],
@@ -258,7 +323,11 @@ def test_series_accepts_tuples_ranges_and_arrays(emitter: Emitter, out: Path):
     emitter.emit_series("robot_speed", {"speed": (0.5, 1.5)}, timestamps=range(10, 12))
     emitter.emit_series("robot_speed", {"speed": np.array([2.5])}, timestamps=np.array([12], dtype=np.uint64))
     emitter.close()
-    assert [(r["$metadata"]["timestamp"], r["$data"]["speed"]) for r in read_lines(out)] == [(10, 0.5), (11, 1.5), (12, 2.5)]
+    assert [(r["$metadata"]["timestamp"], r["$data"]["speed"]) for r in read_lines(out)] == [
+        (10, 0.5),
+        (11, 1.5),
+        (12, 2.5),
+    ]
 
 
 def test_series_of_unequal_length(emitter: Emitter, out: Path):
@@ -271,8 +340,13 @@ def test_series_of_unequal_length(emitter: Emitter, out: Path):
 
 
 def test_series_error_names_index_and_writes_nothing(emitter: Emitter, out: Path):
-    error = rejected(emitter, ODOM, {"x": [1.0, 2.0, 3.0], "y": [1.0, float("nan"), 1.0], "z": [0.0] * 3},
-                     [0, 1, 2], method="emit_series")
+    error = rejected(
+        emitter,
+        ODOM,
+        {"x": [1.0, 2.0, 3.0], "y": [1.0, float("nan"), 1.0], "z": [0.0] * 3},
+        [0, 1, 2],
+        method="emit_series",
+    )
     assert (error.topic, error.field, error.index) == (ODOM, "y", 1)
     assert str(error).startswith("topic 'odom_linear_velocity', field 'y', index 1: ")
     emitter.close()
@@ -322,19 +396,29 @@ def test_numpy_values(emitter: Emitter, out: Path):
     emitter.emit(ODOM, {"x": np.float64(0.1), "y": np.float32(0.5), "z": np.int16(2)}, np.int64(1))
     emitter.emit("covariance_accuracy", {"error_m": np.float64(0.2), "sigma_m": 0.3, "within_1_sigma": np.int64(1)}, 2)
     emitter.emit("goal_status", {"state": np.str_("REACHED")}, 3)
-    event = {**GOAL, "tags": np.array(["a", "b"]),
-             "metrics": [{"name": "s", "type": "scalar", "value": np.float64(2.5)},
-                         {"name": "i", "type": "image", "value": np.array(["1.png"])}]}
+    event = {
+        **GOAL,
+        "tags": np.array(["a", "b"]),
+        "metrics": [
+            {"name": "s", "type": "scalar", "value": np.float64(2.5)},
+            {"name": "i", "type": "image", "value": np.array(["1.png"])},
+        ],
+    }
     emitter.emit_event("goal_reached", event, 4)
-    emitter.emit_series(ODOM, {"x": np.arange(3, dtype=np.float32), "y": np.zeros(3), "z": np.arange(3)},
-                        timestamps=np.arange(5, 8))
+    emitter.emit_series(
+        ODOM, {"x": np.arange(3, dtype=np.float32), "y": np.zeros(3), "z": np.arange(3)}, timestamps=np.arange(5, 8)
+    )
     emitter.close()
     lines = read_lines(out)
     assert lines[0]["$data"] == {"x": 0.1, "y": 0.5, "z": 2.0}
     assert lines[1]["$data"]["within_1_sigma"] == 1 and lines[2]["$data"] == {"state": "REACHED"}
     assert lines[3]["$data"]["tags"] == ["a", "b"]
     assert [m["value"] for m in lines[3]["$data"]["metrics"]] == [2.5, ["1.png"]]
-    assert [(line["$metadata"]["timestamp"], line["$data"]["z"]) for line in lines[4:]] == [(5, 0.0), (6, 1.0), (7, 2.0)]
+    assert [(line["$metadata"]["timestamp"], line["$data"]["z"]) for line in lines[4:]] == [
+        (5, 0.0),
+        (6, 1.0),
+        (7, 2.0),
+    ]
 
 
 def test_numpy_bool_is_boolean_only(emitter: Emitter, tmp_path: Path, out: Path):
@@ -449,6 +533,7 @@ def test_garbage_collected_emitter_flushes_and_stops_its_thread(out: Path):
 def test_threads_share_one_emitter_without_loss_or_interleaving(out: Path):
     threads, per_thread = 8, 50_000
     with Emitter(FIXTURE_CONFIG, out, flush_interval=0.01) as em:
+
         def work(k: int) -> None:
             for i in range(per_thread):
                 em.emit("goal_distance", {"goal_name": f"thread-{k}", "distance_m": float(i)}, i)
@@ -483,7 +568,9 @@ def test_sigkill_loses_at_most_the_last_flush_interval(out: Path):
         em.emit("robot_speed", {"speed": 2.0}, 1000)  # may be lost: within the last interval
         time.sleep(3600)
         """,
-        str(FIXTURE_CONFIG), str(out), stdout=subprocess.PIPE,
+        str(FIXTURE_CONFIG),
+        str(out),
+        stdout=subprocess.PIPE,
     )
     try:
         assert child.stdout.readline() == "slept\n"
@@ -512,7 +599,8 @@ def test_interpreter_exit_flushes_without_close(out: Path):
         dropped.emit("robot_speed", {"speed": 1.0}, 0)
         del dropped  # garbage-collected before exit
         """,
-        str(FIXTURE_CONFIG), str(out),
+        str(FIXTURE_CONFIG),
+        str(out),
     )
     assert child.wait(timeout=60) == 0
     assert len(read_lines(out)) == 100
@@ -550,18 +638,24 @@ def test_lone_surrogate_is_refused_at_emit_in_every_string_position(out: Path, t
     """UTF-8, and so Parquet, cannot store a lone surrogate: ingest would refuse the line (and the job)."""
     metric = {"name": "m", "type": "text", "value": "v"}
     with Emitter(FIXTURE_CONFIG, out) as em:
-        for field, value in [("name", LONE), ("description", "x" + LONE), ("tags", ["ok", LONE]),
-                             ("metrics", [{**metric, "value": LONE}]), ("metrics", [{**metric, "name": LONE}])]:
+        for field, value in [
+            ("name", LONE),
+            ("description", "x" + LONE),
+            ("tags", ["ok", LONE]),
+            ("metrics", [{**metric, "value": LONE}]),
+            ("metrics", [{**metric, "name": LONE}]),
+        ]:
             error = rejected(em, "goal_reached", {**GOAL, field: value}, 1, method="emit_event")
             assert f"field {field!r}" in str(error) and "lone surrogate" in str(error)
-        error = rejected(em, "goal_distance", {"goal_name": ["a", LONE], "distance_m": [1.0, 2.0]}, [1, 2],
-                         method="emit_series")
+        error = rejected(
+            em, "goal_distance", {"goal_name": ["a", LONE], "distance_m": [1.0, 2.0]}, [1, 2], method="emit_series"
+        )
         assert "index 1" in str(error) and "lone surrogate" in str(error)
     with Emitter(output_path=out) as em:  # without a config: topic names, field names, nested values
         for topic, data in [(LONE, {"a": 1}), ("t", {LONE: 1}), ("t", {"a": {"b": [LONE]}}), ("t", {"a": LONE})]:
             assert "Unicode" in str(rejected(em, topic, data, 1))
-        em.emit("t", {"a": "\U0001F600 é"}, 1)  # written as the JSON escapes of a surrogate *pair*: valid
-    assert [line["$data"]["a"] for line in read_lines(out)] == ["\U0001F600 é"]
+        em.emit("t", {"a": "\U0001f600 é"}, 1)  # written as the JSON escapes of a surrogate *pair*: valid
+    assert [line["$data"]["a"] for line in read_lines(out)] == ["\U0001f600 é"]
 
 
 def test_what_the_emitter_accepts_ingests(out: Path, tmp_path: Path):
@@ -572,7 +666,7 @@ def test_what_the_emitter_accepts_ingests(out: Path, tmp_path: Path):
     config = write_config(tmp_path / "c.yaml", {f"t{i}": {"schema": {"v": t}} for i, t in enumerate(FIELD_TYPES)})
     written = 0
     with Emitter(config, out) as em:
-        for i, field_type in enumerate(FIELD_TYPES):
+        for i, _field_type in enumerate(FIELD_TYPES):
             for value in VALUE_TABLE:
                 try:
                     em.emit(f"t{i}", {"v": value}, timestamp=1)
@@ -661,8 +755,9 @@ def tiny_disk(tmp_path: Path):
     mount_point = tmp_path / "tiny"
     mount_point.mkdir()
     try:
-        done = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(mount_point)],
-                              capture_output=True, timeout=10)
+        done = subprocess.run(
+            ["mount", "-t", "tmpfs", "-o", "size=64k", "tmpfs", str(mount_point)], capture_output=True, timeout=10
+        )
     except (OSError, subprocess.SubprocessError):
         pytest.skip("mount is not available")
     if done.returncode != 0:
@@ -679,8 +774,11 @@ def test_full_disk_leaves_only_whole_lines_and_keeps_the_rest_queued(tiny_disk: 
     out = tiny_disk / "emissions.resim.jsonl"
     em = Emitter(FIXTURE_CONFIG, out, flush_interval=3600)
     count = 450  # about 43 KB: more than the free space, less than the disk
-    em.emit_series("goal_distance", {"goal_name": [f"goal-{i:04}" for i in range(count)],
-                                     "distance_m": [float(i) for i in range(count)]}, list(range(count)))
+    em.emit_series(
+        "goal_distance",
+        {"goal_name": [f"goal-{i:04}" for i in range(count)], "distance_m": [float(i) for i in range(count)]},
+        list(range(count)),
+    )
     with pytest.raises(OSError, match="No space left on device") as info:
         em.flush()
     text = out.read_bytes()

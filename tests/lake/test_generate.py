@@ -1,4 +1,5 @@
 """The fixture generator: deterministic files, the promised job outcomes, metadata and images."""
+
 from __future__ import annotations
 
 import json
@@ -19,9 +20,24 @@ from lakegate.lake.config import load_config
 
 CONFIG = load_config([Path(__file__).resolve().parents[2] / "fixtures" / "config.resim.yaml"])
 METADATA_COLUMNS = [
-    "org_id", "project_id", "branch_name", "build_id", "build_name", "build_version", "build_creation_timestamp",
-    "experience_id", "experience_name", "experience_tag_ids", "experience_tag_names", "test_suite_id",
-    "test_suite_name", "test_suite_revision", "job_status", "custom_field_keys", "custom_field_values", "time",
+    "org_id",
+    "project_id",
+    "branch_name",
+    "build_id",
+    "build_name",
+    "build_version",
+    "build_creation_timestamp",
+    "experience_id",
+    "experience_name",
+    "experience_tag_ids",
+    "experience_tag_names",
+    "test_suite_id",
+    "test_suite_name",
+    "test_suite_revision",
+    "job_status",
+    "custom_field_keys",
+    "custom_field_values",
+    "time",
 ]
 
 
@@ -156,8 +172,21 @@ def test_samples_per_goal_scales_the_rows(tmp_path: Path):
 
 def test_command_line(tmp_path: Path):
     result = subprocess.run(
-        [sys.executable, "-m", "lakegate.fixtures.generate", str(tmp_path), "--jobs", "2", "--seed", "3",
-         "--samples-per-goal", "5"], capture_output=True, text=True, timeout=120,
+        [
+            sys.executable,
+            "-m",
+            "lakegate.fixtures.generate",
+            str(tmp_path),
+            "--jobs",
+            "2",
+            "--seed",
+            "3",
+            "--samples-per-goal",
+            "5",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert result.returncode == 0, result.stderr
     lines = result.stdout.splitlines()
@@ -170,9 +199,9 @@ def decode_png(data: bytes) -> tuple[int, int]:
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
     pos, chunks = 8, {}
     while pos < len(data):
-        (length,) = struct.unpack(">I", data[pos:pos + 4])
-        kind, body = data[pos + 4:pos + 8], data[pos + 8:pos + 8 + length]
-        assert struct.unpack(">I", data[pos + 8 + length:pos + 12 + length])[0] == zlib.crc32(kind + body)
+        (length,) = struct.unpack(">I", data[pos : pos + 4])
+        kind, body = data[pos + 4 : pos + 8], data[pos + 8 : pos + 8 + length]
+        assert struct.unpack(">I", data[pos + 8 + length : pos + 12 + length])[0] == zlib.crc32(kind + body)
         chunks[kind] = body
         pos += 12 + length
     width, height, depth, color = struct.unpack(">IIBB", chunks[b"IHDR"][:10])
@@ -190,7 +219,7 @@ def gif_frames(data: bytes) -> int:
         if data[pos] == 0x21:  # extension: label, then sub-blocks
             pos += 2
         else:
-            assert data[pos] == 0x2C and struct.unpack("<HH", data[pos + 5:pos + 9]) == (width, height)
+            assert data[pos] == 0x2C and struct.unpack("<HH", data[pos + 5 : pos + 9]) == (width, height)
             frames += 1
             pos += 11  # descriptor (10) + LZW minimum code size (1)
         while data[pos]:

@@ -1,4 +1,5 @@
 """Ingestion: real emissions files -> real Parquet -> real DuckDB queries."""
+
 from __future__ import annotations
 
 import json
@@ -88,7 +89,13 @@ def bits(value):
 def test_round_trip_of_every_field_type_through_emitter_ingest_and_duckdb(tmp_path, config_path, config):
     emissions = tmp_path / "emissions.resim.jsonl"
     record = {
-        "i": -(2**63), "f": 3, "b": True, "s": 'ünï "q" \\ 🚀\n', "st": "PASSED", "im": "a.png", "vi": "v.mp4",
+        "i": -(2**63),
+        "f": 3,
+        "b": True,
+        "s": 'ünï "q" \\ 🚀\n',
+        "st": "PASSED",
+        "im": "a.png",
+        "vi": "v.mp4",
         "tags": ["a", "b"],
         "metrics": [
             {"name": "m", "type": "scalar", "value": 2.5},
@@ -104,12 +111,31 @@ def test_round_trip_of_every_field_type_through_emitter_ingest_and_duckdb(tmp_pa
         plain = {k: record[k] for k in ("i", "f", "b", "s", "tags")}
         emitter.emit("plain", plain, timestamp=5)
         emitter.emit("plain", {k: second[k] for k in ("i", "f", "b", "s", "tags")}, timestamp=6)
-        emitter.emit_event("goal_reached", {"name": "Goal 1", "description": "reached", "status": "PASSED",
-                                            "tags": ["nav"], "metrics": record["metrics"][:1]}, timestamp=7)
-        emitter.emit_series("odom", {"x": [0.1, 1e-300, 1.7976931348623157e308], "y": [1, 2, 3], "z": [0.5, 0.25, -4.0]},
-                            timestamps=[1, 2, 3])
-    report = ingest_job(tmp_path / "lake", "main", "b1", "j1", [emissions], config=config,
-                        metadata={"experience_name": "sunny", "build_version": "1.2.3"})
+        emitter.emit_event(
+            "goal_reached",
+            {
+                "name": "Goal 1",
+                "description": "reached",
+                "status": "PASSED",
+                "tags": ["nav"],
+                "metrics": record["metrics"][:1],
+            },
+            timestamp=7,
+        )
+        emitter.emit_series(
+            "odom",
+            {"x": [0.1, 1e-300, 1.7976931348623157e308], "y": [1, 2, 3], "z": [0.5, 0.25, -4.0]},
+            timestamps=[1, 2, 3],
+        )
+    report = ingest_job(
+        tmp_path / "lake",
+        "main",
+        "b1",
+        "j1",
+        [emissions],
+        config=config,
+        metadata={"experience_name": "sunny", "build_version": "1.2.3"},
+    )
     assert report.rows == {"odom": 3, "sample": 2, "plain": 2, "goal_reached": 1, "stop": 0, "never": 0}
     assert report.bad_lines == 0 and report.events == 1
     lake = tmp_path / "lake"
@@ -119,33 +145,67 @@ def test_round_trip_of_every_field_type_through_emitter_ingest_and_duckdb(tmp_pa
         {"name": "img", "description": None, "status": None, "type": "image", "value": '["1.png", "2.png"]'},
         {"name": "p", "description": None, "status": None, "type": "plotly", "value": '{"data": [], "layout": {}}'},
     ]
-    rows = query(lake, "SELECT timestamp, i, f, b, s, st, im, vi, tags, metrics, experience_name, build_version, batch_id, "
-                       "job_id FROM sample ORDER BY timestamp")
+    rows = query(
+        lake,
+        "SELECT timestamp, i, f, b, s, st, im, vi, tags, metrics, experience_name, build_version, batch_id, "
+        "job_id FROM sample ORDER BY timestamp",
+    )
     assert rows == [
-        (5, -(2**63), 3.0, True, 'ünï "q" \\ 🚀\n', "PASSED", "a.png", "v.mp4", ["a", "b"], expected_metrics,
-         "sunny", "1.2.3", "b1", "j1"),
+        (
+            5,
+            -(2**63),
+            3.0,
+            True,
+            'ünï "q" \\ 🚀\n',
+            "PASSED",
+            "a.png",
+            "v.mp4",
+            ["a", "b"],
+            expected_metrics,
+            "sunny",
+            "1.2.3",
+            "b1",
+            "j1",
+        ),
         (6, 2**63 - 1, -0.0, False, "", "PASSED", "a.png", "v.mp4", [], [], "sunny", "1.2.3", "b1", "j1"),
     ]
     assert bits(rows[1][2]) == bits(-0.0)
-    types = query(lake, "SELECT typeof(timestamp), typeof(i), typeof(f), typeof(b), typeof(s), typeof(st), typeof(tags), "
-                        "typeof(metrics), typeof(experience_name), typeof(batch_id) FROM sample LIMIT 1")[0]
+    types = query(
+        lake,
+        "SELECT typeof(timestamp), typeof(i), typeof(f), typeof(b), typeof(s), typeof(st), typeof(tags), "
+        "typeof(metrics), typeof(experience_name), typeof(batch_id) FROM sample LIMIT 1",
+    )[0]
     assert types[:7] == ("BIGINT", "BIGINT", "DOUBLE", "BOOLEAN", "VARCHAR", "VARCHAR", "VARCHAR[]")
-    assert types[7].replace('"', "") == "STRUCT(name VARCHAR, description VARCHAR, status VARCHAR, type VARCHAR, value VARCHAR)[]"
+    assert (
+        types[7].replace('"', "")
+        == "STRUCT(name VARCHAR, description VARCHAR, status VARCHAR, type VARCHAR, value VARCHAR)[]"
+    )
     assert types[8:] == ("VARCHAR", "VARCHAR")
     # the fast path (no metric[] field) gives exactly the same values and types
-    assert query(lake, "SELECT timestamp, i, f, b, s, tags FROM plain ORDER BY timestamp") == [r[:5] + (r[8],) for r in rows]
-    assert query(lake, "SELECT typeof(i), typeof(f), typeof(b), typeof(s), typeof(tags) FROM plain LIMIT 1")[0] == \
-        ("BIGINT", "DOUBLE", "BOOLEAN", "VARCHAR", "VARCHAR[]")
+    assert query(lake, "SELECT timestamp, i, f, b, s, tags FROM plain ORDER BY timestamp") == [
+        r[:5] + (r[8],) for r in rows
+    ]
+    assert query(lake, "SELECT typeof(i), typeof(f), typeof(b), typeof(s), typeof(tags) FROM plain LIMIT 1")[0] == (
+        "BIGINT",
+        "DOUBLE",
+        "BOOLEAN",
+        "VARCHAR",
+        "VARCHAR[]",
+    )
     floats = query(lake, "SELECT x, y FROM odom ORDER BY timestamp")
     assert floats == [(0.1, 1.0), (1e-300, 2.0), (1.7976931348623157e308, 3.0)]
-    events = query(lake, "SELECT timestamp, topic, name, description, status, tags, metrics, experience_name FROM events")
+    events = query(
+        lake, "SELECT timestamp, topic, name, description, status, tags, metrics, experience_name FROM events"
+    )
     assert events == [(7, "goal_reached", "Goal 1", "reached", "PASSED", ["nav"], expected_metrics[:1], "sunny")]
     metadata = query(lake, "SELECT batch_id, job_id, experience_name, build_version, job_status FROM metadata")
     assert metadata == [("b1", "j1", "sunny", "1.2.3", "SUCCEEDED")]
 
 
 def test_parquet_files_have_the_contract_columns_and_zstd(tmp_path, config):
-    emissions = write_lines(tmp_path / "e.jsonl", [odom(1), line("stop", 9, {"name": "halt", "speed": 0.5}, event=True)])
+    emissions = write_lines(
+        tmp_path / "e.jsonl", [odom(1), line("stop", 9, {"name": "halt", "speed": 0.5}, event=True)]
+    )
     ingest_job(tmp_path / "lake", "main", "b1", "j1", [emissions], config=config)
     topic_file = current_file(tmp_path / "lake", "main", "odom", "b1", "j1")
     schema = pq.read_schema(topic_file)
@@ -153,11 +213,21 @@ def test_parquet_files_have_the_contract_columns_and_zstd(tmp_path, config):
     assert str(schema.field("timestamp").type) == "int64"
     assert pq.ParquetFile(topic_file).metadata.row_group(0).column(1).compression == "ZSTD"
     events_file = current_file(tmp_path / "lake", "main", "events", "b1", "j1")
-    assert pq.read_schema(events_file).names == ["timestamp", "topic", "name", "description", "status", "tags", "metrics",
-                                                 "experience_name", "build_version"]
+    assert pq.read_schema(events_file).names == [
+        "timestamp",
+        "topic",
+        "name",
+        "description",
+        "status",
+        "tags",
+        "metrics",
+        "experience_name",
+        "build_version",
+    ]
     # an event topic without description/status/tags/metrics fields leaves them NULL in events
-    assert query(tmp_path / "lake", "SELECT topic, name, description, tags, metrics FROM events") == \
-        [("stop", "halt", None, None, None)]
+    assert query(tmp_path / "lake", "SELECT topic, name, description, tags, metrics FROM events") == [
+        ("stop", "halt", None, None, None)
+    ]
     assert query(tmp_path / "lake", "SELECT name, speed FROM stop") == [("halt", 0.5)]
 
 
@@ -171,41 +241,90 @@ BAD = [
     ('{"$metadata": {"topic": "odom", "timestamp": 1}}', "missing $data"),
     (line("odometry", 1, {"x": 1.0, "y": 2.0, "z": 3.0}), "unknown topic 'odometry' (did you mean 'odom'?)"),
     (line("odom", 1, {"x": "1.5", "y": 2.0, "z": 3.0}), "topic 'odom', field 'x': expected float, got str"),
-    (line("plain", 1, {"i": 1.0, "f": 1.0, "b": True, "s": "", "tags": []}), "topic 'plain', field 'i': expected int, got float"),
+    (
+        line("plain", 1, {"i": 1.0, "f": 1.0, "b": True, "s": "", "tags": []}),
+        "topic 'plain', field 'i': expected int, got float",
+    ),
     (line("plain", 1, {"i": 1, "f": 1.0, "b": 1, "s": "", "tags": []}), "field 'b': expected boolean, got int"),
-    (line("plain", 1, {"i": 1, "f": 1.0, "b": True, "s": "", "tags": ["a", 2]}), "field 'tags': expected a list of strings"),
+    (
+        line("plain", 1, {"i": 1, "f": 1.0, "b": True, "s": "", "tags": ["a", 2]}),
+        "field 'tags': expected a list of strings",
+    ),
     (line("plain", 1, {"i": 2**63, "f": 1.0, "b": True, "s": "", "tags": []}), "int out of the 64-bit range"),
     (line("odom", 1, {"x": 1.0, "y": 2.0}), "topic 'odom': missing field 'z'"),
     (line("odom", 1, {"x": 1.0, "y": 2.0, "z": 3.0, "w": 4.0}), "topic 'odom': unexpected field 'w'"),
     # every problem of a line, each unexpected field with the likeliest missing one
-    (line("odom", 1, {"x": "1", "y": 2.0, "zz": 3.0, "w": 4.0}),
-     "topic 'odom': missing field 'z'; unexpected field 'zz' (did you mean 'z'?); unexpected field 'w'; "
-     "field 'x': expected float, got str"),
+    (
+        line("odom", 1, {"x": "1", "y": 2.0, "zz": 3.0, "w": 4.0}),
+        "topic 'odom': missing field 'z'; unexpected field 'zz' (did you mean 'z'?); unexpected field 'w'; "
+        "field 'x': expected float, got str",
+    ),
     (line("odom", -1, {"x": 1.0, "y": 2.0, "z": 3.0}), "bad timestamp: expected an integer number of nanoseconds"),
     (line("odom", 1.5, {"x": 1.0, "y": 2.0, "z": 3.0}), "bad timestamp"),
     (line("odom", "5", {"x": 1.0, "y": 2.0, "z": 3.0}), "bad timestamp"),
-    ('{"$metadata": {"topic": "odom"}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0}}', "bad timestamp: $metadata has no timestamp"),
-    ('{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": NaN, "y": 2.0, "z": 3.0}}', "NaN is not valid JSON"),
-    ('{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": 1e400, "y": 2.0, "z": 3.0}}', "expected a finite float, got inf"),
+    (
+        '{"$metadata": {"topic": "odom"}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0}}',
+        "bad timestamp: $metadata has no timestamp",
+    ),
+    (
+        '{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": NaN, "y": 2.0, "z": 3.0}}',
+        "NaN is not valid JSON",
+    ),
+    (
+        '{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": 1e400, "y": 2.0, "z": 3.0}}',
+        "expected a finite float, got inf",
+    ),
     ('{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0,}}', "bad JSON"),
-    ('{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": 1.0, "x": 2.0, "y": 2.0, "z": 3.0}}', "duplicate key 'x'"),
+    (
+        '{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": 1.0, "x": 2.0, "y": 2.0, "z": 3.0}}',
+        "duplicate key 'x'",
+    ),
     (line("odom", 1, {"x": 1.0, "y": 2.0, "z": 3.0}, event=True), "topic 'odom' is not an event topic"),
     (line("plain", 1, {"i": 1, "f": 1.0, "b": True, "s": "\ud800", "tags": []}), "lone surrogate"),
-    ('{"$metadata": {"topic": "odom", "timestamp": 1, "colour": "red"}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0}}',
-     "unexpected key 'colour' in $metadata"),
-    ('{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0}, "extra": 1}',
-     "unexpected key 'extra'"),
+    (
+        '{"$metadata": {"topic": "odom", "timestamp": 1, "colour": "red"}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0}}',
+        "unexpected key 'colour' in $metadata",
+    ),
+    (
+        '{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0}, "extra": 1}',
+        "unexpected key 'extra'",
+    ),
     ('{"$metadata": {"topic": "odom", "timestamp": 007}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0}}', "bad JSON"),
-    ('{"$metadata": {"topic": "odom", "timestamp": 9223372036854775808}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0}}',
-     "bad timestamp"),
-    ('{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0} {"x": 1.0}}', "bad JSON"),
-    ('{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0}, "w": {}}',
-     "unexpected key 'w'"),
+    (
+        '{"$metadata": {"topic": "odom", "timestamp": 9223372036854775808}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0}}',
+        "bad timestamp",
+    ),
+    (
+        '{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0} {"x": 1.0}}',
+        "bad JSON",
+    ),
+    (
+        '{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0}, "w": {}}',
+        "unexpected key 'w'",
+    ),
     ('{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0}}}', "bad JSON"),
-    ('{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": 1.0, "y": 2.0, "z": "}\\n{\\"x\\": 1"}}',
-     "field 'z': expected float"),
-    (line("sample", 1, {"i": 1, "f": 1.0, "b": True, "s": "", "st": "", "im": "", "vi": "", "tags": [],
-                        "metrics": [{"name": "m", "type": "chart", "value": 1}]}), "field 'metrics': metric 0: type must be one of"),
+    (
+        '{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": 1.0, "y": 2.0, "z": "}\\n{\\"x\\": 1"}}',
+        "field 'z': expected float",
+    ),
+    (
+        line(
+            "sample",
+            1,
+            {
+                "i": 1,
+                "f": 1.0,
+                "b": True,
+                "s": "",
+                "st": "",
+                "im": "",
+                "vi": "",
+                "tags": [],
+                "metrics": [{"name": "m", "type": "chart", "value": 1}],
+            },
+        ),
+        "field 'metrics': metric 0: type must be one of",
+    ),
 ]
 
 
@@ -215,7 +334,10 @@ def bad_file(tmp_path):
     for number, (text, reason) in enumerate(BAD):
         texts += [odom(number), text]
         expected.append((2 * number + 2, reason))
-    data = "".join(t + "\n" for t in texts).encode() + b'{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": "\xff"}}\n'
+    data = (
+        "".join(t + "\n" for t in texts).encode()
+        + b'{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": "\xff"}}\n'
+    )
     expected.append((len(texts) + 1, "invalid UTF-8 at byte"))
     data += (odom(99) + "\n").encode() + b'{"$metadata": {"topic": "odom", "times'
     expected.append((len(texts) + 3, "truncated last line (no newline at the end of the file): bad JSON"))
@@ -272,10 +394,16 @@ def test_skip_bad_lines_keeps_good_rows_and_quarantines_the_rest(tmp_path, confi
 
 def test_many_blocks_many_files_and_long_lines_keep_line_numbers(tmp_path, config, monkeypatch):
     monkeypatch.setattr(scan, "BLOCK_SIZE", 700)  # a few lines per block; some lines are longer than a block
-    long_tags = ["tag%d" % i for i in range(200)]
-    first = write_lines(tmp_path / "a.jsonl", [odom(i) for i in range(40)] + [line("odom", 1, {"x": 1})] +
-                        [line("plain", i, {"i": i, "f": 0.5, "b": False, "s": "x" * 1500, "tags": long_tags}) for i in range(5)])
-    second = write_lines(tmp_path / "b.jsonl", [odom(i) for i in range(30)] + ['{"broken'] + [odom(i) for i in range(3)])
+    long_tags = [f"tag{i}" for i in range(200)]
+    first = write_lines(
+        tmp_path / "a.jsonl",
+        [odom(i) for i in range(40)]
+        + [line("odom", 1, {"x": 1})]
+        + [line("plain", i, {"i": i, "f": 0.5, "b": False, "s": "x" * 1500, "tags": long_tags}) for i in range(5)],
+    )
+    second = write_lines(
+        tmp_path / "b.jsonl", [odom(i) for i in range(30)] + ['{"broken'] + [odom(i) for i in range(3)]
+    )
     with pytest.raises(IngestError) as caught:
         ingest_job(tmp_path / "lake", "main", "b1", "j1", [first, second], config=config)
     assert [(Path(p.path).name, p.line) for p in caught.value.problems] == [("a.jsonl", 41), ("b.jsonl", 31)]
@@ -304,32 +432,116 @@ def test_other_json_layouts_blank_lines_and_crlf_are_read_the_same(tmp_path, con
     report = ingest_job(tmp_path / "lake", "main", "b1", "j1", [path], config=config)
     assert report.bad_lines == 0 and report.rows["odom"] == 6 and report.rows["stop"] == 1
     assert query(tmp_path / "lake", "SELECT timestamp, x, y, z FROM odom ORDER BY timestamp") == [
-        (1, 1.0, 2.5, -300.0), (2, 2.0, 1.0, 0.0), (3, 3.0, 3.0, 3.0), (4, 4.0, 4.0, 4.0), (5, 5.0, 5.0, 5.0), (6, 6.0, 6.0, 6.0)]
+        (1, 1.0, 2.5, -300.0),
+        (2, 2.0, 1.0, 0.0),
+        (3, 3.0, 3.0, 3.0),
+        (4, 4.0, 4.0, 4.0),
+        (5, 5.0, 5.0, 5.0),
+        (6, 6.0, 6.0, 6.0),
+    ]
 
 
 # -- the fast path and check_value agree ----------------------------------------------------
 
 VALUES = {
-    "int": ["0", "-0", "1", "-1", "9223372036854775807", "-9223372036854775808", "9223372036854775808",
-            "-9223372036854775809", "1.0", "1e3", "1E2", "1.5", "true", "false", "null", '"1"', "[1]", '{"a": 1}',
-            "NaN", "Infinity", "00", "-", "+1"],
-    "float": ["0", "1", "-1", "0.1", "-0.0", "1e308", "1e309", "-1e309", "1e-400", "4.9e-324", "2.2250738585072014e-308",
-              "123456789012345678901234567890", "9007199254740993", "0.30000000000000004", "1.7976931348623157e308",
-              "1.5e+10", "1E-5", "true", "null", '"1.5"', "NaN", "-Infinity", "[1.0]", ".5", "1.", "01.5"],
+    "int": [
+        "0",
+        "-0",
+        "1",
+        "-1",
+        "9223372036854775807",
+        "-9223372036854775808",
+        "9223372036854775808",
+        "-9223372036854775809",
+        "1.0",
+        "1e3",
+        "1E2",
+        "1.5",
+        "true",
+        "false",
+        "null",
+        '"1"',
+        "[1]",
+        '{"a": 1}',
+        "NaN",
+        "Infinity",
+        "00",
+        "-",
+        "+1",
+    ],
+    "float": [
+        "0",
+        "1",
+        "-1",
+        "0.1",
+        "-0.0",
+        "1e308",
+        "1e309",
+        "-1e309",
+        "1e-400",
+        "4.9e-324",
+        "2.2250738585072014e-308",
+        "123456789012345678901234567890",
+        "9007199254740993",
+        "0.30000000000000004",
+        "1.7976931348623157e308",
+        "1.5e+10",
+        "1E-5",
+        "true",
+        "null",
+        '"1.5"',
+        "NaN",
+        "-Infinity",
+        "[1.0]",
+        ".5",
+        "1.",
+        "01.5",
+    ],
     "boolean": ["true", "false", "0", "1", '"true"', "null", "[true]", "True"],
-    "string": ['""', '"x"', '"\u00fcn\u00ef"', '"\\u00fc"', '"\\ud83d\\ude80"', '"\\ud800"', '"a\\"b"', '"tab\\t"',
-               '"\\u0000"', "5", "true", "null", '["x"]', '{"a": "b"}', '"raw\ttab"', '"\\x"', "'single'"],
+    "string": [
+        '""',
+        '"x"',
+        '"\u00fcn\u00ef"',
+        '"\\u00fc"',
+        '"\\ud83d\\ude80"',
+        '"\\ud800"',
+        '"a\\"b"',
+        '"tab\\t"',
+        '"\\u0000"',
+        "5",
+        "true",
+        "null",
+        '["x"]',
+        '{"a": "b"}',
+        '"raw\ttab"',
+        '"\\x"',
+        "'single'",
+    ],
     "status": ['"PASSED"', "1", "null"],
     "image": ['"a.png"', "[]"],
-    "string[]": ["[]", '["a"]', '["a", "b"]', "[1]", '["a", null]', "null", '"a"', '[["a"]]', "[true]", '["\\ud800"]',
-                 '["a",]', "[ ]"],
+    "string[]": [
+        "[]",
+        '["a"]',
+        '["a", "b"]',
+        "[1]",
+        '["a", null]',
+        "null",
+        '"a"',
+        '[["a"]]',
+        "[true]",
+        '["\\ud800"]',
+        '["a",]',
+        "[ ]",
+    ],
 }
 
 
 def expected_decision(field_type, literal):
     """What the rules say: standard JSON only, then check_value, then what Parquet can hold."""
+
     def refuse(token):
         raise ValueError(token)
+
     try:
         value = json.loads(literal, parse_constant=refuse)
         stored = check_value(field_type, value)
@@ -360,16 +572,19 @@ def fast_paths(plans, raw):
 def test_fast_path_and_exact_checks_agree_on_a_table_of_values(tmp_path):
     names = {t: "t_" + t.replace("[]", "_list") for t in VALUES}
     config_path = tmp_path / "c.yaml"
-    config_path.write_text("version: 1\ntopics:\n" + "".join(
-        f"  {names[t]}:\n    schema: {{v: {json.dumps(t)}}}\n" for t in VALUES))
+    config_path.write_text(
+        "version: 1\ntopics:\n" + "".join(f"  {names[t]}:\n    schema: {{v: {json.dumps(t)}}}\n" for t in VALUES)
+    )
     config = load_config(config_path)
     cases = [(t, literal) for t, literals in VALUES.items() for literal in literals]
-    texts = ['{"$metadata": {"topic": "%s", "timestamp": %d}, "$data": {"v": %s}}' % (names[t], n, literal)
-             for n, (t, literal) in enumerate(cases)]
+    texts = [
+        f'{{"$metadata": {{"topic": "{names[t]}", "timestamp": {n}}}, "$data": {{"v": {literal}}}}}'
+        for n, (t, literal) in enumerate(cases)
+    ]
     path = tmp_path / "cases.jsonl"
     path.write_bytes("".join(t + "\n" for t in texts).encode("utf-8", "surrogatepass"))
     plans = scan.topic_plans(config)
-    for n, ((field_type, literal), text) in enumerate(zip(cases, texts)):
+    for (field_type, literal), text in zip(cases, texts):
         accept, stored = expected_decision(field_type, literal)
         raw = text.encode("utf-8", "surrogatepass")
         # the exact check
@@ -394,8 +609,11 @@ def test_fast_path_and_exact_checks_agree_on_a_table_of_values(tmp_path):
     assert report.bad_lines == len(cases) - len(accepted)
     for field_type in VALUES:
         rows = query(tmp_path / "lake", f"SELECT timestamp, v FROM {names[field_type]} ORDER BY timestamp")
-        want = [(n, expected_decision(t, lit)[1]) for n, (t, lit) in enumerate(cases)
-                if t == field_type and (t, lit) in accepted]
+        want = [
+            (n, expected_decision(t, lit)[1])
+            for n, (t, lit) in enumerate(cases)
+            if t == field_type and (t, lit) in accepted
+        ]
         assert [r[0] for r in rows] == [w[0] for w in want]
         for (_, got), (_, value) in zip(rows, want):
             assert got == value and (field_type != "float" or bits(got) == bits(value))
@@ -407,7 +625,9 @@ def test_fast_path_and_exact_checks_agree_on_a_table_of_values(tmp_path):
 
 def test_reingesting_a_job_replaces_it_and_never_duplicates(tmp_path, config):
     lake = tmp_path / "lake"
-    both = write_lines(tmp_path / "both.jsonl", [odom(i) for i in range(5)] + [line("stop", 1, {"name": "x", "speed": 1.0}, True)])
+    both = write_lines(
+        tmp_path / "both.jsonl", [odom(i) for i in range(5)] + [line("stop", 1, {"name": "x", "speed": 1.0}, True)]
+    )
     for _ in range(2):
         ingest_job(lake, "main", "b1", "j1", [both], config=config)
         assert count(lake, "odom") == 5 and count(lake, "stop") == 1 and count(lake, "events") == 1
@@ -432,7 +652,14 @@ def test_names_the_lake_cannot_hold_are_refused_before_anything_is_written(tmp_p
         ingest_job(tmp_path / "lake", "main", "b", "j", [emissions], config=clash)
     for name in ("metadata", "events", "_configs", "a*b"):
         with pytest.raises(paths.LakePathError, match="topic name"):
-            ingest_job(tmp_path / "lake", "main", "b", "j", [emissions], config=Config(topics={name: Topic(name, {"x": "int"})}))
+            ingest_job(
+                tmp_path / "lake",
+                "main",
+                "b",
+                "j",
+                [emissions],
+                config=Config(topics={name: Topic(name, {"x": "int"})}),
+            )
     with pytest.raises(IngestError, match="does not exist"):
         ingest_job(tmp_path / "lake", "main", "b", "j", [tmp_path / "missing.jsonl"], config=config)
     assert not (tmp_path / "lake").exists() or not list((tmp_path / "lake").glob("*/*/batch_id=*"))
@@ -518,12 +745,15 @@ def test_kill_9_during_ingest_leaves_nothing_partial_and_a_rerun_succeeds(tmp_pa
 
 def test_deeply_nested_line_is_a_bad_line_not_a_crash(tmp_path, config):
     """100k `[` used to raise RecursionError out of ingest, even with skip_bad_lines."""
-    deep = line("plain", 2, {"i": 1, "f": 1.0, "b": True, "s": "x", "tags": []}).replace('"tags": []', '"tags": ' + "[" * 100_000)
+    deep = line("plain", 2, {"i": 1, "f": 1.0, "b": True, "s": "x", "tags": []}).replace(
+        '"tags": []', '"tags": ' + "[" * 100_000
+    )
     path = write_lines(tmp_path / "deep.jsonl", [odom(1), deep, odom(3)])
     with pytest.raises(IngestError) as caught:
         ingest_job(tmp_path / "lake", "main", "b1", "j1", [path], config=config)
     assert [(p.line, p.reason) for p in caught.value.problems] == [
-        (2, "nested too deep: more than 256 levels of arrays and objects, the limit of an emissions line")]
+        (2, "nested too deep: more than 256 levels of arrays and objects, the limit of an emissions line")
+    ]
     report = ingest_job(tmp_path / "lake", "main", "b1", "j1", [path], config=config, skip_bad_lines=True)
     assert report.rows["odom"] == 2 and report.bad_lines == 1
 
@@ -534,8 +764,13 @@ def test_emitter_and_ingest_agree_on_the_depth_limit(tmp_path, config_path, conf
     figure: dict = {}
     for _ in range(depth - 1):
         figure = {"a": figure}
-    record = {"name": "g", "description": "d", "status": "PASSED", "tags": [],
-              "metrics": [{"name": "m", "type": "plotly", "value": figure}]}
+    record = {
+        "name": "g",
+        "description": "d",
+        "status": "PASSED",
+        "tags": [],
+        "metrics": [{"name": "m", "type": "plotly", "value": figure}],
+    }
     raw = line("goal_reached", 1, record, event=True).encode()
     with Emitter(config_path, tmp_path / "emissions.jsonl") as em:
         if depth == 252:
@@ -562,5 +797,6 @@ def test_overlong_lines_are_refused_without_being_held_whole(tmp_path, config, m
     assert [(p.line, p.reason) for p in report.problems] == [
         (2, f"line too long: {len(long_in_a_block):,} bytes, more than the limit of 150 bytes of an emissions line"),
         (4, f"line too long: {len(across_blocks):,} bytes, more than the limit of 150 bytes of an emissions line"),
-        (6, f"line too long: {len(across_blocks):,} bytes, more than the limit of 150 bytes of an emissions line")]
+        (6, f"line too long: {len(across_blocks):,} bytes, more than the limit of 150 bytes of an emissions line"),
+    ]
     assert [x for (x,) in query(tmp_path / "lake", "SELECT x FROM odom")] == [1.5, 3.5, 5.5]

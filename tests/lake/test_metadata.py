@@ -1,4 +1,5 @@
 """The metadata table: the metadata file, defaults and generated ids, atomic row updates."""
+
 from __future__ import annotations
 
 import datetime as dt
@@ -11,8 +12,14 @@ import pytest
 
 from lakegate.lake import paths
 from lakegate.lake.metadata import (
-    COLUMN_NAMES, FILE_SCHEMA, MetadataError, build_metadata_row, load_metadata_file, read_metadata_row,
-    update_metadata_row, write_metadata_row,
+    COLUMN_NAMES,
+    FILE_SCHEMA,
+    MetadataError,
+    build_metadata_row,
+    load_metadata_file,
+    read_metadata_row,
+    update_metadata_row,
+    write_metadata_row,
 )
 from lakegate.lake.record import current_file
 
@@ -22,8 +29,16 @@ def row_for(tmp_path, values, **kw):
 
 
 def test_defaults_and_generated_ids(tmp_path):
-    row = row_for(tmp_path, {"experience_name": "sunny", "build_name": "nav", "build_version": "1.2",
-                             "experience_tag_names": ["rain", "night"], "test_suite_name": "nightly"})
+    row = row_for(
+        tmp_path,
+        {
+            "experience_name": "sunny",
+            "build_name": "nav",
+            "build_version": "1.2",
+            "experience_tag_names": ["rain", "night"],
+            "test_suite_name": "nightly",
+        },
+    )
     assert list(row) == list(COLUMN_NAMES)
     assert row["batch_id"] == "b1" and row["job_id"] == "j1"
     assert row["branch_name"] == "main"
@@ -35,8 +50,16 @@ def test_defaults_and_generated_ids(tmp_path):
         assert uuid.UUID(row[column])
     assert len(row["experience_tag_ids"]) == 2 and all(uuid.UUID(i) for i in row["experience_tag_ids"])
     # ids derived from names are deterministic: re-ingesting a job keeps them
-    again = row_for(tmp_path, {"experience_name": "sunny", "build_name": "nav", "build_version": "1.2",
-                               "experience_tag_names": ["night", "rain"], "test_suite_name": "nightly"})
+    again = row_for(
+        tmp_path,
+        {
+            "experience_name": "sunny",
+            "build_name": "nav",
+            "build_version": "1.2",
+            "experience_tag_names": ["night", "rain"],
+            "test_suite_name": "nightly",
+        },
+    )
     for column in ("org_id", "project_id", "branch_id", "build_id", "experience_id", "test_suite_id"):
         assert again[column] == row[column]
     assert again["experience_tag_ids"] == row["experience_tag_ids"][::-1]
@@ -53,16 +76,29 @@ def test_ids_without_names_are_random(tmp_path):
 
 def test_failed_job_is_conflated_error_unless_given(tmp_path):
     assert row_for(tmp_path, {"job_status": "FAILED"})["job_conflated_status"] == "ERROR"
-    assert row_for(tmp_path, {"job_status": "FAILED", "job_conflated_status": "BLOCKER"})["job_conflated_status"] == "BLOCKER"
+    assert (
+        row_for(tmp_path, {"job_status": "FAILED", "job_conflated_status": "BLOCKER"})["job_conflated_status"]
+        == "BLOCKER"
+    )
 
 
 def test_given_values_win_and_are_checked(tmp_path):
-    row = row_for(tmp_path, {"org_id": "resim.ai", "experience_id": "e-1", "branch_name": "release",
-                             "time": "2025-01-31T12:00:00.123456+01:00", "test_suite_revision": 7})
+    row = row_for(
+        tmp_path,
+        {
+            "org_id": "resim.ai",
+            "experience_id": "e-1",
+            "branch_name": "release",
+            "time": "2025-01-31T12:00:00.123456+01:00",
+            "test_suite_revision": 7,
+        },
+    )
     assert row["org_id"] == "resim.ai" and row["experience_id"] == "e-1" and row["branch_name"] == "release"
     assert row["time"] == dt.datetime(2025, 1, 31, 11, 0, 0, 123000)  # UTC, milliseconds
     assert row["test_suite_revision"] == 7
-    with pytest.raises(MetadataError, match="unknown metadata column 'experiance_name'.*did you mean 'experience_name'"):
+    with pytest.raises(
+        MetadataError, match="unknown metadata column 'experiance_name'.*did you mean 'experience_name'"
+    ):
         row_for(tmp_path, {"experiance_name": "x"})
     with pytest.raises(MetadataError, match="test_suite_revision.*expected an integer"):
         row_for(tmp_path, {"test_suite_revision": "7"})
@@ -76,7 +112,7 @@ def test_metadata_file(tmp_path):
     path = tmp_path / "job.yaml"
     path.write_text(
         "experience_name: Sunny day\n"
-        "build_version: 1.10\n"            # a YAML float: kept as written
+        "build_version: 1.10\n"  # a YAML float: kept as written
         "experience_tag_names: [my_tag, my_prefix_a]\n"
         "build_creation_timestamp: 2025-01-02 03:04:05\n"
         "time: '2025-01-02T03:04:05.678Z'\n"
@@ -87,25 +123,43 @@ def test_metadata_file(tmp_path):
     )
     values = load_metadata_file(path)
     assert values == {
-        "experience_name": "Sunny day", "build_version": "1.10", "experience_tag_names": ["my_tag", "my_prefix_a"],
-        "build_creation_timestamp": dt.datetime(2025, 1, 2, 3, 4, 5), "time": dt.datetime(2025, 1, 2, 3, 4, 5, 678000),
-        "test_suite_revision": 3, "custom_field_keys": ["robot"], "custom_field_values": ["r2"], "job_metrics_status": None,
+        "experience_name": "Sunny day",
+        "build_version": "1.10",
+        "experience_tag_names": ["my_tag", "my_prefix_a"],
+        "build_creation_timestamp": dt.datetime(2025, 1, 2, 3, 4, 5),
+        "time": dt.datetime(2025, 1, 2, 3, 4, 5, 678000),
+        "test_suite_revision": 3,
+        "custom_field_keys": ["robot"],
+        "custom_field_values": ["r2"],
+        "job_metrics_status": None,
     }
     empty = tmp_path / "empty.yaml"
     empty.write_text("# nothing\n")
     assert load_metadata_file(empty) == {}
 
 
-@pytest.mark.parametrize("text, expected", [
-    ("experiance_name: x\n", "job.yaml:1:1: unknown metadata column 'experiance_name' (did you mean 'experience_name'?)"),
-    ("experience_name: x\nbuild_name: [a]\n", "job.yaml:2:13: build_name: expected a single value, got a list"),
-    ("test_suite_revision: three\n", "job.yaml:1:22: test_suite_revision: expected an integer, got string 'three'"),
-    ("time: yesterday\n", "job.yaml:1:7: time: expected an ISO 8601 timestamp like 2025-01-31T12:00:00Z, got 'yesterday'"),
-    ("experience_tag_names: rain\n", "job.yaml:1:23: experience_tag_names: expected a list of strings, got string 'rain'"),
-    ("- a\n- b\n", "job.yaml:1:1: expected a mapping of metadata columns to values, got a list"),
-    ("experience_name: a\nexperience_name: b\n", "job.yaml:2:1: duplicate metadata column 'experience_name'"),
-    ("experience_name: [\n", "job.yaml:2:1: invalid YAML"),
-])
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        (
+            "experiance_name: x\n",
+            "job.yaml:1:1: unknown metadata column 'experiance_name' (did you mean 'experience_name'?)",
+        ),
+        ("experience_name: x\nbuild_name: [a]\n", "job.yaml:2:13: build_name: expected a single value, got a list"),
+        ("test_suite_revision: three\n", "job.yaml:1:22: test_suite_revision: expected an integer, got string 'three'"),
+        (
+            "time: yesterday\n",
+            "job.yaml:1:7: time: expected an ISO 8601 timestamp like 2025-01-31T12:00:00Z, got 'yesterday'",
+        ),
+        (
+            "experience_tag_names: rain\n",
+            "job.yaml:1:23: experience_tag_names: expected a list of strings, got string 'rain'",
+        ),
+        ("- a\n- b\n", "job.yaml:1:1: expected a mapping of metadata columns to values, got a list"),
+        ("experience_name: a\nexperience_name: b\n", "job.yaml:2:1: duplicate metadata column 'experience_name'"),
+        ("experience_name: [\n", "job.yaml:2:1: invalid YAML"),
+    ],
+)
 def test_metadata_file_errors_say_where(tmp_path, text, expected):
     path = tmp_path / "job.yaml"
     path.write_text(text)
@@ -127,12 +181,16 @@ def test_write_read_and_update_a_row_atomically(tmp_path):
     target = write_metadata_row(tmp_path, "main", "b1", "j1", row)
     assert target == current_file(tmp_path, "main", "metadata", "b1", "j1")
     assert read_metadata_row(tmp_path, "main", "b1", "j1") == row
-    updated = update_metadata_row(tmp_path, "main", "b1", "j1", job_metrics_status="PASSED", job_conflated_status="PASSED")
+    updated = update_metadata_row(
+        tmp_path, "main", "b1", "j1", job_metrics_status="PASSED", job_conflated_status="PASSED"
+    )
     assert updated["job_metrics_status"] == "PASSED" and updated["experience_name"] == "sunny"
     con = duckdb.connect()
     glob = paths.table_glob(tmp_path, "main", "metadata")
-    got = con.execute(f"SELECT job_id, job_conflated_status, typeof(experience_tag_names) "
-                      f"FROM read_parquet('{glob}', hive_partitioning = true)").fetchall()
+    got = con.execute(
+        f"SELECT job_id, job_conflated_status, typeof(experience_tag_names) "
+        f"FROM read_parquet('{glob}', hive_partitioning = true)"
+    ).fetchall()
     assert got == [("j1", "PASSED", "VARCHAR[]")]
     assert not target.exists()  # superseded by the update
     stored = pq.read_schema(current_file(tmp_path, "main", "metadata", "b1", "j1"))

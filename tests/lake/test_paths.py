@@ -1,4 +1,5 @@
 """Lake layout: branch-name encoding, id checks, atomic publish, staging and locks."""
+
 from __future__ import annotations
 
 import os
@@ -14,9 +15,36 @@ import pytest
 from lakegate.lake import paths
 
 HOSTILE = [
-    "main", "feature/x", "feature/x/y", "..", ".", "...", ".hidden", "_staging", "_configs", "a b", "ünïcödé/枝",
-    "a%2Fb", "%", "a=b", "*", "a?b", "[x]", "{a,b}", "back\\slash", "quote'\"", "tab\tnew\nline", "emoji 🚀",
-    "-dash", "UPPER", "x" * 70, "nul\x00byte", "C:\\path", "~user", "$HOME", "a;rm -rf /",
+    "main",
+    "feature/x",
+    "feature/x/y",
+    "..",
+    ".",
+    "...",
+    ".hidden",
+    "_staging",
+    "_configs",
+    "a b",
+    "ünïcödé/枝",
+    "a%2Fb",
+    "%",
+    "a=b",
+    "*",
+    "a?b",
+    "[x]",
+    "{a,b}",
+    "back\\slash",
+    "quote'\"",
+    "tab\tnew\nline",
+    "emoji 🚀",
+    "-dash",
+    "UPPER",
+    "x" * 70,
+    "nul\x00byte",
+    "C:\\path",
+    "~user",
+    "$HOME",
+    "a;rm -rf /",
 ]
 
 
@@ -51,25 +79,46 @@ def test_branch_name_errors():
         paths.encode_branch("é" * 200)
 
 
-@pytest.mark.parametrize("value, fragment", [
-    ("", "non-empty"), (".", "not allowed"), ("..", "not allowed"), ("a/b", "'/'"), ("a*", "glob character '\\*'"),
-    ("a?", "glob"), ("[a]", "glob"), ("{a}", "glob"), ("a=b", "'='"), ("a%20b", "'%'"), ("a\\b", "'\\\\'"),
-    ("a\nb", "control character"), ("__HIVE_DEFAULT_PARTITION__", "reserved"),
-])
+@pytest.mark.parametrize(
+    "value, fragment",
+    [
+        ("", "non-empty"),
+        (".", "not allowed"),
+        ("..", "not allowed"),
+        ("a/b", "'/'"),
+        ("a*", "glob character '\\*'"),
+        ("a?", "glob"),
+        ("[a]", "glob"),
+        ("{a}", "glob"),
+        ("a=b", "'='"),
+        ("a%20b", "'%'"),
+        ("a\\b", "'\\\\'"),
+        ("a\nb", "control character"),
+        ("__HIVE_DEFAULT_PARTITION__", "reserved"),
+    ],
+)
 def test_bad_ids_are_refused_with_a_clear_message(value, fragment):
     with pytest.raises(paths.LakePathError, match=fragment) as caught:
         paths.check_segment(value, "batch id")
     assert "batch id" in str(caught.value)
 
 
-@pytest.mark.parametrize("value", ["b1", "0f8c2a1e-1111-4c4c-9d9d-123456789abc", "it's", "a b", "ünï", "007", "NULL", "x:y"])
+@pytest.mark.parametrize(
+    "value", ["b1", "0f8c2a1e-1111-4c4c-9d9d-123456789abc", "it's", "a b", "ünï", "007", "NULL", "x:y"]
+)
 def test_ids_that_are_allowed_read_back_exactly_as_hive_partitions(value, tmp_path):
     target = paths.new_data_file(tmp_path, "main", "t", value, value)
     target.parent.mkdir(parents=True)
     pq.write_table(pa.table({"v": [1]}), target)
     glob = paths.table_glob(tmp_path, "main", "t").replace("'", "''")
-    row = duckdb.connect().execute(f"SELECT batch_id, job_id FROM read_parquet('{glob}', hive_partitioning = true, "
-                                   "hive_types = {'batch_id': VARCHAR, 'job_id': VARCHAR})").fetchone()
+    row = (
+        duckdb.connect()
+        .execute(
+            f"SELECT batch_id, job_id FROM read_parquet('{glob}', hive_partitioning = true, "
+            "hive_types = {'batch_id': VARCHAR, 'job_id': VARCHAR})"
+        )
+        .fetchone()
+    )
     assert row == (value, value)
 
 
@@ -85,9 +134,13 @@ def test_layout(tmp_path):
     assert fresh.parent == tmp_path / "feature%2Fx" / "odom" / "batch_id=b1" / "job_id=j1"
     assert fresh.name.startswith(f"{os.getpid()}-") and fresh.suffix == ".parquet"
     assert fresh != paths.new_data_file(tmp_path, "feature/x", "odom", "b1", "j1")  # never overwrites a file
-    assert paths.new_data_file(tmp_path, "main", "metric_results", "b1", None).parent == \
-        tmp_path / "main" / "metric_results" / "batch_id=b1"
-    assert paths.table_glob(tmp_path, "main", "odom") == str(tmp_path / "main" / "odom" / "batch_id=*" / "job_id=*" / "*.parquet")
+    assert (
+        paths.new_data_file(tmp_path, "main", "metric_results", "b1", None).parent
+        == tmp_path / "main" / "metric_results" / "batch_id=b1"
+    )
+    assert paths.table_glob(tmp_path, "main", "odom") == str(
+        tmp_path / "main" / "odom" / "batch_id=*" / "job_id=*" / "*.parquet"
+    )
     assert paths.quarantine_file(tmp_path, "main", "b1", "j1") == tmp_path / "main" / "_quarantine" / "b1" / "j1.jsonl"
 
 
@@ -132,10 +185,18 @@ def test_job_lock_serialises_writers_of_one_job(tmp_path):
     try:
         assert holder.stdout.readline().strip() == "locked"
         waiter = subprocess.run(
-            [sys.executable, "-c", "import sys, time; from pathlib import Path; from lakegate.lake import paths\n"
-             "start = time.monotonic()\n"
-             "with paths.job_lock(Path(sys.argv[1]), 'main', 'b', 'j'): print(time.monotonic() - start)",
-             str(tmp_path)], capture_output=True, text=True, check=True)
+            [
+                sys.executable,
+                "-c",
+                "import sys, time; from pathlib import Path; from lakegate.lake import paths\n"
+                "start = time.monotonic()\n"
+                "with paths.job_lock(Path(sys.argv[1]), 'main', 'b', 'j'): print(time.monotonic() - start)",
+                str(tmp_path),
+            ],
+            capture_output=True,
+            text=True,
+            check=True,
+        )
         assert float(waiter.stdout) > 0.3  # it had to wait for the holder
     finally:
         holder.wait()

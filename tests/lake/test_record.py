@@ -1,5 +1,6 @@
 """The branch's file record: a job's tables switch together, a killed `lakegate ingest` leaves the old
 version whole, and a lake written before the record is migrated when first opened."""
+
 from __future__ import annotations
 
 import json
@@ -36,8 +37,10 @@ def line(topic: str, timestamp: int, data: dict) -> str:
 
 def emissions(root: Path, name: str, odom: int, goals: int) -> Path:
     path = root / f"{name}.jsonl"
-    path.write_text("".join(line("odom", i, {"x": float(i)}) for i in range(odom)) +
-                    "".join(line("goal", 100 + i, {"name": f"g{i}"}) for i in range(goals)))
+    path.write_text(
+        "".join(line("odom", i, {"x": float(i)}) for i in range(odom))
+        + "".join(line("goal", 100 + i, {"name": f"g{i}"}) for i in range(goals))
+    )
     return path
 
 
@@ -45,16 +48,39 @@ def ingest_cli(root: Path, lake: Path, source: Path, token: str, env: dict | Non
     """A real `lakegate ingest` of job b1/j1, its experience name `token` (in every table's rows)."""
     config = root / "config.resim.yaml"
     config.write_text(CONFIG)
-    return subprocess.Popen([*CLI, "ingest", "--lake", str(lake), "--branch", "main", "--batch", "b1", "--job", "j1",
-                             "--metrics-config-path", str(config), "--experience-name", token, str(source)],
-                            env={**os.environ, **(env or {})}, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    return subprocess.Popen(
+        [
+            *CLI,
+            "ingest",
+            "--lake",
+            str(lake),
+            "--branch",
+            "main",
+            "--batch",
+            "b1",
+            "--job",
+            "j1",
+            "--metrics-config-path",
+            str(config),
+            "--experience-name",
+            token,
+            str(source),
+        ],
+        env={**os.environ, **(env or {})},
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
 
 
 def state(lake: Path) -> dict[str, tuple]:
     """Per table of job b1/j1 as lakegate reads it: (rows, the experience names in its rows)."""
     con = Catalog(lake).connect("main")
-    return {table: con.execute(f"SELECT count(*), list(DISTINCT experience_name ORDER BY experience_name) "
-                               f"FROM {table}").fetchone() for table in ("odom", "goal", "metadata")}
+    return {
+        table: con.execute(
+            f"SELECT count(*), list(DISTINCT experience_name ORDER BY experience_name) FROM {table}"
+        ).fetchone()
+        for table in ("odom", "goal", "metadata")
+    }
 
 
 @pytest.mark.parametrize("point", ["added", "commit"])
@@ -65,8 +91,9 @@ def test_kill_9_between_publishing_and_commit_leaves_the_old_version_whole(tmp_p
     before = state(lake)
     assert before == {"odom": (3, ["old"]), "goal": (2, ["old"]), "metadata": (1, ["old"])}
     marker = tmp_path / "paused"
-    killed = ingest_cli(tmp_path, lake, emissions(tmp_path, "new", odom=5, goals=0), "new",
-                        env={PAUSE_ENV: f"{point}:{marker}"})
+    killed = ingest_cli(
+        tmp_path, lake, emissions(tmp_path, "new", odom=5, goals=0), "new", env={PAUSE_ENV: f"{point}:{marker}"}
+    )
     try:
         deadline = time.monotonic() + 60
         while not marker.exists() and killed.poll() is None and time.monotonic() < deadline:
@@ -99,8 +126,12 @@ def test_the_record_keeps_rows_timestamps_and_columns(tmp_path):
     assert (odom.rows, odom.min_ts, odom.max_ts) == (4, 0, 3)
     assert odom.columns == ("timestamp", "x", "experience_name", "build_version")
     assert sorted(e.table for e in snapshot.files) == ["goal", "metadata", "odom"]
-    assert {t.name: t.row_count for t in Catalog(lake).tables("main")} == \
-        {"odom": 4, "goal": 1, "events": 0, "metadata": 1}
+    assert {t.name: t.row_count for t in Catalog(lake).tables("main")} == {
+        "odom": 4,
+        "goal": 1,
+        "events": 0,
+        "metadata": 1,
+    }
 
 
 def test_a_lake_written_before_the_record_is_migrated_when_first_opened(tmp_path):
@@ -126,8 +157,9 @@ def test_files_no_record_row_holds_are_invisible_to_lakegate(tmp_path):
     process = ingest_cli(tmp_path, lake, emissions(tmp_path, "e", odom=3, goals=1), "x")
     assert process.wait(60) == 0, process.stderr.read()
     stray = paths.partition_dir(lake, "main", "odom", "b1", "j1") / "1-stray.parquet"
-    pq.write_table(pa.table({"timestamp": [9], "x": [9.0], "experience_name": ["stray"], "build_version": [None]}),
-                   stray)
+    pq.write_table(
+        pa.table({"timestamp": [9], "x": [9.0], "experience_name": ["stray"], "build_version": [None]}), stray
+    )
     assert state(lake)["odom"] == (3, ["x"])
     glob = str(lake / "main" / "odom" / "*" / "*" / "*.parquet")
     assert duckdb.connect().execute(f"SELECT count(*) FROM '{glob}'").fetchone() == (4,)  # what a glob would see

@@ -1,4 +1,5 @@
 """Per-branch config versions."""
+
 from __future__ import annotations
 
 import subprocess
@@ -12,8 +13,10 @@ from lakegate.lake.registry import BranchConfigs
 
 ODOM = "version: 1\ntopics:\n  odom:\n    schema: {x: float}\n"
 ODOM_Z = "version: 1\ntopics:\n  odom:\n    schema: {x: float, z: float}\n"
-METRICS = ("version: 1\nmetrics:\n  Count:\n    type: test\n    description: rows\n    query_string: SELECT COUNT(*) FROM odom\n"
-           "    template_type: system\n    template: scalar\n")
+METRICS = (
+    "version: 1\nmetrics:\n  Count:\n    type: test\n    description: rows\n    query_string: SELECT COUNT(*) FROM odom\n"
+    "    template_type: system\n    template: scalar\n"
+)
 
 
 def write(tmp_path, name, text):
@@ -59,10 +62,12 @@ def test_several_files_are_merged_in_order(tmp_path):
 
 def test_a_config_built_in_code_is_stored_as_its_topics(tmp_path):
     configs = BranchConfigs(tmp_path / "lake", "main")
-    config = Config(topics={
-        "odom": Topic("odom", {"x": "float", "n": "int"}),
-        "goal reached": Topic("goal reached", {"tags": "string[]", "metrics": "metric[]"}, event=True),
-    })
+    config = Config(
+        topics={
+            "odom": Topic("odom", {"x": "float", "n": "int"}),
+            "goal reached": Topic("goal reached", {"tags": "string[]", "metrics": "metric[]"}, event=True),
+        }
+    )
     version = configs.store_config(config)
     loaded = configs.load(version)
     assert {name: (t.fields, t.event) for name, t in loaded.topics.items()} == {
@@ -74,11 +79,17 @@ def test_a_config_built_in_code_is_stored_as_its_topics(tmp_path):
 
 def test_concurrent_stores_never_share_a_number(tmp_path):
     lake = tmp_path / "lake"
-    sources = [write(tmp_path, f"c{i}.yaml", f"version: 1\ntopics:\n  t{i}:\n    schema: {{x: int}}\n") for i in range(6)]
-    script = ("import sys; from lakegate.lake.registry import BranchConfigs\n"
-              "print(BranchConfigs(sys.argv[1], 'main').store([sys.argv[2]]))")
-    procs = [subprocess.Popen([sys.executable, "-c", script, str(lake), str(s)], stdout=subprocess.PIPE, text=True)
-             for s in sources]
+    sources = [
+        write(tmp_path, f"c{i}.yaml", f"version: 1\ntopics:\n  t{i}:\n    schema: {{x: int}}\n") for i in range(6)
+    ]
+    script = (
+        "import sys; from lakegate.lake.registry import BranchConfigs\n"
+        "print(BranchConfigs(sys.argv[1], 'main').store([sys.argv[2]]))"
+    )
+    procs = [
+        subprocess.Popen([sys.executable, "-c", script, str(lake), str(s)], stdout=subprocess.PIPE, text=True)
+        for s in sources
+    ]
     numbers = sorted(int(p.communicate()[0]) for p in procs)
     assert numbers == [1, 2, 3, 4, 5, 6]
     configs = BranchConfigs(lake, "main")

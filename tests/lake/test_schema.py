@@ -1,5 +1,6 @@
 """lake.schema: the one description of every lake table, checked against what ingest writes and
 what DuckDB reads back from real Parquet."""
+
 from __future__ import annotations
 
 import json
@@ -13,8 +14,7 @@ from lakegate.lake import paths
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.record import Record
-from lakegate.lake.schema import (ARROW_TYPES, EVENTS_COLUMNS, METADATA_COLUMNS, duckdb_type, file_schema,
-                                  topic_columns)
+from lakegate.lake.schema import ARROW_TYPES, EVENTS_COLUMNS, METADATA_COLUMNS, duckdb_type, file_schema, topic_columns
 from lakegate.lake.types import FIELD_TYPES, trino_type
 
 CONFIG = """\
@@ -38,8 +38,17 @@ def _line(topic, timestamp, data, event=False):
 def lake(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("schema")
     (tmp / "config.yaml").write_text(CONFIG)
-    every = {"n": 1, "f": 2.5, "b": True, "s": "a", "st": "PASSED", "i": "x.png", "v": "x.mp4", "tags": ["t"],
-             "m": METRICS}
+    every = {
+        "n": 1,
+        "f": 2.5,
+        "b": True,
+        "s": "a",
+        "st": "PASSED",
+        "i": "x.png",
+        "v": "x.mp4",
+        "tags": ["t"],
+        "m": METRICS,
+    }
     goal = {"name": "g", "status": "PASSED", "tags": ["t"], "metrics": METRICS}
     (tmp / "e.jsonl").write_text(_line("every", 1, every) + _line("goal", 2, goal, event=True))
     config = load_config(tmp / "config.yaml")
@@ -59,8 +68,12 @@ def test_every_field_type_has_an_arrow_type():
 
 def test_ingest_writes_the_schema_of_each_table(lake):
     lake, config = lake
-    expected = {"every": topic_columns(config.topics["every"]), "goal": topic_columns(config.topics["goal"]),
-                paths.EVENTS_TABLE: EVENTS_COLUMNS, paths.METADATA_TABLE: METADATA_COLUMNS}
+    expected = {
+        "every": topic_columns(config.topics["every"]),
+        "goal": topic_columns(config.topics["goal"]),
+        paths.EVENTS_TABLE: EVENTS_COLUMNS,
+        paths.METADATA_TABLE: METADATA_COLUMNS,
+    }
     for table, columns in expected.items():
         written = _written(lake, table)
         assert written.remove_metadata() == file_schema(table, columns), table

@@ -12,6 +12,7 @@ Trino semantics (trinodb/trino): `repeat(element, count)` refuses a count above 
 `query.max-length` fails with QUERY_TEXT_TOO_LARGE and one past `query.max-execution-time` with
 EXCEEDED_TIME_LIMIT (`docs/src/main/sphinx/admin/properties-query-management.rst`).
 """
+
 from __future__ import annotations
 
 import resource
@@ -58,8 +59,20 @@ def _capped() -> None:
 def server(tmp_path):
     """One `lakegate serve` with small limits under the address-space cap: (process, URL, lake)."""
     lake = build_server_lake(tmp_path)
-    command = [*CLI, "serve", "--lake", str(lake), "--port", "0", "--memory-limit", f"{MEMORY_LIMIT_MB}MB",
-               "--query-timeout", str(QUERY_TIMEOUT), "--threads", "2"]
+    command = [
+        *CLI,
+        "serve",
+        "--lake",
+        str(lake),
+        "--port",
+        "0",
+        "--memory-limit",
+        f"{MEMORY_LIMIT_MB}MB",
+        "--query-timeout",
+        str(QUERY_TIMEOUT),
+        "--threads",
+        "2",
+    ]
     with open(tmp_path / "stderr.log", "w") as stderr:
         process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=stderr, text=True, preexec_fn=_capped)
     line = Output(process).wait_for(" at ", 60)
@@ -97,8 +110,9 @@ def test_hostile_load_leaves_the_server_healthy(server):
     assert _refusal(url, b"SELECT 1", lake) == "FINISHED"  # warm: what follows measures the load, not the start
     with ThreadPoolExecutor(len(HOSTILE)) as pool:
         names = list(pool.map(lambda case: _refusal(url, case[0], lake), HOSTILE))
-    assert [name in expected for name, (_, expected) in zip(names, HOSTILE)] == [True] * len(HOSTILE), \
-        list(zip(names, [body[:40] for body, _ in HOSTILE]))
+    assert [name in expected for name, (_, expected) in zip(names, HOSTILE)] == [True] * len(HOSTILE), list(
+        zip(names, [body[:40] for body, _ in HOSTILE])
+    )
 
     started = time.monotonic()
     document = requests.post(f"{url}/v1/statement", data=b"SELECT 1", headers=HEADERS, timeout=5).json()

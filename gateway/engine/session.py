@@ -103,13 +103,40 @@ def from_headers(headers: Mapping[str, str], user: str | None = None) -> Session
     )
 
 
+#: Names of the zone UTC (IANA aliases and zero offsets), upper-cased: the one session zone lakegate answers in.
+UTC_NAMES = frozenset(
+    {
+        "UTC",
+        "Z",
+        "UCT",
+        "GMT",
+        "ZULU",
+        "UNIVERSAL",
+        "GREENWICH",
+        "ETC/UTC",
+        "ETC/UCT",
+        "ETC/GMT",
+        "ETC/ZULU",
+        "ETC/UNIVERSAL",
+        "ETC/GREENWICH",
+        "ETC/GMT+0",
+        "ETC/GMT-0",
+        "ETC/GMT0",
+        "GMT0",
+        "+00:00",
+        "-00:00",
+    }
+)
+
+
 def check_properties(session: Session) -> None:
     """Refuse session properties lakegate does not know (as Trino refuses unknown ones), and a session
     time zone other than UTC (zone-dependent functions and casts are evaluated in UTC)."""
-    if session.time_zone is not None and session.time_zone.strip().upper() not in ("UTC", "Z", "ETC/UTC", "+00:00"):
+    if session.time_zone is not None and session.time_zone.strip().upper() not in UTC_NAMES:
         raise DialectError(
             f"unsupported in lakegate: session time zone '{session.time_zone}' (X-Trino-Time-Zone); "
-            "lakegate evaluates time zone dependent functions and casts in UTC only",
+            "lakegate evaluates time zone dependent functions and casts in UTC only: connect with the "
+            "time zone UTC (trino.dbapi.connect(..., timezone='UTC'))",
             error_name="NOT_SUPPORTED",
         )
     for name in session.properties:

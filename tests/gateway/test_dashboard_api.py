@@ -294,7 +294,7 @@ def test_export_loads_back_with_order_and_comments_kept(served, nav_jobs, tmp_pa
     status, _, raw = _request(served, "GET", f"api/sessions/{session.id}/export")
     assert status == 200
     archive = zipfile.ZipFile(io.BytesIO(raw))
-    assert archive.namelist() == ["config.resim.yaml"]
+    assert archive.namelist() == ["config.resim.yaml", "templates/goal_times.liquid"]  # the custom template too
     exported = tmp_path / "exported" / "config.resim.yaml"
     exported.parent.mkdir()
     exported.write_bytes(archive.read("config.resim.yaml"))

@@ -14,8 +14,8 @@ import json
 
 import pytest
 import trino
+from functions_doc import load_cases
 
-from lakegate.dialect.docs import load_cases
 from lakegate.gateway.cli.main import main
 
 #: What both sides must answer alike beyond the conformance cases: the lake's names, as Trino shows them.

@@ -32,10 +32,10 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from lakegate.gateway.cli.errors import UserError, port_number
+from lakegate.gateway.cli.errors import UserError, existing_configs, port_number
 from lakegate.gateway.server.auth import is_loopback
 from lakegate.lake import paths
-from lakegate.lake.config import Config, ConfigError, find_default_config, load_config
+from lakegate.lake.config import Config, ConfigError, load_config
 from lakegate.lake.ingest import IngestError, ingest_job
 from lakegate.lake.metadata import MetadataError, load_metadata_file
 from lakegate.lake.paths import LakePathError
@@ -116,19 +116,6 @@ def _one_line(error: ConfigError) -> str:
     more = len(error.problems) - 1
     extra = f" (and {more} more problem{'s' if more > 1 else ''}; see 'lakegate config check')" if more else ""
     return f"invalid config: {error.problems[0]}{extra}"
-
-
-def _config_paths(given: list[Path] | None) -> list[Path]:
-    found = list(given or [])
-    if not found:
-        default = find_default_config()
-        if default is None:
-            raise UserError("no config: pass --metrics-config-path (no .resim/metrics/config.resim.yaml here)")
-        found = [default]
-    for path in found:
-        if not path.is_file():
-            raise UserError(f"config file {str(path)!r} does not exist")
-    return [path.resolve() for path in found]
 
 
 def referenced_files(emissions: Path, config: Config) -> set[str]:
@@ -267,7 +254,7 @@ def debug_command(args: argparse.Namespace) -> int:
     emissions = args.emissions_file
     if not emissions.is_file():
         raise UserError(f"emissions file {str(emissions)!r} does not exist or is not a file")
-    config_paths = _config_paths(args.config_paths)
+    config_paths = [path.resolve() for path in existing_configs(args.config_paths)]
     try:
         config = load_config(config_paths)
     except ConfigError as error:

@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import argparse
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
+
+from lakegate.lake.config import find_default_config
 
 
 class UserError(Exception):
@@ -49,3 +51,18 @@ def writable_lake(path: Path) -> Path:
     if path.exists() and not path.is_dir():
         raise UserError(f"--lake {str(path)!r} is not a directory (a lake is a folder; it is created if missing)")
     return path
+
+
+def existing_configs(given: Sequence[Path] | None) -> list[Path]:
+    """The config files a command reads: those given, else the repository's default config; UserError
+    when there is none or one does not exist."""
+    found = list(given or [])
+    if not found:
+        default = find_default_config()
+        if default is None:
+            raise UserError("no config: pass --metrics-config-path (no .resim/metrics/config.resim.yaml here)")
+        found = [default]
+    for path in found:
+        if not path.is_file():
+            raise UserError(f"config file {str(path)!r} does not exist")
+    return found

@@ -12,12 +12,11 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from collections.abc import Sequence
 from pathlib import Path
 
 from lakegate.dialect.errors import DialectError
 from lakegate.gateway.cli.backends import add_backend_arguments, backend_from_args
-from lakegate.gateway.cli.errors import UserError, os_error_text, positive, writable_lake
+from lakegate.gateway.cli.errors import UserError, existing_configs, os_error_text, positive, writable_lake
 from lakegate.gateway.metrics.evaluation import (
     BLOCKER,
     ERROR,
@@ -30,7 +29,7 @@ from lakegate.gateway.metrics.evaluation import (
 from lakegate.gateway.metrics.report import job_title, write_report
 from lakegate.gateway.metrics.templates import display_value
 from lakegate.lake.catalog import Catalog
-from lakegate.lake.config import Config, ConfigError, find_default_config, load_config
+from lakegate.lake.config import Config, ConfigError, load_config
 from lakegate.lake.paths import LakePathError
 from lakegate.lake.registry import BranchConfigs
 
@@ -130,22 +129,9 @@ def print_config_problems(error: ConfigError) -> None:
         print(f"  {problem}", file=sys.stderr)
 
 
-def _config_paths(given: Sequence[Path] | None) -> list[Path]:
-    paths = list(given or [])
-    if not paths:
-        found = find_default_config()
-        if found is None:
-            raise UserError("no config: pass --metrics-config-path (no .resim/metrics/config.resim.yaml here)")
-        paths = [found]
-    for path in paths:
-        if not path.is_file():
-            raise UserError(f"config file {str(path)!r} does not exist")
-    return paths
-
-
 def sync_command(args: argparse.Namespace) -> int:
     writable_lake(args.lake)
-    paths = _config_paths(args.config_paths)
+    paths = existing_configs(args.config_paths)
     try:
         config = load_config(paths)
         registry = BranchConfigs(args.lake, args.branch)
@@ -164,7 +150,7 @@ def sync_command(args: argparse.Namespace) -> int:
 def _run_config(args: argparse.Namespace) -> tuple[Config, int | None]:
     """The config to evaluate and its stored version (None for a config given by path)."""
     if args.config_paths:
-        return load_config(_config_paths(args.config_paths)), None
+        return load_config(existing_configs(args.config_paths)), None
     registry = BranchConfigs(args.lake, args.branch)
     version = registry.current_version()
     if version is None:

@@ -17,6 +17,7 @@ from typing import NoReturn
 
 from sqlglot import exp
 
+from lakegate.dialect import registry
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.guard import trino_name
@@ -158,9 +159,6 @@ class Analyzer:
     """One analysis of one statement (not reused: it keeps the SQL text and a counter)."""
 
     def __init__(self, schema: dict[str, list[tuple[str, TType]]], sql: str):
-        from lakegate.dialect import functions  # the registry types its calls through Call
-
-        self.functions = functions
         self.schema = schema
         self.sql = sql
         self._alias_counter = 0
@@ -770,11 +768,11 @@ class Analyzer:
 
     def function(self, node: exp.Anonymous, scope: Scope, env: dict[str, TType], window: bool = False) -> TType:
         name = node.name.lower()
-        spec = self.functions.SUPPORTED.get(name)
+        spec = registry.SUPPORTED.get(name)
         if spec is None:
-            if name in self.functions.REJECTED:
+            if name in registry.REJECTED:
                 self.fail(
-                    f"unsupported in lakegate: function '{name}': {self.functions.REJECTED[name]}",
+                    f"unsupported in lakegate: function '{name}': {registry.REJECTED[name]}",
                     node,
                     "NOT_SUPPORTED",
                 )

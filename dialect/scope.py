@@ -22,8 +22,6 @@ from dataclasses import dataclass
 
 from sqlglot import exp
 
-from lakegate.dialect import guard
-
 
 @dataclass(frozen=True)
 class Scope:
@@ -123,24 +121,3 @@ def restrict(
     for table in _references(expression, names):
         table.replace(_filtered(table, scope, columns.get(table.name.lower())))
     return expression
-
-
-def scoped_trino_sql(sql: str, scope: Scope, tables: Iterable[str]) -> str:
-    """The Trino SQL of one query restricted to `scope`, for a backend that forwards to Trino.
-
-    The text goes through the same checks as any query (text checks, parse, read-only guard); an
-    EXPLAIN is scoped inside, SHOW and DESCRIBE (which read no rows) are returned as they are.
-    Raises DialectError on a refused or invalid query.
-    """
-    from lakegate.dialect.translate import LakegateTrino, parse  # translate imports this module
-
-    sql = guard.check_text(sql)
-    kind = guard.classify(sql)
-    if kind == "explain":
-        query, analyze = guard.explained_query(sql)
-        return ("EXPLAIN ANALYZE " if analyze else "EXPLAIN ") + scoped_trino_sql(query, scope, tables)
-    tree = parse(sql)
-    guard.check(tree)
-    if kind in ("show", "describe"):
-        return sql
-    return restrict(tree, scope, tables).sql(dialect=LakegateTrino)

@@ -13,6 +13,7 @@ from __future__ import annotations
 from sqlglot import exp
 from sqlglot.generators.duckdb import DuckDBGenerator
 
+from lakegate.dialect import registry
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import ttype
 from lakegate.dialect.errors import DialectError
@@ -762,7 +763,7 @@ def approx_text(sql: str, source: TType) -> str:
 # --- function calls ------------------------------------------------------------------------------
 @transform(exp.Anonymous)
 def registered_function(g: Writer, node: exp.Anonymous) -> str:
-    """Every function call is written by its registry entry (functions.SUPPORTED)."""
+    """Every function call is written by its registry entry (registry.SUPPORTED)."""
     return node.meta["spec"].render(g, node, node.meta["args"])
 
 
@@ -1017,14 +1018,12 @@ def _first_select(node: exp.Expression) -> exp.Select | None:
 
 
 def _aggregates_or_windows(select: exp.Select) -> bool:
-    from lakegate.dialect.functions import SUPPORTED
-
     for item in select.expressions:
         for node in item.walk():
             if isinstance(node, exp.Window):
                 return True
             if isinstance(node, exp.Anonymous):
-                spec = SUPPORTED.get(node.name.lower())
+                spec = registry.SUPPORTED.get(node.name.lower())
                 if spec is not None and spec.kind != "scalar":
                     return True
     return False

@@ -126,3 +126,44 @@ def test_each_package_imports_on_its_own(package: str) -> None:
     code = f"import importlib\nfor m in {modules!r}: importlib.import_module(m)"
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
+
+
+def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The import cycles of `graph` (module -> modules it imports), each once, from its least module."""
+    found = set()
+
+    def walk(path: list[str]) -> None:
+        for target in graph.get(path[-1], ()):
+            if target == path[0]:
+                found.add(tuple(path))
+            elif target not in path and target > path[0]:
+                walk([*path, target])
+
+    for module in sorted(graph):
+        walk([module])
+    return [list(cycle) for cycle in sorted(found)]
+
+
+def _graph() -> dict[str, set[str]]:
+    """Module -> the lakegate modules it imports (anywhere in the file, TYPE_CHECKING blocks too)."""
+    modules = {_module(p): p for p in _sources()}
+    graph = {}
+    for module, path in modules.items():
+        targets = set()
+        for _, imported, names in _imports((ROOT / path).read_text(encoding="utf-8")):
+            for name in [f"{imported}.{n}" for n in names] + [imported]:
+                if name in modules and name != module:
+                    targets.add(name)
+                    break
+        graph[module] = targets
+    return graph
+
+
+def test_no_two_modules_import_each_other() -> None:
+    """No import cycle between modules, even one hidden behind TYPE_CHECKING: each module's
+    knowledge has one home, and what two modules share lives in a third."""
+    assert _cycles(_graph()) == []
+
+
+def test_a_cycle_is_reported() -> None:
+    assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]

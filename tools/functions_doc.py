@@ -400,9 +400,12 @@ def generate(families: list[Family], supported: dict, rejected: dict[str, str]) 
 
 def render_current(cases_dir: Path = CASES_DIR) -> str:
     """generate() with the installed registry and the case files in `cases_dir`."""
-    from lakegate.dialect import functions  # imported here: the registry is optional for load_cases
+    from lakegate.dialect import (
+        functions,  # noqa: F401  (fills the registry; imported here: load_cases needs none)
+        registry,
+    )
 
-    return generate(load_families(cases_dir), functions.SUPPORTED, functions.REJECTED)
+    return generate(load_families(cases_dir), registry.SUPPORTED, registry.REJECTED)
 
 
 def main(argv: list[str] | None = None) -> int:

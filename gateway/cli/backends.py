@@ -10,6 +10,7 @@ from pathlib import Path
 
 from lakegate.gateway.cli.errors import UserError
 from lakegate.gateway.engine.backend import Backend, DuckDBBackend
+from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.trino_backend import TrinoBackend
 
 
@@ -99,3 +100,8 @@ def backend_from_args(args: argparse.Namespace, lake: Path | None) -> Backend:
         )
     except ValueError as error:
         raise UserError(str(error)) from None
+
+
+def engine_from_args(args: argparse.Namespace, lake: Path | None) -> Engine:
+    """An engine over the backend the options choose (it closes the backend with it)."""
+    return Engine(backend_from_args(args, lake), owns_backend=True)

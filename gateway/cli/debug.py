@@ -287,7 +287,7 @@ def debug_command(args: argparse.Namespace) -> int:
         try:
             session = DashboardSession(
                 state.new_id(),
-                state.engine,
+                state.metrics,
                 branch=args.branch,
                 batch_id=job.batch_id,
                 source=FileConfig(config_paths),
@@ -313,7 +313,7 @@ def debug_command(args: argparse.Namespace) -> int:
             + ", ".join(f"{n} {s}" for s, n in counts.items() if n)
             + f") in {session.seconds:.2f} s"
         )
-        server = _server(create_app(state.backend, dashboard_router=dashboard_router(state)))
+        server = _server(create_app(state.engine, dashboard_router=dashboard_router(state)))
         with _stop_on_signals(server):  # from here on Ctrl+C and SIGTERM stop the server, never interrupt
             print(
                 f"SQL endpoint (Trino protocol): http://{shown_host}:{port} (catalog lake, schema {args.branch!r})",

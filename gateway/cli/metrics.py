@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 
 from lakegate.dialect.errors import DialectError
-from lakegate.gateway.cli.backends import add_backend_arguments, backend_from_args
+from lakegate.gateway.cli.backends import add_backend_arguments, engine_from_args
 from lakegate.gateway.cli.errors import UserError, existing_configs, os_error_text, positive, writable_lake
 from lakegate.gateway.metrics.evaluation import (
     BLOCKER,
@@ -193,9 +193,9 @@ def run_command(args: argparse.Namespace) -> int:
             f"{', '.join(repr(b) for b in batches) or 'none'})"
         )
     progress = sys.stderr.isatty() if args.progress is None else args.progress
-    backend = backend_from_args(args, args.lake)
+    engine = engine_from_args(args, args.lake)
     try:
-        evaluation = MetricsEngine(args.lake, backend, threads=args.threads).evaluate_batch(
+        evaluation = MetricsEngine(args.lake, engine, threads=args.threads).evaluate_batch(
             args.branch,
             args.batch,
             metrics,
@@ -209,7 +209,7 @@ def run_command(args: argparse.Namespace) -> int:
     except OSError as error:
         raise UserError(f"cannot store the results in the lake: {os_error_text(error)}") from None
     finally:
-        backend.close()
+        engine.close()
     if args.format == "json":
         json.dump(evaluation.as_dict(), sys.stdout, ensure_ascii=False, indent=2)
         sys.stdout.write("\n")

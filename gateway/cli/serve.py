@@ -230,6 +230,7 @@ def serve_command(args: argparse.Namespace) -> int:
 
     from lakegate.gateway.dashboard.routes import DashboardState, dashboard_router
     from lakegate.gateway.engine.backend import DuckDBBackend
+    from lakegate.gateway.engine.engine import Engine
     from lakegate.gateway.server.app import create_app
     from lakegate.gateway.server.http_limits import server_config
 
@@ -247,12 +248,11 @@ def serve_command(args: argparse.Namespace) -> int:
     )
     sock = _listen(args.host, args.port)
     backend = DuckDBBackend(args.lake, memory_limit=args.memory_limit, threads=args.threads, limits=limits)
-    dashboard = DashboardState(args.lake, backend)
+    engine = Engine(backend, catalog=args.catalog, limits=limits, owns_backend=True)
+    dashboard = DashboardState(args.lake, engine)
     try:
         app = create_app(
-            backend,
-            catalog_name=args.catalog,
-            limits=limits,
+            engine,
             users=users,
             dashboard_router=dashboard_router(dashboard),
             allowed_hosts=args.allowed_host,
@@ -284,7 +284,7 @@ def serve_command(args: argparse.Namespace) -> int:
             signal.signal(signal.SIGTERM, previous)
     finally:
         dashboard.close()
-        backend.close()
+        engine.close()
         sock.close()
     print("lakegate: stopped", file=sys.stderr, flush=True)
     return 0

@@ -36,10 +36,12 @@ from typing import Any
 from ruamel.yaml import YAML
 from ruamel.yaml.comments import CommentedMap, CommentedSeq
 from ruamel.yaml.scalarstring import LiteralScalarString
+from sqlglot import exp
 
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
-from lakegate.gateway.metrics.evaluation import EVALUATED_TYPES, MetricResult, MetricsEngine, conflated_status, worst
+from lakegate.gateway.metrics.evaluation import EVALUATED_TYPES, MetricsEngine, conflated_status, worst
+from lakegate.gateway.metrics.metric_result import MetricResult
 from lakegate.gateway.metrics.results import read_results
 from lakegate.gateway.metrics.templates import TEMPLATES, json_value
 from lakegate.lake.config import Config, ConfigError, Metric, load_config
@@ -337,6 +339,17 @@ def metric_json(metric: Metric, origin: str) -> dict[str, Any]:
 # -- the session ----------------------------------------------------------------------------------
 
 
+def _row_counts(tables: list[str]) -> exp.Expression:
+    """`SELECT 0 AS n, count(*) AS c FROM "t0" UNION ALL ...`: the row count of each table, by position."""
+    selects = [
+        exp.select(exp.Literal.number(i).as_("n"), exp.Count(this=exp.Star()).as_("c")).from_(
+            exp.Table(this=exp.to_identifier(name, quoted=True))
+        )
+        for i, name in enumerate(tables)
+    ]
+    return exp.union(*selects, distinct=False) if len(selects) > 1 else selects[0]
+
+
 class DashboardSession:
     """One batch of a lake seen through a config with the session's edits (see the module docstring).
 
@@ -348,7 +361,7 @@ class DashboardSession:
     def __init__(
         self,
         session_id: str,
-        engine: MetricsEngine,
+        metrics: MetricsEngine,
         *,
         branch: str,
         batch_id: str,
@@ -358,7 +371,7 @@ class DashboardSession:
         refresh_data: Callable[[Config], bool] | None = None,
     ):
         self.id = session_id
-        self.engine = engine
+        self.metrics = metrics
         self.branch, self.batch_id = branch, batch_id
         self.source = source
         self.metrics_set = metrics_set
@@ -479,17 +492,17 @@ class DashboardSession:
     # -- evaluation -----------------------------------------------------------------------------
 
     def _job_rows(self) -> list[dict[str, Any]]:
-        answer = self.engine.backend.execute(
+        answer = self.metrics.query(
             "SELECT job_id, experience_name, job_status, job_metrics_status, job_conflated_status "
             "FROM metadata ORDER BY time, job_id",
-            branch=self.branch,
-            scope=Scope(batch_id=self.batch_id),
+            self.branch,
+            Scope(batch_id=self.batch_id),
         )
         keys = ("job_id", "experience_name", "job_status", "metrics_status", "conflated_status")
         return [dict(zip(keys, row)) for row in answer.rows()]
 
     def logs_dir(self, job_id: str | None) -> Path | None:
-        return None if job_id is None else self.engine.logs_dir(self.branch, self.batch_id, job_id)
+        return None if job_id is None else self.metrics.logs_dir(self.branch, self.batch_id, job_id)
 
     def _evaluate(self, metric: Metric, job_id: str | None) -> dict[str, Any]:
         logs = self.logs_dir(job_id)
@@ -498,7 +511,7 @@ class DashboardSession:
             scope = Scope(self.batch_id, statuses=statuses)
         else:
             scope = Scope(self.batch_id, job_id)
-        result = self.engine.evaluate(metric, self.branch, scope, logs_dir=logs)
+        result = self.metrics.evaluate(metric, self.branch, scope, logs_dir=logs)
         return result_json(result, logs)
 
     def _judge(self, job: dict[str, Any]) -> None:
@@ -541,7 +554,7 @@ class DashboardSession:
 
     def _load_stored(self) -> bool:
         assert self.files is not None
-        rows = read_results(self.engine.lake, self.branch, self.batch_id)
+        rows = read_results(self.metrics.lake, self.branch, self.batch_id)
         if not rows or self.files.version is None:
             return False
         if any(r["config_version"] != self.files.version or r["metrics_set"] != self.metrics_set for r in rows):
@@ -737,17 +750,18 @@ class DashboardSession:
 
     def tables(self, scope: Scope) -> list[dict[str, Any]]:
         """Every table of the branch with its columns and its row count in `scope`."""
-        schema = self.engine.backend.schema(self.branch)
+        engine = self.metrics.engine
+        schema = engine.metadata.tables(engine.catalog, self.branch)
         names = list(schema)
-        sql = " UNION ALL ".join(
-            f'SELECT {i} AS n, count(*) AS c FROM "{name.replace(chr(34), chr(34) * 2)}"'
-            for i, name in enumerate(names)
+        counts = (
+            dict(self.metrics.query(_row_counts(names).sql(dialect="trino"), self.branch, scope).rows())
+            if names
+            else {}
         )
-        counts = dict(self.engine.backend.execute(sql, branch=self.branch, scope=scope).rows()) if names else {}
         return [
             {
                 "name": name,
-                "columns": [{"name": c, "type": t} for c, t in schema[name].items()],
+                "columns": [{"name": c, "type": t} for c, t in schema[name]],
                 "rows": counts.get(i, 0),
             }
             for i, name in enumerate(names)
@@ -757,7 +771,7 @@ class DashboardSession:
         """An ad hoc query: the first `limit` rows and the total row count, or the error with its position."""
         started = time.perf_counter()
         try:
-            answer = self.engine.backend.execute(sql, branch=self.branch, scope=scope)
+            answer = self.metrics.query(sql, self.branch, scope)
             rows: list[list[Any]] = []
             total = 0
             for batch in answer.batches:
@@ -786,7 +800,7 @@ class DashboardSession:
     def events(self, job_id: str) -> list[dict[str, Any]]:
         """The job's events in time order, with their attached metrics."""
         self.scope("job", job_id)  # a job of this batch
-        return [event.as_dict() for event in self.engine.job_events(self.branch, self.batch_id, job_id)]
+        return [event.as_dict() for event in self.metrics.job_events(self.branch, self.batch_id, job_id)]
 
     def log_file(self, job_id: str, name: str) -> Path:
         """A file of the job's logs (images); SessionError if it is not one."""

@@ -39,7 +39,7 @@ from fastapi.responses import FileResponse, JSONResponse, RedirectResponse, Resp
 
 from lakegate.dialect.errors import DialectError
 from lakegate.gateway.dashboard.debug_session import BranchConfig, DashboardSession, SessionError
-from lakegate.gateway.engine.backend import Backend, DuckDBBackend
+from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.gateway.metrics.results import read_results
 from lakegate.lake.catalog import Catalog
@@ -58,22 +58,23 @@ def plotly_js() -> Path:
 
 
 class DashboardState:
-    """The dashboard's sessions over one lake, queried through `backend` (default: embedded DuckDB)."""
+    """The dashboard's sessions over one lake, queried through `engine` (default: the embedded
+    DuckDB engine); `metrics` evaluates their metrics through the same engine."""
 
-    def __init__(self, lake: Path, backend: Backend | None = None):
+    def __init__(self, lake: Path, engine: Engine | None = None):
         self.lake = Path(lake)
-        self._own_backend = backend is None
-        self.backend = backend if backend is not None else DuckDBBackend(self.lake)
-        self.engine = MetricsEngine(self.lake, self.backend)
+        self._owns_engine = engine is None
+        self.engine = engine if engine is not None else Engine.open(self.lake)
+        self.metrics = MetricsEngine(self.lake, self.engine)
         self.catalog = Catalog(self.lake)
         self.sessions: OrderedDict[str, DashboardSession] = OrderedDict()
         self.debug_session: DashboardSession | None = None
         self._lock = threading.Lock()
 
     def close(self) -> None:
-        """Close the backend if the state made it."""
-        if self._own_backend:
-            self.backend.close()
+        """Close the engine if the state made it."""
+        if self._owns_engine:
+            self.engine.close()
 
     def new_id(self) -> str:
         return secrets.token_urlsafe(9)
@@ -123,7 +124,7 @@ class DashboardState:
                 stored[0]["metrics_set"] if stored and stored[0]["metrics_set"] in sets else sets[0] if sets else None
             )
         session = DashboardSession(
-            self.new_id(), self.engine, branch=branch, batch_id=batch_id, source=source, metrics_set=metrics_set
+            self.new_id(), self.metrics, branch=branch, batch_id=batch_id, source=source, metrics_set=metrics_set
         )
         return self.add(session)
 

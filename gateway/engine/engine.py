@@ -1,7 +1,7 @@
 """The Engine: the one object that owns a lake's backend, its catalog, the session defaults and the
 limits, and answers statements as the SQL server does. `lakegate query`, `lakegate serve` (through
-`server.app.create_app`) and the dashboard use it, so they agree on catalog names, on what SHOW,
-DESCRIBE and `information_schema` answer, and on every error.
+`server.app.create_app`), the metrics engine, the demo and the dashboard use it, so they agree on
+catalog names, on what SHOW, DESCRIBE and `information_schema` answer, and on every error.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.engine.session import Answer, Session
 from lakegate.gateway.engine.statements import Planner, static_result
 from lakegate.gateway.engine.system_tables import Metadata
+from lakegate.lake.record import FileEntry
 
 #: The session user of a caller that names none (`lakegate query`).
 DEFAULT_USER = "lakegate"
@@ -26,8 +27,7 @@ DEFAULT_USER = "lakegate"
 class Engine:
     """A lake's backend with its catalog, system tables and statement planner.
 
-    `queries(user)` lists the running queries `user` may see (system.runtime.queries); only the
-    server has any. The backend stays open when the engine closes unless the engine opened it.
+    Only the server has running queries to list (`list_queries`). The backend stays open when the engine closes unless the engine opened it.
     """
 
     def __init__(
@@ -36,13 +36,10 @@ class Engine:
         *,
         catalog: str = CATALOG,
         limits: Limits = Limits(),
-        queries: Callable[[str | None], list[tuple]] = lambda user: [],
         owns_backend: bool = False,
     ):
         self.backend, self.catalog, self.limits = backend, catalog, limits
-        self.metadata = Metadata(
-            backend, catalog=catalog, queries=queries, memory_limit=getattr(backend, "memory_limit", "1GB")
-        )
+        self.metadata = Metadata(backend, catalog=catalog, memory_limit=getattr(backend, "memory_limit", "1GB"))
         self.planner = Planner(backend, self.metadata)
         self._owns_backend = owns_backend
 
@@ -53,7 +50,7 @@ class Engine:
 
     def session(self, *, user: str = DEFAULT_USER, branch: str | None = None, scope: Scope | None = None) -> Session:
         """A session in this engine's catalog, on `branch` (DialectError SCHEMA_NOT_FOUND when the lake
-        has no such branch), with `scope` as its session properties."""
+        has no such branch), restricted to `scope` (its batch and job also shown as session properties)."""
         if branch is not None:
             branch = self.metadata.schema_name(self.catalog, branch)
         properties = {
@@ -61,7 +58,7 @@ class Engine:
             for name, value in (("batch_id", scope and scope.batch_id), ("job_id", scope and scope.job_id))
             if value is not None
         }
-        return Session(user=user, catalog=self.catalog, schema=branch, properties=properties)
+        return Session(user=user, catalog=self.catalog, schema=branch, properties=properties, restriction=scope)
 
     def answer(self, sql: str, session: Session) -> Answer:
         """Answer a session statement (USE, SET SESSION, PREPARE, ...: `session.STATEMENTS`)."""
@@ -75,6 +72,15 @@ class Engine:
         if guard.classify(sql) == "call":  # kill_query: no query runs outside the server
             raise sessions.query_not_found(sessions.kill_query_arguments(sql, session)[0])
         return self.planner.start(sql, session, params)
+
+    def list_queries(self, queries: Callable[[str | None], list[tuple]]) -> None:
+        """Let system.runtime.queries list `queries(user)`: the server's running queries."""
+        self.metadata.queries = queries
+
+    def with_pending(self, pending: Sequence[FileEntry]) -> Engine:
+        """An engine that also sees `pending` files (staged, not yet committed: DuckDB backend only)."""
+        backend = self.backend.with_pending(pending)  # type: ignore[attr-defined]
+        return Engine(backend, catalog=self.catalog, limits=self.limits, owns_backend=True)
 
     def close(self) -> None:
         self.metadata.close()

@@ -56,9 +56,13 @@ class Session:
     properties: dict[str, str] = field(default_factory=dict)
     prepared: dict[str, str] = field(default_factory=dict)
     transaction_id: str | None = None
+    #: A scope set in-process by its caller (a metric's job, with its staged statuses): wins over the properties.
+    restriction: Scope | None = None
 
     def scope(self) -> Scope | None:
-        """The scope the session properties give every lake table (None: the whole branch)."""
+        """The scope every lake table is restricted to (None: the whole branch)."""
+        if self.restriction is not None:
+            return self.restriction
         batch_id, job_id = self.properties.get("batch_id"), self.properties.get("job_id")
         return Scope(batch_id, job_id) if batch_id is not None or job_id is not None else None
 

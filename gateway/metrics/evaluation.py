@@ -48,19 +48,19 @@ import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
-from decimal import Decimal
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 from tqdm import tqdm
 
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
-from lakegate.gateway.engine.backend import Backend, DuckDBBackend
+from lakegate.gateway.engine.backend import DuckDBBackend, QueryResult
+from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.metrics.custom import CUSTOM, render_custom
+from lakegate.gateway.metrics.metric_result import MetricError, MetricResult
 from lakegate.gateway.metrics.results import ResultsWriter
-from lakegate.gateway.metrics.templates import UNSUPPORTED_TEMPLATES, Rendered, TemplateError, json_value, render
+from lakegate.gateway.metrics.templates import UNSUPPORTED_TEMPLATES, TemplateError, render
 from lakegate.lake import paths
 from lakegate.lake.config import Config, Location, Metric
 
@@ -83,87 +83,6 @@ def conflated_status(job_status: str | None, metrics_status: str) -> str:
 
 
 # -- results ------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class MetricError:
-    """Why a metric errored (or was not run): the message and, for query errors, where.
-
-    `line`/`column` are 1-based in the query text; `location` is the same place in the
-    config file when it maps exactly. `query` says which query failed: "query" or "status query".
-    """
-
-    message: str
-    line: int | None = None
-    column: int | None = None
-    location: Location | None = None
-    query: str | None = None
-
-    def __str__(self) -> str:
-        what = f"{self.query}: " if self.query else ""
-        if self.location is not None:
-            return f"{self.location}: {what}{self.message}"
-        if self.line is not None and self.column is not None:
-            return f"{what}line {self.line}:{self.column}: {self.message}"
-        return f"{what}{self.message}"
-
-    def as_dict(self) -> dict[str, Any]:
-        return {
-            "message": self.message,
-            "query": self.query,
-            "line": self.line,
-            "column": self.column,
-            "location": None if self.location is None else str(self.location),
-        }
-
-
-@dataclass
-class MetricResult:
-    """One metric evaluated on one job (test metrics) or on the whole batch (job_id None)."""
-
-    metric: str
-    metric_type: str
-    template: str | None
-    batch_id: str
-    job_id: str | None
-    status: str
-    rendered: Rendered | None = None
-    error: MetricError | None = None
-    units: str | None = None
-    description: str = ""
-    seconds: float = 0.0
-
-    @property
-    def scalar_value(self) -> float | None:
-        """A scalar template's numeric value as a double (None for anything else)."""
-        if self.rendered is None or self.rendered.template != "scalar":
-            return None
-        value = self.rendered.scalar
-        if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, Decimal, np.number)):
-            return None
-        return float(value)
-
-    @property
-    def value_text(self) -> str | None:
-        """The rendered value in words, e.g. "42.98 s" or "2 series, 300 points"."""
-        return None if self.rendered is None else self.rendered.text
-
-    def as_dict(self) -> dict[str, Any]:
-        """JSON-ready: batch, job, metric, type, template, status, scalar value, value, error."""
-        scalar = self.scalar_value
-        return {
-            "batch_id": self.batch_id,
-            "job_id": self.job_id,
-            "metric": self.metric,
-            "type": self.metric_type,
-            "template": self.template,
-            "status": self.status,
-            "scalar_value": None if scalar is None else json_value(scalar),
-            "value": self.value_text,
-            "units": self.units,
-            "problems": list(self.rendered.problems) if self.rendered else [],
-            "error": None if self.error is None else self.error.as_dict(),
-        }
 
 
 @dataclass(frozen=True)
@@ -335,22 +254,26 @@ def config_position(start: Location | None, sql: str, line: int | None, column: 
 
 
 class MetricsEngine:
-    """Evaluates metrics on the lake at `lake` through `backend` (default: embedded DuckDB).
+    """Evaluates metrics on the lake at `lake` through `engine` (default: the embedded DuckDB engine).
 
-    `threads` jobs are evaluated at once. The engine writes to the lake (metadata statuses and
-    `metric_results`) directly; queries go through the backend only.
+    `threads` jobs are evaluated at once. The metrics engine writes to the lake (metadata statuses
+    and `metric_results`) directly; queries go through the engine only, as the server's do.
     """
 
-    def __init__(self, lake: Path, backend: Backend | None = None, *, threads: int = 2):
+    def __init__(self, lake: Path, engine: Engine | None = None, *, threads: int = 2):
         self.lake = Path(lake)
-        self._own_backend = backend is None
-        self.backend: Backend = backend if backend is not None else DuckDBBackend(self.lake)
+        self._owns_engine = engine is None
+        self.engine = engine if engine is not None else Engine.open(self.lake)
         self.threads = max(1, threads)
 
     def close(self) -> None:
-        """Close the backend if the engine made it."""
-        if self._own_backend and hasattr(self.backend, "close"):
-            self.backend.close()
+        """Close the engine if this made it."""
+        if self._owns_engine:
+            self.engine.close()
+
+    def query(self, sql: str, branch: str, scope: Scope | None, params: Sequence[object] = ()) -> QueryResult:
+        """Run one Trino-dialect query on `branch`, restricted to `scope`, as the server would."""
+        return self.engine.execute(sql, self.engine.session(branch=branch, scope=scope), params)
 
     def __enter__(self) -> MetricsEngine:
         return self
@@ -384,7 +307,7 @@ class MetricsEngine:
 
     def _run(self, metric: Metric, branch: str, scope: Scope, logs_dir: Path | None, result: MetricResult) -> None:
         try:
-            answer = self.backend.execute(metric.query_string, branch=branch, scope=scope)
+            answer = self.query(metric.query_string, branch, scope)
             rows = answer.rows()
         except DialectError as error:
             result.status, result.error = (
@@ -418,7 +341,7 @@ class MetricsEngine:
                 result.error = _query_error(error, check.query_string, check.query_location, "status query")
 
     def _any_rows(self, sql: str, branch: str, scope: Scope, threshold: Any) -> bool:
-        answer = self.backend.execute(sql, branch=branch, scope=scope, params=(threshold,))
+        answer = self.query(sql, branch, scope, (threshold,))
         found = False
         for batch in answer.batches:  # read to the end: the cursor closes when the stream is done
             found = found or batch.num_rows > 0
@@ -428,10 +351,10 @@ class MetricsEngine:
 
     def jobs(self, branch: str, batch_id: str) -> list[tuple[str, str | None, str | None]]:
         """(job_id, experience_name, job_status) of every job of a batch, by start time."""
-        answer = self.backend.execute(
+        answer = self.query(
             "SELECT job_id, experience_name, job_status FROM metadata ORDER BY time, job_id",
-            branch=branch,
-            scope=Scope(batch_id=batch_id),
+            branch,
+            Scope(batch_id=batch_id),
         )
         return [(job_id, experience, status) for job_id, experience, status in answer.rows()]
 
@@ -441,11 +364,11 @@ class MetricsEngine:
 
     def _events(self, branch: str, scope: Scope) -> dict[str, list[Event]]:
         """Job id -> its events in `scope`, by time (then name)."""
-        answer = self.backend.execute(
+        answer = self.query(
             "SELECT job_id, timestamp, topic, name, description, status, tags, metrics FROM events "
             "ORDER BY job_id, timestamp, name",
-            branch=branch,
-            scope=scope,
+            branch,
+            scope,
         )
         events: dict[str, list[Event]] = {}
         for job_id, timestamp, topic, name, description, status, tags, metrics in answer.rows():
@@ -579,12 +502,12 @@ class MetricsEngine:
             writer.stage_statuses(
                 outcome.job_id, job_metrics_status=outcome.metrics_status, job_conflated_status=outcome.conflated_status
             )
-        if not isinstance(self.backend, DuckDBBackend):  # a Trino cluster reads only committed files
+        if not isinstance(self.engine.backend, DuckDBBackend):  # a Trino cluster reads only committed files
             writer.commit_statuses()
             return self
-        backend = self.backend.with_pending(writer.pending)
-        stack.callback(backend.close)
-        return MetricsEngine(self.lake, backend, threads=self.threads)
+        engine = self.engine.with_pending(writer.pending)
+        stack.callback(engine.close)
+        return MetricsEngine(self.lake, engine, threads=self.threads)
 
     def _evaluate_job(
         self,

@@ -10,8 +10,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from lakegate.gateway.metrics.evaluation import BatchEvaluation, Event, JobOutcome, MetricResult
+from lakegate.gateway.metrics.evaluation import BatchEvaluation, Event, JobOutcome
 from lakegate.gateway.metrics.figures_html import report_html
+from lakegate.gateway.metrics.metric_result import MetricResult
 from lakegate.gateway.metrics.templates import Rendered, TemplateError, render
 
 Item = tuple[str, "Rendered | None", dict[str, Any]]

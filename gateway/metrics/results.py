@@ -22,19 +22,17 @@ import contextlib
 import datetime as dt
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import orjson
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from lakegate.gateway.metrics.metric_result import MetricResult
 from lakegate.lake import paths
 from lakegate.lake.metadata import read_metadata_row, stage_metadata_row
 from lakegate.lake.record import Change, FileEntry, current_file
 from lakegate.lake.schema import METRIC_RESULTS_COLUMNS, file_schema
-
-if TYPE_CHECKING:
-    from lakegate.gateway.metrics.evaluation import MetricResult
 
 #: The Arrow schema of a batch's results file (batch_id lives in the directory name).
 SCHEMA = file_schema(paths.METRIC_RESULTS_TABLE, METRIC_RESULTS_COLUMNS)

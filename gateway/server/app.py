@@ -49,8 +49,8 @@ from starlette.concurrency import run_in_threadpool
 from lakegate.dialect import guard
 from lakegate.dialect.errors import DialectError
 from lakegate.gateway.engine import session as sessions
-from lakegate.gateway.engine.backend import Backend, QueryResult, hide_paths, time_limit_error
-from lakegate.gateway.engine.engine import CATALOG, Engine
+from lakegate.gateway.engine.backend import QueryResult, hide_paths, time_limit_error
+from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.engine.session import Answer, Session
 from lakegate.gateway.engine.statements import Planner, static_result
@@ -760,49 +760,35 @@ def _base_url(request: Request) -> str:
 
 
 def create_app(
-    backend: Backend,
+    engine: Engine,
     *,
-    catalog_name: str = CATALOG,
-    limits: Limits = Limits(),
     users: Users | None = None,
     dashboard_router: APIRouter | None = None,
     allowed_hosts: Sequence[str] = (),
 ) -> FastAPI:
-    """The SQL endpoint over `backend` (which must also list its branches: `backend.branches()`).
+    """The SQL endpoint over `engine` (its catalog, backend and limits: `engine.limits` bound queries
+    and requests, `http_limits.Guard`).
 
-    `catalog_name` is the lake's catalog; `limits` bound queries and requests (`http_limits.Guard`);
-    with `users`, every request but /v1/info and /v1/info/state needs HTTP Basic credentials of one
+    With `users`, every request but /v1/info and /v1/info/state needs HTTP Basic credentials of one
     of them. `dashboard_router` is included as it is, behind the same guard. Every request must name
     this server in Host (and Origin, when it changes something): `host_check.HostCheck`, with
-    `allowed_hosts` for a proxy. `app.state` holds `engine` (the Engine), `manager` (QueryManager),
-    `metadata` (the engine's Metadata), `backend` and `limits`. Closing the app (lifespan shutdown) fails running queries
-    and stops the workers; the backend stays open (its owner closes it).
+    `allowed_hosts` for a proxy. `app.state` holds `engine` and `manager` (QueryManager). Closing the
+    app (lifespan shutdown) fails running queries and stops the workers; the engine stays open (its
+    owner closes it).
     """
-    queries: list[QueryManager] = []
-    engine = Engine(
-        backend,
-        catalog=catalog_name,
-        limits=limits,
-        queries=lambda user: [
-            query.row()
-            for manager in queries
-            for query in manager.queries()
-            if users is None or query.session.user == user
-        ],
-    )
-    metadata = engine.metadata
+    limits = engine.limits
     manager = QueryManager(engine.planner, limits)
-    queries.append(manager)
+    engine.list_queries(
+        lambda user: [query.row() for query in manager.queries() if users is None or query.session.user == user]
+    )
 
     @asynccontextmanager
     async def lifespan(_: FastAPI):
         yield
         await run_in_threadpool(manager.close)
-        engine.close()
 
     app = FastAPI(title="lakegate", lifespan=lifespan, docs_url=None, redoc_url=None, openapi_url=None)
-    app.state.manager, app.state.metadata, app.state.backend, app.state.limits = manager, metadata, backend, limits
-    app.state.engine = engine
+    app.state.manager, app.state.engine = manager, engine
     endpoints = _Endpoints(manager, engine, users)
     executing = "/v1/statement/executing/{query_id}/{slug}/{token:int}"
     app.add_route("/v1/statement", endpoints.post_statement, methods=["POST"])

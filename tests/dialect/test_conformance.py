@@ -6,7 +6,7 @@ Trino client-protocol JSON encoding.
 
 Rows are compared in order when the query has a top-level ORDER BY (or the case says `ordered:
 true`), otherwise as a multiset. Doubles compare exactly unless the case gives `tolerance:`.
-A case whose query uses a function the registry lists in `functions.REJECTED`, and that is refused
+A case whose query uses a function the registry lists in `registry.REJECTED`, and that is refused
 naming that function, is reported as xfail (a documented gap), never as a pass.
 """
 
@@ -14,8 +14,6 @@ from __future__ import annotations
 
 import base64
 import datetime as dt
-import importlib
-import importlib.util
 import json
 import math
 import re
@@ -27,7 +25,9 @@ import pytest
 import sqlglot
 from functions_doc import Case, called_names, load_cases
 
+from lakegate.dialect import registry
 from lakegate.dialect.errors import DialectError, runtime_error
+from lakegate.dialect.translate import translate
 
 CASES = load_cases()
 _INTEGRAL = {"tinyint", "smallint", "integer", "bigint"}
@@ -226,14 +226,8 @@ def _check_expected_values(case: Case, types: list[tuple]) -> None:
 # --- the suite -------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def dialect():
-    """The translator and the function registry; the suite is skipped until the translator exists."""
-    if importlib.util.find_spec("lakegate.dialect.translate") is None:
-        pytest.skip("lakegate.dialect.translate is not written yet: the conformance suite needs it")
-    translate = importlib.import_module("lakegate.dialect.translate").translate
-    rejected = {}
-    if importlib.util.find_spec("lakegate.dialect.functions") is not None:
-        rejected = importlib.import_module("lakegate.dialect.functions").REJECTED
-    return translate, rejected
+    """The translator and the functions it refuses by name."""
+    return translate, registry.REJECTED
 
 
 def test_suite_size():

@@ -10,7 +10,7 @@ import sqlglot
 from sqlglot import exp
 
 from lakegate.dialect.errors import DialectError
-from lakegate.dialect.scope import Scope, restrict, scoped_trino_sql
+from lakegate.dialect.scope import Scope, restrict
 from lakegate.dialect.translate import translate
 
 JOB = Scope(batch_id="b1", job_id="j1")
@@ -148,24 +148,6 @@ def test_deep_queries_do_not_exhaust_the_stack():
     tree.set("expressions", [node])
     restricted = restrict(tree, JOB, TABLES)
     assert isinstance(restricted.args["from_"].this, exp.Subquery)
-
-
-def test_scoped_trino_sql_for_a_forwarding_backend():
-    assert (
-        scoped_trino_sql("SELECT count(*) FROM odom;", JOB, TABLES)
-        == "SELECT COUNT(*) FROM (SELECT * FROM odom WHERE batch_id = 'b1' AND job_id = 'j1') AS odom"
-    )
-    assert (
-        scoped_trino_sql("EXPLAIN ANALYZE SELECT x FROM odom", BATCH, TABLES)
-        == "EXPLAIN ANALYZE SELECT x FROM (SELECT * FROM odom WHERE batch_id = 'b1') AS odom"
-    )
-    assert scoped_trino_sql("SHOW TABLES", JOB, TABLES) == "SHOW TABLES"
-    with pytest.raises(DialectError) as caught:
-        scoped_trino_sql("DELETE FROM odom", JOB, TABLES)
-    assert caught.value.error_name == "PERMISSION_DENIED"
-    with pytest.raises(DialectError) as caught:
-        scoped_trino_sql("SELECT * FROM read_csv('/etc/passwd')", JOB, TABLES)
-    assert caught.value.error_name == "PERMISSION_DENIED"
 
 
 def test_translation_carries_the_scoped_trino_sql(fixture_lake):

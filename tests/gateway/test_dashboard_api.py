@@ -74,7 +74,7 @@ def served(nav_jobs, tmp_path_factory: pytest.TempPathFactory):
     sock = socket.socket()
     sock.bind(("127.0.0.1", 0))
     sock.listen(64)
-    app = create_app(state.backend, dashboard_router=dashboard_router(state))  # as `lakegate serve` mounts it
+    app = create_app(state.engine, dashboard_router=dashboard_router(state))  # as `lakegate serve` mounts it
     server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="on"))
     thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
     thread.start()
@@ -120,7 +120,7 @@ def _debug(served: Served, nav_jobs, tmp_path: Path, index: int = 0) -> tuple[Da
     job.ingest(load_config(config_path))
     session = DashboardSession(
         served.state.new_id(),
-        served.state.engine,
+        served.state.metrics,
         branch="debug",
         batch_id=job.batch_id,
         source=FileConfig([config_path]),
@@ -471,7 +471,7 @@ def test_page_and_static_files(served) -> None:
 def test_scope_statuses_overlay_metadata_without_writing(served, nav_jobs) -> None:
     """The session's job statuses reach batch metrics through the scope (`Scope.statuses`): `metadata`
     keeps its columns and order, shows the given statuses for the listed jobs, its own for the others."""
-    backend = served.state.backend
+    backend = served.state.engine.backend
     plain = backend.execute("SELECT * FROM metadata ORDER BY job_id", branch=BRANCH, scope=Scope(BATCH))
     first, second = sorted(j.job_id for j in nav_jobs.jobs)[:2]
     scope = Scope(BATCH, statuses=((first, "WARNING", "ERROR"),))

@@ -15,6 +15,7 @@ import requests
 import uvicorn
 
 from lakegate.gateway.engine.backend import DuckDBBackend
+from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.server.app import Limits, create_app
 
 ALL_TYPES_BRANCH = "feature/all-types"  # the second branch of the test lake (conftest.py)
@@ -547,7 +548,8 @@ def test_kill_query(lake_server, endless):
 def short_lived(server_lake):
     """An app with a 1 s client timeout and retention, served by uvicorn in a thread."""
     backend = DuckDBBackend(server_lake, memory_limit="512MB", threads=2)
-    app = create_app(backend, limits=Limits(client_timeout=1.0, retention=1.0, wait=0.2))
+    engine = Engine(backend, limits=Limits(client_timeout=1.0, retention=1.0, wait=0.2), owns_backend=True)
+    app = create_app(engine)
     sock = socket.socket()
     sock.bind(("127.0.0.1", 0))
     sock.listen(64)
@@ -566,7 +568,7 @@ def short_lived(server_lake):
     thread.join(30)
     assert not thread.is_alive()
     sock.close()
-    backend.close()
+    engine.close()
 
 
 def test_abandoned_queries_are_canceled_and_finished_ones_forgotten(short_lived, endless):

@@ -1,0 +1,55 @@
+"""The function registry: the Trino functions lakegate translates (`SUPPORTED`, filled by
+`register` from lakegate.dialect.functions and its companions) and those it refuses, with the
+reason (`REJECTED`). The analyzer and the writer look functions up here; whoever translates
+imports lakegate.dialect.functions first (lakegate.dialect.translate does), which fills it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from sqlglot import exp
+
+from lakegate.dialect.trino_types import TType
+
+#: The call's types -> its result type (argument: analyze.Call; Any here, as analyze uses this registry).
+Infer = Callable[[Any], TType]
+
+#: (transforms.Writer, the call, its rendered arguments) -> DuckDB SQL.
+Render = Callable[[Any, exp.Expression, list], str]
+
+
+@dataclass(frozen=True)
+class FunctionSpec:
+    """One supported Trino function."""
+
+    name: str
+    family: str
+    signature: str  # as Trino documents it, e.g. "cardinality(array(E)) -> bigint"
+    kind: str  # scalar | aggregate | window
+    infer: Infer
+    render: Render
+    notes: str = ""
+
+
+SUPPORTED: dict[str, FunctionSpec] = {}
+
+
+def register(
+    name: str,
+    family: str,
+    signature: str,
+    infer: Infer,
+    render: Render,
+    kind: str = "scalar",
+    notes: str = "",
+    aliases: tuple[str, ...] = (),
+) -> None:
+    for alias in (name, *aliases):
+        SUPPORTED[alias] = FunctionSpec(alias, family, signature, kind, infer, render, notes)
+
+
+#: Well-known Trino functions lakegate refuses: name -> why.
+REJECTED: dict[str, str] = {}

@@ -287,7 +287,7 @@ def debug_command(args: argparse.Namespace) -> int:
         try:
             session = DashboardSession(
                 state.new_id(),
-                state.metrics,
+                state.evaluator,
                 branch=args.branch,
                 batch_id=job.batch_id,
                 source=FileConfig(config_paths),

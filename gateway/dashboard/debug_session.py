@@ -361,7 +361,7 @@ class DashboardSession:
     def __init__(
         self,
         session_id: str,
-        metrics: MetricsEngine,
+        evaluator: MetricsEngine,
         *,
         branch: str,
         batch_id: str,
@@ -371,7 +371,7 @@ class DashboardSession:
         refresh_data: Callable[[Config], bool] | None = None,
     ):
         self.id = session_id
-        self.metrics = metrics
+        self.evaluator = evaluator
         self.branch, self.batch_id = branch, batch_id
         self.source = source
         self.metrics_set = metrics_set
@@ -492,7 +492,7 @@ class DashboardSession:
     # -- evaluation -----------------------------------------------------------------------------
 
     def _job_rows(self) -> list[dict[str, Any]]:
-        answer = self.metrics.query(
+        answer = self.evaluator.query(
             "SELECT job_id, experience_name, job_status, job_metrics_status, job_conflated_status "
             "FROM metadata ORDER BY time, job_id",
             self.branch,
@@ -502,7 +502,7 @@ class DashboardSession:
         return [dict(zip(keys, row)) for row in answer.rows()]
 
     def logs_dir(self, job_id: str | None) -> Path | None:
-        return None if job_id is None else self.metrics.logs_dir(self.branch, self.batch_id, job_id)
+        return None if job_id is None else self.evaluator.logs_dir(self.branch, self.batch_id, job_id)
 
     def _evaluate(self, metric: Metric, job_id: str | None) -> dict[str, Any]:
         logs = self.logs_dir(job_id)
@@ -511,7 +511,7 @@ class DashboardSession:
             scope = Scope(self.batch_id, statuses=statuses)
         else:
             scope = Scope(self.batch_id, job_id)
-        result = self.metrics.evaluate(metric, self.branch, scope, logs_dir=logs)
+        result = self.evaluator.evaluate(metric, self.branch, scope, logs_dir=logs)
         return result_json(result, logs)
 
     def _judge(self, job: dict[str, Any]) -> None:
@@ -554,7 +554,7 @@ class DashboardSession:
 
     def _load_stored(self) -> bool:
         assert self.files is not None
-        rows = read_results(self.metrics.lake, self.branch, self.batch_id)
+        rows = read_results(self.evaluator.lake, self.branch, self.batch_id)
         if not rows or self.files.version is None:
             return False
         if any(r["config_version"] != self.files.version or r["metrics_set"] != self.metrics_set for r in rows):
@@ -750,11 +750,11 @@ class DashboardSession:
 
     def tables(self, scope: Scope) -> list[dict[str, Any]]:
         """Every table of the branch with its columns and its row count in `scope`."""
-        engine = self.metrics.engine
+        engine = self.evaluator.engine
         schema = engine.metadata.tables(engine.catalog, self.branch)
         names = list(schema)
         counts = (
-            dict(self.metrics.query(_row_counts(names).sql(dialect="trino"), self.branch, scope).rows())
+            dict(self.evaluator.query(_row_counts(names).sql(dialect="trino"), self.branch, scope).rows())
             if names
             else {}
         )
@@ -771,7 +771,7 @@ class DashboardSession:
         """An ad hoc query: the first `limit` rows and the total row count, or the error with its position."""
         started = time.perf_counter()
         try:
-            answer = self.metrics.query(sql, self.branch, scope)
+            answer = self.evaluator.query(sql, self.branch, scope)
             rows: list[list[Any]] = []
             total = 0
             for batch in answer.batches:
@@ -800,7 +800,7 @@ class DashboardSession:
     def events(self, job_id: str) -> list[dict[str, Any]]:
         """The job's events in time order, with their attached metrics."""
         self.scope("job", job_id)  # a job of this batch
-        return [event.as_dict() for event in self.metrics.job_events(self.branch, self.batch_id, job_id)]
+        return [event.as_dict() for event in self.evaluator.job_events(self.branch, self.batch_id, job_id)]
 
     def log_file(self, job_id: str, name: str) -> Path:
         """A file of the job's logs (images); SessionError if it is not one."""

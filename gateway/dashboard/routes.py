@@ -59,13 +59,13 @@ def plotly_js() -> Path:
 
 class DashboardState:
     """The dashboard's sessions over one lake, queried through `engine` (default: the embedded
-    DuckDB engine); `metrics` evaluates their metrics through the same engine."""
+    DuckDB engine); `evaluator` evaluates their metrics through the same engine."""
 
     def __init__(self, lake: Path, engine: Engine | None = None):
         self.lake = Path(lake)
         self._owns_engine = engine is None
         self.engine = engine if engine is not None else Engine.open(self.lake)
-        self.metrics = MetricsEngine(self.lake, self.engine)
+        self.evaluator = MetricsEngine(self.lake, self.engine)
         self.catalog = Catalog(self.lake)
         self.sessions: OrderedDict[str, DashboardSession] = OrderedDict()
         self.debug_session: DashboardSession | None = None
@@ -124,7 +124,7 @@ class DashboardState:
                 stored[0]["metrics_set"] if stored and stored[0]["metrics_set"] in sets else sets[0] if sets else None
             )
         session = DashboardSession(
-            self.new_id(), self.metrics, branch=branch, batch_id=batch_id, source=source, metrics_set=metrics_set
+            self.new_id(), self.evaluator, branch=branch, batch_id=batch_id, source=source, metrics_set=metrics_set
         )
         return self.add(session)
 

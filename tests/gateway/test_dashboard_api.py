@@ -120,7 +120,7 @@ def _debug(served: Served, nav_jobs, tmp_path: Path, index: int = 0) -> tuple[Da
     job.ingest(load_config(config_path))
     session = DashboardSession(
         served.state.new_id(),
-        served.state.metrics,
+        served.state.evaluator,
         branch="debug",
         batch_id=job.batch_id,
         source=FileConfig([config_path]),

@@ -332,6 +332,35 @@ def test_a_test_metric_sees_only_its_job_and_a_batch_metric_sees_the_batch(nav):
     assert rows == [[len(nav.jobs), min(j.job_id for j in nav.jobs), every]]
 
 
+def test_metric_queries_are_answered_as_the_server_answers_them(nav):
+    """Metrics query through the Engine: qualified names, information_schema and SHOW work as they
+    do for `lakegate serve`, still inside the metric's scope."""
+    job = nav.jobs[0]
+    samples = len(nav.emissions[job.job_id]["odom_linear_velocity"])
+    metric = Metric(
+        name="qualified",
+        type="test",
+        template="table",
+        query_string=(
+            "SELECT (SELECT count(*) FROM lake.main.odom_linear_velocity), "
+            "(SELECT count(*) FROM main.odom_linear_velocity WHERE main.odom_linear_velocity.job_id IS NOT NULL)"
+        ),
+    )
+    rows = nav.engine.evaluate(metric, BRANCH, Scope(BATCH, job.job_id)).rendered.table["rows"]
+    assert rows == [[samples, samples]]
+    tables = Metric(
+        name="tables",
+        type="batch",
+        template="scalar",
+        query_string="SELECT count(*) FROM information_schema.tables WHERE table_name = 'metadata'",
+    )
+    assert nav.engine.evaluate(tables, BRANCH, Scope(BATCH)).rendered.scalar == 1
+    show = Metric(name="show", type="test", template="table", query_string="SHOW COLUMNS FROM metadata")
+    shown = nav.engine.evaluate(show, BRANCH, Scope(BATCH, job.job_id))
+    assert shown.status == "PASSED", shown.error
+    assert ["job_id", "varchar", "", ""] in shown.rendered.table["rows"]
+
+
 # -- errors, skipping, unsupported ---------------------------------------------------------------
 
 

@@ -149,7 +149,8 @@ def main() -> int:
             row("series", series_what, "cpu"),
             row("series", series_what, "wall"),
             "",
-            f"- goal: validated `emit()` >= {GOAL:.0f}x the reference: **{'met' if ratio['cpu'] >= GOAL else 'NOT met'}** "
+            f"- goal: validated `emit()` >= {GOAL:.0f}x the reference: "
+            f"**{'met' if ratio['cpu'] >= GOAL else 'NOT met'}** "
             f"({ratio['cpu']:.2f}x per CPU second, {ratio['wall']:.2f}x per wall-clock second)",
             f"- the two emissions files of the last `emit()` runs are byte-identical: {'yes' if identical else 'no'}",
         ],

@@ -50,8 +50,9 @@ import duckdb
 con = duckdb.connect()
 con.execute("SET enable_progress_bar = false")
 start = time.perf_counter()
-rows = con.execute("COPY (SELECT * FROM read_json(?, format = 'newline_delimited')) TO '" + sys.argv[2].replace("'", "''")
-                   + "' (FORMAT parquet)", [sys.argv[1]]).fetchone()[0]
+target = sys.argv[2].replace("'", "''")
+copy = f"COPY (SELECT * FROM read_json(?, format = 'newline_delimited')) TO '{target}' (FORMAT parquet)"
+rows = con.execute(copy, [sys.argv[1]]).fetchone()[0]
 seconds = time.perf_counter() - start
 print(json.dumps({"seconds": seconds, "rows": rows}))
 """

@@ -6,7 +6,8 @@ Builds (once, cached in bench/.work/metrics/) a lake with one batch of simulated
 (fixtures/generate.py, `samples_per_goal` chosen for about R topic rows per job). Then measures,
 alternating, each in a fresh process:
 
-* lakegate: `MetricsEngine.evaluate_batch` (as `lakegate metrics run` calls it) of 10 metrics of the example config (7 test metrics:
+* lakegate: `MetricsEngine.evaluate_batch` (as `lakegate metrics run` calls it) of 10 metrics of the
+  example config (7 test metrics:
   two line charts, two scalars with status checks, a table, a state timeline, a histogram; 3
   batch metrics: a scalar, a bar chart joining metadata, the tag-group table) -- translation,
   per-job scopes, DuckDB, rendering, statuses, metadata updates and the stored results table;

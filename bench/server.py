@@ -268,7 +268,7 @@ def client_floor() -> tuple[float, float]:
         for sql in ("SELECT 1", "SELECT 2"):
             for _ in range(20):
                 client_rows(connection, sql)
-            medians.append(median_of(200, lambda: timed(lambda: client_rows(connection, sql)))[0])
+            medians.append(median_of(200, lambda sql=sql: timed(lambda: client_rows(connection, sql)))[0])
         return medians[0], medians[1]
     finally:
         stub.terminate()

@@ -57,7 +57,8 @@ EXECUTION = [
     ),
     (
         "line chart projection (job)",
-        f'SELECT \'Speed\', timestamp / 1E9 AS "Time (s)", SQRT(POWER(x, 2) + POWER(y, 2)) AS "Speed (m/s)" FROM {TOPIC}',
+        f'SELECT \'Speed\', timestamp / 1E9 AS "Time (s)", SQRT(POWER(x, 2) + POWER(y, 2)) AS "Speed (m/s)" '
+        f"FROM {TOPIC}",
         Scope(batch_id="b1", job_id="j0"),
         f'SELECT \'Speed\', timestamp / 1e9 AS "Time (s)", sqrt(pow(x, 2) + pow(y, 2)) AS "Speed (m/s)" '
         f"FROM {TOPIC} WHERE batch_id = 'b1' AND job_id = 'j0'",
@@ -144,19 +145,19 @@ def translation_times(schema: dict, runs: int) -> tuple[list[str], dict[str, lis
     counter = iter(range(10**9))
     for name, sql, scope, params in metric_queries():
 
-        def call(text: str = sql) -> None:
+        def call(text: str = sql, scope=scope, params=params) -> None:
             translate_module.translate(text, schema, scope=scope, params=params, schema_version="v")
 
-        def cold() -> float:
+        def cold(call=call) -> float:
             translate_module.clear_cache()
             return timed(call)
 
-        def new_text() -> float:
+        def new_text(call=call, sql=sql) -> float:
             call()
             text = f"-- {next(counter)}\n{sql}"
             return timed(lambda: call(text))
 
-        def cached(repeat: int = 2000) -> float:
+        def cached(repeat: int = 2000, call=call) -> float:
             call()
             return timed(lambda: [call() for _ in range(repeat)]) / repeat
 
@@ -194,10 +195,10 @@ def execution_ratios(backend: DuckDBBackend, runs: int) -> tuple[list[str], floa
     worst_wall = worst_cpu = 0.0
     for name, sql, scope, hand in EXECUTION:
 
-        def ours() -> int:
+        def ours(sql=sql, scope=scope) -> int:
             return consume(backend.execute(sql, scope=scope).batches)
 
-        def theirs() -> int:
+        def theirs(hand=hand) -> int:
             cursor = backend.connection("main")
             try:
                 return consume(cursor.sql(hand).to_arrow_reader(BATCH_ROWS))
@@ -249,11 +250,13 @@ def main() -> None:
         f"(each with its test/batch scope and threshold), medians over the queries: cold {cold * 1e3:.2f} ms "
         f"(slowest query {max(figures['cold']) * 1e3:.2f} ms), new text with the schema's types cached "
         f"{new * 1e3:.2f} ms (slowest {max(figures['new']) * 1e3:.2f} ms); goal < {GOALS['cold_ms']:.0f} ms. "
-        f"Cached {cached * 1e6:.1f} µs (slowest {max(figures['cached']) * 1e6:.1f} µs); goal < {GOALS['cached_us']:.0f} µs",
+        f"Cached {cached * 1e6:.1f} µs (slowest {max(figures['cached']) * 1e6:.1f} µs); "
+        f"goal < {GOALS['cached_us']:.0f} µs",
         f"- execution on a {args.rows:,}-row topic ({len(JOBS)} jobs of Parquet, 2 threads), translated through "
         f"`DuckDBBackend.execute` vs hand-written DuckDB SQL on the same views, both streamed as Arrow batches, "
         f"median of {args.runs} alternating runs: worst ratio {worst_wall:.3f} in wall-clock time, {worst_cpu:.3f} "
-        f"in CPU time (goal <= {GOALS['ratio']}; load average when done: {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores)",
+        f"in CPU time (goal <= {GOALS['ratio']}; load average when done: {os.getloadavg()[0]:.1f} "
+        f"on {os.cpu_count()} cores)",
         "",
         *translation_lines,
         "",

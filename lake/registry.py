@@ -3,10 +3,10 @@
 `<lake>/<branch-dir>/_configs/v000001/` holds the source files of one version (in merge
 order, as `00-<name>`, `01-<name>` ...), the custom template files they name (at the same
 path relative to the config as in the source folder, so the stored config finds them) and
-`manifest.json` (original paths, template files, content hash, time). A version appears by renaming a finished directory into place, so readers never
-see half of one and two writers never share a number. The newest version is `current()`;
-the catalog uses it (and older versions, for topics no longer declared) to know every
-table's columns.
+`manifest.json` (original paths, template files, content hash, time). A version appears by
+renaming a finished directory into place, so readers never see half of one and two writers never
+share a number. The newest version is `current()`; the catalog uses it (and older versions, for
+topics no longer declared) to know every table's columns.
 """
 
 from __future__ import annotations

@@ -224,9 +224,8 @@ def ls_command(args: argparse.Namespace) -> int:
         for branch in branches:
             jobs = catalog.jobs(branch)
             batches = len({job.batch_id for job in jobs})
-            print(
-                f"{branch}  ({batches} batch{'es' if batches != 1 else ''}, {len(jobs)} job{'s' if len(jobs) != 1 else ''})"
-            )
+            batch_word, job_word = "batch" if batches == 1 else "batches", "job" if len(jobs) == 1 else "jobs"
+            print(f"{branch}  ({batches} {batch_word}, {len(jobs)} {job_word})")
         return 0
     if args.branch not in catalog.branches():
         raise UserError(f"no branch {args.branch!r} in {args.lake}")

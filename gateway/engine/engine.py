@@ -27,7 +27,8 @@ DEFAULT_USER = "lakegate"
 class Engine:
     """A lake's backend with its catalog, system tables and statement planner.
 
-    Only the server has running queries to list (`list_queries`). The backend stays open when the engine closes unless the engine opened it.
+    Only the server has running queries to list (`list_queries`). The backend stays open when the
+    engine closes unless the engine opened it.
     """
 
     def __init__(

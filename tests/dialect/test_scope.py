@@ -57,7 +57,8 @@ def test_an_empty_scope_changes_nothing(fixture_lake):
         ("SELECT count(*), max(x) FROM odom", [(4, 6.0)], [(8, 6.0)]),
         ("SELECT odom.x FROM odom WHERE odom.x > 2 ORDER BY 1", [(3.0,), (6.0,)], [(3.0,), (3.0,), (4.0,), (6.0,)]),
         (
-            "SELECT m.experience_name, count(*) FROM odom o JOIN metadata m ON o.job_id = m.job_id GROUP BY 1 ORDER BY 1",
+            "SELECT m.experience_name, count(*) FROM odom o JOIN metadata m ON o.job_id = m.job_id "
+            "GROUP BY 1 ORDER BY 1",
             [("Parking lot", 4)],
             [("Highway merge", 4), ("Parking lot", 4)],
         ),
@@ -83,7 +84,8 @@ def test_an_empty_scope_changes_nothing(fixture_lake):
         ("SELECT count(*) FROM (SELECT x FROM odom UNION ALL SELECT x FROM odom)", [(8,)], [(16,)]),
         ("SELECT count(*) FROM (SELECT job_id FROM odom EXCEPT SELECT 'j2')", [(1,)], [(1,)]),
         (
-            "WITH a AS (SELECT * FROM odom), b AS (SELECT * FROM a JOIN metadata USING (job_id)) SELECT count(*) FROM b",
+            "WITH a AS (SELECT * FROM odom), b AS (SELECT * FROM a JOIN metadata USING (job_id)) "
+            "SELECT count(*) FROM b",
             [(4,)],
             [(8,)],
         ),
@@ -167,7 +169,8 @@ def test_translation_carries_the_scoped_trino_sql(fixture_lake):
             [("j1", 4)],
         ),
         (
-            "WITH n AS (SELECT max(x) AS c FROM odom) SELECT c FROM (WITH k AS (SELECT c * 2 AS c FROM n) SELECT c FROM k)",
+            "WITH n AS (SELECT max(x) AS c FROM odom) "
+            "SELECT c FROM (WITH k AS (SELECT c * 2 AS c FROM n) SELECT c FROM k)",
             [(12.0,)],
         ),
         ("WITH n AS (SELECT 2 AS c) SELECT * FROM (VALUES 1) v(a) CROSS JOIN (SELECT c FROM n)", [(1, 2)]),

@@ -38,7 +38,8 @@ def guide(tmp_path_factory):
     data = {
         "odom_linear_velocity": "SELECT * FROM (VALUES (0::BIGINT, 3.0::DOUBLE, 4.0::DOUBLE, 0.0::DOUBLE, 'j1'), "
         "(2000000000, 6.0, 8.0, 0.0, 'j1')) v(timestamp, x, y, z, job_id)",
-        "time_to_goal": "SELECT * FROM (VALUES (1::BIGINT, 10.5::DOUBLE, 'j1'), (2, 20.25, 'j1')) v(timestamp, time_s, job_id)",
+        "time_to_goal": "SELECT * FROM (VALUES (1::BIGINT, 10.5::DOUBLE, 'j1'), (2, 20.25, 'j1')) "
+        "v(timestamp, time_s, job_id)",
         "covariance_accuracy": "SELECT * FROM (VALUES (1::BIGINT, 1::BIGINT, 'j1'), (2, 1, 'j1'), (3, 0, 'j1')) "
         "v(timestamp, within_1_sigma, job_id)",
         "pose_difference": "SELECT * FROM (VALUES (1::BIGINT, 0.5::DOUBLE, 'j1'), (2, 1.25, 'j2'), (3, 0.75, 'j3')) "
@@ -196,7 +197,9 @@ def test_guide_table_keeps_the_inner_order(guide):
         """SELECT "Metric", "Value" FROM (
   SELECT 1 as sort_order, 'Total Samples' as "Metric", CAST(COUNT(*) AS VARCHAR) as "Value" FROM covariance_accuracy
   UNION ALL
-  SELECT 2 as sort_order, 'Within 1σ (target: ~68%)' as "Metric", CONCAT(CAST(ROUND(100.0 * AVG(CASE WHEN within_1_sigma = 1 THEN 1.0 ELSE 0.0 END), 1) AS VARCHAR), '%') as "Value" FROM covariance_accuracy
+  SELECT 2 as sort_order, 'Within 1σ (target: ~68%)' as "Metric",
+    CONCAT(CAST(ROUND(100.0 * AVG(CASE WHEN within_1_sigma = 1 THEN 1.0 ELSE 0.0 END), 1) AS VARCHAR), '%') as "Value"
+    FROM covariance_accuracy
   ORDER BY sort_order);""",
     )
     assert columns == (("Metric", "varchar(24)"), ("Value", "varchar"))

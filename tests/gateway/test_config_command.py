@@ -52,7 +52,8 @@ def test_check_merges_several_files(tmp_path):
     extra.write_text(
         "version: 1\n"
         "metrics:\n"
-        "  Mean Speed: {type: batch, description: d, query_string: SELECT AVG(speed) FROM robot_speed, template: scalar}\n"
+        "  Mean Speed: {type: batch, description: d, query_string: SELECT AVG(speed) FROM robot_speed,\n"
+        "    template: scalar}\n"
         "metrics sets:\n"
         "  Extra: {metrics: [Mean Speed, Robot Speed]}\n"
     )

@@ -391,7 +391,10 @@ def test_state_colours_are_stable_across_metrics_and_processes():
     colours_b = {t["name"]: t["marker"]["color"] for t in second.figure["data"]}
     assert colours_a["ACTIVE"] == colours_b["ACTIVE"] and colours_a["FAILED"] == colours_b["FAILED"]
     assert set(colours_a.values()) | set(colours_b.values()) <= set(PALETTE)
-    code = "from lakegate.gateway.metrics.templates import state_colour; print(state_colour('ACTIVE'), state_colour('FAILED'))"
+    code = (
+        "from lakegate.gateway.metrics.templates import state_colour; "
+        "print(state_colour('ACTIVE'), state_colour('FAILED'))"
+    )
     outputs = [  # Python's own hash() of a str differs between these processes; the colours must not
         subprocess.run(
             [sys.executable, "-c", code],

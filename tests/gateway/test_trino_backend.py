@@ -231,7 +231,8 @@ def error_of(backend, sql: str, **kwargs) -> DialectError:
     [
         ("SELECT nope FROM odom_linear_velocity", (), "COLUMN_NOT_FOUND", (1, 8)),
         (
-            "SELECT x\nFROM odom_linear_velocity o JOIN metadata m ON o.job_id = m.job_id\n  WHERE o.x > ? AND m.nope = ?",
+            "SELECT x\nFROM odom_linear_velocity o JOIN metadata m ON o.job_id = m.job_id\n"
+            "  WHERE o.x > ? AND m.nope = ?",
             (1.5, "it's"),
             "COLUMN_NOT_FOUND",
             (3, 21),

@@ -572,7 +572,8 @@ def test_template_rules(tmp_path):
         (
             6,
             80,
-            "unknown template_type 'sytem' in metric 'BadKind' (did you mean 'system'?); expected one of system, custom",
+            "unknown template_type 'sytem' in metric 'BadKind' (did you mean 'system'?); "
+            "expected one of system, custom",
         ),
     ]
 

@@ -77,7 +77,8 @@ def test_lines_are_the_documented_json(emitter: Emitter, out: Path):
     emitter.close()
     assert out.read_text().splitlines() == [
         '{"$metadata": {"topic": "odom_linear_velocity", "timestamp": 0}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0}}',
-        '{"$metadata": {"topic": "odom_linear_velocity", "timestamp": 500000000}, "$data": {"x": 1.1, "y": 1.9, "z": 0.0}}',
+        '{"$metadata": {"topic": "odom_linear_velocity", "timestamp": 500000000}, '
+        '"$data": {"x": 1.1, "y": 1.9, "z": 0.0}}',
     ]
 
 

@@ -31,7 +31,8 @@ topics:
   odom:
     schema: {x: float, y: float, z: float}
   sample:
-    schema: {i: int, f: float, b: boolean, s: string, st: status, im: image, vi: video, tags: "string[]", metrics: "metric[]"}
+    schema: {i: int, f: float, b: boolean, s: string, st: status, im: image, vi: video, tags: "string[]",
+             metrics: "metric[]"}
   plain:
     schema: {i: int, f: float, b: boolean, s: string, tags: "string[]"}
   goal_reached:

@@ -14,7 +14,8 @@ from lakegate.lake.registry import BranchConfigs
 ODOM = "version: 1\ntopics:\n  odom:\n    schema: {x: float}\n"
 ODOM_Z = "version: 1\ntopics:\n  odom:\n    schema: {x: float, z: float}\n"
 METRICS = (
-    "version: 1\nmetrics:\n  Count:\n    type: test\n    description: rows\n    query_string: SELECT COUNT(*) FROM odom\n"
+    "version: 1\nmetrics:\n  Count:\n    type: test\n    description: rows\n"
+    "    query_string: SELECT COUNT(*) FROM odom\n"
     "    template_type: system\n    template: scalar\n"
 )
 

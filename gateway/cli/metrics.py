@@ -1,11 +1,12 @@
 """`lakegate metrics sync` (store a branch's config), `lakegate metrics run` (evaluate a stored batch), and
 `lakegate metrics dashboard` / `metrics report` (dashboard and report metrics over many batches).
 
-Exit codes of `metrics run`: 0 when nothing blocks (warnings allowed); 2 when at least one
-metric is a BLOCKER; 3 when none blocks but a metric errored or a job failed (ERROR); 1 for
-usage and config errors (nothing evaluated) and when the results or the report cannot be
-written (a read-only or full disk; the lake keeps what it had). Malformed command lines are argparse's: usage
-on standard error and exit code 2, like any argparse program.
+Exit codes of `metrics run` (and of `metrics dashboard` / `metrics report`): 0 when nothing
+blocks (warnings allowed); 2 when at least one metric is a BLOCKER; 3 when none blocks but a
+metric errored or a job failed (ERROR); 1 for usage and config errors (nothing evaluated) and
+when the results or the report cannot be written (a read-only or full disk; the lake keeps what
+it had). Malformed command lines are argparse's: usage on standard error and exit code 2, like
+any argparse program.
 """
 
 from __future__ import annotations
@@ -50,8 +51,9 @@ EXIT_OK, EXIT_USAGE, EXIT_BLOCKER, EXIT_ERROR = 0, 1, 2, 3
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     metrics = subparsers.add_parser(
         "metrics",
-        help="store a branch's metrics config, evaluate metrics on a batch",
-        description="Store a branch's metrics config, or evaluate a metrics set on a batch that is in the lake.",
+        help="store a branch's metrics config, evaluate metrics on a batch or over many batches",
+        description="Store a branch's metrics config, evaluate a metrics set on a batch that is in the lake, or "
+        "evaluate dashboard and report metrics over many batches.",
     )
     commands = metrics.add_subparsers(dest="metrics_command", metavar="SUBCOMMAND")
     commands.required = True

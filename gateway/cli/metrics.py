@@ -406,14 +406,11 @@ def format_trends(evaluation: TrendsEvaluation) -> str:
     lines = [
         "  ".join(cell.ljust(width) for cell, width in zip(row[:2], widths)) + "  " + row[2] for row in [header, *rows]
     ]
-    scope = "every batch" if evaluation.window is None else f"the {evaluation.window}"
-    if evaluation.kind == "report":
-        scope = "the batches given"
     version = f"config version {evaluation.config_version}" if evaluation.config_version else "config not stored"
     lines.append("")
     lines.append(
         f"{evaluation.kind} of branch {evaluation.branch!r}: {evaluation.status} ({len(evaluation.results)} "
-        f"metrics over {len(evaluation.batches)} batches, {scope}: "
+        f"metrics over {len(evaluation.batches)} batches, {evaluation.which_batches}: "
         f"{', '.join(b.batch_id for b in evaluation.batches) or 'none'}; {version}; {evaluation.seconds:.1f} s)"
     )
     return "\n".join(line.rstrip() for line in lines)

@@ -35,9 +35,6 @@ from lakegate.gateway.metrics.report import Item, metric_item
 from lakegate.gateway.metrics.templates import render
 from lakegate.lake.config import Config, Metric
 
-#: The metric types run over many batches, and what each runs over.
-MULTI_BATCH_TYPES = {"dashboard": "the batches of a window of the branch", "report": "a list of batches"}
-
 
 @dataclass(frozen=True)
 class Window:
@@ -121,6 +118,13 @@ class TrendsEvaluation:
         """The worst status of the metrics."""
         return worst(r.status for r in self.results)
 
+    @property
+    def which_batches(self) -> str:
+        """Which batches these are, in words: "every batch", "the last 10 batches", "the batches given"."""
+        if self.kind == "report":
+            return "the batches given"
+        return "every batch" if self.window is None else f"the {self.window}"
+
     def as_dict(self) -> dict[str, Any]:
         return {
             "branch": self.branch,
@@ -186,10 +190,7 @@ def _batches_item(evaluation: TrendsEvaluation) -> Item:
         (b.batch_id, None if b.time is None else b.time.isoformat(sep=" "), b.jobs, ", ".join(b.builds))
         for b in evaluation.batches
     ]
-    scope = "every batch" if evaluation.window is None else f"the {evaluation.window}"
-    if evaluation.kind == "report":
-        scope = "the batches given"
-    info = {"description": f"{len(rows)} batches ({scope})", "link_columns": ("Batch",)}
+    info = {"description": f"{len(rows)} batches ({evaluation.which_batches})", "link_columns": ("Batch",)}
     return "Batches", render("Batches", "table", columns, rows), info
 
 

@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
+from lakegate.gateway.metrics.trends import Window, batch_link
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file
 from lakegate.lake.registry import BranchConfigs
@@ -298,3 +299,13 @@ def test_the_trends_page_in_a_real_browser(trends_server, tmp_path):
             assert not errors
         finally:
             browser.close()
+
+
+def test_link_paths_name_a_batch_or_a_job_and_windows_read_as_documented():
+    assert batch_link("feature/x", "b1/j2", "http://h:1/") == "http://h:1/dashboard/?branch=feature%2Fx&batch=b1&job=j2"
+    assert batch_link("main", "b 1") == "/dashboard/?branch=main&batch=b+1"
+    assert batch_link("main", None) is None and batch_link("main", "") is None
+    assert Window.parse("30d") == Window(days=30) and str(Window.parse(" 10 ")) == "last 10 batches"
+    for bad in ("0", "-3", "30 days", "d", ""):
+        with pytest.raises(ValueError, match="expected a window like '30d'"):
+            Window.parse(bad)

@@ -1,4 +1,5 @@
-"""Scopes: restrict every lake table a query reads to one batch or one job (DESIGN.md, "Scopes").
+"""Scopes: restrict every lake table a query reads to one batch, one job, or a list of batches
+(DESIGN.md, "Scopes").
 
 The rewrite works on the Trino AST, so its result serves both backends: each reference to a lake
 table becomes a filtered derived table with the reference's alias,
@@ -9,6 +10,12 @@ in every part of the query (joins, subqueries, set operations, CTE bodies), exce
 of the same name is visible: a CTE shadows a table in the rest of its WITH (later CTEs and the
 query body, including nested subqueries), not in its own body or earlier CTEs, unless the WITH is
 RECURSIVE. Names compare case-insensitively, as Trino's do.
+
+A dashboard or report metric's scope is a list of batches (`Scope.batches`): every lake table,
+`metadata` and `metric_results` included, shows the rows of every job of those batches and nothing
+else (`WHERE batch_id IN (...)`), so `JOIN metadata m ON t.batch_id = m.batch_id AND t.job_id =
+m.job_id` finds each row's build; an empty list shows no rows. Which batches (a window of the
+branch's, or a list given) is the caller's choice (`gateway/metrics/trends.py`).
 
 A scope may also carry job statuses a dashboard session computed without writing them
 (`Scope.statuses`): `metadata` then shows those statuses in place of the stored ones, so batch
@@ -25,20 +32,49 @@ from sqlglot import exp
 
 @dataclass(frozen=True)
 class Scope:
-    """Which rows of the lake a query sees: one batch, one job of it, or everything (both None)."""
+    """Which rows of the lake a query sees: one batch, one job of it, every job of `batches`, or
+    everything (all None)."""
 
     batch_id: str | None = None
     job_id: str | None = None
     #: (job_id, job_metrics_status, job_conflated_status) that `metadata` shows instead of its own.
     statuses: tuple[tuple[str, str, str], ...] = ()
+    #: The batches of a dashboard or report metric (with `batch_id` and `job_id` None).
+    batches: tuple[str, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if self.batches is not None and (self.batch_id is not None or self.job_id is not None):
+            raise ValueError("a scope is one batch or job, or a list of batches, not both")
 
     def conditions(self) -> list[tuple[str, str]]:
-        """(column, value) pairs every lake row in scope satisfies."""
+        """(column, value) pairs every lake row in one batch's or job's scope satisfies."""
         return [
             (column, value)
             for column, value in (("batch_id", self.batch_id), ("job_id", self.job_id))
             if value is not None
         ]
+
+    def columns(self) -> list[str]:
+        """The lake columns the scope filters on."""
+        return ["batch_id"] if self.batches is not None else [column for column, _ in self.conditions()]
+
+    def predicate(self) -> exp.Expression | None:
+        """The condition every lake row in scope satisfies (values are string literal nodes, never
+        pasted text); None when the scope is everything."""
+        if self.batches is not None:
+            if not self.batches:
+                return exp.false()
+            values = [exp.Literal.string(batch) for batch in self.batches]
+            return exp.In(this=exp.column("batch_id"), expressions=values)
+        if not self.conditions():
+            return None
+        return exp.and_(
+            *(
+                exp.EQ(this=exp.column(column), expression=exp.Literal.string(value))
+                for column, value in self.conditions()
+            ),
+            copy=False,
+        )
 
 
 def _references(expression: exp.Expression, tables: set[str]) -> list[exp.Table]:
@@ -89,19 +125,12 @@ def _status_overlay(columns: Iterable[str], statuses: tuple[tuple[str, str, str]
     return out
 
 
-def _filtered(table: exp.Table, scope: Scope, columns: Iterable[str] | None) -> exp.Subquery:
+def _filtered(table: exp.Table, scope: Scope, condition: exp.Expression, columns: Iterable[str] | None) -> exp.Subquery:
     source = table.copy()
     source.set("alias", None)
-    condition = exp.and_(
-        *(
-            exp.EQ(this=exp.column(column), expression=exp.Literal.string(value))
-            for column, value in scope.conditions()
-        ),
-        copy=False,
-    )
     overlay = scope.statuses and columns and table.name.lower() == "metadata"
     shown = _status_overlay(columns, scope.statuses) if overlay else [exp.Star()]
-    select = exp.Select(expressions=shown, from_=exp.From(this=source), where=exp.Where(this=condition))
+    select = exp.Select(expressions=shown, from_=exp.From(this=source), where=exp.Where(this=condition.copy()))
     alias = table.args.get("alias")
     if alias is None:
         alias = exp.TableAlias(this=exp.Identifier(this=table.name, quoted=table.this.args.get("quoted", False)))
@@ -114,10 +143,11 @@ def restrict(
     """Rewrite (in place, and return) `expression` so that every lake table in `tables` it reads
     shows only the rows of `scope`. Values are string literal nodes, never pasted text. `tables`
     with their columns (table -> column -> type) lets `metadata` show `scope.statuses`."""
-    if not scope.conditions():
+    condition = scope.predicate()
+    if condition is None:
         return expression
     columns = {t.lower(): list(c) for t, c in tables.items()} if isinstance(tables, Mapping) else {}
     names = {t.lower() for t in tables}
     for table in _references(expression, names):
-        table.replace(_filtered(table, scope, columns.get(table.name.lower())))
+        table.replace(_filtered(table, scope, condition, columns.get(table.name.lower())))
     return expression

@@ -1,10 +1,12 @@
-"""`lakegate metrics sync` (store a branch's config) and `lakegate metrics run` (evaluate a stored batch).
+"""`lakegate metrics sync` (store a branch's config), `lakegate metrics run` (evaluate a stored batch), and
+`lakegate metrics dashboard` / `metrics report` (dashboard and report metrics over many batches).
 
-Exit codes of `metrics run`: 0 when nothing blocks (warnings allowed); 2 when at least one
-metric is a BLOCKER; 3 when none blocks but a metric errored or a job failed (ERROR); 1 for
-usage and config errors (nothing evaluated) and when the results or the report cannot be
-written (a read-only or full disk; the lake keeps what it had). Malformed command lines are argparse's: usage
-on standard error and exit code 2, like any argparse program.
+Exit codes of `metrics run` (and of `metrics dashboard` / `metrics report`): 0 when nothing
+blocks (warnings allowed); 2 when at least one metric is a BLOCKER; 3 when none blocks but a
+metric errored or a job failed (ERROR); 1 for usage and config errors (nothing evaluated) and
+when the results or the report cannot be written (a read-only or full disk; the lake keeps what
+it had). Malformed command lines are argparse's: usage on standard error and exit code 2, like
+any argparse program.
 """
 
 from __future__ import annotations
@@ -28,6 +30,16 @@ from lakegate.gateway.metrics.evaluation import (
 )
 from lakegate.gateway.metrics.report import job_title, write_report
 from lakegate.gateway.metrics.templates import display_value
+from lakegate.gateway.metrics.trends import (
+    BatchInfo,
+    TrendsEvaluation,
+    Window,
+    branch_batches,
+    evaluate_trends,
+    in_window,
+    metrics_of,
+    write_trends,
+)
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.config import Config, ConfigError, load_config
 from lakegate.lake.paths import LakePathError
@@ -39,8 +51,9 @@ EXIT_OK, EXIT_USAGE, EXIT_BLOCKER, EXIT_ERROR = 0, 1, 2, 3
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     metrics = subparsers.add_parser(
         "metrics",
-        help="store a branch's metrics config, evaluate metrics on a batch",
-        description="Store a branch's metrics config, or evaluate a metrics set on a batch that is in the lake.",
+        help="store a branch's metrics config, evaluate metrics on a batch or over many batches",
+        description="Store a branch's metrics config, evaluate a metrics set on a batch that is in the lake, or "
+        "evaluate dashboard and report metrics over many batches.",
     )
     commands = metrics.add_subparsers(dest="metrics_command", metavar="SUBCOMMAND")
     commands.required = True
@@ -113,9 +126,93 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     run.set_defaults(func=run_command)
 
+    _add_trends_parsers(commands)
+
     from lakegate.gateway.cli.debug import add_debug_parser  # `metrics debug` lives in its own module
 
     add_debug_parser(commands)
+
+
+def _add_trends_parsers(commands: argparse._SubParsersAction) -> None:
+    dashboard = commands.add_parser(
+        "dashboard",
+        help="evaluate the dashboard metrics over the batches of a branch (trends across builds)",
+        description="Evaluate the config's 'type: dashboard' metrics once over every batch of the branch, or "
+        "the batches of --window: each query sees every job of those batches in every table (metadata "
+        "included, so '... GROUP BY m.build_version' shows a trend from build to build). Prints each "
+        "metric's status and value, optionally writes an offline HTML page; writes nothing to the lake. "
+        "Exit code: 0 nothing blocks, 2 a metric is a BLOCKER, 3 a metric errored, 1 usage or config error.",
+    )
+    _lake_and_branch(dashboard)
+    dashboard.add_argument(
+        "--window",
+        type=_window,
+        metavar="30d|N",
+        help="only the batches of the last N days ('30d': a batch's time is its earliest job's metadata "
+        "time) or the last N batches ('10'); default: every batch of the branch",
+    )
+    report = commands.add_parser(
+        "report",
+        help="evaluate the report metrics over a list of batches",
+        description="Evaluate the config's 'type: report' metrics once over every job of the batches given: "
+        "each query sees every job of those batches in every table (metadata included). Prints each "
+        "metric's status and value, optionally writes an offline HTML page; writes nothing to the lake. "
+        "Exit code: 0 nothing blocks, 2 a metric is a BLOCKER, 3 a metric errored, 1 usage or config error.",
+    )
+    _lake_and_branch(report)
+    report.add_argument(
+        "--batches", required=True, type=_batch_list, metavar="A,B,...", help="the batches, separated by commas"
+    )
+    for parser in (dashboard, report):
+        parser.add_argument(
+            "--metrics-set",
+            metavar="S",
+            help="only the metrics of this set (default: every metric of its type in the config)",
+        )
+        parser.add_argument(
+            "--metrics-config-path",
+            action="append",
+            type=Path,
+            metavar="P",
+            dest="config_paths",
+            help="evaluate this config instead of the branch's stored one (repeat to merge several)",
+        )
+        parser.add_argument(
+            "--format",
+            choices=("table", "json"),
+            default="table",
+            help="output: a table of metric -> status and value (default), or JSON with the batches and "
+            "every evaluated metric",
+        )
+        parser.add_argument(
+            "--report",
+            type=Path,
+            metavar="FILE.html",
+            help="also write an offline HTML page with the batches and every figure to this file",
+        )
+        parser.add_argument(
+            "--link-base",
+            default="http://127.0.0.1:8080",
+            metavar="URL",
+            help="where the page's links (link_path columns, batch ids) point: the 'lakegate serve' that "
+            "shows the batches (default: http://127.0.0.1:8080, serve's default address)",
+        )
+        add_backend_arguments(parser)
+        parser.set_defaults(func=trends_command)
+
+
+def _window(text: str) -> Window:
+    try:
+        return Window.parse(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
+def _batch_list(text: str) -> list[str]:
+    batches = [name.strip() for name in text.split(",") if name.strip()]
+    if not batches:
+        raise argparse.ArgumentTypeError(f"expected batch ids separated by commas, got {text!r}")
+    return list(dict.fromkeys(batches))
 
 
 def _lake_and_branch(parser: argparse.ArgumentParser) -> None:
@@ -167,16 +264,27 @@ def exit_code(evaluation: BatchEvaluation) -> int:
     return EXIT_ERROR if evaluation.status == ERROR else EXIT_OK
 
 
-def run_command(args: argparse.Namespace) -> int:
+def _check_lake_and_report(args: argparse.Namespace) -> Catalog:
+    """The lake's catalog; UserError when the lake or the branch does not exist, or --report is a folder."""
     if not args.lake.is_dir():
         raise UserError(f"no lake at {str(args.lake)!r}")
     if args.report is not None and args.report.is_dir():
         raise UserError(f"--report {str(args.report)!r} is a directory; name the HTML file to write")
     catalog = Catalog(args.lake)
     try:
-        if args.branch not in catalog.branches():
-            known = ", ".join(repr(b) for b in catalog.branches()) or "none"
-            raise UserError(f"no branch {args.branch!r} in {args.lake} (branches: {known})")
+        branches = catalog.branches()
+    except LakePathError as error:
+        raise UserError(str(error)) from None
+    if args.branch not in branches:
+        raise UserError(
+            f"no branch {args.branch!r} in {args.lake} (branches: {', '.join(map(repr, branches)) or 'none'})"
+        )
+    return catalog
+
+
+def run_command(args: argparse.Namespace) -> int:
+    catalog = _check_lake_and_report(args)
+    try:
         config, version = _run_config(args)
         metrics = select_metrics(config, args.metrics_set, all_metrics=args.all_metrics)
         batches = catalog.batches(args.branch)
@@ -225,6 +333,87 @@ def run_command(args: argparse.Namespace) -> int:
             ) from None
         print(f"report: {path.resolve()}", file=sys.stderr if args.format == "json" else sys.stdout)
     return exit_code(evaluation)
+
+
+def _trends_batches(args: argparse.Namespace, engine: MetricsEngine) -> list[BatchInfo]:
+    """The batches a `metrics dashboard` (its window) or `metrics report` (those named) runs over."""
+    known = branch_batches(engine, args.branch)
+    if args.metrics_command == "dashboard":
+        return in_window(known, args.window)
+    by_id = {b.batch_id: b for b in known}
+    missing = [name for name in args.batches if name not in by_id]
+    if missing:
+        raise UserError(
+            f"no batch {', '.join(map(repr, missing))} on branch {args.branch!r} (batches: "
+            f"{', '.join(repr(b.batch_id) for b in known) or 'none'})"
+        )
+    return [by_id[name] for name in args.batches]
+
+
+def trends_command(args: argparse.Namespace) -> int:
+    """`metrics dashboard` and `metrics report`: metrics of that type over many batches."""
+    kind = args.metrics_command
+    _check_lake_and_report(args)
+    try:
+        config, version = _run_config(args)
+        metrics = metrics_of(config, kind, args.metrics_set)
+    except ConfigError as error:
+        print_config_problems(error)
+        return EXIT_USAGE
+    except KeyError as error:
+        raise UserError(str(error.args[0])) from None
+    if not metrics:
+        where = f"metrics set {args.metrics_set!r}" if args.metrics_set else "the config"
+        raise UserError(f"{where} has no 'type: {kind}' metrics")
+    backend = backend_from_args(args, args.lake)
+    try:
+        engine = MetricsEngine(args.lake, backend)
+        batches = _trends_batches(args, engine)
+        evaluation = evaluate_trends(
+            engine,
+            args.branch,
+            metrics,
+            batches,
+            kind=kind,
+            window=getattr(args, "window", None),
+            config_version=version,
+        )
+    except (DialectError, LakePathError) as error:
+        raise UserError(str(error)) from None
+    finally:
+        backend.close()
+    if args.format == "json":
+        json.dump(evaluation.as_dict(), sys.stdout, ensure_ascii=False, indent=2)
+        sys.stdout.write("\n")
+    else:
+        print(format_trends(evaluation))
+    if args.report is not None:
+        try:
+            path = write_trends(evaluation, args.report, link_base=args.link_base)
+        except OSError as error:
+            raise UserError(f"cannot write the report {str(args.report)!r}: {os_error_text(error)}") from None
+        print(f"report: {path.resolve()}", file=sys.stderr if args.format == "json" else sys.stdout)
+    if any(r.status == BLOCKER for r in evaluation.results):
+        return EXIT_BLOCKER
+    return EXIT_ERROR if evaluation.status == ERROR else EXIT_OK
+
+
+def format_trends(evaluation: TrendsEvaluation) -> str:
+    """The results as aligned text: one row per metric (status and value), then a summary line."""
+    rows = [(r.status, r.metric, _value(r)) for r in evaluation.results]
+    header = ("STATUS", "METRIC", "VALUE")
+    widths = [max(len(row[i]) for row in [header, *rows]) for i in range(2)]
+    lines = [
+        "  ".join(cell.ljust(width) for cell, width in zip(row[:2], widths)) + "  " + row[2] for row in [header, *rows]
+    ]
+    version = f"config version {evaluation.config_version}" if evaluation.config_version else "config not stored"
+    lines.append("")
+    lines.append(
+        f"{evaluation.kind} of branch {evaluation.branch!r}: {evaluation.status} ({len(evaluation.results)} "
+        f"metrics over {len(evaluation.batches)} batches, {evaluation.which_batches}: "
+        f"{', '.join(b.batch_id for b in evaluation.batches) or 'none'}; {version}; {evaluation.seconds:.1f} s)"
+    )
+    return "\n".join(line.rstrip() for line in lines)
 
 
 #: Small tables and pies are shown in full in the results table (`label: value; ...`).

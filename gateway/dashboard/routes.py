@@ -17,6 +17,11 @@
     POST   /dashboard/api/sessions/{id}/query            ad hoc SQL {sql, scope, job}: first 1,000 rows + total
     GET    /dashboard/api/sessions/{id}/events?job=J     the job's events in time order with their metrics
     GET    /dashboard/api/sessions/{id}/logs/{job}/{file}    a job's log file (the images metrics show)
+    GET    /dashboard/trends/                            the branches, each linking to its trends page
+    GET    /dashboard/trends/?branch=B[&window=30d|N][&set=S]   branch B's dashboard metrics over its
+                                                         batches (gateway/metrics/trends.py): the page of
+                                                         `lakegate metrics dashboard`, evaluated per request,
+                                                         read-only, through the server's limits
 
 A session (`debug_session.DashboardSession`) is one batch seen through a config plus the edits
 made in the page. `lakegate metrics debug` opens one on its debug job; `lakegate serve` mounts
@@ -25,6 +30,7 @@ the same router, and the page opens a session for whichever branch / batch is pi
 
 from __future__ import annotations
 
+import html
 import re
 import secrets
 import threading
@@ -32,16 +38,17 @@ from collections import OrderedDict
 from importlib import resources
 from pathlib import Path
 from typing import Any
-from urllib.parse import quote
+from urllib.parse import quote, urlencode
 
-from fastapi import APIRouter, Body, HTTPException
-from fastapi.responses import FileResponse, JSONResponse, RedirectResponse, Response
+from fastapi import APIRouter, Body, HTTPException, Query
+from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, RedirectResponse, Response
 
 from lakegate.dialect.errors import DialectError
 from lakegate.gateway.dashboard.debug_session import BranchConfig, DashboardSession, SessionError
 from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.gateway.metrics.results import read_results
+from lakegate.gateway.metrics.trends import Window, branch_batches, evaluate_trends, in_window, metrics_of, trends_html
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.paths import LakePathError
 
@@ -128,6 +135,37 @@ class DashboardState:
         )
         return self.add(session)
 
+    def trends(self, branch: str, window: str | None = None, metrics_set: str | None = None) -> str:
+        """The trends page of a branch: its stored config's dashboard metrics over the batches of
+        `window` (every batch when None), evaluated now; SessionError for what cannot be shown."""
+        if branch not in self.catalog.branches():
+            raise SessionError(f"no branch {branch!r} in the lake")
+        chosen = Window.parse(window) if window else None
+        source = BranchConfig(self.lake, branch)
+        files = source.read()
+        try:
+            metrics = metrics_of(source.registry.load(files.version), "dashboard", metrics_set)
+        except KeyError as error:
+            raise SessionError(str(error.args[0])) from None
+        if not metrics:
+            raise SessionError(f"branch {branch!r} has no 'type: dashboard' metrics in its config")
+        batches = in_window(branch_batches(self.engine, branch), chosen)
+        evaluation = evaluate_trends(
+            self.engine, branch, metrics, batches, kind="dashboard", window=chosen, config_version=files.version
+        )
+        return trends_html(evaluation, plotlyjs="/dashboard/static/plotly.min.js")
+
+    def trends_index(self) -> str:
+        """A page linking to each branch's trends page."""
+        items = "".join(
+            f'<li><a href="?{urlencode({"branch": b})}">{html.escape(b)}</a></li>' for b in self.catalog.branches()
+        )
+        return (
+            '<!DOCTYPE html>\n<html lang="en">\n<head><meta charset="utf-8"><title>lakegate · trends</title></head>\n'
+            f"<body>\n<h1>Trends: dashboard metrics of each branch</h1>\n<ul>{items or '<li>no branches yet</li>'}</ul>\n"
+            '<p><a href="../">Batches: the metrics dashboard</a></p>\n</body>\n</html>\n'
+        )
+
     def listing(self) -> dict[str, Any]:
         """Branches with their batches and jobs (never a session id: the debug session's is in its URL)."""
         branches = []
@@ -144,6 +182,14 @@ def attachment(filename: str) -> str:
     fallback with anything but letters, digits, `.`, `_` and `-` replaced, and the exact UTF-8 name."""
     fallback = re.sub(r"[^A-Za-z0-9._-]", "_", filename)
     return f"attachment; filename=\"{fallback}\"; filename*=UTF-8''{quote(filename, safe='')}"
+
+
+def _error_page(message: str) -> str:
+    return (
+        '<!DOCTYPE html>\n<html lang="en">\n<head><meta charset="utf-8"><title>lakegate · trends</title></head>\n'
+        f'<body>\n<h1>Cannot show the trends</h1>\n<p>{html.escape(message)}</p>\n<p><a href="./">All branches</a></p>\n'
+        "</body>\n</html>\n"
+    )
 
 
 def _bad_request(error: Exception) -> HTTPException:
@@ -176,6 +222,22 @@ def dashboard_router(state: DashboardState) -> APIRouter:
         if name not in PAGE_FILES:
             raise HTTPException(404, f"no file {name!r}")
         return FileResponse(STATIC / name, media_type=PAGE_FILES[name], headers={"Cache-Control": "no-cache"})
+
+    @router.get("/trends", include_in_schema=False)
+    def trends_redirect() -> RedirectResponse:
+        return RedirectResponse("/dashboard/trends/")
+
+    @router.get("/trends/", include_in_schema=False)
+    def trends(
+        branch: str | None = None, window: str | None = None, metrics_set: str | None = Query(None, alias="set")
+    ) -> HTMLResponse:
+        if branch is None:
+            return HTMLResponse(call(state.trends_index), headers={"Cache-Control": "no-cache"})
+        try:
+            page = state.trends(branch, window, metrics_set)
+        except (SessionError, LakePathError, DialectError, ValueError) as error:
+            return HTMLResponse(_error_page(str(error)), status_code=400)
+        return HTMLResponse(page, headers={"Cache-Control": "no-cache"})
 
     @router.get("/api/lake")
     def lake() -> dict[str, Any]:

@@ -96,9 +96,7 @@ def _span(table: exp.Table) -> tuple[int, int] | None:
 
 def _scoped_reference(text: str, table: exp.Table, span: tuple[int, int], scope: Scope) -> str:
     name = text[span[0] : span[1]]
-    condition = " AND ".join(
-        f"{column} = {exp.Literal.string(value).sql(dialect=LakegateTrino)}" for column, value in scope.conditions()
-    )
+    condition = scope.predicate().sql(dialect=LakegateTrino)
     alias = "" if table.args.get("alias") else " " + text[table.this.meta["start"] : table.this.meta["end"] + 1]
     return f"(SELECT * FROM {name} WHERE {condition}){alias}"
 
@@ -157,7 +155,7 @@ def forwarded_sql(
     guard.check(tree)
     if kind in ("show", "describe"):
         scope, params = None, ()
-    if scope is not None and not scope.conditions():
+    if scope is not None and scope.predicate() is None:
         scope = None
     chosen = (tables(tree) if callable(tables) else set(tables)) if scope is not None else set()
     edits = _edits(body, tree, scope, params, chosen)
@@ -443,7 +441,7 @@ class TrinoBackend:
             self.schema(branch)
             with self._lock:
                 known = self._tables[branch]
-        wanted = [column for column, _ in scope.conditions()]
+        wanted = scope.columns()
         return {table for table, columns in known.columns.items() if all(c in columns for c in wanted)}
 
     # -- queries --------------------------------------------------------------------------

@@ -25,8 +25,9 @@ supported) counts for nothing. One metric:
   exactly (e.g. `config.resim.yaml:57:9`); the rest of the set still runs;
 * the result does not fit the template: ERROR with the template's message;
 * no rows and `skip_if_no_data: true`: NOT_RUN;
-* `type: dashboard | report` and the templates `video` and `artifact` are not supported
-  yet: NOT_RUN with that reason (they never fail a batch);
+* `type: dashboard | report` metrics run over many batches (`gateway/metrics/trends.py`): in a
+  batch they are NOT_RUN naming the command that runs them (they never fail a batch);
+* the templates `video` and `artifact` are not supported yet: NOT_RUN with that reason;
 * `template_type: custom`: the result is rendered by the metric's Liquid template (`custom`);
 * otherwise the status check, if any: the status query runs with `block` (when given) bound to its one
   `?` (a typed query parameter, never pasted text); any row means BLOCKER; else with `warn`
@@ -67,8 +68,14 @@ from lakegate.lake.config import Config, Location, Metric
 PASSED, WARNING, BLOCKER, ERROR, NOT_RUN = "PASSED", "WARNING", "BLOCKER", "ERROR", "NOT_RUN"
 #: Statuses from best to worst; NOT_RUN is below all and never makes anything worse.
 SEVERITY = {NOT_RUN: 0, PASSED: 1, WARNING: 2, BLOCKER: 3, ERROR: 4}
-#: Metric types evaluated (others are reported NOT_RUN).
+#: Metric types a batch evaluates (`evaluate_batch`).
 EVALUATED_TYPES = ("test", "batch")
+#: Metric types that run over many batches (`Scope.batches`, gateway/metrics/trends.py), and the
+#: command that runs them; `evaluate_batch` reports them NOT_RUN saying so.
+MULTI_BATCH_COMMANDS = {
+    "dashboard": "lakegate metrics dashboard",
+    "report": "lakegate metrics report --batches A,B,...",
+}
 
 
 def worst(statuses: Sequence[str] | Any) -> str:
@@ -206,10 +213,12 @@ def select_metrics(config: Config, metrics_set: str | None = None, *, all_metric
     return config.metrics_in_set(metrics_set)
 
 
-def unsupported_reason(metric: Metric) -> str | None:
-    """Why a metric cannot be evaluated yet, or None when it can."""
-    if metric.type not in EVALUATED_TYPES:
-        return f"metric type '{metric.type}' is not supported yet (only test and batch metrics are evaluated)"
+def unsupported_reason(metric: Metric, scope: Scope) -> str | None:
+    """Why a metric cannot be evaluated in `scope` (yet), or None when it can."""
+    if metric.type in MULTI_BATCH_COMMANDS and scope.batches is None:
+        return f"a {metric.type} metric runs over many batches: {MULTI_BATCH_COMMANDS[metric.type]}"
+    if metric.type in EVALUATED_TYPES and scope.batches is not None:
+        return f"a {metric.type} metric runs on one batch: lakegate metrics run"
     if metric.template_type == "system" and metric.template in UNSUPPORTED_TEMPLATES:
         return f"template '{metric.template}' is not supported yet"
     return None
@@ -297,7 +306,7 @@ class MetricsEngine:
             units=metric.units,
             description=metric.description,
         )
-        reason = unsupported_reason(metric)
+        reason = unsupported_reason(metric, scope)
         if reason is not None:
             result.status, result.error = NOT_RUN, MetricError(reason)
         else:

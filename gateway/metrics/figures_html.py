@@ -13,7 +13,9 @@ import functools
 import html
 import json
 import uuid
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 from plotly.offline import get_plotlyjs
 
@@ -31,6 +33,11 @@ STATUS_COLOURS = {
 MAX_TABLE_ROWS = 2000
 #: Larger image files are not embedded (the page would become unwieldy).
 MAX_IMAGE_BYTES = 20 * 1024 * 1024
+#: Table columns whose values a page may turn into links (ReSim's `link_path`).
+LINK_COLUMNS = ("link_path",)
+
+#: A table cell's value -> the URL it links to (None: no link).
+Linker = Callable[[Any], "str | None"]
 
 _CSS = """
 body { font-family: system-ui, -apple-system, "Segoe UI", sans-serif; margin: 0 auto; max-width: 1200px;
@@ -73,11 +80,19 @@ def figure_html(rendered: Rendered, *, title: str, include_plotlyjs: str | bool 
     return _page(title, script, body)
 
 
-def report_html(title: str, sections: list[tuple[str, list[tuple[str, Rendered | None, dict]]]]) -> str:
+def report_html(
+    title: str,
+    sections: list[tuple[str, list[tuple[str, Rendered | None, dict]]]],
+    *,
+    link: Linker | None = None,
+    plotlyjs: str | bool = True,
+) -> str:
     """One offline page showing many metrics, grouped in titled sections.
 
     Each metric is (name, rendered or None when it has no result, info) where info may hold
-    "status" (PASSED, WARNING, BLOCKER, ERROR or NOT_RUN), "description", "units" and "error".
+    "status" (PASSED, WARNING, BLOCKER, ERROR or NOT_RUN), "description", "units", "error" and
+    "link_columns" (default `LINK_COLUMNS`): with `link`, a table's cells in those columns are
+    links to `link(value)`. `plotlyjs` is `figure_html`'s `include_plotlyjs` (True: embedded).
     """
     counts: dict[str, int] = {}
     parts: list[str] = []
@@ -89,14 +104,14 @@ def report_html(title: str, sections: list[tuple[str, list[tuple[str, Rendered |
             if status is not None:
                 counts[status] = counts.get(status, 0) + 1
             figure_number += 1
-            parts.append(_metric_article(name, rendered, info, f"lg-figure-{figure_number}"))
+            parts.append(_metric_article(name, rendered, info, f"lg-figure-{figure_number}", link))
         parts.append("</section>")
     summary = " ".join(
         f"<span>{_badge(status)} {count}</span>" for status, count in sorted(counts.items(), key=_status_order)
     )
     charts = any(_has_chart(rendered) for _, metrics in sections for _, rendered, _ in metrics if rendered)
     body = f'<h1>{html.escape(title)}</h1>\n<p class="lg-summary">{summary}</p>\n' + "\n".join(parts)
-    return _page(title, _plotly_script(True) if charts else "", body)
+    return _page(title, _plotly_script(plotlyjs) if charts else "", body)
 
 
 def _status_order(item: tuple[str, int]) -> int:
@@ -131,7 +146,7 @@ def _badge(status: str) -> str:
     return f'<span class="lg-badge" style="background:{colour}">{html.escape(status)}</span>'
 
 
-def _metric_article(name: str, rendered: Rendered | None, info: dict, div_id: str) -> str:
+def _metric_article(name: str, rendered: Rendered | None, info: dict, div_id: str, link: Linker | None) -> str:
     status = info.get("status")
     parts = [f'<article class="lg-metric">\n<h3>{html.escape(name)}{_badge(status) if status else ""}</h3>']
     if info.get("description"):
@@ -141,7 +156,8 @@ def _metric_article(name: str, rendered: Rendered | None, info: dict, div_id: st
     if info.get("error"):
         parts.append(f'<pre class="lg-error">{html.escape(str(info["error"]))}</pre>')
     if rendered is not None:
-        parts.append(_metric_body(rendered, div_id))
+        links = (link, info.get("link_columns", LINK_COLUMNS)) if link is not None else None
+        parts.append(_metric_body(rendered, div_id, links))
     parts.append("</article>")
     return "\n".join(parts)
 
@@ -150,11 +166,12 @@ def _has_chart(rendered: Rendered) -> bool:
     return rendered.figure is not None and rendered.template != "table"
 
 
-def _metric_body(rendered: Rendered, div_id: str) -> str:
-    """The result itself: a chart, a table, a scalar or images, then any problems."""
+def _metric_body(rendered: Rendered, div_id: str, links: tuple[Linker, Sequence[str]] | None = None) -> str:
+    """The result itself: a chart, a table (cells of `links`' columns linked), a scalar or images,
+    then any problems."""
     problems = list(rendered.problems)
     if rendered.template == "table" and rendered.table is not None:
-        body = _table(rendered)
+        body = _table(rendered, links)
     elif _has_chart(rendered):
         body = _chart(rendered.figure, div_id)
     elif rendered.template == "image":
@@ -183,12 +200,18 @@ def _chart(figure: dict, div_id: str) -> str:
     )
 
 
-def _table(rendered: Rendered) -> str:
+def _cell(value: Any, link: Linker | None) -> str:
+    text = html.escape(display_value(value))
+    target = link(value) if link is not None else None
+    return f'<td><a href="{html.escape(target)}">{text}</a></td>' if target else f"<td>{text}</td>"
+
+
+def _table(rendered: Rendered, links: tuple[Linker, Sequence[str]] | None = None) -> str:
     columns, rows = rendered.table["columns"], rendered.table["rows"]
     head = "".join(f"<th>{html.escape(str(c))}</th>" for c in columns)
+    linkers = [links[0] if links is not None and str(c) in links[1] else None for c in columns]
     body = "".join(
-        "<tr>" + "".join(f"<td>{html.escape(display_value(v))}</td>" for v in row) + "</tr>"
-        for row in rows[:MAX_TABLE_ROWS]
+        "<tr>" + "".join(_cell(v, link) for v, link in zip(row, linkers)) + "</tr>" for row in rows[:MAX_TABLE_ROWS]
     )
     more = ""
     if len(rows) > MAX_TABLE_ROWS:

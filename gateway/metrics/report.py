@@ -28,7 +28,8 @@ def job_title(job: JobOutcome) -> str:
     return f"{job.experience_name} ({short_id(job.job_id)})" if job.experience_name else job.job_id
 
 
-def _metric_item(result: MetricResult) -> Item:
+def metric_item(result: MetricResult) -> Item:
+    """A metric's result as the report shows it: (name, rendered, status, description, units, error)."""
     info: dict[str, Any] = {"status": result.status, "description": result.description}
     if result.units and result.template != "scalar":
         info["units"] = result.units
@@ -94,10 +95,10 @@ def evaluation_report(evaluation: BatchEvaluation, *, title: str | None = None) 
     title = title or f"Batch {evaluation.batch_id} on branch {evaluation.branch}: {evaluation.status}"
     sections: list[tuple[str, list[Item]]] = [
         ("Overview", [_overview(evaluation)]),
-        ("Batch metrics", [_metric_item(r) for r in evaluation.batch_results]),
+        ("Batch metrics", [metric_item(r) for r in evaluation.batch_results]),
     ]
     for job in evaluation.jobs:
-        items = [_metric_item(r) for r in job.results]
+        items = [metric_item(r) for r in job.results]
         for event in job.events:
             items += _event_items(event, job.logs_dir)
         sections.append((f"Job {job_title(job)}: {job.conflated_status}", items))

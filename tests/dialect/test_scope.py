@@ -189,3 +189,36 @@ def test_a_derived_table_does_not_see_its_siblings():
             "SELECT 1 FROM (WITH i AS (SELECT 1 AS a) SELECT a FROM i) x, (SELECT a FROM i) y",
             {"odom": {"x": "double"}},
         )
+
+
+@pytest.mark.parametrize(
+    "batches, sql, rows",
+    [
+        # every job of the batches listed (odom: j1, j2 of b1 with 4 rows each, j3 of b2 with 1)
+        (("b1", "b2"), "SELECT job_id, count(*) FROM odom GROUP BY 1 ORDER BY 1", [("j1", 4), ("j2", 4), ("j3", 1)]),
+        (("b2",), "SELECT DISTINCT batch_id, job_id FROM odom", [("b2", "j3")]),
+        (("b1",), "SELECT count(*) FROM metadata", [(2,)]),
+        ((), "SELECT count(*) FROM odom", [(0,)]),  # no batches: no rows
+        (
+            ("b1", "b2"),
+            "SELECT m.batch_id, count(*) FROM odom o JOIN metadata m ON o.batch_id = m.batch_id AND o.job_id = m.job_id "
+            "GROUP BY 1 ORDER BY 1",
+            [("b1", 8), ("b2", 1)],
+        ),
+        (("b2", "nope"), "WITH odom AS (SELECT 42 AS x) SELECT x FROM odom", [(42,)]),  # a CTE still shadows
+    ],
+)
+def test_a_list_of_batches_shows_every_job_of_them_and_nothing_else(fixture_lake, batches, sql, rows):
+    assert run(fixture_lake, sql, Scope(batches=batches)) == rows
+
+
+def test_a_list_of_batches_is_one_in_list_of_literals():
+    assert (
+        rewritten("SELECT count(*) FROM odom o", Scope(batches=("b1", "it's")))
+        == "SELECT COUNT(*) FROM (SELECT * FROM odom WHERE batch_id IN ('b1', 'it''s')) AS o"
+    )
+    assert (
+        rewritten("SELECT x FROM odom", Scope(batches=())) == "SELECT x FROM (SELECT * FROM odom WHERE FALSE) AS odom"
+    )
+    with pytest.raises(ValueError, match="not both"):
+        Scope(batch_id="b1", batches=("b1",))

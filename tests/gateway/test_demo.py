@@ -3,10 +3,15 @@ config must come from the installed package), twice on the same lake."""
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import subprocess
 import sys
+from pathlib import Path
+
+import pytest
+import yaml
 
 from lakegate.gateway.cli.demo import BATCH, BRANCH
 from lakegate.gateway.engine.backend import DuckDBBackend
@@ -43,7 +48,9 @@ def test_demo_from_anywhere_with_no_arguments_then_again(tmp_path):
     backend = DuckDBBackend(lake)
     try:
         statuses = backend.execute(
-            "SELECT job_conflated_status, COUNT(*) FROM metadata GROUP BY 1 ORDER BY 1", branch=BRANCH
+            "SELECT job_conflated_status, COUNT(*) FROM metadata WHERE batch_id = ? GROUP BY 1 ORDER BY 1",
+            branch=BRANCH,
+            params=[BATCH],
         ).rows()
     finally:
         backend.close()
@@ -58,8 +65,36 @@ def test_demo_from_anywhere_with_no_arguments_then_again(tmp_path):
     assert "Goal 1 Reached at " in html  # events
     assert "<script src=" not in html and "Plotly.newPlot" in html  # offline: plotly.js is embedded
 
+    check_trends(out, lake)
+
     results = read_results(lake, BRANCH, BATCH)
     again = demo("--lake", lake, "--no-progress", cwd=tmp_path)
     assert "2 PASSED, 2 WARNING, 2 BLOCKER" in again
     assert len(read_results(lake, BRANCH, BATCH)) == len(results) == 6 * 9 + 6  # replaced, not added
-    assert len(Catalog(lake).jobs(BRANCH)) == 6
+    assert len(Catalog(lake).jobs(BRANCH)) == 6 + 2 * 3  # the batch and the two earlier builds' batches
+
+
+def check_trends(out: str, lake: Path) -> None:
+    """The demo's dashboard metric: mean time to the final goal per build, over the jobs that reached
+    3 goals, computed here from the generated emissions files (the builds in the order they ran)."""
+    assert f"trends: {lake / 'trends.html'}" in out
+    assert (
+        "dashboard of branch 'main': PASSED (2 metrics over 3 batches, every batch: nightly-1.4.0, "
+        "nightly-1.4.1, nav-regression-1;" in out
+    )
+    totals: dict[str, list[float]] = {}
+    for emissions in sorted((lake / "_demo_inputs").glob("**/emissions.resim.jsonl")):
+        metadata = yaml.safe_load((emissions.parent / "metadata.yaml").read_text())
+        times = [
+            line["$data"]["time_s"]
+            for line in map(json.loads, emissions.read_text().splitlines())
+            if line["$metadata"]["topic"] == "time_to_goal"
+        ]
+        if len(times) == 3:
+            totals.setdefault(metadata["build_version"], []).append(sum(times))
+    html = (lake / "trends.html").read_text()
+    data = json.loads(html.split('Plotly.newPlot("lg-figure-2", ', 1)[1].split(", {", 1)[0])
+    assert data[0]["x"] == ["1.4.0", "1.4.1", "1.4.2"]
+    assert data[0]["y"] == pytest.approx([sum(totals[b]) / len(totals[b]) for b in data[0]["x"]], rel=1e-12)
+    for batch in ("nightly-1.4.0", "nightly-1.4.1", BATCH):  # the link_path column links to the served batch page
+        assert f'<a href="http://127.0.0.1:8080/dashboard/?branch=main&amp;batch={batch}">{batch}</a>' in html

@@ -327,6 +327,8 @@ def test_the_forwarded_text_is_the_users_with_only_the_edits():
     assert forwarded.user_position(1, 13) == (1, 13)
     explain = forwarded_sql("EXPLAIN (TYPE IO)\nSELECT * FROM odom", scope=Scope("b"), tables={"odom"})
     assert explain.sql == "EXPLAIN (TYPE IO)\nSELECT * FROM (SELECT * FROM odom WHERE batch_id = 'b') odom"
+    several = forwarded_sql("SELECT x FROM odom", scope=Scope(batches=("a", "b'2")), tables={"odom"})
+    assert several.sql == "SELECT x FROM (SELECT * FROM odom WHERE batch_id IN ('a', 'b''2')) odom"  # dashboards
     with pytest.raises(DialectError) as caught:
         forwarded_sql("SELECT ?, ?", params=[1])
     assert caught.value.error_name == "INVALID_PARAMETER_USAGE"

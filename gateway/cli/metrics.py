@@ -365,9 +365,9 @@ def trends_command(args: argparse.Namespace) -> int:
     if not metrics:
         where = f"metrics set {args.metrics_set!r}" if args.metrics_set else "the config"
         raise UserError(f"{where} has no 'type: {kind}' metrics")
-    backend = backend_from_args(args, args.lake)
+    queries = engine_from_args(args, args.lake)
+    engine = MetricsEngine(args.lake, queries)
     try:
-        engine = MetricsEngine(args.lake, backend)
         batches = _trends_batches(args, engine)
         evaluation = evaluate_trends(
             engine,
@@ -381,7 +381,7 @@ def trends_command(args: argparse.Namespace) -> int:
     except (DialectError, LakePathError) as error:
         raise UserError(str(error)) from None
     finally:
-        backend.close()
+        queries.close()
     if args.format == "json":
         json.dump(evaluation.as_dict(), sys.stdout, ensure_ascii=False, indent=2)
         sys.stdout.write("\n")

@@ -149,9 +149,9 @@ class DashboardState:
             raise SessionError(str(error.args[0])) from None
         if not metrics:
             raise SessionError(f"branch {branch!r} has no 'type: dashboard' metrics in its config")
-        batches = in_window(branch_batches(self.engine, branch), chosen)
+        batches = in_window(branch_batches(self.evaluator, branch), chosen)
         evaluation = evaluate_trends(
-            self.engine, branch, metrics, batches, kind="dashboard", window=chosen, config_version=files.version
+            self.evaluator, branch, metrics, batches, kind="dashboard", window=chosen, config_version=files.version
         )
         return trends_html(evaluation, plotlyjs="/dashboard/static/plotly.min.js")
 

@@ -69,7 +69,7 @@ class BatchInfo:
 
 def branch_batches(engine: MetricsEngine, branch: str) -> list[BatchInfo]:
     """Every batch of a branch that has jobs, by time, then id."""
-    answer = engine.backend.execute("SELECT batch_id, time, build_version FROM metadata", branch=branch)
+    answer = engine.query("SELECT batch_id, time, build_version FROM metadata", branch, None)
     jobs: dict[str, list[tuple[dt.datetime | None, str | None]]] = {}
     for batch_id, started, build in answer.rows():
         jobs.setdefault(batch_id, []).append((started, build))

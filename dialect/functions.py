@@ -2517,10 +2517,13 @@ def _date_diff(call: Call) -> TType:
 
 
 def _render_date_diff(g, node, args) -> str:
+    """Whole units between the values' epoch milliseconds, each floored first (DateDiff)."""
     unit = args[0].name.lower()
     a, b = g.sql(args[1]), g.sql(args[2])
     if ttype(args[1]).base == "timestamp_tz" or ttype(args[2]).base == "timestamp_tz":
         a, b = f"timezone('UTC', {a})", f"timezone('UTC', {b})"
+    if max(t.args[0] if t.args else 0 for t in map(ttype, args[1:])) > 3:
+        a, b = f"date_trunc('millisecond', {a})", f"date_trunc('millisecond', {b})"
     return f"CAST(date_sub({tf.string(unit)}, {a}, {b}) AS BIGINT)"
 
 
@@ -2551,7 +2554,12 @@ def _render_date_add(g, node, args) -> str:
         if unit == "quarter"
         else f"{_INTERVAL_OF[unit]}(CAST({amount} AS {'INTEGER' if unit in ('month', 'year', 'week', 'day') else 'BIGINT'}))"
     )
-    return tf.cast(f"({value} + {interval})", ttype(node))
+    t, sql = ttype(node), f"({value} + {interval})"
+    if t.base == "timestamp" and t.args[0] > 6:  # the nanoseconds below the microsecond stay (DateAdd)
+        return tf.with_nanos(sql, g.sql(args[2].this))
+    if t.base == "timestamp" and t.args[0] < 3 and unit == "millisecond":  # rounded to p digits (DateAdd)
+        return tf.round_timestamp(sql, t.args[0])
+    return tf.cast(sql, t)
 
 
 def _date_trunc(call: Call) -> TType:

@@ -165,7 +165,7 @@ _MICROS_READERS = frozenset(
     "date_trunc date_add date_diff date_format date last_day_of_month year quarter month week week_of_year day "
     "day_of_month day_of_week dow day_of_year doy year_of_week yow hour minute second millisecond".split()
 )
-_NANOSECOND_FUNCTIONS = _MICROS_READERS | {"min", "max", "count", "arbitrary"}
+_NANOSECOND_FUNCTIONS = _MICROS_READERS | {"min", "max", "count", "arbitrary", "coalesce", "typeof"}
 #: The expressions written for timestamp(7..9) operands (functions: only _NANOSECOND_FUNCTIONS).
 _NANOSECOND_OPERATIONS = (
     exp.Cast,
@@ -173,6 +173,9 @@ _NANOSECOND_OPERATIONS = (
     *_COMPARISONS,
     exp.Between,
     exp.In,
+    exp.Is,
+    exp.Case,
+    exp.If,
     exp.Add,
     exp.Sub,
     exp.Paren,

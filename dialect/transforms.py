@@ -649,6 +649,7 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
     if target.base == "timestamp" and source.base == "timestamp_tz":
         return cast(f"timezone('UTC', {sql})", target)
     if target.base == "timestamp_tz" and source.base in ("timestamp", "date"):
+        sql = zoned_precision(sql, source, target.args[0])
         return f"timezone('UTC', CAST({sql} AS TIMESTAMP))"
     if target.base == "date" and source.base == "timestamp" and source.args[0] > 6:
         return f"CAST({floor_micros(sql)} AS DATE)"  # DuckDB would round to the nearest microsecond
@@ -780,13 +781,26 @@ def parse_varchar(g: Writer, sql: str, target: TType) -> str:
     return cast(sql, target)
 
 
+def zoned_precision(sql: str, source: TType, precision: int) -> str:
+    """A timestamp(p) or date rounded HALF_UP for CAST to timestamp(precision) with time zone: to
+    milliseconds first when the target holds milliseconds at most and the source microseconds
+    (operator/scalar/timestamp/TimestampToTimestampWithTimeZoneCast: shortToShort rounds twice)."""
+    if source.base != "timestamp" or precision >= source.args[0]:
+        return sql
+    if precision < 3 < source.args[0] <= 6:
+        sql = round_timestamp(sql, 3)
+    return round_timestamp(sql, precision, source.args[0])
+
+
 def parse_timestamp(g: Writer, sql: str, precision: int, bad: str) -> str:
     """CAST(varchar AS timestamp(precision)): the fraction's digits rounded HALF_UP to `precision`
     (io.trino.operator.scalar.timestamp.VarcharToTimestampCast); DuckDB would cut them at six or nine."""
     pattern = "^[0-9]{4}-[0-9]{1,2}-[0-9]{1,2}( [0-9]{1,2}:[0-9]{1,2}(:[0-9]{1,2}([.][0-9]{1,12})?)?)?$"
     text = f"trim({sql})"
     seconds_text = f"regexp_replace({text}, '[.][0-9]*$', '')"
-    seconds = f"CAST({seconds_text} AS TIMESTAMP)"
+    seconds = (
+        f"TRY_CAST({seconds_text} AS TIMESTAMP)"  # TRY_: DuckDB folds a constant CAST early, and `valid` checks it
+    )
     unit = 10 ** (12 - precision)  # of the fraction read as picoseconds
     fraction = f"((CAST(rpad(regexp_extract({text}, '[.]([0-9]*)$', 1), 12, '0') AS BIGINT) + {unit // 2}) // {unit})"
     if precision > 6:

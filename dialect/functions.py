@@ -2384,9 +2384,68 @@ def _map(call: Call) -> TType:
     keys, values = _array_arg(call, 0), _array_arg(call, 1)
     if keys.element.base in ("map", "json"):
         call.mismatch()
-    if keys.element.base in ("array", "row"):  # DuckDB map keys lose their type in the result encoding
-        call.fail(f"unsupported in lakegate: a map with {keys.element.base} keys", "NOT_SUPPORTED")
+    if not _textual_key(keys.element):  # its text in the error for an indeterminate key
+        call.fail(f"unsupported in lakegate: a map with {keys.element} keys", "NOT_SUPPORTED")
     return tt.map_of(keys.element, values.element)
+
+
+def _textual_key(t: TType) -> bool:
+    """Whether a map key of type `t` is a scalar, or an array or row of keys whose text
+    _key_text writes as Trino's object value prints."""
+    if t.base in ("array", "row"):
+        return all(_key_leaf(leaf) for leaf in _leaves(t))
+    return True
+
+
+def _leaves(t: TType) -> list[TType]:
+    if t.base == "array":
+        return _leaves(t.element)
+    if t.base == "row":
+        return [leaf for _, field in t.args for leaf in _leaves(field)]
+    return [t]
+
+
+def _key_leaf(t: TType) -> bool:
+    return t.is_integral or t.is_decimal or t.base in ("varchar", "boolean", "date", "timestamp", "unknown")
+
+
+def _indeterminate(sql: str, t: TType, depth: int = 0) -> str:
+    """SQL that is true when an array or row value holds a NULL at any depth (Trino's INDETERMINATE)."""
+    if t.base == "array":
+        z = f'"_k{depth}"'
+        return f"coalesce(list_bool_or(list_transform({sql}, lambda {z}: {z} IS NULL OR {_indeterminate(z, t.element, depth + 1)})), false)"
+    if t.base == "row":
+        fields = [f"struct_extract_at({sql}, {i + 1})" for i in range(len(t.args))]
+        return (
+            "("
+            + " OR ".join(f"{f} IS NULL OR {_indeterminate(f, field, depth)}" for f, (_, field) in zip(fields, t.args))
+            + ")"
+        )
+    return "false"
+
+
+def _key_text(g, sql: str, t: TType, depth: int = 0) -> str:
+    """SQL for a key's text as Java prints Trino's object value (`[1, null]` for ARRAY[1, NULL])."""
+    if t.base == "array":
+        z = f'"_t{depth}"'
+        element = _key_text(g, z, t.element, depth + 1)
+        return f"'[' || array_to_string(list_transform({sql}, lambda {z}: coalesce({element}, 'null')), ', ') || ']'"
+    if t.base == "row":
+        fields = [
+            _key_text(g, f"struct_extract_at({sql}, {i + 1})", field, depth) for i, (_, field) in enumerate(t.args)
+        ]
+        return "'[' || " + " || ', ' || ".join(f"coalesce({f}, 'null')" for f in fields) + " || ']'"
+    return tf.varchar_of(g, sql, t)
+
+
+def _indeterminate_keys(g, keys: str, t: TType) -> str:
+    """The WHEN clause failing on a key that holds a NULL inside (MapConstructor), or ''."""
+    if t.base not in ("array", "row"):
+        return ""
+    z = '"_key"'
+    bad = f"list_filter({keys}, lambda {z}: {_indeterminate(z, t)})"
+    text = _key_text(g, f"({bad})[1]", t)
+    return f"WHEN len({bad}) > 0 THEN {g.fail(tf.string('map key cannot be indeterminate: ') + ' || ' + text)} "
 
 
 def _render_map(g, node, args) -> str:
@@ -2397,6 +2456,7 @@ def _render_map(g, node, args) -> str:
         f"CASE WHEN len({keys}) <> len({values}) THEN "
         f"{g.fail(tf.string('Key and value arrays must be the same length'))} "
         f"WHEN list_count({keys}) < len({keys}) THEN {g.fail(tf.string('map key cannot be null'))} "
+        f"{_indeterminate_keys(g, keys, ttype(args[0]).element)}"
         f"WHEN len(list_distinct({keys})) < len({keys}) THEN "
         f"{g.fail(tf.string('Duplicate map keys are not allowed'))} ELSE map({keys}, {values}) END"
     )

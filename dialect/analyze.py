@@ -190,8 +190,8 @@ _NANOSECOND_OPERATIONS = (
 
 def floor_micros(node: exp.Expression) -> exp.Expression:
     """`node` read as Trino's functions read a timestamp(7..9): floored to microseconds."""
-    t = ttype(node)
-    if t.base != "timestamp" or t.args[0] <= 6:
+    t = node.meta.get("t") if node._meta else None
+    if t is None or t.base != "timestamp" or t.args[0] <= 6:
         return node
     floored = FloorMicros(this=node)
     _set(floored, tt.timestamp(6))

@@ -151,6 +151,54 @@ class Call:
 
 
 _COMPARISONS = (exp.EQ, exp.NEQ, exp.GT, exp.GTE, exp.LT, exp.LTE, exp.NullSafeEQ, exp.NullSafeNEQ)
+
+
+class FloorMicros(exp.Expression):
+    """A timestamp(7..9) argument floored to a microsecond timestamp(6): what Trino's date and time
+    functions read of a LongTimestamp (getEpochMicros). Added by the analysis, never written by users."""
+
+    arg_types = {"this": True}
+
+
+#: The functions that read a timestamp(7..9) through FloorMicros (as Trino's do), and those that handle
+#: nanoseconds themselves (date_add keeps them; min, max and count compare them).
+_MICROS_READERS = frozenset(
+    "date_trunc date_add date_diff date_format date last_day_of_month year quarter month week week_of_year day "
+    "day_of_month day_of_week dow day_of_year doy year_of_week yow hour minute second millisecond".split()
+)
+_NANOSECOND_FUNCTIONS = _MICROS_READERS | {"min", "max", "count", "arbitrary", "coalesce", "typeof"}
+#: The expressions written for timestamp(7..9) operands (functions: only _NANOSECOND_FUNCTIONS).
+_NANOSECOND_OPERATIONS = (
+    exp.Cast,
+    exp.TryCast,
+    *_COMPARISONS,
+    exp.Between,
+    exp.In,
+    exp.Is,
+    exp.Case,
+    exp.If,
+    exp.Add,
+    exp.Sub,
+    exp.Paren,
+    exp.Alias,
+    exp.Ordered,
+    exp.Window,
+    exp.Filter,
+    exp.Extract,
+    exp.Anonymous,
+)
+
+
+def floor_micros(node: exp.Expression) -> exp.Expression:
+    """`node` read as Trino's functions read a timestamp(7..9): floored to microseconds."""
+    t = node.meta.get("t") if node._meta else None
+    if t is None or t.base != "timestamp" or t.args[0] <= 6:
+        return node
+    floored = FloorMicros(this=node)
+    _set(floored, tt.timestamp(6))
+    return floored
+
+
 _ARITHMETIC = {exp.Add: "+", exp.Sub: "-", exp.Mul: "*", exp.Div: "/", exp.Mod: "%"}
 _UNORDERABLE = ("json", "map", "varbinary", "unknown")
 
@@ -709,9 +757,30 @@ class Analyzer:
         if handler is None:
             self.unsupported(trino_name(node), node)
         t = handler(self, node, scope, env)
-        if t.base in ("timestamp", "timestamp_tz") and t.args[0] > 6:
-            self.unsupported(f"{t} (lakegate keeps microseconds; digits past them would be dropped)", node)
+        if t.base == "timestamp_tz" and t.args[0] > 6:
+            self.unsupported(
+                f"{t} (lakegate keeps zoned timestamps in microseconds; digits past them would be dropped)", node
+            )
+        if t.base == "timestamp" and t.args[0] > 9:
+            self.unsupported(f"{t} (lakegate keeps nanoseconds at most; digits past them would be dropped)", node)
+        self._check_nanosecond_use(node)
         return _set(node, t)
+
+    def _check_nanosecond_use(self, node: exp.Expression) -> None:
+        """Refuse an operation on a timestamp(7..9) (DuckDB's TIMESTAMP_NS) that is not written for
+        nanoseconds: DuckDB's other functions round such a value to the nearest microsecond."""
+        if isinstance(node, _NANOSECOND_OPERATIONS) and (
+            not isinstance(node, exp.Anonymous) or node.name.lower() in _NANOSECOND_FUNCTIONS
+        ):
+            return
+        for child in node.iter_expressions():
+            t = child.meta.get("t") if child._meta else None
+            if t is not None and t.base == "timestamp" and t.args[0] > 6:
+                self.unsupported(
+                    f"{trino_name(node)} of {t} (lakegate translates only casts, comparisons, "
+                    "interval arithmetic and the date and time functions for p > 6)",
+                    node,
+                )
 
     def column(self, node: exp.Column, scope: Scope, env: dict[str, TType]) -> TType:
         if node.meta.get("resolved"):
@@ -797,7 +866,10 @@ class Analyzer:
             self.fail("'*' is only allowed in count(*)", node, "SYNTAX_ERROR")
         node.meta["args"] = args
         node.meta["spec"] = spec
-        return spec.infer(Call(self, node, name, args, scope, env))
+        t = spec.infer(Call(self, node, name, args, scope, env))
+        if name in _MICROS_READERS:
+            args[:] = [floor_micros(arg) for arg in args]
+        return t
 
 
 def _ident_name(ident: exp.Expression) -> str:
@@ -1041,12 +1113,7 @@ def _arithmetic(a: Analyzer, node, scope, env):
         result = _temporal_arithmetic(op, left, right)
     if result is None:
         a.fail(f"Cannot apply operator: {left} {op} {right}", node, "TYPE_MISMATCH")
-    if (
-        op == "-"
-        and left.base in ("timestamp", "timestamp_tz")
-        and right.base == left.base
-        and max(left.args[0], right.args[0]) > 3
-    ):
+    if op == "-" and left.base == right.base == "timestamp_tz" and max(left.args[0], right.args[0]) > 3:
         a.unsupported(f"{left} - {right} (Trino rounds the difference to milliseconds)", node)
     if op == "%" and not remainder_fits(left, right, result):
         a.unsupported(f"% of {left} by {right} (the operands at a common scale exceed 38 digits)", node)
@@ -1322,6 +1389,7 @@ def _extract(a: Analyzer, node, scope, env):
         a.fail(f"Cannot extract {unit} from {t}", node, "TYPE_MISMATCH")
     if t.base == "date" and unit in ("HOUR", "MINUTE", "SECOND"):
         a.fail(f"Cannot extract {unit} from {t}", node, "TYPE_MISMATCH")
+    node.set("expression", floor_micros(node.expression))
     return tt.BIGINT
 
 
@@ -1465,6 +1533,7 @@ def _check_range_offset(a: Analyzer, keys: list, bound: exp.Expression, offset: 
         or literal.this.strip().startswith("-")
         or key.base in ("decimal", "real", "timestamp_tz")
         or (key.is_integral and not offset.is_integral)
+        or (key.base == "timestamp" and key.args[0] > 6)  # DuckDB's frame bound would be in microseconds
     ):
         a.unsupported(f"RANGE frame with offset {bound.sql(dialect='trino')} over a {key} sort key", bound)
 

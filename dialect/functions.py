@@ -1498,10 +1498,11 @@ def _regexp(call: Call, result: TType, arity: tuple[int, ...], *kinds: str) -> T
     return {"same": text, "array": tt.array(text)}.get(result, result) if isinstance(result, str) else result
 
 
-def capturing_groups(pattern: str) -> list[tuple[str, bool]]:
-    """Each capturing group of a regular expression: (body, optional), optional when the group
-    may not take part in a match (quantified by ?, * or {0,...}, or inside an alternation)."""
-    groups: list[tuple[str, bool]] = []
+def capturing_groups(pattern: str) -> list[tuple[str, bool, int]]:
+    """Each capturing group of a regular expression: (body, optional, index of its opening
+    parenthesis), optional when the group may not take part in a match (quantified by ?, * or
+    {0,...}, or inside an alternation)."""
+    groups: list[tuple[str, bool, int]] = []
     stack: list[tuple[bool, int, int]] = []  # (capturing, body start, index in groups)
     alternation_depths: set[int] = set()
     i = 0
@@ -1525,7 +1526,7 @@ def capturing_groups(pattern: str) -> list[tuple[str, bool]]:
             capturing = not pattern.startswith("(?", i) or named
             start = pattern.index(">", i) + 1 if named else (i + 1 if capturing else pattern.find(":", i) + 1 or i + 2)
             if capturing:
-                groups.append(("", False))
+                groups.append(("", False, i))
             stack.append((capturing, start, len(groups) - 1))
         elif ch == "|":
             alternation_depths.add(len(stack))
@@ -1534,7 +1535,7 @@ def capturing_groups(pattern: str) -> list[tuple[str, bool]]:
             if capturing:
                 rest = pattern[i + 1 :]
                 optional = rest.startswith(("?", "*", "{0")) or any(d <= len(stack) for d in alternation_depths)
-                groups[index] = (pattern[start:i], optional)
+                groups[index] = (pattern[start:i], optional, groups[index][2])
         i += 1
     return groups
 
@@ -1586,8 +1587,10 @@ def _group(g, args, index: int) -> str:
 
 
 def _render_regexp_extract(g, node, args) -> str:
-    value, pattern = g.sql(args[0]), g.sql(args[1])
-    extracted = f"regexp_extract({value}, {pattern}, {_group(g, args, 2)})"
+    value, pattern, group = g.sql(args[0]), g.sql(args[1]), _group(g, args, 2)
+    extracted = f"regexp_extract({value}, {pattern}, {group})"
+    if group.isdigit() and int(group) > 9:  # DuckDB's regexp_extract reads groups 0 to 9 only
+        extracted = f"regexp_extract_all({value}, {pattern}, {group})[1]"
     if node.meta.get("null_if_empty"):
         extracted = f"nullif({extracted}, '')"
     return f"CASE WHEN regexp_matches({value}, {pattern}) THEN {extracted} END"
@@ -1604,18 +1607,17 @@ class IllegalGroupReference(ValueError):
     """A replacement names a group the pattern does not have."""
 
 
-def _regexp_replacement(text: str, groups: int | None) -> str:
-    """A Java replacement string as an RE2 rewrite string: `\\x` is x, `$` takes as many digits as
-    name an existing group (`$10` with one group is group 1 then '0', `$01` is group 1), as Trino's
-    JoniRegexpFunctions.appendReplacement does. `groups` is the pattern's group count (None: unknown,
-    then only one-digit references are translated). ValueError for what is not translated."""
-    out = []
+def _replacement_parts(text: str, groups: int | None) -> list[str | int]:
+    """A Java replacement string as literal text and group numbers: `\\x` is x, `$` takes as many
+    digits as name an existing group (`$10` with one group is group 1 then '0', `$01` is group 1), as
+    Trino's JoniRegexpFunctions.appendReplacement does. `groups` is the pattern's group count (None:
+    unknown, then only one-digit references are translated). ValueError for what is not translated."""
+    parts: list[str | int] = []
     i = 0
     while i < len(text):
         ch = text[i]
         if ch == "\\" and i + 1 < len(text):
-            nxt = text[i + 1]
-            out.append("\\\\" if nxt == "\\" else nxt)
+            parts.append(text[i + 1])
             i += 2
             continue
         if ch == "$":
@@ -1629,19 +1631,44 @@ def _regexp_replacement(text: str, groups: int | None) -> str:
                 number, used = number * 10 + int(digits.group(1)[used]), used + 1
             if groups is not None and number > groups:
                 raise IllegalGroupReference(f"Illegal group reference: group {number} does not exist")
-            if number > 9:
-                raise ValueError("a group reference above 9")
-            out.append("\\" + str(number))
+            parts.append(number)
             i += 1 + used
             continue
-        out.append("\\\\" if ch == "\\" else ch)
+        parts.append(ch)
         i += 1
-    return "".join(out)
+    return parts
 
 
-def _pattern_groups(pattern: exp.Expression) -> int | None:
-    """The number of capturing groups of a literal pattern (None when it is not a literal)."""
-    return len(capturing_groups(pattern.name)) if isinstance(pattern, exp.Literal) and pattern.is_string else None
+def _regexp_replacement(pattern: str | None, replacement: str) -> tuple[str | None, str]:
+    """Trino's regexp_replace(s, pattern, replacement) as DuckDB's: the (literal) pattern and an RE2
+    rewrite string. RE2 names groups 0 to 9 only, so when the replacement refers to a later group, only
+    the referenced groups stay capturing, renumbered from 1 (ValueError if more than nine are)."""
+    parts = _replacement_parts(replacement, None if pattern is None else len(capturing_groups(pattern)))
+    referenced = sorted({p for p in parts if isinstance(p, int) and p > 0})
+    numbering = {n: n for n in referenced}
+    if referenced and referenced[-1] > 9:
+        if len(referenced) > 9:
+            raise ValueError("a replacement that refers to more than nine groups")
+        numbering = {n: index for index, n in enumerate(referenced, 1)}
+        pattern = _capturing_only(pattern, referenced)
+    rewrite = "".join(f"\\{numbering.get(p, 0)}" if isinstance(p, int) else "\\\\" if p == "\\" else p for p in parts)
+    return pattern, rewrite
+
+
+def _capturing_only(pattern: str, kept: list[int]) -> str:
+    """`pattern` with every capturing group but those numbered in `kept` made non-capturing."""
+    out, last = [], 0
+    for number, (_, _, at) in enumerate(capturing_groups(pattern), 1):
+        if number in kept:
+            continue
+        end = pattern.index(">", at) + 1 if pattern.startswith("(?", at) else at + 1  # (?P<name> or (?<name>
+        out += [pattern[last:at], "(?:"]
+        last = end
+    return "".join(out) + pattern[last:]
+
+
+def _literal_pattern(pattern: exp.Expression) -> str | None:
+    return pattern.name if isinstance(pattern, exp.Literal) and pattern.is_string else None
 
 
 def _regexp_replace(call: Call) -> TType:
@@ -1652,7 +1679,7 @@ def _regexp_replace(call: Call) -> TType:
         if replacement is None:
             call.fail("regexp_replace needs a literal replacement string in lakegate", "NOT_SUPPORTED")
         try:
-            _regexp_replacement(replacement, _pattern_groups(call.args[1]))
+            _regexp_replacement(_literal_pattern(call.args[1]), replacement)
         except IllegalGroupReference as e:
             call.fail(str(e), "INVALID_FUNCTION_ARGUMENT")
         except ValueError as e:
@@ -1669,8 +1696,10 @@ def _regexp_replace(call: Call) -> TType:
 
 def _render_regexp_replace(g, node, args) -> str:
     value, pattern = g.sql(args[0]), g.sql(args[1])
-    replacement = tf.string(_regexp_replacement(args[2].name, _pattern_groups(args[1]))) if len(args) == 3 else "''"
-    return f"regexp_replace({value}, {pattern}, {replacement}, 'g')"
+    if len(args) == 2:
+        return f"regexp_replace({value}, {pattern}, '', 'g')"
+    literal, rewrite = _regexp_replacement(_literal_pattern(args[1]), args[2].name)
+    return f"regexp_replace({value}, {pattern if literal is None else tf.string(literal)}, {tf.string(rewrite)}, 'g')"
 
 
 register(
@@ -1708,11 +1737,12 @@ register(
 
 
 def _regexp_split(call: Call) -> TType:
-    """Splits at matches; a pattern that can match the empty string is refused: Trino then splits
-    between characters and adds '' at both ends (JoniRegexpFunctions.regexpSplit), DuckDB does not."""
+    """Splits at matches. An empty match splits before the next character and '' ends the array at
+    both ends (JoniRegexpFunctions.regexpSplit); DuckDB does not, so the empty pattern is written as
+    that split between characters and other patterns that can match the empty string are refused."""
     result = _regexp(call, "array", (2,), "string", "string")
     pattern = literal_str(call, 1)
-    if pattern is not None and (re.search(r"\\[bB]|\^|\$", pattern) or _matches_empty(pattern)):
+    if pattern and (re.search(r"\\[bB]|\^|\$", pattern) or _matches_empty(pattern)):
         call.fail(
             "unsupported in lakegate: regexp_split with a pattern that can match the empty string", "NOT_SUPPORTED"
         )
@@ -1728,6 +1758,9 @@ def _matches_empty(pattern: str) -> bool:
 
 def _render_regexp_split(g, node, args) -> str:
     value, pattern = sqls(g, args)
+    if _literal_pattern(args[1]) == "":
+        characters = f'list_transform(range(length({value})), lambda "_i": substr({value}, "_i" + 1, 1))'
+        return null_if_any_null(g, args, f"list_concat([''], {characters}, [''])")
     split = null_if_any_null(g, args, f"regexp_split_to_array({value}, {pattern})")
     if isinstance(args[1], exp.Literal):
         return split
@@ -1741,7 +1774,8 @@ register(
     "regexp_split(string, pattern) -> array(varchar)",
     _regexp_split,
     _render_regexp_split,
-    notes="A pattern that can match the empty string is refused.",
+    notes="The empty pattern splits between characters, with '' at both ends; another pattern that can "
+    "match the empty string is refused.",
 )
 register(
     "regexp_count",
@@ -2318,9 +2352,68 @@ def _map(call: Call) -> TType:
     keys, values = _array_arg(call, 0), _array_arg(call, 1)
     if keys.element.base in ("map", "json"):
         call.mismatch()
-    if keys.element.base in ("array", "row"):  # DuckDB map keys lose their type in the result encoding
-        call.fail(f"unsupported in lakegate: a map with {keys.element.base} keys", "NOT_SUPPORTED")
+    if not _textual_key(keys.element):  # its text in the error for an indeterminate key
+        call.fail(f"unsupported in lakegate: a map with {keys.element} keys", "NOT_SUPPORTED")
     return tt.map_of(keys.element, values.element)
+
+
+def _textual_key(t: TType) -> bool:
+    """Whether a map key of type `t` is a scalar, or an array or row of keys whose text
+    _key_text writes as Trino's object value prints."""
+    if t.base in ("array", "row"):
+        return all(_key_leaf(leaf) for leaf in _leaves(t))
+    return True
+
+
+def _leaves(t: TType) -> list[TType]:
+    if t.base == "array":
+        return _leaves(t.element)
+    if t.base == "row":
+        return [leaf for _, field in t.args for leaf in _leaves(field)]
+    return [t]
+
+
+def _key_leaf(t: TType) -> bool:
+    return t.is_integral or t.is_decimal or t.base in ("varchar", "boolean", "date", "timestamp", "unknown")
+
+
+def _indeterminate(sql: str, t: TType, depth: int = 0) -> str:
+    """SQL that is true when an array or row value holds a NULL at any depth (Trino's INDETERMINATE)."""
+    if t.base == "array":
+        z = f'"_k{depth}"'
+        return f"coalesce(list_bool_or(list_transform({sql}, lambda {z}: {z} IS NULL OR {_indeterminate(z, t.element, depth + 1)})), false)"
+    if t.base == "row":
+        fields = [f"struct_extract_at({sql}, {i + 1})" for i in range(len(t.args))]
+        return (
+            "("
+            + " OR ".join(f"{f} IS NULL OR {_indeterminate(f, field, depth)}" for f, (_, field) in zip(fields, t.args))
+            + ")"
+        )
+    return "false"
+
+
+def _key_text(g, sql: str, t: TType, depth: int = 0) -> str:
+    """SQL for a key's text as Java prints Trino's object value (`[1, null]` for ARRAY[1, NULL])."""
+    if t.base == "array":
+        z = f'"_t{depth}"'
+        element = _key_text(g, z, t.element, depth + 1)
+        return f"'[' || array_to_string(list_transform({sql}, lambda {z}: coalesce({element}, 'null')), ', ') || ']'"
+    if t.base == "row":
+        fields = [
+            _key_text(g, f"struct_extract_at({sql}, {i + 1})", field, depth) for i, (_, field) in enumerate(t.args)
+        ]
+        return "'[' || " + " || ', ' || ".join(f"coalesce({f}, 'null')" for f in fields) + " || ']'"
+    return tf.varchar_of(g, sql, t)
+
+
+def _indeterminate_keys(g, keys: str, t: TType) -> str:
+    """The WHEN clause failing on a key that holds a NULL inside (MapConstructor), or ''."""
+    if t.base not in ("array", "row"):
+        return ""
+    z = '"_key"'
+    bad = f"list_filter({keys}, lambda {z}: {_indeterminate(z, t)})"
+    text = _key_text(g, f"({bad})[1]", t)
+    return f"WHEN len({bad}) > 0 THEN {g.fail(tf.string('map key cannot be indeterminate: ') + ' || ' + text)} "
 
 
 def _render_map(g, node, args) -> str:
@@ -2331,6 +2424,7 @@ def _render_map(g, node, args) -> str:
         f"CASE WHEN len({keys}) <> len({values}) THEN "
         f"{g.fail(tf.string('Key and value arrays must be the same length'))} "
         f"WHEN list_count({keys}) < len({keys}) THEN {g.fail(tf.string('map key cannot be null'))} "
+        f"{_indeterminate_keys(g, keys, ttype(args[0]).element)}"
         f"WHEN len(list_distinct({keys})) < len({keys}) THEN "
         f"{g.fail(tf.string('Duplicate map keys are not allowed'))} ELSE map({keys}, {values}) END"
     )
@@ -2485,10 +2579,13 @@ def _date_diff(call: Call) -> TType:
 
 
 def _render_date_diff(g, node, args) -> str:
+    """Whole units between the values' epoch milliseconds, each floored first (DateDiff)."""
     unit = args[0].name.lower()
     a, b = g.sql(args[1]), g.sql(args[2])
     if ttype(args[1]).base == "timestamp_tz" or ttype(args[2]).base == "timestamp_tz":
         a, b = f"timezone('UTC', {a})", f"timezone('UTC', {b})"
+    if max(t.args[0] if t.args else 0 for t in map(ttype, args[1:])) > 3:
+        a, b = f"date_trunc('millisecond', {a})", f"date_trunc('millisecond', {b})"
     return f"CAST(date_sub({tf.string(unit)}, {a}, {b}) AS BIGINT)"
 
 
@@ -2519,7 +2616,12 @@ def _render_date_add(g, node, args) -> str:
         if unit == "quarter"
         else f"{_INTERVAL_OF[unit]}(CAST({amount} AS {'INTEGER' if unit in ('month', 'year', 'week', 'day') else 'BIGINT'}))"
     )
-    return tf.cast(f"({value} + {interval})", ttype(node))
+    t, sql = ttype(node), f"({value} + {interval})"
+    if t.base == "timestamp" and t.args[0] > 6:  # the nanoseconds below the microsecond stay (DateAdd)
+        return tf.with_nanos(sql, g.sql(args[2].this))
+    if t.base == "timestamp" and t.args[0] < 3 and unit == "millisecond":  # rounded to p digits (DateAdd)
+        return tf.round_timestamp(sql, t.args[0])
+    return tf.cast(sql, t)
 
 
 def _date_trunc(call: Call) -> TType:

@@ -15,7 +15,7 @@ from sqlglot.generators.duckdb import DuckDBGenerator
 
 from lakegate.dialect import registry
 from lakegate.dialect import trino_types as tt
-from lakegate.dialect.analyze import ttype
+from lakegate.dialect.analyze import FloorMicros, ttype
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.trino_types import TType
 
@@ -248,7 +248,34 @@ def decimal_result_type(g: Writer, node: exp.Binary) -> str:
         return cast(sql, t)
     if t.base == "date":
         return whole_days(g, node, sql)
+    if t.base == "timestamp" and t.args[0] > 6:
+        return nanosecond_interval_arithmetic(g, node, op)
+    if t == tt.INTERVAL_DS and ttype(node.this).base == "timestamp":
+        return timestamp_difference(g, node)
     return sql
+
+
+def nanosecond_interval_arithmetic(g: Writer, node: exp.Binary, op: str) -> str:
+    """timestamp(7..9) ± interval: the interval moves the microseconds, the nanoseconds below them stay
+    (TimestampOperators on LongTimestamp); DuckDB would round the value to microseconds first."""
+    stamp = node.this if ttype(node.this).base == "timestamp" else node.expression
+    sql = g.sql(stamp)
+    left, right = (
+        (floor_micros(sql), g.sql(node.expression)) if stamp is node.this else (g.sql(node.this), floor_micros(sql))
+    )
+    return with_nanos(f"({left} {op} {right})", sql)
+
+
+def timestamp_difference(g: Writer, node: exp.Sub) -> str:
+    """timestamp - timestamp: the epoch microseconds' difference rounded HALF_UP to milliseconds, the
+    precision of Trino's interval day to second (TimestampOperators.TimestampMinusTimestamp)."""
+    left, right = (epoch_micros(g.sql(side), ttype(side)) for side in (node.this, node.expression))
+    return f"to_milliseconds({floor_div(f'{left} - {right} + 500', 1000)})"
+
+
+def epoch_micros(sql: str, t: TType) -> str:
+    """A timestamp's epoch microseconds (floored for a TIMESTAMP_NS, as LongTimestamp.getEpochMicros)."""
+    return floor_div(f"epoch_ns({sql})", 1000) if t.args[0] > 6 else f"epoch_us({sql})"
 
 
 def whole_days(g: Writer, node: exp.Binary, sql: str) -> str:
@@ -615,13 +642,18 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
         return checked_cast(g, sql, source, target)
     if target.base == "timestamp" and source.base in ("timestamp", "date"):
         precision = target.args[0]
-        if source.base == "timestamp" and precision < min(source.args[0], 6):
-            return round_timestamp(sql, precision)
+        if source.base == "timestamp" and precision < source.args[0]:
+            return round_timestamp(sql, precision, source.args[0])
+        if precision > 6 and tt.duckdb_type(source) != "TIMESTAMP_NS":
+            return as_nanoseconds(g, sql)
         return cast(sql, target)
     if target.base == "timestamp" and source.base == "timestamp_tz":
         return cast(f"timezone('UTC', {sql})", target)
     if target.base == "timestamp_tz" and source.base in ("timestamp", "date"):
+        sql = zoned_precision(sql, source, target.args[0])
         return f"timezone('UTC', CAST({sql} AS TIMESTAMP))"
+    if target.base == "date" and source.base == "timestamp" and source.args[0] > 6:
+        return f"CAST({floor_micros(sql)} AS DATE)"  # DuckDB would round to the nearest microsecond
     if target.base == "date" and source.base == "timestamp_tz":
         return f"CAST(timezone('UTC', {sql}) AS DATE)"
     if target.base == "array":
@@ -667,11 +699,49 @@ def _fits(source: TType, target: TType) -> bool:
     return False
 
 
-def round_timestamp(sql: str, precision: int) -> str:
-    """A timestamp rounded HALF_UP to `precision` fractional digits (Trino's timestamp(p) casts)."""
-    unit = 10 ** (6 - precision)
-    shifted = f"(epoch_us({sql}) + {unit // 2})"  # then floored to a multiple of unit, before 1970 too
-    return f"make_timestamp({shifted} - ((({shifted} % {unit}) + {unit}) % {unit}))"
+def floor_div(sql: str, divisor: int) -> str:
+    """Integer `sql` divided by `divisor`, rounded toward negative infinity (DuckDB's // truncates)."""
+    return f"(({sql}) - ((({sql}) % {divisor}) + {divisor}) % {divisor}) // {divisor}"
+
+
+def floor_micros(sql: str) -> str:
+    """A TIMESTAMP_NS floored to a microsecond TIMESTAMP: Trino's timestamp(p > 6) functions read the
+    epoch microseconds (LongTimestamp.getEpochMicros) and keep or drop the rest; DuckDB's own
+    conversion rounds to the nearest microsecond (23:59:59.9999999 would become the next day)."""
+    return f"make_timestamp({floor_div(f'epoch_ns({sql})', 1000)})"
+
+
+def with_nanos(micros_sql: str, source_sql: str) -> str:
+    """Microsecond TIMESTAMP `micros_sql` as TIMESTAMP_NS, with the nanoseconds below the microsecond
+    of TIMESTAMP_NS `source_sql` (Trino's timestamp(p > 6) arithmetic keeps its picosOfMicro)."""
+    return f"make_timestamp_ns(epoch_ns({micros_sql}) + ((epoch_ns({source_sql}) % 1000) + 1000) % 1000)"
+
+
+#: The days DuckDB's TIMESTAMP_NS holds whole (int64 nanoseconds: 1677-09-21 to 2262-04-11).
+NANOSECOND_RANGE = ("1677-09-22", "2262-04-11")
+
+
+def as_nanoseconds(g: Writer, sql: str) -> str:
+    """TIMESTAMP or DATE `sql` as TIMESTAMP_NS, or NOT_SUPPORTED outside its range (Trino's reaches
+    further; DuckDB's own message would not say why)."""
+    low, high = NANOSECOND_RANGE
+    message = string(f"unsupported in lakegate: timestamp(p) with p > 6 outside [{low}, {high})")
+    return (
+        f"CASE WHEN ({sql}) >= TIMESTAMP '{low}' AND ({sql}) < TIMESTAMP '{high}' "
+        f"THEN CAST({sql} AS TIMESTAMP_NS) ELSE {g.fail(message, 'NOT_SUPPORTED')} END"
+    )
+
+
+def round_timestamp(sql: str, precision: int, source: int = 6) -> str:
+    """A timestamp(source) rounded HALF_UP to `precision` fractional digits, before 1970 too (Trino's
+    timestamp(p) casts: io.trino.spi.type.Timestamps.round)."""
+    digits = 9 if source > 6 else 6
+    unit = 10 ** (digits - precision)
+    shifted = f"(epoch_{'ns' if digits == 9 else 'us'}({sql}) + {unit // 2})"  # then floored to a multiple of unit
+    rounded = f"{shifted} - ((({shifted} % {unit}) + {unit}) % {unit})"
+    if digits == 6:
+        return f"make_timestamp({rounded})"
+    return f"make_timestamp_ns({rounded})" if precision > 6 else f"make_timestamp(({rounded}) // 1000)"
 
 
 def parse_varchar(g: Writer, sql: str, target: TType) -> str:
@@ -708,13 +778,38 @@ def parse_varchar(g: Writer, sql: str, target: TType) -> str:
             f"THEN CAST(trim({sql}) AS DATE) ELSE {bad} END"
         )
     if target.base == "timestamp":
-        pattern = "^[0-9]{4}-[0-9]{1,2}-[0-9]{1,2}( [0-9]{1,2}:[0-9]{1,2}(:[0-9]{1,2}([.][0-9]{1,12})?)?)?$"
-        value = f"CAST({sql} AS {tt.duckdb_type(target)})"
-        if target.args[0] < 6:
-            value = round_timestamp(value, target.args[0])
-        valid = f"TRY_CAST({sql} AS {tt.duckdb_type(target)}) IS NOT NULL"
-        return f"CASE WHEN regexp_matches(trim({sql}), {string(pattern)}) AND {valid} THEN {value} ELSE {bad} END"
+        return parse_timestamp(g, sql, target.args[0], bad)
     return cast(sql, target)
+
+
+def zoned_precision(sql: str, source: TType, precision: int) -> str:
+    """A timestamp(p) or date rounded HALF_UP for CAST to timestamp(precision) with time zone: to
+    milliseconds first when the target holds milliseconds at most and the source microseconds
+    (operator/scalar/timestamp/TimestampToTimestampWithTimeZoneCast: shortToShort rounds twice)."""
+    if source.base != "timestamp" or precision >= source.args[0]:
+        return sql
+    if precision < 3 < source.args[0] <= 6:
+        sql = round_timestamp(sql, 3)
+    return round_timestamp(sql, precision, source.args[0])
+
+
+def parse_timestamp(g: Writer, sql: str, precision: int, bad: str) -> str:
+    """CAST(varchar AS timestamp(precision)): the fraction's digits rounded HALF_UP to `precision`
+    (io.trino.operator.scalar.timestamp.VarcharToTimestampCast); DuckDB would cut them at six or nine."""
+    pattern = "^[0-9]{4}-[0-9]{1,2}-[0-9]{1,2}( [0-9]{1,2}:[0-9]{1,2}(:[0-9]{1,2}([.][0-9]{1,12})?)?)?$"
+    text = f"trim({sql})"
+    seconds_text = f"regexp_replace({text}, '[.][0-9]*$', '')"
+    seconds = (
+        f"TRY_CAST({seconds_text} AS TIMESTAMP)"  # TRY_: DuckDB folds a constant CAST early, and `valid` checks it
+    )
+    unit = 10 ** (12 - precision)  # of the fraction read as picoseconds
+    fraction = f"((CAST(rpad(regexp_extract({text}, '[.]([0-9]*)$', 1), 12, '0') AS BIGINT) + {unit // 2}) // {unit})"
+    if precision > 6:
+        value = f"make_timestamp_ns(epoch_ns({as_nanoseconds(g, seconds)}) + {fraction} * {10 ** (9 - precision)})"
+    else:
+        value = f"{seconds} + to_microseconds({fraction} * {10 ** (6 - precision)})"
+    valid = f"regexp_matches({text}, {string(pattern)}) AND TRY_CAST({seconds_text} AS TIMESTAMP) IS NOT NULL"
+    return f"CASE WHEN {valid} THEN {value} ELSE {bad} END"
 
 
 def varchar_of(g: Writer, sql: str, source: TType) -> str:
@@ -758,6 +853,11 @@ def approx_text(sql: str, source: TType) -> str:
         f"WHEN {value} = 0 THEN CASE WHEN starts_with(CAST({value} AS VARCHAR), '-') THEN '-0E0' ELSE '0E0' END "
         f"ELSE CASE WHEN {value} < 0 THEN '-' ELSE '' END || {mantissa} || 'E' || CAST({exponent} AS VARCHAR) END"
     )
+
+
+@transform(FloorMicros)
+def floored_micros(g: Writer, node: FloorMicros) -> str:
+    return floor_micros(g.sql(node.this))
 
 
 # --- function calls ------------------------------------------------------------------------------

@@ -11,6 +11,7 @@ from __future__ import annotations
 import base64
 import datetime as dt
 import math
+import struct
 import uuid
 from collections.abc import Callable, Sequence
 from decimal import Decimal
@@ -227,10 +228,42 @@ def _identity(value: Any) -> Any:
     return value
 
 
-def _map_key(key: Any) -> str:
-    if isinstance(key, bool):
-        return "true" if key else "false"
-    return key if isinstance(key, str) else str(key)
+def _java_text(value: Any, t: TType) -> str:
+    """An encoded value of type `t` as Java's toString of Trino's object value, which is how Trino writes
+    a map key (server/protocol/JsonEncodingUtils.MapEncoder: getObjectValue(...).toString()): arrays and
+    rows as `[a, b]`, NULL as `null`, booleans in lower case, doubles and reals as Java prints them."""
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if t.base in ("array", "row"):
+        types = [t.element] * len(value) if t.base == "array" else [field for _, field in t.args]
+        return "[" + ", ".join(_java_text(v, field) for v, field in zip(value, types)) + "]"
+    if t.base in ("double", "real") and isinstance(value, float):
+        return _java_float(value, single=t.base == "real")
+    return str(value)
+
+
+def _java_float(value: float, single: bool) -> str:
+    """Java's Double.toString (Float.toString when `single`): the shortest digits that read back,
+    as d.ddd within [1e-3, 1e7) and as d.dddEn outside it."""
+    if value == 0:
+        return "-0.0" if math.copysign(1.0, value) < 0 else "0.0"
+    text = repr(value)
+    if single:
+        text = next(t for t in (f"{value:.{n}g}" for n in range(1, 10)) if _as_float32(float(t)) == value)
+    number = Decimal(text)
+    if 1e-3 <= abs(value) < 1e7:
+        plain = format(number, "f")
+        return plain if "." in plain else plain + ".0"
+    _, digits, exponent = number.as_tuple()
+    power = len(digits) + exponent - 1
+    figures = "".join(map(str, digits)).rstrip("0") or "0"
+    return f"{'-' if value < 0 else ''}{figures[0]}.{figures[1:] or '0'}E{power}"
+
+
+def _as_float32(value: float) -> float:
+    return struct.unpack("f", struct.pack("f", value))[0]
 
 
 def _make_encoder(t: TType) -> Encoder:
@@ -265,7 +298,7 @@ def _make_encoder(t: TType) -> Encoder:
             if value is None:
                 return None
             pairs = value.items() if isinstance(value, dict) else value
-            return {_map_key(key_encoder(k)): value_encoder(v) for k, v in pairs}
+            return {_java_text(key_encoder(k), args[0]): value_encoder(v) for k, v in pairs}
 
         return encode_map
     if base == "row":

@@ -113,6 +113,24 @@ def test_timestamps_and_arrays_of_the_metadata_table(lake_server, server_lake):
     assert (name, type_code, precision) == ("build_creation_timestamp", "timestamp(3)", 3)
 
 
+def test_nanosecond_timestamps_reach_the_client_with_every_digit(lake_server):
+    sql = (
+        "SELECT TIMESTAMP '2020-05-10 12:34:56.123456789' AS t9, "
+        "CAST(TIMESTAMP '1969-12-31 23:59:59.99999995' AS TIMESTAMP(7)) AS t7, "
+        "TIMESTAMP '2020-05-10 23:59:59.999999999' + INTERVAL '1' HOUR AS later, "
+        "TIMESTAMP '2020-05-10 12:34:56.000000002' > TIMESTAMP '2020-05-10 12:34:56.000000001' AS after"
+    )
+    with connect(lake_server, legacy_primitive_types=True) as connection:
+        cursor = connection.cursor()
+        cursor.execute(sql)
+        rows = cursor.fetchall()
+        types = [column[1] for column in cursor.description]
+    assert rows == [
+        ["2020-05-10 12:34:56.123456789", "1970-01-01 00:00:00.0000000", "2020-05-11 00:59:59.999999999", True]
+    ]
+    assert types == ["timestamp(9)", "timestamp(7)", "timestamp(9)", "boolean"]
+
+
 def test_parameters(lake_server, all_types, server_lake):
     branch, _ = all_types
     assert fetch(

@@ -145,6 +145,15 @@ def test_unknown_type_names_are_refused():
         ("map(varchar, double)", {"a": math.inf}, {"a": "Infinity"}),
         ("map(bigint, varchar)", [(1, "x"), (2, None)], {"1": "x", "2": None}),
         ("map(boolean, bigint)", {True: 1}, {"true": 1}),
+        # keys are Java's toString of the key's object value (server/protocol/JsonEncodingUtils.MapEncoder)
+        ("map(array(integer), integer)", [([1], 2)], {"[1]": 2}),
+        ("map(array(array(varchar)), integer)", [([["a", None], []], 2)], {"[[a, null], []]": 2}),
+        ("map(row(x integer, y boolean), integer)", [({"x": 1, "y": True}, 2)], {"[1, true]": 2}),
+        (
+            "map(double, integer)",
+            [(1e7, 1), (0.001, 2), (-2.5e-4, 3), (1.5, 4)],
+            {"1.0E7": 1, "0.001": 2, "-2.5E-4": 3, "1.5": 4},
+        ),
         ("row(a bigint, b decimal(3,1))", {"a": 1, "b": Decimal("2.5")}, [1, "2.5"]),
         ("array(row(name varchar, value double))", [{"name": "n", "value": math.nan}], [["n", "NaN"]]),
     ],

@@ -897,6 +897,13 @@ def _literal(a: Analyzer, node: exp.Literal, scope, env):
         a.fail(str(error), node, "INVALID_LITERAL")
 
 
+@handles(exp.HexString)
+def _binary_literal(a: Analyzer, node: exp.HexString, scope, env):
+    if len(node.name) % 2:
+        a.fail("Binary literal must contain an even number of digits", node, "SYNTAX_ERROR")
+    return tt.VARBINARY
+
+
 @handles(exp.Null)
 def _null(a, node, scope, env):
     return tt.UNKNOWN
@@ -1100,6 +1107,8 @@ def _dpipe(a: Analyzer, node, scope, env):
             a.fail(f"Cannot apply operator: {left} || {right}", node, "TYPE_MISMATCH")
         node.meta["array"] = True
         return tt.array(element)
+    if "varbinary" in (left.base, right.base) and {left.base, right.base} <= {"varbinary", "unknown"}:
+        return tt.VARBINARY
     for t in (left, right):
         if t.base not in ("varchar", "char", "unknown"):
             a.fail(f"Cannot apply operator: {left} || {right}", node, "TYPE_MISMATCH")
@@ -1177,6 +1186,9 @@ def _cast(a: Analyzer, node, scope, env):
             r"[0-9]:[0-9]{2}(:[0-9]{2}([.][0-9]*)?)?\s*([A-Za-z]|[+-][0-9])", text
         ):
             a.unsupported("timestamp literal with a time zone", node)
+    if target.base == "varbinary" and source.base in ("varchar", "varbinary", "unknown"):
+        node.meta["from"] = source
+        return target  # the UTF-8 bytes of the text (VarcharOperators.castToVarbinary)
     if target.base in ("char", "time", "time_tz", "uuid", "varbinary", "json", "map"):
         a.unsupported(f"cast to {target}", node)
     if target.base == "timestamp_tz" and source.base == "varchar":

@@ -335,3 +335,553 @@ overload(
     _render_reverse_binary,
     "reverse(binary) -> varbinary",
 )
+
+
+# === math (io.trino.operator.scalar.MathFunctions, BitwiseFunctions, WilsonInterval,
+# ArrayVectorFunctions, DataSizeFunctions) ======================================================
+_WIDTH = {"tinyint": 8, "smallint": 16, "integer": 32, "bigint": 64}
+_U64 = 2**64 - 1
+
+
+def _shift(call: Call) -> TType:
+    value, _ = need(call, "integral", "integral")
+    return tt.BIGINT if value.is_unknown else value
+
+
+def _signed(sql: str, width: int) -> str:
+    """The low `width` bits of the non-negative HUGEINT `sql` as a two's complement number."""
+    low = f"(({sql}) & {2**width - 1})"
+    return f"({low} - CASE WHEN {low} >= {2 ** (width - 1)} THEN {2**width} ELSE 0 END)"
+
+
+def _render_shift(kind: str) -> Render:
+    """BitwiseFunctions: the value's own width (tinyint 8 ... bigint 64 bits); a shift of 64 or
+    more gives 0 (-1 for an arithmetic shift of a negative value); below 64, Java's `<<`, `>>>`
+    and `>>` on a long (the shift taken modulo 64)."""
+
+    def render(g, node, args) -> str:
+        value, shift = sqls(g, args)
+        t = ttype(node)
+        width = _WIDTH[t.base]
+        s = f"(CAST({shift} AS BIGINT) & 63)"
+        bits = f"(CAST({value} AS HUGEINT) & {_U64})"
+        if kind == "left":
+            shifted, wide = _signed(f"{bits} << {s}", width), "0"
+        elif kind == "logical":
+            low = f"({bits} & {2**width - 1})"
+            shifted = f"CASE WHEN {s} = 0 THEN {value} ELSE {low} >> {s} END"
+            wide = "0"
+        else:
+            shifted, wide = f"(CAST({value} AS BIGINT) >> {s})", f"CASE WHEN {value} >= 0 THEN 0 ELSE -1 END"
+        return tf.cast(f"CASE WHEN {shift} >= 64 THEN {wide} ELSE {shifted} END", t)
+
+    return render
+
+
+def _render_width_bucket(g, node, args) -> str:
+    """MathFunctions.widthBucket(operand, bound1, bound2, bucketCount)."""
+    x, b1, b2 = (f"CAST({g.sql(a)} AS DOUBLE)" for a in args[:3])
+    n = f"CAST({g.sql(args[3])} AS BIGINT)"
+    lower, upper = f"least({b1}, {b2})", f"greatest({b1}, {b2})"
+    checks = [
+        (f"{n} <= 0", "bucketCount must be greater than 0"),
+        (f"isnan({x})", "operand must not be NaN"),
+        (f"NOT isfinite({b1})", "first bound must be finite"),
+        (f"NOT isfinite({b2})", "second bound must be finite"),
+        (f"{b1} = {b2}", "bounds cannot equal each other"),
+    ]
+    whens = " ".join(f"WHEN {c} THEN {g.fail(tf.string(m))}" for c, m in checks)
+    bucket = (
+        f"CASE WHEN {x} < {lower} THEN 0 WHEN {x} >= {upper} THEN {n} + 1 "
+        f"ELSE CAST(trunc(CAST({n} AS DOUBLE) * ({x} - {lower}) / ({upper} - {lower}) + 1) AS BIGINT) END"
+    )
+    return (
+        f"CASE WHEN {x} IS NULL OR {b1} IS NULL OR {b2} IS NULL OR {n} IS NULL THEN NULL {whens} "
+        f"WHEN {b1} > {b2} THEN {n} - ({bucket}) + 1 ELSE {bucket} END"
+    )
+
+
+def _render_width_bucket_bins(g, node, args) -> str:
+    """MathFunctions.widthBucket(operand, bins): the number of bins <= operand. Trino's binary search
+    fails when it meets unsorted or non-finite bins; here any such bin fails."""
+    x, bins = f"CAST({g.sql(args[0])} AS DOUBLE)", g.sql(args[1])
+    unsorted = f'len(list_filter(range(1, len({bins})), lambda "_i": {bins}["_i"] > {bins}["_i" + 1])) > 0'
+    infinite = f'len(list_filter({bins}, lambda "_b": NOT isfinite("_b"))) > 0'
+    return (
+        f"CASE WHEN {x} IS NULL OR {bins} IS NULL THEN NULL "
+        f"WHEN len({bins}) = 0 THEN {g.fail(tf.string('Bins cannot be an empty array'))} "
+        f"WHEN isnan({x}) THEN {g.fail(tf.string('Operand cannot be NaN'))} "
+        f'WHEN list_contains(list_transform({bins}, lambda "_b": "_b" IS NULL), true) THEN '
+        f"{g.fail(tf.string('NULL bins are not supported in lakegate'), 'NOT_SUPPORTED')} "
+        f"WHEN {unsorted} THEN {g.fail(tf.string('Bin values are not sorted in ascending order'))} "
+        f"WHEN {infinite} THEN {g.fail(tf.string('Bin value must be finite'))} "
+        f'ELSE CAST(len(list_filter({bins}, lambda "_b": "_b" <= {x})) AS BIGINT) END'
+    )
+
+
+def _width_bucket(call: Call) -> TType:
+    if len(call.args) == 2:
+        x, bins = call.types
+        if x is None or not (x.is_numeric or x.is_unknown) or bins is None or bins.base not in ("array", "unknown"):
+            call.mismatch()
+        if bins.base == "array" and not (bins.element.is_numeric or bins.element.is_unknown):
+            call.mismatch()
+        return tt.BIGINT
+    need(call, "number", "number", "number", "integral")
+    return tt.BIGINT
+
+
+def _render_width_bucket_any(g, node, args) -> str:
+    return (_render_width_bucket_bins if len(args) == 2 else _render_width_bucket)(g, node, args)
+
+
+_DIGITS = "0123456789abcdefghijklmnopqrstuvwxyz"
+
+
+def _radix_check(g, radix: str) -> tuple[str, str]:
+    return (f"{radix} NOT BETWEEN 2 AND 36", "Radix must be between 2 and 36")
+
+
+def _render_from_base(g, node, args) -> str:
+    """Long.parseLong(value, radix): an optional sign, then at least one digit of the radix (either
+    case); the value must fit a bigint. Digits are summed in HUGEINT, saturating past 2^64."""
+    text, radix = sqls(g, args)
+    digits = f"lower(regexp_replace({text}, '^[+-]', ''))"
+    value = (
+        f'list_reduce(string_split({digits}, \'\'), lambda "_v", "_c": CASE WHEN "_v" > {2**64} THEN "_v" '
+        f'ELSE "_v" * {radix} + strpos(\'{_DIGITS}\', "_c") - 1 END, CAST(0 AS HUGEINT))'
+    )
+    signed = f"CASE WHEN starts_with({text}, '-') THEN -{value} ELSE {value} END"
+    valid_digit = f"strpos(left('{_DIGITS}', CAST({radix} AS INTEGER)), \"_c\") > 0"
+    valid = (
+        f"regexp_full_match({text}, '[+-]?[0-9A-Za-z]+') AND "
+        f"len(list_filter(string_split({digits}, ''), lambda \"_c\": NOT ({valid_digit}))) = 0"
+    )
+    bad = g.fail(f"'Not a valid base-' || {radix} || ' number: ' || {text}")
+    check, message = _radix_check(g, radix)
+    return (
+        f"CASE WHEN {text} IS NULL OR {radix} IS NULL THEN NULL WHEN {check} THEN {g.fail(tf.string(message))} "
+        f"WHEN NOT ({valid}) THEN {bad} "
+        f"WHEN ({signed}) NOT BETWEEN {-(2**63)} AND {2**63 - 1} THEN {bad} "
+        f"ELSE CAST({signed} AS BIGINT) END"
+    )
+
+
+def _render_to_base(g, node, args) -> str:
+    """Long.toString(value, radix): lower-case digits, '-' for negative values."""
+    value, radix = (f"CAST({g.sql(a)} AS BIGINT)" for a in args)
+    check, message = _radix_check(g, radix)
+    minimum = -(2**63)
+    radix_sql = radix
+    radix = f"CAST(least(greatest({radix}, 2), 36) AS INTEGER)"  # DuckDB's to_base takes an INTEGER radix
+    return (
+        f"CASE WHEN {value} IS NULL OR {radix_sql} IS NULL THEN NULL WHEN {check} THEN {g.fail(tf.string(message))} "
+        f"WHEN {value} = {minimum} THEN '-' || lower(to_base(CAST(-({value} // {radix}) AS BIGINT), {radix}) || "
+        f"to_base(CAST(-({value} % {radix}) AS BIGINT), {radix})) "
+        f"WHEN {value} < 0 THEN '-' || lower(to_base(CAST(-{value} AS BIGINT), {radix})) "
+        f"ELSE lower(to_base({value}, {radix})) END"
+    )
+
+
+def _render_wilson(bound: int) -> Render:
+    """WilsonInterval.wilsonInterval, the same double operations in the same order."""
+
+    def render(g, node, args) -> str:
+        successes, trials = (f"CAST({g.sql(a)} AS BIGINT)" for a in args[:2])
+        z = f"CAST({g.sql(args[2])} AS DOUBLE)"
+        p, n = f"(CAST({successes} AS DOUBLE) / CAST({trials} AS DOUBLE))", f"CAST({trials} AS DOUBLE)"
+        value = (
+            f"({p} + ({z} * {z}) / (2 * {n}) + {bound} * {z} * sqrt(({p} * (1 - {p})) / {n} + "
+            f"({z} * {z}) / (4 * {n} * {n}))) / (1 + ({z} * {z}) / {n})"
+        )
+        checks = [
+            (f"{successes} < 0", "number of successes must not be negative"),
+            (f"{trials} <= 0", "number of trials must be positive"),
+            (f"{successes} > {trials}", "number of successes must not be larger than number of trials"),
+            (f"{z} < 0", "z-score must not be negative"),
+        ]
+        whens = " ".join(f"WHEN {c} THEN {g.fail(tf.string(m))}" for c, m in checks)
+        return f"CASE WHEN {successes} IS NULL OR {trials} IS NULL OR {z} IS NULL THEN NULL {whens} ELSE {value} END"
+
+    return render
+
+
+def _vectors(call: Call) -> TType:
+    if len(call.args) != 2:
+        call.mismatch()
+    for t in call.types:
+        if t is None or not (t.is_unknown or (t.base == "array" and (t.element.is_numeric or t.element.is_unknown))):
+            call.mismatch()
+    return tt.DOUBLE
+
+
+def _fold(pairs: str, step: str) -> str:
+    """A left-to-right double sum over the element pairs ("_p"[1], "_p"[2]), as Java's loop adds."""
+    return (
+        f'list_reduce(list_transform({pairs}, lambda "_p": {step}), lambda "_s", "_x": "_s" + "_x", CAST(0 AS DOUBLE))'
+    )
+
+
+def _render_vector(kind: str) -> Render:
+    """ArrayVectorFunctions: the arrays must have the same length; NULL elements are refused."""
+
+    def render(g, node, args) -> str:
+        a, b = (f"CAST({g.sql(x)} AS DOUBLE[])" for x in args)
+        pairs = f'list_transform(range(1, len({a}) + 1), lambda "_i": [{a}["_i"], {b}["_i"]])'
+        dot = _fold(pairs, '"_p"[1] * "_p"[2]')
+        if kind == "dot":
+            value = dot
+        elif kind == "euclidean":
+            squared = '("_p"[1] - "_p"[2]) * ("_p"[1] - "_p"[2])'
+            value = f"sqrt({_fold(pairs, squared)})"
+        else:
+            first, second = _fold(pairs, '"_p"[1] * "_p"[1]'), _fold(pairs, '"_p"[2] * "_p"[2]')
+            similarity = (
+                f"CASE WHEN {first} = 0 OR {second} = 0 THEN {g.fail(tf.string('Vector magnitude cannot be zero'))} "
+                f"ELSE {dot} / sqrt({first} * {second}) END"
+            )
+            value = similarity if kind == "cosine" else f"1.0 - ({similarity})"
+        has_null = f'list_contains(list_transform(list_concat({a}, {b}), lambda "_x": "_x" IS NULL), true)'
+        return (
+            f"CASE WHEN {a} IS NULL OR {b} IS NULL THEN NULL "
+            f"WHEN len({a}) <> len({b}) THEN {g.fail(tf.string('The arguments must have the same length'))} "
+            f"WHEN {has_null} THEN {g.fail(tf.string('NULL elements are not supported in lakegate'), 'NOT_SUPPORTED')} "
+            f"ELSE {value} END"
+        )
+
+    return render
+
+
+#: DataSizeFunctions.Unit: the factor of each unit (powers of 1024).
+_DATA_UNITS = {"B": 0, "kB": 10, "MB": 20, "GB": 30, "TB": 40, "PB": 50, "EB": 60, "ZB": 70, "YB": 80}
+
+
+def _render_parse_data_size(g, node, args) -> str:
+    """DataSizeFunctions: a decimal number (digits and one '.') then a unit, no spaces; the bytes
+    are the exact product truncated to an integer, at most 38 digits."""
+    text = g.sql(args[0])
+    pattern = f"([0-9]+[.]?[0-9]*|[.][0-9]+)({'|'.join(_DATA_UNITS)})"
+    number = f"regexp_extract({text}, '^[0-9.]*')"
+    unit = f"substr({text}, length({number}) + 1)"
+    factor = "CASE " + " ".join(f"WHEN {unit} = '{u}' THEN {2**p}" for u, p in _DATA_UNITS.items()) + " END"
+    whole = f"CAST(coalesce(nullif(split_part({number}, '.', 1), ''), '0') AS HUGEINT)"
+    fraction = f"split_part({number}, '.', 2)"
+    fraction_bytes = (
+        f"CASE WHEN {fraction} = '' THEN 0 ELSE "
+        f"CAST({fraction} AS HUGEINT) * {factor} // CAST('1' || repeat('0', length({fraction})) AS HUGEINT) END"
+    )
+    invalid = g.fail(f"'Invalid data size: ''' || {text} || ''''")
+    too_long = g.fail(
+        tf.string("a data size with more than 20 fraction digits is not supported in lakegate"), "NOT_SUPPORTED"
+    )
+    return (
+        f"CASE WHEN {text} IS NULL THEN NULL WHEN NOT regexp_full_match({text}, {tf.string(pattern)}) THEN {invalid} "
+        f"WHEN length({fraction}) > 20 THEN {too_long} "
+        f"ELSE CAST({whole} * {factor} + {fraction_bytes} AS DECIMAL(38,0)) END"
+    )
+
+
+for _name, _kind in (
+    ("bitwise_left_shift", "left"),
+    ("bitwise_right_shift", "logical"),
+    ("bitwise_right_shift_arithmetic", "arithmetic"),
+):
+    register(_name, "math", f"{_name}(value, shift) -> same as value", _shift, _render_shift(_kind))
+register(
+    "width_bucket",
+    "math",
+    "width_bucket(x, bound1, bound2, n) -> bigint; width_bucket(x, bins) -> bigint",
+    _width_bucket,
+    _render_width_bucket_any,
+    notes="With bins, any unsorted or non-finite bin fails (Trino fails only on those its binary search meets).",
+)
+register(
+    "from_base", "math", "from_base(string, radix) -> bigint", fixed(tt.BIGINT, "string", "integral"), _render_from_base
+)
+register(
+    "to_base",
+    "math",
+    "to_base(x, radix) -> varchar(64)",
+    fixed(tt.varchar(64), "integral", "integral"),
+    _render_to_base,
+)
+register(
+    "wilson_interval_lower",
+    "math",
+    "wilson_interval_lower(successes, trials, z) -> double",
+    fixed(tt.DOUBLE, "integral", "integral", "number"),
+    _render_wilson(-1),
+)
+register(
+    "wilson_interval_upper",
+    "math",
+    "wilson_interval_upper(successes, trials, z) -> double",
+    fixed(tt.DOUBLE, "integral", "integral", "number"),
+    _render_wilson(1),
+)
+for _name, _kind in (
+    ("cosine_similarity", "cosine"),
+    ("cosine_distance", "distance"),
+    ("dot_product", "dot"),
+    ("euclidean_distance", "euclidean"),
+):
+    register(
+        _name,
+        "math",
+        f"{_name}(array(double), array(double)) -> double",
+        _vectors,
+        _render_vector(_kind),
+        notes="Arrays only (the map forms are not translated); NULL elements fail.",
+    )
+register(
+    "parse_data_size",
+    "conversion",
+    "parse_data_size(string) -> decimal(38,0)",
+    fixed(tt.decimal(38, 0), "string"),
+    _render_parse_data_size,
+)
+
+
+# === string (io.trino.operator.scalar.StringFunctions, LuhnCheckFunction) =======================
+def _trim_chars(call: Call) -> TType | None:
+    """trim(string, characters): the two-argument form (StringFunctions.trim / leftTrim / rightTrim
+    with a code point set)."""
+    if len(call.args) != 2:
+        return None
+    source, _ = need(call, "string", "string")
+    return source if source.base == "varchar" else tt.VARCHAR
+
+
+def _strpos_instance(call: Call) -> TType | None:
+    if len(call.args) != 3:
+        return None
+    need(call, "string", "string", "integral")
+    return tt.BIGINT
+
+
+def _render_strpos_instance(g, node, args) -> str:
+    """StringFunctions.stringPosition: the position of the n-th (overlapping) match, counted from the
+    end when n is negative; 0 when there is none, 1 for an empty substring, n = 0 fails."""
+    text, sub, instance = sqls(g, args)
+    starts = (
+        f'list_filter(range(1, length({text}) - length({sub}) + 2), lambda "_i": '
+        f'substr({text}, "_i", length({sub})) = {sub})'
+    )
+    message = tf.string("'instance' must be a positive or negative number.")
+    return (
+        f"CASE WHEN {text} IS NULL OR {sub} IS NULL OR {instance} IS NULL THEN NULL "
+        f"WHEN {instance} = 0 THEN {g.fail(message)} WHEN length({sub}) = 0 THEN CAST(1 AS BIGINT) "
+        f"ELSE CAST(coalesce(CASE WHEN {instance} > 0 THEN {starts}[{instance}] "
+        f"ELSE {starts}[len({starts}) + {instance} + 1] END, 0) AS BIGINT) END"
+    )
+
+
+def _render_luhn_check(g, node, args) -> str:
+    """LuhnCheckFunction: false for '', a non-digit fails; every second digit from the right doubled
+    (minus 9 past 9), the sum divisible by 10."""
+    text = g.sql(args[0])
+    digit = f'CAST(substr(reverse({text}), "_i", 1) AS INTEGER)'
+    term = f'CASE WHEN "_i" % 2 = 0 THEN CASE WHEN {digit} * 2 > 9 THEN {digit} * 2 - 9 ELSE {digit} * 2 END ELSE {digit} END'
+    total = f'list_sum(list_transform(range(1, length({text}) + 1), lambda "_i": {term}))'
+    return (
+        f"CASE WHEN {text} IS NULL THEN NULL WHEN {text} = '' THEN false "
+        f"WHEN NOT regexp_full_match({text}, '[0-9]*') THEN {g.fail(tf.string('Input contains non-digit character'))} "
+        f"ELSE {total} % 10 = 0 END"
+    )
+
+
+def _char2hexint(g, node, args) -> str:
+    """Teradata char2hexint: the UTF-16BE code units of the string in upper-case hex (one code unit
+    for characters of the Basic Multilingual Plane; others are refused)."""
+    text = g.sql(args[0])
+    units = (
+        f"list_transform(string_split({text}, ''), lambda \"_c\": lpad(upper(to_base(unicode(\"_c\"), 16)), 4, '0'))"
+    )
+    beyond = f'len(list_filter(string_split({text}, \'\'), lambda "_c": unicode("_c") > 65535)) > 0'
+    message = tf.string("char2hexint of characters beyond U+FFFF is not supported in lakegate")
+    return f"CASE WHEN {beyond} THEN {g.fail(message, 'NOT_SUPPORTED')} ELSE array_to_string({units}, '') END"
+
+
+for _name in ("trim", "ltrim", "rtrim"):
+    overload(
+        _name,
+        _trim_chars,
+        SUPPORTED[_name].render,
+        f"{_name}(string, characters) -> varchar",
+    )
+overload("strpos", _strpos_instance, _render_strpos_instance, "strpos(string, substring, instance) -> bigint")
+register(
+    "ends_with",
+    "string",
+    "ends_with(string, substring) -> boolean",
+    fixed(tt.BOOLEAN, "string", "string"),
+    lambda g, node, args: "ends_with({}, {})".format(*sqls(g, args)),
+)
+register("luhn_check", "string", "luhn_check(string) -> boolean", fixed(tt.BOOLEAN, "string"), _render_luhn_check)
+register(
+    "normalize",
+    "string",
+    "normalize(string) -> varchar",
+    fixed(tt.VARCHAR, "string"),
+    lambda g, node, args: f"nfc_normalize({g.sql(args[0])})",
+    notes="The one-argument form (NFC); normalize(string, form) is not translated.",
+)
+register(
+    "index",
+    "string",
+    "index(string, substring) -> bigint (Teradata)",
+    fixed(tt.BIGINT, "string", "string"),
+    lambda g, node, args: "CAST(strpos({}, {}) AS BIGINT)".format(*sqls(g, args)),
+)
+register(
+    "char2hexint",
+    "string",
+    "char2hexint(string) -> varchar (Teradata)",
+    fixed(tt.VARCHAR, "string"),
+    _char2hexint,
+)
+
+
+# === date and time (io.trino.operator.scalar.DateTimeFunctions, HumanReadableSeconds,
+# timestamp/ToIso8601, timestamptz/ToIso8601) =====================================================
+def _render_human_readable_seconds(g, node, args) -> str:
+    """HumanReadableSeconds: Math.round(|x|) seconds as weeks, days, hours, minutes and seconds,
+    the zero parts left out, '0 seconds' for none; NaN and infinities fail."""
+    x = f"CAST({g.sql(args[0])} AS DOUBLE)"
+    whole = f"floor(abs({x}))"
+    rounded = f"TRY_CAST({whole} + CASE WHEN abs({x}) - {whole} >= 0.5 THEN 1 ELSE 0 END AS BIGINT)"
+    total = f"(CASE WHEN abs({x}) >= 9.223372036854775807e18 THEN 9223372036854775807 ELSE {rounded} END)"  # saturates
+    parts = [
+        (f"{total} // 604800", "week"),
+        (f"{total} % 604800 // 86400", "day"),
+        (f"{total} % 86400 // 3600", "hour"),
+        (f"{total} % 3600 // 60", "minute"),
+        (f"{total} % 60", "second"),
+    ]
+    rendered = ", ".join(
+        f"CASE WHEN {n} > 0 THEN CAST({n} AS VARCHAR) || ' {unit}' || CASE WHEN {n} = 1 THEN '' ELSE 's' END END"
+        for n, unit in parts
+    )
+    text = f"concat_ws(', ', {rendered})"
+    invalid = g.fail(f"'Invalid argument found: ' || {tf.approx_text(x, tt.DOUBLE)}")
+    return (
+        f"CASE WHEN {x} IS NULL THEN NULL WHEN NOT isfinite({x}) THEN {invalid} "
+        f"WHEN {total} = 0 THEN '0 seconds' ELSE {text} END"
+    )
+
+
+#: io.airlift.units.Duration: milliseconds per unit.
+_DURATION_MILLIS = {
+    "ns": "1.0e-6",
+    "us": "1.0e-3",
+    "ms": "1.0",
+    "s": "1000.0",
+    "m": "60000.0",
+    "h": "3600000.0",
+    "d": "86400000.0",
+}
+
+
+def _render_parse_duration(g, node, args) -> str:
+    """io.airlift.units.Duration.valueOf(text).toMillis(): a decimal number, optional whitespace and a
+    unit; the milliseconds are floor(value * millis-per-unit + 0.5)."""
+    text = g.sql(args[0])
+    pattern = f"[ \\t\\n\\x0B\\f\\r]*([0-9]+([.][0-9]+)?)[ \\t\\n\\x0B\\f\\r]*({'|'.join(_DURATION_MILLIS)})[ \\t\\n\\x0B\\f\\r]*"
+    number = f"CAST(regexp_extract({text}, {tf.string(pattern)}, 1) AS DOUBLE)"
+    unit = f"regexp_extract({text}, {tf.string(pattern)}, 3)"
+    factor = "CASE " + " ".join(f"WHEN {unit} = '{u}' THEN {m}" for u, m in _DURATION_MILLIS.items()) + " END"
+    millis = f"floor({number} * {factor} + 0.5)"
+    invalid = g.fail(f"'duration is not a valid data duration string: ' || {text}")
+    return (
+        f"CASE WHEN {text} IS NULL THEN NULL WHEN NOT regexp_full_match({text}, {tf.string(pattern)}) THEN {invalid} "
+        f"WHEN {millis} > 9223372036854775807 THEN {g.fail(tf.string('duration is too large'))} "
+        f"ELSE to_milliseconds(CAST({millis} AS BIGINT)) END"
+    )
+
+
+def _to_iso8601(call: Call) -> TType:
+    (t,) = need(call, "temporal")
+    if t.base == "date" or t.is_unknown:
+        return tt.varchar(16)
+    precision = t.args[0]
+    return tt.varchar(1 + 6 + 15 + min(precision, 1) + precision + (6 if t.base == "timestamp_tz" else 0))
+
+
+def _render_to_iso8601(g, node, args) -> str:
+    """Dates as uuuu-MM-dd; timestamps as uuuu-MM-dd'T'HH:mm:ss with p fraction digits, and the
+    offset of a timestamp with time zone, 'Z' for UTC (lakegate's only zone)."""
+    value, t = g.sql(args[0]), ttype(args[0])
+    if t.base in ("date", "unknown"):
+        return f"strftime(CAST({value} AS DATE), '%Y-%m-%d')"
+    if t.base == "timestamp_tz":
+        utc = f"timezone('UTC', {value})"
+        return f"replace({tf.timestamp_text(utc, t.args[0])}, ' ', 'T') || 'Z'"
+    return f"replace({tf.timestamp_text(value, t.args[0])}, ' ', 'T')"
+
+
+#: The ISO 8601 date-times lakegate reads: a calendar date, optionally 'T' and hours[:minutes[:seconds
+#: [.fraction]]], and no offset (the session zone, UTC) or 'Z'.
+_ISO_DATETIME = (
+    "([0-9]{4})-([0-9]{2})-([0-9]{2})(?:T([0-9]{2})(?::([0-9]{2})(?::([0-9]{2})(?:[.,]([0-9]{1,3}))?)?)?)?Z?"
+)
+
+
+def _render_from_iso8601_timestamp(g, node, args) -> str:
+    """DateTimeFunctions.fromISO8601Timestamp (Joda's ISODateTimeFormat.dateTimeParser) for the
+    common forms; other forms and offsets other than Z are refused: Trino keeps the offset as the
+    value's zone, which lakegate's UTC-only values cannot carry."""
+    text = g.sql(args[0])
+    pattern = tf.string(_ISO_DATETIME)
+
+    def part(index: int, default: str = "0") -> str:
+        return f"CAST(coalesce(nullif(regexp_extract({text}, {pattern}, {index}), ''), '{default}') AS INTEGER)"
+
+    millis = f"CAST(rpad(coalesce(nullif(regexp_extract({text}, {pattern}, 7), ''), '0'), 3, '0') AS INTEGER)"
+    value = f"make_timestamp({part(1)}, {part(2)}, {part(3)}, {part(4)}, {part(5)}, {part(6)} + {millis} / 1000.0)"
+    unsupported = g.fail(
+        f"'from_iso8601_timestamp of ' || {text} || ' is not supported in lakegate "
+        "(only yyyy-MM-dd[THH[:mm[:ss[.SSS]]]] in UTC, with Z or no offset)'",
+        "NOT_SUPPORTED",
+    )
+    out_of_range = g.fail(f"'Cannot parse \"' || {text} || '\": a field value is out of range'")
+    valid = (
+        f"{part(2)} BETWEEN 1 AND 12 AND {part(3)} BETWEEN 1 AND day(last_day(make_date({part(1)}, {part(2)}, 1))) "
+        f"AND {part(4)} <= 23 AND {part(5)} <= 59 AND {part(6)} <= 59"
+    )
+    return (
+        f"CASE WHEN {text} IS NULL THEN NULL WHEN NOT regexp_full_match({text}, {pattern}) THEN {unsupported} "
+        f"WHEN NOT ({part(2)} BETWEEN 1 AND 12) OR NOT ({valid}) THEN {out_of_range} "
+        f"ELSE timezone('UTC', {value}) END"
+    )
+
+
+register(
+    "to_milliseconds",
+    "datetime",
+    "to_milliseconds(interval) -> bigint",
+    lambda c: tt.BIGINT if need(c, "any")[0].base in ("interval_ds", "unknown") else c.mismatch(),
+    lambda g, node, args: f"CAST(epoch_ms({g.sql(args[0])}) AS BIGINT)",
+)
+register(
+    "human_readable_seconds",
+    "datetime",
+    "human_readable_seconds(double) -> varchar",
+    fixed(tt.VARCHAR, "number"),
+    _render_human_readable_seconds,
+)
+register(
+    "parse_duration",
+    "datetime",
+    "parse_duration(string) -> interval day to second",
+    fixed(tt.INTERVAL_DS, "string"),
+    _render_parse_duration,
+)
+register("to_iso8601", "datetime", "to_iso8601(x) -> varchar", _to_iso8601, _render_to_iso8601)
+register(
+    "from_iso8601_timestamp",
+    "datetime",
+    "from_iso8601_timestamp(string) -> timestamp(3) with time zone",
+    fixed(tt.timestamp(3, True), "string"),
+    _render_from_iso8601_timestamp,
+    notes="yyyy-MM-dd[THH[:mm[:ss[.SSS]]]] with Z or no offset (UTC); other forms and offsets are refused.",
+)

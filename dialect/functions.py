@@ -1497,7 +1497,8 @@ register(
 
 
 # --- regular expressions -------------------------------------------------------------------------
-def _regexp(call: Call, result: TType, arity: tuple[int, ...], *kinds: str) -> TType:
+def regexp_call(call: Call, result: TType, arity: tuple[int, ...], *kinds: str) -> TType:
+    """Type a regexp_* call: its arity and argument kinds, a literal pattern that RE2 reads as Joni does."""
     if len(call.args) not in arity:
         call.mismatch()
     need(call, *kinds, optional=len(kinds) - len(call.args))
@@ -1602,13 +1603,13 @@ def _group_semantics(call: Call, group_index: int) -> None:
 
 
 def _regexp_extract(call: Call) -> TType:
-    result = _regexp(call, "same", (2, 3), "string", "string", "integral")
+    result = regexp_call(call, "same", (2, 3), "string", "string", "integral")
     _group_semantics(call, 2)
     return result
 
 
 def _regexp_extract_all(call: Call) -> TType:
-    result = _regexp(call, "array", (2, 3), "string", "string", "integral")
+    result = regexp_call(call, "array", (2, 3), "string", "string", "integral")
     _group_semantics(call, 2)
     return result
 
@@ -1677,7 +1678,7 @@ def _pattern_groups(pattern: exp.Expression) -> int | None:
 
 
 def _regexp_replace(call: Call) -> TType:
-    _regexp(call, tt.VARCHAR, (2, 3), "string", "string", "string")
+    regexp_call(call, tt.VARCHAR, (2, 3), "string", "string", "string")
     x = tt.varchar_length(call.types[0]) if call.types[0].base == "varchar" else None
     if len(call.args) == 3:
         replacement = literal_str(call, 2)
@@ -1709,7 +1710,7 @@ register(
     "regexp_like",
     "regexp",
     "regexp_like(string, pattern) -> boolean",
-    lambda c: _regexp(c, tt.BOOLEAN, (2,), "string", "string"),
+    lambda c: regexp_call(c, tt.BOOLEAN, (2,), "string", "string"),
     call_as("regexp_matches"),
     notes="Patterns run on RE2; Java-only constructs (lookaround, backreferences) are rejected.",
 )
@@ -1742,7 +1743,7 @@ register(
 def _regexp_split(call: Call) -> TType:
     """Splits at matches; a pattern that can match the empty string is refused: Trino then splits
     between characters and adds '' at both ends (JoniRegexpFunctions.regexpSplit), DuckDB does not."""
-    result = _regexp(call, "array", (2,), "string", "string")
+    result = regexp_call(call, "array", (2,), "string", "string")
     pattern = literal_str(call, 1)
     if pattern is not None and (re.search(r"\\[bB]|\^|\$", pattern) or _matches_empty(pattern)):
         call.fail(
@@ -1779,7 +1780,7 @@ register(
     "regexp_count",
     "regexp",
     "regexp_count(string, pattern) -> bigint",
-    lambda c: _regexp(c, tt.BIGINT, (2,), "string", "string"),
+    lambda c: regexp_call(c, tt.BIGINT, (2,), "string", "string"),
     lambda g, node, args: f"CAST(len(regexp_extract_all({g.sql(args[0])}, {g.sql(args[1])})) AS BIGINT)",
 )
 
@@ -2942,7 +2943,6 @@ REJECTED: dict[str, str] = {
     "url_decode": "URL functions not translated",
     "word_stem": "language stemming not translated",
     "soundex": "not translated",
-    "regexp_position": "not translated",
     "to_char": "Teradata functions are not available",
     "to_date": "Teradata functions are not available",
     "to_timestamp": "Teradata functions are not available",

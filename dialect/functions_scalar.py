@@ -14,7 +14,16 @@ from collections.abc import Callable
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import Call, ttype
-from lakegate.dialect.functions import SUPPORTED, Render, fixed, need, register, sqls
+from lakegate.dialect.functions import (
+    SUPPORTED,
+    Render,
+    fixed,
+    literal_str,
+    need,
+    regexp_call,
+    register,
+    sqls,
+)
 from lakegate.dialect.trino_types import TType
 
 VARBINARY = tt.VARBINARY
@@ -884,4 +893,57 @@ register(
     fixed(tt.timestamp(3, True), "string"),
     _render_from_iso8601_timestamp,
     notes="yyyy-MM-dd[THH[:mm[:ss[.SSS]]]] with Z or no offset (UTC); other forms and offsets are refused.",
+)
+
+
+# === regular expressions (io.trino.operator.scalar.JoniRegexpFunctions) =========================
+def _regexp_position(call: Call) -> TType:
+    regexp_call(call, tt.INTEGER, (2, 3, 4), "string", "string", "integral", "integral")
+    if "\\G" in (literal_str(call, 1) or ""):
+        call.fail("regexp_position with \\G is not supported in lakegate", "NOT_SUPPORTED")
+    return tt.INTEGER
+
+
+def _search(text: str, pattern: str, start: str) -> str:
+    """[begin, next start] of the leftmost match at or after code point `start` ([-1, -1] if none):
+    the match begins after the shortest prefix the pattern can follow. From a start past 1 the
+    character before it is kept, unmatched, so that \\b and ^ see the text around the start as
+    Joni's search from an offset does; the next search starts after the match, or one character on
+    after an empty match (JoniRegexpFunctions.getNextStart)."""
+    rest = f"substr({text}, greatest({start} - 1, 1))"
+    before = f"CASE WHEN {start} > 1 THEN '(?s:.)' ELSE '' END"
+    anchored = f"'^' || {before} || '((?s:.*?))(' || {pattern} || ')'"
+    begin = f"{start} + length(regexp_extract({rest}, {anchored}, 1))"
+    found = f"[{begin}, {begin} + greatest(length(regexp_extract({rest}, {anchored}, 2)), 1)]"
+    return f"CASE WHEN regexp_matches({rest}, {anchored}) THEN {found} ELSE [-1, -1] END"
+
+
+def _render_regexp_position(g, node, args) -> str:
+    """JoniRegexpFunctions.regexpPosition: the code point position of the occurrence-th match
+    searching from `start`, each search resuming where the last match ended; -1 when there is none."""
+    text, pattern = sqls(g, args[:2])
+    start = f"CAST({g.sql(args[2])} AS BIGINT)" if len(args) >= 3 else "1"
+    occurrence = f"CAST({g.sql(args[3])} AS BIGINT)" if len(args) == 4 else "1"
+    resume = '"_at"[2]'
+    step = f'lambda "_at", "_n": CASE WHEN "_at"[1] < 0 THEN "_at" ELSE {_search(text, pattern, resume)} END'
+    # each match takes at least one step forward, so more occurrences than length + 1 cannot exist
+    position = f"list_reduce(range({occurrence}), {step}, [0, {start}])[1]"
+    checks = [
+        (f"{start} < 1", "start position cannot be smaller than 1"),
+        (f"{occurrence} < 1", "occurrence cannot be smaller than 1"),
+    ]
+    whens = " ".join(f"WHEN {c} THEN {g.fail(tf.string(m))}" for c, m in checks)
+    nulls = " OR ".join(f"({g.sql(a)}) IS NULL" for a in args)
+    return (
+        f"CASE WHEN {nulls} THEN NULL {whens} WHEN {start} > length({text}) OR {occurrence} > length({text}) + 1 "
+        f"THEN -1 ELSE CAST({position} AS INTEGER) END"
+    )
+
+
+register(
+    "regexp_position",
+    "regexp",
+    "regexp_position(string, pattern[, start[, occurrence]]) -> integer",
+    _regexp_position,
+    _render_regexp_position,
 )

@@ -904,6 +904,45 @@ def _binary_literal(a: Analyzer, node: exp.HexString, scope, env):
     return tt.VARBINARY
 
 
+@handles(exp.UnicodeString)
+def _unicode_literal(a: Analyzer, node: exp.UnicodeString, scope, env):
+    """U&'...' [UESCAPE 'c']: the text with its escapes decoded (AstBuilder.decodeUnicodeLiteral)."""
+    escape = node.args.get("escape")
+    mark = escape.name if isinstance(escape, exp.Literal) else "\\"
+    if len(mark) != 1 or mark in "+'\"" or mark.isspace() or mark in "0123456789abcdefABCDEF":
+        a.fail(f"Invalid Unicode escape character: {mark}", node, "SYNTAX_ERROR")
+    try:
+        node.meta["text"] = decode_unicode_escapes(node.name, mark)
+    except ValueError as error:
+        a.fail(str(error), node, "SYNTAX_ERROR")
+    return tt.varchar(len(node.meta["text"]))
+
+
+def decode_unicode_escapes(raw: str, mark: str) -> str:
+    """Trino's Unicode string literal: `mark` + 4 hex digits or `mark` + '+' + 6 hex digits is a code
+    point (surrogates refused), a doubled `mark` is the mark itself."""
+    out, i = [], 0
+    while i < len(raw):
+        if raw[i] != mark:
+            out.append(raw[i])
+            i += 1
+            continue
+        if raw[i + 1 : i + 2] == mark:
+            out.append(mark)
+            i += 2
+            continue
+        size, start = (6, i + 2) if raw[i + 1 : i + 2] == "+" else (4, i + 1)
+        digits = raw[start : start + size]
+        if len(digits) != size or not all(c in "0123456789abcdefABCDEF" for c in digits):
+            raise ValueError(f"Incomplete escape sequence: {digits}")
+        code = int(digits, 16)
+        if code > 0x10FFFF or 0xD800 <= code <= 0xDFFF:
+            raise ValueError(f"Invalid escaped character: {digits}")
+        out.append(chr(code))
+        i = start + size
+    return "".join(out)
+
+
 @handles(exp.Null)
 def _null(a, node, scope, env):
     return tt.UNKNOWN
@@ -963,13 +1002,28 @@ _OPS = {
 }
 
 
+def _quantified(node: exp.Expression) -> exp.Expression:
+    """`x op ALL (VALUES ...)` and `SOME (...)` as sqlglot parses them (a call named ALL / SOME) made
+    the ALL / ANY node it gives `ANY (VALUES ...)` (SOME is ANY in Trino's grammar, SqlBase.g4)."""
+    right = node.expression
+    if (
+        isinstance(right, exp.Anonymous)
+        and right.name.upper() in ("ALL", "SOME", "ANY")
+        and len(right.expressions) == 1
+        and isinstance(right.expressions[0], (exp.Query, exp.Values))
+    ):
+        kind = exp.All if right.name.upper() == "ALL" else exp.Any
+        right = right.replace(kind(this=exp.Subquery(this=right.expressions[0])))
+    return right
+
+
 @handles(*_COMPARISONS)
 def _comparison(a: Analyzer, node, scope, env):
-    if isinstance(node.expression, (exp.Any, exp.All)):
+    if isinstance(_quantified(node), (exp.Any, exp.All)):
         left = a.expr(node.this, scope, env)
         sub = node.expression.this
         query = sub.this if isinstance(sub, exp.Subquery) else sub
-        if not isinstance(query, exp.Query):
+        if not isinstance(query, (exp.Query, exp.Values)):
             a.unsupported(f"{node.expression.key.upper()} with a non-subquery", node.expression)
         cols = a.query(query, scope)
         if len(cols) != 1:

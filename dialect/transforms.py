@@ -212,6 +212,12 @@ def binary_literal(g: Writer, node: exp.HexString) -> str:
     return f"unhex({string(node.name)})"
 
 
+@transform(exp.UnicodeString)
+def unicode_literal(g: Writer, node: exp.UnicodeString) -> str:
+    """U&'...' is the text its escapes spell (decoded by analyze)."""
+    return string(node.meta["text"])
+
+
 @transform(DuckCast)
 def duck_cast(g: Writer, node: DuckCast) -> str:
     return f"CAST({g.sql(node.this)} AS {node.args['to']})"

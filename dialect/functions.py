@@ -2920,7 +2920,6 @@ REJECTED: dict[str, str] = {
     "json_exists": "SQL/JSON path functions are not translated",
     "json_object": "SQL/JSON functions are not translated",
     "json_array": "SQL/JSON functions are not translated",
-    "format_datetime": "Joda-Time patterns are not translated; use date_format",
     "parse_datetime": "Joda-Time patterns are not translated; use date_parse",
     "with_timezone": "time zones other than UTC are not supported",
     "at_timezone": "time zones other than UTC are not supported",

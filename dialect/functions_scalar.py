@@ -1139,3 +1139,109 @@ register(
     lambda g, node, args: _url_decoder(g, g.sql(args[0])),
     notes="Escapes that decode to invalid UTF-8 are refused.",
 )
+
+
+# --- format_datetime (Joda-Time DateTimeFormat patterns, DateTimeFunctions.formatDatetime) --------
+#: Joda pattern letter -> (DuckDB SQL of the field over "_t" as an integer, or None for text fields).
+_JODA_NUMBERS = {
+    "C": 'year("_t") // 100',
+    "Y": 'year("_t")',
+    "y": 'year("_t")',
+    "x": 'isoyear("_t")',
+    "w": 'week("_t")',
+    "e": 'isodow("_t")',
+    "D": 'dayofyear("_t")',
+    "M": 'month("_t")',
+    "d": 'day("_t")',
+    "K": 'hour("_t") % 12',
+    "h": '(hour("_t") + 11) % 12 + 1',
+    "H": 'hour("_t")',
+    "k": '(hour("_t") + 23) % 24 + 1',
+    "m": 'minute("_t")',
+    "s": 'second("_t")',
+}
+
+
+def _joda_tokens(pattern: str) -> list[tuple[str, str]]:
+    """Joda's DateTimeFormat.parsePatternTo: runs of one letter ('letter', run), quoted text and
+    other characters ('text', text); '' is a quote."""
+    tokens, i = [], 0
+    while i < len(pattern):
+        ch = pattern[i]
+        if ch.isascii() and ch.isalpha():
+            j = i
+            while j < len(pattern) and pattern[j] == ch:
+                j += 1
+            tokens.append(("letter", pattern[i:j]))
+            i = j
+        elif ch == "'":
+            j, text = i + 1, []
+            while j < len(pattern):
+                if pattern[j] == "'":
+                    if pattern[j + 1 : j + 2] == "'":
+                        text.append("'")
+                        j += 2
+                        continue
+                    break
+                text.append(pattern[j])
+                j += 1
+            tokens.append(("text", "".join(text) if j > i + 1 else "'"))
+            i = j + 1
+        else:
+            tokens.append(("text", ch))
+            i += 1
+    return tokens
+
+
+def _joda_field(call: Call, run: str) -> str:
+    """The SQL of one pattern letter run (Joda's number fields zero-padded to the run's length, a
+    two-letter year its last two digits; text fields in English)."""
+    letter, count = run[0], len(run)
+    if letter in "yYx" and count == 2:
+        return f"lpad(CAST({_JODA_NUMBERS[letter]} % 100 AS VARCHAR), 2, '0')"
+    if letter == "M" and count >= 3:
+        return f"strftime(\"_t\", '{'%B' if count >= 4 else '%b'}')"
+    if letter == "E":
+        return f"strftime(\"_t\", '{'%A' if count >= 4 else '%a'}')"
+    if letter == "a":
+        return "strftime(\"_t\", '%p')"
+    if letter == "G":
+        return "'AD'"
+    if letter == "S":
+        digits = "strftime(\"_t\", '%f')"
+        return f"left({digits}, {count})" if count <= 6 else f"rpad({digits}, {count}, '0')"
+    if letter in _JODA_NUMBERS:
+        number = f"CAST({_JODA_NUMBERS[letter]} AS VARCHAR)"
+        return f"lpad({number}, CAST(greatest(length({number}), {count}) AS INTEGER), '0')"  # lpad also cuts
+    if letter in "zZ":
+        call.fail(f"format_datetime with the time zone field '{run}' is not supported in lakegate", "NOT_SUPPORTED")
+    call.fail(f"Illegal pattern component: {run}", "INVALID_FUNCTION_ARGUMENT")
+
+
+def _format_datetime(call: Call) -> TType:
+    value, _ = need(call, "temporal", "string")
+    if value.base == "date":
+        call.mismatch()
+    pattern = literal_str(call, 1)
+    if pattern is None:
+        call.fail("format_datetime with a non-literal format is not supported in lakegate", "NOT_SUPPORTED")
+    pieces = [tf.string(text) if kind == "text" else _joda_field(call, text) for kind, text in _joda_tokens(pattern)]
+    call.node.meta["joda"] = " || ".join(pieces) or "''"
+    return tt.VARCHAR
+
+
+def _render_format_datetime(g, node, args) -> str:
+    value = g.sql(args[0])
+    if ttype(args[0]).base == "timestamp_tz":
+        value = f"timezone('UTC', {value})"
+    return f'list_transform([CAST({value} AS TIMESTAMP)], lambda "_t": {node.meta["joda"]})[1]'
+
+
+register(
+    "format_datetime",
+    "datetime",
+    "format_datetime(timestamp, format) -> varchar",
+    _format_datetime,
+    _render_format_datetime,
+    notes="A literal Joda-Time pattern; the time zone fields z and Z are refused.",
+)

@@ -59,6 +59,21 @@ def _binary_args(call: Call, count: int) -> bool:
     )
 
 
+#: Well-formed UTF-8 (RFC 3629) over upper-case hex digits, two a byte: no overlong forms,
+#: surrogates or code points past U+10FFFF.
+_UTF8_HEX = (
+    "(?:[0-7][0-9A-F]|(?:C[2-9A-F]|D[0-9A-F])[89AB][0-9A-F]|E0[AB][0-9A-F][89AB][0-9A-F]"
+    "|(?:E[1-9A-CEF])[89AB][0-9A-F][89AB][0-9A-F]|ED[89][0-9A-F][89AB][0-9A-F]"
+    "|F0[9AB][0-9A-F](?:[89AB][0-9A-F]){2}|F[1-3](?:[89AB][0-9A-F]){3}|F48[0-9A-F](?:[89AB][0-9A-F]){2})*"
+)
+
+
+def utf8_valid(hex_sql: str) -> str:
+    """Whether the bytes spelled by the upper-case hex text `hex_sql` are well-formed UTF-8 (checked
+    without decoding: DuckDB's try() refuses arguments that can raise Trino's errors)."""
+    return f"regexp_full_match({hex_sql}, {tf.string(_UTF8_HEX)})"
+
+
 # === varbinary (io.trino.operator.scalar.VarbinaryFunctions, HmacFunctions) =====================
 _KINDS_BINARY = ("varbinary", "unknown")
 _TEXT_OR_BINARY = ("varchar", "varbinary", "unknown")
@@ -92,7 +107,7 @@ def _text(g, node) -> str:
     sql = g.sql(node)
     if ttype(node).base != "varbinary":
         return sql
-    return f"CASE WHEN ({sql}) IS NULL THEN NULL ELSE coalesce(try(decode({sql})), '!') END"
+    return f"CASE WHEN ({sql}) IS NULL THEN NULL WHEN {utf8_valid(f'hex({sql})')} THEN decode({sql}) ELSE '!' END"
 
 
 def _decoded(g, text: str, valid: str, value: str, message: str) -> str:
@@ -254,7 +269,7 @@ def _render_from_utf8(g, node, args) -> str:
         "from_utf8 of bytes that are not UTF-8 is not supported in lakegate (Trino would replace them with U+FFFD)"
     )
     return (
-        f"CASE WHEN {value} IS NULL THEN NULL WHEN try(decode({value})) IS NULL THEN "
+        f"CASE WHEN {value} IS NULL THEN NULL WHEN NOT {utf8_valid(f'hex({value})')} THEN "
         f"{g.fail(message, 'NOT_SUPPORTED')} ELSE decode({value}) END"
     )
 
@@ -324,6 +339,128 @@ register(
     _binary_in(tt.INTEGER),
     _render_from_big_endian(4, "INTEGER"),
 )
+#: IEEE 754 binary formats: (bytes, exponent bits, fraction bits, Java's canonical NaN bits, DuckDB type).
+_IEEE = {32: (4, 8, 23, 0x7FC00000, "FLOAT"), 64: (8, 11, 52, 0x7FF8000000000000, "DOUBLE")}
+
+
+def _render_to_ieee754(size: int) -> Render:
+    """Float.floatToIntBits / Double.doubleToLongBits, big-endian: the sign, the biased exponent and
+    the fraction, computed by exact power-of-two scaling (subnormals scaled in two steps)."""
+    nbytes, exponent_bits, fraction_bits, nan, _ = _IEEE[size]
+    bias = 2 ** (exponent_bits - 1) - 1
+    top = 2**exponent_bits - 1
+
+    def render(g, node, args) -> str:
+        x = f"CAST({g.sql(args[0])} AS DOUBLE)"
+        a = f"abs({x})"
+        guess = f"CAST(floor(log2({a})) AS INTEGER)"
+        exponent = (
+            f"({guess} - CASE WHEN pow(2.0, {guess}) > {a} THEN 1 ELSE 0 END "
+            f"+ CASE WHEN pow(2.0, {guess} + 1) <= {a} THEN 1 ELSE 0 END)"
+        )
+        normal = (
+            f"(CAST({exponent} + {bias} AS HUGEINT) << {fraction_bits}) + "
+            f"CAST(({a} / pow(2.0, {exponent}) - 1) * pow(2.0, {fraction_bits}) AS HUGEINT)"
+        )
+        subnormal = f"CAST({a} * pow(2.0, {bias - 1}) * pow(2.0, {fraction_bits}) AS HUGEINT)"
+        magnitude = (
+            f"CASE WHEN isinf({x}) THEN {top << fraction_bits} WHEN {a} = 0 THEN 0 "
+            f"WHEN {a} < pow(2.0, {1 - bias}) THEN {subnormal} ELSE {normal} END"
+        )
+        sign = f"CASE WHEN signbit({x}) THEN {1 << (size - 1)} ELSE 0 END"
+        bits = f"CASE WHEN isnan({x}) THEN {nan} ELSE {magnitude} + {sign} END"
+        return f"unhex(lpad(hex(CAST({bits} AS UBIGINT)), {nbytes * 2}, '0'))"
+
+    return render
+
+
+def _render_from_ieee754(size: int) -> Render:
+    """Float.intBitsToFloat / Double.longBitsToDouble of exactly size / 8 big-endian bytes."""
+    nbytes, exponent_bits, fraction_bits, _, duck = _IEEE[size]
+    bias = 2 ** (exponent_bits - 1) - 1
+    top = 2**exponent_bits - 1
+
+    def render(g, node, args) -> str:
+        value = g.sql(args[0])
+        bits = f"CAST('0x' || hex({value}) AS UBIGINT)"
+        exponent = f"CAST(({bits} >> {fraction_bits}) & {top} AS INTEGER)"
+        fraction = f"CAST({bits} & {2**fraction_bits - 1} AS DOUBLE)"
+        magnitude = (
+            f"CASE WHEN {exponent} = {top} THEN CASE WHEN {fraction} = 0 THEN CAST('Infinity' AS DOUBLE) "
+            f"ELSE CAST('NaN' AS DOUBLE) END "
+            f"WHEN {exponent} = 0 THEN {fraction} * pow(2.0, {1 - bias}) * pow(2.0, -{fraction_bits}) "
+            f"ELSE ({fraction} + {2**fraction_bits}) * pow(2.0, {exponent} - {bias + fraction_bits}) END"
+        )
+        signed = f"CASE WHEN ({bits} >> {size - 1}) = 1 THEN -({magnitude}) ELSE {magnitude} END"
+        message = tf.string(f"Input floating-point value must be exactly {nbytes} bytes long")
+        return f"CASE WHEN octet_length({value}) <> {nbytes} THEN {g.fail(message)} ELSE CAST({signed} AS {duck}) END"
+
+    return render
+
+
+register(
+    "to_ieee754_64",
+    "binary",
+    "to_ieee754_64(double) -> varbinary",
+    fixed(VARBINARY, "number"),
+    _render_to_ieee754(64),
+)
+register(
+    "to_ieee754_32",
+    "binary",
+    "to_ieee754_32(real) -> varbinary",
+    lambda c: VARBINARY if need(c, "number")[0].base in ("real", "unknown") else c.mismatch(),
+    _render_to_ieee754(32),
+)
+register(
+    "from_ieee754_64", "binary", "from_ieee754_64(binary) -> double", _binary_in(tt.DOUBLE), _render_from_ieee754(64)
+)
+register("from_ieee754_32", "binary", "from_ieee754_32(binary) -> real", _binary_in(tt.REAL), _render_from_ieee754(32))
+#: Guava's BaseEncoding.base32() (RFC 4648): 5 bits a character, padded with '=' to 8 characters.
+_BASE32 = "ABCDEFGHIJKLMNOPQRSTUVWXYZ234567"
+
+
+def _render_to_base32(g, node, args) -> str:
+    value = g.sql(args[0])
+    nibbles = f"regexp_extract_all(hex({value}), '.')"
+    bits = f"array_to_string(list_transform({nibbles}, lambda \"_h\": lpad(bin(CAST('0x' || \"_h\" AS INTEGER)), 4, '0')), '')"
+    padded = f"rpad({bits}, CAST(ceil(length({bits}) / 5) * 5 AS INTEGER), '0')"
+    chars = (
+        f'list_transform(range(0, length({padded}) // 5), lambda "_i": '
+        f"substr('{_BASE32}', CAST('0b' || substr({padded}, 5 * \"_i\" + 1, 5) AS INTEGER) + 1, 1))"
+    )
+    text = f"array_to_string({chars}, '')"
+    return (
+        f"CASE WHEN {value} IS NULL THEN NULL ELSE rpad({text}, CAST(ceil(length({text}) / 8) * 8 AS INTEGER), '=') END"
+    )
+
+
+def _render_from_base32(g, node, args) -> str:
+    """BaseEncoding.base32().decode: trailing '=' dropped, then A-Z and 2-7 only, in a length that
+    ends on a whole byte (0, 2, 4, 5 or 7 characters past a multiple of 8)."""
+    text = _text(g, args[0])
+    trimmed = f"rtrim({text}, '=')"
+    bits = (
+        f"array_to_string(list_transform(regexp_extract_all({trimmed}, '.'), lambda \"_c\": "
+        f"lpad(bin(strpos('{_BASE32}', \"_c\") - 1), 5, '0')), '')"
+    )
+    whole = f"left({bits}, CAST(length({bits}) // 8 * 8 AS INTEGER))"
+    hexed = (
+        f'array_to_string(list_transform(range(0, length({whole}) // 4), lambda "_i": '
+        f"upper(to_base(CAST('0b' || substr({whole}, 4 * \"_i\" + 1, 4) AS INTEGER), 16))), '')"
+    )
+    length = g.fail(f"'Invalid input length ' || length({trimmed})")
+    bad = g.fail(tf.string("Unrecognized character"))
+    return (
+        f"CASE WHEN {text} IS NULL THEN NULL WHEN length({trimmed}) % 8 IN (1, 3, 6) THEN {length} "
+        f"WHEN NOT regexp_full_match({trimmed}, '[A-Z2-7]*') THEN {bad} ELSE unhex({hexed}) END"
+    )
+
+
+register("to_base32", "binary", "to_base32(binary) -> varchar", _binary_in(tt.VARCHAR), _render_to_base32)
+register("from_base32", "binary", "from_base32(string) -> varbinary", _text_in(VARBINARY), _render_from_base32)
+
+
 overload(
     "length",
     lambda c: tt.BIGINT if _binary_args(c, 1) else None,
@@ -968,6 +1105,14 @@ _SERVER = (
 )
 
 
+def _escapes_utf8(sql: str) -> str:
+    """Whether every run of %XX escapes in `sql` spells well-formed UTF-8 (each run decodes alone,
+    as URLDecoder and URI.decode do)."""
+    runs = f"regexp_extract_all({sql}, '(?:%[0-9A-Fa-f]{{2}})+')"
+    run_hex = "upper(replace(\"_r\", '%', ''))"
+    return f'len(list_filter({runs}, lambda "_r": NOT {utf8_valid(run_hex)})) = 0'
+
+
 class _Url:
     """The parts of a URL as java.net.URI gives them, as DuckDB SQL over the URL's SQL."""
 
@@ -1013,7 +1158,7 @@ class _Url:
     def decoded(self, sql: str) -> str:
         """java.net.URI's decoding of escapes (URI.decode); invalid UTF-8 is refused."""
         message = tf.string("URL escapes that are not UTF-8 are not supported in lakegate")
-        return f"coalesce(try(url_decode({sql})), {self.g.fail(message, 'NOT_SUPPORTED')})"
+        return f"CASE WHEN {_escapes_utf8(sql)} THEN url_decode({sql}) ELSE {self.g.fail(message, 'NOT_SUPPORTED')} END"
 
 
 def _render_url_part(part: str) -> Render:
@@ -1045,7 +1190,8 @@ def _url_decoder(g, sql: str) -> str:
     invalid UTF-8 is refused."""
     bad = g.fail(f"'URLDecoder: Illegal hex characters in escape (%) pattern: ' || {sql}")
     message = tf.string("URL escapes that are not UTF-8 are not supported in lakegate")
-    decoded = f"coalesce(try(url_decode(replace({sql}, '+', ' '))), {g.fail(message, 'NOT_SUPPORTED')})"
+    plain = f"replace({sql}, '+', ' ')"
+    decoded = f"CASE WHEN {_escapes_utf8(plain)} THEN url_decode({plain}) ELSE {g.fail(message, 'NOT_SUPPORTED')} END"
     return (
         f"CASE WHEN {sql} IS NULL THEN NULL WHEN regexp_matches({sql}, '%(?:[^0-9A-Fa-f]|.[^0-9A-Fa-f]|.?$)') "
         f"THEN {bad} ELSE {decoded} END"

@@ -595,8 +595,15 @@ class Analyzer:
                 self.unsupported("LATERAL", node)
             cols = self.query(node.this.this, scope)
             qualifier = alias_name or self.fresh_alias()
-            if alias is None:
-                node.set("alias", exp.TableAlias(this=exp.to_identifier(qualifier, quoted=True)))
+            if alias is None or (isinstance(node.this.this, exp.Values) and not alias.columns):
+                columns = [exp.to_identifier(c[1], quoted=True) for c in cols]  # VALUES names them _col0, ...
+                node.set(
+                    "alias",
+                    exp.TableAlias(
+                        this=exp.to_identifier(qualifier, quoted=True),
+                        columns=columns if isinstance(node.this.this, exp.Values) else [],
+                    ),
+                )
         else:
             self.unsupported(f"FROM item {node.key.upper()}", node)
         if column_names is not None:
@@ -1033,7 +1040,7 @@ def _comparison(a: Analyzer, node, scope, env):
         return tt.BOOLEAN
     left, right = a.expr(node.this, scope, env), a.expr(node.expression, scope, env)
     common = _comparable(a, node, left, right, _OPS[type(node)])
-    if common.base in ("json", "varbinary") or (common.base == "map" and type(node) not in (exp.EQ, exp.NEQ)):
+    if common.base == "json" or (common.base == "map" and type(node) not in (exp.EQ, exp.NEQ)):
         a.fail(f"Cannot apply operator: {left} {_OPS[type(node)]} {right}", node, "TYPE_MISMATCH")
     node.meta["compare"] = common
     return tt.BOOLEAN

@@ -2926,7 +2926,6 @@ REJECTED: dict[str, str] = {
     "from_unixtime_nanos": "DuckDB has no nanosecond timestamp with time zone",
     "timezone_hour": "time zones other than UTC are not supported",
     "timezone_minute": "time zones other than UTC are not supported",
-    "format_number": "not translated",
     "sha512": "DuckDB has no SHA-512",
     "xxhash64": "DuckDB has no xxHash64 (its hash() is another function)",
     "murmur3": "DuckDB has no 128-bit MurmurHash3",

@@ -1511,3 +1511,58 @@ for _name, _result in (("to_date", "date"), ("to_timestamp", "timestamp(3)")):
         _render_teradata_parse,
         notes="A literal Teradata format; number fields with nothing between them are refused.",
     )
+
+
+# --- format_number (io.trino.operator.scalar.FormatNumberFunction) --------------------------------
+def _java_long(sql: str) -> str:
+    """Java's (long) of a double: NaN is 0, out-of-range values saturate, the rest truncate."""
+    return (
+        f"CASE WHEN isnan({sql}) THEN 0 WHEN {sql} >= 9.223372036854775807e18 THEN 9223372036854775807 "
+        f"WHEN {sql} <= -9.223372036854775808e18 THEN -9223372036854775808 ELSE CAST(trunc({sql}) AS BIGINT) END"
+    )
+
+
+def _half_up_text(value: str, digits: int) -> str:
+    """DecimalFormat("#.##"-like, `digits` fraction digits, HALF_UP) of the double `value` (1 <= |value|,
+    or 0), rounded on its exact binary value: |value| = M * 2^-s with M < 2^53, so M * 10^digits
+    shifted right by s, plus one when the bits shifted out are at least half."""
+    a = f"abs({value})"
+    e = f"CAST(floor(log2({a})) AS INTEGER)"
+    e = f"({e} - CASE WHEN pow(2.0, {e}) > {a} THEN 1 ELSE 0 END + CASE WHEN pow(2.0, {e} + 1) <= {a} THEN 1 ELSE 0 END)"
+    shift = f"(52 - {e})"
+    scaled = f"(CAST({a} * pow(2.0, {shift}) AS HUGEINT) * {10**digits})"
+    kept = f"({scaled} >> {shift})"
+    rounded = f"({kept} + CASE WHEN 2 * ({scaled} - ({kept} << {shift})) >= (CAST(1 AS HUGEINT) << {shift}) THEN 1 ELSE 0 END)"
+    if digits == 0:
+        text = f"CAST({rounded} AS VARCHAR)"
+    else:
+        fraction = f"rtrim(lpad(CAST({rounded} % {10**digits} AS VARCHAR), {digits}, '0'), '0')"
+        whole = f"CAST({rounded} // {10**digits} AS VARCHAR)"
+        text = f"{whole} || CASE WHEN {fraction} = '' THEN '' ELSE '.' || {fraction} END"
+    return f"CASE WHEN {a} = 0 THEN '0' ELSE CASE WHEN {value} < 0 THEN '-' ELSE '' END || {text} END"
+
+
+def _render_format_number(g, node, args) -> str:
+    """FormatNumberFunction.format: divide by 1000 (a double division each time) while |x| >= 1000,
+    at most five times (K M B T Q); then "#.##" below 10 (negative values included), "#.#" below
+    100, "#" otherwise, HALF_UP."""
+    x = g.sql(args[0])
+    count = _java_long(f"CAST({x} AS DOUBLE)") if ttype(args[0]).is_approx else f"CAST({x} AS BIGINT)"
+    step = 'lambda "_v", "_i": CASE WHEN abs("_v"[1]) >= 1000 THEN ["_v"[1] / 1000, "_v"[2] + 1] ELSE "_v" END'
+    scaled = f"list_reduce(range(5), {step}, [CAST({count} AS DOUBLE), 0.0])"
+    f, units = f"{scaled}[1]", f"CAST({scaled}[2] AS INTEGER)"
+    text = (
+        f"CASE WHEN {f} < 10 THEN {_half_up_text(f, 2)} WHEN {f} < 100 THEN {_half_up_text(f, 1)} "
+        f"ELSE {_half_up_text(f, 0)} END"
+    )
+    unit = f"['', 'K', 'M', 'B', 'T', 'Q'][{units} + 1]"
+    return f"CASE WHEN ({x}) IS NULL THEN NULL ELSE {text} || {unit} END"
+
+
+register(
+    "format_number",
+    "conversion",
+    "format_number(number) -> varchar",
+    fixed(tt.VARCHAR, "number"),
+    _render_format_number,
+)

@@ -16,8 +16,10 @@ from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import Call, ttype
 from lakegate.dialect.functions import (
+    MAX_PAD_LENGTH,
     SUPPORTED,
     Render,
+    checked,
     fixed,
     literal_str,
     need,
@@ -80,13 +82,13 @@ _KINDS_BINARY = ("varbinary", "unknown")
 _TEXT_OR_BINARY = ("varchar", "varbinary", "unknown")
 
 
-def _binary_in(*result: TType) -> Callable[[Call], TType]:
+def _binary_in(result: TType) -> Callable[[Call], TType]:
     """One varbinary argument; the result type."""
 
     def infer(call: Call) -> TType:
         if len(call.args) != 1 or call.types[0] is None or call.types[0].base not in _KINDS_BINARY:
             call.mismatch()
-        return result[0]
+        return result
 
     return infer
 
@@ -462,6 +464,36 @@ register("to_base32", "binary", "to_base32(binary) -> varchar", _binary_in(tt.VA
 register("from_base32", "binary", "from_base32(string) -> varbinary", _text_in(VARBINARY), _render_from_base32)
 
 
+def _pad_binary(call: Call) -> TType | None:
+    types = call.types
+    if not (types and types[0] is not None and types[0].base == "varbinary"):
+        return None
+    if len(types) != 3 or not (types[1] is not None and (types[1].is_integral or types[1].is_unknown)):
+        call.mismatch()
+    if types[2] is None or types[2].base not in _KINDS_BINARY:
+        call.mismatch()
+    return VARBINARY
+
+
+def _render_pad_binary(g, node, args) -> str:
+    """VarbinaryFunctions.leftPad / rightPad: `size` bytes, the padding repeated from its start, the
+    value cut to `size` bytes when longer (on the hex text, two digits a byte)."""
+    value, size, pad = sqls(g, args)
+    width = checked(
+        g,
+        f"CAST(2 * ({size}) AS INTEGER)",
+        (
+            (f"({size}) < 0 OR ({size}) > 2147483647", "Target length must be in the range [0..2147483647]"),
+            (
+                f"({size}) > {MAX_PAD_LENGTH}",
+                f"Target length must be at most {MAX_PAD_LENGTH} in lakegate (Trino allows up to 2147483647)",
+            ),
+            (f"octet_length({pad}) = 0", "Padding bytes must not be empty"),
+        ),
+    )
+    return f"unhex({node.name.lower()}(hex({value}), {width}, hex({pad})))"
+
+
 overload(
     "length",
     lambda c: tt.BIGINT if _binary_args(c, 1) else None,
@@ -474,6 +506,8 @@ overload(
     lambda g, node, args: "(" + " || ".join(g.sql(a) for a in args) + ")",
     "concat(binary1, ..., binaryN) -> varbinary",
 )
+for _name in ("lpad", "rpad"):
+    overload(_name, _pad_binary, _render_pad_binary, f"{_name}(binary, size, padbinary) -> varbinary")
 for _name in ("substr", "substring"):
     overload(_name, _substr_binary, _render_substr_binary, "substr(binary, start[, length]) -> varbinary")
 overload(
@@ -585,7 +619,7 @@ def _render_width_bucket_any(g, node, args) -> str:
 _DIGITS = "0123456789abcdefghijklmnopqrstuvwxyz"
 
 
-def _radix_check(g, radix: str) -> tuple[str, str]:
+def _radix_check(radix: str) -> tuple[str, str]:
     return (f"{radix} NOT BETWEEN 2 AND 36", "Radix must be between 2 and 36")
 
 
@@ -605,7 +639,7 @@ def _render_from_base(g, node, args) -> str:
         f"len(list_filter(string_split({digits}, ''), lambda \"_c\": NOT ({valid_digit}))) = 0"
     )
     bad = g.fail(f"'Not a valid base-' || {radix} || ' number: ' || {text}")
-    check, message = _radix_check(g, radix)
+    check, message = _radix_check(radix)
     return (
         f"CASE WHEN {text} IS NULL OR {radix} IS NULL THEN NULL WHEN {check} THEN {g.fail(tf.string(message))} "
         f"WHEN NOT ({valid}) THEN {bad} "
@@ -617,7 +651,7 @@ def _render_from_base(g, node, args) -> str:
 def _render_to_base(g, node, args) -> str:
     """Long.toString(value, radix): lower-case digits, '-' for negative values."""
     value, radix = (f"CAST({g.sql(a)} AS BIGINT)" for a in args)
-    check, message = _radix_check(g, radix)
+    check, message = _radix_check(radix)
     minimum = -(2**63)
     radix_sql = radix
     radix = f"CAST(least(greatest({radix}, 2), 36) AS INTEGER)"  # DuckDB's to_base takes an INTEGER radix

@@ -1586,6 +1586,12 @@ def _at_time_zone(a: Analyzer, node, scope, env):
 @handles(exp.Substring)
 def _substring(a: Analyzer, node, scope, env):
     t = a.expr(node.this, scope, env)
+    if t.base == "varbinary":  # SUBSTRING(binary FROM s [FOR n]) is the substr(binary, ...) call
+        args = [node.this] + [node.args[k] for k in ("start", "length") if node.args.get(k) is not None]
+        call = exp.Anonymous(this="substr", expressions=args)
+        node.replace(call)
+        node.meta["replaced_by"] = call
+        return _set(call, a.function(call, scope, env))
     for key in ("start", "length"):
         arg = node.args.get(key)
         if arg is not None and not (a.expr(arg, scope, env).is_integral or ttype(arg).is_unknown):

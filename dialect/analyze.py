@@ -641,8 +641,15 @@ class Analyzer:
                 self.unsupported("LATERAL", node)
             cols = self.query(node.this.this, scope)
             qualifier = alias_name or self.fresh_alias()
-            if alias is None:
-                node.set("alias", exp.TableAlias(this=exp.to_identifier(qualifier, quoted=True)))
+            if alias is None or (isinstance(node.this.this, exp.Values) and not alias.columns):
+                columns = [exp.to_identifier(c[1], quoted=True) for c in cols]  # VALUES names them _col0, ...
+                node.set(
+                    "alias",
+                    exp.TableAlias(
+                        this=exp.to_identifier(qualifier, quoted=True),
+                        columns=columns if isinstance(node.this.this, exp.Values) else [],
+                    ),
+                )
         else:
             self.unsupported(f"FROM item {node.key.upper()}", node)
         if column_names is not None:
@@ -967,6 +974,52 @@ def _literal(a: Analyzer, node: exp.Literal, scope, env):
         a.fail(str(error), node, "INVALID_LITERAL")
 
 
+@handles(exp.HexString)
+def _binary_literal(a: Analyzer, node: exp.HexString, scope, env):
+    if len(node.name) % 2:
+        a.fail("Binary literal must contain an even number of digits", node, "SYNTAX_ERROR")
+    return tt.VARBINARY
+
+
+@handles(exp.UnicodeString)
+def _unicode_literal(a: Analyzer, node: exp.UnicodeString, scope, env):
+    """U&'...' [UESCAPE 'c']: the text with its escapes decoded (AstBuilder.decodeUnicodeLiteral)."""
+    escape = node.args.get("escape")
+    mark = escape.name if isinstance(escape, exp.Literal) else "\\"
+    if len(mark) != 1 or mark in "+'\"" or mark.isspace() or mark in "0123456789abcdefABCDEF":
+        a.fail(f"Invalid Unicode escape character: {mark}", node, "SYNTAX_ERROR")
+    try:
+        node.meta["text"] = decode_unicode_escapes(node.name, mark)
+    except ValueError as error:
+        a.fail(str(error), node, "SYNTAX_ERROR")
+    return tt.varchar(len(node.meta["text"]))
+
+
+def decode_unicode_escapes(raw: str, mark: str) -> str:
+    """Trino's Unicode string literal: `mark` + 4 hex digits or `mark` + '+' + 6 hex digits is a code
+    point (surrogates refused), a doubled `mark` is the mark itself."""
+    out, i = [], 0
+    while i < len(raw):
+        if raw[i] != mark:
+            out.append(raw[i])
+            i += 1
+            continue
+        if raw[i + 1 : i + 2] == mark:
+            out.append(mark)
+            i += 2
+            continue
+        size, start = (6, i + 2) if raw[i + 1 : i + 2] == "+" else (4, i + 1)
+        digits = raw[start : start + size]
+        if len(digits) != size or not all(c in "0123456789abcdefABCDEF" for c in digits):
+            raise ValueError(f"Incomplete escape sequence: {digits}")
+        code = int(digits, 16)
+        if code > 0x10FFFF or 0xD800 <= code <= 0xDFFF:
+            raise ValueError(f"Invalid escaped character: {digits}")
+        out.append(chr(code))
+        i = start + size
+    return "".join(out)
+
+
 @handles(exp.Null)
 def _null(a, node, scope, env):
     return tt.UNKNOWN
@@ -1026,13 +1079,28 @@ _OPS = {
 }
 
 
+def _quantified(node: exp.Expression) -> exp.Expression:
+    """`x op ALL (VALUES ...)` and `SOME (...)` as sqlglot parses them (a call named ALL / SOME) made
+    the ALL / ANY node it gives `ANY (VALUES ...)` (SOME is ANY in Trino's grammar, SqlBase.g4)."""
+    right = node.expression
+    if (
+        isinstance(right, exp.Anonymous)
+        and right.name.upper() in ("ALL", "SOME", "ANY")
+        and len(right.expressions) == 1
+        and isinstance(right.expressions[0], (exp.Query, exp.Values))
+    ):
+        kind = exp.All if right.name.upper() == "ALL" else exp.Any
+        right = right.replace(kind(this=exp.Subquery(this=right.expressions[0])))
+    return right
+
+
 @handles(*_COMPARISONS)
 def _comparison(a: Analyzer, node, scope, env):
-    if isinstance(node.expression, (exp.Any, exp.All)):
+    if isinstance(_quantified(node), (exp.Any, exp.All)):
         left = a.expr(node.this, scope, env)
         sub = node.expression.this
         query = sub.this if isinstance(sub, exp.Subquery) else sub
-        if not isinstance(query, exp.Query):
+        if not isinstance(query, (exp.Query, exp.Values)):
             a.unsupported(f"{node.expression.key.upper()} with a non-subquery", node.expression)
         cols = a.query(query, scope)
         if len(cols) != 1:
@@ -1042,7 +1110,7 @@ def _comparison(a: Analyzer, node, scope, env):
         return tt.BOOLEAN
     left, right = a.expr(node.this, scope, env), a.expr(node.expression, scope, env)
     common = _comparable(a, node, left, right, _OPS[type(node)])
-    if common.base in ("json", "varbinary") or (common.base == "map" and type(node) not in (exp.EQ, exp.NEQ)):
+    if common.base == "json" or (common.base == "map" and type(node) not in (exp.EQ, exp.NEQ)):
         a.fail(f"Cannot apply operator: {left} {_OPS[type(node)]} {right}", node, "TYPE_MISMATCH")
     node.meta["compare"] = common
     return tt.BOOLEAN
@@ -1165,6 +1233,8 @@ def _dpipe(a: Analyzer, node, scope, env):
             a.fail(f"Cannot apply operator: {left} || {right}", node, "TYPE_MISMATCH")
         node.meta["array"] = True
         return tt.array(element)
+    if "varbinary" in (left.base, right.base) and {left.base, right.base} <= {"varbinary", "unknown"}:
+        return tt.VARBINARY
     for t in (left, right):
         if t.base not in ("varchar", "char", "unknown"):
             a.fail(f"Cannot apply operator: {left} || {right}", node, "TYPE_MISMATCH")
@@ -1242,6 +1312,9 @@ def _cast(a: Analyzer, node, scope, env):
             r"[0-9]:[0-9]{2}(:[0-9]{2}([.][0-9]*)?)?\s*([A-Za-z]|[+-][0-9])", text
         ):
             a.unsupported("timestamp literal with a time zone", node)
+    if target.base == "varbinary" and source.base in ("varchar", "varbinary", "unknown"):
+        node.meta["from"] = source
+        return target  # the UTF-8 bytes of the text (VarcharOperators.castToVarbinary)
     if target.base in ("char", "time", "time_tz", "uuid", "varbinary", "json", "map"):
         a.unsupported(f"cast to {target}", node)
     if target.base == "timestamp_tz" and source.base == "varchar":
@@ -1580,6 +1653,12 @@ def _at_time_zone(a: Analyzer, node, scope, env):
 @handles(exp.Substring)
 def _substring(a: Analyzer, node, scope, env):
     t = a.expr(node.this, scope, env)
+    if t.base == "varbinary":  # SUBSTRING(binary FROM s [FOR n]) is the substr(binary, ...) call
+        args = [node.this] + [node.args[k] for k in ("start", "length") if node.args.get(k) is not None]
+        call = exp.Anonymous(this="substr", expressions=args)
+        node.replace(call)
+        node.meta["replaced_by"] = call
+        return _set(call, a.function(call, scope, env))
     for key in ("start", "length"):
         arg = node.args.get(key)
         if arg is not None and not (a.expr(arg, scope, env).is_integral or ttype(arg).is_unknown):

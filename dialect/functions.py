@@ -1465,7 +1465,8 @@ register(
 
 
 # --- regular expressions -------------------------------------------------------------------------
-def _regexp(call: Call, result: TType, arity: tuple[int, ...], *kinds: str) -> TType:
+def regexp_call(call: Call, result: TType, arity: tuple[int, ...], *kinds: str) -> TType:
+    """Type a regexp_* call: its arity and argument kinds, a literal pattern that RE2 reads as Joni does."""
     if len(call.args) not in arity:
         call.mismatch()
     need(call, *kinds, optional=len(kinds) - len(call.args))
@@ -1571,13 +1572,13 @@ def _group_semantics(call: Call, group_index: int) -> None:
 
 
 def _regexp_extract(call: Call) -> TType:
-    result = _regexp(call, "same", (2, 3), "string", "string", "integral")
+    result = regexp_call(call, "same", (2, 3), "string", "string", "integral")
     _group_semantics(call, 2)
     return result
 
 
 def _regexp_extract_all(call: Call) -> TType:
-    result = _regexp(call, "array", (2, 3), "string", "string", "integral")
+    result = regexp_call(call, "array", (2, 3), "string", "string", "integral")
     _group_semantics(call, 2)
     return result
 
@@ -1672,7 +1673,7 @@ def _literal_pattern(pattern: exp.Expression) -> str | None:
 
 
 def _regexp_replace(call: Call) -> TType:
-    _regexp(call, tt.VARCHAR, (2, 3), "string", "string", "string")
+    regexp_call(call, tt.VARCHAR, (2, 3), "string", "string", "string")
     x = tt.varchar_length(call.types[0]) if call.types[0].base == "varchar" else None
     if len(call.args) == 3:
         replacement = literal_str(call, 2)
@@ -1706,7 +1707,7 @@ register(
     "regexp_like",
     "regexp",
     "regexp_like(string, pattern) -> boolean",
-    lambda c: _regexp(c, tt.BOOLEAN, (2,), "string", "string"),
+    lambda c: regexp_call(c, tt.BOOLEAN, (2,), "string", "string"),
     call_as("regexp_matches"),
     notes="Patterns run on RE2; Java-only constructs (lookaround, backreferences) are rejected.",
 )
@@ -1740,7 +1741,7 @@ def _regexp_split(call: Call) -> TType:
     """Splits at matches. An empty match splits before the next character and '' ends the array at
     both ends (JoniRegexpFunctions.regexpSplit); DuckDB does not, so the empty pattern is written as
     that split between characters and other patterns that can match the empty string are refused."""
-    result = _regexp(call, "array", (2,), "string", "string")
+    result = regexp_call(call, "array", (2,), "string", "string")
     pattern = literal_str(call, 1)
     if pattern and (re.search(r"\\[bB]|\^|\$", pattern) or _matches_empty(pattern)):
         call.fail(
@@ -1781,7 +1782,7 @@ register(
     "regexp_count",
     "regexp",
     "regexp_count(string, pattern) -> bigint",
-    lambda c: _regexp(c, tt.BIGINT, (2,), "string", "string"),
+    lambda c: regexp_call(c, tt.BIGINT, (2,), "string", "string"),
     lambda g, node, args: f"CAST(len(regexp_extract_all({g.sql(args[0])}, {g.sql(args[1])})) AS BIGINT)",
 )
 
@@ -2989,55 +2990,18 @@ REJECTED: dict[str, str] = {
     "json_exists": "SQL/JSON path functions are not translated",
     "json_object": "SQL/JSON functions are not translated",
     "json_array": "SQL/JSON functions are not translated",
-    "format_datetime": "Joda-Time patterns are not translated; use date_format",
     "parse_datetime": "Joda-Time patterns are not translated; use date_parse",
     "with_timezone": "time zones other than UTC are not supported",
     "at_timezone": "time zones other than UTC are not supported",
     "from_unixtime_nanos": "DuckDB has no nanosecond timestamp with time zone",
-    "from_iso8601_timestamp": "not translated",
-    "to_iso8601": "not translated",
-    "human_readable_seconds": "not translated",
     "timezone_hour": "time zones other than UTC are not supported",
     "timezone_minute": "time zones other than UTC are not supported",
-    "to_milliseconds": "interval functions not translated",
-    "parse_duration": "not translated",
-    "format_number": "not translated",
-    "parse_data_size": "not translated",
-    "normalize": "Unicode normalization not translated",
-    "to_utf8": "the varbinary type is not supported",
-    "from_utf8": "the varbinary type is not supported",
-    "to_base64": "the varbinary type is not supported",
-    "from_base64": "the varbinary type is not supported",
-    "to_hex": "the varbinary type is not supported",
-    "from_hex": "the varbinary type is not supported",
-    "md5": "the varbinary type is not supported",
-    "sha1": "the varbinary type is not supported",
-    "sha256": "the varbinary type is not supported",
-    "sha512": "the varbinary type is not supported",
-    "xxhash64": "the varbinary type is not supported",
-    "murmur3": "the varbinary type is not supported",
-    "crc32": "the varbinary type is not supported",
-    "hmac_sha256": "the varbinary type is not supported",
-    "spooky_hash_v2_32": "the varbinary type is not supported",
-    "to_big_endian_64": "the varbinary type is not supported",
-    "bitwise_left_shift": "bitwise functions not translated",
-    "bitwise_right_shift": "bitwise functions not translated",
-    "url_extract_host": "URL functions not translated",
-    "url_extract_path": "URL functions not translated",
-    "url_extract_parameter": "URL functions not translated",
-    "url_extract_protocol": "URL functions not translated",
-    "url_extract_port": "URL functions not translated",
-    "url_extract_query": "URL functions not translated",
-    "url_extract_fragment": "URL functions not translated",
-    "url_encode": "URL functions not translated",
-    "url_decode": "URL functions not translated",
+    "sha512": "DuckDB has no SHA-512",
+    "xxhash64": "DuckDB has no xxHash64 (its hash() is another function)",
+    "murmur3": "DuckDB has no 128-bit MurmurHash3",
+    "spooky_hash_v2_32": "DuckDB has no SpookyHashV2",
     "word_stem": "language stemming not translated",
     "soundex": "not translated",
-    "luhn_check": "not translated",
-    "regexp_position": "not translated",
-    "to_char": "Teradata functions are not available",
-    "to_date": "Teradata functions are not available",
-    "to_timestamp": "Teradata functions are not available",
     "uuid": "random UUIDs not translated",
     "color": "color functions are not available",
     "bar": "color functions are not available",
@@ -3047,12 +3011,6 @@ REJECTED: dict[str, str] = {
     "inverse_beta_cdf": "statistical distribution functions not translated",
     "normal_cdf": "statistical distribution functions not translated",
     "inverse_normal_cdf": "statistical distribution functions not translated",
-    "wilson_interval_lower": "not translated",
-    "wilson_interval_upper": "not translated",
-    "cosine_similarity": "not translated",
-    "width_bucket": "not translated",
-    "from_base": "not translated",
-    "to_base": "not translated",
     "truncate_n": "not translated",
     "version": "answered by the SQL endpoint, not the dialect layer",
     "current_user": "not translated",

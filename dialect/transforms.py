@@ -207,6 +207,18 @@ def typed_literal(g: Writer, node: exp.Literal) -> str:
     return node.name
 
 
+@transform(exp.HexString)
+def binary_literal(g: Writer, node: exp.HexString) -> str:
+    """X'58F7' is the bytes its hex digits spell."""
+    return f"unhex({string(node.name)})"
+
+
+@transform(exp.UnicodeString)
+def unicode_literal(g: Writer, node: exp.UnicodeString) -> str:
+    """U&'...' is the text its escapes spell (decoded by analyze)."""
+    return string(node.meta["text"])
+
+
 @transform(DuckCast)
 def duck_cast(g: Writer, node: DuckCast) -> str:
     return f"CAST({g.sql(node.this)} AS {node.args['to']})"
@@ -630,6 +642,8 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
             return f"left({text}, {length})"
         message = f"'Value ' || ({text}) || ' cannot be represented as varchar({length})'"
         return f"CASE WHEN length({text}) > {length} THEN {g.fail(message, 'INVALID_CAST_ARGUMENT')} ELSE {text} END"
+    if target.base == "varbinary":
+        return f"encode({sql})"  # varchar: its UTF-8 bytes
     if source.base == "varchar":
         return parse_varchar(g, sql, target)
     if target.is_integral and source.is_approx:

@@ -19,10 +19,9 @@ from sqlglot.dialects.trino import Trino
 from sqlglot.errors import ParseError, TokenError
 from sqlglot.tokens import TokenType
 
-from lakegate.dialect import (
-    functions,  # noqa: F401  (fills the function registry)
-    guard,
-)
+import lakegate.dialect.functions  # noqa: F401  (these fill the function registry)
+import lakegate.dialect.functions_scalar  # noqa: F401
+from lakegate.dialect import guard
 from lakegate.dialect import params as parameters
 from lakegate.dialect import scope as scoping
 from lakegate.dialect import trino_types as tt

@@ -400,10 +400,8 @@ def generate(families: list[Family], supported: dict, rejected: dict[str, str]) 
 
 def render_current(cases_dir: Path = CASES_DIR) -> str:
     """generate() with the installed registry and the case files in `cases_dir`."""
-    from lakegate.dialect import (
-        functions,  # noqa: F401  (fills the registry; imported here: load_cases needs none)
-        registry,
-    )
+    # imported here, as load_cases needs no registry; translate imports every module that fills it
+    from lakegate.dialect import registry, translate  # noqa: F401
 
     return generate(load_families(cases_dir), registry.SUPPORTED, registry.REJECTED)
 

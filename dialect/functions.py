@@ -16,6 +16,7 @@ from sqlglot import exp
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
+from lakegate.dialect import zones
 from lakegate.dialect.analyze import Call, remainder_fits, ttype
 from lakegate.dialect.trino_types import TType
 
@@ -62,6 +63,8 @@ _KINDS: dict[str, Callable[[TType], bool]] = {
     "boolean": lambda t: t.base in ("boolean", "unknown"),
     "array": lambda t: t.base in ("array", "unknown"),
     "temporal": lambda t: t.base in ("date", "timestamp", "timestamp_tz", "unknown"),
+    "zoned": lambda t: t.base in ("timestamp_tz", "unknown"),
+    "timestamp": lambda t: t.base in ("timestamp", "unknown"),
     "orderable": lambda t: t.base not in ("map", "json", "varbinary"),
     "json": lambda t: t.base in ("varchar", "json", "unknown"),
 }
@@ -75,6 +78,8 @@ def need(call: Call, *kinds: str, optional: int = 0) -> list[TType]:
     for t, kind in zip(call.types, kinds):
         if t is None or not _KINDS[kind](t):
             call.mismatch()
+        if kind in ("temporal", "zoned") and t.base == "timestamp_tz":  # computed in the values' zone
+            call.analyzer.zone(t, call.node, f"{call.name}()")
     return call.types  # type: ignore[return-value]
 
 
@@ -2517,10 +2522,16 @@ def _date_diff(call: Call) -> TType:
 
 
 def _render_date_diff(g, node, args) -> str:
+    """On timestamps with time zone: days and longer units between the wall times in the first value's
+    zone, shorter ones elapsed (Trino: the first zone's chronology, Joda's ZonedChronology)."""
     unit = args[0].name.lower()
     a, b = g.sql(args[1]), g.sql(args[2])
-    if ttype(args[1]).base == "timestamp_tz" or ttype(args[2]).base == "timestamp_tz":
-        a, b = f"timezone('UTC', {a})", f"timezone('UTC', {b})"
+    first = ttype(args[1])
+    if first.base == "timestamp_tz" or ttype(args[2]).base == "timestamp_tz":
+        common = tt.timestamp(6, True)
+        zone = tt.zone_of(first) if first.base == "timestamp_tz" else g.time_zone
+        zone = zone if unit in _DATE_UNITS else zones.UTC
+        a, b = (zones.local(g.coerce(arg, common), zone) for arg in args[1:])
     return f"CAST(date_sub({tf.string(unit)}, {a}, {b}) AS BIGINT)"
 
 
@@ -2551,7 +2562,11 @@ def _render_date_add(g, node, args) -> str:
         if unit == "quarter"
         else f"{_INTERVAL_OF[unit]}(CAST({amount} AS {'INTEGER' if unit in ('month', 'year', 'week', 'day') else 'BIGINT'}))"
     )
-    return tf.cast(f"({value} + {interval})", ttype(node))
+    t = ttype(node)
+    if t.base == "timestamp_tz" and unit in _DATE_UNITS:  # calendar units in the value's zone
+        zone = tt.zone_of(t)
+        return tf.cast(zones.instant(f"({zones.local(value, zone)} + {interval})", zone), t)
+    return tf.cast(f"({value} + {interval})", t)
 
 
 def _date_trunc(call: Call) -> TType:
@@ -2563,8 +2578,12 @@ def _date_trunc(call: Call) -> TType:
 def _render_date_trunc(g, node, args) -> str:
     unit, value = args[0].name.lower(), g.sql(args[1])
     t = ttype(node)
-    if t.base == "timestamp_tz":
-        return f"timezone('UTC', date_trunc({tf.string(unit)}, timezone('UTC', {value})))"
+    if t.base == "timestamp_tz":  # on the wall time in the value's zone (Joda's ZonedDateTimeField.roundFloor)
+        wall = zones.local(value, tt.zone_of(t))
+        truncated = f"date_trunc({tf.string(unit)}, {wall})"
+        if unit in _DATE_UNITS:
+            return zones.instant(truncated, tt.zone_of(t))
+        return f"({value} - ({wall} - {truncated}))"  # shorter units keep the value's offset
     return tf.cast(f"date_trunc({tf.string(unit)}, {value})", t)
 
 
@@ -2629,9 +2648,7 @@ def _date_format(call: Call) -> TType:
 
 
 def _render_date_format(g, node, args) -> str:
-    value = g.sql(args[0])
-    if ttype(args[0]).base == "timestamp_tz":
-        value = f"timezone('UTC', {value})"
+    value = tf.wall_time(g, args[0])
     if "%f" in re.findall(r"%.", args[1].name):  # Trino prints the milliseconds as six digits ('.111000')
         value = f"date_trunc('millisecond', {value})"
     return f"strftime({value}, {tf.string(mysql_to_strftime(args[1].name))})"
@@ -2681,10 +2698,16 @@ def _iso_parts(value: str, pattern: str) -> tuple[str, str, str]:
 
 
 def _from_unixtime(call: Call) -> TType:
-    if len(call.args) != 1:
-        call.fail("from_unixtime with a time zone is not supported in lakegate", "NOT_SUPPORTED")
-    need(call, "number")
-    return tt.timestamp(3, with_time_zone=True)
+    """from_unixtime(x) is in the session zone, from_unixtime(x, zone) in the zone a literal names."""
+    if len(call.args) == 3:
+        call.fail("from_unixtime with hours and minutes is not supported in lakegate", "NOT_SUPPORTED")
+    need(call, "number", "string", optional=1)
+    if len(call.args) == 1:
+        return tt.timestamp(3, True, call.analyzer.time_zone)
+    zone = call.literal(1)
+    if zone is None or not zone.is_string:
+        call.fail("unsupported in lakegate: from_unixtime with a zone that is not a literal", "NOT_SUPPORTED")
+    return tt.timestamp(3, True, call.analyzer.zone_literal(zone))
 
 
 def _render_from_unixtime(g, node, args) -> str:
@@ -2700,7 +2723,8 @@ def _to_unixtime(call: Call) -> TType:
 
 
 def _render_to_unixtime(g, node, args) -> str:
-    return f"epoch({g.sql(args[0])})"
+    """A timestamp is an instant in the session zone (Trino coerces it to timestamp with time zone)."""
+    return f"epoch({g.coerce(args[0], tt.timestamp(6, True))})"
 
 
 def _field(call: Call) -> TType:
@@ -2733,9 +2757,7 @@ _FIELD_OF = {
 
 
 def _render_field(g, node, args) -> str:
-    value = g.sql(args[0])
-    if ttype(args[0]).base == "timestamp_tz":
-        value = f"timezone('UTC', {value})"
+    value = tf.wall_time(g, args[0])
     name = node.name.lower()
     part = _FIELD_OF[name]
     if name == "millisecond":
@@ -2769,7 +2791,7 @@ register(
     "from_unixtime(unixtime) -> timestamp(3) with time zone",
     _from_unixtime,
     _render_from_unixtime,
-    notes="In the session time zone, which is UTC in lakegate.",
+    notes="from_unixtime(x) is in the session time zone; from_unixtime(x, zone) takes a literal zone.",
 )
 
 
@@ -2814,12 +2836,51 @@ register(
     "now",
     "datetime",
     "now() -> timestamp(3) with time zone",
-    fixed(tt.timestamp(3, True)),
+    lambda c: fixed(tt.timestamp(3, True, c.analyzer.time_zone))(c),
     lambda g, node, args: "date_trunc('millisecond', current_timestamp)",
 )
 register(
-    "current_timezone", "datetime", "current_timezone() -> varchar", fixed(tt.VARCHAR), lambda g, node, args: "'UTC'"
+    "current_timezone",
+    "datetime",
+    "current_timezone() -> varchar",
+    fixed(tt.VARCHAR),
+    lambda g, node, args: tf.string(g.time_zone),
 )
+
+
+def _zone_argument(call: Call, source: str) -> TType:
+    """at_timezone(timestamp with time zone, zone) and with_timezone(timestamp, zone): a literal zone."""
+    types = need(call, source, "string")
+    zone = call.literal(1)
+    if zone is None or not zone.is_string:
+        call.fail(f"unsupported in lakegate: {call.name} with a zone that is not a literal", "NOT_SUPPORTED")
+    return tt.timestamp(types[0].args[0] if types[0].args else 3, True, call.analyzer.zone_literal(zone))
+
+
+register(
+    "at_timezone",
+    "datetime",
+    "at_timezone(timestamp(p) with time zone, zone) -> timestamp(p) with time zone",
+    lambda c: _zone_argument(c, "zoned"),
+    lambda g, node, args: g.sql(args[0]),
+    notes="The same instant in another zone; the zone must be a literal.",
+)
+register(
+    "with_timezone",
+    "datetime",
+    "with_timezone(timestamp(p), zone) -> timestamp(p) with time zone",
+    lambda c: _zone_argument(c, "timestamp"),
+    lambda g, node, args: zones.instant(f"CAST({g.sql(args[0])} AS TIMESTAMP)", tt.zone_of(ttype(node))),
+    notes="The wall time read in the zone; the zone must be a literal.",
+)
+for _part in ("hour", "minute"):
+    register(
+        f"timezone_{_part}",
+        "datetime",
+        f"timezone_{_part}(timestamp with time zone) -> bigint",
+        fixed(tt.BIGINT, "zoned"),
+        lambda g, node, args, part=_part: tf.zone_offset(g, args[0], part),
+    )
 register(
     "date",
     "datetime",
@@ -2838,7 +2899,7 @@ register(
     "datetime",
     "last_day_of_month(x) -> date",
     fixed(tt.DATE, "temporal"),
-    lambda g, node, args: f"last_day({g.sql(args[0])})",
+    lambda g, node, args: f"last_day({tf.wall_time(g, args[0])})",
 )
 for _name in _FIELD_OF:
     register(_name, "datetime", f"{_name}(x) -> bigint", _field, _render_field)
@@ -2921,14 +2982,10 @@ REJECTED: dict[str, str] = {
     "json_array": "SQL/JSON functions are not translated",
     "format_datetime": "Joda-Time patterns are not translated; use date_format",
     "parse_datetime": "Joda-Time patterns are not translated; use date_parse",
-    "with_timezone": "time zones other than UTC are not supported",
-    "at_timezone": "time zones other than UTC are not supported",
     "from_unixtime_nanos": "DuckDB has no nanosecond timestamp with time zone",
     "from_iso8601_timestamp": "not translated",
     "to_iso8601": "not translated",
     "human_readable_seconds": "not translated",
-    "timezone_hour": "time zones other than UTC are not supported",
-    "timezone_minute": "time zones other than UTC are not supported",
     "to_milliseconds": "interval functions not translated",
     "parse_duration": "not translated",
     "format_number": "not translated",

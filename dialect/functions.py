@@ -64,6 +64,7 @@ _KINDS: dict[str, Callable[[TType], bool]] = {
     "array": lambda t: t.base in ("array", "unknown"),
     "temporal": lambda t: t.base in ("date", "timestamp", "timestamp_tz", "unknown"),
     "zoned": lambda t: t.base in ("timestamp_tz", "unknown"),
+    "instant": lambda t: t.base in ("timestamp", "timestamp_tz", "unknown"),
     "timestamp": lambda t: t.base in ("timestamp", "unknown"),
     "orderable": lambda t: t.base not in ("map", "json", "varbinary"),
     "json": lambda t: t.base in ("varchar", "json", "unknown"),
@@ -2861,9 +2862,9 @@ register(
     "at_timezone",
     "datetime",
     "at_timezone(timestamp(p) with time zone, zone) -> timestamp(p) with time zone",
-    lambda c: _zone_argument(c, "zoned"),
-    lambda g, node, args: g.sql(args[0]),
-    notes="The same instant in another zone; the zone must be a literal.",
+    lambda c: _zone_argument(c, "instant"),
+    lambda g, node, args: g.coerce(args[0], ttype(node)),
+    notes="The same instant in another zone (a timestamp is read in the session zone); the zone must be a literal.",
 )
 register(
     "with_timezone",

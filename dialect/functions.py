@@ -2523,15 +2523,16 @@ def _date_diff(call: Call) -> TType:
 
 
 def _render_date_diff(g, node, args) -> str:
-    """On timestamps with time zone: days and longer units between the wall times in the first value's
-    zone, shorter ones elapsed (Trino: the first zone's chronology, Joda's ZonedChronology)."""
+    """On timestamps with time zone of at most millisecond precision: days and longer units between the
+    wall times in the first value's zone, shorter ones elapsed (Joda's chronology of that zone); above,
+    all in UTC (io.trino.operator.scalar.timestamptz.DateDiff: its short and long implementations differ)."""
     unit = args[0].name.lower()
     a, b = g.sql(args[1]), g.sql(args[2])
     first = ttype(args[1])
-    if first.base == "timestamp_tz" or ttype(args[2]).base == "timestamp_tz":
-        common = tt.timestamp(6, True)
+    common = tt.common_super_type(first, ttype(args[2]))
+    if common is not None and common.base == "timestamp_tz":
         zone = tt.zone_of(first) if first.base == "timestamp_tz" else g.time_zone
-        zone = zone if unit in _DATE_UNITS else zones.UTC
+        zone = zone if unit in _DATE_UNITS and common.args[0] <= 3 else zones.UTC
         a, b = (zones.local(g.coerce(arg, common), zone) for arg in args[1:])
     return f"CAST(date_sub({tf.string(unit)}, {a}, {b}) AS BIGINT)"
 

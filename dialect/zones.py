@@ -18,6 +18,31 @@ from functools import lru_cache
 
 UTC = "UTC"
 
+#: The zone rules, as docs/functions.md lists them (tools/functions_doc.py).
+RULES = (
+    "The session zone is X-Trino-Time-Zone (the client's `timezone=`), overridden by `SET TIME ZONE`; "
+    "`lakegate query --time-zone`; UTC without either. Zone names are Trino's: IANA regions, UTC and its "
+    "aliases, offsets `+hh:mm` (`+7`, `UTC+7`, `Etc/GMT-7` read as `+07:00`); others fail with "
+    "NOT_SUPPORTED `Time zone not supported`.",
+    "In the session zone: `current_timezone()`, `from_unixtime(x)`, `current_timestamp` / `now()`, "
+    "`localtimestamp`, `current_date`, CAST of a timestamp or date to timestamp with time zone, "
+    "`to_unixtime(timestamp)`, `at_timezone(timestamp, z)`, `timestamp AT TIME ZONE z`, and a date or "
+    "timestamp compared with a timestamp with time zone.",
+    "A timestamp with time zone keeps the zone of its value: a literal's (`TIMESTAMP '... America/New_York'`, "
+    "`'... -08:30'`), the session zone, `AT TIME ZONE 'z'`, `at_timezone`, `with_timezone`, "
+    "`from_unixtime(x, 'z')`. It is shown in that zone, and fields (`hour`, `day`, `EXTRACT`), "
+    "`date_trunc`, `date_format`, `timezone_hour` / `timezone_minute`, casts to timestamp, date and varchar, "
+    "calendar units (day and longer) of `date_add` compute on its wall time in that zone, and of "
+    "`date_diff` in the first value's zone when both have at most millisecond precision (in UTC above, as "
+    "Trino's DateDiff); hours and shorter units, `+ INTERVAL` (months too: in UTC, as Trino's "
+    "TimestampWithTimeZoneOperators) and comparisons use the instant.",
+    "A wall time in a daylight-saving gap moves forward by the gap; one in an overlap is the earlier "
+    "instant (java.time.ZonedDateTime.of, as Trino).",
+    "Refused (NOT_SUPPORTED) where the zone matters: values of several zones in one expression (CASE, "
+    "COALESCE, UNION, VALUES mixing zones, dates or timestamps), a zone that is not a literal, and arrays, "
+    "maps or rows of zoned values in a zone other than UTC as results.",
+)
+
 #: Names Trino reads as UTC (io.trino.spi.type.TimeZoneKey.UTC_EQUIVALENTS).
 _UTC_EQUIVALENTS = frozenset(
     "GMT GMT0 GMT+0 GMT-0 Etc/GMT Etc/GMT0 Etc/GMT+0 Etc/GMT-0 UT UT+0 UT-0 Etc/UT Etc/UT+0 Etc/UT-0 "

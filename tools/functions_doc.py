@@ -319,6 +319,8 @@ def _cell(text: str) -> str:
 
 def generate(families: list[Family], supported: dict, rejected: dict[str, str]) -> str:
     """The Markdown of docs/functions.md for these case families and this registry."""
+    from lakegate.dialect import zones  # the zone rules, listed as the dialect applies them
+
     cases = [case for family in families for case in family.cases]
     calls = defaultdict(int)
     operators = defaultdict(int)
@@ -366,6 +368,7 @@ def generate(families: list[Family], supported: dict, rejected: dict[str, str]) 
     ]
     for family in families:
         out.append(f"| {family.name} | {len(family.cases)} | {_cell(family.title)}: {_cell(family.description)} |")
+    out += ["", "## Time zones", "", *(f"- {rule}" for rule in zones.RULES)]
 
     counts = {"supported": 0, "rejected": 0, "not implemented": 0}
     sections = []

@@ -113,10 +113,12 @@ def local(sql: str, zone: str) -> str:
 
 def instant(sql: str, zone: str) -> str:
     """DuckDB SQL of the instant (TIMESTAMPTZ) of the wall-clock TIMESTAMP `sql` in `zone`, as
-    java.time.ZonedDateTime.of reads it: a time in a gap moves forward by the gap, a time in an overlap
-    takes the earlier instant (ICU takes the later: the earlier is tried first, 1 hour back)."""
-    if zone == UTC or is_offset(zone):
-        return f"timezone({_icu(zone)}, {sql})"
+    java.time.ZonedDateTime.of reads it: a time in a gap moves forward by the gap (as ICU does), a time in
+    an overlap is the earlier instant (ICU gives the later): the wall time read with the offset the zone
+    had 3 hours before ICU's instant, when that reading gives the same wall time back."""
     later = f"timezone({_icu(zone)}, {sql})"
-    earlier = f"({later} - INTERVAL 1 HOUR)"
+    if zone == UTC or is_offset(zone):
+        return later
+    before = f"({later} - INTERVAL 3 HOUR)"
+    earlier = f"timezone('UTC', {sql} - ({local(before, zone)} - {local(before, UTC)}))"
     return f"CASE WHEN {local(earlier, zone)} = {sql} THEN {earlier} ELSE {later} END"

@@ -2875,12 +2875,45 @@ register(
     lambda g, node, args: zones.instant(f"CAST({g.sql(args[0])} AS TIMESTAMP)", tt.zone_of(ttype(node))),
     notes="The wall time read in the zone; the zone must be a literal.",
 )
+
+
+def _to_iso8601(call: Call) -> TType:
+    """to_iso8601 of a timestamp with time zone: varchar(1 + 6 + 15 + min(p, 1) + p + 6) (Trino's RESULT_LENGTH)."""
+    t = need(call, "temporal")[0]
+    if t.base != "timestamp_tz":
+        call.fail(f"unsupported in lakegate: to_iso8601 of {t} (only of timestamp with time zone)", "NOT_SUPPORTED")
+    precision = t.args[0]
+    return tt.varchar(28 + min(precision, 1) + precision)
+
+
+def _render_to_iso8601(g, node, args) -> str:
+    """The wall time in the value's zone, `T`, its fraction, and the zone's offset then (`Z` for zero;
+    io.trino.operator.scalar.timestamptz.ToIso8601)."""
+    t = ttype(args[0])
+    sql, zone = g.sql(args[0]), tt.zone_of(t)
+    text = f"replace({tf.timestamp_text(zones.local(sql, zone), t.args[0])}, ' ', 'T')"
+    minutes = f"(CAST(epoch({zones.local(sql, zone)}) - epoch({zones.local(sql, zones.UTC)}) AS BIGINT) // 60)"
+    offset = (
+        f"CASE WHEN {minutes} = 0 THEN 'Z' ELSE CASE WHEN {minutes} < 0 THEN '-' ELSE '+' END || "
+        f"lpad(CAST(abs({minutes}) // 60 AS VARCHAR), 2, '0') || ':' || lpad(CAST(abs({minutes}) % 60 AS VARCHAR), 2, '0') END"
+    )
+    return f"({text} || {offset})"
+
+
+register(
+    "to_iso8601",
+    "datetime",
+    "to_iso8601(timestamp(p) with time zone) -> varchar",
+    _to_iso8601,
+    _render_to_iso8601,
+    notes="Of a timestamp with time zone, with its zone's offset; of a date or timestamp it is refused.",
+)
 for _part in ("hour", "minute"):
     register(
         f"timezone_{_part}",
         "datetime",
         f"timezone_{_part}(timestamp with time zone) -> bigint",
-        fixed(tt.BIGINT, "zoned"),
+        fixed(tt.BIGINT, "instant"),
         lambda g, node, args, part=_part: tf.zone_offset(g, args[0], part),
     )
 register(
@@ -2986,7 +3019,6 @@ REJECTED: dict[str, str] = {
     "parse_datetime": "Joda-Time patterns are not translated; use date_parse",
     "from_unixtime_nanos": "DuckDB has no nanosecond timestamp with time zone",
     "from_iso8601_timestamp": "not translated",
-    "to_iso8601": "not translated",
     "human_readable_seconds": "not translated",
     "to_milliseconds": "interval functions not translated",
     "parse_duration": "not translated",

@@ -853,9 +853,12 @@ def at_time_zone(g: Writer, node: exp.AtTimeZone) -> str:
 
 def zone_offset(g: Writer, node: exp.Expression, part: str) -> str:
     """The hour or minute part of the UTC offset of a timestamp with time zone's zone at its instant
-    (Trino's timezone_hour / timezone_minute: -5 and 0 for New York in winter, 5 and 45 for Kathmandu)."""
-    sql = g.sql(node)
-    minutes = f"CAST(epoch({wall_time(g, node)}) - epoch({zones.local(sql, zones.UTC)}) AS BIGINT) // 60"
+    (Trino's timezone_hour / timezone_minute: -5 and 0 for New York in winter, 5 and 45 for Kathmandu);
+    a timestamp is read in the session zone."""
+    t = ttype(node)
+    zone = tt.zone_of(t) if t.base == "timestamp_tz" else g.time_zone
+    sql = g.coerce(node, tt.timestamp(t.args[0] if t.args else 3, True, zone))
+    minutes = f"CAST(epoch({zones.local(sql, zone)}) - epoch({zones.local(sql, zones.UTC)}) AS BIGINT) // 60"
     if part == "hour":
         return f"CAST(trunc(({minutes}) / 60) AS BIGINT)"
     return f"CAST(({minutes}) - trunc(({minutes}) / 60) * 60 AS BIGINT)"

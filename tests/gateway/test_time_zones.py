@@ -34,7 +34,13 @@ SELECT current_timezone(),
        CAST(with_timezone(TIMESTAMP '2001-09-09 00:00:00', 'UTC') AS varchar),
        DATE '2001-09-09' = TIMESTAMP '2001-09-09 00:00:00 UTC',
        CAST(current_timestamp AS date) = current_date,
-       localtimestamp - CAST(current_timestamp AS timestamp(3)) = INTERVAL '0' SECOND
+       localtimestamp - CAST(current_timestamp AS timestamp(3)) = INTERVAL '0' SECOND,
+       CAST(now() AS varchar) LIKE '% ' || current_timezone(),
+       to_iso8601(from_unixtime(1000000000)),
+       date(from_unixtime(1000000000)), last_day_of_month(from_unixtime(1000000000)),
+       timezone_hour(TIMESTAMP '2001-09-09 00:00:00'),
+       CAST(date_trunc('hour', from_unixtime(1000000000)) AS varchar),
+       from_unixtime(1000000000) = TIMESTAMP '2001-09-09 01:46:40 UTC'
 """
 
 
@@ -72,6 +78,13 @@ def expected(zone: str, tz: dt.tzinfo) -> list:
         "2001-09-09 00:00:00 UTC",
         dt.datetime(2001, 9, 9, tzinfo=tz) == utc_midnight,
         True,
+        True,
+        True,
+        instant.isoformat(timespec="milliseconds"),
+        instant.date(),
+        (instant.replace(day=28) + dt.timedelta(days=4)).replace(day=1).date() - dt.timedelta(days=1),
+        _offset(midnight)[0],
+        instant.replace(minute=0, second=0).strftime("%Y-%m-%d %H:%M:%S.000 ") + zone,
         True,
     ]
 

@@ -190,10 +190,22 @@ class Analyzer:
         if zone is None:
             self.unsupported(
                 f"{what} of timestamp with time zone values that may carry different zones "
-                "(CASE, COALESCE, UNION, VALUES or a comparison mixing zones, dates or timestamps)",
+                "(a CASE, COALESCE, UNION, VALUES, greatest or least mixing zones, or dates or timestamps with them)",
                 node,
             )
         return zone
+
+    def zoned_cast_in_utc_only(self, a: TType, b: TType, node: exp.Expression, what: str) -> None:
+        """Where DuckDB itself casts a date or timestamp to timestamp with time zone (set operation
+        branches, JOIN USING columns) it reads it in UTC: refused in any other session zone."""
+        if self.time_zone != zones.UTC and {a.base, b.base} in (
+            {"date", "timestamp_tz"},
+            {"timestamp", "timestamp_tz"},
+        ):
+            self.unsupported(
+                f"{what} in the session zone {self.time_zone} (a timestamp with time zone and a {a.base if a.base != 'timestamp_tz' else b.base})",
+                node,
+            )
 
     def fresh_alias(self) -> str:
         self._alias_counter += 1
@@ -516,6 +528,7 @@ class Analyzer:
                     node,
                     "TYPE_MISMATCH",
                 )
+            self.zoned_cast_in_utc_only(a[2], b[2], node, f"{node.key.upper()} of {a[2]} and {b[2]}")
             outputs.append((a[0], a[1], common))
         if node.args.get("distinct") or isinstance(node, (exp.Intersect, exp.Except)):
             for col in outputs:
@@ -715,6 +728,7 @@ class Analyzer:
             common = tt.common_super_type(left[0][1][2], right[0][1][2])
             if common is None:
                 self.fail(f"Column types of '{ident.name}' in USING do not match", ident, "TYPE_MISMATCH")
+            self.zoned_cast_in_utc_only(left[0][1][2], right[0][1][2], ident, f"JOIN USING ({ident.name})")
             values = [_using_value(source, col, common) for source, col in (left[0], right[0])]
             sql[name] = {"RIGHT": values[1], "FULL": f"COALESCE({values[0]}, {values[1]})"}.get(side, values[0])
             joined.append((left[0][1][0], left[0][1][1], common))

@@ -96,6 +96,11 @@ class Writer(DuckDBGenerator):
             return cast("NULL", target)
         if target.base == "timestamp_tz" and source.base in ("timestamp", "date"):  # in the session zone
             return zones.instant(f"CAST({sql} AS TIMESTAMP)", self.time_zone)
+        if self.time_zone != zones.UTC and "timestamp_tz" in str(target) and "timestamp_tz" not in str(source):
+            raise DialectError(  # DuckDB would read nested dates and timestamps in UTC
+                f"unsupported in lakegate: {source} coerced to {target} in the session zone {self.time_zone}",
+                error_name="NOT_SUPPORTED",
+            )
         return cast(sql, target)
 
     def agg(self, node: exp.Expression, name: str, args: list[str]) -> str:

@@ -195,6 +195,12 @@ class Analyzer:
             )
         return zone
 
+    def zones(self, t: TType, node: exp.Expression, what: str) -> None:
+        """`zone` of every timestamp with time zone in `t`, nested ones included."""
+        for inner in (t, *_nested(t)):
+            if inner.base == "timestamp_tz":
+                self.zone(inner, node, what)
+
     def zoned_cast_in_utc_only(self, a: TType, b: TType, node: exp.Expression, what: str) -> None:
         """Where DuckDB itself casts a date or timestamp to timestamp with time zone (set operation
         branches, JOIN USING columns) it reads it in UTC: refused in any other session zone."""
@@ -1236,8 +1242,8 @@ def _cast(a: Analyzer, node, scope, env):
         a.unsupported(f"cast to {target}", node)
     if target.base == "timestamp_tz":
         target = tt.timestamp(target.args[0], True, _cast_zone(a, node, source))
-    elif source.base == "timestamp_tz" and target.base in ("timestamp", "date", "varchar"):
-        a.zone(source, node, f"CAST to {target}")
+    else:
+        a.zones(source, node, f"CAST to {target}")
     if not castable(source, target):
         a.fail(f"Cannot cast {source} to {target}", node, "TYPE_MISMATCH")
     node.meta["from"] = source

@@ -1910,6 +1910,7 @@ def _array_join(call: Call) -> TType:
     element = _array_arg(call).element
     if element.base in ("array", "map", "row", "json"):
         call.mismatch()
+    call.analyzer.zones(element, call.node, "array_join")
     return tt.VARCHAR
 
 

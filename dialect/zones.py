@@ -36,6 +36,9 @@ RULES = (
     "`date_diff` in the first value's zone when both have at most millisecond precision (in UTC above, as "
     "Trino's DateDiff); hours and shorter units, `+ INTERVAL` (months too: in UTC, as Trino's "
     "TimestampWithTimeZoneOperators) and comparisons use the instant.",
+    "How: DuckDB holds the instant (TIMESTAMPTZ, its own session zone always UTC); the zone is static per "
+    "expression, carried in the expression's Trino type, and every zone-dependent operation is written with "
+    "it (DuckDB's ICU `timezone(zone, x)`; offsets as `GMT+05:45`); result columns are given that zone.",
     "A wall time in a daylight-saving gap moves forward by the gap; one in an overlap is the earlier "
     "instant (java.time.ZonedDateTime.of, as Trino).",
     "Refused (NOT_SUPPORTED) where the zone matters: values of several zones in one expression (CASE, "

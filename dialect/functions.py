@@ -113,13 +113,15 @@ def common(call: Call, types: list[TType] | None = None) -> TType:
 
 
 def literal_int(call: Call, index: int) -> int | None:
+    """The integer literal at `index` (a negative one is a Neg of the literal), None otherwise."""
     lit = call.literal(index)
     if lit is None or lit.is_string:
         return None
     try:
-        return int(lit.name)
+        value = int(lit.name)
     except ValueError:
         return None
+    return -value if isinstance(lit, exp.Neg) else value
 
 
 def literal_str(call: Call, index: int) -> str | None:
@@ -2701,9 +2703,18 @@ def _iso_parts(value: str, pattern: str) -> tuple[str, str, str]:
 
 
 def _from_unixtime(call: Call) -> TType:
-    """from_unixtime(x) is in the session zone, from_unixtime(x, zone) in the zone a literal names."""
+    """from_unixtime(x) is in the session zone, from_unixtime(x, zone) in the zone a literal names,
+    from_unixtime(x, hours, minutes) at that offset (literals: DateTimeFunctions.fromUnixTime)."""
     if len(call.args) == 3:
-        call.fail("from_unixtime with hours and minutes is not supported in lakegate", "NOT_SUPPORTED")
+        need(call, "number", "integral", "integral")
+        hours, minutes = literal_int(call, 1), literal_int(call, 2)
+        if hours is None or minutes is None:
+            call.fail("unsupported in lakegate: from_unixtime with an offset that is not literal", "NOT_SUPPORTED")
+        total = hours * 60 + minutes
+        if abs(total) > 14 * 60:
+            call.fail(f"Invalid offset minutes {total}", "INVALID_FUNCTION_ARGUMENT")
+        sign = "-" if total < 0 else "+"
+        return tt.timestamp(3, True, zones.canonical(f"{sign}{abs(total) // 60:02d}:{abs(total) % 60:02d}"))
     need(call, "number", "string", optional=1)
     if len(call.args) == 1:
         return tt.timestamp(3, True, call.analyzer.time_zone)
@@ -2794,7 +2805,7 @@ register(
     "from_unixtime(unixtime) -> timestamp(3) with time zone",
     _from_unixtime,
     _render_from_unixtime,
-    notes="from_unixtime(x) is in the session time zone; from_unixtime(x, zone) takes a literal zone.",
+    notes="from_unixtime(x) is in the session time zone; from_unixtime(x, zone) and (x, hours, minutes) take literals.",
 )
 
 

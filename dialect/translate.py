@@ -184,7 +184,7 @@ def _typed_schema(schema: Mapping[str, Mapping[str, str]], key: object) -> dict[
         cols = []
         for name, type_name in columns.items():
             try:
-                cols.append((name, tt.parse_type(type_name)))
+                cols.append((name, tt.in_zone(tt.parse_type(type_name), "UTC")))  # instants shown in UTC
             except ValueError:
                 raise DialectError(
                     f"column '{name}' of table '{table}' has an unknown type '{type_name}'",

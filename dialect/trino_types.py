@@ -139,6 +139,17 @@ def zone_of(t: TType) -> str | None:
     return t.args[1] if len(t.args) > 1 else None
 
 
+def in_zone(t: TType, zone: str) -> TType:
+    """`t` with every timestamp with time zone in it, nested ones too, carrying `zone`."""
+    if t.base == "timestamp_tz":
+        return timestamp(t.args[0], True, zone)
+    if t.base in ("array", "map"):
+        return TType(t.base, tuple(in_zone(a, zone) for a in t.args))
+    if t.base == "row":
+        return row([(name, in_zone(f, zone)) for name, f in t.args])
+    return t
+
+
 def with_precision(t: TType, precision: int) -> TType:
     """A timestamp type at another precision (a zone kept)."""
     return TType(t.base, (precision, *t.args[1:]))
@@ -228,9 +239,8 @@ def _parse_tokens(tokens: list[str], pos: int, text: str) -> tuple[TType, int]:
     if word in ("timestamp", "time"):
         precision = numbers()[0] if has_args else 3
         words = [t.lower() for t in tokens[pos : pos + 3]]
-        if words == ["with", "time", "zone"]:  # a column's values are instants, shown in UTC
-            zoned = timestamp(precision, True, "UTC") if word == "timestamp" else TType("time_tz", (precision,))
-            return zoned, pos + 3
+        if words == ["with", "time", "zone"]:
+            return TType(f"{word}_tz" if word == "timestamp" else "time_tz", (precision,)), pos + 3
         if words == ["without", "time", "zone"]:
             pos += 3
         return TType(word, (precision,)), pos

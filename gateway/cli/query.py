@@ -51,8 +51,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "--timezone",
         metavar="ZONE",
         default=None,
-        help="the session time zone (America/New_York, +05:45, UTC); default: this machine's zone, as the "
-        "trino CLI and Python client use",
+        help="the session time zone (America/New_York, +05:45, UTC; a negative offset as --time-zone=-08:30); "
+        "default: this machine's zone, as the trino CLI and Python client use",
     )
     parser.set_defaults(func=query_command)
 

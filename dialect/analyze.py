@@ -197,7 +197,7 @@ class Analyzer:
 
     def zones(self, t: TType, node: exp.Expression, what: str) -> None:
         """`zone` of every timestamp with time zone in `t`, nested ones included."""
-        for inner in (t, *_nested(t)):
+        for inner in (t, *tt.inner_types(t)):
             if inner.base == "timestamp_tz":
                 self.zone(inner, node, what)
 
@@ -1642,19 +1642,10 @@ def _check_output_zone(a: Analyzer, tree: exp.Expression, name: str | None, t: T
     carry one zone, and zoned values other than UTC nested in an array, map or row (shown in UTC)."""
     if t.base == "timestamp_tz":
         a.zone(t, tree, f"the result column {name or ''}".rstrip())
-    for inner in _nested(t):
+    for inner in tt.inner_types(t):
         if inner.base == "timestamp_tz" and tt.zone_of(inner) != zones.UTC:
             a.unsupported(
                 f"a result column of type {t} holding timestamps with time zone "
                 f"{tt.zone_of(inner) or 'of several zones'} (lakegate shows nested ones in UTC only)",
                 tree,
             )
-
-
-def _nested(t: TType):
-    """The types inside an array, map or row type, at any depth."""
-    if t.base not in ("array", "map", "row"):
-        return
-    for item in t.args if t.base != "row" else (f for _, f in t.args):
-        yield item
-        yield from _nested(item)

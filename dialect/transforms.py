@@ -53,6 +53,11 @@ def ten(power: int, scale: int = 0) -> str:
 MAX_SQL_CHARS = 1_000_000
 
 
+def _inside(t: TType, *bases: str) -> bool:
+    """Whether an array, map or row type holds values of one of these base types."""
+    return any(inner.base in bases for inner in tt.inner_types(t))
+
+
 class Writer(DuckDBGenerator):
     """Writes the analyzed Trino tree as DuckDB SQL."""
 
@@ -96,7 +101,7 @@ class Writer(DuckDBGenerator):
             return cast("NULL", target)
         if target.base == "timestamp_tz" and source.base in ("timestamp", "date"):  # in the session zone
             return zones.instant(f"CAST({sql} AS TIMESTAMP)", self.time_zone)
-        if self.time_zone != zones.UTC and "timestamp_tz" in str(target) and "timestamp_tz" not in str(source):
+        if self.time_zone != zones.UTC and _inside(target, "timestamp_tz") and _inside(source, "date", "timestamp"):
             raise DialectError(  # DuckDB would read nested dates and timestamps in UTC
                 f"unsupported in lakegate: {source} coerced to {target} in the session zone {self.time_zone}",
                 error_name="NOT_SUPPORTED",

@@ -139,6 +139,15 @@ def zone_of(t: TType) -> str | None:
     return t.args[1] if len(t.args) > 1 else None
 
 
+def inner_types(t: TType):
+    """The types inside an array, map or row type, at any depth."""
+    if t.base not in ("array", "map", "row"):
+        return
+    for item in t.args if t.base != "row" else (f for _, f in t.args):
+        yield item
+        yield from inner_types(item)
+
+
 def in_zone(t: TType, zone: str) -> TType:
     """`t` with every timestamp with time zone in it, nested ones too, carrying `zone`."""
     if t.base == "timestamp_tz":

@@ -17,7 +17,7 @@ from typing import NoReturn
 
 from sqlglot import exp
 
-from lakegate.dialect import registry
+from lakegate.dialect import registry, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.guard import trino_name
@@ -206,9 +206,10 @@ _UNORDERABLE = ("json", "map", "varbinary", "unknown")
 class Analyzer:
     """One analysis of one statement (not reused: it keeps the SQL text and a counter)."""
 
-    def __init__(self, schema: dict[str, list[tuple[str, TType]]], sql: str):
+    def __init__(self, schema: dict[str, list[tuple[str, TType]]], sql: str, time_zone: str = zones.UTC):
         self.schema = schema
         self.sql = sql
+        self.time_zone = time_zone  # the session zone
         self._alias_counter = 0
         self.groupings: list[exp.Grouping] = []  # every grouping() operation, checked by check_grouping
 
@@ -219,6 +220,43 @@ class Analyzer:
 
     def unsupported(self, what: str, node: exp.Expression) -> NoReturn:
         self.fail(f"unsupported in lakegate: {what}", node, "NOT_SUPPORTED")
+
+    def zone_literal(self, node: exp.Literal) -> str:
+        """The canonical zone a string literal names (Trino's NOT_SUPPORTED error for an unknown one)."""
+        try:
+            return zones.canonical(node.name)
+        except ValueError as error:
+            self.fail(str(error), node, "NOT_SUPPORTED")
+
+    def zone(self, t: TType, node: exp.Expression, what: str) -> str:
+        """The one zone the timestamp with time zone values of `node` carry; refused (naming `what`)
+        when they may carry different zones (a CASE, COALESCE, UNION or VALUES mixing zones)."""
+        zone = tt.zone_of(t)
+        if zone is None:
+            self.unsupported(
+                f"{what} of timestamp with time zone values that may carry different zones "
+                "(a CASE, COALESCE, UNION, VALUES, greatest or least mixing zones, or dates or timestamps with them)",
+                node,
+            )
+        return zone
+
+    def zones(self, t: TType, node: exp.Expression, what: str) -> None:
+        """`zone` of every timestamp with time zone in `t`, nested ones included."""
+        for inner in (t, *tt.inner_types(t)):
+            if inner.base == "timestamp_tz":
+                self.zone(inner, node, what)
+
+    def zoned_cast_in_utc_only(self, a: TType, b: TType, node: exp.Expression, what: str) -> None:
+        """Where DuckDB itself casts a date or timestamp to timestamp with time zone (set operation
+        branches, JOIN USING columns) it reads it in UTC: refused in any other session zone."""
+        if self.time_zone != zones.UTC and {a.base, b.base} in (
+            {"date", "timestamp_tz"},
+            {"timestamp", "timestamp_tz"},
+        ):
+            self.unsupported(
+                f"{what} in the session zone {self.time_zone} (a timestamp with time zone and a {a.base if a.base != 'timestamp_tz' else b.base})",
+                node,
+            )
 
     def fresh_alias(self) -> str:
         self._alias_counter += 1
@@ -541,6 +579,7 @@ class Analyzer:
                     node,
                     "TYPE_MISMATCH",
                 )
+            self.zoned_cast_in_utc_only(a[2], b[2], node, f"{node.key.upper()} of {a[2]} and {b[2]}")
             outputs.append((a[0], a[1], common))
         if node.args.get("distinct") or isinstance(node, (exp.Intersect, exp.Except)):
             for col in outputs:
@@ -747,6 +786,7 @@ class Analyzer:
             common = tt.common_super_type(left[0][1][2], right[0][1][2])
             if common is None:
                 self.fail(f"Column types of '{ident.name}' in USING do not match", ident, "TYPE_MISMATCH")
+            self.zoned_cast_in_utc_only(left[0][1][2], right[0][1][2], ident, f"JOIN USING ({ident.name})")
             values = [_using_value(source, col, common) for source, col in (left[0], right[0])]
             sql[name] = {"RIGHT": values[1], "FULL": f"COALESCE({values[0]}, {values[1]})"}.get(side, values[0])
             joined.append((left[0][1][0], left[0][1][1], common))
@@ -1105,15 +1145,33 @@ def _comparison(a: Analyzer, node, scope, env):
         cols = a.query(query, scope)
         if len(cols) != 1:
             a.fail("Multiple columns returned by subquery are not yet supported", sub, "NOT_SUPPORTED")
-        _comparable(a, node, left, cols[0][2], _OPS[type(node)])
-        node.meta["compare"] = tt.common_super_type(left, cols[0][2])
+        common = _comparable(a, node, left, cols[0][2], _OPS[type(node)])
+        if common.base == "timestamp_tz" and {left.base, cols[0][2].base} != {"timestamp_tz"}:
+            a.unsupported(f"{node.expression.key.upper()} comparing {left} with {cols[0][2]}", node.expression)
+        node.meta["compare"] = common
         return tt.BOOLEAN
     left, right = a.expr(node.this, scope, env), a.expr(node.expression, scope, env)
     common = _comparable(a, node, left, right, _OPS[type(node)])
     if common.base == "json" or (common.base == "map" and type(node) not in (exp.EQ, exp.NEQ)):
         a.fail(f"Cannot apply operator: {left} {_OPS[type(node)]} {right}", node, "TYPE_MISMATCH")
     node.meta["compare"] = common
+    _in_session_zone(a, [node.this, node.expression], common)
     return tt.BOOLEAN
+
+
+def _in_session_zone(a: Analyzer, sides: list[exp.Expression], common: TType) -> None:
+    """Dates and timestamps compared with a timestamp with time zone are read in the session zone
+    (Trino's implicit coercion, io.trino.type.DateTimeOperators / TimestampToTimestampWithTimeZoneCast):
+    each becomes an explicit cast, which every comparison writer then converts alike."""
+    if common.base != "timestamp_tz":
+        return
+    for side in sides:
+        t = ttype(side)
+        if t.base in ("date", "timestamp"):
+            cast = exp.Cast(to=exp.DataType.build("timestamptz"))
+            side.replace(cast)
+            cast.set("this", side)
+            cast.meta.update({"from": t, "t": tt.timestamp(common.args[0], True, a.time_zone)})
 
 
 @handles(exp.Is)
@@ -1139,6 +1197,7 @@ def _in(a: Analyzer, node, scope, env):
         common = left
         for item in node.expressions:
             common = _comparable(a, item, common, a.expr(item, scope, env), "IN")
+        _in_session_zone(a, [node.this, *node.expressions], common)
     node.meta["compare"] = common
     return tt.BOOLEAN
 
@@ -1149,6 +1208,7 @@ def _between(a: Analyzer, node, scope, env):
     low, high = a.expr(node.args["low"], scope, env), a.expr(node.args["high"], scope, env)
     common = _comparable(a, node, _comparable(a, node, value, low, "BETWEEN"), high, "BETWEEN")
     node.meta["compare"] = common
+    _in_session_zone(a, [node.this, node.args["low"], node.args["high"]], common)
     return tt.BOOLEAN
 
 
@@ -1202,7 +1262,7 @@ def _at_least_millis(t: TType) -> TType:
     """timestamp(p) ± a day-to-second interval is timestamp(max(p, 3)): the interval carries milliseconds
     (io.trino.operator.scalar.timestamp.TimestampOperators.TimestampPlusIntervalDayToSecond)."""
     if t.base in ("timestamp", "timestamp_tz") and t.args[0] < 3:
-        return tt.timestamp(3, with_time_zone=t.base == "timestamp_tz")
+        return tt.with_precision(t, 3)
     return t
 
 
@@ -1317,8 +1377,10 @@ def _cast(a: Analyzer, node, scope, env):
         return target  # the UTF-8 bytes of the text (VarcharOperators.castToVarbinary)
     if target.base in ("char", "time", "time_tz", "uuid", "varbinary", "json", "map"):
         a.unsupported(f"cast to {target}", node)
-    if target.base == "timestamp_tz" and source.base == "varchar":
-        _check_utc_text(a, node)
+    if target.base == "timestamp_tz":
+        target = tt.timestamp(target.args[0], True, _cast_zone(a, node, source))
+    else:
+        a.zones(source, node, f"CAST to {target}")
     if not castable(source, target):
         a.fail(f"Cannot cast {source} to {target}", node, "TYPE_MISMATCH")
     node.meta["from"] = source
@@ -1326,19 +1388,34 @@ def _cast(a: Analyzer, node, scope, env):
 
 
 #: The zone at the end of a timestamp text: a region name or an offset.
-_ZONE_SUFFIX = re.compile(r"[0-9]\s*([A-Za-z][A-Za-z0-9_/+-]*|[+-][0-9]{1,2}(?::?[0-9]{2})?)\s*$")
+_ZONE_SUFFIX = re.compile(
+    r"[0-9]:[0-9]{2}(?::[0-9]{2}(?:[.][0-9]*)?)?\s*([A-Za-z][A-Za-z0-9_/+-]*|[+-][0-9]{1,2}(?::?[0-9]{2})?)\s*$"
+)
 
 
-def _check_utc_text(a: Analyzer, node: exp.Cast) -> None:
-    """A text cast to timestamp with time zone must name UTC or no zone: lakegate's values carry no
-    zone of their own (Trino's keep theirs, and render and compute in it), and the session zone is UTC."""
+def _cast_zone(a: Analyzer, node: exp.Cast, source: TType) -> str | None:
+    """The zone of a value cast to timestamp with time zone: a timestamp with time zone keeps its own,
+    a text literal has the zone it names (its wall time is kept in node.meta["local"]), anything else
+    takes the session zone (io.trino.type.TimestampToTimestampWithTimeZoneCast, DateTimes.parseTimestampWithTimeZone)."""
+    if source.base == "timestamp_tz":
+        return tt.zone_of(source)
+    if source.base != "varchar":
+        return a.time_zone
     if not (isinstance(node.this, exp.Literal) and node.this.is_string):
         a.unsupported(
             "CAST of a non-literal varchar to timestamp with time zone (each value's zone would be lost)", node
         )
-    zone = _ZONE_SUFFIX.search(node.this.name.strip())
-    if zone is not None and zone.group(1).upper() != "UTC":
-        a.unsupported(f"timestamp with time zone '{zone.group(1)}' (lakegate keeps timestamps in UTC only)", node)
+    text = node.this.name.strip()
+    suffix = _ZONE_SUFFIX.search(text)
+    if suffix is None:
+        node.meta["local"] = text
+        return a.time_zone
+    try:
+        zone = zones.canonical(suffix.group(1))
+    except ValueError as error:
+        a.fail(str(error), node, "NOT_SUPPORTED")
+    node.meta["local"] = text[: suffix.start(1)].strip()
+    return zone
 
 
 def castable(source: TType, target: TType) -> bool:
@@ -1422,7 +1499,7 @@ def _is_number(text: str) -> bool:
 def _current_timestamp(a, node, scope, env):
     if node.this is not None:
         a.unsupported("current_timestamp(p)", node)
-    return tt.timestamp(3, with_time_zone=True)
+    return tt.timestamp(3, True, a.time_zone)
 
 
 @handles(exp.CurrentDate)
@@ -1456,10 +1533,15 @@ def _extract(a: Analyzer, node, scope, env):
         "MINUTE",
         "SECOND",
     }
+    if unit in ("TIMEZONE_HOUR", "TIMEZONE_MINUTE") and t.base == "timestamp_tz":
+        a.zone(t, node, f"EXTRACT({unit} FROM ...)")
+        return tt.BIGINT
     if unit not in allowed:
         a.unsupported(f"EXTRACT({unit} FROM ...)", node)
     if t.base not in ("date", "timestamp", "timestamp_tz", "unknown"):
         a.fail(f"Cannot extract {unit} from {t}", node, "TYPE_MISMATCH")
+    if t.base == "timestamp_tz":
+        a.zone(t, node, f"EXTRACT({unit} FROM ...)")
     if t.base == "date" and unit in ("HOUR", "MINUTE", "SECOND"):
         a.fail(f"Cannot extract {unit} from {t}", node, "TYPE_MISMATCH")
     node.set("expression", floor_micros(node.expression))
@@ -1644,10 +1726,8 @@ def _at_time_zone(a: Analyzer, node, scope, env):
         a.fail(
             f"Type of value must be a time or timestamp with or without time zone (actual {t})", node, "TYPE_MISMATCH"
         )
-    if zone.name.strip().upper() != "UTC":
-        a.unsupported(f"AT TIME ZONE '{zone.name}' (lakegate keeps timestamps in UTC only)", node)
     a.expr(zone, scope, env)
-    return tt.timestamp(t.args[0], with_time_zone=True)
+    return tt.timestamp(t.args[0], True, a.zone_literal(zone))
 
 
 @handles(exp.Substring)
@@ -1690,6 +1770,27 @@ def _position(a: Analyzer, node, scope, env):
     return tt.BIGINT
 
 
-def analyze(tree: exp.Expression, schema: dict[str, list[tuple[str, TType]]], sql: str) -> list[OutCol]:
-    """Resolve names and infer Trino types over the statement `tree`; its output columns."""
-    return Analyzer(schema, sql).query(tree, None)
+def analyze(
+    tree: exp.Expression, schema: dict[str, list[tuple[str, TType]]], sql: str, time_zone: str = zones.UTC
+) -> list[OutCol]:
+    """Resolve names and infer Trino types over the statement `tree` in the session zone `time_zone`;
+    its output columns."""
+    analyzer = Analyzer(schema, sql, time_zone)
+    outputs = analyzer.query(tree, None)
+    for name, _, t in outputs:
+        _check_output_zone(analyzer, tree, name, t)
+    return outputs
+
+
+def _check_output_zone(a: Analyzer, tree: exp.Expression, name: str | None, t: TType) -> None:
+    """A result column shows each timestamp with time zone in its zone: refuse one whose values do not all
+    carry one zone, and zoned values other than UTC nested in an array, map or row (shown in UTC)."""
+    if t.base == "timestamp_tz":
+        a.zone(t, tree, f"the result column {name or ''}".rstrip())
+    for inner in tt.inner_types(t):
+        if inner.base == "timestamp_tz" and tt.zone_of(inner) != zones.UTC:
+            a.unsupported(
+                f"a result column of type {t} holding timestamps with time zone "
+                f"{tt.zone_of(inner) or 'of several zones'} (lakegate shows nested ones in UTC only)",
+                tree,
+            )

@@ -13,7 +13,7 @@ from collections.abc import Callable, Iterable
 
 from sqlglot import exp
 
-from lakegate.dialect import registry
+from lakegate.dialect import registry, zones
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import Call, remainder_fits, ttype
@@ -30,6 +30,9 @@ _KINDS: dict[str, Callable[[TType], bool]] = {
     "boolean": lambda t: t.base in ("boolean", "unknown"),
     "array": lambda t: t.base in ("array", "unknown"),
     "temporal": lambda t: t.base in ("date", "timestamp", "timestamp_tz", "unknown"),
+    "zoned": lambda t: t.base in ("timestamp_tz", "unknown"),
+    "instant": lambda t: t.base in ("timestamp", "timestamp_tz", "unknown"),
+    "timestamp": lambda t: t.base in ("timestamp", "unknown"),
     "orderable": lambda t: t.base not in ("map", "json", "varbinary"),
     "json": lambda t: t.base in ("varchar", "json", "unknown"),
 }
@@ -43,6 +46,8 @@ def need(call: Call, *kinds: str, optional: int = 0) -> list[TType]:
     for t, kind in zip(call.types, kinds):
         if t is None or not _KINDS[kind](t):
             call.mismatch()
+        if kind in ("temporal", "zoned") and t.base == "timestamp_tz":  # computed in the values' zone
+            call.analyzer.zone(t, call.node, f"{call.name}()")
     return call.types  # type: ignore[return-value]
 
 
@@ -75,13 +80,15 @@ def common(call: Call, types: list[TType] | None = None) -> TType:
 
 
 def literal_int(call: Call, index: int) -> int | None:
+    """The integer literal at `index` (a negative one is a Neg of the literal), None otherwise."""
     lit = call.literal(index)
     if lit is None or lit.is_string:
         return None
     try:
-        return int(lit.name)
+        value = int(lit.name)
     except ValueError:
         return None
+    return -value if isinstance(lit, exp.Neg) else value
 
 
 def literal_str(call: Call, index: int) -> str | None:
@@ -1907,6 +1914,7 @@ def _array_join(call: Call) -> TType:
     element = _array_arg(call).element
     if element.base in ("array", "map", "row", "json"):
         call.mismatch()
+    call.analyzer.zones(element, call.node, "array_join")
     return tt.VARCHAR
 
 
@@ -2580,11 +2588,19 @@ def _date_diff(call: Call) -> TType:
 
 
 def _render_date_diff(g, node, args) -> str:
-    """Whole units between the values' epoch milliseconds, each floored first (DateDiff)."""
+    """Whole units between the values, as Trino counts them (DateDiff): on timestamps with time zone
+    of at most millisecond precision, days and longer units between the wall times in the first
+    value's zone, shorter ones elapsed (Joda's chronology of that zone); above, all in UTC
+    (io.trino.operator.scalar.timestamptz.DateDiff: its short and long implementations differ).
+    Values of more than millisecond precision are floored to milliseconds first."""
     unit = args[0].name.lower()
     a, b = g.sql(args[1]), g.sql(args[2])
-    if ttype(args[1]).base == "timestamp_tz" or ttype(args[2]).base == "timestamp_tz":
-        a, b = f"timezone('UTC', {a})", f"timezone('UTC', {b})"
+    first = ttype(args[1])
+    common = tt.common_super_type(first, ttype(args[2]))
+    if common is not None and common.base == "timestamp_tz":
+        zone = tt.zone_of(first) if first.base == "timestamp_tz" else g.time_zone
+        zone = zone if unit in _DATE_UNITS and common.args[0] <= 3 else zones.UTC
+        a, b = (zones.local(g.coerce(arg, common), zone) for arg in args[1:])
     if max(t.args[0] if t.args else 0 for t in map(ttype, args[1:])) > 3:
         a, b = f"date_trunc('millisecond', {a})", f"date_trunc('millisecond', {b})"
     return f"CAST(date_sub({tf.string(unit)}, {a}, {b}) AS BIGINT)"
@@ -2617,7 +2633,11 @@ def _render_date_add(g, node, args) -> str:
         if unit == "quarter"
         else f"{_INTERVAL_OF[unit]}(CAST({amount} AS {'INTEGER' if unit in ('month', 'year', 'week', 'day') else 'BIGINT'}))"
     )
-    t, sql = ttype(node), f"({value} + {interval})"
+    t = ttype(node)
+    if t.base == "timestamp_tz" and unit in _DATE_UNITS:  # calendar units in the value's zone
+        zone = tt.zone_of(t)
+        return tf.cast(zones.instant(f"({zones.local(value, zone)} + {interval})", zone), t)
+    sql = f"({value} + {interval})"
     if t.base == "timestamp" and t.args[0] > 6:  # the nanoseconds below the microsecond stay (DateAdd)
         return tf.with_nanos(sql, g.sql(args[2].this))
     if t.base == "timestamp" and t.args[0] < 3 and unit == "millisecond":  # rounded to p digits (DateAdd)
@@ -2634,8 +2654,12 @@ def _date_trunc(call: Call) -> TType:
 def _render_date_trunc(g, node, args) -> str:
     unit, value = args[0].name.lower(), g.sql(args[1])
     t = ttype(node)
-    if t.base == "timestamp_tz":
-        return f"timezone('UTC', date_trunc({tf.string(unit)}, timezone('UTC', {value})))"
+    if t.base == "timestamp_tz":  # on the wall time in the value's zone (Joda's ZonedDateTimeField.roundFloor)
+        wall = zones.local(value, tt.zone_of(t))
+        truncated = f"date_trunc({tf.string(unit)}, {wall})"
+        if unit in _DATE_UNITS:
+            return zones.instant(truncated, tt.zone_of(t))
+        return f"({value} - ({wall} - {truncated}))"  # shorter units keep the value's offset
     return tf.cast(f"date_trunc({tf.string(unit)}, {value})", t)
 
 
@@ -2700,9 +2724,7 @@ def _date_format(call: Call) -> TType:
 
 
 def _render_date_format(g, node, args) -> str:
-    value = g.sql(args[0])
-    if ttype(args[0]).base == "timestamp_tz":
-        value = f"timezone('UTC', {value})"
+    value = tf.wall_time(g, args[0])
     if "%f" in re.findall(r"%.", args[1].name):  # Trino prints the milliseconds as six digits ('.111000')
         value = f"date_trunc('millisecond', {value})"
     return f"strftime({value}, {tf.string(mysql_to_strftime(args[1].name))})"
@@ -2752,10 +2774,25 @@ def _iso_parts(value: str, pattern: str) -> tuple[str, str, str]:
 
 
 def _from_unixtime(call: Call) -> TType:
-    if len(call.args) != 1:
-        call.fail("from_unixtime with a time zone is not supported in lakegate", "NOT_SUPPORTED")
-    need(call, "number")
-    return tt.timestamp(3, with_time_zone=True)
+    """from_unixtime(x) is in the session zone, from_unixtime(x, zone) in the zone a literal names,
+    from_unixtime(x, hours, minutes) at that offset (literals: DateTimeFunctions.fromUnixTime)."""
+    if len(call.args) == 3:
+        need(call, "number", "integral", "integral")
+        hours, minutes = literal_int(call, 1), literal_int(call, 2)
+        if hours is None or minutes is None:
+            call.fail("unsupported in lakegate: from_unixtime with an offset that is not literal", "NOT_SUPPORTED")
+        total = hours * 60 + minutes
+        if abs(total) > 14 * 60:
+            call.fail(f"Invalid offset minutes {total}", "INVALID_FUNCTION_ARGUMENT")
+        sign = "-" if total < 0 else "+"
+        return tt.timestamp(3, True, zones.canonical(f"{sign}{abs(total) // 60:02d}:{abs(total) % 60:02d}"))
+    need(call, "number", "string", optional=1)
+    if len(call.args) == 1:
+        return tt.timestamp(3, True, call.analyzer.time_zone)
+    zone = call.literal(1)
+    if zone is None or not zone.is_string:
+        call.fail("unsupported in lakegate: from_unixtime with a zone that is not a literal", "NOT_SUPPORTED")
+    return tt.timestamp(3, True, call.analyzer.zone_literal(zone))
 
 
 def _render_from_unixtime(g, node, args) -> str:
@@ -2771,7 +2808,8 @@ def _to_unixtime(call: Call) -> TType:
 
 
 def _render_to_unixtime(g, node, args) -> str:
-    return f"epoch({g.sql(args[0])})"
+    """A timestamp is an instant in the session zone (Trino coerces it to timestamp with time zone)."""
+    return f"epoch({g.coerce(args[0], tt.timestamp(6, True))})"
 
 
 def _field(call: Call) -> TType:
@@ -2804,9 +2842,7 @@ _FIELD_OF = {
 
 
 def _render_field(g, node, args) -> str:
-    value = g.sql(args[0])
-    if ttype(args[0]).base == "timestamp_tz":
-        value = f"timezone('UTC', {value})"
+    value = tf.wall_time(g, args[0])
     name = node.name.lower()
     part = _FIELD_OF[name]
     if name == "millisecond":
@@ -2840,7 +2876,7 @@ register(
     "from_unixtime(unixtime) -> timestamp(3) with time zone",
     _from_unixtime,
     _render_from_unixtime,
-    notes="In the session time zone, which is UTC in lakegate.",
+    notes="from_unixtime(x) is in the session time zone; from_unixtime(x, zone) and (x, hours, minutes) take literals.",
 )
 
 
@@ -2885,12 +2921,90 @@ register(
     "now",
     "datetime",
     "now() -> timestamp(3) with time zone",
-    fixed(tt.timestamp(3, True)),
+    lambda c: fixed(tt.timestamp(3, True, c.analyzer.time_zone))(c),
     lambda g, node, args: "date_trunc('millisecond', current_timestamp)",
 )
 register(
-    "current_timezone", "datetime", "current_timezone() -> varchar", fixed(tt.VARCHAR), lambda g, node, args: "'UTC'"
+    "current_timezone",
+    "datetime",
+    "current_timezone() -> varchar",
+    fixed(tt.VARCHAR),
+    lambda g, node, args: tf.string(g.time_zone),
 )
+
+
+def _zone_argument(call: Call, source: str) -> TType:
+    """at_timezone(timestamp with time zone, zone) and with_timezone(timestamp, zone): a literal zone."""
+    types = need(call, source, "string")
+    zone = call.literal(1)
+    if zone is None or not zone.is_string:
+        call.fail(f"unsupported in lakegate: {call.name} with a zone that is not a literal", "NOT_SUPPORTED")
+    return tt.timestamp(types[0].args[0] if types[0].args else 3, True, call.analyzer.zone_literal(zone))
+
+
+register(
+    "at_timezone",
+    "datetime",
+    "at_timezone(timestamp(p) with time zone, zone) -> timestamp(p) with time zone",
+    lambda c: _zone_argument(c, "instant"),
+    lambda g, node, args: g.coerce(args[0], ttype(node)),
+    notes="The same instant in another zone (a timestamp is read in the session zone); the zone must be a literal.",
+)
+register(
+    "with_timezone",
+    "datetime",
+    "with_timezone(timestamp(p), zone) -> timestamp(p) with time zone",
+    lambda c: _zone_argument(c, "timestamp"),
+    lambda g, node, args: zones.instant(f"CAST({g.sql(args[0])} AS TIMESTAMP)", tt.zone_of(ttype(node))),
+    notes="The wall time read in the zone; the zone must be a literal.",
+)
+
+
+def _to_iso8601(call: Call) -> TType:
+    """varchar(16) of a date; of a timestamp(p) varchar(1 + 6 + 15 + min(p, 1) + p), and 6 more with
+    a time zone (Trino's RESULT_LENGTH of ToIso8601)."""
+    (t,) = need(call, "temporal")
+    if t.base == "date" or t.is_unknown:
+        return tt.varchar(16)
+    precision = t.args[0]
+    return tt.varchar(1 + 6 + 15 + min(precision, 1) + precision + (6 if t.base == "timestamp_tz" else 0))
+
+
+def _render_to_iso8601(g, node, args) -> str:
+    """Dates as uuuu-MM-dd; timestamps as uuuu-MM-dd'T'HH:mm:ss with p fraction digits; of a timestamp
+    with time zone the wall time in the value's zone and the zone's offset then (`Z` for zero;
+    io.trino.operator.scalar.timestamptz.ToIso8601)."""
+    t = ttype(args[0])
+    if t.base in ("date", "unknown"):
+        return f"strftime(CAST({g.sql(args[0])} AS DATE), '%Y-%m-%d')"
+    if t.base == "timestamp":
+        return f"replace({tf.timestamp_text(g.sql(args[0]), t.args[0])}, ' ', 'T')"
+    sql, zone = g.sql(args[0]), tt.zone_of(t)
+    text = f"replace({tf.timestamp_text(zones.local(sql, zone), t.args[0])}, ' ', 'T')"
+    minutes = f"(CAST(epoch({zones.local(sql, zone)}) - epoch({zones.local(sql, zones.UTC)}) AS BIGINT) // 60)"
+    offset = (
+        f"CASE WHEN {minutes} = 0 THEN 'Z' ELSE CASE WHEN {minutes} < 0 THEN '-' ELSE '+' END || "
+        f"lpad(CAST(abs({minutes}) // 60 AS VARCHAR), 2, '0') || ':' || lpad(CAST(abs({minutes}) % 60 AS VARCHAR), 2, '0') END"
+    )
+    return f"({text} || {offset})"
+
+
+register(
+    "to_iso8601",
+    "datetime",
+    "to_iso8601(x) -> varchar",
+    _to_iso8601,
+    _render_to_iso8601,
+    notes="Of a timestamp with time zone, with its zone's offset (Z for zero).",
+)
+for _part in ("hour", "minute"):
+    register(
+        f"timezone_{_part}",
+        "datetime",
+        f"timezone_{_part}(timestamp with time zone) -> bigint",
+        fixed(tt.BIGINT, "instant"),
+        lambda g, node, args, part=_part: tf.zone_offset(g, args[0], part),
+    )
 register(
     "date",
     "datetime",
@@ -2909,7 +3023,7 @@ register(
     "datetime",
     "last_day_of_month(x) -> date",
     fixed(tt.DATE, "temporal"),
-    lambda g, node, args: f"last_day({g.sql(args[0])})",
+    lambda g, node, args: f"last_day({tf.wall_time(g, args[0])})",
 )
 for _name in _FIELD_OF:
     register(_name, "datetime", f"{_name}(x) -> bigint", _field, _render_field)
@@ -2991,11 +3105,7 @@ REJECTED: dict[str, str] = {
     "json_object": "SQL/JSON functions are not translated",
     "json_array": "SQL/JSON functions are not translated",
     "parse_datetime": "Joda-Time patterns are not translated; use date_parse",
-    "with_timezone": "time zones other than UTC are not supported",
-    "at_timezone": "time zones other than UTC are not supported",
     "from_unixtime_nanos": "DuckDB has no nanosecond timestamp with time zone",
-    "timezone_hour": "time zones other than UTC are not supported",
-    "timezone_minute": "time zones other than UTC are not supported",
     "sha512": "DuckDB has no SHA-512",
     "xxhash64": "DuckDB has no xxHash64 (its hash() is another function)",
     "murmur3": "DuckDB has no 128-bit MurmurHash3",

@@ -14,6 +14,7 @@ from collections.abc import Callable
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
+from lakegate.dialect import zones
 from lakegate.dialect.analyze import Call, ttype
 from lakegate.dialect.functions import (
     MAX_PAD_LENGTH,
@@ -45,7 +46,9 @@ def overload(name: str, accepts: Callable[[Call], TType | None], render: Render,
     def render_either(g, node, args) -> str:
         return node.meta.get("overload", base.render)(g, node, args)
 
-    register(name, base.family, f"{base.signature}; {signature}", infer, render_either, base.kind, base.notes)
+    register(
+        name, base.family, f"{base.signature}; {signature}", infer, render_either, base.kind, base.notes, replaces=True
+    )
 
 
 def _binary_args(call: Call, count: int) -> bool:
@@ -978,26 +981,6 @@ def _render_parse_duration(g, node, args) -> str:
     )
 
 
-def _to_iso8601(call: Call) -> TType:
-    (t,) = need(call, "temporal")
-    if t.base == "date" or t.is_unknown:
-        return tt.varchar(16)
-    precision = t.args[0]
-    return tt.varchar(1 + 6 + 15 + min(precision, 1) + precision + (6 if t.base == "timestamp_tz" else 0))
-
-
-def _render_to_iso8601(g, node, args) -> str:
-    """Dates as uuuu-MM-dd; timestamps as uuuu-MM-dd'T'HH:mm:ss with p fraction digits, and the
-    offset of a timestamp with time zone, 'Z' for UTC (lakegate's only zone)."""
-    value, t = g.sql(args[0]), ttype(args[0])
-    if t.base in ("date", "unknown"):
-        return f"strftime(CAST({value} AS DATE), '%Y-%m-%d')"
-    if t.base == "timestamp_tz":
-        utc = f"timezone('UTC', {value})"
-        return f"replace({tf.timestamp_text(utc, t.args[0])}, ' ', 'T') || 'Z'"
-    return f"replace({tf.timestamp_text(value, t.args[0])}, ' ', 'T')"
-
-
 #: The ISO 8601 date-times lakegate reads: a calendar date, optionally 'T' and hours[:minutes[:seconds
 #: [.fraction]]], and no offset (the session zone, UTC) or 'Z'.
 _ISO_DATETIME = (
@@ -1005,10 +988,27 @@ _ISO_DATETIME = (
 )
 
 
+def _from_iso8601_timestamp(call: Call) -> TType:
+    """timestamp(3) with time zone: UTC for a text ending in Z, else the session zone (Joda reads a
+    text without offset in it). The zone must be known from the query: a text that is not a literal
+    is answered in a UTC session only (there both forms give UTC)."""
+    need(call, "string")
+    text, zone = literal_str(call, 0), call.analyzer.time_zone
+    if text is not None and text.rstrip().endswith("Z"):
+        zone = zones.UTC
+    elif text is None and zone != zones.UTC:
+        call.fail(
+            "unsupported in lakegate: from_iso8601_timestamp of a value that is not a literal outside a UTC "
+            "session (a value with Z is in UTC, one without an offset in the session zone)",
+            "NOT_SUPPORTED",
+        )
+    return tt.timestamp(3, True, zone)
+
+
 def _render_from_iso8601_timestamp(g, node, args) -> str:
     """DateTimeFunctions.fromISO8601Timestamp (Joda's ISODateTimeFormat.dateTimeParser) for the
     common forms; other forms and offsets other than Z are refused: Trino keeps the offset as the
-    value's zone, which lakegate's UTC-only values cannot carry."""
+    value's zone, which lakegate's values cannot carry unless the query names it."""
     text = g.sql(args[0])
     pattern = tf.string(_ISO_DATETIME)
 
@@ -1019,7 +1019,7 @@ def _render_from_iso8601_timestamp(g, node, args) -> str:
     value = f"make_timestamp({part(1)}, {part(2)}, {part(3)}, {part(4)}, {part(5)}, {part(6)} + {millis} / 1000.0)"
     unsupported = g.fail(
         f"'from_iso8601_timestamp of ' || {text} || ' is not supported in lakegate "
-        "(only yyyy-MM-dd[THH[:mm[:ss[.SSS]]]] in UTC, with Z or no offset)'",
+        "(only yyyy-MM-dd[THH[:mm[:ss[.SSS]]]] with Z or no offset)'",
         "NOT_SUPPORTED",
     )
     out_of_range = g.fail(f"'Cannot parse \"' || {text} || '\": a field value is out of range'")
@@ -1030,7 +1030,7 @@ def _render_from_iso8601_timestamp(g, node, args) -> str:
     return (
         f"CASE WHEN {text} IS NULL THEN NULL WHEN NOT regexp_full_match({text}, {pattern}) THEN {unsupported} "
         f"WHEN NOT ({part(2)} BETWEEN 1 AND 12) OR NOT ({valid}) THEN {out_of_range} "
-        f"ELSE timezone('UTC', {value}) END"
+        f"ELSE {zones.instant(value, tt.zone_of(ttype(node)))} END"
     )
 
 
@@ -1055,14 +1055,13 @@ register(
     fixed(tt.INTERVAL_DS, "string"),
     _render_parse_duration,
 )
-register("to_iso8601", "datetime", "to_iso8601(x) -> varchar", _to_iso8601, _render_to_iso8601)
 register(
     "from_iso8601_timestamp",
     "datetime",
     "from_iso8601_timestamp(string) -> timestamp(3) with time zone",
-    fixed(tt.timestamp(3, True), "string"),
+    _from_iso8601_timestamp,
     _render_from_iso8601_timestamp,
-    notes="yyyy-MM-dd[THH[:mm[:ss[.SSS]]]] with Z or no offset (UTC); other forms and offsets are refused.",
+    notes="yyyy-MM-dd[THH[:mm[:ss[.SSS]]]] with Z (UTC) or no offset (the session zone); other offsets are refused.",
 )
 
 

@@ -46,8 +46,13 @@ def register(
     kind: str = "scalar",
     notes: str = "",
     aliases: tuple[str, ...] = (),
+    replaces: bool = False,
 ) -> None:
+    """Register a function; a name already registered is an error unless `replaces` (an overload
+    that extends the registered rule), so two modules never silently define one function."""
     for alias in (name, *aliases):
+        if (alias in SUPPORTED) != replaces:
+            raise ValueError(f"function {alias!r} is {'not yet' if replaces else 'already'} registered")
         SUPPORTED[alias] = FunctionSpec(alias, family, signature, kind, infer, render, notes)
 
 

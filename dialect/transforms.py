@@ -13,7 +13,7 @@ from __future__ import annotations
 from sqlglot import exp
 from sqlglot.generators.duckdb import DuckDBGenerator
 
-from lakegate.dialect import registry
+from lakegate.dialect import registry, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import FloorMicros, ttype
 from lakegate.dialect.errors import DialectError
@@ -53,11 +53,17 @@ def ten(power: int, scale: int = 0) -> str:
 MAX_SQL_CHARS = 1_000_000
 
 
+def _inside(t: TType, *bases: str) -> bool:
+    """Whether an array, map or row type holds values of one of these base types."""
+    return any(inner.base in bases for inner in tt.inner_types(t))
+
+
 class Writer(DuckDBGenerator):
     """Writes the analyzed Trino tree as DuckDB SQL."""
 
-    def __init__(self, **kwargs):
+    def __init__(self, time_zone: str = "UTC", **kwargs):
         super().__init__(identify=True, comments=False, **kwargs)
+        self.time_zone = time_zone  # the session zone
         self.in_try = 0
         self._written: dict[tuple, tuple[exp.Expression, str]] = {}
 
@@ -93,6 +99,13 @@ class Writer(DuckDBGenerator):
             return sql
         if source.is_unknown:
             return cast("NULL", target)
+        if target.base == "timestamp_tz" and source.base in ("timestamp", "date"):  # in the session zone
+            return zones.instant(f"CAST({sql} AS TIMESTAMP)", self.time_zone)
+        if self.time_zone != zones.UTC and _inside(target, "timestamp_tz") and _inside(source, "date", "timestamp"):
+            raise DialectError(  # DuckDB would read nested dates and timestamps in UTC
+                f"unsupported in lakegate: {source} coerced to {target} in the session zone {self.time_zone}",
+                error_name="NOT_SUPPORTED",
+            )
         return cast(sql, target)
 
     def agg(self, node: exp.Expression, name: str, args: list[str]) -> str:
@@ -567,14 +580,24 @@ def array_constructor(g: Writer, node: exp.Array) -> str:
 # --- casts ---------------------------------------------------------------------------------------
 @transform(exp.Cast)
 def trino_cast(g: Writer, node: exp.Cast) -> str:
-    return cast_value(g, g.sql(node.this), node.meta["from"], ttype(node))
+    return cast_value(g, *cast_operand(g, node), ttype(node))
+
+
+def cast_operand(g: Writer, node: exp.Cast) -> tuple[str, TType]:
+    """The operand of a cast as SQL and its type; a text literal cast to timestamp with time zone as
+    its wall time (the zone it names is the target's: analyze._cast_zone)."""
+    local = node.meta.get("local")
+    if local is None:
+        return g.sql(node.this), node.meta["from"]
+    wall = tt.timestamp(ttype(node).args[0])
+    return parse_varchar(g, string(local), wall), wall
 
 
 @transform(exp.TryCast)
 def trino_try_cast(g: Writer, node: exp.TryCast) -> str:
     g.in_try += 1
     try:
-        sql = cast_value(g, g.sql(node.this), node.meta["from"], ttype(node))
+        sql = cast_value(g, *cast_operand(g, node), ttype(node))
     finally:
         g.in_try -= 1
     return try_wrap(sql)
@@ -662,14 +685,14 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
             return as_nanoseconds(g, sql)
         return cast(sql, target)
     if target.base == "timestamp" and source.base == "timestamp_tz":
-        return cast(f"timezone('UTC', {sql})", target)
+        return cast(zones.local(sql, tt.zone_of(source)), target)
     if target.base == "timestamp_tz" and source.base in ("timestamp", "date"):
         sql = zoned_precision(sql, source, target.args[0])
-        return f"timezone('UTC', CAST({sql} AS TIMESTAMP))"
+        return zones.instant(f"CAST({sql} AS TIMESTAMP)", tt.zone_of(target))
     if target.base == "date" and source.base == "timestamp" and source.args[0] > 6:
         return f"CAST({floor_micros(sql)} AS DATE)"  # DuckDB would round to the nearest microsecond
     if target.base == "date" and source.base == "timestamp_tz":
-        return f"CAST(timezone('UTC', {sql}) AS DATE)"
+        return f"CAST({zones.local(sql, tt.zone_of(source))} AS DATE)"
     if target.base == "array":
         inner = cast_value(g, '"_e"', source.element, target.element)
         if inner == cast('"_e"', target.element):
@@ -841,7 +864,8 @@ def varchar_of(g: Writer, sql: str, source: TType) -> str:
     if source.base == "timestamp":
         return timestamp_text(sql, source.args[0])
     if source.base == "timestamp_tz":
-        return timestamp_text(f"timezone('UTC', {sql})", source.args[0]) + " || ' UTC'"
+        zone = tt.zone_of(source)
+        return timestamp_text(zones.local(sql, zone), source.args[0]) + f" || {string(' ' + zone)}"
     return f"CAST({sql} AS VARCHAR)"
 
 
@@ -904,12 +928,14 @@ def current_timestamp_millis(g: Writer, node: exp.Expression) -> str:
 
 @transform(exp.Localtimestamp)
 def localtimestamp_millis(g: Writer, node: exp.Expression) -> str:
-    return "date_trunc('millisecond', CAST(timezone('UTC', current_timestamp) AS TIMESTAMP))"
+    """The wall time now in the session zone."""
+    return f"date_trunc('millisecond', {zones.local('current_timestamp', g.time_zone)})"
 
 
 @transform(exp.CurrentDate)
-def current_date_utc(g: Writer, node: exp.Expression) -> str:
-    return "CAST(timezone('UTC', current_timestamp) AS DATE)"
+def current_date_in_zone(g: Writer, node: exp.Expression) -> str:
+    """Today in the session zone."""
+    return f"CAST({zones.local('current_timestamp', g.time_zone)} AS DATE)"
 
 
 _EXTRACT = {
@@ -929,9 +955,9 @@ def extract_field(g: Writer, node: exp.Extract) -> str:
     """EXTRACT with Trino's field meanings (DAY_OF_WEEK is ISO: Monday = 1)."""
     unit = node.this.name.upper()
     value = node.expression
-    sql = g.sql(value)
-    if ttype(value).base == "timestamp_tz":
-        sql = f"timezone('UTC', {sql})"
+    if unit in ("TIMEZONE_HOUR", "TIMEZONE_MINUTE"):
+        return zone_offset(g, value, unit.split("_")[1].lower())
+    sql = wall_time(g, value)
     return f"CAST(date_part({string(_EXTRACT.get(unit, unit.lower()))}, {sql}) AS BIGINT)"
 
 
@@ -942,11 +968,30 @@ def interval_literal(g: Writer, node: exp.Interval) -> str:
 
 @transform(exp.AtTimeZone)
 def at_time_zone(g: Writer, node: exp.AtTimeZone) -> str:
-    t = ttype(node.this)
-    value = g.sql(node.this)
-    if t.base == "timestamp":
-        value = f"timezone('UTC', {value})"
-    return value
+    """The same instant, shown in another zone (the zone is the type's); a timestamp is first read in the
+    session zone."""
+    return g.coerce(node.this, ttype(node))
+
+
+def zone_offset(g: Writer, node: exp.Expression, part: str) -> str:
+    """The hour or minute part of the UTC offset of a timestamp with time zone's zone at its instant
+    (Trino's timezone_hour / timezone_minute: -5 and 0 for New York in winter, 5 and 45 for Kathmandu);
+    a timestamp is read in the session zone."""
+    t = ttype(node)
+    zone = tt.zone_of(t) if t.base == "timestamp_tz" else g.time_zone
+    sql = g.coerce(node, tt.timestamp(t.args[0] if t.args else 3, True, zone))
+    minutes = f"CAST(epoch({zones.local(sql, zone)}) - epoch({zones.local(sql, zones.UTC)}) AS BIGINT) // 60"
+    if part == "hour":
+        return f"CAST(trunc(({minutes}) / 60) AS BIGINT)"
+    return f"CAST(({minutes}) - trunc(({minutes}) / 60) * 60 AS BIGINT)"
+
+
+def wall_time(g: Writer, node: exp.Expression) -> str:
+    """SQL of a date or timestamp value as DuckDB computes its fields: a timestamp with time zone as its
+    wall time in its zone (analysis refused one of no single zone)."""
+    sql = g.sql(node)
+    t = ttype(node)
+    return zones.local(sql, tt.zone_of(t)) if t.base == "timestamp_tz" else sql
 
 
 @transform(exp.Substring)

@@ -43,6 +43,7 @@ class Translation:
     duckdb_sql: str  # one DuckDB statement
     trino_sql: str  # the scoped, parameter-bound query in Trino dialect
     columns: tuple[tuple[str, str], ...]  # output (name, Trino type name)
+    zones: tuple[str | None, ...] = ()  # per output column, the zone its timestamp with time zone values carry
 
 
 class _Parser(Trino.Parser):
@@ -124,21 +125,23 @@ def translate(
     scope: Scope | None = None,
     params: Sequence[object] = (),
     schema_version: object = None,
+    time_zone: str = "UTC",
 ) -> Translation:
     """Translate one Trino query over `schema` (table -> column -> Trino type name) to DuckDB.
 
-    `scope` restricts every table to a batch or job, `params` bind the `?` placeholders, and
+    `scope` restricts every table to a batch or job, `params` bind the `?` placeholders, `time_zone`
+    is the session zone (a canonical zone: dialect/zones.py), and
     `schema_version` (any hashable) identifies the schema for the cache; without it the schema's
     content is hashed. Raises DialectError with Trino's error name and the position in `sql`.
     """
     schema_key = schema_version if schema_version is not None else _schema_key(schema)
-    key = (sql, schema_key, _hashable(scope), _params_key(params))
+    key = (sql, schema_key, _hashable(scope), _params_key(params), time_zone)
     with _lock:
         hit = _cache.get(key)
         if hit is not None:
             _cache.move_to_end(key)
             return hit
-    result = _translate(sql, schema, schema_key, scope, params)
+    result = _translate(sql, schema, schema_key, scope, params, time_zone)
     with _lock:
         _cache[key] = result
         if len(_cache) > CACHE_SIZE:
@@ -183,7 +186,7 @@ def _typed_schema(schema: Mapping[str, Mapping[str, str]], key: object) -> dict[
         cols = []
         for name, type_name in columns.items():
             try:
-                cols.append((name, tt.parse_type(type_name)))
+                cols.append((name, tt.in_zone(tt.parse_type(type_name), "UTC")))  # instants shown in UTC
             except ValueError:
                 raise DialectError(
                     f"column '{name}' of table '{table}' has an unknown type '{type_name}'",
@@ -296,6 +299,7 @@ def _translate(
     schema_key: object,
     scope: Scope | None,
     params: Sequence[object],
+    time_zone: str,
 ) -> Translation:
     sql = guard.check_text(sql)
     tree = parse(sql)
@@ -331,17 +335,18 @@ def _translate(
     # the text as given is the Trino SQL unless a rewrite changed the tree (regenerating costs ~1 ms)
     trino_sql = tree.sql(dialect=LakegateTrino) if rewritten else sql.strip()
     try:
-        outputs = analyze(tree, _typed_schema(schema, schema_key), sql)
+        outputs = analyze(tree, _typed_schema(schema, schema_key), sql, time_zone)
     except RecursionError:
         raise DialectError(
             "unsupported in lakegate: the query is nested too deeply", error_name="NOT_SUPPORTED"
         ) from None
     finalize(tree, outputs)
     try:
-        duckdb_sql = Writer().generate(tree, copy=False)
+        duckdb_sql = Writer(time_zone=time_zone).generate(tree, copy=False)
     except RecursionError:
         raise DialectError(
             "unsupported in lakegate: the query is nested too deeply", error_name="NOT_SUPPORTED"
         ) from None
     columns = tuple((name if name is not None else f"_col{i}", str(t)) for i, (name, _, t) in enumerate(outputs))
-    return Translation(duckdb_sql=duckdb_sql, trino_sql=trino_sql, columns=columns)
+    zones = tuple(tt.zone_of(t) if t.base == "timestamp_tz" else None for _, _, t in outputs)
+    return Translation(duckdb_sql=duckdb_sql, trino_sql=trino_sql, columns=columns, zones=zones)

@@ -24,7 +24,8 @@ _INTEGRAL_ORDER = ("tinyint", "smallint", "integer", "bigint")
 class TType:
     """A Trino type: `base` is one of the Trino base names (`timestamp_tz` for `timestamp(p) with
     time zone`, `interval_ds` / `interval_ym` for the intervals); `args` holds its parameters:
-    decimal (p, s), varchar (n,) or () when unbounded, timestamp/time (p,), array (T,),
+    decimal (p, s), varchar (n,) or () when unbounded, timestamp/time (p,), timestamp_tz (p, zone)
+    with the zone all its values carry (None when they may carry different ones: `zone_of`), array (T,),
     map (K, V), row ((name or None, T), ...)."""
 
     base: str
@@ -128,8 +129,39 @@ def map_of(key: TType, value: TType) -> TType:
     return TType("map", (key, value))
 
 
-def timestamp(precision: int = 3, with_time_zone: bool = False) -> TType:
-    return TType("timestamp_tz" if with_time_zone else "timestamp", (precision,))
+def timestamp(precision: int = 3, with_time_zone: bool = False, zone: str | None = None) -> TType:
+    """timestamp(p), or timestamp(p) with time zone whose values all carry `zone` (dialect/zones.py)."""
+    return TType("timestamp_tz", (precision, zone)) if with_time_zone else TType("timestamp", (precision,))
+
+
+def zone_of(t: TType) -> str | None:
+    """The zone every value of a timestamp with time zone type carries (None: not one zone)."""
+    return t.args[1] if len(t.args) > 1 else None
+
+
+def inner_types(t: TType):
+    """The types inside an array, map or row type, at any depth."""
+    if t.base not in ("array", "map", "row"):
+        return
+    for item in t.args if t.base != "row" else (f for _, f in t.args):
+        yield item
+        yield from inner_types(item)
+
+
+def in_zone(t: TType, zone: str) -> TType:
+    """`t` with every timestamp with time zone in it, nested ones too, carrying `zone`."""
+    if t.base == "timestamp_tz":
+        return timestamp(t.args[0], True, zone)
+    if t.base in ("array", "map"):
+        return TType(t.base, tuple(in_zone(a, zone) for a in t.args))
+    if t.base == "row":
+        return row([(name, in_zone(f, zone)) for name, f in t.args])
+    return t
+
+
+def with_precision(t: TType, precision: int) -> TType:
+    """A timestamp type at another precision (a zone kept)."""
+    return TType(t.base, (precision, *t.args[1:]))
 
 
 def varchar_length(t: TType) -> int | None:
@@ -413,14 +445,16 @@ def common_super_type(a: TType, b: TType) -> TType | None:
     if a.base == "varchar" and b.base == "varchar":
         la, lb = varchar_length(a), varchar_length(b)
         return VARCHAR if la is None or lb is None else varchar(max(la, lb))
-    if a.base in ("timestamp", "timestamp_tz") and a.base == b.base:
+    if a.base == b.base == "timestamp":
         return TType(a.base, (max(a.args[0], b.args[0]),))
-    if {a.base, b.base} == {"timestamp", "timestamp_tz"}:
+    if a.base == b.base == "timestamp_tz":  # values of two zones: no one zone
+        return timestamp(max(a.args[0], b.args[0]), True, zone_of(a) if zone_of(a) == zone_of(b) else None)
+    if {a.base, b.base} == {"timestamp", "timestamp_tz"}:  # the timestamps take the session zone
         return timestamp(max(a.args[0], b.args[0]), with_time_zone=True)
     if {a.base, b.base} == {"date", "timestamp"}:
         return a if a.base == "timestamp" else b
-    if {a.base, b.base} == {"date", "timestamp_tz"}:
-        return a if a.base == "timestamp_tz" else b
+    if {a.base, b.base} == {"date", "timestamp_tz"}:  # the dates take the session zone
+        return timestamp((a if a.base == "timestamp_tz" else b).args[0], with_time_zone=True)
     if a.base == b.base == "array":
         inner = common_super_type(a.element, b.element)
         return None if inner is None else array(inner)

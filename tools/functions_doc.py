@@ -29,7 +29,20 @@ REPO = Path(__file__).resolve().parent.parent
 CASES_DIR = REPO / "tests" / "dialect" / "cases"
 OUTPUT = REPO / "docs" / "functions.md"
 
-_CASE_KEYS = {"name", "sql", "columns", "rows", "error", "message", "line", "column", "ordered", "tolerance", "note"}
+_CASE_KEYS = {
+    "name",
+    "sql",
+    "columns",
+    "rows",
+    "error",
+    "message",
+    "line",
+    "column",
+    "ordered",
+    "tolerance",
+    "note",
+    "session",
+}
 _FILE_KEYS = {"family", "title", "description", "cases"}
 
 
@@ -53,6 +66,7 @@ class Case:
     ordered: bool | None = None  # None: ordered iff a top-level ORDER BY
     tolerance: float | None = None
     note: str | None = None
+    time_zone: str = "UTC"  # the session zone (`session: {time_zone: ...}`)
 
     @property
     def id(self) -> str:
@@ -104,6 +118,9 @@ def _case(family: str, raw: dict, where: str) -> Case:
         for row in rows:
             if len(row) != len(columns):
                 raise CaseFileError(f"{where}: row {list(row)} does not have {len(columns)} values")
+    session = raw.get("session") or {}
+    if not isinstance(session, dict) or set(session) - {"time_zone"}:
+        raise CaseFileError(f"{where}: session takes only time_zone")
     errors = raw.get("error", ())
     errors = (errors,) if isinstance(errors, str) else tuple(errors)
     return Case(
@@ -119,6 +136,7 @@ def _case(family: str, raw: dict, where: str) -> Case:
         ordered=raw.get("ordered"),
         tolerance=float(raw["tolerance"]) if "tolerance" in raw else None,
         note=raw.get("note"),
+        time_zone=session.get("time_zone", "UTC"),
     )
 
 
@@ -301,6 +319,8 @@ def _cell(text: str) -> str:
 
 def generate(families: list[Family], supported: dict, rejected: dict[str, str]) -> str:
     """The Markdown of docs/functions.md for these case families and this registry."""
+    from lakegate.dialect import zones  # the zone rules, listed as the dialect applies them
+
     cases = [case for family in families for case in family.cases]
     calls = defaultdict(int)
     operators = defaultdict(int)
@@ -348,6 +368,7 @@ def generate(families: list[Family], supported: dict, rejected: dict[str, str]) 
     ]
     for family in families:
         out.append(f"| {family.name} | {len(family.cases)} | {_cell(family.title)}: {_cell(family.description)} |")
+    out += ["", "## Time zones", "", *(f"- {rule}" for rule in zones.RULES)]
 
     counts = {"supported": 0, "rejected": 0, "not implemented": 0}
     sections = []

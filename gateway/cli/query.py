@@ -9,6 +9,8 @@ import sys
 from pathlib import Path
 from typing import Any, TextIO
 
+import tzlocal
+
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
 from lakegate.gateway.cli.errors import UserError
@@ -44,6 +46,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("--batch", metavar="ID", help="restrict every table to the rows of this batch")
     parser.add_argument("--job", metavar="ID", help="restrict every table to the rows of this job")
+    parser.add_argument(
+        "--time-zone",
+        "--timezone",
+        metavar="ZONE",
+        default=None,
+        help="the session time zone (America/New_York, +05:45, UTC; a negative offset as --time-zone=-08:30); "
+        "default: this machine's zone, as the trino CLI and Python client use",
+    )
     parser.set_defaults(func=query_command)
 
 
@@ -61,9 +71,14 @@ def query_command(args: argparse.Namespace) -> int:
     engine = Engine.open(args.lake)
     try:
         if args.explain:
-            print(engine.backend.translate(sql, branch=args.branch, scope=scope).duckdb_sql)
+            zone = engine.session(time_zone=args.time_zone or tzlocal.get_localzone_name()).zone()
+            print(engine.backend.translate(sql, branch=args.branch, scope=scope, time_zone=zone).duckdb_sql)
             return 0
-        session = engine.session(branch=args.branch if args.lake is not None else None, scope=scope)
+        session = engine.session(
+            branch=args.branch if args.lake is not None else None,
+            scope=scope,
+            time_zone=args.time_zone or tzlocal.get_localzone_name(),
+        )
         result = engine.execute(sql, session)
         {"table": write_table, "json": write_json, "csv": write_csv}[args.format](result, sys.stdout)
     except DialectError as error:

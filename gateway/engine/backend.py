@@ -95,9 +95,16 @@ class Backend(Protocol):
         """Table -> column -> Trino type name of a branch."""
 
     def execute(
-        self, sql: str, *, branch: str, scope: Scope | None = None, params: Sequence[object] = ()
+        self,
+        sql: str,
+        *,
+        branch: str,
+        scope: Scope | None = None,
+        params: Sequence[object] = (),
+        time_zone: str = "UTC",
     ) -> QueryResult:
-        """Start one Trino-dialect query; raises DialectError when it is refused or fails."""
+        """Start one Trino-dialect query in the session zone `time_zone` (canonical: dialect/zones.py);
+        raises DialectError when it is refused or fails."""
 
 
 def _static(columns: list[tuple[str, str]], rows: list[tuple]) -> QueryResult:
@@ -137,6 +144,26 @@ def hide_paths(text: str, *roots: Path | str | None, keep_width: bool = False) -
 
 def _quote_ident(name: str) -> str:
     return '"' + name.replace('"', '""') + '"'
+
+
+def in_zones(
+    produce: Callable[[], Iterable[pa.RecordBatch]], zones: Sequence[str | None]
+) -> Callable[[], Iterable[pa.RecordBatch]]:
+    """`produce` with each timestamp with time zone column in the zone its values carry (`zones`, per
+    column, from the translation): DuckDB gives them in UTC; Arrow keeps the zone in the column type, so
+    the values show and convert (to_pylist) in it."""
+    if all(zone in (None, "UTC") for zone in zones):
+        return produce
+
+    def zoned() -> Iterator[pa.RecordBatch]:
+        for batch in produce():
+            columns = [
+                column if zone in (None, "UTC") else column.cast(pa.timestamp(column.type.unit, zone))
+                for column, zone in zip(batch.columns, zones)
+            ]
+            yield pa.record_batch(columns, names=batch.schema.names)
+
+    return zoned
 
 
 class Run:
@@ -521,28 +548,51 @@ class DuckDBBackend:
     # -- queries --------------------------------------------------------------------------
 
     def translate(
-        self, sql: str, *, branch: str = "main", scope: Scope | None = None, params: Sequence[object] = ()
+        self,
+        sql: str,
+        *,
+        branch: str = "main",
+        scope: Scope | None = None,
+        params: Sequence[object] = (),
+        time_zone: str = "UTC",
     ) -> Translation:
-        """The translation of one query over `branch`'s schema (cached by text, scope, params and schema)."""
-        return self._translate(self._state(branch), sql, scope, params)
+        """The translation of one query over `branch`'s schema (cached by text, scope, params, zone and schema)."""
+        return self._translate(self._state(branch), sql, scope, params, time_zone)
 
     @staticmethod
-    def _translate(state: _Branch, sql: str, scope: Scope | None, params: Sequence[object]) -> Translation:
-        return translate(sql, state.schema, scope=scope, params=params, schema_version=state.version)
+    def _translate(
+        state: _Branch, sql: str, scope: Scope | None, params: Sequence[object], time_zone: str
+    ) -> Translation:
+        return translate(
+            sql, state.schema, scope=scope, params=params, schema_version=state.version, time_zone=time_zone
+        )
 
     def execute(
-        self, sql: str, *, branch: str = "main", scope: Scope | None = None, params: Sequence[object] = ()
+        self,
+        sql: str,
+        *,
+        branch: str = "main",
+        scope: Scope | None = None,
+        params: Sequence[object] = (),
+        time_zone: str = "UTC",
     ) -> QueryResult:
         """Translate and start one Trino-dialect query on `branch`, restricted to `scope`, with
-        `params` bound to its `?`. Raises DialectError (with position) when refused or failing."""
+        `params` bound to its `?`, in the session zone `time_zone`. Raises DialectError (with position)
+        when refused or failing."""
         deadline = time.monotonic() + self.limits.query_timeout
         try:
-            return self._execute(sql, branch, scope, params, deadline)
+            return self._execute(sql, branch, scope, params, deadline, time_zone)
         except DialectError as error:
             raise self._for_client(error) from None
 
     def _execute(
-        self, sql: str | bytes, branch: str, scope: Scope | None, params: Sequence[object], deadline: float
+        self,
+        sql: str | bytes,
+        branch: str,
+        scope: Scope | None,
+        params: Sequence[object],
+        deadline: float,
+        time_zone: str = "UTC",
     ) -> QueryResult:
         if not isinstance(sql, str):
             sql = guard.check_text(sql)  # bytes: decoded (or refused) first
@@ -552,11 +602,11 @@ class DuckDBBackend:
             answer = introspection.answer(guard.check_text(sql), state.schema, schemas=self.branches() or [branch])
             return _static(answer.columns, answer.rows)
         if kind == "explain":
-            translation, analyze = self._explain(guard.check_text(sql), state, scope, params)
+            translation, analyze = self._explain(guard.check_text(sql), state, scope, params, time_zone)
             return self._start(
                 branch, state, translation, deadline, scope, explain="EXPLAIN ANALYZE " if analyze else "EXPLAIN "
             )
-        return self._start(branch, state, self._translate(state, sql, scope, params), deadline, scope)
+        return self._start(branch, state, self._translate(state, sql, scope, params, time_zone), deadline, scope)
 
     def _start(
         self,
@@ -578,8 +628,8 @@ class DuckDBBackend:
         cursor = state.cursor()
         try:
             if explain is None:
-                produce: Callable[[], Iterable[pa.RecordBatch]] = self._rows(
-                    branch, state, cursor, translation.duckdb_sql, scope
+                produce: Callable[[], Iterable[pa.RecordBatch]] = in_zones(
+                    self._rows(branch, state, cursor, translation.duckdb_sql, scope), translation.zones
                 )
                 columns = list(translation.columns)
             else:
@@ -695,14 +745,14 @@ class DuckDBBackend:
         return statements[0]
 
     def _explain(
-        self, sql: str, state: _Branch, scope: Scope | None, params: Sequence[object]
+        self, sql: str, state: _Branch, scope: Scope | None, params: Sequence[object], time_zone: str
     ) -> tuple[Translation, bool]:
         """The translation of the query an EXPLAIN [ANALYZE] explains (errors positioned in the
         whole EXPLAIN text), and whether it is ANALYZE."""
         query, analyze = guard.explained_query(sql)
         start = sql.rfind(query)
         try:
-            return self._translate(state, query, scope, params), analyze
+            return self._translate(state, query, scope, params, time_zone), analyze
         except DialectError as error:
             if error.line is not None and error.column is not None:  # position in the whole EXPLAIN text
                 before = sql[:start]

@@ -49,9 +49,17 @@ class Engine:
         """An engine over the embedded DuckDB backend of `lake` (None: no tables, constant queries only)."""
         return cls(DuckDBBackend(lake, limits=limits), limits=limits, owns_backend=True)
 
-    def session(self, *, user: str = DEFAULT_USER, branch: str | None = None, scope: Scope | None = None) -> Session:
+    def session(
+        self,
+        *,
+        user: str = DEFAULT_USER,
+        branch: str | None = None,
+        scope: Scope | None = None,
+        time_zone: str | None = None,
+    ) -> Session:
         """A session in this engine's catalog, on `branch` (DialectError SCHEMA_NOT_FOUND when the lake
-        has no such branch), restricted to `scope` (its batch and job also shown as session properties)."""
+        has no such branch), restricted to `scope` (its batch and job also shown as session properties), in
+        the zone `time_zone` (None: UTC)."""
         if branch is not None:
             branch = self.metadata.schema_name(self.catalog, branch)
         properties = {
@@ -59,7 +67,14 @@ class Engine:
             for name, value in (("batch_id", scope and scope.batch_id), ("job_id", scope and scope.job_id))
             if value is not None
         }
-        return Session(user=user, catalog=self.catalog, schema=branch, properties=properties, restriction=scope)
+        return Session(
+            user=user,
+            catalog=self.catalog,
+            schema=branch,
+            time_zone=time_zone,
+            properties=properties,
+            restriction=scope,
+        )
 
     def answer(self, sql: str, session: Session) -> Answer:
         """Answer a session statement (USE, SET SESSION, PREPARE, ...: `session.STATEMENTS`)."""

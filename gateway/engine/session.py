@@ -17,7 +17,7 @@ from urllib.parse import quote_plus, unquote_plus
 
 from sqlglot.tokens import TokenType
 
-from lakegate.dialect import guard
+from lakegate.dialect import guard, zones
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
 from lakegate.dialect.statements import Reader
@@ -26,12 +26,14 @@ from lakegate.dialect.statements import Reader
 PROPERTIES = {
     "batch_id": "Narrow every lake table to the rows of this batch",
     "job_id": "Narrow every lake table to the rows of this job",
+    "time_zone_id": "The session time zone, set by SET TIME ZONE (overrides X-Trino-Time-Zone)",
 }
 #: The statements `answer` handles (first words, upper case).
 STATEMENTS = (
     "USE",
     "SET SESSION",
     "RESET SESSION",
+    "SET TIME ZONE",
     "PREPARE",
     "DEALLOCATE PREPARE",
     "START TRANSACTION",
@@ -65,6 +67,15 @@ class Session:
             return self.restriction
         batch_id, job_id = self.properties.get("batch_id"), self.properties.get("job_id")
         return Scope(batch_id, job_id) if batch_id is not None or job_id is not None else None
+
+    def zone(self) -> str:
+        """The session time zone as Trino names it: SET TIME ZONE's, else X-Trino-Time-Zone's, else UTC
+        (DialectError NOT_SUPPORTED, Trino's "Time zone not supported", for a zone Trino does not know)."""
+        name = self.properties.get("time_zone_id") or self.time_zone or zones.UTC
+        try:
+            return zones.canonical(name.strip())
+        except ValueError as error:
+            raise DialectError(str(error), error_name="NOT_SUPPORTED") from None
 
     def prepared_statement(self, name: str) -> str:
         """The SQL of the prepared statement `name` (from X-Trino-Prepared-Statement)."""
@@ -107,42 +118,10 @@ def from_headers(headers: Mapping[str, str], user: str | None = None) -> Session
     )
 
 
-#: Names of the zone UTC (IANA aliases and zero offsets), upper-cased: the one session zone lakegate answers in.
-UTC_NAMES = frozenset(
-    {
-        "UTC",
-        "Z",
-        "UCT",
-        "GMT",
-        "ZULU",
-        "UNIVERSAL",
-        "GREENWICH",
-        "ETC/UTC",
-        "ETC/UCT",
-        "ETC/GMT",
-        "ETC/ZULU",
-        "ETC/UNIVERSAL",
-        "ETC/GREENWICH",
-        "ETC/GMT+0",
-        "ETC/GMT-0",
-        "ETC/GMT0",
-        "GMT0",
-        "+00:00",
-        "-00:00",
-    }
-)
-
-
 def check_properties(session: Session) -> None:
     """Refuse session properties lakegate does not know (as Trino refuses unknown ones), and a session
-    time zone other than UTC (zone-dependent functions and casts are evaluated in UTC)."""
-    if session.time_zone is not None and session.time_zone.strip().upper() not in UTC_NAMES:
-        raise DialectError(
-            f"unsupported in lakegate: session time zone '{session.time_zone}' (X-Trino-Time-Zone); "
-            "lakegate evaluates time zone dependent functions and casts in UTC only: connect with the "
-            "time zone UTC (trino.dbapi.connect(..., timezone='UTC'))",
-            error_name="NOT_SUPPORTED",
-        )
+    time zone Trino does not know."""
+    session.zone()
     for name in session.properties:
         if name not in PROPERTIES:
             raise DialectError(
@@ -217,6 +196,8 @@ def answer(
                 error_name="INVALID_SESSION_PROPERTY",
             )
         return _done("SET SESSION", ("X-Trino-Set-Session", f"{prop}={quote_plus(token.text)}"))
+    if name == "SET TIME ZONE":
+        return _set_time_zone(tokens)
     if name == "RESET SESSION":
         prop = _property(tokens.name())
         tokens.end()
@@ -241,6 +222,26 @@ def answer(
             raise DialectError("No transaction in progress", error_name="NOT_IN_TRANSACTION")
         return _done(name, ("X-Trino-Clear-Transaction-Id", "true"))
     raise DialectError("not a session statement", error_name="NOT_SUPPORTED")
+
+
+def _set_time_zone(tokens: Reader) -> Answer:
+    """SET TIME ZONE LOCAL (back to the client's zone) or SET TIME ZONE 'zone' (a region or an offset);
+    Trino keeps it as the session property time_zone_id (io.trino.execution.SetTimeZoneTask)."""
+    token = tokens.peek()
+    if token is not None and token.text.upper() == "LOCAL":
+        tokens.pos += 1
+        tokens.end()
+        return _done("SET TIME ZONE", ("X-Trino-Clear-Session", "time_zone_id"))
+    if token is None or token.token_type != TokenType.STRING or tokens.pos != len(tokens.tokens) - 1:
+        raise DialectError(
+            "unsupported in lakegate: SET TIME ZONE takes LOCAL or a zone literal ('America/New_York', '-08:00')",
+            error_name="NOT_SUPPORTED",
+        )
+    try:
+        zone = zones.canonical(token.text)
+    except ValueError as error:
+        raise DialectError(str(error), error_name="NOT_SUPPORTED") from None
+    return _done("SET TIME ZONE", ("X-Trino-Set-Session", f"time_zone_id={quote_plus(zone)}"))
 
 
 def _property(parts: list[tuple[str, bool]]) -> str:

@@ -197,7 +197,9 @@ class Planner:
         plan = self._plan(sql, query, offset, session)
         branch = plan.branch if plan.branch is not None or plan.system else self._default_branch(session)
         if branch is not None:
-            return self.backend.execute(plan.sql, branch=branch, scope=session.scope(), params=params)
+            return self.backend.execute(
+                plan.sql, branch=branch, scope=session.scope(), params=params, time_zone=session.zone()
+            )
         if kind == "explain":
             raise DialectError(
                 "unsupported in lakegate: EXPLAIN of a query over system tables",
@@ -205,7 +207,7 @@ class Planner:
                 column=1,
                 error_name="NOT_SUPPORTED",
             )
-        return self.metadata.run(plan.sql, plan.system, params, user=session.user)
+        return self.metadata.run(plan.sql, plan.system, params, user=session.user, time_zone=session.zone())
 
     def _default_branch(self, session: Session) -> str | None:
         """Where a query that reads no table runs: the session's branch, else any branch (None: the

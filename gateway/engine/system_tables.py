@@ -26,7 +26,7 @@ from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError, runtime_error
 from lakegate.dialect.statements import Reader
 from lakegate.dialect.translate import translate
-from lakegate.gateway.engine.backend import BATCH_ROWS, Backend, QueryResult, Run
+from lakegate.gateway.engine.backend import BATCH_ROWS, Backend, QueryResult, Run, in_zones
 from lakegate.gateway.engine.introspection import CATALOG
 from lakegate.gateway.engine.session import PROPERTIES, Answer, Session
 from lakegate.gateway.engine.trino_values import arrow_type
@@ -366,13 +366,18 @@ class Metadata:
     # -- queries over system tables -------------------------------------------------------
 
     def run(
-        self, sql: str, refs: Sequence[TableRef], params: Sequence[object] = (), user: str | None = None
+        self,
+        sql: str,
+        refs: Sequence[TableRef],
+        params: Sequence[object] = (),
+        user: str | None = None,
+        time_zone: str = "UTC",
     ) -> QueryResult:
         """Start one Trino query whose (unqualified) table names are the `refs`' table names, over
-        those system tables as `user` sees them. Raises DialectError; the result streams and can be
-        canceled."""
+        those system tables as `user` sees them, in the session zone `time_zone`. Raises DialectError;
+        the result streams and can be canceled."""
         schema = {ref.table: dict(self.tables(ref.catalog, ref.schema)[ref.table]) for ref in refs}
-        translation = translate(sql, schema, params=params)
+        translation = translate(sql, schema, params=params, time_zone=time_zone)
         with self._lock:
             cursor = self._db.cursor()
         try:
@@ -382,7 +387,7 @@ class Metadata:
         except BaseException as error:
             cursor.close()
             raise runtime_error(str(error)) if isinstance(error, duckdb.Error) else error from None
-        run = Run(cursor, lambda: relation.to_arrow_reader(BATCH_ROWS))
+        run = Run(cursor, in_zones(lambda: relation.to_arrow_reader(BATCH_ROWS), translation.zones))
         return QueryResult(
             columns=list(translation.columns), batches=run, duckdb_sql=translation.duckdb_sql, _cancel=run.cancel
         )

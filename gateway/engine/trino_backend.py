@@ -458,11 +458,22 @@ class TrinoBackend:
         )
 
     def execute(
-        self, sql: str | bytes, *, branch: str = "main", scope: Scope | None = None, params: Sequence[object] = ()
+        self,
+        sql: str | bytes,
+        *,
+        branch: str = "main",
+        scope: Scope | None = None,
+        params: Sequence[object] = (),
+        time_zone: str = "UTC",
     ) -> QueryResult:
         """Send one Trino-dialect query, restricted to `scope` with `params` bound, to the cluster;
         its rows stream back as Arrow batches. Raises DialectError (remote errors as
-        RemoteQueryError, positions in `sql`)."""
+        RemoteQueryError, positions in `sql`); the cluster is read in UTC, so another session zone is refused."""
+        if time_zone != "UTC":
+            raise DialectError(
+                f"unsupported in lakegate: session time zone '{time_zone}' with the Trino backend (it reads in UTC)",
+                error_name="NOT_SUPPORTED",
+            )
         forwarded = self.forward(sql, branch=branch, scope=scope, params=params)
         cursor = self._connection(branch).cursor()
         try:

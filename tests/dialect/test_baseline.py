@@ -64,7 +64,7 @@ def _marked(case: Case):
 @pytest.mark.parametrize("case", [_marked(case) for case in RESULT_CASES])
 def test_no_refusal_where_plain_translation_is_right(case: Case, fixture_lake):
     try:
-        translate(case.sql, fixture_lake.schema)
+        translate(case.sql, fixture_lake.schema, time_zone=case.time_zone)
     except DialectError as e:
         if baseline_is_right(case, fixture_lake):
             pytest.fail(

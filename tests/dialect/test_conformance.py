@@ -19,6 +19,7 @@ import math
 import re
 import uuid
 from decimal import Context, Decimal
+from zoneinfo import ZoneInfo
 
 import duckdb
 import pyarrow as pa
@@ -120,6 +121,27 @@ def normalize_type(text: str) -> str:
 
 
 # --- DuckDB values -> Trino client-protocol JSON encoding --------------------------------------------
+def _zone_name(value: dt.datetime) -> str:
+    """A zoned value's zone as Trino names it: the region, UTC, or the offset as +hh:mm."""
+    key = getattr(value.tzinfo, "key", None)
+    if key is not None and key not in ("UTC", "Etc/UTC"):
+        return key
+    minutes = int(value.utcoffset().total_seconds()) // 60
+    sign = "-" if minutes < 0 else "+"
+    return "UTC" if minutes == 0 else f"{sign}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
+
+
+def in_zone(value, zone: str | None):
+    """A timestamp with time zone DuckDB gave (in UTC) in the zone its column's values carry."""
+    if not isinstance(value, dt.datetime) or zone in (None, "UTC"):
+        return value
+    if zone[0] in "+-":
+        hours, minutes = int(zone[1:3]), int(zone[4:6])
+        sign = -1 if zone[0] == "-" else 1
+        return value.astimezone(dt.timezone(sign * dt.timedelta(hours=hours, minutes=minutes)))
+    return value.astimezone(ZoneInfo(zone))
+
+
 def to_protocol(value, ttype: tuple):
     """Encode a DuckDB Python value as the Trino protocol would for a column of type `ttype`. A value
     of an unexpected Python type is returned unchanged, so that it shows up as a mismatch."""
@@ -153,8 +175,7 @@ def to_protocol(value, ttype: tuple):
         if precision:
             text += "." + f"{value.microsecond:06d}".ljust(precision, "0")[:precision]
         if base == "timestamp_tz":
-            offset = value.utcoffset()
-            text += " UTC" if offset == dt.timedelta(0) else f" {value.tzinfo}"
+            text += " " + _zone_name(value)
         return text
     if base in ("time", "time_tz") and isinstance(value, dt.time):
         precision = args[0] if args else 3
@@ -259,7 +280,7 @@ def _translated(case: Case, translation) -> str:
 
 def _run_result_case(case: Case, translate, rejected: dict, lake) -> None:
     try:
-        translation = translate(case.sql, lake.schema)
+        translation = translate(case.sql, lake.schema, time_zone=case.time_zone)
     except DialectError as e:
         gaps = [
             name
@@ -290,7 +311,8 @@ def _run_result_case(case: Case, translate, rejected: dict, lake) -> None:
         problems.append(f"columns: expected {list(case.columns)}\n         got      {got_columns}")
     if width != len(case.columns):
         problems.append(f"DuckDB returned {width} columns, expected {len(case.columns)}")
-    rows = [[to_protocol(v, t) for v, t in zip(row, expected_types)] for row in raw_rows]
+    zones = translation.zones or (None,) * width
+    rows = [[to_protocol(in_zone(v, z), t) for v, t, z in zip(row, expected_types, zones)] for row in raw_rows]
     expected = [list(row) for row in case.rows]
     if not is_ordered(case):
         rows, expected = sorted(rows, key=_sort_key), sorted(expected, key=_sort_key)
@@ -328,7 +350,7 @@ def _arrow_rows(table: pa.Table) -> list[tuple]:
 def _run_error_case(case: Case, translate, lake) -> None:
     names = " or ".join(case.errors)
     try:
-        translation = translate(case.sql, lake.schema)
+        translation = translate(case.sql, lake.schema, time_zone=case.time_zone)
     except DialectError as e:
         problems = []
         if e.error_name not in case.errors:

@@ -57,9 +57,9 @@ INTROSPECTION = [
 ]
 
 
-def cli_answer(lake, sql: str, capsys) -> str:
+def cli_answer(lake, sql: str, capsys, time_zone: str = "UTC") -> str:
     """What `lakegate query --format json` prints: the JSON document, or the error line."""
-    code = main(["query", "--lake", str(lake), "--format", "json", sql])
+    code = main(["query", "--lake", str(lake), "--format", "json", f"--time-zone={time_zone}", sql])
     out, err = capsys.readouterr()
     if code:
         return err.strip()
@@ -67,13 +67,24 @@ def cli_answer(lake, sql: str, capsys) -> str:
     return _canonical([(c["name"], c["type"]) for c in document["columns"]], document["rows"])
 
 
-def server_answer(server, sql: str) -> str:
+def server_answer(server, sql: str, time_zone: str = "UTC") -> str:
     """The same as `cli_answer`, from the server: its columns and raw values, or its error as the
-    command line would print it."""
+    command line would print it. The session zone is the client's timezone=, or for an offset (which
+    the python client does not take there) SET TIME ZONE."""
+    offset = time_zone[0] in "+-"
     with trino.dbapi.connect(
-        host=server.host, port=server.port, user="tester", catalog="lake", schema="main", legacy_primitive_types=True
+        host=server.host,
+        port=server.port,
+        user="tester",
+        catalog="lake",
+        schema="main",
+        legacy_primitive_types=True,
+        timezone="UTC" if offset else time_zone,
     ) as connection:
         cursor = connection.cursor()
+        if offset:
+            cursor.execute(f"SET TIME ZONE '{time_zone}'")
+            cursor.fetchall()
         try:
             cursor.execute(sql)
             rows = cursor.fetchall()
@@ -102,4 +113,6 @@ CASES = [case for case in load_cases() if case.sql.strip()]
 
 @pytest.mark.parametrize("case", CASES, ids=lambda case: case.id)
 def test_conformance_case_answers_alike(case, server_lake, lake_server, capsys):
-    assert cli_answer(server_lake, case.sql, capsys) == server_answer(lake_server, case.sql)
+    assert cli_answer(server_lake, case.sql, capsys, case.time_zone) == server_answer(
+        lake_server, case.sql, case.time_zone
+    )

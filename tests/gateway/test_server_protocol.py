@@ -337,13 +337,14 @@ def test_use_sets_catalog_and_schema(lake_server):
     assert rows == [[2]]
 
 
-def test_session_time_zone_other_than_utc_is_refused(lake_server):
-    """Zone-dependent functions run in UTC: a UTC session answers, any other zone is refused rather than
-    answered in UTC (Trino: hour(from_unixtime(0)) is 19 in America/New_York)."""
+def test_session_time_zone_is_honoured(lake_server):
+    """X-Trino-Time-Zone is the session zone (Trino: hour(from_unixtime(0)) is 19 in America/New_York);
+    an unknown zone is Trino's NOT_SUPPORTED "Time zone not supported"."""
     sql = "SELECT hour(from_unixtime(0)), current_timezone()"
     assert result(lake_server, sql, {"X-Trino-Time-Zone": "UTC"}) == [[0, "UTC"]]
-    refused = error(lake_server, sql, {"X-Trino-Time-Zone": "America/New_York"})
-    assert refused["errorName"] == "NOT_SUPPORTED" and "America/New_York" in refused["message"]
+    assert result(lake_server, sql, {"X-Trino-Time-Zone": "America/New_York"}) == [[19, "America/New_York"]]
+    refused = error(lake_server, sql, {"X-Trino-Time-Zone": "Mars/Olympus"})
+    assert refused["errorName"] == "NOT_SUPPORTED" and "Time zone not supported: Mars/Olympus" in refused["message"]
 
 
 def test_session_properties_narrow_every_table(lake_server):

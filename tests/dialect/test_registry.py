@@ -1,0 +1,22 @@
+"""The function registry refuses a second definition of a function: when two modules (or two merged
+branches) register the same Trino name, importing the dialect fails instead of one silently winning."""
+
+from __future__ import annotations
+
+import pytest
+
+from lakegate.dialect import registry, translate  # noqa: F401  (translate fills the registry)
+
+
+def test_a_function_registered_twice_is_an_error():
+    spec = registry.SUPPORTED["abs"]
+    with pytest.raises(ValueError, match="'abs' is already registered"):
+        registry.register("abs", spec.family, spec.signature, spec.infer, spec.render)
+    assert registry.SUPPORTED["abs"] is spec
+
+
+def test_an_overload_must_extend_a_registered_function():
+    spec = registry.SUPPORTED["abs"]
+    with pytest.raises(ValueError, match="'no_such_function' is not yet registered"):
+        registry.register("no_such_function", "math", "", spec.infer, spec.render, replaces=True)
+    assert "no_such_function" not in registry.SUPPORTED

@@ -1177,14 +1177,26 @@ def _cast(a: Analyzer, node, scope, env):
             r"[0-9]:[0-9]{2}(:[0-9]{2}([.][0-9]*)?)?\s*([A-Za-z]|[+-][0-9])", text
         ):
             a.unsupported("timestamp literal with a time zone", node)
-    if target.base in ("char", "time", "time_tz", "uuid", "varbinary", "json", "map"):
+    if target.base in ("char", "time", "time_tz", "uuid", "varbinary", "map"):
         a.unsupported(f"cast to {target}", node)
+    if "json" in (source.base, target.base) and source != target:
+        _check_json_cast(a, node, source, target)
     if target.base == "timestamp_tz" and source.base == "varchar":
         _check_utc_text(a, node)
     if not castable(source, target):
         a.fail(f"Cannot cast {source} to {target}", node, "TYPE_MISMATCH")
     node.meta["from"] = source
     return target
+
+
+def _check_json_cast(a: Analyzer, node: exp.Cast, source: TType, target: TType) -> None:
+    """Casts to and from json (JsonUtil.canCastToJson / canCastFromJson): Trino's, less those
+    lakegate does not translate (decimal, date, timestamp, map and row), which are refused."""
+    if target.base == "json":
+        if not tt.castable_to_json(source):
+            a.unsupported(f"CAST({source} AS json)", node)
+    elif not tt.castable_from_json(target):
+        a.unsupported(f"CAST(json AS {target})", node)
 
 
 #: The zone at the end of a timestamp text: a region name or an offset.
@@ -1207,6 +1219,8 @@ def castable(source: TType, target: TType) -> bool:
     """Whether Trino has a CAST from `source` to `target` (the subset lakegate translates)."""
     if source == target or source.is_unknown:
         return True
+    if "json" in (source.base, target.base):
+        return tt.castable_to_json(source) if target.base == "json" else tt.castable_from_json(target)
     scalar = ("boolean", "varchar")
     if source.is_numeric or source.base in scalar:
         if target.is_numeric or target.base in scalar:

@@ -13,6 +13,7 @@ from __future__ import annotations
 from sqlglot import exp
 from sqlglot.generators.duckdb import DuckDBGenerator
 
+from lakegate.dialect import json_values
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import ttype
 from lakegate.dialect.errors import DialectError
@@ -593,6 +594,10 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
         return sql
     if source.is_unknown:
         return cast("NULL", target)
+    if target.base == "json":
+        return json_values.to_json(g, sql, source)
+    if source.base == "json":
+        return json_values.from_json(g, sql, target)
     if target.base == "varchar":
         text = varchar_of(g, sql, source)
         length = tt.varchar_length(target)

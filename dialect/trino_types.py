@@ -333,7 +333,7 @@ _DUCK = {
     "varchar": "VARCHAR",
     "char": "VARCHAR",
     "date": "DATE",
-    "json": "JSON",
+    "json": "VARCHAR",  # the JSON text Trino holds, which DuckDB's JSON type would re-validate
     "varbinary": "BLOB",
     "uuid": "UUID",
     "interval_ds": "INTERVAL",
@@ -493,3 +493,18 @@ def arithmetic_type(op: str, a: TType, b: TType) -> TType | None:
         scale = max(s1, s2)
         return decimal(min(p2 - s2, p1 - s1) + scale, scale)
     return None
+
+
+# --- JSON casts ------------------------------------------------------------------------------
+def castable_from_json(target: TType) -> bool:
+    """The targets lakegate translates from json (JsonUtil.canCastFromJson, less decimal, map, row)."""
+    if target.base == "array":
+        return castable_from_json(target.element)
+    return target.is_integral or target.is_approx or target.base in ("boolean", "varchar", "json")
+
+
+def castable_to_json(source: TType) -> bool:
+    """The sources lakegate writes as JSON (JsonUtil.canCastToJson, less timestamp, date, map, row)."""
+    if source.base == "array":
+        return castable_to_json(source.element)
+    return source.is_numeric or source.base in ("boolean", "varchar", "json", "unknown")

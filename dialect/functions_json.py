@@ -1,0 +1,298 @@
+"""The JSON family (issue 14 family 1): Trino's `json` type, `JSON '...'` literals and the JSON
+functions, registered into functions.SUPPORTED. A json value is held in DuckDB as the exact JSON
+text Trino holds (json_values.py). Facts: trinodb/trino docs/src/main/sphinx/functions/json.md,
+io.trino.operator.scalar.JsonFunctions, JsonExtract, io.trino.util.JsonUtil (4xx: json_parse
+sorts object keys) and their tests TestJsonFunctions, TestJsonExtract.
+"""
+
+from __future__ import annotations
+
+import re
+
+from sqlglot import exp
+
+from lakegate.dialect import json_values as jv
+from lakegate.dialect import transforms as tf
+from lakegate.dialect import trino_types as tt
+from lakegate.dialect.analyze import Call, handles, ttype
+from lakegate.dialect.functions import fixed, literal_str, need, register
+from lakegate.dialect.trino_types import TType
+
+
+def _is_json(call: Call, index: int) -> bool:
+    t = call.types[index]
+    return t is not None and t.base == "json"
+
+
+def _text(g, node: exp.Expression, sql: str) -> str:
+    """The JSON text of a json or varchar argument, NULL where a varchar is not JSON Trino accepts
+    (the text functions answer NULL for invalid JSON)."""
+    return sql if ttype(node).base == "json" else f"CASE WHEN {jv.valid(sql)} THEN {sql} END"
+
+
+# --- JSON literals and json_parse -----------------------------------------------------------------
+def _invalid_json(text: str) -> str:
+    return f"Cannot convert value to JSON: '{text}'"
+
+
+@handles(exp.ParseJSON)
+def _json_literal(a, node, scope, env) -> TType:
+    """JSON '...' is json_parse of the text (JsonUtil.jsonParse), computed at translation."""
+    if not (node.args.get("is_literal") and isinstance(node.this, exp.Literal)):
+        a.unsupported("JSON literal", node)
+    try:
+        node.meta["json"] = jv.canonical(node.this.name)
+    except jv.InvalidJson:
+        a.fail(f"Cannot convert '{node.this.name}' to JSON", node, "INVALID_LITERAL")
+    return tt.JSON
+
+
+@tf.transform(exp.ParseJSON)
+def json_literal(g, node: exp.ParseJSON) -> str:
+    return tf.string(node.meta["json"])
+
+
+#: Consumers of json_parse(non-constant text) whose answer does not depend on the key order or
+#: repeated keys of objects (which Trino's json_parse sorts and folds and DuckDB keeps).
+_ORDER_BLIND = ("json_array_length", "json_array_contains", "is_json_scalar")
+
+
+def _json_parse(call: Call) -> TType:
+    need(call, "string")
+    text = literal_str(call, 0)
+    if text is not None:
+        try:
+            call.node.meta["json"] = jv.canonical(text)
+        except jv.InvalidJson:
+            call.node.meta["json"] = None
+        return tt.JSON
+    parent = call.node.parent
+    cast_target = tt.from_datatype(parent.to) if isinstance(parent, (exp.Cast, exp.TryCast)) else None
+    blind = (
+        isinstance(parent, exp.Anonymous) and parent.name.lower() in _ORDER_BLIND and parent.expressions[0] is call.node
+    ) or (cast_target is not None and "json" not in str(cast_target) and tt.castable_from_json(cast_target))
+    if not blind:
+        call.fail(
+            "unsupported in lakegate: json_parse of a non-constant text whose JSON value is used as a whole "
+            "(Trino sorts object keys; use json_extract_scalar or json_extract on the text itself)",
+            "NOT_SUPPORTED",
+        )
+    return tt.JSON
+
+
+def _render_json_parse(g, node, args) -> str:
+    if "json" in node.meta:
+        text = node.meta["json"]
+        if text is None:
+            return g.fail(tf.string(_invalid_json(args[0].name)))
+        return tf.string(text)
+    value = g.sql(args[0])
+    bad = g.fail(f"'Cannot convert value to JSON: ''' || {value} || ''''")
+    return f"CASE WHEN {jv.valid(value)} THEN {value} WHEN {value} IS NOT NULL THEN {bad} END"
+
+
+register(
+    "json_parse",
+    "json",
+    "json_parse(string) -> json",
+    _json_parse,
+    _render_json_parse,
+    notes="Of a non-constant text only where the value's object key order cannot matter "
+    "(json_array_length, json_array_contains, is_json_scalar, CAST to SQL types).",
+)
+
+
+def _json_format(call: Call) -> TType:
+    if len(call.args) != 1 or call.types[0] is None or call.types[0].base not in ("json", "unknown"):
+        call.mismatch()
+    return tt.VARCHAR
+
+
+register(
+    "json_format",
+    "json",
+    "json_format(json) -> varchar",
+    _json_format,
+    lambda g, node, args: f"CAST({g.sql(args[0])} AS VARCHAR)",
+)
+
+
+# --- JSONPath functions (JsonExtract) --------------------------------------------------------------
+_EXACT_NUMBER_TARGETS = {
+    exp.DataType.Type.TINYINT,
+    exp.DataType.Type.SMALLINT,
+    exp.DataType.Type.INT,
+    exp.DataType.Type.BIGINT,
+    exp.DataType.Type.FLOAT,
+    exp.DataType.Type.DOUBLE,
+}
+
+
+def _render_json_extract_scalar(g, node, args) -> str:
+    """Trino returns a number's text as written; DuckDB re-prints numbers it parsed (2.50 -> 2.5,
+    1e3 -> 1000.0, -0 -> 0). Where that can differ, refuse at run time (also inside try: Trino
+    would answer there, so NULL would be a silently different answer)."""
+    value, path = g.sql(args[0]), g.sql(args[1])
+    kind, text = f"json_type({value}, {path})", f"json_extract_string({value}, {path})"
+    parent = node.parent
+    if isinstance(parent, (exp.Cast, exp.TryCast)) and parent.to.this in _EXACT_NUMBER_TARGETS:
+        # Any spelling of a number casts to the same integer (or the same error) and the same double.
+        return (
+            f"CASE WHEN NOT json_valid({value}) THEN NULL WHEN {kind} IN ('OBJECT', 'ARRAY') THEN NULL ELSE {text} END"
+        )
+    refuse = tf.string(
+        "NOT_SUPPORTED: json_extract_scalar of a non-integer (or negative zero) JSON number "
+        "is not supported: its text as written is not kept"
+    )
+    return (
+        f"CASE WHEN NOT json_valid({value}) THEN NULL WHEN {kind} IN ('OBJECT', 'ARRAY') THEN NULL "
+        f"WHEN {kind} = 'DOUBLE' OR ({kind} = 'BIGINT' AND {text} = '0' AND contains({value}, '-0')) "
+        f"THEN error({refuse}) ELSE {text} END"
+    )
+
+
+def _json_path(call: Call, result: TType | None = None) -> TType:
+    need(call, "json", "string")
+    path = literal_str(call, 1)
+    if path is None or not re.fullmatch(r"\$((\.[A-Za-z_][A-Za-z0-9_]*)|(\[\d+\])|(\[\"[^\"]*\"\]))*", path):
+        call.fail("unsupported in lakegate: JSON path other than a literal $.key / [index] path", "NOT_SUPPORTED")
+    if result is not None:
+        return result
+    source = call.types[0]
+    return source if source.base == "varchar" else tt.VARCHAR
+
+
+register(
+    "is_json_scalar",
+    "json",
+    "is_json_scalar(json) -> boolean",
+    fixed(tt.BOOLEAN, "json"),
+    lambda g, node, args: (
+        f"CASE WHEN NOT json_valid({g.sql(args[0])}) THEN "
+        f"{g.fail(tf.string('Invalid JSON value: ') + ' || ' + g.sql(args[0]))} "
+        f"ELSE json_type({g.sql(args[0])}) NOT IN ('OBJECT', 'ARRAY') END"
+    ),
+)
+register(
+    "json_extract_scalar",
+    "json",
+    "json_extract_scalar(json, json_path) -> varchar",
+    _json_path,
+    _render_json_extract_scalar,
+    notes="NULL for objects, arrays, missing keys and invalid JSON text, as in Trino. A non-integer "
+    "number is refused at run time (NOT_SUPPORTED): Trino returns its text as written "
+    "(2.50), which DuckDB does not keep.",
+)
+register(
+    "json_extract",
+    "json",
+    "json_extract(json, json_path) -> json",
+    lambda call: _json_path(call, tt.JSON),
+    lambda g, node, args: jv.exact_numbers(f"json_extract({_text(g, args[0], g.sql(args[0]))}, {g.sql(args[1])})"),
+    notes="NULL for missing paths and invalid JSON text. A value holding a number Java would print in "
+    "scientific notation (or with an exponent as written) is refused at run time (NOT_SUPPORTED).",
+)
+
+
+def _render_json_size(g, node, args) -> str:
+    value, path = _text(g, args[0], g.sql(args[0])), g.sql(args[1])
+    kind = f"json_type({value}, {path})"
+    return (
+        f"CASE WHEN {kind} IS NULL THEN NULL WHEN {kind} = 'ARRAY' THEN CAST(json_array_length({value}, {path}) AS BIGINT) "
+        f"WHEN {kind} = 'OBJECT' THEN CAST(len(json_keys({value}, {path})) AS BIGINT) ELSE CAST(0 AS BIGINT) END"
+    )
+
+
+register(
+    "json_size",
+    "json",
+    "json_size(json, json_path) -> bigint",
+    lambda call: _json_path(call, tt.BIGINT),
+    _render_json_size,
+)
+
+
+# --- JSON array functions (JsonFunctions) ----------------------------------------------------------
+def _render_json_array_length(g, node, args) -> str:
+    value = _text(g, args[0], g.sql(args[0]))
+    return f"CASE WHEN json_type({value}) = 'ARRAY' THEN CAST(json_array_length({value}) AS BIGINT) END"
+
+
+register(
+    "json_array_length",
+    "json",
+    "json_array_length(json) -> bigint",
+    fixed(tt.BIGINT, "json"),
+    _render_json_array_length,
+)
+
+
+def _json_array_contains(call: Call) -> TType:
+    need(call, "json", "any")
+    value = call.types[1]
+    if not (value.is_numeric or value.base in ("boolean", "varchar", "unknown")):
+        call.mismatch()
+    return tt.BOOLEAN
+
+
+def _element_matches(value: TType, element: str, needle: str) -> str:
+    """Whether one array element (a JSON text) is `needle`: a JSON boolean for a boolean, an integer
+    token in bigint range for an integral number, a token with a fraction or exponent for another
+    number (compared as doubles, finite only), a JSON string for a varchar (jsonArrayContains)."""
+    kind = f"json_type({element})"
+    if value.base == "boolean":
+        return f"{kind} = 'BOOLEAN' AND TRY_CAST({element} AS BOOLEAN) = {needle}"
+    if value.is_integral:
+        return f"{kind} IN ('BIGINT', 'UBIGINT') AND TRY_CAST(CAST({element} AS VARCHAR) AS BIGINT) = {needle}"
+    if value.is_numeric:
+        return (
+            f"{kind} = 'DOUBLE' AND regexp_matches(CAST({element} AS VARCHAR), '[.eE]') "
+            f"AND TRY_CAST({element} AS DOUBLE) = {needle} AND NOT isinf(TRY_CAST({element} AS DOUBLE))"
+        )
+    return f"{kind} = 'VARCHAR' AND json_extract_string({element}, '$') = {needle}"
+
+
+def _render_json_array_contains(g, node, args) -> str:
+    value = ttype(args[1])
+    if value.is_unknown:
+        return "CAST(NULL AS BOOLEAN)"
+    text = _text(g, args[0], g.sql(args[0]))
+    needle = g.sql(args[1]) if value.is_integral or not value.is_numeric else f"CAST({g.sql(args[1])} AS DOUBLE)"
+    matches = _element_matches(value, '"_e"', needle)
+    return (
+        f"CASE WHEN ({needle}) IS NULL THEN NULL WHEN json_type({text}) = 'ARRAY' THEN "
+        f'len(list_filter({jv.elements(text)}, lambda "_e": {matches})) > 0 END'
+    )
+
+
+register(
+    "json_array_contains",
+    "json",
+    "json_array_contains(json, value) -> boolean",
+    _json_array_contains,
+    _render_json_array_contains,
+)
+
+
+def _render_json_array_get(g, node, args) -> str:
+    """The element at a 0-based index (negative: from the end); NULL outside the array and for a
+    JSON null element. A string element comes back unquoted, as Trino documents ("broken")."""
+    text = _text(g, args[0], g.sql(args[0]))
+    items, index = jv.elements(text), g.sql(args[1])
+    position = f"CASE WHEN {index} >= 0 THEN {index} + 1 ELSE len({items}) + {index} + 1 END"
+    element = f"CASE WHEN {position} >= 1 THEN {items}[{position}] END"
+    kind = f"json_type({element})"
+    unquoted = f"json_extract_string({element}, '$')"
+    return (
+        f"CASE WHEN json_type({text}) <> 'ARRAY' THEN NULL WHEN {kind} = 'NULL' THEN NULL "
+        f"WHEN {kind} = 'VARCHAR' THEN {unquoted} ELSE {jv.exact_numbers(element)} END"
+    )
+
+
+register(
+    "json_array_get",
+    "json",
+    "json_array_get(json_array, index) -> json",
+    fixed(tt.JSON, "json", "integral"),
+    _render_json_array_get,
+)

@@ -369,7 +369,13 @@ class Analyzer:
                 continue
             if isinstance(clause, exp.Fetch):
                 count = clause.args.get("count")
-                if clause.args.get("with_ties") or clause.args.get("percent"):
+                options = clause.args.get("limit_options")  # where sqlglot keeps WITH TIES now
+                if (
+                    clause.args.get("with_ties")
+                    or clause.args.get("percent")
+                    or options
+                    and options.args.get("with_ties")
+                ):
                     self.unsupported("FETCH ... WITH TIES", clause)
             else:
                 count = clause.expression
@@ -553,7 +559,9 @@ class Analyzer:
                     f"table function '{node.this.name if isinstance(node.this, exp.Anonymous) else node.this.key}'",
                     node,
                 )
-            if node.args.get("joins") or node.args.get("pivots") or node.args.get("sample"):
+            if node.args.get("sample"):
+                self.unsupported("TABLESAMPLE", node)
+            if node.args.get("joins") or node.args.get("pivots"):
                 self.unsupported("table sampling or pivot", node)
             name = node.name.lower()
             parts = [p.name.lower() for p in (node.args.get("catalog"), node.args.get("db")) if p is not None]

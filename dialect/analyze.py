@@ -1185,10 +1185,10 @@ def _cast(a: Analyzer, node, scope, env):
             r"[0-9]:[0-9]{2}(:[0-9]{2}([.][0-9]*)?)?\s*([A-Za-z]|[+-][0-9])", text
         ):
             a.unsupported("timestamp literal with a time zone", node)
-    if target.base in ("char", "time", "time_tz", "uuid", "varbinary", "map"):
-        a.unsupported(f"cast to {target}", node)
     if "json" in (source.base, target.base) and source != target:
         _check_json_cast(a, node, source, target)
+    elif target.base in ("char", "time", "time_tz", "uuid", "varbinary", "map"):
+        a.unsupported(f"cast to {target}", node)
     if target.base == "timestamp_tz" and source.base == "varchar":
         _check_utc_text(a, node)
     if not castable(source, target):
@@ -1199,7 +1199,7 @@ def _cast(a: Analyzer, node, scope, env):
 
 def _check_json_cast(a: Analyzer, node: exp.Cast, source: TType, target: TType) -> None:
     """Casts to and from json (JsonUtil.canCastToJson / canCastFromJson): Trino's, less those
-    lakegate does not translate (decimal, date, timestamp, map and row), which are refused."""
+    lakegate does not translate (trino_types.castable_to_json / castable_from_json), refused."""
     if target.base == "json":
         if not tt.castable_to_json(source):
             a.unsupported(f"CAST({source} AS json)", node)

@@ -128,10 +128,13 @@ def from_json(g, sql: str, target: TType) -> str:
     bad = g.fail(f"'Cannot cast to {target}. ' || CAST({sql} AS VARCHAR)", "INVALID_CAST_ARGUMENT")
     if target.base == "json":
         return sql
+    null = f"WHEN {kind_} IS NULL OR {kind_} = 'NULL' THEN NULL"
     if target.base == "array":
         inner = from_json(g, '"_j"', target.element)
         each = tf.cast(f'list_transform({elements(sql)}, lambda "_j": {inner})', target)
-        return f"CASE WHEN {kind_} = 'NULL' THEN NULL WHEN {kind_} = 'ARRAY' THEN {each} ELSE {bad} END"
+        return f"CASE {null} WHEN {kind_} = 'ARRAY' THEN {each} ELSE {bad} END"
+    if target.base == "map":
+        return f"CASE {null} WHEN {kind_} = 'OBJECT' THEN {_object_to_map(g, sql, target)} ELSE {bad} END"
     text = f"json_extract_string({sql}, '$')"
     double = f"TRY_CAST({text} AS DOUBLE)"
     if target.base == "varchar":
@@ -143,10 +146,21 @@ def from_json(g, sql: str, target: TType) -> str:
         floating = _rounded(g, double, target) if target.is_integral else tf.cast(double, target)
         boolean = tf.cast(f"{text} = 'true'", target)
     return (
-        f"CASE {kind_} WHEN 'NULL' THEN NULL WHEN 'VARCHAR' THEN {tf.cast_value(g, text, tt.VARCHAR, target)} "
-        f"WHEN 'BOOLEAN' THEN {boolean} WHEN 'OBJECT' THEN {bad} WHEN 'ARRAY' THEN {bad} "
-        f"ELSE CASE WHEN {_is_float(sql)} THEN {floating} ELSE {integer} END END"
+        f"CASE {null} WHEN {kind_} = 'VARCHAR' THEN {tf.cast_value(g, text, tt.VARCHAR, target)} "
+        f"WHEN {kind_} = 'BOOLEAN' THEN {boolean} WHEN {kind_} IN ('OBJECT', 'ARRAY') THEN {bad} "
+        f"WHEN {_is_float(sql)} THEN {floating} ELSE {integer} END"
     )
+
+
+def _object_to_map(g, sql: str, target: TType) -> str:
+    """A JSON object as map(varchar, V) (JsonToMapCast): each value cast as V; a repeated key fails
+    (Trino's map refuses duplicate keys; DuckDB's json_transform answers NULL for them)."""
+    members = f"json_transform({sql}, '\"MAP(VARCHAR, JSON)\"')"
+    value = from_json(g, "struct_extract(\"_e\", 'value')", target.args[1])
+    entry = f'struct_pack("key" := struct_extract("_e", \'key\'), "value" := {value})'
+    each = tf.cast(f'map_from_entries(list_transform(map_entries({members}), lambda "_e": {entry}))', target)
+    duplicate = g.fail(f"'Duplicate keys are not allowed: ' || CAST({sql} AS VARCHAR)", "INVALID_CAST_ARGUMENT")
+    return f"CASE WHEN {members} IS NULL THEN {duplicate} ELSE {each} END"
 
 
 def _exact(g, text: str, target: TType, bad: str) -> str:
@@ -190,8 +204,47 @@ def _json_text(g, sql: str, source: TType) -> str:
             f"WHEN abs({value}) >= 0.001 AND abs({value}) < 10000000 OR {value} = 0 THEN CAST({value} AS VARCHAR) "
             f"ELSE {tf.varchar_of(g, value, tt.DOUBLE)} END"
         )
+    if source.base == "map":
+        return _map_json(g, sql, source)
+    if source.base == "row":
+        fields = [
+            f"{tf.string(json.dumps(name, ensure_ascii=False) + ':')} || "
+            f"coalesce({_json_text(g, f'struct_extract({sql}, {tf.string(name)})', t)}, 'null')"
+            for name, t in source.args
+        ]
+        body = " || ',' || ".join(fields) if fields else "''"
+        return f"CASE WHEN {sql} IS NOT NULL THEN '{{' || {body} || '}}' END"
     if source.base == "array":
         inner = _json_text(g, '"_v"', source.element)
         each = f"list_transform({sql}, lambda \"_v\": coalesce({inner}, 'null'))"
         return f"'[' || array_to_string({each}, ',') || ']'"
     return tf.varchar_of(g, sql, source)  # integers and decimals: their exact text
+
+
+#: Keys whose order differs between Java's String order (UTF-16 units) and DuckDB's (code points).
+_OUTSIDE_UTF16_ORDER = "[\\x{E000}-\\x{10FFFF}]"
+
+
+def _map_json(g, sql: str, source: TType) -> str:
+    """A map as a JSON object with its keys sorted as text (JsonUtil.MapJsonGeneratorWriter, a
+    TreeMap of the key texts); keys with characters from U+E000 up are refused at run time, where
+    Java's UTF-16 order and DuckDB's differ."""
+    key, value = source.args
+    key_sql = "struct_extract(\"_m\", 'key')"
+    key_text = (
+        key_sql
+        if key.base == "varchar"
+        else f"CASE WHEN {key_sql} THEN 'true' ELSE 'false' END"
+        if key.base == "boolean"
+        else f"CAST({key_sql} AS VARCHAR)"
+    )
+    refuse = f"error({tf.string('NOT_SUPPORTED: a json object key from U+E000 up (Java orders them otherwise)')})"
+    checked = f"CASE WHEN regexp_matches({key_text}, '{_OUTSIDE_UTF16_ORDER}') THEN {refuse} ELSE {key_text} END"
+    value_text = _json_text(g, "struct_extract(\"_m\", 'value')", value)
+    entry = f'struct_pack("k" := {checked}, "v" := {value_text})'
+    pairs = (
+        f'list_transform(list_sort(list_transform(map_entries({sql}), lambda "_m": {entry})), '
+        f"lambda \"_p\": CAST(to_json(struct_extract(\"_p\", 'k')) AS VARCHAR) || ':' || "
+        f"coalesce(struct_extract(\"_p\", 'v'), 'null'))"
+    )
+    return f"'{{' || array_to_string({pairs}, ',') || '}}'"

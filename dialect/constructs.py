@@ -11,6 +11,7 @@ row where a construct is lifted or refused.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -66,6 +67,25 @@ def _join(side: str = "", kind: str = "", using: bool = False) -> Callable[[exp.
     return test
 
 
+_SIMPLE_PATH = re.compile(r'(lax|strict)\s+\$(\s*(\.[A-Za-z_][A-Za-z0-9_]*|\."([^"\\]|\\.)*"|\[\s*\d+\s*\]))*\s*')
+
+
+def _is_sql_json_path(node: exp.Expression, simple: bool = True) -> bool:
+    """A string literal that is the path argument of json_exists / json_value / json_query."""
+    parent = node.parent
+    is_path = (
+        isinstance(parent, exp.JSONValue)
+        and parent.args.get("path") is node
+        or isinstance(parent, exp.JSONExtract)
+        and parent.args.get("json_query")
+        and parent.expression is node
+        or isinstance(parent, exp.Anonymous)
+        and parent.name.lower() == "json_exists"
+        and parent.expressions.index(node) == 1
+    )
+    return is_path and node.is_string and bool(_SIMPLE_PATH.fullmatch(node.name)) == simple
+
+
 def _in_expression(node: exp.Expression) -> bool:
     return not isinstance(node.parent, (exp.From, exp.Join, exp.In, exp.Exists)) and not node.alias
 
@@ -118,6 +138,30 @@ CONSTRUCTS: dict[str, Construct] = {
         "literals",
         "SELECT current_date, current_timestamp, localtimestamp",
         (exp.CurrentDate, exp.CurrentTimestamp, exp.Localtimestamp),
+    ),
+    "json_value(... [RETURNING type] [NULL | DEFAULT x ON EMPTY] [NULL | DEFAULT x ON ERROR])": Construct(
+        "json",
+        "SELECT json_value(js, 'lax $.name'), json_value(js, 'strict $.n' RETURNING bigint DEFAULT -1 ON ERROR) FROM t",
+        (exp.JSONValue,),
+    ),
+    "json_query(... [WITH | WITHOUT [ARRAY] WRAPPER] [KEEP | OMIT QUOTES] [NULL ON EMPTY | ON ERROR])": Construct(
+        "json",
+        "SELECT json_query(js, 'lax $.tags' WITHOUT ARRAY WRAPPER), json_query(js, 'strict $.name' OMIT QUOTES) FROM t",
+        (exp.JSONExtract,),
+        lambda n: bool(n.args.get("json_query")),
+    ),
+    "JSON path, lax or strict, of member and [index] accessors": Construct(
+        "json", "SELECT json_exists(js, 'strict $.tags[0]') FROM t", (exp.Literal,), lambda n: _is_sql_json_path(n)
+    ),
+    "JSON path (wildcards, filters, item methods, last, ranges, PASSING variables)": Construct(
+        "json",
+        "SELECT json_exists(js, 'lax $.tags[*]') FROM t",
+        (exp.Literal,),
+        lambda n: _is_sql_json_path(n, simple=False),
+        refused="not translated",
+    ),
+    "json_object (KEY ... VALUE ..., NULL | ABSENT ON NULL, WITH UNIQUE KEYS)": Construct(
+        "json", "SELECT json_object('a' : 1)", (exp.JSONObject,), refused="not translated"
     ),
     # --- queries ---------------------------------------------------------------------------------
     "WITH (common table expressions)": Construct("queries", "WITH w AS (SELECT 1 AS x) SELECT x FROM w", (exp.With,)),

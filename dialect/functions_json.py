@@ -7,6 +7,7 @@ sorts object keys) and their tests TestJsonFunctions, TestJsonExtract.
 
 from __future__ import annotations
 
+import json
 import re
 
 from sqlglot import exp
@@ -296,3 +297,262 @@ register(
     fixed(tt.JSON, "json", "integral"),
     _render_json_array_get,
 )
+
+
+# --- SQL/JSON path functions (json_exists, json_value, json_query) ---------------------------------
+#: A path lakegate translates: `lax` or `strict`, then member (`.key`, `."key"`) and array
+#: subscript (`[n]`) accessors only (json.md, "JSON path language"). Each step yields one item, no
+#: item (empty) or an error; the sequences of wildcards, filters and lax unwrapping are not translated.
+_SQL_JSON_PATH = re.compile(
+    r'(lax|strict)\s+\$((?:\s*(?:\.[A-Za-z_][A-Za-z0-9_]*|\."(?:[^"\\]|\\.)*"|\[\s*\d+\s*\]))*)\s*'
+)
+_STEP = re.compile(r'\.([A-Za-z_][A-Za-z0-9_]*)|\."((?:[^"\\]|\\.)*)"|\[\s*(\d+)\s*\]')
+
+#: The state between steps: a JSON text (one item), NULL (empty sequence) or this marker (an error).
+_ERROR = "'\\u0000error'"
+_LAX_UNWRAP = "NOT_SUPPORTED: a lax JSON path member accessor on an array (Trino unwraps the array) is not translated"
+_REPEATED_KEY = "NOT_SUPPORTED: a JSON path member accessor on an object with a repeated key is not translated"
+
+
+def _sql_json_path(a, node: exp.Expression, function: str, path: exp.Expression) -> tuple[str, list]:
+    """The mode and steps of a path literal ((kind, value) with kind "key" or "index"), or a refusal
+    naming the function and the path."""
+    text = path.name if isinstance(path, exp.Literal) and path.is_string else None
+    match = _SQL_JSON_PATH.fullmatch(text) if text is not None else None
+    if match is None:
+        a.unsupported(
+            f"JSON path {path.sql(dialect='trino')} in function '{function}' (lakegate translates lax or strict paths of "
+            "member and [index] accessors)",
+            node,
+        )
+    steps = []
+    for step in _STEP.finditer(match.group(2)):
+        if step.group(3) is not None:
+            steps.append(("index", int(step.group(3))))
+        else:
+            name = step.group(1) if step.group(1) is not None else json.loads(f'"{step.group(2)}"')
+            steps.append(("key", name))
+    return match.group(1), steps
+
+
+def _step(current: str, mode: str, kind: str, value, depth: int) -> str:
+    """One accessor applied to the state `current` (bound once, as a lambda parameter)."""
+    c = f'"_c{depth}"'
+    kind_ = f"json_type({c})"
+    missing = "NULL" if mode == "lax" else _ERROR
+    if kind == "key":
+        member = f"CAST(json_extract({c}, {tf.string('$.' + json.dumps(value, ensure_ascii=False))}) AS VARCHAR)"
+        repeated = f"len(json_keys({c})) <> len(list_distinct(json_keys({c})))"
+        body = (
+            f"CASE WHEN {c} IS NULL OR {c} = {_ERROR} THEN {c} "
+            f"WHEN {kind_} = 'OBJECT' THEN CASE WHEN {repeated} THEN error({tf.string(_REPEATED_KEY)}) "
+            f"ELSE coalesce({member}, {missing}) END "
+            + (
+                f"WHEN {kind_} = 'ARRAY' THEN error({tf.string(_LAX_UNWRAP)}) ELSE NULL END"
+                if mode == "lax"
+                else f"ELSE {_ERROR} END"
+            )
+        )
+    else:
+        element = f"CAST(json_extract({c}, '$[{value}]') AS VARCHAR)"
+        wrapped = c if value == 0 else "NULL"  # lax wraps a non-array in a one-element array
+        body = (
+            f"CASE WHEN {c} IS NULL OR {c} = {_ERROR} THEN {c} "
+            f"WHEN {kind_} = 'ARRAY' THEN coalesce({element}, {missing}) "
+            + (f"ELSE {wrapped} END" if mode == "lax" else f"ELSE {_ERROR} END")
+        )
+    return f"list_transform([{current}], lambda {c}: {body})[1]"
+
+
+def _path_result(g, input_node: exp.Expression, mode: str, steps: list) -> str:
+    """The item the path yields from the input: a JSON text, NULL (empty) or the error marker
+    (input that is not JSON, or a strict structural error)."""
+    value = g.sql(input_node)
+    current = (
+        value
+        if ttype(input_node).base == "json"
+        else f"CASE WHEN {jv.valid(value)} THEN {value} WHEN {value} IS NOT NULL THEN {_ERROR} END"
+    )
+    for depth, (kind, step) in enumerate(steps):
+        current = _step(current, mode, kind, step, depth)
+    return current
+
+
+def _check_input(a, node, input_node: exp.Expression, scope, env, function: str) -> None:
+    t = a.expr(input_node, scope, env)
+    if t.base not in ("varchar", "json", "unknown"):
+        a.fail(f"Unexpected parameters ({t}, varchar) for function {function}", node, "FUNCTION_NOT_FOUND")
+
+
+def _json_exists(call: Call) -> TType:
+    need(call, "json", "string")
+    call.node.meta["path"] = _sql_json_path(call.analyzer, call.node, "json_exists", call.args[1])
+    return tt.BOOLEAN
+
+
+def _render_json_exists(g, node, args) -> str:
+    """true for an item, false for none; an error is FALSE ON ERROR, the default (json.md json_exists)."""
+    mode, steps = node.meta["path"]
+    result = _path_result(g, args[0], mode, steps)
+    return f'list_transform([{result}], lambda "_r": "_r" IS NOT NULL AND "_r" <> {_ERROR})[1]'
+
+
+register(
+    "json_exists",
+    "json",
+    "json_exists(json_input, json_path) -> boolean",
+    _json_exists,
+    _render_json_exists,
+    notes="Paths of member and [index] accessors in lax or strict mode; FALSE ON ERROR (the default). "
+    "Other path features, PASSING and ON ERROR clauses are refused (NOT_SUPPORTED).",
+)
+
+
+def _bind(sql: str, name: str, body: str) -> str:
+    """`body` with `sql` computed once and named `name` (a DuckDB lambda over a one-element list)."""
+    return f"list_transform([{sql}], lambda {name}: {body})[1]"
+
+
+def _on(a, node, clause, what: str, allowed: tuple[str, ...], scope, env):
+    """An ON EMPTY / ON ERROR behaviour: NULL (the default), EMPTY ARRAY, EMPTY OBJECT, or a DEFAULT
+    expression (analyzed); ERROR and the others are refused naming the clause."""
+    if clause is None or clause is False:
+        return "NULL"
+    text = clause if isinstance(clause, str) else clause.name if isinstance(clause, exp.Var) else None
+    if text is None:
+        if "DEFAULT" not in allowed:
+            a.unsupported(f"DEFAULT ... ON {what}", node)
+        a.expr(clause, scope, env)
+        return clause
+    behaviour = text.upper().rsplit(" ON ", 1)[0].strip()
+    if behaviour not in allowed:
+        a.unsupported(f"{behaviour} ON {what}", node)
+    return behaviour
+
+
+_VALUE_TARGETS = ("varchar", "bigint", "integer", "smallint", "tinyint", "double", "real", "boolean")
+
+
+@handles(exp.JSONValue)
+def _json_value(a, node, scope, env) -> TType:
+    """json_value(input, path [RETURNING type] [NULL | DEFAULT x ON EMPTY] [NULL | DEFAULT x ON ERROR])."""
+    _check_input(a, node, node.this, scope, env, "json_value")
+    for key in set(node.args) - {"this", "path", "returning", "on_condition"}:
+        if node.args.get(key):
+            a.unsupported(f"json_value ... {key.upper()}", node)
+    node.meta["path"] = _sql_json_path(a, node, "json_value", node.args["path"])
+    returning = node.args.get("returning")
+    target = tt.from_datatype(returning) if returning else tt.VARCHAR
+    if target.base not in _VALUE_TARGETS:
+        a.unsupported(f"json_value ... RETURNING {target}", node)
+    condition = node.args.get("on_condition")
+    on = condition.args if condition is not None else {}
+    allowed = ("NULL", "DEFAULT")
+    node.meta["on"] = {
+        what: _on(a, node, on.get(what.lower()), what, allowed, scope, env) for what in ("EMPTY", "ERROR")
+    }
+    return target
+
+
+def _behaviour(g, choice, target: TType) -> str:
+    if isinstance(choice, exp.Expression):
+        return g.coerce(choice, target)
+    return {"NULL": "NULL", "EMPTY ARRAY": "'[]'", "EMPTY OBJECT": "'{}'"}[choice]
+
+
+_UNSURE_VALUE = "NOT_SUPPORTED: json_value of a non-integer JSON number as varchar (its text is not kept)"
+
+
+@tf.transform(exp.JSONValue)
+def json_value(g, node: exp.JSONValue) -> str:
+    """The scalar item as the RETURNING type (json.md json_value): an empty result is ON EMPTY, a
+    structural error, a non-scalar item, input that is not JSON or a failed conversion is ON ERROR
+    (NULL unless DEFAULT); a JSON null is NULL."""
+    target = ttype(node)
+    mode, steps = node.meta["path"]
+    empty, error = (_behaviour(g, node.meta["on"][w], target) for w in ("EMPTY", "ERROR"))
+    item = '"_r"'
+    kind = f"json_type({item})"
+    g.in_try += 1  # a conversion that fails is NULL here, then ON ERROR
+    try:
+        if target.base == "varchar":
+            converted = (
+                f"CASE WHEN {kind} = 'VARCHAR' THEN json_extract_string({item}, '$') "
+                f"WHEN {kind} = 'BOOLEAN' OR NOT regexp_matches({item}, '[.eE]') THEN {item} "
+                f"ELSE error({tf.string(_UNSURE_VALUE)}) END"
+            )
+        else:
+            converted = jv.from_json(g, item, target)
+    finally:
+        g.in_try -= 1
+    body = (
+        f"CASE WHEN {item} IS NULL THEN {empty} WHEN {item} = {_ERROR} THEN {error} "
+        f"WHEN {kind} = 'NULL' THEN NULL WHEN {kind} IN ('OBJECT', 'ARRAY') THEN {error} "
+        f"ELSE coalesce({converted}, {error}) END"
+    )
+    return _bind(_path_result(g, node.this, mode, steps), item, body)
+
+
+_WRAPPERS = {
+    None: "WITHOUT",
+    "WITHOUT WRAPPER": "WITHOUT",
+    "WITHOUT ARRAY WRAPPER": "WITHOUT",
+    "WITH WRAPPER": "UNCONDITIONAL",
+    "WITH ARRAY WRAPPER": "UNCONDITIONAL",
+    "WITH UNCONDITIONAL WRAPPER": "UNCONDITIONAL",
+    "WITH UNCONDITIONAL ARRAY WRAPPER": "UNCONDITIONAL",
+    "WITH CONDITIONAL WRAPPER": "CONDITIONAL",
+    "WITH CONDITIONAL ARRAY WRAPPER": "CONDITIONAL",
+}
+
+
+@handles(exp.JSONExtract)
+def _json_query(a, node, scope, env) -> TType:
+    """json_query(input, path [WITH | WITHOUT ... WRAPPER] [KEEP | OMIT QUOTES] [ON EMPTY] [ON ERROR])."""
+    if not node.args.get("json_query"):
+        a.unsupported("JSON path operator", node)
+    _check_input(a, node, node.this, scope, env, "json_query")
+    for key in set(node.args) - {"this", "expression", "json_query", "option", "quote", "on_condition"}:
+        if node.args.get(key):
+            a.unsupported(f"json_query ... {key.upper()}", node)
+    node.meta["path"] = _sql_json_path(a, node, "json_query", node.args["expression"])
+    option = node.args.get("option")
+    wrapper = " ".join((option.name if option is not None else "").upper().split()) or None
+    if wrapper not in _WRAPPERS:
+        a.unsupported(f"json_query ... {wrapper}", node)
+    quote = node.args.get("quote")
+    omit = quote is not None and quote.args.get("option", "").upper() == "OMIT"
+    if omit and quote.args.get("scalar") is False and _WRAPPERS[wrapper] != "WITHOUT":
+        a.fail("OMIT QUOTES behavior is not specified for WITH ARRAY WRAPPER", node, "INVALID_FUNCTION_ARGUMENT")
+    condition = node.args.get("on_condition")
+    on = condition.args if condition is not None else {}
+    allowed = ("NULL", "EMPTY ARRAY", "EMPTY OBJECT")
+    node.meta["on"] = {
+        what: _on(a, node, on.get(what.lower()), what, allowed, scope, env) for what in ("EMPTY", "ERROR")
+    }
+    node.meta["wrapper"], node.meta["omit"] = _WRAPPERS[wrapper], omit
+    return tt.JSON if ttype(node.this).base == "json" else tt.VARCHAR
+
+
+_UNSURE_ITEM = "NOT_SUPPORTED: json_query of a value holding a non-integer JSON number (its text is not kept)"
+
+
+@tf.transform(exp.JSONExtract)
+def json_query(g, node: exp.JSONExtract) -> str:
+    """The item as JSON text (json.md json_query): wrapped in an array as the WRAPPER clause says,
+    a string unquoted with OMIT QUOTES; empty is ON EMPTY, an error ON ERROR (both NULL unless
+    EMPTY ARRAY / EMPTY OBJECT). An item holding a non-integer number is refused at run time."""
+    mode, steps = node.meta["path"]
+    empty, error = (_behaviour(g, node.meta["on"][w], tt.VARCHAR) for w in ("EMPTY", "ERROR"))
+    item = '"_r"'
+    kind = f"json_type({item})"
+    text = f"CASE WHEN regexp_matches({jv.without_strings(item)}, '[0-9][.eE]') THEN error({tf.string(_UNSURE_ITEM)}) ELSE {item} END"
+    if node.meta["omit"]:
+        text = f"CASE WHEN {kind} = 'VARCHAR' THEN json_extract_string({item}, '$') ELSE {text} END"
+    wrapper = node.meta["wrapper"]
+    if wrapper == "UNCONDITIONAL":
+        text = f"'[' || {text} || ']'"
+    elif wrapper == "CONDITIONAL":
+        text = f"CASE WHEN {kind} IN ('ARRAY', 'OBJECT') THEN {text} ELSE '[' || {text} || ']' END"
+    body = f"CASE WHEN {item} IS NULL THEN {empty} WHEN {item} = {_ERROR} THEN {error} ELSE {text} END"
+    return _bind(_path_result(g, node.this, mode, steps), item, body)

@@ -223,8 +223,7 @@ CATALOGUE: dict[str, str] = {
     "url_decode md5 sha1 sha256 sha512 to_hex from_hex to_base64 from_base64 crc32 xxhash64",
     "regexp": "regexp_count regexp_extract regexp_extract_all regexp_like regexp_position regexp_replace regexp_split",
     "json": "is_json_scalar json_array_contains json_array_get json_array_length json_extract "
-    "json_extract_scalar json_format json_parse json_size json_exists json_query json_value "
-    "json_object json_array",
+    "json_extract_scalar json_format json_parse json_size json_exists json_object json_array",
     "datetime": "current_date current_time current_timestamp current_timezone date date_add date_diff "
     "date_format date_parse date_trunc day day_of_month day_of_week day_of_year dow doy "
     "extract format_datetime from_iso8601_date from_iso8601_timestamp from_unixtime "

@@ -20,11 +20,6 @@ from lakegate.dialect.functions import fixed, literal_str, need, register
 from lakegate.dialect.trino_types import TType
 
 
-def _is_json(call: Call, index: int) -> bool:
-    t = call.types[index]
-    return t is not None and t.base == "json"
-
-
 def _text(g, node: exp.Expression, sql: str) -> str:
     """The JSON text of a json or varchar argument, NULL where a varchar is not JSON Trino accepts
     (the text functions answer NULL for invalid JSON)."""
@@ -413,16 +408,15 @@ def _bind(sql: str, name: str, body: str) -> str:
     return f"list_transform([{sql}], lambda {name}: {body})[1]"
 
 
-def _on(a, node, clause, what: str, allowed: tuple[str, ...], scope, env):
+def _on(a, node, clause, what: str, allowed: tuple[str, ...]):
     """An ON EMPTY / ON ERROR behaviour: NULL (the default), EMPTY ARRAY, EMPTY OBJECT, or a DEFAULT
-    expression (analyzed); ERROR and the others are refused naming the clause."""
+    expression; ERROR and the others are refused naming the clause."""
     if clause is None or clause is False:
         return "NULL"
     text = clause if isinstance(clause, str) else clause.name if isinstance(clause, exp.Var) else None
     if text is None:
         if "DEFAULT" not in allowed:
             a.unsupported(f"DEFAULT ... ON {what}", node)
-        a.expr(clause, scope, env)
         return clause
     behaviour = text.upper().rsplit(" ON ", 1)[0].strip()
     if behaviour not in allowed:
@@ -448,9 +442,10 @@ def _json_value(a, node, scope, env) -> TType:
     condition = node.args.get("on_condition")
     on = condition.args if condition is not None else {}
     allowed = ("NULL", "DEFAULT")
-    node.meta["on"] = {
-        what: _on(a, node, on.get(what.lower()), what, allowed, scope, env) for what in ("EMPTY", "ERROR")
-    }
+    node.meta["on"] = {what: _on(a, node, on.get(what.lower()), what, allowed) for what in ("EMPTY", "ERROR")}
+    for default in node.meta["on"].values():
+        if isinstance(default, exp.Expression) and tt.common_super_type(a.expr(default, scope, env), target) is None:
+            a.fail(f"Function json_value default value type does not match {target}", default, "TYPE_MISMATCH")
     return target
 
 
@@ -527,9 +522,7 @@ def _json_query(a, node, scope, env) -> TType:
     condition = node.args.get("on_condition")
     on = condition.args if condition is not None else {}
     allowed = ("NULL", "EMPTY ARRAY", "EMPTY OBJECT")
-    node.meta["on"] = {
-        what: _on(a, node, on.get(what.lower()), what, allowed, scope, env) for what in ("EMPTY", "ERROR")
-    }
+    node.meta["on"] = {what: _on(a, node, on.get(what.lower()), what, allowed) for what in ("EMPTY", "ERROR")}
     node.meta["wrapper"], node.meta["omit"] = _WRAPPERS[wrapper], omit
     return tt.JSON if ttype(node.this).base == "json" else tt.VARCHAR
 

@@ -20,9 +20,10 @@ from lakegate.dialect.functions import fixed, literal_str, need, register
 from lakegate.dialect.trino_types import TType
 
 
-def _text(g, node: exp.Expression, sql: str) -> str:
+def _text(g, node: exp.Expression) -> str:
     """The JSON text of a json or varchar argument, NULL where a varchar is not JSON Trino accepts
     (the text functions answer NULL for invalid JSON)."""
+    sql = g.sql(node)
     return sql if ttype(node).base == "json" else f"CASE WHEN {jv.valid(sql)} THEN {sql} END"
 
 
@@ -133,15 +134,13 @@ def _render_json_extract_scalar(g, node, args) -> str:
     parent = node.parent
     if isinstance(parent, (exp.Cast, exp.TryCast)) and parent.to.this in _EXACT_NUMBER_TARGETS:
         # Any spelling of a number casts to the same integer (or the same error) and the same double.
-        return (
-            f"CASE WHEN NOT json_valid({value}) THEN NULL WHEN {kind} IN ('OBJECT', 'ARRAY') THEN NULL ELSE {text} END"
-        )
+        return f"CASE WHEN NOT {jv.valid(value)} THEN NULL WHEN {kind} IN ('OBJECT', 'ARRAY') THEN NULL ELSE {text} END"
     refuse = tf.string(
         "NOT_SUPPORTED: json_extract_scalar of a non-integer (or negative zero) JSON number "
         "is not supported: its text as written is not kept"
     )
     return (
-        f"CASE WHEN NOT json_valid({value}) THEN NULL WHEN {kind} IN ('OBJECT', 'ARRAY') THEN NULL "
+        f"CASE WHEN NOT {jv.valid(value)} THEN NULL WHEN {kind} IN ('OBJECT', 'ARRAY') THEN NULL "
         f"WHEN {kind} = 'DOUBLE' OR ({kind} = 'BIGINT' AND {text} = '0' AND contains({value}, '-0')) "
         f"THEN error({refuse}) ELSE {text} END"
     )
@@ -164,7 +163,7 @@ register(
     "is_json_scalar(json) -> boolean",
     fixed(tt.BOOLEAN, "json"),
     lambda g, node, args: (
-        f"CASE WHEN NOT json_valid({g.sql(args[0])}) THEN "
+        f"CASE WHEN NOT {jv.valid(g.sql(args[0]))} THEN "
         f"{g.fail(tf.string('Invalid JSON value: ') + ' || ' + g.sql(args[0]))} "
         f"ELSE json_type({g.sql(args[0])}) NOT IN ('OBJECT', 'ARRAY') END"
     ),
@@ -184,14 +183,14 @@ register(
     "json",
     "json_extract(json, json_path) -> json",
     lambda call: _json_path(call, tt.JSON),
-    lambda g, node, args: jv.exact_numbers(f"json_extract({_text(g, args[0], g.sql(args[0]))}, {g.sql(args[1])})"),
+    lambda g, node, args: jv.exact_numbers(f"json_extract({_text(g, args[0])}, {g.sql(args[1])})"),
     notes="NULL for missing paths and invalid JSON text. A value holding a number Java would print in "
     "scientific notation (or with an exponent as written) is refused at run time (NOT_SUPPORTED).",
 )
 
 
 def _render_json_size(g, node, args) -> str:
-    value, path = _text(g, args[0], g.sql(args[0])), g.sql(args[1])
+    value, path = _text(g, args[0]), g.sql(args[1])
     kind = f"json_type({value}, {path})"
     return (
         f"CASE WHEN {kind} IS NULL THEN NULL WHEN {kind} = 'ARRAY' THEN CAST(json_array_length({value}, {path}) AS BIGINT) "
@@ -210,7 +209,7 @@ register(
 
 # --- JSON array functions (JsonFunctions) ----------------------------------------------------------
 def _render_json_array_length(g, node, args) -> str:
-    value = _text(g, args[0], g.sql(args[0]))
+    value = _text(g, args[0])
     return f"CASE WHEN json_type({value}) = 'ARRAY' THEN CAST(json_array_length({value}) AS BIGINT) END"
 
 
@@ -252,7 +251,7 @@ def _render_json_array_contains(g, node, args) -> str:
     value = ttype(args[1])
     if value.is_unknown:
         return "CAST(NULL AS BOOLEAN)"
-    text = _text(g, args[0], g.sql(args[0]))
+    text = _text(g, args[0])
     needle = g.sql(args[1]) if value.is_integral or not value.is_numeric else f"CAST({g.sql(args[1])} AS DOUBLE)"
     matches = _element_matches(value, '"_e"', needle)
     return (
@@ -273,7 +272,7 @@ register(
 def _render_json_array_get(g, node, args) -> str:
     """The element at a 0-based index (negative: from the end); NULL outside the array and for a
     JSON null element. A string element comes back unquoted, as Trino documents ("broken")."""
-    text = _text(g, args[0], g.sql(args[0]))
+    text = _text(g, args[0])
     items, index = jv.elements(text), g.sql(args[1])
     position = f"CASE WHEN {index} >= 0 THEN {index} + 1 ELSE len({items}) + {index} + 1 END"
     element = f"CASE WHEN {position} >= 1 THEN {items}[{position}] END"

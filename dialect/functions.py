@@ -2842,7 +2842,6 @@ REJECTED: dict[str, str] = {
     "features": "machine learning functions are not available",
     "evaluate_classifier_predictions": "machine learning functions are not available",
     "json_object": "SQL/JSON functions are not translated",
-    "json_array": "SQL/JSON functions are not translated",
     "format_datetime": "Joda-Time patterns are not translated; use date_format",
     "parse_datetime": "Joda-Time patterns are not translated; use date_parse",
     "with_timezone": "time zones other than UTC are not supported",

@@ -548,3 +548,47 @@ def json_query(g, node: exp.JSONExtract) -> str:
         text = f"CASE WHEN {kind} IN ('ARRAY', 'OBJECT') THEN {text} ELSE '[' || {text} || ']' END"
     body = f"CASE WHEN {item} IS NULL THEN {empty} WHEN {item} = {_ERROR} THEN {error} ELSE {text} END"
     return _bind(_path_result(g, node.this, mode, steps), item, body)
+
+
+# --- json_array (SQL/JSON constructor, without clauses) --------------------------------------------
+def _nested_json(node: exp.Expression) -> bool:
+    """A JSON-returning function as an argument: its text is embedded as JSON ("the FORMAT option is
+    implicit", json.md json_array)."""
+    return (isinstance(node, exp.Anonymous) and node.name.lower() == "json_array") or (
+        isinstance(node, exp.JSONExtract) and node.args.get("json_query") and not node.meta.get("omit")
+    )
+
+
+def _json_array(call: Call) -> TType:
+    for node, t in zip(call.args, call.types):
+        if isinstance(node, exp.JSONExtract) and node.meta.get("omit"):
+            call.fail("unsupported in lakegate: json_query ... OMIT QUOTES inside json_array", "NOT_SUPPORTED")
+        if t is None or not (t.is_numeric or t.base in ("boolean", "varchar", "json", "unknown", "date")):
+            call.fail(f"unsupported in lakegate: json_array of a {t} value", "NOT_SUPPORTED")
+    return tt.VARCHAR
+
+
+def _render_json_array(g, node, args) -> str:
+    """The elements as JSON (booleans, numbers as Jackson writes them, other values as JSON strings of
+    their varchar text); NULLs are left out, ABSENT ON NULL being the default."""
+    texts = []
+    for arg in args:
+        t = ttype(arg)
+        if _nested_json(arg) or t.base == "json":
+            texts.append(f"CAST({g.sql(arg)} AS VARCHAR)")
+        elif t.base == "date":
+            texts.append(jv.to_json(g, f"CAST({g.sql(arg)} AS VARCHAR)", tt.VARCHAR))
+        else:
+            texts.append(jv.to_json(g, g.sql(arg), t))
+    return f"'[' || array_to_string([{', '.join(texts)}]::VARCHAR[], ',') || ']'" if texts else "'[]'"
+
+
+register(
+    "json_array",
+    "json",
+    "json_array([value, ...]) -> varchar",
+    _json_array,
+    _render_json_array,
+    notes="Without clauses: ABSENT ON NULL (the default); NULL ON NULL, FORMAT JSON and RETURNING are "
+    "not parsed (SYNTAX_ERROR from sqlglot).",
+)

@@ -980,7 +980,8 @@ def _comparison(a: Analyzer, node, scope, env):
         return tt.BOOLEAN
     left, right = a.expr(node.this, scope, env), a.expr(node.expression, scope, env)
     common = _comparable(a, node, left, right, _OPS[type(node)])
-    if common.base in ("json", "varbinary") or (common.base == "map" and type(node) not in (exp.EQ, exp.NEQ)):
+    json_order = common.base == "json" and type(node) not in (exp.EQ, exp.NEQ, exp.NullSafeEQ, exp.NullSafeNEQ)
+    if common.base == "varbinary" or json_order or (common.base == "map" and type(node) not in (exp.EQ, exp.NEQ)):
         a.fail(f"Cannot apply operator: {left} {_OPS[type(node)]} {right}", node, "TYPE_MISMATCH")
     node.meta["compare"] = common
     return tt.BOOLEAN

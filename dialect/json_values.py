@@ -135,6 +135,11 @@ def from_json(g, sql: str, target: TType) -> str:
         return f"CASE {null} WHEN {kind_} = 'ARRAY' THEN {each} ELSE {bad} END"
     if target.base == "map":
         return f"CASE {null} WHEN {kind_} = 'OBJECT' THEN {_object_to_map(g, sql, target)} ELSE {bad} END"
+    if target.base == "row":
+        return (
+            f"CASE {null} WHEN {kind_} = 'ARRAY' THEN {_array_to_row(g, sql, target, bad)} "
+            f"WHEN {kind_} = 'OBJECT' THEN {_object_to_row(g, sql, target, bad)} ELSE {bad} END"
+        )
     text = f"json_extract_string({sql}, '$')"
     double = f"TRY_CAST({text} AS DOUBLE)"
     if target.base == "varchar":
@@ -161,6 +166,41 @@ def _object_to_map(g, sql: str, target: TType) -> str:
     each = tf.cast(f'map_from_entries(list_transform(map_entries({members}), lambda "_e": {entry}))', target)
     duplicate = g.fail(f"'Duplicate keys are not allowed: ' || CAST({sql} AS VARCHAR)", "INVALID_CAST_ARGUMENT")
     return f"CASE WHEN {members} IS NULL THEN {duplicate} ELSE {each} END"
+
+
+def _row(g, values: list[str], target: TType) -> str:
+    fields = [tf.quote(name or f"field{i}") for i, (name, _) in enumerate(target.args)]
+    return "struct_pack(" + ", ".join(f"{f} := {v}" for f, v in zip(fields, values)) + ")"
+
+
+def _array_to_row(g, sql: str, target: TType, bad: str) -> str:
+    """A JSON array of exactly as many elements as the row has fields, field by field."""
+    items = elements(sql)
+    values = [from_json(g, f"{items}[{i + 1}]", t) for i, (_, t) in enumerate(target.args)]
+    return f"CASE WHEN json_array_length({sql}) <> {len(target.args)} THEN {bad} ELSE {_row(g, values, target)} END"
+
+
+_REPEATED_MEMBER = "NOT_SUPPORTED: CAST of a JSON object with a repeated key to a row"
+
+
+def _object_to_row(g, sql: str, target: TType, bad: str) -> str:
+    """A JSON object as a named row (JsonUtil.parseJsonToSingleRowBlock): members matched to fields
+    by their lower-cased key, missing fields NULL, other members ignored, two members for one field
+    an error; an anonymous row fails. An object with a repeated key is refused at run time."""
+    if any(name is None for name, _ in target.args):
+        return bad
+    members = f"json_transform({sql}, '\"MAP(VARCHAR, JSON)\"')"
+    values = []
+    for name, t in target.args:
+        named = f"lower(struct_extract(\"_e\", 'key')) = {tf.string(name)}"
+        matching = (
+            f'list_transform(list_filter(map_entries({members}), lambda "_e": {named}), '
+            f'lambda "_e": struct_extract("_e", \'value\'))'
+        )
+        duplicate = g.fail(f"'Duplicate field: {name}'", "INVALID_CAST_ARGUMENT")
+        value = from_json(g, f"{matching}[1]", t)
+        values.append(f"CASE WHEN len({matching}) > 1 THEN {duplicate} ELSE {value} END")
+    return f"CASE WHEN {members} IS NULL THEN error({tf.string(_REPEATED_MEMBER)}) ELSE {_row(g, values, target)} END"
 
 
 def _exact(g, text: str, target: TType, bad: str) -> str:

@@ -497,12 +497,14 @@ def arithmetic_type(op: str, a: TType, b: TType) -> TType | None:
 
 # --- JSON casts ------------------------------------------------------------------------------
 def castable_from_json(target: TType) -> bool:
-    """The targets lakegate translates from json (JsonUtil.canCastFromJson, less decimal, row and
-    maps with other than varchar keys)."""
+    """The targets lakegate translates from json (JsonUtil.canCastFromJson, less decimal and maps
+    with other than varchar keys)."""
     if target.base == "array":
         return castable_from_json(target.element)
     if target.base == "map":
         return target.args[0].base == "varchar" and castable_from_json(target.args[1])
+    if target.base == "row":
+        return all(castable_from_json(t) for _, t in target.args)
     return target.is_integral or target.is_approx or target.base in ("boolean", "varchar", "json")
 
 

@@ -453,7 +453,13 @@ class Analyzer:
                 continue
             if isinstance(clause, exp.Fetch):
                 count = clause.args.get("count")
-                if clause.args.get("with_ties") or clause.args.get("percent"):
+                options = clause.args.get("limit_options")  # where sqlglot keeps WITH TIES now
+                if (
+                    clause.args.get("with_ties")
+                    or clause.args.get("percent")
+                    or options
+                    and options.args.get("with_ties")
+                ):
                     self.unsupported("FETCH ... WITH TIES", clause)
             else:
                 count = clause.expression
@@ -638,7 +644,9 @@ class Analyzer:
                     f"table function '{node.this.name if isinstance(node.this, exp.Anonymous) else node.this.key}'",
                     node,
                 )
-            if node.args.get("joins") or node.args.get("pivots") or node.args.get("sample"):
+            if node.args.get("sample"):
+                self.unsupported("TABLESAMPLE", node)
+            if node.args.get("joins") or node.args.get("pivots"):
                 self.unsupported("table sampling or pivot", node)
             name = node.name.lower()
             parts = [p.name.lower() for p in (node.args.get("catalog"), node.args.get("db")) if p is not None]
@@ -1152,7 +1160,8 @@ def _comparison(a: Analyzer, node, scope, env):
         return tt.BOOLEAN
     left, right = a.expr(node.this, scope, env), a.expr(node.expression, scope, env)
     common = _comparable(a, node, left, right, _OPS[type(node)])
-    if common.base == "json" or (common.base == "map" and type(node) not in (exp.EQ, exp.NEQ)):
+    json_order = common.base == "json" and type(node) not in (exp.EQ, exp.NEQ, exp.NullSafeEQ, exp.NullSafeNEQ)
+    if json_order or (common.base == "map" and type(node) not in (exp.EQ, exp.NEQ)):
         a.fail(f"Cannot apply operator: {left} {_OPS[type(node)]} {right}", node, "TYPE_MISMATCH")
     node.meta["compare"] = common
     _in_session_zone(a, [node.this, node.expression], common)
@@ -1375,7 +1384,9 @@ def _cast(a: Analyzer, node, scope, env):
     if target.base == "varbinary" and source.base in ("varchar", "varbinary", "unknown"):
         node.meta["from"] = source
         return target  # the UTF-8 bytes of the text (VarcharOperators.castToVarbinary)
-    if target.base in ("char", "time", "time_tz", "uuid", "varbinary", "json", "map"):
+    if "json" in (source.base, target.base) and source != target:
+        _check_json_cast(a, node, source, target)
+    elif target.base in ("char", "time", "time_tz", "uuid", "varbinary", "map"):
         a.unsupported(f"cast to {target}", node)
     if target.base == "timestamp_tz":
         target = tt.timestamp(target.args[0], True, _cast_zone(a, node, source))
@@ -1385,6 +1396,16 @@ def _cast(a: Analyzer, node, scope, env):
         a.fail(f"Cannot cast {source} to {target}", node, "TYPE_MISMATCH")
     node.meta["from"] = source
     return target
+
+
+def _check_json_cast(a: Analyzer, node: exp.Cast, source: TType, target: TType) -> None:
+    """Casts to and from json (JsonUtil.canCastToJson / canCastFromJson): Trino's, less those
+    lakegate does not translate (trino_types.castable_to_json / castable_from_json), refused."""
+    if target.base == "json":
+        if not tt.castable_to_json(source):
+            a.unsupported(f"CAST({source} AS json)", node)
+    elif not tt.castable_from_json(target):
+        a.unsupported(f"CAST(json AS {target})", node)
 
 
 #: The zone at the end of a timestamp text: a region name or an offset.
@@ -1422,6 +1443,8 @@ def castable(source: TType, target: TType) -> bool:
     """Whether Trino has a CAST from `source` to `target` (the subset lakegate translates)."""
     if source == target or source.is_unknown:
         return True
+    if "json" in (source.base, target.base):
+        return tt.castable_to_json(source) if target.base == "json" else tt.castable_from_json(target)
     scalar = ("boolean", "varchar")
     if source.is_numeric or source.base in scalar:
         if target.is_numeric or target.base in scalar:

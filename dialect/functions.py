@@ -1794,72 +1794,6 @@ register(
 )
 
 
-# --- JSON ----------------------------------------------------------------------------------------
-_EXACT_NUMBER_TARGETS = {
-    exp.DataType.Type.TINYINT,
-    exp.DataType.Type.SMALLINT,
-    exp.DataType.Type.INT,
-    exp.DataType.Type.BIGINT,
-    exp.DataType.Type.FLOAT,
-    exp.DataType.Type.DOUBLE,
-}
-
-
-def _render_json_extract_scalar(g, node, args) -> str:
-    """Trino returns a number's text as written; DuckDB re-prints numbers it parsed (2.50 -> 2.5,
-    1e3 -> 1000.0, -0 -> 0). Where that can differ, refuse at run time (also inside try: Trino
-    would answer there, so NULL would be a silently different answer)."""
-    value, path = g.sql(args[0]), g.sql(args[1])
-    kind, text = f"json_type({value}, {path})", f"json_extract_string({value}, {path})"
-    parent = node.parent
-    if isinstance(parent, (exp.Cast, exp.TryCast)) and parent.to.this in _EXACT_NUMBER_TARGETS:
-        # Any spelling of a number casts to the same integer (or the same error) and the same double.
-        return (
-            f"CASE WHEN NOT json_valid({value}) THEN NULL WHEN {kind} IN ('OBJECT', 'ARRAY') THEN NULL ELSE {text} END"
-        )
-    refuse = tf.string(
-        "NOT_SUPPORTED: json_extract_scalar of a non-integer (or negative zero) JSON number "
-        "is not supported: its text as written is not kept"
-    )
-    return (
-        f"CASE WHEN NOT json_valid({value}) THEN NULL WHEN {kind} IN ('OBJECT', 'ARRAY') THEN NULL "
-        f"WHEN {kind} = 'DOUBLE' OR ({kind} = 'BIGINT' AND {text} = '0' AND contains({value}, '-0')) "
-        f"THEN error({refuse}) ELSE {text} END"
-    )
-
-
-def _json_path(call: Call) -> TType:
-    need(call, "json", "string")
-    path = literal_str(call, 1)
-    if path is None or not re.fullmatch(r"\$((\.[A-Za-z_][A-Za-z0-9_]*)|(\[\d+\])|(\[\"[^\"]*\"\]))*", path):
-        call.fail("unsupported in lakegate: JSON path other than a literal $.key / [index] path", "NOT_SUPPORTED")
-    source = call.types[0]
-    return source if source.base == "varchar" else tt.VARCHAR
-
-
-register(
-    "is_json_scalar",
-    "json",
-    "is_json_scalar(json) -> boolean",
-    fixed(tt.BOOLEAN, "json"),
-    lambda g, node, args: (
-        f"CASE WHEN NOT json_valid({g.sql(args[0])}) THEN "
-        f"{g.fail(tf.string('Invalid JSON value: ') + ' || ' + g.sql(args[0]))} "
-        f"ELSE json_type({g.sql(args[0])}) NOT IN ('OBJECT', 'ARRAY') END"
-    ),
-)
-register(
-    "json_extract_scalar",
-    "json",
-    "json_extract_scalar(json, json_path) -> varchar",
-    _json_path,
-    _render_json_extract_scalar,
-    notes="NULL for objects, arrays, missing keys and invalid JSON text, as in Trino. A non-integer "
-    "number is refused at run time (NOT_SUPPORTED): Trino returns its text as written "
-    "(2.50), which DuckDB does not keep.",
-)
-
-
 # === array ========================================================================================
 def _array_arg(call: Call, index: int = 0) -> TType:
     t = call.types[index]
@@ -3092,18 +3026,7 @@ REJECTED: dict[str, str] = {
     "regress": "machine learning functions are not available",
     "features": "machine learning functions are not available",
     "evaluate_classifier_predictions": "machine learning functions are not available",
-    "json_extract": "the JSON type is not supported; use json_extract_scalar",
-    "json_parse": "the JSON type is not supported",
-    "json_format": "the JSON type is not supported",
-    "json_size": "the JSON type is not supported",
-    "json_array_length": "the JSON type is not supported",
-    "json_array_get": "the JSON type is not supported",
-    "json_array_contains": "the JSON type is not supported",
-    "json_query": "SQL/JSON path functions are not translated",
-    "json_value": "SQL/JSON path functions are not translated",
-    "json_exists": "SQL/JSON path functions are not translated",
     "json_object": "SQL/JSON functions are not translated",
-    "json_array": "SQL/JSON functions are not translated",
     "parse_datetime": "Joda-Time patterns are not translated; use date_parse",
     "from_unixtime_nanos": "DuckDB has no nanosecond timestamp with time zone",
     "sha512": "DuckDB has no SHA-512",

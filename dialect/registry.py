@@ -58,3 +58,7 @@ def register(
 
 #: Well-known Trino functions lakegate refuses: name -> why.
 REJECTED: dict[str, str] = {}
+
+#: CAST to and from json (lakegate.dialect.json_values fills it, as it builds on the transforms):
+#: "to_json" (writer, sql, source type) and "from_json" (writer, sql, target type) -> DuckDB SQL.
+JSON_CASTS: dict[str, Callable[[Any, str, TType], str]] = {}

@@ -656,6 +656,10 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
         return sql
     if source.is_unknown:
         return cast("NULL", target)
+    if target.base == "json":
+        return registry.JSON_CASTS["to_json"](g, sql, source)
+    if source.base == "json":
+        return registry.JSON_CASTS["from_json"](g, sql, target)
     if target.base == "varchar":
         text = varchar_of(g, sql, source)
         length = tt.varchar_length(target)

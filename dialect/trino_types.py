@@ -365,7 +365,7 @@ _DUCK = {
     "varchar": "VARCHAR",
     "char": "VARCHAR",
     "date": "DATE",
-    "json": "JSON",
+    "json": "VARCHAR",  # the JSON text Trino holds, which DuckDB's JSON type would re-validate
     "varbinary": "BLOB",
     "uuid": "UUID",
     "interval_ds": "INTERVAL",
@@ -527,3 +527,29 @@ def arithmetic_type(op: str, a: TType, b: TType) -> TType | None:
         scale = max(s1, s2)
         return decimal(min(p2 - s2, p1 - s1) + scale, scale)
     return None
+
+
+# --- JSON casts ------------------------------------------------------------------------------
+def castable_from_json(target: TType) -> bool:
+    """The targets lakegate translates from json (JsonUtil.canCastFromJson, less decimal and maps
+    with other than varchar keys)."""
+    if target.base == "array":
+        return castable_from_json(target.element)
+    if target.base == "map":
+        return target.args[0].base == "varchar" and castable_from_json(target.args[1])
+    if target.base == "row":
+        return all(castable_from_json(t) for _, t in target.args)
+    return target.is_integral or target.is_approx or target.base in ("boolean", "varchar", "json")
+
+
+def castable_to_json(source: TType) -> bool:
+    """The sources lakegate writes as JSON (JsonUtil.canCastToJson, less timestamp, date, maps with
+    other than varchar, integer or boolean keys, and rows with unnamed fields)."""
+    if source.base == "array":
+        return castable_to_json(source.element)
+    if source.base == "map":
+        key = source.args[0]
+        return (key.base in ("varchar", "boolean") or key.is_integral) and castable_to_json(source.args[1])
+    if source.base == "row":
+        return all(name is not None and castable_to_json(t) for name, t in source.args)
+    return source.is_numeric or source.base in ("boolean", "varchar", "json", "unknown")

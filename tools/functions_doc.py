@@ -21,7 +21,6 @@ from pathlib import Path
 
 import sqlglot
 import yaml
-from sqlglot import exp
 from sqlglot.dialects.trino import Trino
 from sqlglot.tokens import TokenType
 
@@ -198,41 +197,9 @@ def called_names(sql: str) -> set[str]:
     return names
 
 
-#: Operators and syntax, with the sqlglot node classes that stand for them in a parsed query.
-OPERATORS: dict[str, tuple[type, ...]] = {
-    "+ - * / (arithmetic)": (exp.Add, exp.Sub, exp.Mul, exp.Div),
-    "% (modulus)": (exp.Mod,),
-    "- (negation)": (exp.Neg,),
-    "= <> < <= > >=": (exp.EQ, exp.NEQ, exp.LT, exp.LTE, exp.GT, exp.GTE),
-    "IS [NOT] DISTINCT FROM": (exp.NullSafeEQ, exp.NullSafeNEQ),
-    "IS [NOT] NULL": (exp.Is,),
-    "BETWEEN": (exp.Between,),
-    "IN": (exp.In,),
-    "LIKE [ESCAPE]": (exp.Like, exp.Escape),
-    "AND / OR / NOT": (exp.And, exp.Or, exp.Not),
-    "|| (concatenation)": (exp.DPipe,),
-    "CASE": (exp.Case,),
-    "ARRAY[...] constructor": (exp.Array,),
-    "[] (subscript)": (exp.Bracket,),
-    "-> (lambda)": (exp.Lambda,),
-    "INTERVAL literal": (exp.Interval,),
-    "AT TIME ZONE": (exp.AtTimeZone,),
-    "OVER (window)": (exp.Window,),
-    "FILTER (WHERE ...) on aggregates": (exp.Filter,),
-    "UNION / EXCEPT / INTERSECT": (exp.Union, exp.Except, exp.Intersect),
-    "VALUES": (exp.Values,),
-    "WITH (common table expressions)": (exp.With,),
-    "JOIN": (exp.Join,),
-    "UNNEST [WITH ORDINALITY]": (exp.Unnest,),
-    "EXISTS": (exp.Exists,),
-    "ALL / ANY subquery comparison": (exp.All, exp.Any),
-    "LIMIT / OFFSET / FETCH": (exp.Limit, exp.Offset, exp.Fetch),
-    "GROUP BY / HAVING": (exp.Group, exp.Having),
-}
-
-
-def used_operators(sql: str) -> set[str]:
-    """The OPERATORS labels whose node classes appear in the parsed query (none if it does not parse)."""
+def used_constructs(sql: str, constructs: dict) -> set[str]:
+    """The names of `constructs` (lakegate.dialect.constructs.CONSTRUCTS) a query uses (none if it
+    does not parse)."""
     logger = logging.getLogger("sqlglot")
     level = logger.level
     logger.setLevel(logging.ERROR)  # no "falling back to parsing as a Command" warnings
@@ -242,8 +209,14 @@ def used_operators(sql: str) -> set[str]:
         return set()
     finally:
         logger.setLevel(level)
-    kinds = {type(node) for tree in trees if tree is not None for node in tree.walk()}
-    return {label for label, classes in OPERATORS.items() if kinds.intersection(classes)}
+    return {
+        name
+        for tree in trees
+        if tree is not None
+        for node in tree.walk()
+        for name, construct in constructs.items()
+        if construct.used_by(node, sql)
+    }
 
 
 # --- Trino's function catalogue ----------------------------------------------------------------------
@@ -268,8 +241,7 @@ CATALOGUE: dict[str, str] = {
     "url_decode md5 sha1 sha256 sha512 to_hex from_hex to_base64 from_base64 crc32 xxhash64",
     "regexp": "regexp_count regexp_extract regexp_extract_all regexp_like regexp_position regexp_replace regexp_split",
     "json": "is_json_scalar json_array_contains json_array_get json_array_length json_extract "
-    "json_extract_scalar json_format json_parse json_size json_exists json_query json_value "
-    "json_object json_array",
+    "json_extract_scalar json_format json_parse json_size json_exists json_object json_array",
     "datetime": "current_date current_time current_timestamp current_timezone date date_add date_diff "
     "date_format date_parse date_trunc day day_of_month day_of_week day_of_year dow doy "
     "extract format_datetime from_iso8601_date from_iso8601_timestamp from_unixtime "
@@ -317,18 +289,20 @@ def _cell(text: str) -> str:
     return " ".join(str(text).split()).replace("|", "\\|")
 
 
-def generate(families: list[Family], supported: dict, rejected: dict[str, str]) -> str:
-    """The Markdown of docs/functions.md for these case families and this registry."""
+def generate(families: list[Family], supported: dict, rejected: dict[str, str], constructs: dict | None = None) -> str:
+    """The Markdown of docs/functions.md for these case families, this function registry and these
+    constructs (name -> lakegate.dialect.constructs.Construct)."""
     from lakegate.dialect import zones  # the zone rules, listed as the dialect applies them
 
+    constructs = constructs or {}
     cases = [case for family in families for case in family.cases]
     calls = defaultdict(int)
-    operators = defaultdict(int)
+    uses = defaultdict(int)
     for case in cases:
         for name in called_names(case.sql):
             calls[name] += 1
-        for label in used_operators(case.sql):
-            operators[label] += 1
+        for name in used_constructs(case.sql, constructs):
+            uses[name] += 1
 
     family_of = _catalogue_family()
     for name, spec in supported.items():
@@ -399,32 +373,38 @@ def generate(families: list[Family], supported: dict, rejected: dict[str, str]) 
                 counts["not implemented"] += 1
             sections.append(f"| `{name}` | {status} | {calls.get(name, 0)} | {detail} |")
 
+    supported_constructs = sum(1 for c in constructs.values() if not c.refused)
     out += [
         "",
         f"Functions: {counts['supported']} supported, {counts['rejected']} rejected with a "
-        f"reason, {counts['not implemented']} not implemented.",
+        f"reason, {counts['not implemented']} not implemented. Constructs: {supported_constructs} "
+        f"supported, {len(constructs) - supported_constructs} rejected with a reason. Functions "
+        f"and constructs supported: {counts['supported'] + supported_constructs}.",
     ]
     out += sections
     out += [
         "",
-        "## Operators and syntax",
+        "## SQL constructs",
         "",
-        "Handled by the translator itself rather than the function registry; their Trino "
-        "semantics are pinned by the cases counted here.",
+        "Operators and syntax, handled by the translator itself rather than the function registry "
+        "(lakegate.dialect.constructs). Each has an example query that tests/dialect/test_constructs.py "
+        "translates; **cases** counts the conformance cases that use it.",
         "",
-        "| operator / construct | cases |",
-        "|---|---:|",
+        "| construct | family | status | cases |",
+        "|---|---|---|---:|",
     ]
-    out += [f"| {_cell(label)} | {operators.get(label, 0)} |" for label in OPERATORS]
+    for name, construct in constructs.items():
+        status = f"rejected ({_cell(construct.refused)})" if construct.refused else "supported"
+        out.append(f"| {_cell(name)} | {construct.family} | {status} | {uses.get(name, 0)} |")
     return "\n".join(out) + "\n"
 
 
 def render_current(cases_dir: Path = CASES_DIR) -> str:
     """generate() with the installed registry and the case files in `cases_dir`."""
     # imported here, as load_cases needs no registry; translate imports every module that fills it
-    from lakegate.dialect import registry, translate  # noqa: F401
+    from lakegate.dialect import constructs, registry, translate  # noqa: F401
 
-    return generate(load_families(cases_dir), registry.SUPPORTED, registry.REJECTED)
+    return generate(load_families(cases_dir), registry.SUPPORTED, registry.REJECTED, constructs.CONSTRUCTS)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -21,10 +21,7 @@ RESULT_CASES = [case for case in load_cases() if not case.errors]
 
 #: Cases the baseline answers that lakegate still refuses, each with the open work it waits for. An
 #: entry that starts to pass fails the suite (strict xfail), so this list only shrinks.
-NOT_YET = {
-    "json/array-length": "the JSON type (issue 14 family 1): json_extract returns JSON",
-    "json/cast-json-to-array": "the JSON type (issue 14 family 1): json_extract returns JSON",
-}
+NOT_YET: dict[str, str] = {}
 
 
 def baseline_rows(case: Case, lake) -> list | None:

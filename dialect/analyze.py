@@ -787,12 +787,13 @@ class Analyzer:
                 self.fail("DISTINCT is not supported for non-aggregation functions", node, "FUNCTION_NOT_AGGREGATE")
             node.meta["distinct"] = True
             args = list(args[0].expressions)
-        if args and isinstance(args[0], exp.Order):
+        at = next((i for i in (0, len(args) - 1) if args and isinstance(args[i], exp.Order)), None)
+        if at is not None:  # f(x ORDER BY ...), f(k, v ORDER BY ...), and listagg's WITHIN GROUP
             if spec.kind != "aggregate":
                 self.fail("ORDER BY is only allowed in aggregation functions", node, "FUNCTION_NOT_AGGREGATE")
-            order = args[0]
+            order = args[at]
             node.meta["order"] = order
-            args = [order.this] + args[1:]
+            args[at] = order.this
             for ordered in order.expressions:
                 self.expr(ordered.this, scope, env)
         if any(isinstance(a, exp.Star) for a in args) and name != "count":

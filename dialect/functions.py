@@ -2864,17 +2864,6 @@ REJECTED: dict[str, str] = {
     "array_intersect": "set semantics (order, NULL handling) not translated exactly",
     "array_except": "set semantics (order, NULL handling) not translated exactly",
     "zip": "row field naming of the result not translated",
-    "transform_keys": "map functions are not supported (no map columns in the lake)",
-    "transform_values": "map functions are not supported (no map columns in the lake)",
-    "map_filter": "map functions are not supported (no map columns in the lake)",
-    "map_concat": "map functions are not supported (no map columns in the lake)",
-    "map_entries": "map functions are not supported (no map columns in the lake)",
-    "map_from_entries": "map functions are not supported (no map columns in the lake)",
-    "map_zip_with": "map functions are not supported (no map columns in the lake)",
-    "multimap_from_entries": "map functions are not supported (no map columns in the lake)",
-    "map_agg": "map result type not supported",
-    "multimap_agg": "map result type not supported",
-    "map_union": "map result type not supported",
     "approx_most_frequent": "map result type not supported",
     "numeric_histogram": "map result type not supported",
     "checksum": "Trino's xxhash64-based checksum cannot be reproduced",
@@ -2997,3 +2986,6 @@ REJECTED: dict[str, str] = {
     "array_frequency": "not translated",
     "array_cum_sum": "not translated",
 }
+
+# Maps, set-like arrays and map-building aggregates (issue 14) register themselves here.
+from lakegate.dialect import functions_struct  # noqa: E402, F401

@@ -1,0 +1,367 @@
+"""Maps, set-like array functions and the aggregates that build maps (issue 14, families 2-4),
+registered into `functions.SUPPORTED` by importing this module from functions.py.
+
+DuckDB maps keep their entries in insertion order, as Trino's map blocks do; lambdas over map
+entries bind their parameters (k, v) to each entry's key and value. Semantics follow Trino's
+io.trino.operator.scalar.Map*Function / Array*Function and io.trino.operator.aggregation classes,
+cited per function.
+"""
+
+from __future__ import annotations
+
+from sqlglot import exp
+
+from lakegate.dialect import transforms as tf
+from lakegate.dialect import trino_types as tt
+from lakegate.dialect.analyze import Call, ttype
+from lakegate.dialect.functions import _array_arg, need, null_if_any_null, register
+from lakegate.dialect.trino_types import TType
+
+
+# --- helpers ---------------------------------------------------------------------------------------
+def _map_arg(call: Call, index: int = 0) -> TType:
+    t = call.types[index] if index < len(call.types) else None
+    if t is None or t.base != "map":
+        call.mismatch()
+    return t
+
+
+def _plain_key(call: Call, key: TType) -> None:
+    """Keys lakegate's maps hold exactly: not arrays, maps or rows (DuckDB map keys lose their type
+    in the result encoding), and orderable, as Trino requires of a map key."""
+    if key.base in ("map", "json"):
+        call.mismatch()
+    if key.base in ("array", "row"):
+        call.fail(f"unsupported in lakegate: a map with {key.base} keys", "NOT_SUPPORTED")
+
+
+def bind(g, lam: exp.Lambda, values: list[str]) -> str:
+    """The lambda's body with its parameters bound to `values` (SQL expressions)."""
+    body = g.sql(lam.this)
+    for param, value in reversed(list(zip(lam.expressions, values))):
+        body = f"list_transform([{value}], lambda {tf.quote(param.name.lower())}: {body})[1]"
+    return body
+
+
+_E = '"_e"'
+_KEY, _VALUE = f"struct_extract_at({_E}, 1)", f"struct_extract_at({_E}, 2)"
+
+
+def _entries(map_sql: str) -> str:
+    return f"map_entries({map_sql})"
+
+
+def first_problem(g, keys: str, key_type: TType, entries: str | None = None) -> str:
+    """SQL of Trino's message for the first entry whose key is NULL or repeats an earlier key (or,
+    given `entries`, which is itself NULL), else NULL: map constructors check entries in order
+    (MapFromEntriesFunction, TransformKeysFunction)."""
+    null_entry = f"WHEN ({entries})[{tf.quote('_i')}] IS NULL THEN 'map entry cannot be null' " if entries else ""
+    key_text = tf.varchar_of(g, '"_k"', key_type)
+    duplicate = f"'Duplicate keys (' || {key_text} || ') are not allowed'"
+    message = (
+        f"CASE {null_entry}WHEN \"_k\" IS NULL THEN 'map key cannot be null' "
+        f'WHEN list_position({keys}, "_k") < "_i" THEN {duplicate} END'
+    )
+    return f'list_filter(list_transform({keys}, lambda "_k", "_i": {message}), lambda "_m": "_m" IS NOT NULL)[1]'
+
+
+def checked_map(g, problem: str, result: str) -> str:
+    return f"CASE WHEN ({problem}) IS NOT NULL THEN {g.fail(problem)} ELSE {result} END"
+
+
+def _first_per_key(entries: str) -> str:
+    """The entries (a list of (key, value) rows) whose key did not occur earlier in the list."""
+    keys = f'list_transform({entries}, lambda "_p": struct_extract_at("_p", 1))'
+    return f'list_filter({entries}, lambda "_p", "_i": list_position({keys}, struct_extract_at("_p", 1)) = "_i")'
+
+
+def _let(value: str, name: str, body: str) -> str:
+    """`body` with `name` (a quoted identifier) bound to `value`, evaluated once."""
+    return f"list_transform([{value}], lambda {name}: {body})[1]"
+
+
+# === maps =========================================================================================
+def _map_entries(call: Call) -> TType:
+    need(call, "any")
+    m = _map_arg(call)
+    return tt.array(tt.row([(None, m.args[0]), (None, m.args[1])]))
+
+
+def _render_map_entries(g, node, args) -> str:
+    return f"list_transform({_entries(g.sql(args[0]))}, lambda {_E}: row({_KEY}, {_VALUE}))"
+
+
+def _entry_row(call: Call) -> TType:
+    need(call, "array")
+    row = _array_arg(call).element
+    if row.base != "row" or len(row.args) != 2:
+        call.mismatch()
+    _plain_key(call, row.args[0][1])
+    return row
+
+
+def _map_from_entries(call: Call) -> TType:
+    row = _entry_row(call)
+    return tt.map_of(row.args[0][1], row.args[1][1])
+
+
+def _render_map_from_entries(g, node, args) -> str:
+    """MapFromEntriesFunction: a NULL entry, a NULL key or a repeated key fails, the first in order."""
+    arr = g.sql(args[0])
+    keys = f"list_transform({arr}, lambda {_E}: {_KEY})"
+    result = tf.cast(f"map_from_entries(list_transform({arr}, lambda {_E}: row({_KEY}, {_VALUE})))", ttype(node))
+    return checked_map(g, first_problem(g, keys, ttype(node).args[0], entries=arr), result)
+
+
+def _multimap_from_entries(call: Call) -> TType:
+    row = _entry_row(call)
+    return tt.map_of(row.args[0][1], tt.array(row.args[1][1]))
+
+
+def _grouped_values(entries: str, keys: str) -> str:
+    """A map from each distinct key (first occurrence order) to its values in entry order."""
+    distinct = f'list_filter({keys}, lambda "_k", "_i": list_position({keys}, "_k") = "_i")'
+    values = (
+        f'list_transform({distinct}, lambda "_k": list_transform(list_filter({entries}, '
+        f'lambda {_E}: {_KEY} IS NOT DISTINCT FROM "_k"), lambda {_E}: {_VALUE}))'
+    )
+    return f"map({distinct}, {values})"
+
+
+def _render_multimap_from_entries(g, node, args) -> str:
+    """MultimapFromEntriesFunction: a NULL entry or a NULL key fails; repeated keys collect values."""
+    arr = g.sql(args[0])
+    keys = f"list_transform({arr}, lambda {_E}: {_KEY})"
+    problem = (
+        f"CASE WHEN list_contains(list_transform({arr}, lambda {_E}: {_E} IS NULL), true) "
+        f"THEN 'map entry cannot be null' WHEN list_count({keys}) < len({keys}) THEN 'map key cannot be null' END"
+    )
+    result = f"CASE WHEN ({arr}) IS NULL THEN NULL ELSE {tf.cast(_grouped_values(arr, keys), ttype(node))} END"
+    return checked_map(g, problem, result)
+
+
+def _map_concat(call: Call) -> TType:
+    if len(call.args) < 2:
+        call.fail("There must be two or more concatenation arguments to map_concat", "INVALID_FUNCTION_ARGUMENT")
+    if any(t is None or t.base not in ("map", "unknown") for t in call.types) or all(t.is_unknown for t in call.types):
+        call.mismatch()
+    return tt.common_super_type_of(call.types) or call.mismatch()
+
+
+def _render_map_concat(g, node, args) -> str:
+    """MapConcatFunction: a key's value comes from the last map holding it; NULL if any map is NULL."""
+    maps = ", ".join(g.coerce(a, ttype(node)) for a in args)
+    return null_if_any_null(g, args, f"map_concat({maps})")
+
+
+def _map_lambda(call: Call, index: int = 1) -> tuple[TType, TType]:
+    """Type the (k, v) lambda at `index` over the map argument; (map type, lambda body type)."""
+    if len(call.args) != index + 1:
+        call.mismatch()
+    m = _map_arg(call)
+    return m, call.lam(index, list(m.args))
+
+
+def _map_filter(call: Call) -> TType:
+    m, body = _map_lambda(call)
+    if body.base not in ("boolean", "unknown"):
+        call.mismatch()
+    return m
+
+
+def _render_map_filter(g, node, args) -> str:
+    kept = f"list_filter({_entries(g.sql(args[0]))}, lambda {_E}: {bind(g, args[1], [_KEY, _VALUE])})"
+    return tf.cast(f"map_from_entries({kept})", ttype(node))
+
+
+def _transform_values(call: Call) -> TType:
+    m, body = _map_lambda(call)
+    return tt.map_of(m.args[0], body)
+
+
+def _render_transform_values(g, node, args) -> str:
+    value = bind(g, args[1], [_KEY, _VALUE])
+    entries = f"list_transform({_entries(g.sql(args[0]))}, lambda {_E}: row({_KEY}, {value}))"
+    return tf.cast(f"map_from_entries({entries})", ttype(node))
+
+
+def _transform_keys(call: Call) -> TType:
+    m, body = _map_lambda(call)
+    _plain_key(call, body)
+    if body.is_unknown:  # TransformKeysFunction: a key of type unknown is always NULL
+        call.fail("map key cannot be null", "INVALID_FUNCTION_ARGUMENT")
+    return tt.map_of(body, m.args[1])
+
+
+def _render_transform_keys(g, node, args) -> str:
+    """TransformKeysFunction: a NULL or repeated new key fails, the first in entry order."""
+    m = g.sql(args[0])
+    keys = f"list_transform({_entries(m)}, lambda {_E}: {bind(g, args[1], [_KEY, _VALUE])})"
+    body = checked_map(
+        g,
+        first_problem(g, '"_nk"', ttype(node).args[0]),
+        tf.cast(f'map("_nk", map_values({m}))', ttype(node)),
+    )
+    return _let(keys, '"_nk"', body)
+
+
+def _map_zip_with(call: Call) -> TType:
+    if len(call.args) != 3:
+        call.mismatch()
+    a, b = _map_arg(call, 0), _map_arg(call, 1)
+    key = tt.common_super_type(a.args[0], b.args[0])
+    if key is None:
+        call.mismatch()
+    call.node.meta["key"] = key
+    return tt.map_of(key, call.lam(2, [key, a.args[1], b.args[1]]))
+
+
+def _render_map_zip_with(g, node, args) -> str:
+    """MapZipWithFunction: every key of either map (the first map's order, then the second's new
+    keys), with NULL for the value a map lacks."""
+    key = node.meta["key"]
+    a = g.coerce(args[0], tt.map_of(key, ttype(args[0]).args[1]))
+    b = g.coerce(args[1], tt.map_of(key, ttype(args[1]).args[1]))
+    keys = (
+        f'list_concat(map_keys({a}), list_filter(map_keys({b}), lambda "_k": NOT list_contains(map_keys({a}), "_k")))'
+    )
+    value = bind(g, args[2], ['"_k"', f'map_extract_value({a}, "_k")', f'map_extract_value({b}, "_k")'])
+    result = f'map({keys}, list_transform({keys}, lambda "_k": {value}))'
+    return null_if_any_null(g, args[:2], tf.cast(result, ttype(node)))
+
+
+register(
+    "map_entries",
+    "map",
+    "map_entries(map(K, V)) -> array(row(K, V))",
+    _map_entries,
+    _render_map_entries,
+)
+register(
+    "map_from_entries",
+    "map",
+    "map_from_entries(array(row(K, V))) -> map(K, V)",
+    _map_from_entries,
+    _render_map_from_entries,
+    notes="A NULL entry, a NULL key or a repeated key fails as in Trino.",
+)
+register(
+    "multimap_from_entries",
+    "map",
+    "multimap_from_entries(array(row(K, V))) -> map(K, array(V))",
+    _multimap_from_entries,
+    _render_multimap_from_entries,
+)
+register(
+    "map_concat",
+    "map",
+    "map_concat(map1(K, V), map2(K, V), ..., mapN(K, V)) -> map(K, V)",
+    _map_concat,
+    _render_map_concat,
+    notes="A key's value comes from the last map holding it.",
+)
+register(
+    "map_filter", "map", "map_filter(map(K, V), function(K, V, boolean)) -> map(K, V)", _map_filter, _render_map_filter
+)
+register(
+    "transform_values",
+    "map",
+    "transform_values(map(K, V1), function(K, V1, V2)) -> map(K, V2)",
+    _transform_values,
+    _render_transform_values,
+)
+register(
+    "transform_keys",
+    "map",
+    "transform_keys(map(K1, V), function(K1, V, K2)) -> map(K2, V)",
+    _transform_keys,
+    _render_transform_keys,
+    notes="A NULL or repeated new key fails as in Trino.",
+)
+register(
+    "map_zip_with",
+    "map",
+    "map_zip_with(map(K, V1), map(K, V2), function(K, V1, V2, V3)) -> map(K, V3)",
+    _map_zip_with,
+    _render_map_zip_with,
+)
+
+
+# === map-building aggregates ======================================================================
+def _key_value_agg(call: Call) -> tuple[TType, TType]:
+    key, value = need(call, "any", "any")
+    if key.is_unknown:
+        call.mismatch()
+    _plain_key(call, key)
+    return key, value
+
+
+def _collected_entries(g, node, key: str, value: str) -> str:
+    """The aggregate's (key, value) rows in input order (its ORDER BY), rows with a NULL key
+    dropped: the key argument of MapAggregationFunction / MultimapAggregationFunction is not
+    nullable, so Trino skips those rows."""
+    rows = g.agg(node, "list", [f"row({key}, {value})"])
+    return f"list_filter({rows}, lambda {_E}: {_KEY} IS NOT NULL)"
+
+
+def _map_or_null(entries: str, result: str) -> str:
+    """NULL over no entries (AbstractMapAggregationState.serialize), else `result` with the entries
+    bound to "_es"."""
+    return _let(entries, '"_es"', f'CASE WHEN len("_es") = 0 THEN NULL ELSE {result} END')
+
+
+_FIRST_PER_KEY = f"map_from_entries({_first_per_key(tf.quote('_es'))})"
+
+
+def _render_map_agg(g, node, args) -> str:
+    """MapAggregationFunction: the first value of a key wins (in the aggregate's ORDER BY)."""
+    entries = _collected_entries(g, node, g.sql(args[0]), g.sql(args[1]))
+    return tf.cast(_map_or_null(entries, _FIRST_PER_KEY), ttype(node))
+
+
+def _render_multimap_agg(g, node, args) -> str:
+    entries = _collected_entries(g, node, g.sql(args[0]), g.sql(args[1]))
+    keys = f'list_transform("_es", lambda {_E}: {_KEY})'
+    return tf.cast(_map_or_null(entries, _grouped_values('"_es"', keys)), ttype(node))
+
+
+def _map_union(call: Call) -> TType:
+    need(call, "any")
+    return _map_arg(call)
+
+
+def _render_map_union(g, node, args) -> str:
+    """MapUnionAggregation: NULL maps are skipped; a key held by several maps takes the value of
+    the first (Trino: an arbitrary one of them)."""
+    maps = g.agg(node, "list", [_entries(g.sql(args[0]))])
+    entries = f'flatten(list_filter({maps}, lambda "_m": "_m" IS NOT NULL))'
+    return tf.cast(_map_or_null(entries, _FIRST_PER_KEY), ttype(node))
+
+
+register(
+    "map_agg",
+    "aggregate",
+    "map_agg(key, value) -> map(K, V)",
+    lambda c: tt.map_of(*_key_value_agg(c)),
+    _render_map_agg,
+    kind="aggregate",
+    notes="Rows with a NULL key are skipped; the first value of a repeated key is kept; NULL for no rows.",
+)
+register(
+    "multimap_agg",
+    "aggregate",
+    "multimap_agg(key, value) -> map(K, array(V))",
+    lambda c: (lambda k, v: tt.map_of(k, tt.array(v)))(*_key_value_agg(c)),
+    _render_multimap_agg,
+    kind="aggregate",
+    notes="Rows with a NULL key are skipped; NULL for no rows.",
+)
+register(
+    "map_union",
+    "aggregate",
+    "map_union(x(K, V)) -> map(K, V)",
+    _map_union,
+    _render_map_union,
+    kind="aggregate",
+    notes="A key found in several maps takes its value from the first of them (Trino: an arbitrary one).",
+)

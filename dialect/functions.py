@@ -2857,13 +2857,7 @@ _GEO = (
 
 REJECTED: dict[str, str] = {
     **{name.lower(): "geospatial functions are not available in lakegate" for name in _GEO},
-    "ngrams": "array n-gram function not translated",
-    "combinations": "array combinations function not translated",
     "shuffle": "random permutation not translated",
-    "array_union": "set semantics (order, NULL handling) not translated exactly",
-    "array_intersect": "set semantics (order, NULL handling) not translated exactly",
-    "array_except": "set semantics (order, NULL handling) not translated exactly",
-    "zip": "row field naming of the result not translated",
     "approx_most_frequent": "map result type not supported",
     "numeric_histogram": "map result type not supported",
     "checksum": "Trino's xxhash64-based checksum cannot be reproduced",
@@ -2979,7 +2973,6 @@ REJECTED: dict[str, str] = {
     "current_schema": "not translated",
     "sequence_timestamp": "not translated",
     "ip_prefix": "IP address functions are not available",
-    "contains_sequence": "not translated",
     "array_has_duplicates": "not translated",
     "array_duplicates": "not translated",
     "remove_nulls": "not translated",

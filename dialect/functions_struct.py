@@ -14,7 +14,7 @@ from sqlglot import exp
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import Call, ttype
-from lakegate.dialect.functions import _array_arg, need, null_if_any_null, register
+from lakegate.dialect.functions import _array_arg, literal_int, need, null_if_any_null, register, sqls
 from lakegate.dialect.trino_types import TType
 
 
@@ -365,3 +365,202 @@ register(
     kind="aggregate",
     notes="A key found in several maps takes its value from the first of them (Trino: an arbitrary one).",
 )
+
+
+# === arrays =======================================================================================
+def _two_arrays(call: Call) -> TType:
+    """Both arguments coerced to their common array type (the result type of the set functions)."""
+    need(call, "array", "array")
+    t = tt.common_super_type(_array_arg(call, 0), _array_arg(call, 1))
+    if t is None or t.element.base in ("map", "json"):
+        call.mismatch()
+    return t
+
+
+def _first_occurrences(arr: str, keep_nan: bool = False) -> str:
+    """The elements of `arr` not equal to an earlier one; NULL is a value and kept once (DuckDB's
+    list_position finds NULL and NaN, as Trino's IDENTICAL operator does). With `keep_nan` every NaN
+    is kept: Trino's EQUAL never finds a NaN in a set."""
+    nan = ' OR isnan("_x")' if keep_nan else ""
+    return f'list_filter({arr}, lambda "_x", "_i": list_position({arr}, "_x") = "_i"{nan})'
+
+
+def _array_union(call: Call) -> TType:
+    t = _two_arrays(call)
+    if t.element.base in ("array", "row"):
+        call.fail("unsupported in lakegate: array_union of arrays of arrays or rows", "NOT_SUPPORTED")
+    return t
+
+
+def _render_array_union(g, node, args) -> str:
+    """ArrayUnionFunction: x's then y's elements, each value once (EQUAL: NULL once, NaN always)."""
+    t = ttype(node)
+    both = f"list_concat({g.coerce(args[0], t)}, {g.coerce(args[1], t)})"
+    return null_if_any_null(g, args, _let(both, '"_u"', _first_occurrences('"_u"', keep_nan=t.element.is_approx)))
+
+
+def _render_array_intersect(g, node, args) -> str:
+    """ArrayIntersectFunction: the distinct elements of the longer array (the first when equally
+    long) found in the other, in the longer array's order; IDENTICAL, so NULL and NaN match."""
+    t = ttype(node)
+    x, y = g.coerce(args[0], t), g.coerce(args[1], t)
+
+    def intersect(longer: str, shorter: str) -> str:
+        found = f'list_filter({longer}, lambda "_y": list_position({shorter}, "_y") IS NOT NULL)'
+        return _let(found, '"_f"', _first_occurrences('"_f"'))
+
+    return null_if_any_null(g, args, f"CASE WHEN len({x}) < len({y}) THEN {intersect(y, x)} ELSE {intersect(x, y)} END")
+
+
+def _render_array_except(g, node, args) -> str:
+    """ArrayExceptFunction: x unchanged when either array is empty, else x's distinct elements not in
+    y, in x's order; IDENTICAL, so NULL and NaN match."""
+    t = ttype(node)
+    x, y = g.coerce(args[0], t), g.coerce(args[1], t)
+    distinct = _let(x, '"_d"', _first_occurrences('"_d"'))
+    kept = f'list_filter({distinct}, lambda "_y": list_position({y}, "_y") IS NULL)'
+    return null_if_any_null(g, args, f"CASE WHEN len({x}) = 0 OR len({y}) = 0 THEN {x} ELSE {kept} END")
+
+
+def _contains_sequence(call: Call) -> TType:
+    _two_arrays(call)
+    return tt.BOOLEAN
+
+
+def _render_contains_sequence(g, node, args) -> str:
+    """ArrayContainsSequence: seq occurs in x as consecutive elements (IDENTICAL: NULL matches NULL)."""
+    t = tt.common_super_type(ttype(args[0]), ttype(args[1]))
+    x, seq = g.coerce(args[0], t), g.coerce(args[1], t)
+    at = f'list_slice({x}, "_i" + 1, "_i" + len({seq})) IS NOT DISTINCT FROM {seq}'
+    found = f'len(list_filter(range(0, len({x}) - len({seq}) + 1), lambda "_i": {at})) > 0'
+    return null_if_any_null(g, args, found)
+
+
+def _ngrams(call: Call) -> TType:
+    need(call, "array", "integral")
+    return tt.array(_array_arg(call))
+
+
+def _render_ngrams(g, node, args) -> str:
+    """ArrayNgramsFunction: windows of min(n, cardinality) adjacent elements, so an empty array gives
+    one empty n-gram; n must be positive."""
+    arr, n = g.sql(args[0]), f"CAST({g.sql(args[1])} AS BIGINT)"
+    size = f"least(len({arr}), {n})"
+    grams = (
+        f'list_transform(range(0, len({arr}) - {size} + 1), lambda "_i": list_slice({arr}, "_i" + 1, "_i" + {size}))'
+    )
+    return f"CASE WHEN {n} <= 0 THEN {g.fail(tf.string('N must be positive'))} ELSE {grams} END"
+
+
+#: ArrayCombinationsFunction.MAX_COMBINATION_LENGTH and MAX_RESULT_ELEMENTS.
+MAX_COMBINATION_LENGTH = 5
+MAX_COMBINATION_ELEMENTS = 100_000
+
+
+def _combinations(call: Call) -> TType:
+    need(call, "array", "integral")
+    call.node.meta["k"] = literal_int(call, 1)
+    if call.node.meta["k"] is None:
+        call.fail("unsupported in lakegate: combinations with a size that is not a literal", "NOT_SUPPORTED")
+    return tt.array(_array_arg(call))
+
+
+def _combination_checks(g, size: str, k: int) -> list[tuple[str, str]]:
+    """ArrayCombinationsFunction's checks, in its order, as (condition, message SQL) pairs."""
+    if k < 0:
+        return [("true", tf.string(f"combination size must not be negative: {k}"))]
+    if k > MAX_COMBINATION_LENGTH:
+        return [("true", tf.string(f"combination size must not exceed {MAX_COMBINATION_LENGTH}: {k}"))]
+    checks, count = [], "CAST(1 AS HUGEINT)"
+    too_large = f"'Number of combinations too large for array of size ' || {size} || ' and combination length {k}'"
+    for i in range(1, k + 1):  # combinationCount, in Java int arithmetic
+        product = f"({count}) * ({size} - {k} + {i})"
+        checks.append((f"{size} >= {k} AND {product} > 2147483647", too_large))
+        count = f"({product}) // {i}"
+    exceeded = tf.string("combinations exceed max size")
+    checks.append((f"{size} >= {k} AND ({count}) * {k} > {MAX_COMBINATION_ELEMENTS}", exceeded))
+    return checks
+
+
+def _render_combinations(g, node, args) -> str:
+    """ArrayCombinationsFunction: the k-element index sets in its order (colexicographic: by the last
+    index, then the one before, ...), each as the array of those elements. The checks size the
+    outermost loop, so that a too large result fails before it is built (see functions.checked)."""
+    arr, k = g.sql(args[0]), node.meta["k"]
+    size = f"len({arr})"
+    checks = _combination_checks(g, size, k)
+    upper = "CASE " + " ".join(f"WHEN {c} THEN {g.fail(m)}" for c, m in checks) + f" ELSE {size} + 1 END"
+    if not 0 <= k <= MAX_COMBINATION_LENGTH:
+        return f"CASE WHEN ({arr}) IS NULL THEN NULL ELSE {g.fail(checks[0][1])} END"
+    if k == 0:
+        return f"CASE WHEN ({arr}) IS NULL THEN NULL ELSE [list_slice({arr}, 1, 0)] END"
+    combo = "[" + ", ".join(f'{arr}["_c{j}"]' for j in range(1, k + 1)) + "]"
+    for j in range(1, k + 1):  # index j runs below index j + 1, the last one below the size
+        bound = upper if j == k else f'"_c{j + 1}"'
+        combo = f'list_transform(range(1, {bound}), lambda "_c{j}": {combo})'
+        combo = f"flatten({combo})" if j > 1 else combo
+    return combo
+
+
+def _zip(call: Call) -> TType:
+    if not 2 <= len(call.args) <= 5:  # ZipFunction.MIN_ARITY, MAX_ARITY
+        call.mismatch()
+    return tt.array(tt.row([(None, _array_arg(call, i).element) for i in range(len(call.args))]))
+
+
+def _render_zip(g, node, args) -> str:
+    """ZipFunction: rows of the i-th elements (anonymous fields), NULL past a shorter array's end."""
+    arrays = sqls(g, args)
+    longest = "greatest(" + ", ".join(f"len({a})" for a in arrays) + ")"
+    fields = ", ".join(f'{a}["_i"]' for a in arrays)
+    return null_if_any_null(g, args, f'list_transform(range(1, {longest} + 1), lambda "_i": row({fields}))')
+
+
+register(
+    "array_union",
+    "array",
+    "array_union(x, y) -> array",
+    _array_union,
+    _render_array_union,
+    notes="x's elements then y's, each once, in order; NULL once; NaN is never equal (ArrayUnionFunction).",
+)
+register(
+    "array_intersect",
+    "array",
+    "array_intersect(x, y) -> array",
+    _two_arrays,
+    _render_array_intersect,
+    notes="In the order of the longer array (x when equally long), as ArrayIntersectFunction; NULL matches NULL.",
+)
+register(
+    "array_except",
+    "array",
+    "array_except(x, y) -> array",
+    _two_arrays,
+    _render_array_except,
+    notes="x unchanged (duplicates kept) when x or y is empty, as ArrayExceptFunction.",
+)
+register(
+    "contains_sequence",
+    "array",
+    "contains_sequence(x, seq) -> boolean",
+    _contains_sequence,
+    _render_contains_sequence,
+)
+register(
+    "ngrams",
+    "array",
+    "ngrams(array(T), n) -> array(array(T))",
+    _ngrams,
+    _render_ngrams,
+    notes="In order of position; n larger than the array gives the whole array.",
+)
+register(
+    "combinations",
+    "array",
+    "combinations(array(T), n) -> array(array(T))",
+    _combinations,
+    _render_combinations,
+    notes="In Trino's order; n must be a literal (0 to 5).",
+)
+register("zip", "array", "zip(array1, array2[, ...]) -> array(row)", _zip, _render_zip, notes="2 to 5 arrays.")

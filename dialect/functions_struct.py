@@ -14,7 +14,7 @@ from sqlglot import exp
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import Call, ttype
-from lakegate.dialect.functions import _array_arg, literal_int, need, null_if_any_null, register, sqls
+from lakegate.dialect.functions import _array_arg, fixed, literal_int, need, null_if_any_null, register, sqls
 from lakegate.dialect.trino_types import TType
 
 
@@ -564,3 +564,96 @@ register(
     notes="In Trino's order; n must be a literal (0 to 5).",
 )
 register("zip", "array", "zip(array1, array2[, ...]) -> array(row)", _zip, _render_zip, notes="2 to 5 arrays.")
+
+
+# === aggregates ===================================================================================
+def _bitwise_agg(call: Call) -> TType:
+    need(call, "integral")
+    return tt.BIGINT
+
+
+for _name, _duck in (("bitwise_and_agg", "bit_and"), ("bitwise_or_agg", "bit_or"), ("bitwise_xor_agg", "bit_xor")):
+    register(
+        _name,
+        "aggregate",
+        f"{_name}(x) -> bigint",
+        _bitwise_agg,
+        lambda g, node, args, duck=_duck: tf.cast(g.agg(node, duck, [f"CAST({g.sql(args[0])} AS BIGINT)"]), tt.BIGINT),
+        kind="aggregate",
+        notes="Two's complement over bigint; NULL values are skipped; NULL for no rows.",
+    )
+
+
+def _moment(g, node, args, minimum: int, value: str) -> str:
+    """CentralMomentsAggregation: NULL below `minimum` values, NaN when they are all equal (a zero
+    second moment divides zero by zero), else `value`."""
+    x = f"CAST({g.sql(args[0])} AS DOUBLE)"
+    count, spread = g.agg(node, "count", [x]), g.agg(node, "var_pop", [x])
+    return f"CASE WHEN {count} < {minimum} THEN NULL WHEN {spread} = 0 THEN CAST('NaN' AS DOUBLE) ELSE {value} END"
+
+
+def _render_kurtosis(g, node, args) -> str:
+    """Trino's estimator, (n-1)n(n+1)/((n-2)(n-3)) m4/m2^2 - 3(n-1)^2/((n-2)(n-3)), is DuckDB's."""
+    return _moment(g, node, args, 4, g.agg(node, "kurtosis", [f"CAST({g.sql(args[0])} AS DOUBLE)"]))
+
+
+def _render_skewness(g, node, args) -> str:
+    """Trino's is the population skewness sqrt(n) m3 / m2^1.5; DuckDB's is the sample skewness,
+    that times sqrt(n(n-1))/(n-2)."""
+    x = f"CAST({g.sql(args[0])} AS DOUBLE)"
+    n = g.agg(node, "count", [x])
+    return _moment(g, node, args, 3, f"{g.agg(node, 'skewness', [x])} * ({n} - 2) / sqrt({n} * ({n} - 1))")
+
+
+register(
+    "kurtosis",
+    "aggregate",
+    "kurtosis(x) -> double",
+    fixed(tt.DOUBLE, "number"),
+    _render_kurtosis,
+    kind="aggregate",
+    notes="Trino's unbiased estimator; NULL below 4 values. Equal to Trino's up to floating-point rounding.",
+)
+register(
+    "skewness",
+    "aggregate",
+    "skewness(x) -> double",
+    fixed(tt.DOUBLE, "number"),
+    _render_skewness,
+    kind="aggregate",
+    notes="Trino's population skewness; NULL below 3 values. Equal to Trino's up to floating-point rounding.",
+)
+
+
+def _reduce_agg(call: Call) -> TType:
+    if len(call.args) != 4 or call.types[0] is None or call.types[1] is None:
+        call.mismatch()
+    value, state = call.types[0], call.types[1]
+    if state.base not in ("boolean", "tinyint", "smallint", "integer", "bigint", "double", "real", "date", "unknown"):
+        call.fail(f"State type not supported for reduce_agg: {state}", "NOT_SUPPORTED")
+    for index, params in ((2, [state, value]), (3, [state, state])):
+        if not tt.coercible(call.lam(index, params), state):
+            call.mismatch()
+    return state
+
+
+def _render_reduce_agg(g, node, args) -> str:
+    """ReduceAggregationFunction: the input function folds the non-NULL values into the state, which
+    starts as the initial value at the first of them (NULL for no values). Evaluated as one state, so
+    the combine function is not used; Trino combines partial states with it, which gives the same
+    result for the associative functions it is meant for."""
+    values = f'list_filter({g.agg(node, "list", [g.sql(args[0])])}, lambda "_v": "_v" IS NOT NULL)'
+    folded = f'list_reduce("_vs", {g.lambda_(args[2])}, {g.coerce(args[1], ttype(node))})'
+    return tf.cast(_let(values, '"_vs"', f'CASE WHEN len("_vs") = 0 THEN NULL ELSE {folded} END'), ttype(node))
+
+
+register(
+    "reduce_agg",
+    "aggregate",
+    "reduce_agg(inputValue T, initialState S, inputFunction(S, T, S), combineFunction(S, S, S)) -> S",
+    _reduce_agg,
+    _render_reduce_agg,
+    kind="aggregate",
+    notes="The combine function must be associative as Trino assumes; states of boolean, integer, "
+    "floating-point and date types, as Trino's ReduceAggregationFunction.",
+)

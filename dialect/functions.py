@@ -2475,7 +2475,6 @@ register(
     _render_zip_with,
     notes="The shorter array is padded with NULLs, as in Trino.",
 )
-register("sequence", "array", "sequence(start, stop[, step]) -> array(bigint)", _sequence, _render_sequence)
 register("slice", "array", "slice(array, start, length) -> array", _slice, _render_slice)
 register("flatten", "array", "flatten(array(array(T))) -> array(T)", _flatten, call_as("flatten"))
 register("reverse", "array", "reverse(array) -> array; reverse(string) -> varchar", _reverse, _render_reverse)

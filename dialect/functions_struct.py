@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from sqlglot import exp
 
+from lakegate.dialect import functions
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import Call, ttype
@@ -656,4 +657,75 @@ register(
     kind="aggregate",
     notes="The combine function must be associative as Trino assumes; states of boolean, integer, "
     "floating-point and date types, as Trino's ReduceAggregationFunction.",
+)
+
+
+# === sequence over dates and timestamps ===========================================================
+_WRONG_WAY = (
+    "sequence stop value should be greater than or equal to start value if step is greater than zero "
+    "otherwise stop should be less than or equal to start"
+)
+
+
+def _sequence(call: Call) -> TType:
+    """Integers (functions._sequence), or dates and timestamps (io.trino.operator.scalar.SequenceFunction
+    and its timestamp variants): a date sequence steps by a day by default, or by a whole-day or a
+    year-to-month interval; a timestamp sequence needs the interval."""
+    types = call.types
+    if not 2 <= len(types) <= 3 or None in types or types[0].base not in ("date", "timestamp"):
+        return functions._sequence(call)
+    t = tt.common_super_type(types[0], types[1])
+    if t is None or t.base != types[0].base or (t.base == "timestamp" and len(types) == 2):
+        call.mismatch()
+    if t.base == "timestamp" and t.args[0] > 6:
+        call.fail(
+            "unsupported in lakegate: sequence over timestamps with more than 6 fractional digits", "NOT_SUPPORTED"
+        )
+    if len(types) == 3 and types[2].base not in ("interval_ds", "interval_ym"):
+        call.mismatch()
+    return tt.array(t)
+
+
+def _render_sequence(g, node, args) -> str:
+    t = ttype(node).element if ttype(node).base == "array" else None
+    if t is None or t.base not in ("date", "timestamp"):
+        return functions._render_sequence(g, node, args)
+    start, stop = (g.coerce(a, t) for a in args[:2])
+    step = g.sql(args[2]) if len(args) == 3 else None
+    checks = []
+    if step is not None and ttype(args[2]).base == "interval_ym":
+        step_number, unit = f"(datepart('year', {step}) * 12 + datepart('month', {step}))", "to_months"
+        span = f"date_sub('month', {start}, {stop})"
+    elif t.base == "date":
+        if step is None:
+            step_number = f"CASE WHEN {stop} >= {start} THEN 1 ELSE -1 END"
+        else:
+            step_number = f"(epoch_ms({step}) // 86400000)"
+            whole_days = "sequence step must be a day interval if start and end values are dates"
+            checks.append((f"epoch_ms({step}) % 86400000 <> 0", whole_days))
+        unit, span = "to_days", f"({stop} - {start})"
+    else:
+        step_number, unit = f"epoch_us({step})", "to_microseconds"
+        span = f"(epoch_us({stop}) - epoch_us({start}))"
+    checks += [
+        (f"{step_number} = 0", "step must not be zero"),
+        (f"CASE WHEN {step_number} > 0 THEN {stop} < {start} ELSE {stop} > {start} END", _WRONG_WAY),
+        (
+            f"{span} // {step_number} + 1 > {functions.MAX_SEQUENCE_ENTRIES}",
+            f"result of sequence function must not have more than {functions.MAX_SEQUENCE_ENTRIES} entries",
+        ),
+    ]
+    count = functions.checked(g, f"{span} // {step_number} + 1", checks)
+    value = tf.cast(f'{start} + {unit}(CAST("_i" * {step_number} AS BIGINT))', t)
+    return f'list_transform(range(0, {count}), lambda "_i": {value})'
+
+
+register(
+    "sequence",
+    "array",
+    "sequence(start, stop[, step]) -> array(bigint); sequence(date, date[, interval]) -> array(date); "
+    "sequence(timestamp, timestamp, interval) -> array(timestamp)",
+    _sequence,
+    _render_sequence,
+    notes="A month step adds i months to the start (clamped to the month's end), as Trino.",
 )

@@ -1980,6 +1980,7 @@ def _comparator_key(call: Call) -> tuple[exp.Expression, bool]:
             body = _unparen(body.args.get("default"))
         else:
             break
+    branches, nulls_first = _null_branches(branches, x, y, reject)
     default, key, relations = body, None, []
     for cond, _ in branches:
         cond = _unparen(cond)
@@ -2009,17 +2010,46 @@ def _comparator_key(call: Call) -> tuple[exp.Expression, bool]:
         outcome.append((number > 0) - (number < 0))
     if key is None or tuple(outcome) not in ((-1, 0, 1), (1, 0, -1)):
         reject()
-    return key, tuple(outcome) == (1, 0, -1)
+    if nulls_first is not None and not (isinstance(key, (exp.Column, exp.Identifier)) and key.name.lower() == x):
+        reject()  # the NULL branches test the elements, so the key must be the element itself
+    return key, tuple(outcome) == (1, 0, -1), nulls_first
+
+
+def _null_branches(branches: list, x: str, y: str, reject) -> tuple[list, bool | None]:
+    """Leading `WHEN x IS NULL THEN -1 WHEN y IS NULL THEN 1` (NULLs first) or `... THEN 1 ... THEN -1`
+    (NULLs last) of a comparator, as in Trino's docs (functions/array.md array_sort); the other branches
+    and where NULLs go (None without such branches)."""
+    tests = []
+    for cond, result in branches[:2]:
+        cond = _unparen(cond)
+        if not (isinstance(cond, exp.Is) and isinstance(cond.expression, exp.Null)):
+            break
+        target = _unparen(cond.this)
+        name = target.name.lower() if isinstance(target, (exp.Column, exp.Identifier)) else None
+        literal = _unparen(result)
+        sign = -1 if isinstance(literal, exp.Neg) else 1
+        literal = literal.this if isinstance(literal, exp.Neg) else literal
+        if name not in (x, y) or not isinstance(literal, exp.Literal) or literal.name != "1":
+            reject()
+        tests.append((name, sign))
+    if not tests:
+        return branches, None
+    if tests not in ([(x, -1), (y, 1)], [(x, 1), (y, -1)]):
+        reject()
+    return branches[2:], tests[0][1] == -1
 
 
 def _render_array_sort(g, node, args) -> str:
     arr = g.sql(args[0])
     if len(args) == 1:
         return f"list_sort({arr}, 'ASC', 'NULLS LAST')"
-    key, descending = node.meta["sort_key"]
+    key, descending, nulls_first = node.meta["sort_key"]
     x = tf.quote(args[1].expressions[0].name.lower())
     position = '-"_i"' if descending else '"_i"'
-    keyed = f'list_transform({arr}, lambda {x}, "_i": struct_pack(k := {g.sql(key)}, i := {position}, v := {x}))'
+    null_flag = "" if nulls_first is None else f"n := {x} IS {'' if nulls_first == descending else 'NOT '}NULL, "
+    keyed = (
+        f'list_transform({arr}, lambda {x}, "_i": struct_pack({null_flag}k := {g.sql(key)}, i := {position}, v := {x}))'
+    )
     direction = "'DESC'" if descending else "'ASC'"
     return f'list_transform(list_sort({keyed}, {direction}), lambda "_s": struct_extract("_s", \'v\'))'
 

@@ -1351,9 +1351,10 @@ def _anonymous(a: Analyzer, node, scope, env):
 @handles(exp.Filter)
 def _filter(a: Analyzer, node, scope, env):
     inner = node.this
-    if not isinstance(inner, exp.Anonymous):
+    if not isinstance(inner, (exp.Anonymous, exp.GroupConcat)):
         a.unsupported("FILTER on this expression", node)
     t = a.expr(inner, scope, env)
+    inner = node.this  # listagg(...) WITHIN GROUP (...) is replaced by its call
     if inner.meta["spec"].kind != "aggregate":
         a.fail("FILTER is only valid for aggregation functions", node, "FUNCTION_NOT_AGGREGATE")
     a.condition(node.expression.this, scope, "FILTER")

@@ -528,7 +528,7 @@ def _render_listagg(g, node, args) -> str:
             )
             + ")"
         )
-    return f"CASE WHEN octet_length(CAST({text} AS BLOB)) > {LISTAGG_MAX_BYTES} THEN {overflow} ELSE {text} END"
+    return f"CASE WHEN strlen({text}) > {LISTAGG_MAX_BYTES} THEN {overflow} ELSE {text} END"  # strlen: UTF-8 bytes
 
 
 register(

@@ -2890,7 +2890,6 @@ REJECTED: dict[str, str] = {
     "approx_most_frequent": "map result type not supported",
     "numeric_histogram": "map result type not supported",
     "checksum": "Trino's xxhash64-based checksum cannot be reproduced",
-    "entropy": "not translated",
     "approx_set": "HyperLogLog state functions are not available",
     "empty_approx_set": "HyperLogLog state functions are not available",
     "merge": "HyperLogLog / qdigest / tdigest state functions are not available",

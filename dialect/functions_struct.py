@@ -729,3 +729,29 @@ register(
     _render_sequence,
     notes="A month step adds i months to the start (clamped to the month's end), as Trino.",
 )
+
+
+def _render_entropy(g, node, args) -> str:
+    """EntropyAggregation: log2 entropy of the counts' fractions, (ln S - sum(c ln c) / S) / ln 2 at
+    least 0, over the positive counts (NULL and 0 add nothing); 0.0 when they sum to 0 (no rows
+    included); a negative count fails."""
+    c = f"CAST({g.sql(args[0])} AS BIGINT)"
+    total = g.agg(node, "sum", [f"CAST({c} AS DOUBLE)"])
+    weighted = g.agg(node, "sum", [f"CASE WHEN {c} > 0 THEN {c} * ln({c}) END"])
+    negative = g.fail(tf.string("Entropy count argument must be non-negative"))
+    entropy = f"greatest((ln({total}) - {weighted} / {total}) / ln(2.0), 0.0)"
+    return (
+        f"CASE WHEN {g.agg(node, 'min', [c])} < 0 THEN {negative} "
+        f"WHEN coalesce({total}, 0) > 0 THEN {entropy} ELSE CAST(0.0 AS DOUBLE) END"
+    )
+
+
+register(
+    "entropy",
+    "aggregate",
+    "entropy(c) -> double",
+    fixed(tt.DOUBLE, "integral"),
+    _render_entropy,
+    kind="aggregate",
+    notes="Equal to Trino's up to floating-point rounding (the sums are added in another order).",
+)

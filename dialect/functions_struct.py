@@ -755,3 +755,66 @@ register(
     kind="aggregate",
     notes="Equal to Trino's up to floating-point rounding (the sums are added in another order).",
 )
+
+
+# === split_to_map, split_to_multimap ==============================================================
+def _split_to_map(call: Call) -> TType:
+    need(call, "string", "string", "string")
+    return tt.map_of(tt.VARCHAR, tt.array(tt.VARCHAR) if call.name == "split_to_multimap" else tt.VARCHAR)
+
+
+def _split_entries(g, args, quote: str) -> tuple[str, str]:
+    """The entries of the string (SQL of a list of (key, value, problem) rows) and the delimiter
+    checks (SQL of the first failed check's message or NULL), as StringFunctions.splitToMap splits:
+    an empty string has no entries and a final entry delimiter ends the last entry. `quote` goes around
+    the bad entry in the message ('' for split_to_map, nothing for split_to_multimap, as Trino)."""
+    text, entry, pair = sqls(g, args)
+    parts = f"string_split({text}, {entry})"
+    entries = (
+        f"CASE WHEN {text} = '' THEN [] WHEN ends_with({text}, {entry}) "
+        f"THEN list_slice({parts}, 1, len({parts}) - 1) ELSE {parts} END"
+    )
+    at = f'strpos("_p", {pair})'
+    value = f'substr("_p", {at} + length({pair}))'
+    bad = f"'Key-value delimiter must appear exactly once in each entry. Bad input: {quote}' || \"_p\" || '{quote}'"
+    row = (
+        f'list_transform({entries}, lambda "_p": row(substr("_p", 1, {at} - 1), {value}, '
+        f"CASE WHEN {at} = 0 OR strpos({value}, {pair}) > 0 THEN {bad} END))"
+    )
+    checks = (
+        f"CASE WHEN {entry} = '' THEN 'entryDelimiter is empty' WHEN {pair} = '' THEN 'keyValueDelimiter is empty' "
+        f"WHEN {entry} = {pair} THEN 'entryDelimiter and keyValueDelimiter must not be the same' END"
+    )
+    return row, checks
+
+
+def _render_split_to_map(g, node, args) -> str:
+    rows, checks = _split_entries(g, args, "''" if node.name.lower() == "split_to_map" else "")
+    keys = f'list_transform("_r", lambda {_E}: {_KEY})'
+    problems = f'list_transform("_r", lambda {_E}, "_i": coalesce(struct_extract_at({_E}, 3), '
+    if node.name.lower() == "split_to_map":
+        problems += f"CASE WHEN list_position({keys}, {_KEY}) < \"_i\" THEN 'Duplicate keys (' || {_KEY} || ') are not allowed' END))"
+        result = f'map_from_entries(list_transform("_r", lambda {_E}: row({_KEY}, {_VALUE})))'
+    else:
+        problems += "NULL))"
+        result = _grouped_values('"_r"', keys)
+    first = f'list_filter({problems}, lambda "_m": "_m" IS NOT NULL)[1]'
+    body = checked_map(g, f"coalesce({checks}, {first})", tf.cast(result, ttype(node)))
+    return null_if_any_null(g, args, _let(rows, '"_r"', body))
+
+
+register(
+    "split_to_map",
+    "map",
+    "split_to_map(string, entryDelimiter, keyValueDelimiter) -> map(varchar, varchar)",
+    _split_to_map,
+    _render_split_to_map,
+    notes="Errors as Trino: empty or equal delimiters, an entry without exactly one key-value delimiter, a repeated key.",
+)
+register(
+    "split_to_multimap",
+    "map",
+    "split_to_multimap(string, entryDelimiter, keyValueDelimiter) -> map(varchar, array(varchar))",
+    _split_to_map,
+    _render_split_to_map,
+)

@@ -818,3 +818,33 @@ register(
     _split_to_map,
     _render_split_to_map,
 )
+
+
+# === array_first, array_last ======================================================================
+def _array_first(call: Call) -> TType:
+    if not 1 <= len(call.args) <= (2 if call.name == "array_first" else 1):
+        call.mismatch()
+    arr = _array_arg(call)
+    if len(call.args) == 2 and call.lam(1, [arr.element]).base not in ("boolean", "unknown"):
+        call.mismatch()
+    return arr.element
+
+
+def _render_array_first(g, node, args) -> str:
+    """ArrayFirstFunction / ArrayLastFunction: NULL for an empty array; with a predicate, the first
+    element for which it is true."""
+    arr = g.sql(args[0])
+    if len(args) == 2:
+        arr = f"list_filter({arr}, {g.lambda_(args[1])})"
+    return f"{arr}[{1 if node.name.lower() == 'array_first' else -1}]"
+
+
+register(
+    "array_first",
+    "array",
+    "array_first(array(E)[, function(E, boolean)]) -> E",
+    _array_first,
+    _render_array_first,
+    notes="NULL for an empty array (the subscript operator fails).",
+)
+register("array_last", "array", "array_last(array(E)) -> E", _array_first, _render_array_first)

@@ -457,16 +457,6 @@ register(
     notes="Returns the exact distinct count, which is within Trino's documented standard error (2.3%).",
 )
 register(
-    "approx_percentile",
-    "aggregate",
-    "approx_percentile(x, percentage) -> same as x; approx_percentile(x, array(double)) -> array",
-    _approx_percentile,
-    _render_approx_percentile,
-    kind="aggregate",
-    notes="Returns the exact nearest-rank value (DuckDB quantile_disc), which is within Trino's documented "
-    "approximation error; weighted and accuracy variants are rejected.",
-)
-register(
     "bool_and",
     "aggregate",
     "bool_and(boolean) -> boolean",

@@ -848,3 +848,81 @@ register(
     notes="NULL for an empty array (the subscript operator fails).",
 )
 register("array_last", "array", "array_last(array(E)) -> E", _array_first, _render_array_first)
+
+
+# === approx_percentile with weights ===============================================================
+def _percentages(node: exp.Expression) -> list[float] | None:
+    """The constant percentages of a literal, a typed literal or an ARRAY of them, else None."""
+    items = node.expressions if isinstance(node, exp.Array) else [node]
+    values = []
+    for item in items:
+        negative = isinstance(item, exp.Neg)
+        item = item.this if negative else item
+        literal = isinstance(item, exp.Literal) and not item.is_string
+        text = item.name if literal else functions._typed_number_literal(item)
+        if text is None:
+            return None
+        values.append(-float(text) if negative else float(text))
+    return values
+
+
+def _approx_percentile(call: Call) -> TType:
+    """approx_percentile(x, percentage[s]) (functions._approx_percentile) or, with a weight,
+    approx_percentile(x, w, percentage[s])."""
+    if len(call.args) != 3:
+        return functions._approx_percentile(call)
+    x, w, p = call.types
+    if x is None or not (x.is_integral or x.is_approx or x.is_unknown) or w is None or not w.is_integral:
+        call.mismatch()
+    call.node.meta["percentages"] = _percentages(call.args[2])
+    if call.node.meta["percentages"] is None:
+        call.fail("unsupported in lakegate: approx_percentile with a percentage that is not a literal", "NOT_SUPPORTED")
+    t = tt.BIGINT if x.is_integral or x.is_unknown else x
+    return tt.array(t) if p is not None and p.base == "array" else t
+
+
+def _weighted_rank(g, entries: str, total: str, percentage: float, t: TType) -> str:
+    """The first value (in ascending order) at which the running weight reaches ceil(total *
+    percentage), at least 1: the nearest rank of the data with each value repeated `weight` times,
+    as quantile_disc answers the unweighted form."""
+    rank = f"greatest(ceil({total} * {percentage!r}), 1)"
+    reached = f"struct_extract(\"_s\", 'c') + struct_extract_at({_E}, 2)"
+    step = (
+        f'CASE WHEN struct_extract("_s", \'v\') IS NOT NULL THEN "_s" ELSE struct_pack(c := {reached}, '
+        f"v := CASE WHEN {reached} >= {rank} THEN struct_extract_at({_E}, 1) END) END"
+    )
+    start = f"struct_pack(c := CAST(0 AS HUGEINT), v := {tf.cast('NULL', t)})"
+    return f"struct_extract(list_reduce(list_sort({entries}), lambda \"_s\", {_E}: {step}, {start}), 'v')"
+
+
+def _render_approx_percentile(g, node, args) -> str:
+    if len(args) != 3:
+        return functions._render_approx_percentile(g, node, args)
+    t = ttype(node).element if ttype(node).base == "array" else ttype(node)
+    percentages = node.meta["percentages"]
+    if any(not 0 <= p <= 1 for p in percentages):  # checked with the first input row, as Trino does
+        out_of_range = g.fail(tf.string("Percentile must be between 0 and 1"))
+        return f"CASE WHEN {g.agg(node, 'count', ['*'])} > 0 THEN {out_of_range} END"
+    x, w = g.sql(args[0]), f"CAST({g.sql(args[1])} AS BIGINT)"
+    included = f"{x} IS NOT NULL AND {w} IS NOT NULL"  # the input function takes neither as NULL
+    rows = g.agg(node, "list", [f"CASE WHEN {included} THEN row({tf.cast(x, t)}, {w}) END"])
+    entries = f"list_filter({rows}, lambda {_E}: {_E} IS NOT NULL)"
+    total = g.agg(node, "sum", [f"CASE WHEN {included} THEN {w} END"])
+    values = [_weighted_rank(g, '"_es"', total, p, t) for p in percentages]
+    value = f"[{', '.join(values)}]" if ttype(node).base == "array" else values[0]
+    lightest = g.agg(node, "min", [f"CASE WHEN {included} THEN {w} END"])
+    weight_error = g.fail(tf.string("Percentile weight must be positive"))
+    weighted = _let(entries, '"_es"', f'CASE WHEN len("_es") = 0 THEN NULL ELSE {value} END')
+    return f"CASE WHEN {lightest} <= 0 THEN {weight_error} ELSE {weighted} END"
+
+
+register(
+    "approx_percentile",
+    "aggregate",
+    "approx_percentile(x[, w], percentage) -> same as x; approx_percentile(x[, w], array(double)) -> array",
+    _approx_percentile,
+    _render_approx_percentile,
+    kind="aggregate",
+    notes="Returns the exact nearest-rank value (DuckDB quantile_disc; with weights, of the data with each value "
+    "repeated w times), which is within Trino's documented approximation error; the accuracy variant is rejected.",
+)

@@ -2877,8 +2877,8 @@ _GEO = (
 REJECTED: dict[str, str] = {
     **{name.lower(): "geospatial functions are not available in lakegate" for name in _GEO},
     "shuffle": "random permutation not translated",
-    "approx_most_frequent": "map result type not supported",
-    "numeric_histogram": "map result type not supported",
+    "approx_most_frequent": "Trino's stream-summary estimate of the top values and their counts is not reproduced",
+    "numeric_histogram": "Trino's approximate streaming histogram (Ben-Haim and Tom-Tov) is not reproduced",
     "checksum": "Trino's xxhash64-based checksum cannot be reproduced",
     "approx_set": "HyperLogLog state functions are not available",
     "empty_approx_set": "HyperLogLog state functions are not available",
@@ -2985,11 +2985,6 @@ REJECTED: dict[str, str] = {
     "current_schema": "not translated",
     "sequence_timestamp": "not translated",
     "ip_prefix": "IP address functions are not available",
-    "array_has_duplicates": "not translated",
-    "array_duplicates": "not translated",
-    "remove_nulls": "not translated",
-    "array_frequency": "not translated",
-    "array_cum_sum": "not translated",
 }
 
 # Maps, set-like arrays and map-building aggregates (issue 14) register themselves here.

@@ -975,8 +975,17 @@ def _comparison(a: Analyzer, node, scope, env):
     common = _comparable(a, node, left, right, _OPS[type(node)])
     if common.base in ("json", "varbinary") or (common.base == "map" and type(node) not in (exp.EQ, exp.NEQ)):
         a.fail(f"Cannot apply operator: {left} {_OPS[type(node)]} {right}", node, "TYPE_MISMATCH")
+    if type(node) not in (exp.EQ, exp.NEQ) and _nested_order(common):
+        a.unsupported(f"ordering comparison ({_OPS[type(node)]}) of {common}: its elements hold arrays or rows", node)
     node.meta["compare"] = common
     return tt.BOOLEAN
+
+
+def _nested_order(t: TType) -> bool:
+    """An array or row whose elements are themselves arrays, maps or rows: the ordering of
+    transforms.ordered_comparison checks one level of NULL elements only."""
+    members = [t.element] if t.base == "array" else [f for _, f in t.args] if t.base == "row" else []
+    return any(m.base in ("array", "map", "row") for m in members)
 
 
 @handles(exp.Is)

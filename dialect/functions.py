@@ -1914,11 +1914,18 @@ def _array_sort(call: Call) -> TType:
     arr = _array_arg(call)
     if arr.element.base in ("map", "json"):
         call.mismatch()
+    if len(call.args) == 1 and arr.element.base in ("array", "row") and _nested(arr.element):
+        call.fail(f"unsupported in lakegate: array_sort of {arr}: its elements hold arrays or rows", "NOT_SUPPORTED")
     if len(call.args) == 2:
         if not call.lam(1, [arr.element, arr.element]).is_integral:
             call.mismatch()
         call.node.meta["sort_key"] = _comparator_key(call)
     return arr
+
+
+def _nested(t: TType) -> bool:
+    members = [t.element] if t.base == "array" else [f for _, f in t.args]
+    return any(m.base in ("array", "map", "row") for m in members)
 
 
 _RELATIONS = {exp.LT: "<", exp.LTE: "<=", exp.GT: ">", exp.GTE: ">=", exp.EQ: "=", exp.NEQ: "<>"}
@@ -2032,7 +2039,7 @@ def _null_branches(branches: list, x: str, y: str, reject) -> tuple[list, bool |
 def _render_array_sort(g, node, args) -> str:
     arr = g.sql(args[0])
     if len(args) == 1:
-        return f"list_sort({arr}, 'ASC', 'NULLS LAST')"
+        return _checked_order(f"list_sort({arr}, 'ASC', 'NULLS LAST')", ttype(node).element)
     key, descending, nulls_first = node.meta["sort_key"]
     x = tf.quote(args[1].expressions[0].name.lower())
     position = '-"_i"' if descending else '"_i"'
@@ -2042,6 +2049,20 @@ def _render_array_sort(g, node, args) -> str:
     )
     direction = "'DESC'" if descending else "'ASC'"
     return f'list_transform(list_sort({keyed}, {direction}), lambda "_s": struct_extract("_s", \'v\'))'
+
+
+def _checked_order(sorted_sql: str, element: TType) -> str:
+    """A sorted array of arrays or rows, or Trino's error when sorting compares two elements that
+    reach a NULL element: any comparison sort compares each adjacent pair of its result, and two
+    elements whose comparison reaches a NULL have only such elements between them."""
+    if element.base not in ("array", "row"):
+        return sorted_sql
+    pair = ('"_s"["_j"]', '"_s"["_j" + 1]')
+    reached, failure = tf.null_reached(*pair, element)
+    clash = (
+        f'list_filter(range(1, len("_s")), lambda "_j": {pair[0]} IS NOT NULL AND {pair[1]} IS NOT NULL AND {reached})'
+    )
+    return f'list_transform([{sorted_sql}], lambda "_s": CASE WHEN len({clash}) > 0 THEN {failure} ELSE "_s" END)[1]'
 
 
 def _array_distinct(call: Call) -> TType:

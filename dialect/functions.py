@@ -604,7 +604,7 @@ def _greatest(call: Call) -> TType:
     if not call.args or None in call.types:
         call.mismatch()
     t = common(call)
-    if t.base in ("map", "json", "varbinary", "row", "array", "boolean"):
+    if t.base in ("map", "json", "varbinary", "boolean") or t.base in ("row", "array") and _nested(t):
         call.mismatch()
     return t
 
@@ -613,6 +613,8 @@ def _render_greatest(g, node, args) -> str:
     t = ttype(node)
     name = node.name.lower()
     values = [g.coerce(a, t) for a in args]
+    if t.base in ("array", "row"):  # AbstractGreatestLeast compares each argument with the one kept
+        return null_if_any_null(g, args, _ordered_pick(f"[{', '.join(values)}]", t, name == "greatest"))
     if name == "greatest" and t.is_approx:  # NaN only when all are NaN (MinMaxCompare, above)
         nan = tf.cast("'NaN'", t)
         return null_if_any_null(g, args, f"coalesce(greatest({', '.join(not_nan(v) for v in values)}), {nan})")
@@ -2116,13 +2118,31 @@ def _render_array_histogram(g, node, args) -> str:
 def _array_minmax(call: Call) -> TType:
     need(call, "array")
     element = _array_arg(call).element
-    if element.base in ("map", "json", "row", "array"):
+    if element.base in ("map", "json") or element.base in ("row", "array") and _nested(element):
         call.mismatch()
     return element
 
 
+def _ordered_pick(arr: str, element: TType, largest: bool) -> str:
+    """The largest (smallest) of the elements of `arr`, arrays or rows, as ArrayMaxFunction's loop
+    finds it: each element is compared with the one kept so far, a NULL element makes the result
+    NULL, and a comparison that reaches a NULL inside the elements fails as Trino's does."""
+    kept = "struct_extract(\"_s\", 'v')"
+    reached, failure = tf.null_reached('"_x"', kept, element)
+    step = (
+        f'CASE WHEN struct_extract("_s", \'n\') THEN "_s" '
+        f'WHEN "_x" IS NULL THEN struct_pack(v := "_x", n := true) '
+        f'WHEN {kept} IS NULL THEN struct_pack(v := "_x", n := false) WHEN {reached} THEN {failure} '
+        f'WHEN "_x" {">" if largest else "<"} {kept} THEN struct_pack(v := "_x", n := false) ELSE "_s" END'
+    )
+    start = f"struct_pack(v := ({arr})[len({arr}) + 1], n := false)"  # v: a NULL of the element type
+    return f'struct_extract(list_reduce({arr}, lambda "_s", "_x": {step}, {start}), \'v\')'
+
+
 def _render_array_minmax(g, node, args) -> str:
     arr = g.sql(args[0])
+    if ttype(node).base in ("array", "row"):
+        return _ordered_pick(arr, ttype(node), node.name.lower() == "array_max")
     name = "list_max" if node.name.lower() == "array_max" else "list_min"
     if name == "list_max" and ttype(node).is_approx:  # NaN only when all are NaN (ArrayMaxFunction)
         nan = tf.cast("'NaN'", ttype(node))
@@ -2479,8 +2499,9 @@ register(
     _render_array_distinct,
     notes="Keeps the first occurrence of each value in order, as in Trino.",
 )
-register("array_max", "array", "array_max(array) -> element", _array_minmax, _render_array_minmax)
-register("array_min", "array", "array_min(array) -> element", _array_minmax, _render_array_minmax)
+_MINMAX_NOTE = "Over arrays or rows too: a comparison reaching a NULL inside them fails as in Trino."
+register("array_max", "array", "array_max(array) -> element", _array_minmax, _render_array_minmax, notes=_MINMAX_NOTE)
+register("array_min", "array", "array_min(array) -> element", _array_minmax, _render_array_minmax, notes=_MINMAX_NOTE)
 register(
     "element_at",
     "array",

@@ -926,3 +926,51 @@ register(
     notes="Returns the exact nearest-rank value (DuckDB quantile_disc; with weights, of the data with each value "
     "repeated w times), which is within Trino's documented approximation error; the accuracy variant is rejected.",
 )
+
+
+# === euclidean_distance, dot_product ==============================================================
+def _vectors(call: Call) -> TType:
+    need(call, "array", "array")
+    for i in (0, 1):
+        if not tt.coercible(_array_arg(call, i).element, tt.DOUBLE):
+            call.mismatch()
+    return tt.DOUBLE
+
+
+def _render_vector(g, node, args) -> str:
+    """ArrayVectorFunctions: a left-to-right sum over the positions of (x - y)^2 (then its square
+    root) or of x * y; arrays of different lengths fail. Trino reads a NULL element as whatever its
+    block stores there, so lakegate refuses one when it meets it."""
+    a, b = (g.coerce(arg, tt.array(tt.DOUBLE)) for arg in args)
+    x, y = f'({a})["_i"]', f'({b})["_i"]'
+    term = f"({x} - {y}) * ({x} - {y})" if node.name.lower() == "euclidean_distance" else f"{x} * {y}"
+    terms = f'list_transform(range(1, len({a}) + 1), lambda "_i": {term})'
+    total = f'list_reduce({terms}, lambda "_s", "_t": "_s" + "_t", CAST(0.0 AS DOUBLE))'
+    value = f"sqrt({total})" if node.name.lower() == "euclidean_distance" else total
+    null_element = (
+        f"error({tf.string(f'NOT_SUPPORTED: unsupported in lakegate: a NULL element in {node.name.lower()}')})"
+    )
+    return null_if_any_null(
+        g,
+        args,
+        f"CASE WHEN len({a}) <> len({b}) THEN {g.fail(tf.string('The arguments must have the same length'))} "
+        f"WHEN list_count({a}) < len({a}) OR list_count({b}) < len({b}) THEN {null_element} ELSE {value} END",
+    )
+
+
+register(
+    "euclidean_distance",
+    "array",
+    "euclidean_distance(array(double), array(double)) -> double",
+    _vectors,
+    _render_vector,
+    notes="A NULL element is refused (Trino reads an unspecified value there).",
+)
+register(
+    "dot_product",
+    "array",
+    "dot_product(array(double), array(double)) -> double",
+    _vectors,
+    _render_vector,
+    notes="A NULL element is refused (Trino reads an unspecified value there).",
+)

@@ -1,10 +1,12 @@
-"""Maps, set-like array functions and the aggregates that build maps (issue 14, families 2-4),
-registered into `functions.SUPPORTED` by importing this module from functions.py.
+"""Maps, arrays and aggregates lifted for issue 14 (families 2-4): the map functions and the
+aggregates that build maps, split_to_map, the set-like and combinatorial array functions, sequence
+over dates and timestamps, array_first/last, the vector functions, and the bitwise, moment,
+entropy, lambda and weighted-percentile aggregates. Registered into `functions.SUPPORTED` by
+importing this module at the end of functions.py.
 
 DuckDB maps keep their entries in insertion order, as Trino's map blocks do; lambdas over map
-entries bind their parameters (k, v) to each entry's key and value. Semantics follow Trino's
-io.trino.operator.scalar.Map*Function / Array*Function and io.trino.operator.aggregation classes,
-cited per function.
+entries bind their parameters (k, v) to each entry's key and value. Semantics follow the Trino
+classes cited per function (io.trino.operator.scalar.*, io.trino.operator.aggregation.*).
 """
 
 from __future__ import annotations
@@ -28,8 +30,8 @@ def _map_arg(call: Call, index: int = 0) -> TType:
 
 
 def _plain_key(call: Call, key: TType) -> None:
-    """Keys lakegate's maps hold exactly: not arrays, maps or rows (DuckDB map keys lose their type
-    in the result encoding), and orderable, as Trino requires of a map key."""
+    """Keys lakegate's maps hold exactly: not maps or JSON (Trino's map keys must be comparable), and
+    not arrays or rows (DuckDB map keys lose their type in the result encoding)."""
     if key.base in ("map", "json"):
         call.mismatch()
     if key.base in ("array", "row"):

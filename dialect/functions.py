@@ -289,6 +289,8 @@ def _array_agg(call: Call) -> TType:
 
 
 def _approx_percentile(call: Call) -> TType:
+    if len(call.args) == 3:
+        return functions_struct.weighted_percentile(call)
     if len(call.args) != 2:
         call.fail("approx_percentile with weights or accuracy is not supported in lakegate", "NOT_SUPPORTED")
     x, p = call.types
@@ -323,6 +325,8 @@ def _constant_percentage(call: Call) -> bool:
 
 def _render_approx_percentile(g, node, args) -> str:
     """DuckDB wants the percentage as a constant: a typed literal is written as its number."""
+    if len(args) == 3:
+        return functions_struct.render_weighted_percentile(g, node, args)
     t = ttype(node)
     percentage = _typed_number_literal(args[1]) or g.sql(args[1])
     return tf.cast(g.agg(node, "quantile_disc", [g.sql(args[0]), percentage]), t)
@@ -455,6 +459,16 @@ register(
     ),
     kind="aggregate",
     notes="Returns the exact distinct count, which is within Trino's documented standard error (2.3%).",
+)
+register(
+    "approx_percentile",
+    "aggregate",
+    "approx_percentile(x[, w], percentage) -> same as x; approx_percentile(x[, w], array(double)) -> array",
+    _approx_percentile,
+    _render_approx_percentile,
+    kind="aggregate",
+    notes="Returns the exact nearest-rank value (DuckDB quantile_disc; with weights, of the data with each value "
+    "repeated w times), which is within Trino's documented approximation error; the accuracy variant is rejected.",
 )
 register(
     "bool_and",
@@ -1850,6 +1864,9 @@ def _array_arg(call: Call, index: int = 0) -> TType:
     return t if t.base == "array" else tt.array(tt.UNKNOWN)
 
 
+array_arg = _array_arg  # the name other registry modules (functions_struct) use
+
+
 def _cardinality(call: Call) -> TType:
     if len(call.args) != 1:
         call.mismatch()
@@ -2279,11 +2296,15 @@ def _render_zip_with(g, node, args) -> str:
 
 
 def _sequence(call: Call) -> TType:
+    if call.types and call.types[0] is not None and call.types[0].base in ("date", "timestamp"):
+        return functions_struct.temporal_sequence(call)
     need(call, "integral", "integral", "integral", optional=1)
     return tt.array(tt.BIGINT)
 
 
 def _render_sequence(g, node, args) -> str:
+    if ttype(node).element.base in ("date", "timestamp"):
+        return functions_struct.render_temporal_sequence(g, node, args)
     # start, stop and step are bound once, as the list "_s", since the checks use each several times
     bounds = ", ".join(f"CAST({g.sql(a)} AS BIGINT)" for a in args)
     start, stop = '"_s"[1]', '"_s"[2]'
@@ -2536,6 +2557,15 @@ register(
     _zip_with,
     _render_zip_with,
     notes="The shorter array is padded with NULLs, as in Trino.",
+)
+register(
+    "sequence",
+    "array",
+    "sequence(start, stop[, step]) -> array(bigint); sequence(date, date[, interval]) -> array(date); "
+    "sequence(timestamp, timestamp, interval) -> array(timestamp)",
+    _sequence,
+    _render_sequence,
+    notes="A month step adds i months to the start (clamped to the month's end), as Trino.",
 )
 register("slice", "array", "slice(array, start, length) -> array", _slice, _render_slice)
 register("flatten", "array", "flatten(array(array(T))) -> array(T)", _flatten, call_as("flatten"))

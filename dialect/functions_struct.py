@@ -17,7 +17,7 @@ from lakegate.dialect import functions
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import Call, ttype
-from lakegate.dialect.functions import _array_arg, fixed, literal_int, need, null_if_any_null, register, sqls
+from lakegate.dialect.functions import array_arg, fixed, literal_int, need, null_if_any_null, register, sqls
 from lakegate.dialect.trino_types import TType
 
 
@@ -96,7 +96,7 @@ def _render_map_entries(g, node, args) -> str:
 
 def _entry_row(call: Call) -> TType:
     need(call, "array")
-    row = _array_arg(call).element
+    row = array_arg(call).element
     if row.base != "row" or len(row.args) != 2:
         call.mismatch()
     _plain_key(call, row.args[0][1])
@@ -374,7 +374,7 @@ register(
 def _two_arrays(call: Call) -> TType:
     """Both arguments coerced to their common array type (the result type of the set functions)."""
     need(call, "array", "array")
-    t = tt.common_super_type(_array_arg(call, 0), _array_arg(call, 1))
+    t = tt.common_super_type(array_arg(call, 0), array_arg(call, 1))
     if t is None or t.element.base in ("map", "json"):
         call.mismatch()
     return t
@@ -441,7 +441,7 @@ def _render_contains_sequence(g, node, args) -> str:
 
 def _ngrams(call: Call) -> TType:
     need(call, "array", "integral")
-    return tt.array(_array_arg(call))
+    return tt.array(array_arg(call))
 
 
 def _render_ngrams(g, node, args) -> str:
@@ -465,7 +465,7 @@ def _combinations(call: Call) -> TType:
     call.node.meta["k"] = literal_int(call, 1)
     if call.node.meta["k"] is None:
         call.fail("unsupported in lakegate: combinations with a size that is not a literal", "NOT_SUPPORTED")
-    return tt.array(_array_arg(call))
+    return tt.array(array_arg(call))
 
 
 def _combination_checks(g, size: str, k: int) -> list[tuple[str, str]]:
@@ -508,7 +508,7 @@ def _render_combinations(g, node, args) -> str:
 def _zip(call: Call) -> TType:
     if not 2 <= len(call.args) <= 5:  # ZipFunction.MIN_ARITY, MAX_ARITY
         call.mismatch()
-    return tt.array(tt.row([(None, _array_arg(call, i).element) for i in range(len(call.args))]))
+    return tt.array(tt.row([(None, array_arg(call, i).element) for i in range(len(call.args))]))
 
 
 def _render_zip(g, node, args) -> str:
@@ -669,13 +669,13 @@ _WRONG_WAY = (
 )
 
 
-def _sequence(call: Call) -> TType:
-    """Integers (functions._sequence), or dates and timestamps (io.trino.operator.scalar.SequenceFunction
-    and its timestamp variants): a date sequence steps by a day by default, or by a whole-day or a
+def temporal_sequence(call: Call) -> TType:
+    """sequence over dates and timestamps (io.trino.operator.scalar.SequenceFunction and its
+    timestamp variants): a date sequence steps by a day by default, or by a whole-day or a
     year-to-month interval; a timestamp sequence needs the interval."""
     types = call.types
-    if not 2 <= len(types) <= 3 or None in types or types[0].base not in ("date", "timestamp"):
-        return functions._sequence(call)
+    if not 2 <= len(types) <= 3 or None in types:
+        call.mismatch()
     t = tt.common_super_type(types[0], types[1])
     if t is None or t.base != types[0].base or (t.base == "timestamp" and len(types) == 2):
         call.mismatch()
@@ -688,10 +688,8 @@ def _sequence(call: Call) -> TType:
     return tt.array(t)
 
 
-def _render_sequence(g, node, args) -> str:
-    t = ttype(node).element if ttype(node).base == "array" else None
-    if t is None or t.base not in ("date", "timestamp"):
-        return functions._render_sequence(g, node, args)
+def render_temporal_sequence(g, node, args) -> str:
+    t = ttype(node).element
     start, stop = (g.coerce(a, t) for a in args[:2])
     step = g.sql(args[2]) if len(args) == 3 else None
     checks = []
@@ -720,17 +718,6 @@ def _render_sequence(g, node, args) -> str:
     count = functions.checked(g, f"{span} // {step_number} + 1", checks)
     value = tf.cast(f'{start} + {unit}(CAST("_i" * {step_number} AS BIGINT))', t)
     return f'list_transform(range(0, {count}), lambda "_i": {value})'
-
-
-register(
-    "sequence",
-    "array",
-    "sequence(start, stop[, step]) -> array(bigint); sequence(date, date[, interval]) -> array(date); "
-    "sequence(timestamp, timestamp, interval) -> array(timestamp)",
-    _sequence,
-    _render_sequence,
-    notes="A month step adds i months to the start (clamped to the month's end), as Trino.",
-)
 
 
 def _render_entropy(g, node, args) -> str:
@@ -826,7 +813,7 @@ register(
 def _array_first(call: Call) -> TType:
     if not 1 <= len(call.args) <= (2 if call.name == "array_first" else 1):
         call.mismatch()
-    arr = _array_arg(call)
+    arr = array_arg(call)
     if len(call.args) == 2 and call.lam(1, [arr.element]).base not in ("boolean", "unknown"):
         call.mismatch()
     return arr.element
@@ -861,18 +848,19 @@ def _percentages(node: exp.Expression) -> list[float] | None:
         negative = isinstance(item, exp.Neg)
         item = item.this if negative else item
         literal = isinstance(item, exp.Literal) and not item.is_string
-        text = item.name if literal else functions._typed_number_literal(item)
-        if text is None:
+        typed = isinstance(item, exp.Cast) and isinstance(item.this, exp.Literal) and item.this.is_string
+        if not (literal or typed):
             return None
-        values.append(-float(text) if negative else float(text))
+        try:
+            number = float(item.this.name if typed else item.name)
+        except ValueError:
+            return None
+        values.append(-number if negative else number)
     return values
 
 
-def _approx_percentile(call: Call) -> TType:
-    """approx_percentile(x, percentage[s]) (functions._approx_percentile) or, with a weight,
-    approx_percentile(x, w, percentage[s])."""
-    if len(call.args) != 3:
-        return functions._approx_percentile(call)
+def weighted_percentile(call: Call) -> TType:
+    """approx_percentile(x, w, percentage[s])."""
     x, w, p = call.types
     if x is None or not (x.is_integral or x.is_approx or x.is_unknown) or w is None or not w.is_integral:
         call.mismatch()
@@ -897,9 +885,7 @@ def _weighted_rank(g, entries: str, total: str, percentage: float, t: TType) -> 
     return f"struct_extract(list_reduce(list_sort({entries}), lambda \"_s\", {_E}: {step}, {start}), 'v')"
 
 
-def _render_approx_percentile(g, node, args) -> str:
-    if len(args) != 3:
-        return functions._render_approx_percentile(g, node, args)
+def render_weighted_percentile(g, node, args) -> str:
     t = ttype(node).element if ttype(node).base == "array" else ttype(node)
     percentages = node.meta["percentages"]
     if any(not 0 <= p <= 1 for p in percentages):  # checked with the first input row, as Trino does
@@ -918,23 +904,11 @@ def _render_approx_percentile(g, node, args) -> str:
     return f"CASE WHEN {lightest} <= 0 THEN {weight_error} ELSE {weighted} END"
 
 
-register(
-    "approx_percentile",
-    "aggregate",
-    "approx_percentile(x[, w], percentage) -> same as x; approx_percentile(x[, w], array(double)) -> array",
-    _approx_percentile,
-    _render_approx_percentile,
-    kind="aggregate",
-    notes="Returns the exact nearest-rank value (DuckDB quantile_disc; with weights, of the data with each value "
-    "repeated w times), which is within Trino's documented approximation error; the accuracy variant is rejected.",
-)
-
-
 # === euclidean_distance, dot_product ==============================================================
 def _vectors(call: Call) -> TType:
     need(call, "array", "array")
     for i in (0, 1):
-        if not tt.coercible(_array_arg(call, i).element, tt.DOUBLE):
+        if not tt.coercible(array_arg(call, i).element, tt.DOUBLE):
             call.mismatch()
     return tt.DOUBLE
 

@@ -909,12 +909,13 @@ class Analyzer:
                 self.fail("DISTINCT is not supported for non-aggregation functions", node, "FUNCTION_NOT_AGGREGATE")
             node.meta["distinct"] = True
             args = list(args[0].expressions)
-        if args and isinstance(args[0], exp.Order):
+        at = next((i for i in (0, len(args) - 1) if args and isinstance(args[i], exp.Order)), None)
+        if at is not None:  # f(x ORDER BY ...), f(k, v ORDER BY ...), and listagg's WITHIN GROUP
             if spec.kind != "aggregate":
                 self.fail("ORDER BY is only allowed in aggregation functions", node, "FUNCTION_NOT_AGGREGATE")
-            order = args[0]
+            order = args[at]
             node.meta["order"] = order
-            args = [order.this] + args[1:]
+            args[at] = order.this
             for ordered in order.expressions:
                 self.expr(ordered.this, scope, env)
         if any(isinstance(a, exp.Star) for a in args) and name != "count":
@@ -1163,6 +1164,8 @@ def _comparison(a: Analyzer, node, scope, env):
     json_order = common.base == "json" and type(node) not in (exp.EQ, exp.NEQ, exp.NullSafeEQ, exp.NullSafeNEQ)
     if json_order or (common.base == "map" and type(node) not in (exp.EQ, exp.NEQ)):
         a.fail(f"Cannot apply operator: {left} {_OPS[type(node)]} {right}", node, "TYPE_MISMATCH")
+    if type(node) not in (exp.EQ, exp.NEQ) and _nested_order(common):
+        a.unsupported(f"ordering comparison ({_OPS[type(node)]}) of {common}: its elements hold arrays or rows", node)
     node.meta["compare"] = common
     _in_session_zone(a, [node.this, node.expression], common)
     return tt.BOOLEAN
@@ -1181,6 +1184,13 @@ def _in_session_zone(a: Analyzer, sides: list[exp.Expression], common: TType) ->
             side.replace(cast)
             cast.set("this", side)
             cast.meta.update({"from": t, "t": tt.timestamp(common.args[0], True, a.time_zone)})
+
+
+def _nested_order(t: TType) -> bool:
+    """An array or row whose elements are themselves arrays, maps or rows: the ordering of
+    transforms.ordered_comparison checks one level of NULL elements only."""
+    members = [t.element] if t.base == "array" else [f for _, f in t.args] if t.base == "row" else []
+    return any(m.base in ("array", "map", "row") for m in members)
 
 
 @handles(exp.Is)
@@ -1594,9 +1604,10 @@ def _anonymous(a: Analyzer, node, scope, env):
 @handles(exp.Filter)
 def _filter(a: Analyzer, node, scope, env):
     inner = node.this
-    if not isinstance(inner, exp.Anonymous):
+    if not isinstance(inner, (exp.Anonymous, exp.GroupConcat)):
         a.unsupported("FILTER on this expression", node)
     t = a.expr(inner, scope, env)
+    inner = node.this  # listagg(...) WITHIN GROUP (...) is replaced by its call
     if inner.meta["spec"].kind != "aggregate":
         a.fail("FILTER is only valid for aggregation functions", node, "FUNCTION_NOT_AGGREGATE")
     a.condition(node.expression.this, scope, "FILTER")

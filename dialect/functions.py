@@ -434,12 +434,12 @@ register(
 register(
     "approx_percentile",
     "aggregate",
-    "approx_percentile(x, percentage) -> same as x; approx_percentile(x, array(double)) -> array",
+    "approx_percentile(x[, w], percentage) -> same as x; approx_percentile(x[, w], array(double)) -> array",
     _approx_percentile,
     _render_approx_percentile,
     kind="aggregate",
-    notes="Returns the exact nearest-rank value (DuckDB quantile_disc), which is within Trino's documented "
-    "approximation error; weighted and accuracy variants are rejected.",
+    notes="Returns the exact nearest-rank value (DuckDB quantile_disc; with weights, of the data with each value "
+    "repeated w times), which is within Trino's documented approximation error; the accuracy variant is rejected.",
 )
 register(
     "bool_and",
@@ -503,7 +503,7 @@ def _render_listagg(g, node, args) -> str:
             )
             + ")"
         )
-    return f"CASE WHEN octet_length(CAST({text} AS BLOB)) > {LISTAGG_MAX_BYTES} THEN {overflow} ELSE {text} END"
+    return f"CASE WHEN strlen({text}) > {LISTAGG_MAX_BYTES} THEN {overflow} ELSE {text} END"  # strlen: UTF-8 bytes
 
 
 register(
@@ -589,7 +589,7 @@ def _greatest(call: Call) -> TType:
     if not call.args or None in call.types:
         call.mismatch()
     t = common(call)
-    if t.base in ("map", "json", "varbinary", "row", "array", "boolean"):
+    if t.base in ("map", "json", "varbinary", "boolean") or t.base in ("row", "array") and _nested(t):
         call.mismatch()
     return t
 
@@ -598,6 +598,8 @@ def _render_greatest(g, node, args) -> str:
     t = ttype(node)
     name = node.name.lower()
     values = [g.coerce(a, t) for a in args]
+    if t.base in ("array", "row"):  # AbstractGreatestLeast compares each argument with the one kept
+        return null_if_any_null(g, args, _ordered_pick(f"[{', '.join(values)}]", t, name == "greatest"))
     if name == "greatest" and t.is_approx:  # NaN only when all are NaN (MinMaxCompare, above)
         nan = tf.cast("'NaN'", t)
         return null_if_any_null(g, args, f"coalesce(greatest({', '.join(not_nan(v) for v in values)}), {nan})")
@@ -1802,6 +1804,9 @@ def _array_arg(call: Call, index: int = 0) -> TType:
     return t if t.base == "array" else tt.array(tt.UNKNOWN)
 
 
+array_arg = _array_arg  # the name other registry modules (functions_struct) use
+
+
 def _cardinality(call: Call) -> TType:
     if len(call.args) != 1:
         call.mismatch()
@@ -1869,11 +1874,18 @@ def _array_sort(call: Call) -> TType:
     arr = _array_arg(call)
     if arr.element.base in ("map", "json"):
         call.mismatch()
+    if len(call.args) == 1 and arr.element.base in ("array", "row") and _nested(arr.element):
+        call.fail(f"unsupported in lakegate: array_sort of {arr}: its elements hold arrays or rows", "NOT_SUPPORTED")
     if len(call.args) == 2:
         if not call.lam(1, [arr.element, arr.element]).is_integral:
             call.mismatch()
         call.node.meta["sort_key"] = _comparator_key(call)
     return arr
+
+
+def _nested(t: TType) -> bool:
+    members = [t.element] if t.base == "array" else [f for _, f in t.args]
+    return any(m.base in ("array", "map", "row") for m in members)
 
 
 _RELATIONS = {exp.LT: "<", exp.LTE: "<=", exp.GT: ">", exp.GTE: ">=", exp.EQ: "=", exp.NEQ: "<>"}
@@ -1925,6 +1937,7 @@ def _comparator_key(call: Call) -> tuple[exp.Expression, bool]:
             body = _unparen(body.args.get("default"))
         else:
             break
+    branches, nulls_first = _null_branches(branches, x, y, reject)
     default, key, relations = body, None, []
     for cond, _ in branches:
         cond = _unparen(cond)
@@ -1954,19 +1967,62 @@ def _comparator_key(call: Call) -> tuple[exp.Expression, bool]:
         outcome.append((number > 0) - (number < 0))
     if key is None or tuple(outcome) not in ((-1, 0, 1), (1, 0, -1)):
         reject()
-    return key, tuple(outcome) == (1, 0, -1)
+    if nulls_first is not None and not (isinstance(key, (exp.Column, exp.Identifier)) and key.name.lower() == x):
+        reject()  # the NULL branches test the elements, so the key must be the element itself
+    return key, tuple(outcome) == (1, 0, -1), nulls_first
+
+
+def _null_branches(branches: list, x: str, y: str, reject) -> tuple[list, bool | None]:
+    """Leading `WHEN x IS NULL THEN -1 WHEN y IS NULL THEN 1` (NULLs first) or `... THEN 1 ... THEN -1`
+    (NULLs last) of a comparator, as in Trino's docs (functions/array.md array_sort); the other branches
+    and where NULLs go (None without such branches)."""
+    tests = []
+    for cond, result in branches[:2]:
+        cond = _unparen(cond)
+        if not (isinstance(cond, exp.Is) and isinstance(cond.expression, exp.Null)):
+            break
+        target = _unparen(cond.this)
+        name = target.name.lower() if isinstance(target, (exp.Column, exp.Identifier)) else None
+        literal = _unparen(result)
+        sign = -1 if isinstance(literal, exp.Neg) else 1
+        literal = literal.this if isinstance(literal, exp.Neg) else literal
+        if name not in (x, y) or not isinstance(literal, exp.Literal) or literal.name != "1":
+            reject()
+        tests.append((name, sign))
+    if not tests:
+        return branches, None
+    if tests not in ([(x, -1), (y, 1)], [(x, 1), (y, -1)]):
+        reject()
+    return branches[2:], tests[0][1] == -1
 
 
 def _render_array_sort(g, node, args) -> str:
     arr = g.sql(args[0])
     if len(args) == 1:
-        return f"list_sort({arr}, 'ASC', 'NULLS LAST')"
-    key, descending = node.meta["sort_key"]
+        return _checked_order(f"list_sort({arr}, 'ASC', 'NULLS LAST')", ttype(node).element)
+    key, descending, nulls_first = node.meta["sort_key"]
     x = tf.quote(args[1].expressions[0].name.lower())
     position = '-"_i"' if descending else '"_i"'
-    keyed = f'list_transform({arr}, lambda {x}, "_i": struct_pack(k := {g.sql(key)}, i := {position}, v := {x}))'
+    null_flag = "" if nulls_first is None else f"n := {x} IS {'' if nulls_first == descending else 'NOT '}NULL, "
+    keyed = (
+        f'list_transform({arr}, lambda {x}, "_i": struct_pack({null_flag}k := {g.sql(key)}, i := {position}, v := {x}))'
+    )
     direction = "'DESC'" if descending else "'ASC'"
     return f'list_transform(list_sort({keyed}, {direction}), lambda "_s": struct_extract("_s", \'v\'))'
+
+
+def _checked_order(sorted_sql: str, element: TType) -> str:
+    """A sorted array of arrays or rows, or Trino's error when sorting compares two elements that
+    reach a NULL element: any comparison sort compares each adjacent pair of its result, and two
+    elements whose comparison reaches a NULL have only such elements between them."""
+    if element.base not in ("array", "row"):
+        return sorted_sql
+    pair = ('"_s"["_j"]', '"_s"["_j" + 1]')
+    reached, failure = tf.null_reached(*pair, element)
+    clash = (
+        f'list_filter(range(1, len("_s")), lambda "_j": {pair[0]} IS NOT NULL AND {pair[1]} IS NOT NULL AND {reached})'
+    )
+    return f'list_transform([{sorted_sql}], lambda "_s": CASE WHEN len({clash}) > 0 THEN {failure} ELSE "_s" END)[1]'
 
 
 def _array_distinct(call: Call) -> TType:
@@ -2020,13 +2076,31 @@ def _render_array_histogram(g, node, args) -> str:
 def _array_minmax(call: Call) -> TType:
     need(call, "array")
     element = _array_arg(call).element
-    if element.base in ("map", "json", "row", "array"):
+    if element.base in ("map", "json") or element.base in ("row", "array") and _nested(element):
         call.mismatch()
     return element
 
 
+def _ordered_pick(arr: str, element: TType, largest: bool) -> str:
+    """The largest (smallest) of the elements of `arr`, arrays or rows, as ArrayMaxFunction's loop
+    finds it: each element is compared with the one kept so far, a NULL element makes the result
+    NULL, and a comparison that reaches a NULL inside the elements fails as Trino's does."""
+    kept = "struct_extract(\"_s\", 'v')"
+    reached, failure = tf.null_reached('"_x"', kept, element)
+    step = (
+        f'CASE WHEN struct_extract("_s", \'n\') THEN "_s" '
+        f'WHEN "_x" IS NULL THEN struct_pack(v := "_x", n := true) '
+        f'WHEN {kept} IS NULL THEN struct_pack(v := "_x", n := false) WHEN {reached} THEN {failure} '
+        f'WHEN "_x" {">" if largest else "<"} {kept} THEN struct_pack(v := "_x", n := false) ELSE "_s" END'
+    )
+    start = f"struct_pack(v := ({arr})[len({arr}) + 1], n := false)"  # v: a NULL of the element type
+    return f'struct_extract(list_reduce({arr}, lambda "_s", "_x": {step}, {start}), \'v\')'
+
+
 def _render_array_minmax(g, node, args) -> str:
     arr = g.sql(args[0])
+    if ttype(node).base in ("array", "row"):
+        return _ordered_pick(arr, ttype(node), node.name.lower() == "array_max")
     name = "list_max" if node.name.lower() == "array_max" else "list_min"
     if name == "list_max" and ttype(node).is_approx:  # NaN only when all are NaN (ArrayMaxFunction)
         nan = tf.cast("'NaN'", ttype(node))
@@ -2443,8 +2517,9 @@ register(
     _render_array_distinct,
     notes="Keeps the first occurrence of each value in order, as in Trino.",
 )
-register("array_max", "array", "array_max(array) -> element", _array_minmax, _render_array_minmax)
-register("array_min", "array", "array_min(array) -> element", _array_minmax, _render_array_minmax)
+_MINMAX_NOTE = "Over arrays or rows too: a comparison reaching a NULL inside them fails as in Trino."
+register("array_max", "array", "array_max(array) -> element", _array_minmax, _render_array_minmax, notes=_MINMAX_NOTE)
+register("array_min", "array", "array_min(array) -> element", _array_minmax, _render_array_minmax, notes=_MINMAX_NOTE)
 register(
     "element_at",
     "array",
@@ -2480,7 +2555,15 @@ register(
     _render_zip_with,
     notes="The shorter array is padded with NULLs, as in Trino.",
 )
-register("sequence", "array", "sequence(start, stop[, step]) -> array(bigint)", _sequence, _render_sequence)
+register(
+    "sequence",
+    "array",
+    "sequence(start, stop[, step]) -> array(bigint); sequence(date, date[, interval]) -> array(date); "
+    "sequence(timestamp, timestamp, interval) -> array(timestamp)",
+    _sequence,
+    _render_sequence,
+    notes="A month step adds i months to the start (clamped to the month's end), as Trino.",
+)
 register("slice", "array", "slice(array, start, length) -> array", _slice, _render_slice)
 register("flatten", "array", "flatten(array(array(T))) -> array(T)", _flatten, call_as("flatten"))
 register("reverse", "array", "reverse(array) -> array; reverse(string) -> varchar", _reverse, _render_reverse)
@@ -2976,34 +3059,10 @@ _GEO = (
 
 REJECTED: dict[str, str] = {
     **{name.lower(): "geospatial functions are not available in lakegate" for name in _GEO},
-    "ngrams": "array n-gram function not translated",
-    "combinations": "array combinations function not translated",
     "shuffle": "random permutation not translated",
-    "array_union": "set semantics (order, NULL handling) not translated exactly",
-    "array_intersect": "set semantics (order, NULL handling) not translated exactly",
-    "array_except": "set semantics (order, NULL handling) not translated exactly",
-    "zip": "row field naming of the result not translated",
-    "transform_keys": "map functions are not supported (no map columns in the lake)",
-    "transform_values": "map functions are not supported (no map columns in the lake)",
-    "map_filter": "map functions are not supported (no map columns in the lake)",
-    "map_concat": "map functions are not supported (no map columns in the lake)",
-    "map_entries": "map functions are not supported (no map columns in the lake)",
-    "map_from_entries": "map functions are not supported (no map columns in the lake)",
-    "map_zip_with": "map functions are not supported (no map columns in the lake)",
-    "multimap_from_entries": "map functions are not supported (no map columns in the lake)",
-    "map_agg": "map result type not supported",
-    "multimap_agg": "map result type not supported",
-    "map_union": "map result type not supported",
-    "approx_most_frequent": "map result type not supported",
-    "numeric_histogram": "map result type not supported",
+    "approx_most_frequent": "Trino's stream-summary estimate of the top values and their counts is not reproduced",
+    "numeric_histogram": "Trino's approximate streaming histogram (Ben-Haim and Tom-Tov) is not reproduced",
     "checksum": "Trino's xxhash64-based checksum cannot be reproduced",
-    "kurtosis": "Trino's estimator not verified against DuckDB's",
-    "skewness": "Trino's estimator not verified against DuckDB's",
-    "entropy": "not translated",
-    "reduce_agg": "lambda aggregation not translated",
-    "bitwise_and_agg": "not translated",
-    "bitwise_or_agg": "not translated",
-    "bitwise_xor_agg": "not translated",
     "approx_set": "HyperLogLog state functions are not available",
     "empty_approx_set": "HyperLogLog state functions are not available",
     "merge": "HyperLogLog / qdigest / tdigest state functions are not available",
@@ -3051,12 +3110,6 @@ REJECTED: dict[str, str] = {
     "current_schema": "not translated",
     "sequence_timestamp": "not translated",
     "ip_prefix": "IP address functions are not available",
-    "contains_sequence": "not translated",
-    "array_has_duplicates": "not translated",
-    "array_duplicates": "not translated",
-    "remove_nulls": "not translated",
-    "array_frequency": "not translated",
-    "array_cum_sum": "not translated",
 }
 
 registry.REJECTED.update(REJECTED)

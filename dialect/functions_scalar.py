@@ -25,30 +25,10 @@ from lakegate.dialect.functions import (
     regexp_call,
     sqls,
 )
-from lakegate.dialect.registry import SUPPORTED, Render, register
+from lakegate.dialect.registry import SUPPORTED, Render, overload, register
 from lakegate.dialect.trino_types import TType
 
 VARBINARY = tt.VARBINARY
-
-
-def overload(name: str, accepts: Callable[[Call], TType | None], render: Render, signature: str) -> None:
-    """Add a Trino overload to the registered function `name`: `accepts` types the calls it takes
-    (None for the others, which keep the registered rule) and `render` writes them."""
-    base = SUPPORTED[name]
-
-    def infer(call: Call) -> TType:
-        result = accepts(call)
-        if result is None:
-            return base.infer(call)
-        call.node.meta["overload"] = render
-        return result
-
-    def render_either(g, node, args) -> str:
-        return node.meta.get("overload", base.render)(g, node, args)
-
-    register(
-        name, base.family, f"{base.signature}; {signature}", infer, render_either, base.kind, base.notes, replaces=True
-    )
 
 
 def _binary_args(call: Call, count: int) -> bool:

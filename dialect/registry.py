@@ -59,6 +59,27 @@ def register(
 #: Well-known Trino functions lakegate refuses: name -> why.
 REJECTED: dict[str, str] = {}
 
+
+def overload(name: str, accepts: Callable[[Any], TType | None], render: Render, signature: str) -> None:
+    """Add a Trino overload to the registered function `name`: `accepts` types the calls it takes
+    (None for the others, which keep the registered rule) and `render` writes them."""
+    base = SUPPORTED[name]
+
+    def infer(call: Any) -> TType:
+        result = accepts(call)
+        if result is None:
+            return base.infer(call)
+        call.node.meta["overload"] = render
+        return result
+
+    def render_either(g: Any, node: exp.Expression, args: list) -> str:
+        return node.meta.get("overload", base.render)(g, node, args)
+
+    register(
+        name, base.family, f"{base.signature}; {signature}", infer, render_either, base.kind, base.notes, replaces=True
+    )
+
+
 #: CAST to and from json (lakegate.dialect.json_values fills it, as it builds on the transforms):
 #: "to_json" (writer, sql, source type) and "from_json" (writer, sql, target type) -> DuckDB SQL.
 JSON_CASTS: dict[str, Callable[[Any, str, TType], str]] = {}

@@ -434,7 +434,41 @@ def ieee_comparison(g: Writer, node: exp.Binary) -> str:
     if common.base in ("array", "map", "row") and op in ("=", "<>"):
         equal = trino_equal(left, right, common)
         return equal if op == "=" else f"NOT ({equal})"
+    if common.base in ("array", "row"):
+        return ordered_comparison(left, right, common, op)
     return f"{left} {op} {right}"
+
+
+def ordered_comparison(left: str, right: str, t: TType, op: str) -> str:
+    """`<`, `<=`, `>`, `>=` on arrays and rows: element by element (then by length), failing as Trino
+    does when the comparison reaches a NULL element (see `null_reached`)."""
+    reached, failure = null_reached(left, right, t)
+    return (
+        f"CASE WHEN ({left}) IS NULL OR ({right}) IS NULL THEN NULL WHEN {reached} THEN {failure} "
+        f"ELSE {left} {op} {right} END"
+    )
+
+
+def null_reached(left: str, right: str, t: TType) -> tuple[str, str]:
+    """SQL that is true when ordering two arrays (or rows) of type `t` reaches a NULL element, on
+    either side, before the first unequal pair, and the error Trino raises then: the ArrayType and
+    RowType comparison operators check each position they compare (checkElementNotNull), where
+    DuckDB would order NULL elements last."""
+    if t.base == "array":
+        pair = (f'({left})["_i"]', f'({right})["_i"]')
+        stops = f"{pair[0]} IS NULL OR {pair[1]} IS NULL OR {pair[0]} <> {pair[1]}"
+        first = f'list_filter(range(1, least(len({left}), len({right})) + 1), lambda "_i": {stops})[1]'
+        at = (f"({left})[{first}]", f"({right})[{first}]")
+        reached = f"({first} IS NOT NULL AND ({at[0]} IS NULL OR {at[1]} IS NULL))"
+        what = "ARRAY comparison not supported for arrays with null elements"
+    else:
+        whens = []
+        for i in range(1, len(t.args) + 1):
+            a, b = f"struct_extract_at({left}, {i})", f"struct_extract_at({right}, {i})"
+            whens.append(f"WHEN {a} IS NULL OR {b} IS NULL THEN true WHEN {a} <> {b} THEN false")
+        reached = f"CASE {' '.join(whens)} ELSE false END"
+        what = "ROW comparison not supported for fields with null elements"
+    return reached, f"error({string('NOT_SUPPORTED: ' + what)})"  # not an error try() catches
 
 
 def trino_equal(left: str, right: str, t: TType, depth: int = 0) -> str:

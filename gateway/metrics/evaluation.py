@@ -25,8 +25,8 @@ supported) counts for nothing. One metric:
   exactly (e.g. `config.resim.yaml:57:9`); the rest of the set still runs;
 * the result does not fit the template: ERROR with the template's message;
 * no rows and `skip_if_no_data: true`: NOT_RUN;
-* `type: dashboard | report` and the templates `video` and `artifact` are not supported
-  yet: NOT_RUN with that reason (they never fail a batch);
+* `type: dashboard | report` are not supported yet: NOT_RUN with that reason (they never
+  fail a batch);
 * `template_type: custom`: the result is rendered by the metric's Liquid template (`custom`);
 * otherwise the status check, if any: the status query runs with `block` (when given) bound to its one
   `?` (a typed query parameter, never pasted text); any row means BLOCKER; else with `warn`
@@ -60,7 +60,7 @@ from lakegate.dialect.scope import Scope
 from lakegate.gateway.engine.backend import Backend, DuckDBBackend
 from lakegate.gateway.metrics.custom import CUSTOM, render_custom
 from lakegate.gateway.metrics.results import ResultsWriter
-from lakegate.gateway.metrics.templates import UNSUPPORTED_TEMPLATES, Rendered, TemplateError, json_value, render
+from lakegate.gateway.metrics.templates import Rendered, TemplateError, json_value, render
 from lakegate.lake import paths
 from lakegate.lake.config import Config, Location, Metric
 
@@ -291,8 +291,6 @@ def unsupported_reason(metric: Metric) -> str | None:
     """Why a metric cannot be evaluated yet, or None when it can."""
     if metric.type not in EVALUATED_TYPES:
         return f"metric type '{metric.type}' is not supported yet (only test and batch metrics are evaluated)"
-    if metric.template_type == "system" and metric.template in UNSUPPORTED_TEMPLATES:
-        return f"template '{metric.template}' is not supported yet"
     return None
 
 

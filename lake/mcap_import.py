@@ -247,7 +247,8 @@ def _messages(mcap_path: Path, by_source: dict[str, TopicMapping]) -> Iterator[t
     with open(mcap_path, "rb") as stream:
         reader = make_reader(stream, decoder_factories=factories)
         try:
-            for _, channel, message, decoded in reader.iter_decoded_messages(topics=list(by_source)):
+            messages = reader.iter_decoded_messages(topics=list(by_source), log_time_order=False)  # file order: no heap
+            for _, channel, message, decoded in messages:
                 yield by_source[channel.topic], message, decoded
         except McapError as error:
             raise McapImportError(f"{mcap_path}: cannot decode the MCAP file: {error}") from None

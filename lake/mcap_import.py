@@ -25,7 +25,7 @@ from __future__ import annotations
 import json
 import re
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -154,15 +154,17 @@ def _mapping(
         return None
     keys = reader.plain_keys(entries["fields"].node)
     fields: dict[str, MessagePath] = {}
-    for field, text in entries["fields"].value.items():
-        node = keys.get(field, entries["fields"].node)
+    for field_name, text in entries["fields"].value.items():
+        node = keys.get(field_name, entries["fields"].node)
         path = parse_path(text, where(node)) if isinstance(text, str) else None
-        if field not in topic.fields:
-            reader.error(node, f"topic '{name}' has no field '{field}' (its fields: {', '.join(topic.fields)})")
+        if field_name not in topic.fields:
+            reader.error(node, f"topic '{name}' has no field '{field_name}' (its fields: {', '.join(topic.fields)})")
         elif path is None:
-            reader.error(node, f"field '{field}': {text!r} is not a message path (like twist.linear.x or poses[0].x)")
+            reader.error(
+                node, f"field '{field_name}': {text!r} is not a message path (like twist.linear.x or poses[0].x)"
+            )
         else:
-            fields[field] = path
+            fields[field_name] = path
     missing = [f for f in topic.fields if f not in entries["fields"].value]
     if missing:
         reader.error(entries["fields"].node, f"topic '{name}' needs its fields {', '.join(missing)} mapped too")
@@ -193,7 +195,7 @@ class ImportReport:
     """What an import read and wrote."""
 
     messages: int = 0  # messages of the mapped topics read
-    rows: dict[str, int] | None = None  # lakegate topic -> rows emitted
+    rows: dict[str, int] = field(default_factory=dict)  # lakegate topic -> rows emitted
 
 
 def message_count(mcap_path: Path, sources: set[str]) -> int | None:
@@ -227,9 +229,7 @@ def import_mcap(
         if index % mapping.decimate:
             continue
         where = f"{mapping.source} message {index} (log time {message.log_time})"
-        row = {}
-        for field, path in mapping.fields.items():
-            row[field] = _value(path, decoded, where, _plain)
+        row = {name: _value(path, decoded, where, _plain) for name, path in mapping.fields.items()}
         timestamp = _timestamp(mapping, message, decoded, where)
         try:
             emitter.emit(mapping.topic, row, timestamp)

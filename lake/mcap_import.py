@@ -15,7 +15,8 @@ A mapping file (YAML) says, per MCAP topic, which lakegate topic its messages fi
 A path is attribute or key names joined by dots, with `[i]` for an element of a list
 (`poses[0].position.x`). A timestamp path names a ROS time (`sec` and `nanosec`) or an integer of
 nanoseconds. Messages are decoded with `mcap-ros2-support` (ROS 2 messages with a `ros2msg`
-schema; no ROS installation needed) or as JSON (message encoding `json`). Every row goes through
+schema; no ROS installation needed), `mcap-protobuf-support` (protobuf messages with their
+descriptors) or as JSON (message encoding `json`). Every row goes through
 the `Emitter`, so it is checked against the config exactly as emitted rows are. Errors name the
 mapping file, line and column, and the message (topic, index, log time) with the field path.
 """
@@ -33,6 +34,7 @@ from mcap.decoder import DecoderFactory
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap.records import Schema
+from mcap_protobuf.decoder import DecoderFactory as ProtobufDecoderFactory
 from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory
 from ruamel.yaml.nodes import MappingNode
 
@@ -243,7 +245,7 @@ def import_mcap(
 
 
 def _messages(mcap_path: Path, by_source: dict[str, TopicMapping]) -> Iterator[tuple[TopicMapping, Any, Any]]:
-    factories = [Ros2DecoderFactory(), _JsonDecoderFactory()]
+    factories = [Ros2DecoderFactory(), ProtobufDecoderFactory(), _JsonDecoderFactory()]
     with open(mcap_path, "rb") as stream:
         reader = make_reader(stream, decoder_factories=factories)
         try:
@@ -262,11 +264,11 @@ def _value(path: MessagePath, decoded: Any, where: str, convert: Callable[[Any],
 
 
 def _plain(value: Any) -> Any:
-    """ROS arrays (array.array, bytes) as lists; other values as they are."""
-    if isinstance(value, (bytes, bytearray)):
-        return list(value)
-    tolist = getattr(value, "tolist", None)
-    return tolist() if tolist is not None and not isinstance(value, (int, float, str)) else value
+    """Arrays of a message (lists, array.array, bytes, protobuf repeated fields) as lists; other
+    values as they are."""
+    if isinstance(value, (str, int, float, dict)) or not hasattr(value, "__len__"):
+        return value
+    return list(value)
 
 
 def _timestamp(mapping: TopicMapping, message: Any, decoded: Any, where: str) -> int:

@@ -35,8 +35,8 @@ mapping file (YAML), one entry per MCAP topic:
     timestamp: log_time                # log_time (default), publish_time, or a path: header.stamp
     decimate: 10                       # optional: keep one message in 10
 
-ROS 2 messages (cdr, with a ros2msg schema) and JSON messages are decoded; no ROS installation
-is needed."""
+ROS 2 messages (cdr, with a ros2msg schema), protobuf messages and JSON messages are decoded;
+no ROS installation is needed."""
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:

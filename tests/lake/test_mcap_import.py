@@ -11,6 +11,8 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from google.protobuf.type_pb2 import Field, Type
+from mcap_protobuf.writer import Writer as ProtobufWriter
 from mcap_ros2.writer import Writer as Ros2Writer
 
 from lakegate.lake.catalog import Catalog
@@ -221,3 +223,25 @@ def test_progress_bar_on_stderr_when_asked(files, tmp_path):
     quiet = lakegate("import", "mcap", log, "--mapping", mapping, "--output", tmp_path / "o.jsonl",
                      "--metrics-config-path", config)  # fmt: skip
     assert quiet.stderr == "" and os.path.getsize(tmp_path / "o.jsonl") > 0
+
+
+def test_protobuf_messages_with_nested_and_repeated_fields(tmp_path):
+    """Protobuf messages (google.protobuf.Type: a name, repeated messages, repeated strings)."""
+    config = tmp_path / "config.resim.yaml"
+    config.write_text("version: 1\ntopics:\n  types:\n    schema: {label: string, n: int, tags: 'string[]'}\n")
+    mapping = tmp_path / "map.yaml"
+    mapping.write_text("/types:\n  topic: types\n  fields: {label: name, n: 'fields[1].number', tags: oneofs}\n")
+    messages = [
+        Type(name=f"t{i}", fields=[Field(name="a", number=1), Field(name="b", number=10 + i)], oneofs=["x"] * i)
+        for i in range(4)
+    ]
+    log = tmp_path / "proto.mcap"
+    with open(log, "wb") as stream, ProtobufWriter(stream) as writer:
+        for i, message in enumerate(messages):
+            writer.write_message("/types", message, log_time=1000 + i, publish_time=1000 + i)
+    output = tmp_path / "out.jsonl"
+    lakegate("import", "mcap", log, "--mapping", mapping, "--output", output, "--metrics-config-path", config)
+    rows = [json.loads(line) for line in output.read_text().splitlines()]
+    assert [(r["$metadata"]["timestamp"], r["$data"]) for r in rows] == [
+        (1000 + i, {"label": m.name, "n": m.fields[1].number, "tags": list(m.oneofs)}) for i, m in enumerate(messages)
+    ]

@@ -27,6 +27,7 @@ import json
 import re
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from operator import attrgetter
 from pathlib import Path
 from typing import Any
 
@@ -78,9 +79,20 @@ class MessagePath:
     text: str
     steps: tuple[str | int, ...]
     location: Location
+    #: For a path of names only: one C-level lookup of the attributes (decoded ROS 2 and protobuf messages).
+    attributes: Callable[[Any], Any] | None = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        names_only = all(isinstance(step, str) for step in self.steps)
+        object.__setattr__(self, "attributes", attrgetter(self.text) if names_only else None)
 
     def get(self, message: Any) -> Any:
         """The value at this path; KeyError naming the first step that is not there."""
+        if self.attributes is not None and not isinstance(message, dict):
+            try:
+                return self.attributes(message)
+            except AttributeError:
+                pass  # the walk below names the missing step
         value = message
         for step in self.steps:
             try:

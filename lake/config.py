@@ -19,8 +19,10 @@ from typing import Any
 
 from lakegate.lake import paths
 from lakegate.lake.config_schema import FILE, TOPIC_NAME_RULES
-from lakegate.lake.config_yaml import STRICT_NOTE, Entry, FileReader, Named, RawProblem, did_you_mean
+from lakegate.lake.config_yaml import Entry, FileReader, Named, RawProblem, RawWarning, did_you_mean
 
+#: Ends a warning that `strict` makes a problem.
+STRICT_NOTE = " (ReSim accepts this; refused because of --strict)"
 DEFAULT_CONFIG_PATH = Path(".resim/metrics/config.resim.yaml")
 #: Where `find_default_config` looks, relative to a folder, in this order.
 DEFAULT_CONFIG_PATHS = (DEFAULT_CONFIG_PATH, DEFAULT_CONFIG_PATH.with_suffix(".yml"))
@@ -184,7 +186,7 @@ def load_config(paths: str | Path | Sequence[str | Path], *, strict: bool = Fals
     if not path_list:
         raise ValueError("load_config needs at least one config file")
     raw: list[RawProblem] = []
-    warnings: list[RawProblem] | None = None if strict else []
+    warnings: list[RawWarning] = []
     builder = _Builder(Config(paths=[str(p) for p in path_list]), raw, warnings)
     for path in path_list:
         reader = FileReader(str(path), raw, warnings)
@@ -192,9 +194,12 @@ def load_config(paths: str | Path | Sequence[str | Path], *, strict: bool = Fals
         if root is not None:
             builder.add_file(reader, reader.section(root, FILE, "the config file", root))
     builder.check_sets()
+    if strict:
+        raw += [(p, line, column, message + STRICT_NOTE) for p, line, column, message, _ in warnings]
     if raw:
         raise ConfigError(_in_order(raw, path_list))
-    builder.config.warnings = _in_order(warnings or [], path_list)
+    found = [(p, line, column, f"{message}: {instead}") for p, line, column, message, instead in warnings]
+    builder.config.warnings = _in_order(found, path_list)
     return builder.config
 
 
@@ -209,7 +214,7 @@ def _in_order(raw: list[RawProblem], path_list: list) -> list[Problem]:
 class _Builder:
     """Turns the checked entries of each file into one Config, checking names across files."""
 
-    def __init__(self, config: Config, problems: list[RawProblem], warnings: list[RawProblem] | None):
+    def __init__(self, config: Config, problems: list[RawProblem], warnings: list[RawWarning]):
         self.config = config
         self.problems = problems
         self.warnings = warnings
@@ -220,11 +225,8 @@ class _Builder:
     def _error(self, location: Location, message: str) -> None:
         self.problems.append((location.path, location.line, location.column, message))
 
-    def _warn(self, location: Location, message: str) -> None:
-        if self.warnings is None:
-            self._error(location, message + STRICT_NOTE)
-        else:
-            self.warnings.append((location.path, location.line, location.column, message))
+    def _warn(self, location: Location, message: str, instead: str) -> None:
+        self.warnings.append((location.path, location.line, location.column, message, instead))
 
     def add_file(self, reader: FileReader, entries: dict[str, Entry]) -> None:
         def at(node: Any) -> Location:
@@ -310,7 +312,7 @@ class _Builder:
         units, unit = _value(e, "units", None), _value(e, "unit", None)
         if units is not None and unit is not None and units != unit:
             self._warn(
-                at(e["unit"].node), f"metric '{metric}' has both units '{units}' and unit '{unit}': units is used"
+                at(e["unit"].node), f"metric '{metric}' has both units '{units}' and unit '{unit}'", "units is used"
             )
         return units if units is not None else unit
 

@@ -5,9 +5,9 @@ strings) so every node keeps its line and column, and checks mappings against a 
 unknown keys (with a did-you-mean), missing keys, value types, duplicate keys and names.
 Every problem is appended to a shared list; nothing here raises for bad input. Where lakegate
 is stricter than ReSim on purpose (an unknown key, a name YAML reads as a number or boolean, a
-key its template type does not use) the finding is a warning: the key is ignored or the name
-read as its text, and the file still loads; without a warnings list (`--strict`) it is a problem. The dashboard
-edits configs with the same library (round-trip mode), so what it writes reads back the same.
+key its template type does not use) the finding is a warning, with what lakegate does instead
+(the key is ignored, the name read as its text), and the file still loads; a reader without a
+warnings list (lakegate's own formats) reports it as a problem. The dashboard edits configs with the same library (round-trip mode), so what it writes reads back the same.
 """
 
 from __future__ import annotations
@@ -32,8 +32,8 @@ _A_TYPE = {"int": "an integer", "float": "a number", "bool": "a boolean", "null"
 _NOTHING = object()
 #: A problem as (path, line, column, message); line and column are 0 for the whole file.
 RawProblem = tuple[str, int, int, str]
-#: Ends a warning made a problem by `--strict`.
-STRICT_NOTE = " (ReSim accepts this; refused because of --strict)"
+#: A warning as (path, line, column, message, what lakegate does instead of refusing).
+RawWarning = tuple[str, int, int, str, str]
 #: What an empty (null) value of a nullable key stands for.
 _EMPTY = {"names": list, "named": list, "data": dict, "fields": dict}
 
@@ -58,10 +58,9 @@ def describe(node: Node) -> str:
     return f"{_TAG_NAMES.get(tag, tag)} {node.value}"
 
 
-def _as_text(node: ScalarNode) -> str:
-    """`is read by YAML as an integer: taken as the text '1' (quote it)` (ReSim reads it as text)."""
-    kind = _A_TYPE.get(node.tag.removeprefix(_TAG), node.tag)
-    return f"is read by YAML as {kind}: taken as the text '{node.value}' (quote it)"
+def _yaml_kind(node: ScalarNode) -> str:
+    """`an integer`, `a boolean`: what YAML reads a plain scalar as."""
+    return _A_TYPE.get(node.tag.removeprefix(_TAG), node.tag)
 
 
 def _is(node: Node, tag: str) -> bool:
@@ -91,9 +90,9 @@ class Entry:
 
 class FileReader:
     """Reads one config file; problems are appended to `problems`, and warnings to `warnings`
-    (to `problems`, marked as refused by --strict, when it is None)."""
+    (to `problems`, when it is None)."""
 
-    def __init__(self, path: str, problems: list[RawProblem], warnings: list[RawProblem] | None = None):
+    def __init__(self, path: str, problems: list[RawProblem], warnings: list[RawWarning] | None = None):
         self.path = path
         self.problems = problems
         self.warnings = warnings
@@ -110,12 +109,12 @@ class FileReader:
     def error(self, node: Node, message: str) -> None:
         self.problems.append((self.path, *self.position(node), message))
 
-    def warn(self, node: Node, message: str) -> None:
-        """A rule where lakegate is stricter than ReSim: a warning, or a problem under --strict."""
+    def warn(self, node: Node, message: str, instead: str) -> None:
+        """A rule where lakegate is stricter than ReSim: a warning saying what is done `instead`."""
         if self.warnings is None:
-            self.error(node, message + STRICT_NOTE)
+            self.error(node, message)
         else:
-            self.warnings.append((self.path, *self.position(node), message))
+            self.warnings.append((self.path, *self.position(node), message, instead))
 
     def _first_at(self, node: Node) -> str:
         line, column = self.position(node)
@@ -171,7 +170,8 @@ class FileReader:
                 self.error(key, f"{noun}{where} must be a string, got {describe(key)}")
             else:
                 if string_keys and key.tag != _TAG + "str":
-                    self.warn(key, f"{noun} '{key.value}'{where} {_as_text(key)}")
+                    read_as = f"{noun} '{key.value}'{where} is read by YAML as {_yaml_kind(key)}, not a string"
+                    self.warn(key, read_as, f"taken as the text '{key.value}' (quote it)")
                 explicit.append((key, value))
         seen: dict[str, ScalarNode] = {}
         result = []
@@ -202,7 +202,7 @@ class FileReader:
             name = key.value
             spec = section.keys.get(name)
             if spec is None:
-                self.warn(key, f"unknown key '{name}' in {label}{did_you_mean(name, section.keys)}: ignored")
+                self.warn(key, f"unknown key '{name}' in {label}{did_you_mean(name, section.keys)}", "ignored")
                 continue
             present.add(name)
             checked = self._value(spec, name, value, key, label)
@@ -224,7 +224,7 @@ class FileReader:
             for name in rule.refuses:
                 if name in entries:
                     self.warn(
-                        entries[name].node, f"'{name}' in {label} is not used with {rule.key}: {rule.value}: ignored"
+                        entries[name].node, f"'{name}' in {label} is not used with {rule.key}: {rule.value}", "ignored"
                     )
                     del entries[name]
         return entries
@@ -292,7 +292,8 @@ class FileReader:
                 self.error(item, f"{spec.what} names{inside} must be strings, got {describe(item)}")
                 continue
             if not _is(item, "str"):
-                self.warn(item, f"{spec.what} name '{item.value}'{inside} {_as_text(item)}")
+                read_as = f"{spec.what} name '{item.value}'{inside} is read by YAML as {_yaml_kind(item)}, not a string"
+                self.warn(item, read_as, f"taken as the text '{item.value}' (quote it)")
             if item.value in seen:
                 self.error(item, f"duplicate {spec.what} '{item.value}'{inside} ({self._first_at(seen[item.value])})")
             else:

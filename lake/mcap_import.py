@@ -134,8 +134,7 @@ def parse_path(text: str, location: Location) -> MessagePath | None:
 def load_mapping(path: Path, topics: dict[str, Topic]) -> list[TopicMapping]:
     """Read and check a mapping file against the config's `topics`; MappingError lists every problem."""
     raw: list[RawProblem] = []
-    unknown: list[RawProblem] = []  # unknown keys: errors too, this format is lakegate's own
-    reader = FileReader(str(path), raw, unknown)
+    reader = FileReader(str(path), raw)  # no warnings: unknown keys are errors in lakegate's own format
     root = reader.compose()
     mappings = []
     if root is not None and not isinstance(root, MappingNode):
@@ -148,8 +147,8 @@ def load_mapping(path: Path, topics: dict[str, Topic]) -> list[TopicMapping]:
                 mapping = _mapping(reader, key.value, entries, topics, at)
                 if mapping is not None:
                     mappings.append(mapping)
-    problems = sorted(raw + [(*p[:3], p[3].removesuffix(": ignored")) for p in unknown], key=lambda p: (p[1], p[2]))
-    if problems:
+    if raw:
+        problems = sorted(raw, key=lambda p: (p[1], p[2]))
         raise MappingError([f"{p}:{line}:{column}: {message}" for p, line, column, message in problems])
     return mappings
 

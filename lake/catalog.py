@@ -29,7 +29,14 @@ from lakegate.lake import paths
 from lakegate.lake.config import Config, Topic
 from lakegate.lake.record import FileEntry, Record, Snapshot
 from lakegate.lake.registry import BranchConfigs
-from lakegate.lake.schema import EVENTS_COLUMNS, METADATA_COLUMNS, METRIC_RESULTS_COLUMNS, duckdb_type, topic_columns
+from lakegate.lake.schema import (
+    EVENTS_COLUMNS,
+    METADATA_COLUMNS,
+    METRIC_LIST,
+    METRIC_RESULTS_COLUMNS,
+    duckdb_type,
+    topic_columns,
+)
 
 
 @dataclass
@@ -53,6 +60,13 @@ class _Spec:
     kind: str
     columns: list[tuple[str, str]]
     varied: bool = False  # the topic's fields differ between config versions
+
+    @property
+    def by_name(self) -> bool:
+        """Whether its files are read by column name and cast: its fields differ between config
+        versions, or it has a metric[] column (files written before the metric's `extra` field
+        hold a narrower struct, which read by position would drop `extra` of newer files)."""
+        return self.varied or any(trino == METRIC_LIST for _, trino in self.columns)
 
 
 def _quote_ident(name: str) -> str:
@@ -228,10 +242,10 @@ class Catalog:
         listed = ", ".join(_quote_text(str(paths.reader_path(root, entry.path))) for entry in files)
         source = (
             f"read_parquet([{listed}], hive_partitioning = true, hive_types = {{{hive_types}}}"
-            f"{', union_by_name = true' if spec.varied else ''})"
+            f"{', union_by_name = true' if spec.by_name else ''})"
         )
         present = None
-        if spec.varied:
+        if spec.by_name:
             present = {column for entry in files for column in entry.columns} | set(paths.partition_keys(spec.name))
         items = []
         for column, trino in spec.columns:

@@ -2,7 +2,9 @@
 
 `load_config(paths)` reads one or several files, checks them and merges them; every
 problem found is collected into one `ConfigError` whose `problems` each name the
-file, the YAML line and column, and what was expected. The keys each section allows
+file, the YAML line and column, and what was expected. Where lakegate is stricter than
+ReSim on purpose, the finding is a warning in `Config.warnings` instead (the file loads as
+ReSim reads it), or a problem with `strict=True` (`--strict`). The keys each section allows
 are described once in `config_schema` (which also yields the JSON Schema); the YAML
 walking lives in `config_yaml`.
 """
@@ -17,8 +19,10 @@ from typing import Any
 
 from lakegate.lake import paths
 from lakegate.lake.config_schema import FILE, TOPIC_NAME_RULES
-from lakegate.lake.config_yaml import Entry, FileReader, Named, RawProblem, did_you_mean
+from lakegate.lake.config_yaml import Entry, FileReader, Named, RawProblem, RawWarning, did_you_mean
 
+#: Ends a warning that `strict` makes a problem.
+STRICT_NOTE = " (ReSim accepts this; refused because of --strict)"
 DEFAULT_CONFIG_PATH = Path(".resim/metrics/config.resim.yaml")
 #: Where `find_default_config` looks, relative to a folder, in this order.
 DEFAULT_CONFIG_PATHS = (DEFAULT_CONFIG_PATH, DEFAULT_CONFIG_PATH.with_suffix(".yml"))
@@ -119,6 +123,8 @@ class Config:
     dashboards: dict[str, Any] = field(default_factory=dict)
     global_settings: dict[str, Any] = field(default_factory=dict)
     paths: list[str] = field(default_factory=list)
+    #: Findings where lakegate is stricter than ReSim on purpose (refused with strict=True).
+    warnings: list[Problem] = field(default_factory=list)
 
     def metrics_in_set(self, name: str) -> list[Metric]:
         """The metrics of set `name`, in the set's order; KeyError naming the known sets if none."""
@@ -171,39 +177,56 @@ def count_placeholders(sql: str) -> int:
     return code.count("?")
 
 
-def load_config(paths: str | Path | Sequence[str | Path]) -> Config:
-    """Load, check and merge config files; raise ConfigError listing every problem found."""
+def load_config(paths: str | Path | Sequence[str | Path], *, strict: bool = False) -> Config:
+    """Load, check and merge config files; raise ConfigError listing every problem found.
+
+    Findings where lakegate is stricter than ReSim are `Config.warnings`, or problems when `strict`.
+    """
     path_list = [paths] if isinstance(paths, (str, Path)) else list(paths)
     if not path_list:
         raise ValueError("load_config needs at least one config file")
     raw: list[RawProblem] = []
-    builder = _Builder(Config(paths=[str(p) for p in path_list]), raw)
+    warnings: list[RawWarning] = []
+    builder = _Builder(Config(paths=[str(p) for p in path_list]), raw, warnings)
     for path in path_list:
-        reader = FileReader(str(path), raw)
+        reader = FileReader(str(path), raw, warnings)
         root = reader.compose()
         if root is not None:
             builder.add_file(reader, reader.section(root, FILE, "the config file", root))
     builder.check_sets()
+    if strict:
+        raw += [(p, line, column, message + STRICT_NOTE) for p, line, column, message, _ in warnings]
     if raw:
-        # an aliased node is checked everywhere it is used: report each problem once
-        order = {str(p): i for i, p in enumerate(path_list)}
-        unique = sorted(dict.fromkeys(raw), key=lambda p: (order.get(p[0], 0), p[1], p[2]))
-        raise ConfigError([Problem(Location(p, line, column), message) for p, line, column, message in unique])
+        raise ConfigError(_in_order(raw, path_list))
+    found = [(p, line, column, f"{message}: {instead}") for p, line, column, message, instead in warnings]
+    builder.config.warnings = _in_order(found, path_list)
     return builder.config
+
+
+def _in_order(raw: list[RawProblem], path_list: list) -> list[Problem]:
+    """Problems by file (in the order given), line and column; each once (an aliased node is
+    checked everywhere it is used)."""
+    order = {str(p): i for i, p in enumerate(path_list)}
+    unique = sorted(dict.fromkeys(raw), key=lambda p: (order.get(p[0], 0), p[1], p[2]))
+    return [Problem(Location(p, line, column), message) for p, line, column, message in unique]
 
 
 class _Builder:
     """Turns the checked entries of each file into one Config, checking names across files."""
 
-    def __init__(self, config: Config, problems: list[RawProblem]):
+    def __init__(self, config: Config, problems: list[RawProblem], warnings: list[RawWarning]):
         self.config = config
         self.problems = problems
+        self.warnings = warnings
         self._topic_names: dict[str, Topic] = {}  # lower-case name -> topic
         self._set_items: list[tuple[MetricsSet, list[tuple[str, Location]]]] = []
         self._data_locations: dict[tuple[str, Any], Location] = {}  # (section, key) -> where defined
 
     def _error(self, location: Location, message: str) -> None:
         self.problems.append((location.path, location.line, location.column, message))
+
+    def _warn(self, location: Location, message: str, instead: str) -> None:
+        self.warnings.append((location.path, location.line, location.column, message, instead))
 
     def add_file(self, reader: FileReader, entries: dict[str, Entry]) -> None:
         def at(node: Any) -> Location:
@@ -265,7 +288,7 @@ class _Builder:
             template=_value(e, "template", None),
             template_file=_value(e, "template_file", None),
             template_settings=_value(e, "template_settings", {}),
-            units=_value(e, "units", None),
+            units=self._units(named.name, e, at),
             skip_if_no_data=_value(e, "skip_if_no_data", False),
             location=at(named.key),
             query_location=at(e["query_string"].node) if "query_string" in e else None,
@@ -283,6 +306,15 @@ class _Builder:
             if query is not None:
                 self._check_status_query(metric.name, query.value, at(query.node))
         return metric
+
+    def _units(self, metric: str, e: dict[str, Entry], at: Callable[[Any], Location]) -> str | None:
+        """`units`, or `unit` as some ReSim configs write it; both differing: a warning, `units` wins."""
+        units, unit = _value(e, "units", None), _value(e, "unit", None)
+        if units is not None and unit is not None and units != unit:
+            self._warn(
+                at(e["unit"].node), f"metric '{metric}' has both units '{units}' and unit '{unit}'", "units is used"
+            )
+        return units if units is not None else unit
 
     def _check_status_query(self, metric: str, sql: str, location: Location) -> None:
         try:

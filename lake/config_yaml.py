@@ -3,8 +3,11 @@
 `FileReader` composes a file with ruamel.yaml (safe, YAML 1.2: `on`, `yes` and `1:30` are
 strings) so every node keeps its line and column, and checks mappings against a `Section`:
 unknown keys (with a did-you-mean), missing keys, value types, duplicate keys and names.
-Every problem is appended to a shared list; nothing here raises for bad input. The dashboard
-edits configs with the same library (round-trip mode), so what it writes reads back the same.
+Every problem is appended to a shared list; nothing here raises for bad input. Where lakegate
+is stricter than ReSim on purpose (an unknown key, a name YAML reads as a number or boolean, a
+key its template type does not use) the finding is a warning, with what lakegate does instead
+(the key is ignored, the name read as its text), and the file still loads; a reader without a
+warnings list (lakegate's own formats) reports it as a problem. The dashboard edits configs with the same library (round-trip mode), so what it writes reads back the same.
 """
 
 from __future__ import annotations
@@ -29,6 +32,8 @@ _A_TYPE = {"int": "an integer", "float": "a number", "bool": "a boolean", "null"
 _NOTHING = object()
 #: A problem as (path, line, column, message); line and column are 0 for the whole file.
 RawProblem = tuple[str, int, int, str]
+#: A warning as (path, line, column, message, what lakegate does instead of refusing).
+RawWarning = tuple[str, int, int, str, str]
 #: What an empty (null) value of a nullable key stands for.
 _EMPTY = {"names": list, "named": list, "data": dict, "fields": dict}
 
@@ -51,6 +56,11 @@ def describe(node: Node) -> str:
     if tag == "str":
         return f"string {node.value!r}"
     return f"{_TAG_NAMES.get(tag, tag)} {node.value}"
+
+
+def _yaml_kind(node: ScalarNode) -> str:
+    """`an integer`, `a boolean`: what YAML reads a plain scalar as."""
+    return _A_TYPE.get(node.tag.removeprefix(_TAG), node.tag)
 
 
 def _is(node: Node, tag: str) -> bool:
@@ -79,11 +89,13 @@ class Entry:
 
 
 class FileReader:
-    """Reads one config file; problems are appended to `problems`."""
+    """Reads one config file; problems are appended to `problems`, and warnings to `warnings`
+    (to `problems`, when it is None)."""
 
-    def __init__(self, path: str, problems: list[RawProblem]):
+    def __init__(self, path: str, problems: list[RawProblem], warnings: list[RawWarning] | None = None):
         self.path = path
         self.problems = problems
+        self.warnings = warnings
         self._yaml = YAML(typ="safe", pure=True)
         self._yaml.allow_duplicate_keys = True  # reported by `items` with both places
         self._constructor: SafeConstructor = self._yaml.constructor
@@ -96,6 +108,13 @@ class FileReader:
 
     def error(self, node: Node, message: str) -> None:
         self.problems.append((self.path, *self.position(node), message))
+
+    def warn(self, node: Node, message: str, instead: str) -> None:
+        """A rule where lakegate is stricter than ReSim: a warning saying what is done `instead`."""
+        if self.warnings is None:
+            self.error(node, message)
+        else:
+            self.warnings.append((self.path, *self.position(node), message, instead))
 
     def _first_at(self, node: Node) -> str:
         line, column = self.position(node)
@@ -149,10 +168,10 @@ class FileReader:
                         self.error(source, f"'<<' can only merge mappings, got {describe(source)}")
             elif not isinstance(key, ScalarNode):
                 self.error(key, f"{noun}{where} must be a string, got {describe(key)}")
-            elif string_keys and key.tag != _TAG + "str":
-                kind = _A_TYPE.get(key.tag.removeprefix(_TAG), key.tag)
-                self.error(key, f"{noun} '{key.value}'{where} is read by YAML as {kind}, not a string; quote it")
             else:
+                if string_keys and key.tag != _TAG + "str":
+                    read_as = f"{noun} '{key.value}'{where} is read by YAML as {_yaml_kind(key)}, not a string"
+                    self.warn(key, read_as, f"taken as the text '{key.value}' (quote it)")
                 explicit.append((key, value))
         seen: dict[str, ScalarNode] = {}
         result = []
@@ -183,7 +202,7 @@ class FileReader:
             name = key.value
             spec = section.keys.get(name)
             if spec is None:
-                self.error(key, f"unknown key '{name}' in {label}{did_you_mean(name, section.keys)}")
+                self.warn(key, f"unknown key '{name}' in {label}{did_you_mean(name, section.keys)}", "ignored")
                 continue
             present.add(name)
             checked = self._value(spec, name, value, key, label)
@@ -204,7 +223,10 @@ class FileReader:
                     self.error(anchor, f"missing key '{name}' in {label}, needed with {rule.key}: {rule.value}")
             for name in rule.refuses:
                 if name in entries:
-                    self.error(entries[name].node, f"'{name}' in {label} is not used with {rule.key}: {rule.value}")
+                    self.warn(
+                        entries[name].node, f"'{name}' in {label} is not used with {rule.key}: {rule.value}", "ignored"
+                    )
+                    del entries[name]
         return entries
 
     # -- values --------------------------------------------------------------------
@@ -266,9 +288,13 @@ class FileReader:
         names: list[tuple[str, ScalarNode]] = []
         seen: dict[str, ScalarNode] = {}
         for item in node.value:
-            if not _is(item, "str"):
+            if not isinstance(item, ScalarNode) or _is_null(item):
                 self.error(item, f"{spec.what} names{inside} must be strings, got {describe(item)}")
-            elif item.value in seen:
+                continue
+            if not _is(item, "str"):
+                read_as = f"{spec.what} name '{item.value}'{inside} is read by YAML as {_yaml_kind(item)}, not a string"
+                self.warn(item, read_as, f"taken as the text '{item.value}' (quote it)")
+            if item.value in seen:
                 self.error(item, f"duplicate {spec.what} '{item.value}'{inside} ({self._first_at(seen[item.value])})")
             else:
                 seen[item.value] = item

@@ -15,7 +15,7 @@ import pyarrow as pa
 
 from lakegate.lake import paths
 from lakegate.lake.config import Topic
-from lakegate.lake.types import trino_type
+from lakegate.lake.types import METRIC_FIELDS, trino_type
 
 #: Columns lakegate adds to every topic and events row (besides the batch_id/job_id partitions).
 TIMESTAMP = "timestamp"
@@ -23,7 +23,9 @@ JOB_COLUMNS = ("experience_name", "build_version")
 PARTITIONS = ("batch_id", "job_id")
 RESERVED_FIELDS = frozenset({TIMESTAMP, *JOB_COLUMNS, *PARTITIONS})
 
-METRIC_STRUCT = pa.struct([(name, pa.string()) for name in ("name", "description", "status", "type", "value")])
+METRIC_STRUCT = pa.struct([(name, pa.string()) for name in METRIC_FIELDS])
+#: The Trino type of a `metric[]` column.
+METRIC_LIST = trino_type("metric[]")
 _METRIC_DUCKDB = "STRUCT(" + ", ".join(f'"{f.name}" VARCHAR' for f in METRIC_STRUCT) + ")[]"
 #: Trino type -> (Arrow type as stored in Parquet, DuckDB type the catalog's views cast to), for
 #: every type a lake column can have (tests check DuckDB reads each Arrow type as this DuckDB type).
@@ -34,7 +36,7 @@ _TYPES = {
     "varchar": (pa.string(), "VARCHAR"),
     "timestamp(3)": (pa.timestamp("ms"), "TIMESTAMP_MS"),
     "array(varchar)": (pa.list_(pa.string()), "VARCHAR[]"),
-    trino_type("metric[]"): (pa.list_(METRIC_STRUCT), _METRIC_DUCKDB),
+    METRIC_LIST: (pa.list_(METRIC_STRUCT), _METRIC_DUCKDB),
 }
 #: Trino type -> Arrow type of every lake column type.
 ARROW_TYPES = {trino: arrow for trino, (arrow, _) in _TYPES.items()}
@@ -48,7 +50,7 @@ EVENTS_COLUMNS: Columns = [
     ("description", "varchar"),
     ("status", "varchar"),
     ("tags", "array(varchar)"),
-    ("metrics", trino_type("metric[]")),
+    ("metrics", METRIC_LIST),
     *[(c, "varchar") for c in JOB_COLUMNS],
     *[(c, "varchar") for c in PARTITIONS],
 ]

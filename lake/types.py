@@ -16,10 +16,13 @@ from typing import Any
 FIELD_TYPES = ("int", "float", "boolean", "string", "status", "image", "video", "string[]", "metric[]")
 TYPE_ALIASES = {"bigint": "int"}
 
-#: Kinds of attached metric in a `metric[]` field, and the keys a metric object may have.
+#: Kinds of attached metric in a `metric[]` field, and the documented keys of a metric object.
+#: Any other key (ReSim: "the contents are flexible", e.g. `unit`) is kept in the object's
+#: `extra` field: a JSON object text of those keys, NULL when there are none.
 METRIC_KINDS = ("scalar", "text", "image", "plotly")
 METRIC_REQUIRED_KEYS = ("name", "type", "value")
 METRIC_OPTIONAL_KEYS = ("description", "status")
+METRIC_FIELDS = ("name", "description", "status", "type", "value", "extra")
 
 _TRINO = {
     "int": "bigint",
@@ -30,7 +33,7 @@ _TRINO = {
     "image": "varchar",
     "video": "varchar",
     "string[]": "array(varchar)",
-    "metric[]": "array(row(name varchar, description varchar, status varchar, type varchar, value varchar))",
+    "metric[]": "array(row(" + ", ".join(f"{name} varchar" for name in METRIC_FIELDS) + "))",
 }
 
 
@@ -129,6 +132,19 @@ def _metric_value_text(kind: str, value: Any) -> str:
     raise FieldError(f"metric of type plotly needs a JSON text or object, got {_describe(value)}")
 
 
+def _metric_extra(item: dict, where: str) -> str | None:
+    """The object's undocumented keys as a JSON object text (None when it has none)."""
+    extra = {key: value for key, value in item.items() if key not in METRIC_REQUIRED_KEYS + METRIC_OPTIONAL_KEYS}
+    if not extra:
+        return None
+    keys = f"{where}: key(s) {', '.join(map(repr, extra))}"
+    try:
+        text = json.dumps(extra, allow_nan=False, ensure_ascii=False)
+    except (ValueError, TypeError) as exc:
+        raise FieldError(f"{keys}: cannot be stored as JSON: {exc}") from None
+    return _text(text, f"{keys}: ")
+
+
 def _metric(item: Any, index: int) -> dict[str, str | None]:
     where = f"metric {index}"
     if not isinstance(item, dict):
@@ -136,9 +152,6 @@ def _metric(item: Any, index: int) -> dict[str, str | None]:
     missing = [k for k in METRIC_REQUIRED_KEYS if k not in item]
     if missing:
         raise FieldError(f"{where}: missing key(s) {', '.join(missing)}")
-    extra = sorted(set(item) - set(METRIC_REQUIRED_KEYS) - set(METRIC_OPTIONAL_KEYS))
-    if extra:
-        raise FieldError(f"{where}: unknown key(s) {', '.join(extra)}")
     for key in ("name", "type", *METRIC_OPTIONAL_KEYS):
         if key in item and item[key] is not None and not isinstance(item[key], str):
             raise FieldError(f"{where}: {key} must be a string, got {_describe(item[key])}")
@@ -151,6 +164,7 @@ def _metric(item: Any, index: int) -> dict[str, str | None]:
         "status": item.get("status"),
         "type": kind,
         "value": _metric_value_text(kind, item["value"]),
+        "extra": _metric_extra(item, where),
     }
     for key, text in metric.items():
         if text is not None:
@@ -164,7 +178,7 @@ def check_value(field_type: str, value: Any) -> Any:
     Rules: int takes integers (not bool); float takes integers or finite floats (not
     bool); boolean only bool; string/status/image/video a str; string[] a list of str;
     metric[] a list of metric objects (name, type scalar|text|image|plotly, value,
-    optional description and status). None is never accepted, nor a string holding a lone
+    optional description and status; other keys are kept as JSON text in `extra`). None is never accepted, nor a string holding a lone
     surrogate (it has no UTF-8 form).
     """
     if field_type == "int":

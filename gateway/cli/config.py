@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from lakegate.gateway.cli.errors import UserError
+from lakegate.gateway.cli.errors import UserError, add_strict_option, print_config_warnings
 from lakegate.lake.config import ConfigError, find_default_config, load_config
 from lakegate.lake.config_schema import json_schema
 
@@ -33,6 +33,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="config files to check together (default: .resim/metrics/config.resim.yaml "
         "or .yml, in this folder or a parent)",
     )
+    add_strict_option(check)
     check.set_defaults(func=check_command)
 
     schema = commands.add_parser(
@@ -57,12 +58,14 @@ def check_command(args: argparse.Namespace) -> int:
             )
         paths = [str(found)]
     try:
-        config = load_config(paths)
+        config = load_config(paths, strict=args.strict)
     except ConfigError as exc:
         for problem in exc.problems:
             print(problem)
         return 1
-    print(f"ok: {config.summary()} ({', '.join(paths)})")
+    print_config_warnings(config)
+    warned = f", {len(config.warnings)} warning(s)" if config.warnings else ""
+    print(f"ok: {config.summary()}{warned} ({', '.join(paths)})")
     return 0
 
 

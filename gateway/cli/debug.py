@@ -32,7 +32,13 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from lakegate.gateway.cli.errors import UserError, existing_configs, port_number
+from lakegate.gateway.cli.errors import (
+    UserError,
+    add_strict_option,
+    existing_configs,
+    port_number,
+    print_config_warnings,
+)
 from lakegate.gateway.server.auth import is_loopback
 from lakegate.lake import paths
 from lakegate.lake.config import Config, ConfigError, load_config
@@ -71,6 +77,7 @@ def add_debug_parser(commands: argparse._SubParsersAction) -> None:
         help="the config file (repeat to merge several; default: .resim/metrics/config.resim.yaml "
         "in this folder or a parent); changes to it show on reload",
     )
+    add_strict_option(debug)
     which = debug.add_mutually_exclusive_group(required=True)
     which.add_argument("--metrics-set", metavar="S", help="the metrics set to show (a name from 'metrics sets')")
     which.add_argument(
@@ -256,9 +263,10 @@ def debug_command(args: argparse.Namespace) -> int:
         raise UserError(f"emissions file {str(emissions)!r} does not exist or is not a file")
     config_paths = [path.resolve() for path in existing_configs(args.config_paths)]
     try:
-        config = load_config(config_paths)
+        config = load_config(config_paths, strict=args.strict)
     except ConfigError as error:
         raise UserError(_one_line(error)) from None
+    print_config_warnings(config)
     if args.metrics_set is not None:
         try:
             config.metrics_in_set(args.metrics_set)

@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from lakegate.lake.config import find_default_config
+from lakegate.lake.config import Config, find_default_config
 
 
 class UserError(Exception):
@@ -66,3 +67,19 @@ def existing_configs(given: Sequence[Path] | None) -> list[Path]:
         if not path.is_file():
             raise UserError(f"config file {str(path)!r} does not exist")
     return found
+
+
+def add_strict_option(parser: argparse.ArgumentParser) -> None:
+    """`--strict`: what lakegate accepts from ReSim configs with a warning is refused instead."""
+    parser.add_argument(
+        "--strict",
+        action="store_true",
+        help="refuse config findings that are only warnings otherwise (ReSim accepts them): unknown keys, "
+        "names YAML reads as numbers or booleans, keys the template type does not use, unit and units differing",
+    )
+
+
+def print_config_warnings(config: Config) -> None:
+    """Each warning of a loaded config as one line on standard error: `file:line:col: warning: ...`."""
+    for warning in config.warnings:
+        print(f"{warning.location}: warning: {warning.message}", file=sys.stderr)

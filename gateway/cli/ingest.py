@@ -8,7 +8,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from lakegate.gateway.cli.errors import UserError, writable_lake
+from lakegate.gateway.cli.errors import UserError, add_strict_option, print_config_warnings, writable_lake
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.config import Config, ConfigError, find_default_config, load_config
 from lakegate.lake.ingest import IngestError, IngestReport, LineProblem, ingest_job
@@ -57,6 +57,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="config file declaring the topics (repeat to merge several; default: the branch's "
         "current config in the lake, else .resim/metrics/config.resim.yaml)",
     )
+    add_strict_option(ingest)
     ingest.add_argument("--experience-name", help="the experience (scenario) the job ran")
     ingest.add_argument("--build-name", help="the name of the build under test")
     ingest.add_argument("--build-version", help="the version of the build under test")
@@ -119,7 +120,9 @@ def _config(args: argparse.Namespace) -> Config:
     for path in paths:
         if not path.is_file():
             raise UserError(f"config file {str(path)!r} does not exist")
-    return load_config(paths)
+    config = load_config(paths, strict=args.strict)
+    print_config_warnings(config)
+    return config
 
 
 def _metadata(args: argparse.Namespace) -> dict[str, Any]:

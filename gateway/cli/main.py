@@ -24,6 +24,7 @@ COMMAND_MODULES = (
     "metrics",
     "demo",
     "trino_ddl",
+    "import_mcap",
 )
 
 

@@ -18,7 +18,15 @@ from pathlib import Path
 
 from lakegate.dialect.errors import DialectError
 from lakegate.gateway.cli.backends import add_backend_arguments, engine_from_args
-from lakegate.gateway.cli.errors import UserError, existing_configs, os_error_text, positive, writable_lake
+from lakegate.gateway.cli.errors import (
+    UserError,
+    add_strict_option,
+    existing_configs,
+    os_error_text,
+    positive,
+    print_config_warnings,
+    writable_lake,
+)
 from lakegate.gateway.metrics.evaluation import (
     BLOCKER,
     ERROR,
@@ -74,6 +82,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="the config file (repeat to merge several; default: .resim/metrics/config.resim.yaml "
         "in this folder or a parent)",
     )
+    add_strict_option(sync)
     sync.set_defaults(func=sync_command)
 
     run = commands.add_parser(
@@ -102,6 +111,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         dest="config_paths",
         help="evaluate this config instead of the branch's stored one (repeat to merge several)",
     )
+    add_strict_option(run)
     run.add_argument(
         "--format",
         choices=("table", "json"),
@@ -230,7 +240,8 @@ def sync_command(args: argparse.Namespace) -> int:
     writable_lake(args.lake)
     paths = existing_configs(args.config_paths)
     try:
-        config = load_config(paths)
+        config = load_config(paths, strict=args.strict)
+        print_config_warnings(config)
         registry = BranchConfigs(args.lake, args.branch)
         before = registry.current_version()
         version = registry.store(paths)
@@ -247,7 +258,9 @@ def sync_command(args: argparse.Namespace) -> int:
 def _run_config(args: argparse.Namespace) -> tuple[Config, int | None]:
     """The config to evaluate and its stored version (None for a config given by path)."""
     if args.config_paths:
-        return load_config(existing_configs(args.config_paths)), None
+        config = load_config(existing_configs(args.config_paths), strict=args.strict)
+        print_config_warnings(config)
+        return config, None
     registry = BranchConfigs(args.lake, args.branch)
     version = registry.current_version()
     if version is None:

@@ -43,7 +43,7 @@ from lakegate.dialect.scope import Scope
 from lakegate.gateway.metrics.evaluation import EVALUATED_TYPES, MetricsEngine, conflated_status, worst
 from lakegate.gateway.metrics.metric_result import MetricResult
 from lakegate.gateway.metrics.results import read_results
-from lakegate.gateway.metrics.templates import TEMPLATES, json_value
+from lakegate.gateway.metrics.templates import TEMPLATES, json_value, public_file_table
 from lakegate.lake.config import Config, ConfigError, Metric, load_config
 from lakegate.lake.config_schema import SET_METRIC_TYPES
 from lakegate.lake.registry import BranchConfigs
@@ -287,6 +287,8 @@ def result_json(result: MetricResult, logs_dir: Path | None) -> dict[str, Any]:
             out["table"] = rendered.table
         elif rendered.template == "image":
             out["images"] = _images(rendered.images, logs_dir.resolve() if logs_dir else None)
+        elif rendered.template in ("video", "artifact"):
+            out["table"] = public_file_table(rendered.table)
         else:
             out["figure"] = rendered.figure
     return out
@@ -296,6 +298,7 @@ def stored_json(row: dict[str, Any], logs_dir: Path | None) -> dict[str, Any]:
     """A stored `metric_results` row in the shape of `result_json`."""
     details = json.loads(row["details_json"]) if row.get("details_json") else {}
     template = row.get("template")
+    table = details.get("table") if template in ("table", "video", "artifact") else None
     error = None
     if row.get("error_message") is not None:
         error = {
@@ -311,7 +314,7 @@ def stored_json(row: dict[str, Any], logs_dir: Path | None) -> dict[str, Any]:
         "seconds": None,
         "error": error,
         "figure": json.loads(row["figure_json"]) if row.get("figure_json") and template != "table" else None,
-        "table": details.get("table") if template == "table" else None,
+        "table": public_file_table(table) if template in ("video", "artifact") else table,
         "images": _images(details.get("images") or [], logs_dir.resolve() if logs_dir else None),
         "problems": details.get("problems") or [],
     }

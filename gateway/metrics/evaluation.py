@@ -27,7 +27,6 @@ supported) counts for nothing. One metric:
 * no rows and `skip_if_no_data: true`: NOT_RUN;
 * `type: dashboard | report` metrics run over many batches (`gateway/metrics/trends.py`): in a
   batch they are NOT_RUN naming the command that runs them (they never fail a batch);
-* the templates `video` and `artifact` are not supported yet: NOT_RUN with that reason;
 * `template_type: custom`: the result is rendered by the metric's Liquid template (`custom`);
 * otherwise the status check, if any: the status query runs with `block` (when given) bound to its one
   `?` (a typed query parameter, never pasted text); any row means BLOCKER; else with `warn`
@@ -61,7 +60,7 @@ from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.metrics.custom import CUSTOM, render_custom
 from lakegate.gateway.metrics.metric_result import MetricError, MetricResult
 from lakegate.gateway.metrics.results import ResultsWriter
-from lakegate.gateway.metrics.templates import UNSUPPORTED_TEMPLATES, TemplateError, render
+from lakegate.gateway.metrics.templates import TemplateError, render
 from lakegate.lake import paths
 from lakegate.lake.config import Config, Location, Metric
 
@@ -214,13 +213,11 @@ def select_metrics(config: Config, metrics_set: str | None = None, *, all_metric
 
 
 def unsupported_reason(metric: Metric, scope: Scope) -> str | None:
-    """Why a metric cannot be evaluated in `scope` (yet), or None when it can."""
+    """Why a metric cannot be evaluated in `scope`, or None when it can."""
     if metric.type in MULTI_BATCH_COMMANDS and scope.batches is None:
         return f"a {metric.type} metric runs over many batches: {MULTI_BATCH_COMMANDS[metric.type]}"
     if metric.type in EVALUATED_TYPES and scope.batches is not None:
         return f"a {metric.type} metric runs on one batch: lakegate metrics run"
-    if metric.template_type == "system" and metric.template in UNSUPPORTED_TEMPLATES:
-        return f"template '{metric.template}' is not supported yet"
     return None
 
 

@@ -1,8 +1,9 @@
 """HTML for rendered metrics: one metric as a page or fragment, or a report of many metrics.
 
 Pages work offline: plotly.js comes from the installed plotly package and is embedded at
-most once per page, images are embedded as data URIs, and nothing is loaded from the
-network. Tables are HTML tables (readable with many columns, copyable); charts are
+most once per page, images, videos and artifacts are embedded as data URIs (videos play in an
+HTML5 <video> player, artifacts are download links with their sizes), and nothing is loaded
+from the network. Tables are HTML tables (readable with many columns, copyable); charts are
 Plotly figures drawn by `Plotly.newPlot`.
 """
 
@@ -19,7 +20,7 @@ from typing import Any
 
 from plotly.offline import get_plotlyjs
 
-from lakegate.gateway.metrics.templates import Rendered, display_value, image_mime
+from lakegate.gateway.metrics.templates import Rendered, display_value, format_number, image_mime
 
 #: Badge colours of metric statuses.
 STATUS_COLOURS = {
@@ -31,7 +32,7 @@ STATUS_COLOURS = {
 }
 #: Rows of a table template shown in HTML; the full result stays in `Rendered.table`.
 MAX_TABLE_ROWS = 2000
-#: Larger image files are not embedded (the page would become unwieldy).
+#: Larger image, video and artifact files are not embedded (the page would become unwieldy).
 MAX_IMAGE_BYTES = 20 * 1024 * 1024
 #: Table columns whose values a page may turn into links (ReSim's `link_path`).
 LINK_COLUMNS = ("link_path",)
@@ -58,6 +59,7 @@ h1 { margin-bottom: .3rem; }
 .lg-table th { background: #f3f5f8; position: sticky; top: 0; }
 .lg-images figure { display: inline-block; margin: .3rem; }
 .lg-images img { max-width: 100%; max-height: 480px; }
+.lg-images video { max-width: 100%; max-height: 480px; }
 """
 
 
@@ -177,6 +179,11 @@ def _metric_body(rendered: Rendered, div_id: str, links: tuple[Linker, Sequence[
     elif rendered.template == "image":
         body, image_problems = _images(rendered.images)
         problems += image_problems
+    elif rendered.template == "video":
+        body, video_problems = _videos(rendered.table["rows"])
+        problems += video_problems
+    elif rendered.template == "artifact":
+        body = _artifacts(rendered.table["rows"])
     else:
         body = f'<div class="lg-scalar">{html.escape(rendered.text)}</div>'
     if problems:
@@ -245,3 +252,54 @@ def _images(paths: list[str]) -> tuple[str, list[str]]:
             f'<figure><img src="data:{mime};base64,{data}" alt="{caption}"><figcaption>{caption}</figcaption></figure>'
         )
     return f'<div class="lg-images">{"".join(figures)}</div>', problems
+
+
+def _data_uri(path: Path, mime: str) -> str:
+    return f"data:{mime};base64,{base64.b64encode(path.read_bytes()).decode('ascii')}"
+
+
+def _too_large(name: str, size: int) -> str:
+    return f"{name}: {size} bytes, too large to embed (limit {MAX_IMAGE_BYTES})"
+
+
+def _videos(rows: list[list]) -> tuple[str, list[str]]:
+    """Each video in a <video> player (a GIF as an image: browsers do not play it as video)."""
+    figures: list[str] = []
+    problems: list[str] = []
+    for name, path, size, mime in rows:  # FILE_COLUMNS
+        if size > MAX_IMAGE_BYTES:
+            problems.append(_too_large(name, size))
+            continue
+        source, caption = _data_uri(Path(path), mime), html.escape(name)
+        if mime.startswith("video/"):
+            player = f'<video controls preload="metadata" src="{source}" title="{caption}"></video>'
+        else:
+            player = f'<img src="{source}" alt="{caption}">'
+        figures.append(f"<figure>{player}<figcaption>{caption}</figcaption></figure>")
+    return f'<div class="lg-images">{"".join(figures)}</div>', problems
+
+
+def _artifacts(rows: list[list]) -> str:
+    """The files as a table of download links with their sizes (files over the limit by name only)."""
+    cells = []
+    for name, path, size, mime in rows:  # FILE_COLUMNS
+        label = html.escape(name)
+        if size <= MAX_IMAGE_BYTES:
+            download = html.escape(Path(name).name)
+            label = f'<a href="{_data_uri(Path(path), mime)}" download="{download}">{label}</a>'
+        else:
+            label += " (too large to embed)"
+        cells.append(f"<tr><td>{label}</td><td>{html.escape(file_size(size))}</td></tr>")
+    return (
+        '<div class="lg-table-wrap"><table class="lg-table"><thead><tr><th>File</th><th>Size</th></tr></thead>'
+        f"<tbody>{''.join(cells)}</tbody></table></div>"
+    )
+
+
+def file_size(size: int) -> str:
+    """A file size for people: `512 B`, `1.5 KiB`, `20 MiB`."""
+    units = ("B", "KiB", "MiB", "GiB", "TiB")
+    value, power = float(size), 0
+    while value >= 1024 and power < len(units) - 1:
+        value, power = value / 1024, power + 1
+    return f"{format_number(size if power == 0 else round(value, 1))} {units[power]}"

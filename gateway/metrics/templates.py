@@ -1,4 +1,5 @@
-"""Metric templates: a query result rendered as a Plotly figure, a table, a scalar or images.
+"""Metric templates: a query result rendered as a Plotly figure, a table, a scalar, or files of the
+job's logs (images, videos, artifacts).
 
 `render` first checks that the result has the shape its template needs and raises a
 `TemplateError` naming the metric, the template and what it got. It is pure: no
@@ -22,9 +23,11 @@ from typing import Any
 import numpy as np
 
 #: Templates this module renders.
-TEMPLATES = ("line", "bar", "table", "scalar", "image", "state_timeline", "histogram", "pie")
-#: Templates the config accepts that have no renderer yet.
-UNSUPPORTED_TEMPLATES = ("video", "artifact")
+TEMPLATES = ("line", "bar", "table", "scalar", "image", "state_timeline", "histogram", "pie", "video", "artifact")
+#: Templates that show files of the job's logs named by the result's one column; their
+#: `Rendered.table` lists the files found: [name, path, bytes, MIME type].
+FILE_TEMPLATES = ("image", "video", "artifact")
+FILE_COLUMNS = ["file", "path", "bytes", "type"]
 
 #: Colours of states in a state timeline; a state's colour is PALETTE[crc32(name) % len].
 PALETTE = (
@@ -52,6 +55,7 @@ _IMAGE_MAGIC = (
     (b"GIF89a", "image/gif"),
     (b"\xff\xd8\xff", "image/jpeg"),
 )
+_WEBM_MAGIC = b"\x1a\x45\xdf\xa3"  # EBML, the container of WebM
 _EPOCH = dt.datetime(1970, 1, 1)
 
 
@@ -91,10 +95,9 @@ def render(
     """Render a query result (`columns` as (name, Trino type) pairs, `rows` of Python values)
     with a system template (custom templates are `custom.render_custom`).
 
-    `units` are shown after a scalar; `logs_dir` is where the image template finds files.
+    `units` are shown after a scalar; `logs_dir` is where the image, video and artifact
+    templates find files.
     """
-    if template in UNSUPPORTED_TEMPLATES:
-        raise TemplateError(f"metric {metric_name!r}: template {template!r} is not supported yet")
     if template not in TEMPLATES:
         raise TemplateError(
             f"metric {metric_name!r}: unknown template {template!r} (expected one of {', '.join(TEMPLATES)})"
@@ -102,8 +105,8 @@ def render(
     result = _Result(metric_name, template, columns, rows)
     if template == "scalar":
         return _scalar(result, units)
-    if template == "image":
-        return _image(result, logs_dir)
+    if template in FILE_TEMPLATES:
+        return _log_files(result, logs_dir)
     return _CHARTS[template](result)
 
 
@@ -117,6 +120,33 @@ def image_mime(path: Path) -> str | None:
     with open(path, "rb") as f:
         head = f.read(8)
     return next((mime for magic, mime in _IMAGE_MAGIC if head.startswith(magic)), None)
+
+
+def public_file_table(table: dict | None) -> dict:
+    """The files of a video or artifact result's table as a table without the server's paths:
+    [file, bytes, type]."""
+    rows = table["rows"] if table else []
+    return {"columns": ["file", "bytes", "type"], "rows": [[name, size, mime] for name, _, size, mime in rows]}
+
+
+def video_mime(path: Path) -> str | None:
+    """The MIME type of an MP4, WebM or GIF file, from its first bytes; None for anything else."""
+    with open(path, "rb") as f:
+        head = f.read(12)
+    if head[4:8] == b"ftyp":
+        return "video/mp4"
+    if head.startswith(_WEBM_MAGIC):
+        return "video/webm"
+    return "image/gif" if head.startswith((b"GIF87a", b"GIF89a")) else None
+
+
+#: Per file template: (what a value of its column is, the MIME type of a file it shows or None
+#: when the file cannot be shown, what such a file is not).
+_FILE_KINDS: dict[str, tuple[str, Callable[[Path], str | None], str]] = {
+    "image": ("image file name", image_mime, "not a PNG, GIF or JPEG image"),
+    "video": ("video file name", video_mime, "not an MP4, WebM or GIF video"),
+    "artifact": ("artifact file name", lambda path: "application/octet-stream", ""),
+}
 
 
 def format_number(value: int | float | Decimal) -> str:
@@ -407,43 +437,42 @@ def _scalar(result: _Result, units: str | None) -> Rendered:
     return Rendered(template="scalar", scalar=value, text=f"{text} {units}" if units else text, problems=problems)
 
 
-def _image(result: _Result, logs_dir: Path | None) -> Rendered:
-    result.need_columns((1,), "[image file name]")
+def _log_files(result: _Result, logs_dir: Path | None) -> Rendered:
+    """Image, video or artifact: the files of the job's logs the one column names; files that
+    cannot be shown are problems grouped by cause (never fatal)."""
+    wanted, mime_of, unshowable = _FILE_KINDS[result.template]
+    result.need_columns((1,), f"[{wanted}]")
     root = logs_dir.resolve() if logs_dir is not None else None
-    images: list[str] = []
+    found: list[list[Any]] = []  # FILE_COLUMNS
     failed: dict[str, list[str]] = {}  # what went wrong -> the files (or rows) it went wrong for
-    rows: list[list[str | None]] = []
     for number, (name,) in enumerate(result.rows, 1):
         if name is None:
             failed.setdefault("NULL file name", []).append(f"row {number}")
-            rows.append([None, None])
             continue
         if not isinstance(name, str):
-            raise result.bad_value(number, 0, "image file names")
-        found = None
+            raise result.bad_value(number, 0, f"{wanted}s")
         if root is None:
             failed.setdefault("no log directory to look in", []).append(name)
+            continue
+        path = (root / name).resolve()
+        if not path.is_relative_to(root):
+            failed.setdefault(f"outside the job's logs ({root})", []).append(name)
+        elif not path.is_file():
+            failed.setdefault(f"missing from the job's logs ({root})", []).append(name)
+        elif (mime := mime_of(path)) is None:
+            failed.setdefault(unshowable, []).append(name)
         else:
-            path = (root / name).resolve()
-            if not path.is_relative_to(root):
-                failed.setdefault(f"outside the job's logs ({root})", []).append(name)
-            elif not path.is_file():
-                failed.setdefault(f"missing from the job's logs ({root})", []).append(name)
-            elif image_mime(path) is None:
-                failed.setdefault("not a PNG, GIF or JPEG image", []).append(name)
-            else:
-                found = str(path)
-                images.append(found)
-        rows.append([name, found])
-    text = _plural(len(images), "image")
+            found.append([name, str(path), path.stat().st_size, mime])
+    noun = {"image": "image", "video": "video", "artifact": "file"}[result.template]
+    text = _plural(len(found), noun)
     count = sum(len(names) for names in failed.values())
     if count:
         text += f", {_plural(count, 'problem')}"
     return Rendered(
-        template="image",
-        table={"columns": [result.names[0], "path"], "rows": rows},
+        template=result.template,
+        table={"columns": FILE_COLUMNS, "rows": found},
         text=text,
-        images=images,
+        images=[path for _, path, _, _ in found] if result.template == "image" else [],
         problems=[_grouped_problem(what, names) for what, names in failed.items()],
     )
 

@@ -35,16 +35,37 @@ def test_check_prints_every_problem_with_its_place(tmp_path):
         "metrics sets:\n"
         "  S: {metrics: [Missing]}\n"
     )
-    result = lakegate("config", "check", bad)
-    assert result.returncode == 1
-    assert result.stdout.splitlines() == [
+    unknown = f"{bad}:5:35: unknown key 'querystring' in metric 'M' (did you mean 'query_string'?): ignored"
+    errors = [
         f"{bad}:3:3: topic 'nav/odom' contains '/', which topic names may not",
         f"{bad}:3:26: unknown field type 'flaot' for field 'x' of topic 'nav/odom' (did you mean 'float'?); "
         "expected one of int, float, boolean, string, status, image, video, string[], metric[], bigint",
         f"{bad}:5:3: missing required key 'query_string' in metric 'M'",
-        f"{bad}:5:35: unknown key 'querystring' in metric 'M' (did you mean 'query_string'?)",
         f"{bad}:7:17: metrics set 'S' names unknown metric 'Missing'",
     ]
+    result = lakegate("config", "check", "--strict", bad)
+    assert result.returncode == 1
+    strict = unknown.removesuffix(": ignored") + " (ReSim accepts this; refused because of --strict)"
+    assert result.stdout.splitlines() == [*errors[:3], strict, errors[3]]
+    # without --strict the unknown key is ignored, as ReSim does: not among the problems
+    result = lakegate("config", "check", bad)
+    assert (result.returncode, result.stdout.splitlines()) == (1, errors)
+
+
+def test_check_warns_about_what_resim_accepts_and_strict_refuses_it(tmp_path):
+    config = tmp_path / "resim.yaml"
+    config.write_text(
+        "version: 1\nmetrics:\n  M: {type: test, query_string: SELECT 1, template: scalar, unit: s, owner: nav-team}\n"
+    )
+    result = lakegate("config", "check", config)
+    warning = f"{config}:3:70: warning: unknown key 'owner' in metric 'M': ignored"
+    assert (result.returncode, result.stderr) == (0, warning + "\n")
+    assert result.stdout == f"ok: 0 topics, 1 metric, 0 metrics sets, 1 warning(s) ({config})\n"
+    result = lakegate("config", "check", "--strict", config)
+    assert result.returncode == 1
+    assert result.stdout == (
+        f"{config}:3:70: unknown key 'owner' in metric 'M' (ReSim accepts this; refused because of --strict)\n"
+    )
 
 
 def test_check_merges_several_files(tmp_path):

@@ -67,7 +67,10 @@ def test_every_lake_column_type_round_trips(lake_server, all_types):
         ("st", "varchar"),
         ("img", "varchar"),
         ("tags", "array(varchar)"),
-        ("metrics", "array(row(name varchar, description varchar, status varchar, type varchar, value varchar))"),
+        (
+            "metrics",
+            "array(row(name varchar, description varchar, status varchar, type varchar, value varchar, extra varchar))",
+        ),
         ("timestamp", "bigint"),
         ("batch_id", "varchar"),
     ]
@@ -86,7 +89,7 @@ def test_every_lake_column_type_round_trips(lake_server, all_types):
         )
         assert type(flag) is bool and type(n) is int and type(x) is float and type(tags) is list
         assert [tuple(m) for m in metrics] == [
-            (m["name"], m.get("description"), m.get("status"), m["type"], m["value"]) for m in source["metrics"]
+            (m["name"], m.get("description"), m.get("status"), m["type"], m["value"], None) for m in source["metrics"]
         ]
     first_metric = rows[0][7][0]
     assert (first_metric.name, first_metric.value, first_metric.description) == ("m", "1.5", None)
@@ -268,6 +271,7 @@ def test_sqlalchemy_inspects_schemas_tables_and_columns(engine, all_types):
         "status",
         "type",
         "value",
+        "extra",
     ]
     timestamp = {c["name"]: c["type"] for c in inspector.get_columns("metadata")}["build_creation_timestamp"]
     assert isinstance(timestamp, datatype.TIMESTAMP) and timestamp.precision == 3

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import base64
 import datetime as dt
 import json
 import os
@@ -17,7 +18,7 @@ import plotly.graph_objects as go
 import pytest
 from plotly.offline import get_plotlyjs
 
-from lakegate.gateway.metrics.figures_html import figure_html, report_html
+from lakegate.gateway.metrics.figures_html import figure_html, file_size, report_html
 from lakegate.gateway.metrics.templates import (
     PALETTE,
     TemplateError,
@@ -295,7 +296,7 @@ def test_image_resolves_files_and_reports_missing_ones(tmp_path):
         f"../secret.png: outside the job's logs ({resolved})",
         "row 6: NULL file name",
     ]
-    assert rendered.table["rows"][2] == ["gone.gif", None]
+    assert rendered.table["rows"][1] == ["front.png", str(resolved / "front.png"), len(png_bytes()), "image/png"]
     assert rendered.text == "2 images, 4 problems"
 
     page = figure_html(rendered, title="Stereo Camera Feed")
@@ -489,10 +490,75 @@ def test_pie_errors():
 # -- unsupported and unknown --------------------------------------------------------------------------------
 
 
+# -- video and artifact -------------------------------------------------------------------------------------
+
+MP4 = b"\x00\x00\x00\x18ftypmp42\x00\x00\x00\x00mp42isom" + bytes(40)  # an ISO media file's first box
+WEBM = b"\x1a\x45\xdf\xa3\x9f\x42\x86\x81\x01" + bytes(23)  # an EBML header
+
+
+def test_video_plays_mp4_webm_and_gif_from_the_logs_and_groups_missing_files(tmp_path):
+    logs = tmp_path / "logs"
+    (logs / "cams").mkdir(parents=True)
+    (logs / "cams" / "front.mp4").write_bytes(MP4)
+    (logs / "side.webm").write_bytes(WEBM)
+    (logs / "loop.gif").write_bytes(GIF)
+    (logs / "notes.txt").write_text("not a video")
+    rows = [("cams/front.mp4",), ("side.webm",), ("loop.gif",), ("notes.txt",)]
+    rows += [(f"lost_{i}.mp4",) for i in range(5)]
+    rendered = render("Replay", "video", [("video", "varchar")], rows, logs_dir=logs)
+    resolved = logs.resolve()
+    assert rendered.table == {
+        "columns": ["file", "path", "bytes", "type"],
+        "rows": [
+            ["cams/front.mp4", str(resolved / "cams" / "front.mp4"), len(MP4), "video/mp4"],
+            ["side.webm", str(resolved / "side.webm"), len(WEBM), "video/webm"],
+            ["loop.gif", str(resolved / "loop.gif"), len(GIF), "image/gif"],
+        ],
+    }
+    assert rendered.problems == [
+        "notes.txt: not an MP4, WebM or GIF video",
+        f"5 files: missing from the job's logs ({resolved}) (lost_0.mp4, lost_1.mp4, lost_2.mp4 and 2 more)",
+    ]
+    assert rendered.text == "3 videos, 6 problems" and rendered.images == []
+    page = figure_html(rendered, title="Replay")
+    players = re.findall(r'<video controls preload="metadata" src="data:(video/[a-z0-9]+);base64,([^"]+)"', page)
+    assert [(mime, base64.b64decode(data)) for mime, data in players] == [("video/mp4", MP4), ("video/webm", WEBM)]
+    assert page.count('<img src="data:image/gif;base64,') == 1
+    assert "5 files: missing from the job&#x27;s logs" in page and PLOTLYJS_HEAD not in page
+
+
+def test_artifact_lists_downloadable_files_with_sizes(tmp_path):
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / "trace.bin").write_bytes(bytes(range(256)) * 8)  # 2 KiB
+    (tmp_path / "summary.txt").write_text("ok\n")
+    rows = [("run/trace.bin",), ("summary.txt",), ("gone.log",), (None,)]
+    rendered = render("Logs", "artifact", [("file", "varchar")], rows, logs_dir=tmp_path)
+    assert [row[0::2] for row in rendered.table["rows"]] == [["run/trace.bin", 2048], ["summary.txt", 3]]
+    assert rendered.problems == [
+        f"gone.log: missing from the job's logs ({tmp_path.resolve()})",
+        "row 4: NULL file name",
+    ]
+    assert rendered.text == "2 files, 2 problems"
+    page = figure_html(rendered, title="Logs")
+    links = re.findall(r'<a href="data:application/octet-stream;base64,([^"]+)" download="([^"]+)">([^<]+)</a>', page)
+    assert [(base64.b64decode(data), download, label) for data, download, label in links] == [
+        (bytes(range(256)) * 8, "trace.bin", "run/trace.bin"),
+        (b"ok\n", "summary.txt", "summary.txt"),
+    ]
+    assert "<td>2 KiB</td>" in page and "<td>3 B</td>" in page
+
+
 @pytest.mark.parametrize("template", ["video", "artifact"])
-def test_video_and_artifact_are_not_supported_yet(template):
-    with pytest.raises(TemplateError, match=rf"metric 'Clip': template '{template}' is not supported yet"):
-        render("Clip", template, [("f", "varchar")], [("a.mp4",)])
+def test_video_and_artifact_shape_errors_and_no_logs(template):
+    with pytest.raises(TemplateError, match=rf"template '{template}' needs exactly 1 column \[{template} file name\]"):
+        render("Clip", template, [("a", "varchar"), ("b", "varchar")], [])
+    rendered = render("Clip", template, [("f", "varchar")], [("a.mp4",)])
+    assert rendered.problems == ["a.mp4: no log directory to look in"] and rendered.table["rows"] == []
+
+
+@pytest.mark.parametrize(("size", "text"), [(0, "0 B"), (1023, "1023 B"), (1536, "1.5 KiB"), (20 << 20, "20 MiB")])
+def test_file_size(size, text):
+    assert file_size(size) == text
 
 
 def test_unknown_template_names_are_errors():

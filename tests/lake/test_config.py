@@ -30,10 +30,19 @@ def write(folder: Path, text: str, name: str = "config.resim.yaml") -> Path:
 
 
 def errors(path: Path | list[Path]) -> list[tuple[int, int, str]]:
-    """(line, column, message) of every problem; fails when the config loads."""
+    """(line, column, message) of every problem with --strict; fails when the config loads."""
     with pytest.raises(ConfigError) as caught:
-        load_config(path)
+        load_config(path, strict=True)
     return [(p.location.line, p.location.column, p.message) for p in caught.value.problems]
+
+
+def warnings_of(path: Path | list[Path]) -> list[tuple[int, int, str]]:
+    """(line, column, message) of every warning of a config that loads without --strict."""
+    return [(p.location.line, p.location.column, p.message) for p in load_config(path).warnings]
+
+
+#: How a warning (lakegate stricter than ReSim on purpose) ends when --strict refuses it.
+STRICT = " (ReSim accepts this; refused because of --strict)"
 
 
 def one_error(folder: Path, text: str) -> tuple[int, int, str]:
@@ -230,11 +239,10 @@ def test_version_required_and_must_be_1(tmp_path):
     assert one_error(tmp_path, "version: '1'\n") == (1, 10, "version must be 1, got string '1'")
 
 
-def test_unknown_keys_everywhere_with_did_you_mean(tmp_path):
-    found = errors(
-        write(
-            tmp_path,
-            """
+def test_unknown_keys_everywhere_with_did_you_mean_warn_or_fail_with_strict(tmp_path):
+    path = write(
+        tmp_path,
+        """
         version: 1
         topcs: {}
         topics:
@@ -252,19 +260,28 @@ def test_unknown_keys_everywhere_with_did_you_mean(tmp_path):
         metrics sets:
           S: {metric: [X], metrics: [X]}
     """,
-        )
     )
-    assert found == [
-        (2, 1, "unknown key 'topcs' in the config file (did you mean 'topics'?)"),
-        (5, 5, "unknown key 'shema' in topic 't' (did you mean 'schema'?)"),
-        (11, 5, "unknown key 'querystring' in metric 'X' (did you mean 'query_string'?)"),
-        (14, 50, "unknown key 'blok' in status of metric 'X' (did you mean 'block'?)"),
-        (16, 7, "unknown key 'metric' in metrics set 'S' (did you mean 'metrics'?)"),
+    expected = [
+        (2, 1, "unknown key 'topcs' in the config file (did you mean 'topics'?): ignored"),
+        (5, 5, "unknown key 'shema' in topic 't' (did you mean 'schema'?): ignored"),
+        (11, 5, "unknown key 'querystring' in metric 'X' (did you mean 'query_string'?): ignored"),
+        (14, 50, "unknown key 'blok' in status of metric 'X' (did you mean 'block'?): ignored"),
+        (16, 7, "unknown key 'metric' in metrics set 'S' (did you mean 'metrics'?): ignored"),
+    ]
+    assert warnings_of(path) == expected
+    config = load_config(path)  # read as ReSim reads it: the unknown keys are left out
+    assert config.topics["t"].fields == {"x": "float"} and config.metrics_sets["S"].metrics == ["X"]
+    assert errors(path) == [
+        (line, column, message.removesuffix(": ignored") + STRICT) for line, column, message in expected
     ]
 
 
 def test_unknown_key_without_a_close_match_has_no_suggestion(tmp_path):
-    assert one_error(tmp_path, "version: 1\nzzz: 1\n") == (2, 1, "unknown key 'zzz' in the config file")
+    assert one_error(tmp_path, "version: 1\nzzz: 1\n") == (
+        2,
+        1,
+        "unknown key 'zzz' in the config file" + STRICT,
+    )
 
 
 def test_unknown_field_type_with_did_you_mean(tmp_path):
@@ -343,7 +360,11 @@ def test_bad_field_names(tmp_path):
             "field 'Job_ID' of topic 'pose' is a column every topic row already has "
             "(timestamp, batch_id, job_id, experience_name, build_version)",
         ),
-        (9, 7, "field 'true' in topic 'pose' is read by YAML as a boolean, not a string; quote it"),
+        (
+            9,
+            7,
+            "field 'true' in topic 'pose' is read by YAML as a boolean, not a string" + STRICT,
+        ),
     ]
 
 
@@ -568,7 +589,7 @@ def test_template_rules(tmp_path):
     ) == [
         (3, 3, "missing key 'template' in metric 'NoTemplate', needed with template_type: system"),
         (4, 3, "missing key 'template_file' in metric 'NoFile', needed with template_type: custom"),
-        (5, 103, "'template_file' in metric 'FileWithSystem' is not used with template_type: system"),
+        (5, 103, "'template_file' in metric 'FileWithSystem' is not used with template_type: system" + STRICT),
         (
             6,
             80,
@@ -635,7 +656,7 @@ def test_yaml_edge_cases(tmp_path):
     """,
         )
     ) == [
-        (3, 3, "topic '1' is read by YAML as an integer, not a string; quote it"),
+        (3, 3, "topic '1' is read by YAML as an integer, not a string" + STRICT),
         (5, 9, "'<<' can only merge mappings, got integer 5"),
         (7, 13, "recursive alias in dashboards of the config file"),
     ]
@@ -696,7 +717,7 @@ def test_all_errors_are_reported_at_once(tmp_path):
     """,
     )
     with pytest.raises(ConfigError) as caught:
-        load_config(path)
+        load_config(path, strict=True)
     text = str(caught.value).splitlines()
     assert len(text) == 5
     assert all(line.startswith(f"{path}:") for line in text)
@@ -870,9 +891,65 @@ AGREEMENT = [
 def test_loader_and_json_schema_agree(tmp_path, validator, valid, text):
     path = write(tmp_path, text)
     try:
-        load_config(path)
+        load_config(path, strict=True)  # the JSON Schema is the strict form: warnings are findings too
         loader_valid = True
     except ConfigError:
         loader_valid = False
     schema_valid = validator.is_valid(yaml.safe_load(text))
     assert (loader_valid, schema_valid) == (valid, valid)
+
+
+def test_rules_stricter_than_resim_warn_and_the_config_loads_as_resim_reads_it(tmp_path):
+    path = write(
+        tmp_path,
+        """
+        version: 1
+        topics:
+          2024:
+            schema: {true: boolean, x: float}
+        metrics:
+          Speed:
+            type: test
+            query_string: SELECT x FROM "2024"
+            template: scalar
+            template_file: unused.liquid
+            unit: m/s
+          Both:
+            type: test
+            query_string: SELECT x FROM "2024"
+            template: line
+            units: m/s
+            unit: km/h
+        metrics sets:
+          S: {metrics: [Speed, Both]}
+    """,
+    )
+    found = [  # (line, column, what is stricter than ReSim, what lakegate does instead)
+        (3, 3, "topic '2024' is read by YAML as an integer, not a string", "taken as the text '2024' (quote it)"),
+        (
+            4,
+            14,
+            "field 'true' in topic '2024' is read by YAML as a boolean, not a string",
+            "taken as the text 'true' (quote it)",
+        ),
+        (10, 20, "'template_file' in metric 'Speed' is not used with template_type: system", "ignored"),
+        (17, 11, "metric 'Both' has both units 'm/s' and unit 'km/h'", "units is used"),
+    ]
+    assert warnings_of(path) == [(line, column, f"{what}: {instead}") for line, column, what, instead in found]
+    config = load_config(path)
+    assert config.topics["2024"].fields == {"true": "boolean", "x": "float"}
+    assert config.metrics["Speed"].template_file is None and config.metrics["Speed"].units == "m/s"
+    assert config.metrics["Both"].units == "m/s"
+    assert errors(path) == [(line, column, what + STRICT) for line, column, what, _ in found]
+
+
+def test_unit_is_units_and_the_same_value_twice_is_no_warning(tmp_path):
+    path = write(
+        tmp_path,
+        """
+        version: 1
+        metrics:
+          A: {type: test, query_string: SELECT 1, template: table, unit: s, units: s}
+    """,
+    )
+    assert warnings_of(path) == [] and load_config(path, strict=True).metrics["A"].units == "s"

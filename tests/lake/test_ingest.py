@@ -80,6 +80,11 @@ def count(lake, table, branch="main"):
     return query(lake, f'SELECT COUNT(*) FROM "{table}"', branch)[0][0]
 
 
+GOAL = {"name": "g", "description": "d", "status": "PASSED", "tags": []}
+#: A stored metric object's fields, all NULL.
+NO_METRIC_KEYS = dict.fromkeys(("name", "description", "status", "type", "value", "extra"))
+
+
 def bits(value):
     return struct.pack("<d", value)
 
@@ -99,7 +104,7 @@ def test_round_trip_of_every_field_type_through_emitter_ingest_and_duckdb(tmp_pa
         "vi": "v.mp4",
         "tags": ["a", "b"],
         "metrics": [
-            {"name": "m", "type": "scalar", "value": 2.5},
+            {"name": "m", "type": "scalar", "value": 2.5, "unit": "m/s", "limits": [0, 3.5]},
             {"name": "t", "type": "text", "value": "hi", "description": "d", "status": "PASSED"},
             {"name": "img", "type": "image", "value": ["1.png", "2.png"]},
             {"name": "p", "type": "plotly", "value": {"data": [], "layout": {}}},
@@ -141,10 +146,17 @@ def test_round_trip_of_every_field_type_through_emitter_ingest_and_duckdb(tmp_pa
     assert report.bad_lines == 0 and report.events == 1
     lake = tmp_path / "lake"
     expected_metrics = [
-        {"name": "m", "description": None, "status": None, "type": "scalar", "value": "2.5"},
-        {"name": "t", "description": "d", "status": "PASSED", "type": "text", "value": "hi"},
-        {"name": "img", "description": None, "status": None, "type": "image", "value": '["1.png", "2.png"]'},
-        {"name": "p", "description": None, "status": None, "type": "plotly", "value": '{"data": [], "layout": {}}'},
+        # keys beyond the documented ones are kept, as a JSON object text in `extra`
+        {
+            **NO_METRIC_KEYS,
+            "name": "m",
+            "type": "scalar",
+            "value": "2.5",
+            "extra": '{"unit": "m/s", "limits": [0, 3.5]}',
+        },
+        {**NO_METRIC_KEYS, "name": "t", "description": "d", "status": "PASSED", "type": "text", "value": "hi"},
+        {**NO_METRIC_KEYS, "name": "img", "type": "image", "value": '["1.png", "2.png"]'},
+        {**NO_METRIC_KEYS, "name": "p", "type": "plotly", "value": '{"data": [], "layout": {}}'},
     ]
     rows = query(
         lake,
@@ -179,7 +191,7 @@ def test_round_trip_of_every_field_type_through_emitter_ingest_and_duckdb(tmp_pa
     assert types[:7] == ("BIGINT", "BIGINT", "DOUBLE", "BOOLEAN", "VARCHAR", "VARCHAR", "VARCHAR[]")
     assert (
         types[7].replace('"', "")
-        == "STRUCT(name VARCHAR, description VARCHAR, status VARCHAR, type VARCHAR, value VARCHAR)[]"
+        == "STRUCT(name VARCHAR, description VARCHAR, status VARCHAR, type VARCHAR, value VARCHAR, extra VARCHAR)[]"
     )
     assert types[8:] == ("VARCHAR", "VARCHAR")
     # the fast path (no metric[] field) gives exactly the same values and types
@@ -282,6 +294,15 @@ BAD = [
     ),
     (line("odom", 1, {"x": 1.0, "y": 2.0, "z": 3.0}, event=True), "topic 'odom' is not an event topic"),
     (line("plain", 1, {"i": 1, "f": 1.0, "b": True, "s": "\ud800", "tags": []}), "lone surrogate"),
+    (
+        line(
+            "goal_reached",
+            1,
+            {**GOAL, "metrics": [{"name": "m", "type": "text", "value": "v", "unit": "\ud800"}]},
+            True,
+        ),
+        "field 'metrics': metric 0: key(s) 'unit': string holds a lone surrogate",
+    ),
     (
         '{"$metadata": {"topic": "odom", "timestamp": 1, "colour": "red"}, "$data": {"x": 1.0, "y": 2.0, "z": 3.0}}',
         "unexpected key 'colour' in $metadata",
@@ -801,3 +822,37 @@ def test_overlong_lines_are_refused_without_being_held_whole(tmp_path, config, m
         (6, f"line too long: {len(across_blocks):,} bytes, more than the limit of 150 bytes of an emissions line"),
     ]
     assert [x for (x,) in query(tmp_path / "lake", "SELECT x FROM odom")] == [1.5, 3.5, 5.5]
+
+
+def test_metric_objects_of_old_files_without_extra_read_with_new_ones_in_either_order(tmp_path, config):
+    """Files written before metric objects had `extra` hold a 5-field struct; a query over them and
+    newer files together gives each row its own `extra` (NULL for the old ones), also when an old one is read first."""
+    lake = tmp_path / "lake"
+    unit = {"name": "speed", "type": "scalar", "value": 1.5, "unit": "m/s"}
+    plain = {"name": "speed", "type": "scalar", "value": 2.5}
+    for job_id in ("a", "b", "c"):
+        metric = plain if job_id == "a" else unit
+        path = write_lines(tmp_path / f"{job_id}.jsonl", [line("goal_reached", 1, {**GOAL, "metrics": [metric]}, True)])
+        ingest_job(lake, "main", "b1", job_id, [path], config=config)
+    # job a (read first) as an earlier version wrote it: the struct without `extra`, in place (same file, same links)
+    old = pa.struct([(name, pa.string()) for name in ("name", "description", "status", "type", "value")])
+    for table in ("goal_reached", "events"):
+        path = current_file(lake, "main", table, "b1", "a")
+        stored = pq.read_table(path)
+        metrics = stored.column("metrics").to_pylist()
+        assert metrics == [[{**NO_METRIC_KEYS, "name": "speed", "type": "scalar", "value": "2.5"}]]
+        narrowed = [[{k: v for k, v in m.items() if k != "extra"} for m in ms] for ms in metrics]
+        index = stored.schema.get_field_index("metrics")
+        stored = stored.set_column(index, "metrics", pa.array(narrowed, pa.list_(old)))
+        pq.write_table(stored, path)
+    expected = [
+        ("a", "2.5", None),
+        ("b", "1.5", '{"unit": "m/s"}'),
+        ("c", "1.5", '{"unit": "m/s"}'),
+    ]
+    for table in ("goal_reached", "events"):
+        rows = query(lake, f"SELECT job_id, metrics[1].value, metrics[1].extra FROM {table} ORDER BY job_id")
+        assert rows == expected, table
+    # the old job alone reads too
+    con = Catalog(lake).connect("main")
+    assert con.execute("SELECT metrics[1].extra FROM events WHERE job_id = 'a'").fetchall() == [(None,)]

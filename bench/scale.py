@@ -15,9 +15,16 @@ On each branch, measures (median of `--runs`):
 * through a warm `lakegate serve` (the official `trino` client, after one warm-up each): the query
   of test metric "Maximum Localization Error (job)" (session properties `batch_id` and `job_id`),
   of batch metric "Average Speed" (`batch_id`),
-  `SELECT count(*) FROM metadata` and a GROUP BY over one topic; then the server's RSS;
+  `SELECT count(*) FROM metadata` and a GROUP BY over one topic; each query's *planning overhead*:
+  its time through the server less DuckDB's own time for the same translated SQL over the same
+  files (a plain DuckDB connection in this process with the record's views of the query's scope,
+  the server's thread count, the same alternation); `count(*) FROM metadata` again just after one
+  more job was published (the views are rebuilt from the record); then the server's RSS;
 * `lakegate ingest` of one more job (a fresh process each), against the same ingest into an
-  empty branch.
+  empty branch;
+* memory with 20 branches open: one server (`--memory-limit 1GB`) over a lake of 20 branches of
+  1,000 jobs each (hard links), each branch queried (count(*) and the GROUP BY, which reads every
+  file of the topic); the server's RSS and peak RSS against that budget.
 
 Writes section "Scale" of bench/RESULTS.md.
 """
@@ -33,20 +40,25 @@ import statistics
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
+import duckdb
 import trino
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from results import timed, write_section  # noqa: E402
 from server import Server  # noqa: E402
 
+from lakegate.dialect.scope import Scope  # noqa: E402
 from lakegate.fixtures.generate import CONFIG_PATH, generate_batch  # noqa: E402
+from lakegate.gateway.engine.backend import DuckDBBackend  # noqa: E402
 from lakegate.lake import paths  # noqa: E402
+from lakegate.lake.catalog import Catalog  # noqa: E402
 from lakegate.lake.config import load_config  # noqa: E402
 from lakegate.lake.ingest import ingest_job  # noqa: E402
 from lakegate.lake.metadata import load_metadata_file  # noqa: E402
-from lakegate.lake.record import FileEntry, Record  # noqa: E402
+from lakegate.lake.record import RECORD, FileEntry, Record  # noqa: E402
 from lakegate.lake.registry import BranchConfigs  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -58,6 +70,8 @@ TEST_METRIC, BATCH_METRIC = "Maximum Localization Error (job)", "Average Speed" 
 COUNT = "SELECT count(*) FROM metadata"
 GROUP_BY = "SELECT job_id, count(*), max(speed) FROM robot_speed GROUP BY job_id"
 GOALS = {"metrics run": 1.2, "ingest": 1.2}
+#: The 20-branch memory measurement: branches, jobs per branch, the server's DuckDB memory budget.
+BRANCHES, BRANCH_JOBS, BUDGET = 20, 1000, "1GB"
 
 
 def source() -> tuple[Path, list]:
@@ -160,7 +174,7 @@ def metrics_run(lake: Path) -> tuple[float, float]:
     )
 
 
-def ingest(lake: Path, job, run: int) -> tuple[float, float]:
+def ingest(lake: Path, job, run: int | str) -> tuple[float, float]:
     return command(
         "ingest",
         "--lake",
@@ -184,36 +198,94 @@ def medians(runs: list[tuple[float, float]], name: str) -> dict[str, float]:
     return {name: statistics.median(wall for wall, _ in runs), f"{name} (CPU)": statistics.median(c for _, c in runs)}
 
 
-def served(lake: Path, runs: int, job_id: str) -> dict[str, float]:
-    """Median seconds of each query through a warm `lakegate serve`, and the server's RSS (MB)."""
+def served(lake: Path, runs: int, job) -> dict[str, float]:
+    """Median seconds of each query through a warm `lakegate serve` and its planning overhead
+    (less DuckDB's own time, `direct`), `count(*)` just after a publish, and the server's RSS (MB)."""
     server = Server(lake, ["--threads", "2"])
     try:
         figures = {}
         metrics = load_config(CONFIG_PATH).metrics
         for name, sql, session in (
-            ("test metric", metrics[TEST_METRIC].query_string, {"batch_id": BATCH, "job_id": job_id}),
+            ("test metric", metrics[TEST_METRIC].query_string, {"batch_id": BATCH, "job_id": job.job_id}),
             ("batch metric", metrics[BATCH_METRIC].query_string, {"batch_id": BATCH}),
             ("count(*) FROM metadata", COUNT, {}),
             ("GROUP BY over one topic", GROUP_BY, {}),
         ):
-            connection = trino.dbapi.connect(
-                host="127.0.0.1",
-                port=server.port,
-                user="bench",
-                catalog="lake",
-                schema=BRANCH,
-                session_properties=session,
-            )
+            query = _client_query(server, sql, session)
+            direct = _direct_query(lake, sql, session)
+            query(), direct()  # warm-up
+            through, alone = [], []
+            for _ in range(max(runs, 5)):  # alternating, so that both see the same load
+                through.append(timed(query))
+                alone.append(timed(direct))
+            figures[name] = statistics.median(through)
+            figures[f"{name}: planning overhead"] = statistics.median(t - a for t, a in zip(through, alone))
+        ingest(lake, job, "fresh")
+        figures["count(*) FROM metadata, first after a publish"] = timed(_client_query(server, COUNT, {}))
+        figures["server RSS (MB)"] = server.memory("VmRSS") / 2**20
+        return figures
+    finally:
+        server.stop()
 
-            def query() -> None:
+
+def _client_query(server: Server, sql: str, session: dict[str, str]) -> Callable[[], None]:
+    """Run `sql` through the server with the official client (one connection, a cursor per call)."""
+    connection = trino.dbapi.connect(
+        host="127.0.0.1", port=server.port, user="bench", catalog="lake", schema=BRANCH, session_properties=session
+    )
+
+    def query() -> None:
+        cursor = connection.cursor()
+        cursor.execute(sql)
+        cursor.fetchall()
+
+    return query
+
+
+def _direct_query(lake: Path, sql: str, session: dict[str, str]) -> Callable[[], None]:
+    """Run the DuckDB translation of `sql` on a plain DuckDB connection (the server's thread count)
+    over views of the files of the session's scope, as the record lists them now."""
+    backend = DuckDBBackend(lake)
+    scope = Scope(**session) if session else None
+    try:
+        duckdb_sql = backend.translate(sql, branch=BRANCH, scope=scope).duckdb_sql
+    finally:
+        backend.close()
+    catalog = Catalog(lake)
+    snapshot = catalog.snapshot(BRANCH, batch_id=session.get("batch_id"), job_id=session.get("job_id"))
+    connection = duckdb.connect(config={"threads": 2})
+    connection.execute("SET TimeZone = 'UTC'")
+    for name, select in catalog.view_sql(BRANCH, snapshot).items():
+        connection.execute(f'CREATE VIEW "{name}" AS {select}')
+    return lambda: connection.execute(duckdb_sql).fetchall()
+
+
+def twenty_branches(source_lake: Path) -> dict[str, float]:
+    """RSS and peak RSS (MB) of one server (memory budget BUDGET) after a query of each of BRANCHES
+    branches of BRANCH_JOBS jobs (hard links of one built branch; each its own record)."""
+    lake = WORK / f"branches-{BRANCHES}"
+    if not (lake / ".complete").exists():
+        shutil.rmtree(lake, ignore_errors=True)
+        one = paths.branch_dir(build(BRANCH_JOBS, source_lake), BRANCH)
+        for index in range(BRANCHES):
+            root = paths.branch_dir(lake, f"b{index:02d}")
+            shutil.copytree(one, root, copy_function=os.link, ignore=shutil.ignore_patterns(RECORD))
+            shutil.copy(one / RECORD, root / RECORD)
+        (lake / ".complete").touch()
+    server = Server(lake, ["--threads", "2", "--memory-limit", BUDGET])
+    try:
+        for index in range(BRANCHES):
+            for sql in (COUNT, GROUP_BY):
+                connection = trino.dbapi.connect(
+                    host="127.0.0.1", port=server.port, user="bench", catalog="lake", schema=f"b{index:02d}"
+                )
                 cursor = connection.cursor()
                 cursor.execute(sql)
                 cursor.fetchall()
-
-            query()  # warm-up
-            figures[name] = statistics.median(timed(query) for _ in range(max(runs, 5)))
-        figures["server RSS (MB)"] = server.memory("VmRSS") / 2**20
-        return figures
+        return {
+            f"server RSS, {BRANCHES} branches open (MB)": server.memory("VmRSS") / 2**20,
+            f"server peak RSS, {BRANCHES} branches (MB)": server.memory("VmHWM") / 2**20,
+        }
     finally:
         server.stop()
 
@@ -224,6 +296,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--runs", type=int, default=3)
     args = parser.parse_args(argv)
     sizes = [int(size) for size in args.sizes.split(",")]
+    load_before = os.getloadavg()
     source_lake, jobs = source()
     figures: dict[int, dict[str, float]] = {}
     for size in sizes:
@@ -231,31 +304,39 @@ def main(argv: list[str] | None = None) -> int:
         lake = build(size, source_lake)
         built = time.perf_counter() - started
         row = medians([metrics_run(lake) for _ in range(args.runs)], "metrics run")
-        row |= served(lake, args.runs, jobs[0].job_id)
+        row |= served(lake, args.runs, jobs[0])
         row |= medians([ingest(lake, jobs[run % JOBS], run) for run in range(args.runs)], "ingest")
         figures[size] = row
         print(json.dumps({"size": size, "built_s": round(built, 1), **row}), flush=True)
     empty = WORK / "empty"
     shutil.rmtree(empty, ignore_errors=True)
     empty_ingest = medians([ingest(empty, jobs[run % JOBS], run) for run in range(args.runs)], "ingest")
+    branches = twenty_branches(source_lake)
+    print(json.dumps(branches), flush=True)
     write_section(
         "Scale",
         f"python3 dev.py bench scale --sizes {args.sizes} --runs {args.runs}",
-        _lines(sizes, figures, empty_ingest, args.runs),
+        _lines(sizes, figures, empty_ingest, branches, args.runs, load_before),
     )
     return 0
 
 
 def _lines(
-    sizes: list[int], figures: dict[int, dict[str, float]], empty_ingest: dict[str, float], runs: int
+    sizes: list[int],
+    figures: dict[int, dict[str, float]],
+    empty_ingest: dict[str, float],
+    branches: dict[str, float],
+    runs: int,
+    load_before: tuple[float, float, float],
 ) -> list[str]:
     measures = list(figures[sizes[0]])
     lines = [
         f"Branches of {', '.join(f'{s:,}' for s in sizes)} jobs (12 Parquet files per job); batch `{BATCH}` "
         f"(40 jobs) is the same in each. Medians of {runs} runs (queries: of {max(runs, 5)}, warm); the "
         "goals are judged on CPU seconds (user + system of the process), least disturbed by the other load "
-        "on this shared machine. "
-        f"Load average at the end: {', '.join(f'{x:.2f}' for x in os.getloadavg())}.",
+        "on this shared machine (2 cores). "
+        f"Load average (1, 5, 15 min) at the start: {', '.join(f'{x:.2f}' for x in load_before)}; "
+        f"at the end: {', '.join(f'{x:.2f}' for x in os.getloadavg())}.",
         "",
         "| measure | " + " | ".join(f"{s:,} jobs" for s in sizes) + f" | {sizes[-1]:,} / {sizes[0]:,} |",
         "|---|" + "---:|" * (len(sizes) + 1),
@@ -263,8 +344,9 @@ def _lines(
     for measure in measures:
         unit = "MB" if "MB" in measure else "s"
         cells = [f"{figures[s][measure]:.0f}" if unit == "MB" else _seconds(figures[s][measure]) for s in sizes]
-        ratio = figures[sizes[-1]][measure] / figures[sizes[0]][measure]
-        lines.append(f"| {measure} | " + " | ".join(cells) + f" | {ratio:.2f}x |")
+        base = figures[sizes[0]][measure]
+        ratio = f"{figures[sizes[-1]][measure] / base:.2f}x" if base > 0 else "-"
+        lines.append(f"| {measure} | " + " | ".join(cells) + f" | {ratio} |")
     for measure, value in empty_ingest.items():
         lines.append(f"| {measure} into an empty branch | {_seconds(value)} |" + " |" * len(sizes))
     lines.append("")
@@ -281,10 +363,23 @@ def _lines(
         f"- goal: `count(*) FROM metadata` under 100 ms: {_seconds(largest['count(*) FROM metadata'])}, "
         f"**{'met' if largest['count(*) FROM metadata'] < 0.1 else 'not met'}**"
     )
+    for measure in measures:
+        if measure.endswith("planning overhead"):
+            lines.append(
+                f"- goal: warm planning overhead under 50 ms ({measure}): {_seconds(largest[measure])}, "
+                f"**{'met' if largest[measure] < 0.05 else 'not met'}**"
+            )
     lines.append(
         f"- goal: server RSS under 1 GB: {largest['server RSS (MB)']:.0f} MB, "
         f"**{'met' if largest['server RSS (MB)'] < 1024 else 'not met'}**"
     )
+    budget = int(BUDGET.removesuffix("GB")) * 1024
+    for measure, value in branches.items():
+        lines.append(
+            f"- {measure.replace(' (MB)', '')} ({BRANCHES} branches of {BRANCH_JOBS:,} jobs, each queried, "
+            f"`--memory-limit {BUDGET}`): {value:.0f} MB, "
+            f"**{'within' if value <= budget else 'over'}** the budget"
+        )
     return lines
 
 

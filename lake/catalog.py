@@ -222,14 +222,15 @@ class Catalog:
         build it. The `unreadable` files (absolute reader paths) are left out: a query that reads
         their job fails with HIVE_BAD_DATA naming table, batch and job; other jobs still read."""
         snapshot = snapshot or self.snapshot(branch)
-        root = paths.branch_dir(self.lake, branch)
+        root = str(paths.branch_dir(self.lake, branch))
         views = {}
         for spec in self._specs(branch, snapshot):
             files, bad = [], []
             for entry in snapshot.of(spec.name):
-                (bad if str(paths.reader_path(root, entry.path)) in unreadable else files).append(entry)
-            selects = [self._files_sql(spec, root, files)] if files else []
-            selects += [_unreadable_sql(spec, entry) for entry in bad]
+                reader = paths.reader_file(root, entry.path)
+                (bad if reader in unreadable else files).append((entry, reader))
+            selects = [self._files_sql(spec, files)] if files else []
+            selects += [_unreadable_sql(spec, entry) for entry, _ in bad]
             if not selects:
                 columns = ", ".join(f"CAST(NULL AS {duckdb_type(t)}) AS {_quote_ident(c)}" for c, t in spec.columns)
                 selects = [f"SELECT {columns} WHERE false"]
@@ -237,16 +238,17 @@ class Catalog:
         return views
 
     @staticmethod
-    def _files_sql(spec: _Spec, root: Path, files: Sequence[FileEntry]) -> str:
+    def _files_sql(spec: _Spec, files: Sequence[tuple[FileEntry, str]]) -> str:
+        """A SELECT over `files` (entry, reader path) with the columns of `spec`."""
         hive_types = ", ".join(f"'{key}': VARCHAR" for key in paths.partition_keys(spec.name))
-        listed = ", ".join(_quote_text(str(paths.reader_path(root, entry.path))) for entry in files)
+        listed = ", ".join(_quote_text(reader) for _, reader in files)
         source = (
             f"read_parquet([{listed}], hive_partitioning = true, hive_types = {{{hive_types}}}"
             f"{', union_by_name = true' if spec.by_name else ''})"
         )
         present = None
         if spec.by_name:
-            present = {column for entry in files for column in entry.columns} | set(paths.partition_keys(spec.name))
+            present = {column for entry, _ in files for column in entry.columns} | set(paths.partition_keys(spec.name))
         items = []
         for column, trino in spec.columns:
             if present is None and trino != "timestamp(3)":

@@ -196,7 +196,12 @@ def reader_path(branch_root: Path, relative: str) -> Path:
     it; it outlives the visible name for a grace period after a writer supersedes the file, so a
     query that listed it can still read it.
     """
-    return branch_root / READERS / relative
+    return Path(reader_file(str(branch_root), relative))
+
+
+def reader_file(branch_root: str, relative: str) -> str:
+    """`reader_path` as text, made without pathlib (views list one per file of the branch)."""
+    return f"{branch_root}/{READERS}/{relative}"
 
 
 def table_names(lake: Path, branch: str) -> list[str]:

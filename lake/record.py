@@ -19,6 +19,7 @@ record is first opened: its files are listed once, inside the record's first wri
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import os
 import sqlite3
@@ -83,7 +84,14 @@ class Snapshot:
     tables: frozenset[str] = frozenset()
 
     def of(self, table: str) -> list[FileEntry]:
-        return [entry for entry in self.files if entry.table == table]
+        return self._by_table.get(table, [])
+
+    @functools.cached_property
+    def _by_table(self) -> dict[str, list[FileEntry]]:
+        found: dict[str, list[FileEntry]] = {}
+        for entry in self.files:
+            found.setdefault(entry.table, []).append(entry)
+        return found
 
 
 def describe_file(root: Path, table: str, batch_id: str, job_id: str, path: Path) -> FileEntry:
@@ -371,7 +379,13 @@ def _hidden(relative: str) -> str:
 
 def _entry(row: tuple) -> FileEntry:
     table, batch_id, job_id, path, rows, low, high, columns = row
-    return FileEntry(table, batch_id, job_id, path, rows, low, high, tuple(json.loads(columns)))
+    return FileEntry(table, batch_id, job_id, path, rows, low, high, _columns(columns))
+
+
+@functools.lru_cache(maxsize=1024)
+def _columns(text: str) -> tuple[str, ...]:
+    """The columns of a `files` row (a table's files mostly share one list: decoded once)."""
+    return tuple(json.loads(text))
 
 
 def _created(db: sqlite3.Connection) -> bool:

@@ -453,10 +453,10 @@ class DuckDBBackend:
     def _load_views(self, state: _Branch, branch: str) -> Snapshot:
         """Replace the branch-wide views by those of the record's current snapshot (a newer one when
         a writer replaced one of its files meanwhile, `_create_views`); returns the snapshot."""
-        root = paths.branch_dir(self.lake, branch)
+        root = str(paths.branch_dir(self.lake, branch))
         while True:
             snapshot = self.catalog.snapshot(branch, self._records[branch])
-            files = {str(paths.reader_path(root, e.path)): e.where for e in snapshot.files}
+            files = {paths.reader_file(root, e.path): e.where for e in snapshot.files}
             state.files = {**state.listed, **files}  # queries still running may name the last files
             if self._create_views(state, branch, snapshot, state.views):
                 break
@@ -471,14 +471,14 @@ class DuckDBBackend:
         branch's own views, dropping the `old` views it no longer has). A file that cannot be read is
         left out (queries of its job fail, `Catalog.view_sql`); False when one was replaced
         meanwhile (a writer committed after the snapshot was read): take a newer snapshot."""
-        root = paths.branch_dir(self.lake, branch)
+        root = str(paths.branch_dir(self.lake, branch))
         unreadable: set[str] = set()
         while (
             failed := self._swap_views(
                 state, self.catalog.view_sql(branch, snapshot, unreadable=unreadable), old, schema
             )
         ) is not None:
-            files = (str(paths.reader_path(root, e.path)) for e in snapshot.files)
+            files = (paths.reader_file(root, e.path) for e in snapshot.files)
             named = {path for path in files if path in failed}
             if named <= unreadable:
                 raise state.failure(duckdb.Error(failed))
@@ -526,8 +526,8 @@ class DuckDBBackend:
                 )
                 if self._create_views(state, branch, snapshot, schema=name):
                     break
-            root = paths.branch_dir(self.lake, branch)
-            files = {str(paths.reader_path(root, e.path)): e.where for e in snapshot.files}
+            root = str(paths.branch_dir(self.lake, branch))
+            files = {paths.reader_file(root, e.path): e.where for e in snapshot.files}
             state.scopes[(snapshot.generation, scope.batch_id, scope.job_id)] = [name, now, files]
             while len(state.scopes) > SCOPE_VIEWS and next(iter(state.scopes.values()))[1] < now - SCOPE_GRACE:
                 state.database.execute(f"DROP SCHEMA {state.scopes.popitem(last=False)[1][0]} CASCADE")

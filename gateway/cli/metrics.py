@@ -207,6 +207,7 @@ def _add_trends_parsers(commands: argparse._SubParsersAction) -> None:
             help="where the page's links (link_path columns, batch ids) point: the 'lakegate serve' that "
             "shows the batches (default: http://127.0.0.1:8080, serve's default address)",
         )
+        add_strict_option(parser)
         add_backend_arguments(parser)
         parser.set_defaults(func=trends_command)
 

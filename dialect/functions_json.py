@@ -528,18 +528,33 @@ def _json_query(a, node, scope, env) -> TType:
 
 
 _UNSURE_ITEM = "NOT_SUPPORTED: json_query of a value holding a non-integer JSON number (its text is not kept)"
+_REPEATED_ITEM_KEY = (
+    "NOT_SUPPORTED: json_query of a value holding an object with a repeated key (Trino keeps its last member)"
+)
+
+
+def _repeated_key(item: str) -> str:
+    """Whether the JSON text `item` holds, at any depth, an object with a key twice: Trino's path
+    engine reads the input into a tree (the last member of a key wins), DuckDB keeps the text."""
+    values = f"list_concat([CAST({item} AS JSON)], json_extract(CAST({item} AS JSON), '$..*'))"
+    repeated = 'json_type("_v") = \'OBJECT\' AND len(json_keys("_v")) <> len(list_distinct(json_keys("_v")))'
+    return f'coalesce(list_bool_or(list_transform({values}, lambda "_v": {repeated})), false)'
 
 
 @tf.transform(exp.JSONExtract)
 def json_query(g, node: exp.JSONExtract) -> str:
     """The item as JSON text (json.md json_query): wrapped in an array as the WRAPPER clause says,
     a string unquoted with OMIT QUOTES; empty is ON EMPTY, an error ON ERROR (both NULL unless
-    EMPTY ARRAY / EMPTY OBJECT). An item holding a non-integer number is refused at run time."""
+    EMPTY ARRAY / EMPTY OBJECT). An item holding a non-integer number or an object with a repeated
+    key is refused at run time."""
     mode, steps = node.meta["path"]
     empty, error = (_behaviour(g, node.meta["on"][w], tt.VARCHAR) for w in ("EMPTY", "ERROR"))
     item = '"_r"'
     kind = f"json_type({item})"
-    text = f"CASE WHEN regexp_matches({jv.without_strings(item)}, '[0-9][.eE]') THEN error({tf.string(_UNSURE_ITEM)}) ELSE {item} END"
+    text = (
+        f"CASE WHEN regexp_matches({jv.without_strings(item)}, '[0-9][.eE]') THEN error({tf.string(_UNSURE_ITEM)}) "
+        f"WHEN {_repeated_key(item)} THEN error({tf.string(_REPEATED_ITEM_KEY)}) ELSE {item} END"
+    )
     if node.meta["omit"]:
         text = f"CASE WHEN {kind} = 'VARCHAR' THEN json_extract_string({item}, '$') ELSE {text} END"
     wrapper = node.meta["wrapper"]

@@ -194,3 +194,50 @@ def test_dashboard_in_a_real_browser(tmp_path: Path, nav_jobs, debug_processes) 
         finally:
             browser.close()
     assert errors == []
+
+
+def test_video_and_artifact_metrics_play_and_download_in_the_dashboard(tmp_path: Path, debug_processes) -> None:
+    """A `video` metric shows an HTML5 player per file and an `artifact` metric a download link per
+    file, both served from the job's logs (the field-robot config of tests/compat)."""
+    from tests.compat.test_resim_media import CONFIG, LOGS, emissions
+
+    sync_api = _require_browser()
+    logs = tmp_path / "logs"
+    for name, data in LOGS.items():
+        (logs / name).parent.mkdir(parents=True, exist_ok=True)
+        (logs / name).write_bytes(data)
+    server = debug_processes(
+        [
+            "--emissions-file",
+            str(emissions(tmp_path / "j1.jsonl")),
+            "--logs-dir",
+            str(logs),
+            "--metrics-config-path",
+            str(CONFIG),
+            "--metrics-set",
+            "Field",
+        ],
+        tmp_path,
+    )
+    with sync_api.sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
+        try:
+            page = browser.new_context(accept_downloads=True).new_page()
+            page.set_default_timeout(15_000)
+            page.goto(server.url)
+            page.wait_for_selector("body[data-ready=true]")
+            videos = _card(page, "Camera Replay").locator("video")
+            assert videos.count() == 2
+            sources = [videos.nth(i).evaluate("video => video.src") for i in range(2)]  # absolute URLs
+            for source, name in zip(sources, ("front.mp4", "rear.webm")):
+                assert source.endswith(name)
+                served = page.request.get(source)
+                assert served.status == 200 and served.body() == LOGS[name]
+            links = _card(page, "Run Logs").locator("a[download]")
+            names = [links.nth(i).inner_text() for i in range(links.count())]
+            assert names and set(names) <= set(LOGS)
+            with page.expect_download() as download:
+                links.first.click()
+            assert Path(download.value.path()).read_bytes() == LOGS[names[0]]
+        finally:
+            browser.close()

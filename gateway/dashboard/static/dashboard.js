@@ -178,8 +178,27 @@
 
   // -- the metrics ------------------------------------------------------------------------------
 
+  function logUrl(name) {
+    return `${API}${sessionPath(`/logs/${encodeURIComponent(app.jobId)}/${encodeURIComponent(name)}`)}`;
+  }
+
+  // video: an HTML5 player per file (a GIF as an image); artifact: a download link per file, with its size
+  function filesBody(metric, table) {
+    return el("div", { class: "files" }, table.rows.map(([name, bytes, type]) => {
+      if (metric.template === "video") {
+        const media = String(type).startsWith("video/")
+          ? el("video", { src: logUrl(name), controls: "", preload: "metadata" })
+          : el("img", { src: logUrl(name), alt: name });
+        return el("figure", {}, media, el("figcaption", { text: name }));
+      }
+      return el("p", {}, el("a", { href: logUrl(name), download: name.split("/").pop(), text: name }),
+        el("span", { class: "meta", text: ` ${Number(bytes).toLocaleString()} bytes` }));
+    }));
+  }
+
   function resultBody(metric, result) {
     if (result.error) return null;
+    if (result.table && ["video", "artifact"].includes(metric.template) && app.jobId) return filesBody(metric, result.table);
     if (result.table) return dataTable(result.table.columns, result.table.rows);
     if (result.figure) {
       const timeline = metric.template === "state_timeline";
@@ -191,7 +210,7 @@
     }
     if (metric.template === "image") {
       return el("div", { class: "images" }, result.images.map((name) => el("figure", {},
-        el("img", { src: `${API}${sessionPath(`/logs/${encodeURIComponent(app.jobId)}/${encodeURIComponent(name)}`)}`, alt: name }),
+        el("img", { src: logUrl(name), alt: name }),
         el("figcaption", { text: name }))));
     }
     return el("div", { class: "scalar", text: result.text || "" });
@@ -378,7 +397,7 @@
         if (m.type === "image") {
           const files = Array.isArray(m.value) ? m.value : [m.value];
           box.append(el("div", { class: "images" }, el("p", { class: "meta", text: m.name }), files.map((name) => el("figure", {},
-            el("img", { src: `${API}${sessionPath(`/logs/${encodeURIComponent(app.jobId)}/${encodeURIComponent(name)}`)}`, alt: name }),
+            el("img", { src: logUrl(name), alt: name }),
             el("figcaption", { text: name })))));
         } else if (m.type === "plotly" && m.value && typeof m.value === "object") {
           const node = el("div", { class: "chart" });

@@ -524,8 +524,11 @@ def eager_constant_in_list(g: Writer, node: exp.In) -> str:
 def ieee_between(g: Writer, node: exp.Between) -> str:
     """`v BETWEEN low AND high` is `low <= v AND v <= high` with IEEE comparisons: false when a double
     is NaN (DuckDB orders NaN above every number)."""
-    sql = g.between_sql(node)
     common = node.meta.get("compare")
+    if common is not None and common.base in ("array", "row"):
+        value, low, high = (g.coerce(side, common) for side in (node.this, node.args["low"], node.args["high"]))
+        return f"({ordered_comparison(low, value, common, '<=')} AND {ordered_comparison(value, high, common, '<=')})"
+    sql = g.between_sql(node)
     if common is None or not common.is_approx:
         return sql
     sides = [g.sql(side) for side in (node.this, node.args["low"], node.args["high"])]
@@ -562,7 +565,18 @@ def explicit_null_order(g: Writer, node: exp.Ordered) -> str:
     """Trino sorts NULLs last for ASC and DESC unless told otherwise: always say so explicitly."""
     direction = "DESC" if node.args.get("desc") else "ASC"
     nulls = "NULLS FIRST" if node.args.get("nulls_first") else "NULLS LAST"
-    return f"{g.sql(node.this)} {direction} {nulls}"
+    key, t = g.sql(node.this), node.meta.get("key")
+    if t is not None:  # an array or row key: Trino fails when sorting reaches a NULL element
+        key = f"CASE WHEN {null_element(key, t)} THEN {null_reached(key, key, t)[1]} ELSE {key} END"
+    return f"{key} {direction} {nulls}"
+
+
+def null_element(sql: str, t: TType) -> str:
+    """SQL that is true when the array or row `sql` holds a NULL element (field). Sorting such keys
+    is refused whenever one is met, though Trino fails only when a comparison reaches it."""
+    if t.base == "array":
+        return f"list_count({sql}) < len({sql})"
+    return " OR ".join(f"struct_extract_at({sql}, {i}) IS NULL" for i in range(1, len(t.args) + 1)) or "false"
 
 
 # --- subscripts ----------------------------------------------------------------------------------

@@ -903,7 +903,7 @@ register(
     "normalize(string) -> varchar",
     fixed(tt.VARCHAR, "string"),
     lambda g, node, args: f"nfc_normalize({g.sql(args[0])})",
-    notes="The one-argument form (NFC); normalize(string, form) is not translated.",
+    notes="The form NFC (the default); NFD, NFKC and NFKD are refused.",
 )
 register(
     "index",
@@ -1598,3 +1598,37 @@ register(
     fixed(tt.VARCHAR, "number"),
     _render_format_number,
 )
+
+
+# === issue 14 family 5, second part ===============================================================
+# --- normalize(string, form) (StringFunctions.normalize; AstBuilder.visitNormalize passes the form
+# keyword NFC | NFD | NFKC | NFKD as the string it is written as) ----------------------------------
+_NORMAL_FORMS = ("NFD", "NFC", "NFKD", "NFKC")
+
+
+def _normalize_form(call: Call) -> TType | None:
+    if len(call.args) != 2:
+        return None
+    need(call, "string", "string")
+    form = literal_str(call, 1)
+    if form is None and not call.types[1].is_unknown:
+        call.fail("normalize with a non-literal form is not supported in lakegate", "NOT_SUPPORTED")
+    if form in _NORMAL_FORMS and form != "NFC":
+        call.fail(f"normalize with the form {form} is not supported in lakegate (only NFC)", "NOT_SUPPORTED")
+    call.node.meta["normal_form"] = form
+    return tt.VARCHAR
+
+
+def _render_normalize_form(g, node, args) -> str:
+    """NFC is DuckDB's nfc_normalize; another form is Normalizer.Form.valueOf's error at run time
+    (a NULL argument gives NULL first)."""
+    value, form = g.sql(args[0]), node.meta["normal_form"]
+    if form is None:
+        return "CAST(NULL AS VARCHAR)"
+    if form == "NFC":
+        return f"nfc_normalize({value})"
+    message = tf.string("Normalization form must be one of [NFD, NFC, NFKD, NFKC]")
+    return f"CASE WHEN ({value}) IS NULL THEN NULL ELSE {g.fail(message)} END"
+
+
+overload("normalize", _normalize_form, _render_normalize_form, "normalize(string, form) -> varchar")

@@ -2990,7 +2990,6 @@ REJECTED: dict[str, str] = {
     "json_exists": "SQL/JSON path functions are not translated",
     "json_object": "SQL/JSON functions are not translated",
     "json_array": "SQL/JSON functions are not translated",
-    "parse_datetime": "Joda-Time patterns are not translated; use date_parse",
     "with_timezone": "time zones other than UTC are not supported",
     "at_timezone": "time zones other than UTC are not supported",
     "from_unixtime_nanos": "DuckDB has no nanosecond timestamp with time zone",

@@ -1632,3 +1632,111 @@ def _render_normalize_form(g, node, args) -> str:
 
 
 overload("normalize", _normalize_form, _render_normalize_form, "normalize(string, form) -> varchar")
+
+
+# --- parse_datetime (DateTimeFunctions.parseDatetime: Joda-Time DateTimeFormat.forPattern(format)
+# .parseDateTime in the session zone, UTC) ---------------------------------------------------------
+#: Pattern letter -> (field, the most digits Joda's DateTimeFormat.parsePatternTo lets it read),
+#: for the number fields lakegate parses (yyyy appendYear(n, 9) is signed; the others unsigned).
+_JODA_PARSED = {
+    "y": ("year", 9),
+    "M": ("month", 2),
+    "d": ("day", 2),
+    "H": ("hour", 2),
+    "m": ("minute", 2),
+    "s": ("second", 2),
+    "S": ("fraction", 9),
+}
+_JODA_LETTERS = "GCYxweEyDMdaKhHkmsSzZ"
+
+
+def _joda_parser(call: Call, pattern: str) -> tuple[str, list[str]] | str:
+    """The full-match regex and its groups' fields for `pattern`, or Joda's error message for an
+    invalid one. Joda reads a number greedily and never backtracks, so a number field next to
+    another or to literal digits is refused (a regex could split the digits otherwise)."""
+    if not pattern:
+        return "Invalid pattern specification"
+    regex, fields, previous = [], [], None
+    for kind, text in _joda_tokens(pattern):
+        if kind == "text":
+            if previous == "letter" and text[:1].isdigit():
+                call.fail(
+                    "parse_datetime with digits right after a number field is not supported in lakegate",
+                    "NOT_SUPPORTED",
+                )
+            literal = re.escape(text)
+            regex.append(f"(?i:{literal})" if any(c.isalpha() for c in text) else literal)
+        elif text[0] not in _JODA_LETTERS:
+            return f"Illegal pattern component: {text}"
+        elif text[0] not in _JODA_PARSED or (text[0] == "y" and len(text) == 2) or (text[0] == "M" and len(text) > 2):
+            call.fail(f"parse_datetime with the pattern field '{text}' is not supported in lakegate", "NOT_SUPPORTED")
+        elif previous == "letter":
+            call.fail("parse_datetime with adjacent number fields is not supported in lakegate", "NOT_SUPPORTED")
+        else:
+            field, digits = _JODA_PARSED[text[0]]
+            regex.append(f"({'[-+]?' if field == 'year' else ''}[0-9]{{1,{max(digits, len(text))}}})")
+            fields.append(field)
+        previous = kind
+    return "".join(regex), fields
+
+
+def _parse_datetime(call: Call) -> TType:
+    need(call, "string", "string")
+    pattern = literal_str(call, 1)
+    if pattern is None and not call.types[1].is_unknown:
+        call.fail("parse_datetime with a non-literal format is not supported in lakegate", "NOT_SUPPORTED")
+    call.node.meta["joda_parser"] = None if pattern is None else _joda_parser(call, pattern)
+    return tt.timestamp(3, True)
+
+
+def _render_parse_datetime(g, node, args) -> str:
+    """Joda's parseDateTime in UTC: the whole text must match (literals ignore case); fields missing
+    from the pattern are 1970-01-01 00:00:00.000; a fraction is cut to milliseconds; then each
+    field must be in range. Years outside 1..9999 are refused."""
+    text, parser = g.sql(args[0]), node.meta["joda_parser"]
+    if parser is None:
+        return "CAST(NULL AS TIMESTAMPTZ)"
+    if isinstance(parser, str):
+        return f"CASE WHEN ({text}) IS NULL THEN NULL ELSE {g.fail(tf.string(parser))} END"
+    regex, fields = tf.string(parser[0]), parser[1]
+
+    def field(name: str, default: str) -> str:
+        if name not in fields:
+            return default
+        return f"TRY_CAST(regexp_extract({text}, {regex}, {fields.index(name) + 1}) AS INTEGER)"
+
+    year, month, day = field("year", "1970"), field("month", "1"), field("day", "1")
+    hour, minute, second = field("hour", "0"), field("minute", "0"), field("second", "0")
+    fraction = f"regexp_extract({text}, {regex}, {fields.index('fraction') + 1})" if "fraction" in fields else "''"
+    millis = f"CAST(rpad(left({fraction}, 3), 3, '0') AS INTEGER)"
+    year_ok = f"{year} BETWEEN 1 AND 9999"
+    days = (
+        f"day(last_day(make_date(CASE WHEN {year_ok} THEN {year} ELSE 2000 END, least(greatest({month}, 1), 12), 1)))"
+    )
+    in_range = (
+        f"{month} BETWEEN 1 AND 12 AND {day} BETWEEN 1 AND {days} "
+        f"AND {hour} BETWEEN 0 AND 23 AND {minute} BETWEEN 0 AND 59 AND {second} BETWEEN 0 AND 59"
+    )
+    # DuckDB folds constant arguments even in a CASE branch not taken: out-of-range fields become 1
+    year, month, day = (f"CASE WHEN {year_ok} AND {in_range} THEN {f} ELSE 1 END" for f in (year, month, day))
+    stamp = f"make_timestamp({year}, {month}, {day}, {hour}, {minute}, {second}) + to_milliseconds({millis})"
+    quoted = f"'\"' || {text} || '\"'"
+    malformed, out_of_range = g.fail(f"'Invalid format: ' || {quoted}"), g.fail(f"'Cannot parse ' || {quoted}")
+    refused = g.fail(
+        tf.string("parse_datetime of a year outside 1..9999 is not supported in lakegate"), "NOT_SUPPORTED"
+    )
+    return (
+        f"CASE WHEN ({text}) IS NULL THEN NULL WHEN NOT regexp_full_match({text}, {regex}) THEN {malformed} "
+        f"WHEN NOT ({year_ok}) THEN {refused} WHEN NOT ({in_range}) THEN {out_of_range} "
+        f"ELSE timezone('UTC', {stamp}) END"
+    )
+
+
+register(
+    "parse_datetime",
+    "datetime",
+    "parse_datetime(string, format) -> timestamp(3) with time zone",
+    _parse_datetime,
+    _render_parse_datetime,
+    notes="A literal Joda-Time pattern of the number fields yyyy M d H m s S and literals; other fields are refused.",
+)

@@ -3000,7 +3000,6 @@ REJECTED: dict[str, str] = {
     "murmur3": "DuckDB has no 128-bit MurmurHash3",
     "spooky_hash_v2_32": "DuckDB has no SpookyHashV2",
     "word_stem": "language stemming not translated",
-    "soundex": "not translated",
     "uuid": "random UUIDs not translated",
     "color": "color functions are not available",
     "bar": "color functions are not available",

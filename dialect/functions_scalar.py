@@ -1740,3 +1740,39 @@ register(
     _render_parse_datetime,
     notes="A literal Joda-Time pattern of the number fields yyyy M d H m s S and literals; other fields are refused.",
 )
+
+
+# --- soundex (io.trino.util.Soundex, commons-codec's Soundex.US_ENGLISH) -------------------------
+_SOUNDEX_CODES = ("ABCDEFGHIJKLMNOPQRSTUVWXYZ", "01230120022455012623010202")
+
+
+def _render_soundex(g, node, args) -> str:
+    """Soundex.soundex over ASCII text: the letters upper-cased, the first kept; H and W after it
+    ignored completely; then each code that is not 0 (a vowel, which separates) and differs from the
+    one before, up to three, padded with 0; '' without letters. Non-ASCII text (Unicode letters and
+    upper-casing, or the error of an unmapped letter) is refused."""
+    value = g.sql(args[0])
+    letters = f"upper(regexp_replace({value}, '[^A-Za-z]', '', 'g'))"
+    kept = f"left({letters}, 1) || regexp_replace(substr({letters}, 2), '[HW]', '', 'g')"
+    code = 'substr("_c", "_i", 1)'
+    picked = (
+        f'list_filter(range(2, length("_c") + 1), lambda "_i": {code} <> \'0\' AND {code} <> substr("_c", "_i" - 1, 1))'
+    )
+    digits = f"array_to_string(list_transform({picked}, lambda \"_i\": {code}), '')"
+    codes = f'translate("_s", {tf.string(_SOUNDEX_CODES[0])}, {tf.string(_SOUNDEX_CODES[1])})'
+    encoded = f'list_transform([{codes}], lambda "_c": left("_s", 1) || rpad(left({digits}, 3), 3, \'0\'))[1]'
+    non_ascii = g.fail(tf.string("soundex of non-ASCII text is not supported in lakegate"), "NOT_SUPPORTED")
+    return (
+        f"CASE WHEN ({value}) IS NULL THEN NULL WHEN regexp_matches({value}, '[^\\x00-\\x7F]') THEN {non_ascii} "
+        f"WHEN {letters} = '' THEN '' ELSE list_transform([{kept}], lambda \"_s\": {encoded})[1] END"
+    )
+
+
+register(
+    "soundex",
+    "string",
+    "soundex(string) -> varchar(4)",
+    fixed(tt.varchar(4), "string"),
+    _render_soundex,
+    notes="ASCII text; non-ASCII text is refused.",
+)

@@ -10,13 +10,17 @@ function; each function has conformance cases in tests/dialect/cases/cov_*.yaml.
 from __future__ import annotations
 
 import re
+import re._parser as re_parser
 from collections.abc import Callable
+
+from sqlglot import exp
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import Call, ttype
 from lakegate.dialect.functions import (
     MAX_PAD_LENGTH,
+    capturing_groups,
     checked,
     fixed,
     literal_str,
@@ -1775,4 +1779,57 @@ register(
     fixed(tt.varchar(4), "string"),
     _render_soundex,
     notes="ASCII text; non-ASCII text is refused.",
+)
+
+
+# --- regexp_replace(string, pattern, function) (JoniRegexpReplaceLambdaFunction) ----------------
+def _regexp_replace_lambda(call: Call) -> TType | None:
+    """The lambda gets each match's capturing groups as array(varchar). Patterns that can match the
+    empty string (Joni then steps one code point on) or have a group that may not take part (Joni
+    passes NULL, DuckDB '') are refused."""
+    if len(call.args) != 3 or not isinstance(call.args[2], exp.Lambda):
+        return None
+    call.types[2] = call.lam(2, [tt.array(tt.VARCHAR)])  # the lambda's result stands for it in the checks
+    regexp_call(call, tt.VARCHAR, (3,), "string", "string", "string")
+    pattern = literal_str(call, 1)
+    if pattern is None:
+        call.fail("regexp_replace with a lambda needs a literal pattern in lakegate", "NOT_SUPPORTED")
+    try:
+        empty = re_parser.parse(pattern).getwidth()[0] == 0
+    except re.error:
+        call.fail(
+            f"regexp_replace with a lambda and the pattern '{pattern}' is not supported in lakegate", "NOT_SUPPORTED"
+        )
+    groups = capturing_groups(pattern)
+    if empty or any(optional for _, optional, _ in groups):
+        reason = "may match the empty string" if empty else "has a capturing group that may not take part in a match"
+        call.fail(f"regexp_replace with a lambda whose pattern {reason} is not supported in lakegate", "NOT_SUPPORTED")
+    call.node.meta["group_count"] = len(groups)
+    return tt.VARCHAR
+
+
+def _render_regexp_replace_lambda(g, node, args) -> str:
+    """The text between the matches (string_split_regex), each match's groups (regexp_extract_all)
+    through the lambda in between; a NULL replacement makes the result NULL."""
+    value, pattern = g.sql(args[0]), g.sql(args[1])
+    groups = ", ".join(
+        f'regexp_extract_all({value}, {pattern}, {k})["_i"]' for k in range(1, node.meta["group_count"] + 1)
+    )
+    matches = f"len(regexp_extract_all({value}, {pattern}))"
+    arrays = f'list_transform(range(1, {matches} + 1), lambda "_i": CAST([{groups}] AS VARCHAR[]))'
+    pieces = f"string_split_regex({value}, {pattern})"
+    between = f'list_transform(range(1, len("_r") + 1), lambda "_j": "_r"["_j"] || {pieces}["_j" + 1])'
+    joined = (
+        f'CASE WHEN len(list_filter("_r", lambda "_x": "_x" IS NULL)) > 0 THEN NULL '
+        f"ELSE {pieces}[1] || array_to_string({between}, '') END"
+    )
+    replaced = f"list_transform({arrays}, {g.lambda_(args[2])})"
+    return f'CASE WHEN ({value}) IS NULL THEN NULL ELSE list_transform([{replaced}], lambda "_r": {joined})[1] END'
+
+
+overload(
+    "regexp_replace",
+    _regexp_replace_lambda,
+    _render_regexp_replace_lambda,
+    "regexp_replace(string, pattern, function(array(varchar), varchar)) -> varchar",
 )

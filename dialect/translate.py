@@ -75,8 +75,9 @@ class _Parser(Trino.Parser):
     def _parse_normalize(self) -> exp.Expression:
         # NORMALIZE(value [, NFC | NFD | NFKC | NFKD]) (SqlBase.g4 #normalize): the form keyword is
         # the string argument AstBuilder.visitNormalize passes as written; anything else is a plain call.
-        args = [self._parse_lambda()]
-        if self._match(TokenType.COMMA):
+        value = self._parse_lambda()
+        args = [value] if value is not None else []
+        if value is not None and self._match(TokenType.COMMA):
             form = self._curr
             keyword = form and form.token_type not in (TokenType.STRING, TokenType.IDENTIFIER)
             if (

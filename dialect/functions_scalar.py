@@ -10,7 +10,10 @@ function; each function has conformance cases in tests/dialect/cases/cov_*.yaml.
 from __future__ import annotations
 
 import re
+import re._parser as re_parser
 from collections.abc import Callable
+
+from sqlglot import exp
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
@@ -18,6 +21,7 @@ from lakegate.dialect import zones
 from lakegate.dialect.analyze import Call, ttype
 from lakegate.dialect.functions import (
     MAX_PAD_LENGTH,
+    capturing_groups,
     checked,
     fixed,
     literal_str,
@@ -886,7 +890,7 @@ register(
     "normalize(string) -> varchar",
     fixed(tt.VARCHAR, "string"),
     lambda g, node, args: f"nfc_normalize({g.sql(args[0])})",
-    notes="The one-argument form (NFC); normalize(string, form) is not translated.",
+    notes="The form NFC (the default); NFD, NFKC and NFKD are refused.",
 )
 register(
     "index",
@@ -1576,4 +1580,238 @@ register(
     "format_number(number) -> varchar",
     fixed(tt.VARCHAR, "number"),
     _render_format_number,
+)
+
+
+# === issue 14 family 5, second part ===============================================================
+# --- normalize(string, form) (StringFunctions.normalize; AstBuilder.visitNormalize passes the form
+# keyword NFC | NFD | NFKC | NFKD as the string it is written as) ----------------------------------
+_NORMAL_FORMS = ("NFD", "NFC", "NFKD", "NFKC")
+
+
+def _normalize_form(call: Call) -> TType | None:
+    if len(call.args) != 2:
+        return None
+    need(call, "string", "string")
+    form = literal_str(call, 1)
+    if form is None and not call.types[1].is_unknown:
+        call.fail("normalize with a non-literal form is not supported in lakegate", "NOT_SUPPORTED")
+    if form in _NORMAL_FORMS and form != "NFC":
+        call.fail(f"normalize with the form {form} is not supported in lakegate (only NFC)", "NOT_SUPPORTED")
+    call.node.meta["normal_form"] = form
+    return tt.VARCHAR
+
+
+def _render_normalize_form(g, node, args) -> str:
+    """NFC is DuckDB's nfc_normalize; another form is Normalizer.Form.valueOf's error at run time
+    (a NULL argument gives NULL first)."""
+    value, form = g.sql(args[0]), node.meta["normal_form"]
+    if form is None:
+        return "CAST(NULL AS VARCHAR)"
+    if form == "NFC":
+        return f"nfc_normalize({value})"
+    message = tf.string("Normalization form must be one of [NFD, NFC, NFKD, NFKC]")
+    return f"CASE WHEN ({value}) IS NULL THEN NULL ELSE {g.fail(message)} END"
+
+
+overload("normalize", _normalize_form, _render_normalize_form, "normalize(string, form) -> varchar")
+
+
+# --- parse_datetime (DateTimeFunctions.parseDatetime: Joda-Time DateTimeFormat.forPattern(format)
+# .parseDateTime in the session zone, UTC) ---------------------------------------------------------
+#: Pattern letter -> (field, the most digits Joda's DateTimeFormat.parsePatternTo lets it read),
+#: for the number fields lakegate parses (yyyy appendYear(n, 9) is signed; the others unsigned).
+_JODA_PARSED = {
+    "y": ("year", 9),
+    "M": ("month", 2),
+    "d": ("day", 2),
+    "H": ("hour", 2),
+    "m": ("minute", 2),
+    "s": ("second", 2),
+    "S": ("fraction", 9),
+}
+_JODA_LETTERS = "GCYxweEyDMdaKhHkmsSzZ"
+
+
+def _joda_parser(call: Call, pattern: str) -> tuple[str, list[str]] | str:
+    """The full-match regex and its groups' fields for `pattern`, or Joda's error message for an
+    invalid one. Joda reads a number greedily and never backtracks, so a number field next to
+    another or to literal digits is refused (a regex could split the digits otherwise)."""
+    if not pattern:
+        return "Invalid pattern specification"
+    regex, fields, previous = [], [], None
+    for kind, text in _joda_tokens(pattern):
+        if kind == "text":
+            if previous == "letter" and text[:1].isdigit():
+                call.fail(
+                    "parse_datetime with digits right after a number field is not supported in lakegate",
+                    "NOT_SUPPORTED",
+                )
+            literal = re.escape(text)
+            regex.append(f"(?i:{literal})" if any(c.isalpha() for c in text) else literal)
+        elif text[0] not in _JODA_LETTERS:
+            return f"Illegal pattern component: {text}"
+        elif text[0] not in _JODA_PARSED or (text[0] == "y" and len(text) == 2) or (text[0] == "M" and len(text) > 2):
+            call.fail(f"parse_datetime with the pattern field '{text}' is not supported in lakegate", "NOT_SUPPORTED")
+        elif previous == "letter":
+            call.fail("parse_datetime with adjacent number fields is not supported in lakegate", "NOT_SUPPORTED")
+        else:
+            field, digits = _JODA_PARSED[text[0]]
+            regex.append(f"({'[-+]?' if field == 'year' else ''}[0-9]{{1,{max(digits, len(text))}}})")
+            fields.append(field)
+        previous = kind
+    return "".join(regex), fields
+
+
+def _parse_datetime(call: Call) -> TType:
+    need(call, "string", "string")
+    pattern = literal_str(call, 1)
+    if pattern is None and not call.types[1].is_unknown:
+        call.fail("parse_datetime with a non-literal format is not supported in lakegate", "NOT_SUPPORTED")
+    call.node.meta["joda_parser"] = None if pattern is None else _joda_parser(call, pattern)
+    return tt.timestamp(3, True, call.analyzer.time_zone)  # Joda's chronology of the session zone
+
+
+def _render_parse_datetime(g, node, args) -> str:
+    """Joda's parseDateTime in the session zone: the whole text must match (literals ignore case);
+    fields missing from the pattern are 1970-01-01 00:00:00.000; a fraction is cut to milliseconds;
+    then each field must be in range, and the wall time must exist in the zone (Joda fails in a
+    daylight-saving gap). Years outside 1..9999 are refused."""
+    text, parser = g.sql(args[0]), node.meta["joda_parser"]
+    if parser is None:
+        return "CAST(NULL AS TIMESTAMPTZ)"
+    if isinstance(parser, str):
+        return f"CASE WHEN ({text}) IS NULL THEN NULL ELSE {g.fail(tf.string(parser))} END"
+    regex, fields = tf.string(parser[0]), parser[1]
+
+    def field(name: str, default: str) -> str:
+        if name not in fields:
+            return default
+        return f"TRY_CAST(regexp_extract({text}, {regex}, {fields.index(name) + 1}) AS INTEGER)"
+
+    year, month, day = field("year", "1970"), field("month", "1"), field("day", "1")
+    hour, minute, second = field("hour", "0"), field("minute", "0"), field("second", "0")
+    fraction = f"regexp_extract({text}, {regex}, {fields.index('fraction') + 1})" if "fraction" in fields else "''"
+    millis = f"CAST(rpad(left({fraction}, 3), 3, '0') AS INTEGER)"
+    year_ok = f"{year} BETWEEN 1 AND 9999"
+    days = (
+        f"day(last_day(make_date(CASE WHEN {year_ok} THEN {year} ELSE 2000 END, least(greatest({month}, 1), 12), 1)))"
+    )
+    in_range = (
+        f"{month} BETWEEN 1 AND 12 AND {day} BETWEEN 1 AND {days} "
+        f"AND {hour} BETWEEN 0 AND 23 AND {minute} BETWEEN 0 AND 59 AND {second} BETWEEN 0 AND 59"
+    )
+    # DuckDB folds constant arguments even in a CASE branch not taken: out-of-range fields become 1
+    year, month, day = (f"CASE WHEN {year_ok} AND {in_range} THEN {f} ELSE 1 END" for f in (year, month, day))
+    stamp = f"make_timestamp({year}, {month}, {day}, {hour}, {minute}, {second}) + to_milliseconds({millis})"
+    zone = tt.zone_of(ttype(node))
+    instant = zones.instant(stamp, zone)
+    quoted = f"'\"' || {text} || '\"'"
+    malformed, out_of_range = g.fail(f"'Invalid format: ' || {quoted}"), g.fail(f"'Cannot parse ' || {quoted}")
+    refused = g.fail(
+        tf.string("parse_datetime of a year outside 1..9999 is not supported in lakegate"), "NOT_SUPPORTED"
+    )
+    return (
+        f"CASE WHEN ({text}) IS NULL THEN NULL WHEN NOT regexp_full_match({text}, {regex}) THEN {malformed} "
+        f"WHEN NOT ({year_ok}) THEN {refused} WHEN NOT ({in_range}) THEN {out_of_range} "
+        f"WHEN {zones.local(instant, zone)} <> {stamp} THEN {out_of_range} ELSE {instant} END"
+    )
+
+
+register(
+    "parse_datetime",
+    "datetime",
+    "parse_datetime(string, format) -> timestamp(3) with time zone",
+    _parse_datetime,
+    _render_parse_datetime,
+    notes="A literal Joda-Time pattern of the number fields yyyy M d H m s S and literals; other fields are refused.",
+)
+
+
+# --- soundex (io.trino.util.Soundex, commons-codec's Soundex.US_ENGLISH) -------------------------
+_SOUNDEX_CODES = ("ABCDEFGHIJKLMNOPQRSTUVWXYZ", "01230120022455012623010202")
+
+
+def _render_soundex(g, node, args) -> str:
+    """Soundex.soundex over ASCII text: the letters upper-cased, the first kept; H and W after it
+    ignored completely; then each code that is not 0 (a vowel, which separates) and differs from the
+    one before, up to three, padded with 0; '' without letters. Non-ASCII text (Unicode letters and
+    upper-casing, or the error of an unmapped letter) is refused."""
+    value = g.sql(args[0])
+    letters = f"upper(regexp_replace({value}, '[^A-Za-z]', '', 'g'))"
+    kept = f"left({letters}, 1) || regexp_replace(substr({letters}, 2), '[HW]', '', 'g')"
+    code = 'substr("_c", "_i", 1)'
+    picked = (
+        f'list_filter(range(2, length("_c") + 1), lambda "_i": {code} <> \'0\' AND {code} <> substr("_c", "_i" - 1, 1))'
+    )
+    digits = f"array_to_string(list_transform({picked}, lambda \"_i\": {code}), '')"
+    codes = f'translate("_s", {tf.string(_SOUNDEX_CODES[0])}, {tf.string(_SOUNDEX_CODES[1])})'
+    encoded = f'list_transform([{codes}], lambda "_c": left("_s", 1) || rpad(left({digits}, 3), 3, \'0\'))[1]'
+    non_ascii = g.fail(tf.string("soundex of non-ASCII text is not supported in lakegate"), "NOT_SUPPORTED")
+    return (
+        f"CASE WHEN ({value}) IS NULL THEN NULL WHEN regexp_matches({value}, '[^\\x00-\\x7F]') THEN {non_ascii} "
+        f"WHEN {letters} = '' THEN '' ELSE list_transform([{kept}], lambda \"_s\": {encoded})[1] END"
+    )
+
+
+register(
+    "soundex",
+    "string",
+    "soundex(string) -> varchar(4)",
+    fixed(tt.varchar(4), "string"),
+    _render_soundex,
+    notes="ASCII text; non-ASCII text is refused.",
+)
+
+
+# --- regexp_replace(string, pattern, function) (JoniRegexpReplaceLambdaFunction) ----------------
+def _regexp_replace_lambda(call: Call) -> TType | None:
+    """The lambda gets each match's capturing groups as array(varchar). Patterns that can match the
+    empty string (Joni then steps one code point on) or have a group that may not take part (Joni
+    passes NULL, DuckDB '') are refused."""
+    if len(call.args) != 3 or not isinstance(call.args[2], exp.Lambda):
+        return None
+    call.types[2] = call.lam(2, [tt.array(tt.VARCHAR)])  # the lambda's result stands for it in the checks
+    regexp_call(call, tt.VARCHAR, (3,), "string", "string", "string")
+    pattern = literal_str(call, 1)
+    if pattern is None:
+        call.fail("regexp_replace with a lambda needs a literal pattern in lakegate", "NOT_SUPPORTED")
+    try:
+        empty = re_parser.parse(pattern).getwidth()[0] == 0
+    except re.error:
+        call.fail(
+            f"regexp_replace with a lambda and the pattern '{pattern}' is not supported in lakegate", "NOT_SUPPORTED"
+        )
+    groups = capturing_groups(pattern)
+    if empty or any(optional for _, optional, _ in groups):
+        reason = "may match the empty string" if empty else "has a capturing group that may not take part in a match"
+        call.fail(f"regexp_replace with a lambda whose pattern {reason} is not supported in lakegate", "NOT_SUPPORTED")
+    call.node.meta["group_count"] = len(groups)
+    return tt.VARCHAR
+
+
+def _render_regexp_replace_lambda(g, node, args) -> str:
+    """The text between the matches (string_split_regex), each match's groups (regexp_extract_all)
+    through the lambda in between; a NULL replacement makes the result NULL."""
+    value, pattern = g.sql(args[0]), g.sql(args[1])
+    groups = ", ".join(
+        f'regexp_extract_all({value}, {pattern}, {k})["_i"]' for k in range(1, node.meta["group_count"] + 1)
+    )
+    matches = f"len(regexp_extract_all({value}, {pattern}))"
+    arrays = f'list_transform(range(1, {matches} + 1), lambda "_i": CAST([{groups}] AS VARCHAR[]))'
+    pieces = f"string_split_regex({value}, {pattern})"
+    between = f'list_transform(range(1, len("_r") + 1), lambda "_j": "_r"["_j"] || {pieces}["_j" + 1])'
+    joined = (
+        f'CASE WHEN len(list_filter("_r", lambda "_x": "_x" IS NULL)) > 0 THEN NULL '
+        f"ELSE {pieces}[1] || array_to_string({between}, '') END"
+    )
+    replaced = f"list_transform({arrays}, {g.lambda_(args[2])})"
+    return f'CASE WHEN ({value}) IS NULL THEN NULL ELSE list_transform([{replaced}], lambda "_r": {joined})[1] END'
+
+
+overload(
+    "regexp_replace",
+    _regexp_replace_lambda,
+    _render_regexp_replace_lambda,
+    "regexp_replace(string, pattern, function(array(varchar), varchar)) -> varchar",
 )

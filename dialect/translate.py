@@ -73,6 +73,26 @@ class _Parser(Trino.Parser):
             "JSON_TABLE",
         )
     }
+    FUNCTION_PARSERS["NORMALIZE"] = lambda self: self._parse_normalize()
+
+    def _parse_normalize(self) -> exp.Expression:
+        # NORMALIZE(value [, NFC | NFD | NFKC | NFKD]) (SqlBase.g4 #normalize): the form keyword is
+        # the string argument AstBuilder.visitNormalize passes as written; anything else is a plain call.
+        value = self._parse_lambda()
+        args = [value] if value is not None else []
+        if value is not None and self._match(TokenType.COMMA):
+            form = self._curr
+            keyword = form and form.token_type not in (TokenType.STRING, TokenType.IDENTIFIER)
+            if (
+                keyword
+                and form.text.upper() in ("NFC", "NFD", "NFKC", "NFKD")
+                and self._next.token_type == TokenType.R_PAREN
+            ):
+                self._advance()
+                args.append(exp.Literal.string(form.text))
+            else:
+                args.extend(self._parse_csv(self._parse_lambda))
+        return exp.Anonymous(this="normalize", expressions=args)
 
     def _parse_types(self, check_func: bool = False, **kwargs):
         # In a Trino expression a type name is only ever followed by a string (DATE '2024-01-01'; SqlBase.g4

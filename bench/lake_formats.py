@@ -20,8 +20,9 @@ filter); find the files of one batch (the format's own metadata) and read them w
 (`read_parquet` of the list: the same reader for all); `count(*)` of the table from metadata
 alone (the record's row counts, Delta's add actions, Iceberg's snapshot summary); the number of
 files (data and metadata) on disk; and for Delta its `optimize.compact()`, then a batch read and a
-job's replace again (pyiceberg has no compaction). A format whose package is missing is skipped with a message (they are in the
-optional `bench` extra: `pip install -e .[bench]`). Writes section "Lake formats" of bench/RESULTS.md.
+job's replace again (pyiceberg has no compaction). A format whose package is missing is skipped with a
+message (they are in the optional `bench` extra: `pip install -e .[bench]`). Writes section "Lake formats"
+of bench/RESULTS.md.
 """
 
 from __future__ import annotations

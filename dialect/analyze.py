@@ -254,7 +254,8 @@ class Analyzer:
             {"timestamp", "timestamp_tz"},
         ):
             self.unsupported(
-                f"{what} in the session zone {self.time_zone} (a timestamp with time zone and a {a.base if a.base != 'timestamp_tz' else b.base})",
+                f"{what} in the session zone {self.time_zone} "
+                f"(a timestamp with time zone and a {a.base if a.base != 'timestamp_tz' else b.base})",
                 node,
             )
 
@@ -1433,7 +1434,8 @@ _ZONE_SUFFIX = re.compile(
 def _cast_zone(a: Analyzer, node: exp.Cast, source: TType) -> str | None:
     """The zone of a value cast to timestamp with time zone: a timestamp with time zone keeps its own,
     a text literal has the zone it names (its wall time is kept in node.meta["local"]), anything else
-    takes the session zone (io.trino.type.TimestampToTimestampWithTimeZoneCast, DateTimes.parseTimestampWithTimeZone)."""
+    takes the session zone (io.trino.type.TimestampToTimestampWithTimeZoneCast,
+    DateTimes.parseTimestampWithTimeZone)."""
     if source.base == "timestamp_tz":
         return tt.zone_of(source)
     if source.base != "varchar":

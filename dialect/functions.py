@@ -697,7 +697,7 @@ def _format_parts(call: Call | None, fmt: str, types: list[TType]) -> list:
             parts.append("\n")
             continue
 
-        def reject(why: str):
+        def reject(why: str, match=match, column=column):
             if call is not None:
                 call.fail(
                     f"unsupported in lakegate: format specifier '{match.group(0)}' at position {column} "
@@ -825,7 +825,10 @@ def java_double(sql: str, duck: str = "DOUBLE") -> str:
     text = f"CAST(abs({value}) AS VARCHAR)"
     digits = f"regexp_replace(replace(split_part({text}, 'e', 1), '.', ''), '^0+|0+$', '', 'g')"
     exponent = f"CAST(split_part(format('{{:.16e}}', CAST(abs({value}) AS DOUBLE)), 'e', 2) AS INTEGER)"
-    scientific = f"left({digits}, 1) || '.' || coalesce(nullif(substr({digits}, 2), ''), '0') || 'E' || CAST({exponent} AS VARCHAR)"
+    scientific = (
+        f"left({digits}, 1) || '.' || coalesce(nullif(substr({digits}, 2), ''), '0') || 'E' || "
+        f"CAST({exponent} AS VARCHAR)"
+    )
     plain_big = (
         f"rpad({digits}, CAST(greatest({exponent} + 1, length({digits})) AS INTEGER), '0')[1:{exponent} + 1] || '.' || "
         f"coalesce(nullif(substr({digits}, {exponent} + 2), ''), '0')"
@@ -2398,7 +2401,10 @@ def _indeterminate(sql: str, t: TType, depth: int = 0) -> str:
     """SQL that is true when an array or row value holds a NULL at any depth (Trino's INDETERMINATE)."""
     if t.base == "array":
         z = f'"_k{depth}"'
-        return f"coalesce(list_bool_or(list_transform({sql}, lambda {z}: {z} IS NULL OR {_indeterminate(z, t.element, depth + 1)})), false)"
+        return (
+            f"coalesce(list_bool_or(list_transform({sql}, lambda {z}: "
+            f"{z} IS NULL OR {_indeterminate(z, t.element, depth + 1)})), false)"
+        )
     if t.base == "row":
         fields = [f"struct_extract_at({sql}, {i + 1})" for i in range(len(t.args))]
         return (
@@ -2648,7 +2654,8 @@ def _render_date_add(g, node, args) -> str:
     interval = (
         f"to_months(3 * CAST({amount} AS INTEGER))"
         if unit == "quarter"
-        else f"{_INTERVAL_OF[unit]}(CAST({amount} AS {'INTEGER' if unit in ('month', 'year', 'week', 'day') else 'BIGINT'}))"
+        else f"{_INTERVAL_OF[unit]}"
+        f"(CAST({amount} AS {'INTEGER' if unit in ('month', 'year', 'week', 'day') else 'BIGINT'}))"
     )
     t = ttype(node)
     if t.base == "timestamp_tz" and unit in _DATE_UNITS:  # calendar units in the value's zone
@@ -3001,7 +3008,8 @@ def _render_to_iso8601(g, node, args) -> str:
     minutes = f"(CAST(epoch({zones.local(sql, zone)}) - epoch({zones.local(sql, zones.UTC)}) AS BIGINT) // 60)"
     offset = (
         f"CASE WHEN {minutes} = 0 THEN 'Z' ELSE CASE WHEN {minutes} < 0 THEN '-' ELSE '+' END || "
-        f"lpad(CAST(abs({minutes}) // 60 AS VARCHAR), 2, '0') || ':' || lpad(CAST(abs({minutes}) % 60 AS VARCHAR), 2, '0') END"
+        f"lpad(CAST(abs({minutes}) // 60 AS VARCHAR), 2, '0') || ':' || "
+        f"lpad(CAST(abs({minutes}) % 60 AS VARCHAR), 2, '0') END"
     )
     return f"({text} || {offset})"
 

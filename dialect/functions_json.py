@@ -194,7 +194,8 @@ def _render_json_size(g, node, args) -> str:
     value, path = _text(g, args[0]), g.sql(args[1])
     kind = f"json_type({value}, {path})"
     return (
-        f"CASE WHEN {kind} IS NULL THEN NULL WHEN {kind} = 'ARRAY' THEN CAST(json_array_length({value}, {path}) AS BIGINT) "
+        f"CASE WHEN {kind} IS NULL THEN NULL "
+        f"WHEN {kind} = 'ARRAY' THEN CAST(json_array_length({value}, {path}) AS BIGINT) "
         f"WHEN {kind} = 'OBJECT' THEN CAST(len(json_keys({value}, {path})) AS BIGINT) ELSE CAST(0 AS BIGINT) END"
     )
 
@@ -316,8 +317,8 @@ def _sql_json_path(a, node: exp.Expression, function: str, path: exp.Expression)
     match = _SQL_JSON_PATH.fullmatch(text) if text is not None else None
     if match is None:
         a.unsupported(
-            f"JSON path {path.sql(dialect='trino')} in function '{function}' (lakegate translates lax or strict paths of "
-            "member and [index] accessors)",
+            f"JSON path {path.sql(dialect='trino')} in function '{function}' "
+            "(lakegate translates lax or strict paths of member and [index] accessors)",
             node,
         )
     steps = []
@@ -552,7 +553,8 @@ def json_query(g, node: exp.JSONExtract) -> str:
     item = '"_r"'
     kind = f"json_type({item})"
     text = (
-        f"CASE WHEN regexp_matches({jv.without_strings(item)}, '[0-9][.eE]') THEN error({tf.string(_UNSURE_ITEM)}) "
+        f"CASE WHEN regexp_matches({jv.without_strings(item)}, '[0-9][.eE]') "
+        f"THEN error({tf.string(_UNSURE_ITEM)}) "
         f"WHEN {_repeated_key(item)} THEN error({tf.string(_REPEATED_ITEM_KEY)}) ELSE {item} END"
     )
     if node.meta["omit"]:

@@ -411,7 +411,10 @@ _BASE32 = "ABCDEFGHIJKLMNOPQRSTUVWXYZ234567"
 def _render_to_base32(g, node, args) -> str:
     value = g.sql(args[0])
     nibbles = f"regexp_extract_all(hex({value}), '.')"
-    bits = f"array_to_string(list_transform({nibbles}, lambda \"_h\": lpad(bin(CAST('0x' || \"_h\" AS INTEGER)), 4, '0')), '')"
+    bits = (
+        f"array_to_string(list_transform({nibbles}, "
+        "lambda \"_h\": lpad(bin(CAST('0x' || \"_h\" AS INTEGER)), 4, '0')), '')"
+    )
     padded = f"rpad({bits}, CAST(ceil(length({bits}) / 5) * 5 AS INTEGER), '0')"
     chars = (
         f'list_transform(range(0, length({padded}) // 5), lambda "_i": '
@@ -847,7 +850,10 @@ def _render_luhn_check(g, node, args) -> str:
     (minus 9 past 9), the sum divisible by 10."""
     text = g.sql(args[0])
     digit = f'CAST(substr(reverse({text}), "_i", 1) AS INTEGER)'
-    term = f'CASE WHEN "_i" % 2 = 0 THEN CASE WHEN {digit} * 2 > 9 THEN {digit} * 2 - 9 ELSE {digit} * 2 END ELSE {digit} END'
+    term = (
+        f'CASE WHEN "_i" % 2 = 0 THEN CASE WHEN {digit} * 2 > 9 THEN {digit} * 2 - 9 ELSE {digit} * 2 END '
+        f"ELSE {digit} END"
+    )
     total = f'list_sum(list_transform(range(1, length({text}) + 1), lambda "_i": {term}))'
     return (
         f"CASE WHEN {text} IS NULL THEN NULL WHEN {text} = '' THEN false "
@@ -952,7 +958,10 @@ def _render_parse_duration(g, node, args) -> str:
     """io.airlift.units.Duration.valueOf(text).toMillis(): a decimal number, optional whitespace and a
     unit; the milliseconds are floor(value * millis-per-unit + 0.5)."""
     text = g.sql(args[0])
-    pattern = f"[ \\t\\n\\x0B\\f\\r]*([0-9]+([.][0-9]+)?)[ \\t\\n\\x0B\\f\\r]*({'|'.join(_DURATION_MILLIS)})[ \\t\\n\\x0B\\f\\r]*"
+    pattern = (
+        "[ \\t\\n\\x0B\\f\\r]*([0-9]+([.][0-9]+)?)[ \\t\\n\\x0B\\f\\r]*"
+        f"({'|'.join(_DURATION_MILLIS)})[ \\t\\n\\x0B\\f\\r]*"
+    )
     number = f"CAST(regexp_extract({text}, {tf.string(pattern)}, 1) AS DOUBLE)"
     unit = f"regexp_extract({text}, {tf.string(pattern)}, 3)"
     factor = "CASE " + " ".join(f"WHEN {unit} = '{u}' THEN {m}" for u, m in _DURATION_MILLIS.items()) + " END"
@@ -1488,7 +1497,8 @@ def _render_teradata_parse(g, node, args) -> str:
     hour, minute, second = field("hour", "0"), field("minute", "0"), field("second", "0")
     halfday = any(t == "hh" for _, t in tokens)
     checks = (
-        f"{month} BETWEEN 1 AND 12 AND {day} BETWEEN 1 AND day(last_day(make_date({year}, least(greatest({month}, 1), 12), 1))) "
+        f"{month} BETWEEN 1 AND 12 "
+        f"AND {day} BETWEEN 1 AND day(last_day(make_date({year}, least(greatest({month}, 1), 12), 1))) "
         f"AND {hour} BETWEEN 0 AND {11 if halfday else 23} AND {minute} BETWEEN 0 AND 59 AND {second} BETWEEN 0 AND 59"
     )
     # DuckDB folds constant arguments even in a CASE branch not taken: out-of-range fields become 1
@@ -1543,11 +1553,17 @@ def _half_up_text(value: str, digits: int) -> str:
     shifted right by s, plus one when the bits shifted out are at least half."""
     a = f"abs({value})"
     e = f"CAST(floor(log2({a})) AS INTEGER)"
-    e = f"({e} - CASE WHEN pow(2.0, {e}) > {a} THEN 1 ELSE 0 END + CASE WHEN pow(2.0, {e} + 1) <= {a} THEN 1 ELSE 0 END)"
+    e = (
+        f"({e} - CASE WHEN pow(2.0, {e}) > {a} THEN 1 ELSE 0 END "
+        f"+ CASE WHEN pow(2.0, {e} + 1) <= {a} THEN 1 ELSE 0 END)"
+    )
     shift = f"(52 - {e})"
     scaled = f"(CAST({a} * pow(2.0, {shift}) AS HUGEINT) * {10**digits})"
     kept = f"({scaled} >> {shift})"
-    rounded = f"({kept} + CASE WHEN 2 * ({scaled} - ({kept} << {shift})) >= (CAST(1 AS HUGEINT) << {shift}) THEN 1 ELSE 0 END)"
+    rounded = (
+        f"({kept} + CASE WHEN 2 * ({scaled} - ({kept} << {shift})) >= (CAST(1 AS HUGEINT) << {shift}) "
+        "THEN 1 ELSE 0 END)"
+    )
     if digits == 0:
         text = f"CAST({rounded} AS VARCHAR)"
     else:

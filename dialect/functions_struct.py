@@ -783,7 +783,10 @@ def _render_split_to_map(g, node, args) -> str:
     keys = f'list_transform("_r", lambda {_E}: {_KEY})'
     problems = f'list_transform("_r", lambda {_E}, "_i": coalesce(struct_extract_at({_E}, 3), '
     if node.name.lower() == "split_to_map":
-        problems += f"CASE WHEN list_position({keys}, {_KEY}) < \"_i\" THEN 'Duplicate keys (' || {_KEY} || ') are not allowed' END))"
+        problems += (
+            f'CASE WHEN list_position({keys}, {_KEY}) < "_i" '
+            f"THEN 'Duplicate keys (' || {_KEY} || ') are not allowed' END))"
+        )
         result = f'map_from_entries(list_transform("_r", lambda {_E}: row({_KEY}, {_VALUE})))'
     else:
         problems += "NULL))"
@@ -799,7 +802,9 @@ register(
     "split_to_map(string, entryDelimiter, keyValueDelimiter) -> map(varchar, varchar)",
     _split_to_map,
     _render_split_to_map,
-    notes="Errors as Trino: empty or equal delimiters, an entry without exactly one key-value delimiter, a repeated key.",
+    notes=(
+        "Errors as Trino: empty or equal delimiters, an entry without exactly one key-value delimiter, a repeated key."
+    ),
 )
 register(
     "split_to_multimap",

@@ -7,7 +7,8 @@ Every problem is appended to a shared list; nothing here raises for bad input. W
 is stricter than ReSim on purpose (an unknown key, a name YAML reads as a number or boolean, a
 key its template type does not use) the finding is a warning, with what lakegate does instead
 (the key is ignored, the name read as its text), and the file still loads; a reader without a
-warnings list (lakegate's own formats) reports it as a problem. The dashboard edits configs with the same library (round-trip mode), so what it writes reads back the same.
+warnings list (lakegate's own formats) reports it as a problem. The dashboard edits configs with
+the same library (round-trip mode), so what it writes reads back the same.
 """
 
 from __future__ import annotations

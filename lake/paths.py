@@ -93,7 +93,8 @@ def encode_branch(name: str) -> str:
     segment = "".join(parts)
     if len(segment) > _MAX_SEGMENT:
         raise LakePathError(
-            f"branch name {name[:40]!r}... is too long for the lake ({len(segment)} bytes encoded, at most {_MAX_SEGMENT})"
+            f"branch name {name[:40]!r}... is too long for the lake "
+            f"({len(segment)} bytes encoded, at most {_MAX_SEGMENT})"
         )
     return segment
 

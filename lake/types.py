@@ -178,8 +178,8 @@ def check_value(field_type: str, value: Any) -> Any:
     Rules: int takes integers (not bool); float takes integers or finite floats (not
     bool); boolean only bool; string/status/image/video a str; string[] a list of str;
     metric[] a list of metric objects (name, type scalar|text|image|plotly, value,
-    optional description and status; other keys are kept as JSON text in `extra`). None is never accepted, nor a string holding a lone
-    surrogate (it has no UTF-8 form).
+    optional description and status; other keys are kept as JSON text in `extra`). None is never
+    accepted, nor a string holding a lone surrogate (it has no UTF-8 form).
     """
     if field_type == "int":
         if isinstance(value, bool) or not isinstance(value, Integral):

@@ -162,7 +162,8 @@ class DashboardState:
         )
         return (
             '<!DOCTYPE html>\n<html lang="en">\n<head><meta charset="utf-8"><title>lakegate · trends</title></head>\n'
-            f"<body>\n<h1>Trends: dashboard metrics of each branch</h1>\n<ul>{items or '<li>no branches yet</li>'}</ul>\n"
+            "<body>\n<h1>Trends: dashboard metrics of each branch</h1>\n"
+            f"<ul>{items or '<li>no branches yet</li>'}</ul>\n"
             '<p><a href="../">Batches: the metrics dashboard</a></p>\n</body>\n</html>\n'
         )
 
@@ -187,7 +188,8 @@ def attachment(filename: str) -> str:
 def _error_page(message: str) -> str:
     return (
         '<!DOCTYPE html>\n<html lang="en">\n<head><meta charset="utf-8"><title>lakegate · trends</title></head>\n'
-        f'<body>\n<h1>Cannot show the trends</h1>\n<p>{html.escape(message)}</p>\n<p><a href="./">All branches</a></p>\n'
+        f"<body>\n<h1>Cannot show the trends</h1>\n<p>{html.escape(message)}</p>\n"
+        '<p><a href="./">All branches</a></p>\n'
         "</body>\n</html>\n"
     )
 

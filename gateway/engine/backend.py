@@ -137,7 +137,7 @@ def hide_paths(text: str, *roots: Path | str | None, keep_width: bool = False) -
         if root is not None:
             root = str(root).rstrip("/")
             pad = " " * (len(root) + 1) if keep_width else ""
-            text = re.sub(re.escape(root + "/") + r"(\S*)", lambda match: match.group(1) + pad, text)
+            text = re.sub(re.escape(root + "/") + r"(\S*)", lambda match, pad=pad: match.group(1) + pad, text)
             text = re.sub(re.escape(root) + r"(?![\w.-])", os.path.basename(root), text)
     return text
 

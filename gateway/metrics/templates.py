@@ -540,7 +540,9 @@ def _state_timeline(result: _Result) -> Rendered:
                 "x": [],
                 "base": [],
                 "customdata": [],
-                "hovertemplate": "%{y}: %{fullData.name}<br>%{customdata[0]:.3f} s to %{customdata[1]:.3f} s<extra></extra>",
+                "hovertemplate": (
+                    "%{y}: %{fullData.name}<br>%{customdata[0]:.3f} s to %{customdata[1]:.3f} s<extra></extra>"
+                ),
             },
         )
         trace["y"].append(system)

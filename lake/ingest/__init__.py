@@ -12,8 +12,9 @@ How lines are checked (fast and exact):
 
 * Files are read in blocks of whole lines (memory stays bounded), worked on by a few
   threads. A line longer than `MAX_LINE_BYTES` (16 MiB) is refused without being held
-  whole, and one nested deeper than `MAX_JSON_DEPTH` (256) before it is parsed. Each line's topic is guessed from its text (`{"$metadata": {"topic": "NAME"`
-  as the Emitter writes it, or a looser pattern), and lines are grouped by topic.
+  whole, and one nested deeper than `MAX_JSON_DEPTH` (256) before it is parsed. Each line's
+  topic is guessed from its text (`{"$metadata": {"topic": "NAME"` as the Emitter writes it,
+  or a looser pattern), and lines are grouped by topic.
 * Lines exactly in the Emitter's layout (`{"$metadata": {"topic": T, "timestamp": DIGITS},
   "$data": {...}}`, checked with numpy on the bytes) only need their `$data` object
   parsed; other lines are parsed whole. Either way Arrow's JSON reader parses a topic's

@@ -133,7 +133,8 @@ def kinds_config(folder: Path, where: str, skip: bool) -> Path:
         template = "template_type: custom, template_file: xy.liquid" if kind == "custom" else f"template: {kind}"
         skipping = ", skip_if_no_data: true" if skip else ""
         metrics.append(
-            f'  K {kind}: {{type: test, query_string: "{select} FROM drive {where}", {template}, unit: u{kind}{skipping}}}'
+            f'  K {kind}: {{type: test, query_string: "{select} FROM drive {where}", '
+            f"{template}, unit: u{kind}{skipping}}}"
         )
     path = folder / "kinds.resim.yaml"
     path.write_text(topics + "\nmetrics:\n" + "\n".join(metrics) + "\n")

@@ -201,8 +201,8 @@ def test_a_derived_table_does_not_see_its_siblings():
         ((), "SELECT count(*) FROM odom", [(0,)]),  # no batches: no rows
         (
             ("b1", "b2"),
-            "SELECT m.batch_id, count(*) FROM odom o JOIN metadata m ON o.batch_id = m.batch_id AND o.job_id = m.job_id "
-            "GROUP BY 1 ORDER BY 1",
+            "SELECT m.batch_id, count(*) FROM odom o "
+            "JOIN metadata m ON o.batch_id = m.batch_id AND o.job_id = m.job_id GROUP BY 1 ORDER BY 1",
             [("b1", 8), ("b2", 1)],
         ),
         (("b2", "nope"), "WITH odom AS (SELECT 42 AS x) SELECT x FROM odom", [(42,)]),  # a CTE still shadows

@@ -115,7 +115,9 @@ def test_schema_speaks_trino_and_views_match_it(tmp_path):
         "b": "boolean",
         "s": "varchar",
         "tags": "array(varchar)",
-        "metrics": "array(row(name varchar, description varchar, status varchar, type varchar, value varchar, extra varchar))",
+        "metrics": (
+            "array(row(name varchar, description varchar, status varchar, type varchar, value varchar, extra varchar))"
+        ),
         "experience_name": "varchar",
         "build_version": "varchar",
         "batch_id": "varchar",
@@ -154,7 +156,8 @@ def test_schema_speaks_trino_and_views_match_it(tmp_path):
             if trino.startswith("array(row"):
                 assert (
                     row[1].replace('"', "")
-                    == "STRUCT(name VARCHAR, description VARCHAR, status VARCHAR, type VARCHAR, value VARCHAR, extra VARCHAR)[]"
+                    == "STRUCT(name VARCHAR, description VARCHAR, status VARCHAR, type VARCHAR, "
+                    "value VARCHAR, extra VARCHAR)[]"
                 )
             else:
                 assert row[1] == duck[trino], (table, name)

@@ -35,10 +35,11 @@ from results import median_of, timed, write_section  # noqa: E402
 from lakegate.dialect import translate as translate_module  # noqa: E402
 from lakegate.dialect.scope import Scope  # noqa: E402
 from lakegate.gateway.engine.backend import BATCH_ROWS, DuckDBBackend  # noqa: E402
+from lakegate.lake import paths  # noqa: E402
 from lakegate.lake.catalog import Catalog  # noqa: E402
 from lakegate.lake.config import load_config  # noqa: E402
 from lakegate.lake.ingest import ingest_job  # noqa: E402
-from lakegate.lake.record import current_file  # noqa: E402
+from lakegate.lake.record import Change, current_file  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 WORK = ROOT / "bench" / ".work" / "translate"
@@ -76,7 +77,8 @@ EXECUTION = [
 
 def build_lake(rows: int) -> Path:
     """The bench lake: the example config, 10 jobs ingested, then each job's topic file replaced by
-    rows/10 generated rows of the same Arrow schema (reused when already there)."""
+    rows/10 generated rows of the same Arrow schema, published through the lake's record as ingest
+    publishes (reused when already there)."""
     lake = WORK / "lake"
     ready = WORK / "READY"
     if ready.exists() and ready.read_text() == str(rows):
@@ -118,9 +120,12 @@ def build_lake(rows: int) -> Path:
             },
             schema=schema,
         )
-        scratch = target.with_suffix(".tmp")
+        scratch = WORK / f"{job}.parquet"
         pq.write_table(table, scratch, row_group_size=1_000_000)
-        scratch.replace(target)
+        with paths.job_lock(lake, "main", batch, job):
+            change = Change(lake, "main")
+            change.add(TOPIC, batch, job, scratch)
+            change.commit(f"bench data of {batch}/{job}")
     ready.write_text(str(rows))
     return lake
 

@@ -214,8 +214,7 @@ def main() -> int:
         f"- fastest run {min(r['seconds'] for r in ours):.1f} s; CPU time (all threads) "
         f"{statistics.median(r['cpu'] for r in ours):.1f} s, i.e. at least "
         f"{statistics.median(r['cpu'] for r in ours) / (os.cpu_count() or 1):.1f} s of wall-clock time on "
-        f"{os.cpu_count()} idle cores. Most of the bare DuckDB time is binding: each scoped table reference "
-        "lists and filters every job partition of the branch (about 10 ms per reference at 100 jobs)",
+        f"{os.cpu_count()} idle cores",
         f"- job statuses: {ours[0]['statuses']}",
         f"- all runs (s): lakegate {run_times(ours)}; baseline {run_times(runs['baseline'])}; load average at the end "
         f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores",

@@ -14,7 +14,9 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from lakegate.dialect.errors import DialectError
 from lakegate.gateway.cli.backends import add_backend_arguments, engine_from_args
@@ -332,21 +334,35 @@ def run_command(args: argparse.Namespace) -> int:
         raise UserError(f"cannot store the results in the lake: {os_error_text(error)}") from None
     finally:
         engine.close()
+    _show(
+        args,
+        evaluation,
+        format_table,
+        lambda path: write_report(evaluation, path),
+        " (the results are stored in the lake)",
+    )
+    return exit_code(evaluation)
+
+
+def _show(
+    args: argparse.Namespace,
+    evaluation: Any,
+    table: Callable[[Any], str],
+    write: Callable[[Path], Path],
+    note: str = "",
+) -> None:
+    """Print `evaluation` as JSON or as `table` text, and write its page to --report if asked."""
     if args.format == "json":
         json.dump(evaluation.as_dict(), sys.stdout, ensure_ascii=False, indent=2)
         sys.stdout.write("\n")
     else:
-        print(format_table(evaluation))
+        print(table(evaluation))
     if args.report is not None:
         try:
-            path = write_report(evaluation, args.report)
+            path = write(args.report)
         except OSError as error:
-            raise UserError(
-                f"cannot write the report {str(args.report)!r}: {error.strerror or error} (the "
-                "results are stored in the lake)"
-            ) from None
+            raise UserError(f"cannot write the report {str(args.report)!r}: {os_error_text(error)}{note}") from None
         print(f"report: {path.resolve()}", file=sys.stderr if args.format == "json" else sys.stdout)
-    return exit_code(evaluation)
 
 
 def _trends_batches(args: argparse.Namespace, engine: MetricsEngine) -> list[BatchInfo]:
@@ -396,17 +412,7 @@ def trends_command(args: argparse.Namespace) -> int:
         raise UserError(str(error)) from None
     finally:
         queries.close()
-    if args.format == "json":
-        json.dump(evaluation.as_dict(), sys.stdout, ensure_ascii=False, indent=2)
-        sys.stdout.write("\n")
-    else:
-        print(format_trends(evaluation))
-    if args.report is not None:
-        try:
-            path = write_trends(evaluation, args.report, link_base=args.link_base)
-        except OSError as error:
-            raise UserError(f"cannot write the report {str(args.report)!r}: {os_error_text(error)}") from None
-        print(f"report: {path.resolve()}", file=sys.stderr if args.format == "json" else sys.stdout)
+    _show(args, evaluation, format_trends, lambda path: write_trends(evaluation, path, link_base=args.link_base))
     if any(r.status == BLOCKER for r in evaluation.results):
         return EXIT_BLOCKER
     return EXIT_ERROR if evaluation.status == ERROR else EXIT_OK

@@ -1213,7 +1213,7 @@ def _in(a: Analyzer, node, scope, env):
         query = node.args["query"]
         cols = a.query(query.this if isinstance(query, exp.Subquery) else query, scope)
         if len(cols) != 1:
-            a.fail("Multiple columns returned by subquery are not yet supported", query, "NOT_SUPPORTED")
+            return _row_in(a, node, left, [c[2] for c in cols])
         common = _comparable(a, node, left, cols[0][2], "IN")
     else:
         if node.args.get("unnest") or node.args.get("field"):
@@ -1223,6 +1223,24 @@ def _in(a: Analyzer, node, scope, env):
             common = _comparable(a, item, common, a.expr(item, scope, env), "IN")
         _in_session_zone(a, [node.this, *node.expressions], common)
     node.meta["compare"] = common
+    return tt.BOOLEAN
+
+
+def _row_in(a: Analyzer, node: exp.In, left: TType, types: list[TType]) -> TType:
+    """`(a, b) IN (SELECT x, y ...)`: the subquery is a row of its columns, and the value must coerce
+    to a common row type with it (Trino's ExpressionAnalyzer.analyzePredicateWithSubquery); see
+    transforms.row_in_subquery for the NULL rule."""
+    value, row = left if left.base == "row" else tt.row([(None, left)]), tt.row([(None, t) for t in types])
+    common = tt.common_super_type(value, row) if len(value.args) == len(types) else None
+    if common is None:
+        message = f"Value expression and result of subquery must be of the same type: {value} vs {row}"
+        a.fail(message, node, "TYPE_MISMATCH")
+    if node.this.find(exp.Window, exp.AggFunc) or a._aggregate_inside(node.this):
+        a.unsupported("aggregate or window function in a row compared with IN (SELECT ...)", node.this)
+    fields = [f for _, f in common.args]
+    if any(f.base in ("array", "map", "row", "json", "timestamp_tz") for f in fields):
+        a.unsupported(f"IN (SELECT ...) comparing {left} with {row}", node)
+    node.meta["row_in"] = fields
     return tt.BOOLEAN
 
 

@@ -512,12 +512,40 @@ def eager_constant_in_list(g: Writer, node: exp.In) -> str:
     """A constant IN list whose items can fail (`3 IN (2, 3, 5 / 0)`) evaluates every item first, as
     Trino's interpreter does (io.trino.sql.query.TestInlining: "Division by zero"); DuckDB stops at
     the first match. IN over columns short-circuits in both."""
+    if "row_in" in node.meta:
+        return row_in_subquery(g, node)
     sql = g.in_sql(node)
     items = node.expressions
     if node.find(exp.Column) is not None or all(isinstance(i, (exp.Literal, exp.Null)) for i in items):
         return sql
     common = node.meta["compare"]
     return f"CASE WHEN len([{', '.join(g.coerce(i, common) for i in items)}]) >= 0 THEN {sql} END"
+
+
+def row_in_subquery(g: Writer, node: exp.In) -> str:
+    """`(a, b) IN (SELECT x, y ...)`: true when a subquery row equals on every field, false when every
+    row differs on a field where neither side is NULL. Otherwise (NULL fields, NaN) Trino's answer
+    depends on its plan (its semi join matches rows IS NOT DISTINCT FROM, its documented `=` gives
+    NULL; trinodb/trino#7798), so the query fails with NOT_SUPPORTED instead."""
+    query = node.args["query"]
+    inner = g.sql(query.this if isinstance(query, exp.Subquery) else query)
+    fields = node.meta["row_in"]
+    lefts = [g.sql(e) for e in node.this.expressions] if isinstance(node.this, (exp.Tuple, exp.Struct)) else None
+    if lefts is None or len(lefts) != len(fields):
+        left = g.sql(node.this)
+        lefts = [f"struct_extract_at({left}, {i + 1})" for i in range(len(fields))]
+    names = [quote(f"_lg_in{i + 1}") for i in range(len(fields))]
+    equal, differ = [], []
+    for value, name, t in zip(lefts, names, fields, strict=True):
+        column = f'"_lg_in".{name}'
+        equal.append(f"({value}) = {column}" + (f" AND NOT isnan({column})" if t.is_approx else ""))
+        differ.append(f"(({value}) IS NOT NULL AND {column} IS NOT NULL AND ({value}) <> {column})")
+    what = string("NOT_SUPPORTED: row IN (SELECT ...) where a row field is NULL or NaN")
+    return (
+        f"(SELECT CASE WHEN bool_or({' AND '.join(equal)}) THEN true "
+        f"WHEN count(*) FILTER (WHERE {' OR '.join(differ)}) = count(*) THEN false ELSE error({what}) END "
+        f'FROM ({inner}) AS "_lg_in"({", ".join(names)}))'
+    )
 
 
 @transform(exp.Between)

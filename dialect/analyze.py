@@ -1164,6 +1164,9 @@ def _comparison(a: Analyzer, node, scope, env):
             a.unsupported(f"{node.expression.key.upper()} comparing {left} with {cols[0][2]}", node.expression)
         node.meta["compare"] = common
         return tt.BOOLEAN
+    for side in (node.this, node.expression):
+        if isinstance(side, exp.Subquery):
+            side.meta["row_ok"] = True  # `(a, b) = (SELECT x, y ...)`: a row there (_scalar_subquery)
     left, right = a.expr(node.this, scope, env), a.expr(node.expression, scope, env)
     common = _comparable(a, node, left, right, _OPS[type(node)])
     json_order = common.base == "json" and type(node) not in (exp.EQ, exp.NEQ, exp.NullSafeEQ, exp.NullSafeNEQ)
@@ -1611,6 +1614,9 @@ def _extract(a: Analyzer, node, scope, env):
 def _scalar_subquery(a: Analyzer, node, scope, env):
     cols = a.query(node.this, scope)
     a._modifiers(node, cols, scope)
+    if len(cols) != 1 and node.meta.get("row_ok") and not any(c[2].base == "timestamp_tz" for c in cols):
+        node.meta["row_subquery"] = len(cols)  # compared with a row: the row of its columns (Trino's RowType)
+        return tt.row([(None, c[2]) for c in cols])
     if len(cols) != 1:
         a.fail("Multiple columns returned by subquery are not yet supported", node, "NOT_SUPPORTED")
     return cols[0][2]

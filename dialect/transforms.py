@@ -1355,10 +1355,15 @@ def _single_row(query: exp.Expression) -> bool:
 def scalar_subquery_single_row(g: Writer, node: exp.Subquery) -> str:
     """A scalar subquery that returns several rows fails with Trino's SUBQUERY_MULTIPLE_ROWS."""
     inner = DuckDBGenerator.subquery_sql(g, node)
-    if not node._meta or "t" not in node.meta or _single_row(node.this):
+    n = node.meta.get("row_subquery") if node._meta else None  # several columns: their row
+    if not n and (not node._meta or "t" not in node.meta or _single_row(node.this)):
         return inner
     message = string("Scalar sub-query has returned multiple rows")
+    names = [quote(f"_v{i + 1}") for i in range(n)] if n else ['"_v"']
+    value = "row(" + ", ".join('"_s".' + name for name in names) + ")" if n else '"_s"."_v"'
+    if n and _single_row(node.this):
+        return f'(SELECT {value} FROM {inner} AS "_s"({", ".join(names)}))'
     return (
         f"(SELECT CASE WHEN count(*) OVER () > 1 THEN {g.fail(message, 'SUBQUERY_MULTIPLE_ROWS')} "
-        f'ELSE "_s"."_v" END FROM {inner} AS "_s"("_v") LIMIT 1)'
+        f'ELSE {value} END FROM {inner} AS "_s"({", ".join(names)}) LIMIT 1)'
     )

@@ -189,6 +189,31 @@ _NANOSECOND_OPERATIONS = (
 )
 
 
+_CHAR_TYPE = re.compile(r"(?<![a-z])char\(")
+
+
+def _has_char(t: TType) -> bool:
+    return any(inner.base == "char" for inner in (t, *tt.inner_types(t)))
+
+
+def _check_char_use(a: Analyzer, node: exp.Expression) -> None:
+    """Refuse an operation on char(n) values (written as their padded text) other than a cast, typeof,
+    count, IS NULL and the comparison of two values of the same char(n) (padded texts of one length)."""
+    types = [child.meta.get("t") for child in node.iter_expressions() if child._meta]
+    chars = [t for t in types if t is not None and _has_char(t)]
+    if not chars or isinstance(node, (exp.Cast, exp.TryCast, exp.Paren, exp.Alias, exp.Is, exp.Ordered)):
+        return
+    if isinstance(node, exp.Anonymous) and node.name.lower() in ("typeof", "count"):
+        return
+    if isinstance(node, _COMPARISONS) and all(t is not None and (t == chars[0] or t.is_unknown) for t in types):
+        return
+    a.unsupported(
+        f"{trino_name(node)} of {chars[0]} values (lakegate translates char only in casts, typeof, "
+        "count, IS NULL and comparisons of the same char(n))",
+        node,
+    )
+
+
 def floor_micros(node: exp.Expression) -> exp.Expression:
     """`node` read as Trino's functions read a timestamp(7..9): floored to microseconds."""
     t = node.meta.get("t") if node._meta else None
@@ -216,6 +241,9 @@ class Analyzer:
     # --- errors ---------------------------------------------------------------------------------
     def fail(self, message: str, node: exp.Expression, error_name: str = "NOT_SUPPORTED") -> NoReturn:
         line, column = position(node, self.sql)
+        if error_name in ("TYPE_MISMATCH", "FUNCTION_NOT_FOUND") and _CHAR_TYPE.search(message):
+            # Trino coerces char(x) and char(y) (and varchar) to a common type and has char functions
+            message, error_name = f"unsupported in lakegate: char operands here ({message})", "NOT_SUPPORTED"
         raise DialectError(message, line=line, column=column, error_name=error_name)
 
     def unsupported(self, what: str, node: exp.Expression) -> NoReturn:
@@ -824,6 +852,7 @@ class Analyzer:
         if t.base == "timestamp" and t.args[0] > 9:
             self.unsupported(f"{t} (lakegate keeps nanoseconds at most; digits past them would be dropped)", node)
         self._check_nanosecond_use(node)
+        _check_char_use(self, node)
         return _set(node, t)
 
     def _check_nanosecond_use(self, node: exp.Expression) -> None:
@@ -1410,6 +1439,8 @@ def _cast(a: Analyzer, node, scope, env):
         a.unsupported(f"cast to {error}", node)
     if _typed_literal(a, node):
         text = node.this.name.strip()
+        if target.base == "char":  # CHAR 'abc ': char(4), of the literal's characters (spaces included)
+            target = TType("char", (len(node.this.name),))
         if target.is_decimal:
             try:
                 target = tt.decimal_literal_type(text)
@@ -1419,12 +1450,19 @@ def _cast(a: Analyzer, node, scope, env):
             r"[0-9]:[0-9]{2}(:[0-9]{2}([.][0-9]*)?)?\s*([A-Za-z]|[+-][0-9])", text
         ):
             a.unsupported("timestamp literal with a time zone", node)
+    if _has_char(source) or _has_char(target):
+        if source.base not in ("varchar", "char", "unknown") or target.base != "char":
+            a.unsupported(f"CAST({source} AS {target})", node)
+        if target.args[0] > 65536:  # CharType.MAX_LENGTH
+            a.unsupported(f"{target} (Trino's char holds at most 65536 characters)", node)
+        node.meta["from"] = source
+        return target  # truncated or padded with spaces to the length (CharacterStringCasts.varcharToCharCast)
     if target.base == "varbinary" and source.base in ("varchar", "varbinary", "unknown"):
         node.meta["from"] = source
         return target  # the UTF-8 bytes of the text (VarcharOperators.castToVarbinary)
     if "json" in (source.base, target.base) and source != target:
         _check_json_cast(a, node, source, target)
-    elif target.base in ("char", "time", "time_tz", "uuid", "varbinary", "map"):
+    elif target.base in ("time", "time_tz", "uuid", "varbinary", "map"):
         a.unsupported(f"cast to {target}", node)
     if target.base == "timestamp_tz":
         target = tt.timestamp(target.args[0], True, _cast_zone(a, node, source))

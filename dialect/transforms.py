@@ -732,6 +732,8 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
         return sql
     if source.is_unknown:
         return cast("NULL", target)
+    if target.base == "char":  # truncated or padded with spaces: the padded text the client gets
+        return f"rpad({sql}, {target.args[0]}, ' ')"
     if target.base == "json":
         return registry.JSON_CASTS["to_json"](g, sql, source)
     if source.base == "json":

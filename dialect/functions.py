@@ -2837,8 +2837,11 @@ def _render_to_unixtime(g, node, args) -> str:
 
 
 def _field(call: Call) -> TType:
-    types = need(call, "temporal")
     name = call.name
+    first = call.types[0] if len(call.types) == 1 else None
+    if first is not None and first.base == "time" and name in ("hour", "minute", "second", "millisecond"):
+        return tt.BIGINT  # of a time (DateTimeFunctions: hourFromTime, ...)
+    types = need(call, "temporal")
     if types[0].base == "date" and name in ("hour", "minute", "second", "millisecond"):
         call.mismatch()
     return tt.BIGINT

@@ -73,3 +73,28 @@ def text(sql: str, precision: int) -> str:
     if precision == 0:
         return f"strftime({stamp}, '%H:%M:%S')"
     return f"left(strftime({stamp}, '%H:%M:%S.%f'), {9 + precision})"
+
+
+#: The units of date_trunc, date_add and date_diff on a time, in microseconds (TimeFunctions, TimeField).
+UNIT_MICROS = {"millisecond": 1_000, "second": 1_000_000, "minute": 60_000_000, "hour": 3_600_000_000}
+
+
+def truncate(unit: str, sql: str) -> str:
+    """date_trunc(unit, time): the time floored to the unit (TimeFunctions.truncate)."""
+    size = UNIT_MICROS[unit]
+    return of_micros(f"({micros(sql)} // {size} * {size})")
+
+
+def add(unit: str, amount: str, sql: str, precision: int) -> str:
+    """date_add(unit, amount, time(p)): the amount modulo a day of units, added modulo a day, rounded
+    HALF_UP to p when p < 3 (TimeFunctions.dateAdd, TimeOperators.add)."""
+    size = UNIT_MICROS[unit]
+    delta = f"((CAST({amount} AS BIGINT) % {MICROS_PER_DAY // size}) * {size})"
+    total = f"((({micros(sql)} + {delta}) % {MICROS_PER_DAY} + {MICROS_PER_DAY}) % {MICROS_PER_DAY})"
+    return rounded(total, precision) if precision < 3 else of_micros(total)
+
+
+def diff(unit: str, first: str, second: str) -> str:
+    """date_diff(unit, time1, time2): whole units from time1 to time2, truncated toward zero
+    (TimeFunctions.dateDiff)."""
+    return f"(({micros(second)} - {micros(first)}) // {UNIT_MICROS[unit]})"

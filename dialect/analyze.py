@@ -1265,6 +1265,8 @@ def _arithmetic(a: Analyzer, node, scope, env):
     result = tt.arithmetic_type(op, left, right)
     if result is None:
         result = _temporal_arithmetic(op, left, right)
+    if result is None and op == "-" and left.base == right.base == "time":
+        a.unsupported(f"{left} - {right} (the interval between two times)", node)
     if result is None:
         a.fail(f"Cannot apply operator: {left} {op} {right}", node, "TYPE_MISMATCH")
     if op == "-" and left.base == right.base == "timestamp_tz" and max(left.args[0], right.args[0]) > 3:

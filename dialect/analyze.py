@@ -1419,6 +1419,8 @@ def _cast(a: Analyzer, node, scope, env):
         target = tt.timestamp(target.args[0], True, _cast_zone(a, node, source))
     else:
         a.zones(source, node, f"CAST to {target}")
+    if not castable(source, target) and any(t.base == "time" for t in tt.inner_types(target)):
+        a.unsupported(f"CAST({source} AS {target})", node)  # nested time(p > 6) or timestamp(p > 6)
     if not castable(source, target):
         a.fail(f"Cannot cast {source} to {target}", node, "TYPE_MISMATCH")
     node.meta["from"] = source
@@ -1506,8 +1508,8 @@ def castable(source: TType, target: TType) -> bool:
         "timestamp_tz",
     ):
         return True
-    if target.base == "time" and source.base in ("varchar", "timestamp") or source.base == "time" == target.base:
-        return True
+    if target.base == "time" and source.base in ("varchar", "time", "timestamp"):  # p <= 6 (times.py)
+        return max(target.args[0], source.args[0] if source.base != "varchar" else 0) <= 6
     if source.base == "time" and target.base == "varchar":
         return True
     if source.base == target.base == "array":

@@ -17,7 +17,7 @@ from typing import NoReturn
 
 from sqlglot import exp
 
-from lakegate.dialect import registry, zones
+from lakegate.dialect import registry, times, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.guard import trino_name
@@ -1315,6 +1315,8 @@ def _arithmetic(a: Analyzer, node, scope, env):
     result = tt.arithmetic_type(op, left, right)
     if result is None:
         result = _temporal_arithmetic(op, left, right)
+    if result is None and op == "-" and left.base == right.base == "time":
+        a.unsupported(f"{left} - {right} (the interval between two times)", node)
     if result is None:
         a.fail(f"Cannot apply operator: {left} {op} {right}", node, "TYPE_MISMATCH")
     if op == "-" and left.base == right.base == "timestamp_tz" and max(left.args[0], right.args[0]) > 3:
@@ -1348,6 +1350,10 @@ def _temporal_arithmetic(op: str, left: TType, right: TType) -> TType | None:
         return _at_least_millis(left) if right.base == "interval_ds" else left
     if op == "+" and right.base in ("date", "timestamp", "timestamp_tz") and left.base in intervals:
         return _at_least_millis(right) if left.base == "interval_ds" else right
+    if op in "+-" and left.base == "time" and right.base == "interval_ds" or op == "+" and left.base == "interval_ds":
+        time = left if left.base == "time" else right  # wraps around midnight (TimeOperators)
+        if time.base == "time":
+            return TType("time", (max(3, time.args[0]),))
     if op in "+-" and left.base == right.base and left.base in intervals:
         return left
     if op == "-" and left.base == right.base and left.base in ("timestamp", "timestamp_tz"):
@@ -1450,6 +1456,8 @@ def _cast(a: Analyzer, node, scope, env):
             r"[0-9]:[0-9]{2}(:[0-9]{2}([.][0-9]*)?)?\s*([A-Za-z]|[+-][0-9])", text
         ):
             a.unsupported("timestamp literal with a time zone", node)
+        elif target.base == "time":
+            target = _time_literal_type(a, node, text)
     if _has_char(source) or _has_char(target):
         if source.base not in ("varchar", "char", "unknown") or target.base != "char":
             a.unsupported(f"CAST({source} AS {target})", node)
@@ -1462,16 +1470,42 @@ def _cast(a: Analyzer, node, scope, env):
         return target  # the UTF-8 bytes of the text (VarcharOperators.castToVarbinary)
     if "json" in (source.base, target.base) and source != target:
         _check_json_cast(a, node, source, target)
-    elif target.base in ("time", "time_tz", "uuid", "varbinary", "map"):
+    elif "time" in (source.base, target.base):
+        _check_time_cast(a, node, source, target)
+    elif target.base in ("time_tz", "uuid", "varbinary", "map"):
         a.unsupported(f"cast to {target}", node)
     if target.base == "timestamp_tz":
         target = tt.timestamp(target.args[0], True, _cast_zone(a, node, source))
     else:
         a.zones(source, node, f"CAST to {target}")
+    if not castable(source, target) and any(t.base == "time" for t in tt.inner_types(target)):
+        a.unsupported(f"CAST({source} AS {target})", node)  # nested time(p > 6) or timestamp(p > 6)
     if not castable(source, target):
         a.fail(f"Cannot cast {source} to {target}", node, "TYPE_MISMATCH")
     node.meta["from"] = source
     return target
+
+
+def _time_literal_type(a: Analyzer, node: exp.Cast, text: str) -> TType:
+    """TIME '01:02:03.456' is time(p), p its fraction digits (DateTimes.extractTimePrecision)."""
+    match = re.fullmatch(times.TIME_TEXT[1:-1], node.this.name)
+    if match is None or int(match[1]) > 23 or int(match[2]) > 59 or int(match[4] or 0) > 59:
+        a.fail(f"'{text}' is not a valid TIME literal", node, "INVALID_LITERAL")
+    return TType("time", (len(match[6] or ""),))
+
+
+def _check_time_cast(a: Analyzer, node: exp.Cast, source: TType, target: TType) -> None:
+    """time(p <= 6) from varchar, time and timestamp(p <= 6), and to varchar (TimeOperators,
+    TimestampToTimeCast); the casts that need the session's date or zone are refused."""
+    for t in (source, target):
+        if t.base == "time" and t.args[0] > 6:
+            a.unsupported(f"{t} (time with more than microsecond precision)", node)
+    if source.base == "timestamp" and source.args[0] > 6:
+        a.unsupported(f"CAST({source} AS {target}) (more than microsecond precision)", node)
+    if source.base == "time" and target.base in ("timestamp", "timestamp_tz", "time_tz"):
+        a.unsupported(f"CAST({source} AS {target}) (it depends on the session's date and zone)", node)
+    if target.base == "time" and source.base in ("timestamp_tz", "time_tz"):
+        a.unsupported(f"CAST({source} AS {target})", node)
 
 
 def _check_json_cast(a: Analyzer, node: exp.Cast, source: TType, target: TType) -> None:
@@ -1532,6 +1566,10 @@ def castable(source: TType, target: TType) -> bool:
         "timestamp",
         "timestamp_tz",
     ):
+        return True
+    if target.base == "time" and source.base in ("varchar", "time", "timestamp"):  # p <= 6 (times.py)
+        return max(target.args[0], source.args[0] if source.base != "varchar" else 0) <= 6
+    if source.base == "time" and target.base == "varchar":
         return True
     if source.base == target.base == "array":
         return castable(source.element, target.element)

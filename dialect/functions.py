@@ -13,7 +13,7 @@ from collections.abc import Callable, Iterable
 
 from sqlglot import exp
 
-from lakegate.dialect import registry, zones
+from lakegate.dialect import registry, times, zones
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import Call, remainder_fits, ttype
@@ -2601,7 +2601,30 @@ def _unit(call: Call, index: int, temporal: TType) -> str:
     return unit
 
 
+def _is_time(t: TType | None) -> bool:
+    return t is not None and t.base == "time"
+
+
+def _is_text(t: TType | None) -> bool:
+    return t is not None and _KINDS["string"](t)
+
+
+def _time_unit(call: Call) -> None:
+    """The unit of date_trunc, date_add or date_diff on a time: millisecond to hour (TimeFunctions)."""
+    unit = literal_str(call, 0)
+    if unit is None:
+        call.fail("the unit must be a literal string in lakegate", "NOT_SUPPORTED")
+    if unit.lower() not in times.UNIT_MICROS:
+        call.fail(f"'{unit}' is not a valid Time field", "INVALID_FUNCTION_ARGUMENT")
+
+
 def _date_diff(call: Call) -> TType:
+    if len(call.types) == 3 and (_is_time(call.types[1]) or _is_time(call.types[2])):
+        common = tt.common_super_type(call.types[1], call.types[2]) if None not in call.types else None
+        if not _is_time(common) or not _is_text(call.types[0]):
+            call.mismatch()
+        _time_unit(call)
+        return tt.BIGINT
     types = need(call, "string", "temporal", "temporal")
     common_type = tt.common_super_type(types[1], types[2])
     if common_type is None:
@@ -2620,6 +2643,8 @@ def _render_date_diff(g, node, args) -> str:
     a, b = g.sql(args[1]), g.sql(args[2])
     first = ttype(args[1])
     common = tt.common_super_type(first, ttype(args[2]))
+    if common is not None and common.base == "time":
+        return f"CAST({times.diff(unit, a, b)} AS BIGINT)"
     if common is not None and common.base == "timestamp_tz":
         zone = tt.zone_of(first) if first.base == "timestamp_tz" else g.time_zone
         zone = zone if unit in _DATE_UNITS and common.args[0] <= 3 else zones.UTC
@@ -2630,6 +2655,12 @@ def _render_date_diff(g, node, args) -> str:
 
 
 def _date_add(call: Call) -> TType:
+    if len(call.types) == 3 and _is_time(call.types[2]):
+        amount = call.types[1]
+        if amount is None or not (amount.is_integral or amount.is_unknown) or not _is_text(call.types[0]):
+            call.mismatch()
+        _time_unit(call)
+        return call.types[2]
     types = need(call, "string", "integral", "temporal")
     _unit(call, 0, types[2])
     return types[2]
@@ -2651,6 +2682,8 @@ _INTERVAL_OF = {
 def _render_date_add(g, node, args) -> str:
     unit = args[0].name.lower()
     amount, value = g.sql(args[1]), g.sql(args[2])
+    if ttype(node).base == "time":
+        return times.add(unit, amount, value, ttype(node).args[0])
     interval = (
         f"to_months(3 * CAST({amount} AS INTEGER))"
         if unit == "quarter"
@@ -2670,6 +2703,11 @@ def _render_date_add(g, node, args) -> str:
 
 
 def _date_trunc(call: Call) -> TType:
+    if len(call.types) == 2 and _is_time(call.types[1]):
+        if not _is_text(call.types[0]):
+            call.mismatch()
+        _time_unit(call)
+        return call.types[1]
     types = need(call, "string", "temporal")
     _unit(call, 0, types[1])
     return types[1]
@@ -2678,6 +2716,8 @@ def _date_trunc(call: Call) -> TType:
 def _render_date_trunc(g, node, args) -> str:
     unit, value = args[0].name.lower(), g.sql(args[1])
     t = ttype(node)
+    if t.base == "time":
+        return times.truncate(unit, value)
     if t.base == "timestamp_tz":  # on the wall time in the value's zone (Joda's ZonedDateTimeField.roundFloor)
         wall = zones.local(value, tt.zone_of(t))
         truncated = f"date_trunc({tf.string(unit)}, {wall})"
@@ -2837,8 +2877,11 @@ def _render_to_unixtime(g, node, args) -> str:
 
 
 def _field(call: Call) -> TType:
-    types = need(call, "temporal")
     name = call.name
+    first = call.types[0] if len(call.types) == 1 else None
+    if first is not None and first.base == "time" and name in ("hour", "minute", "second", "millisecond"):
+        return tt.BIGINT  # of a time (DateTimeFunctions: hourFromTime, ...)
+    types = need(call, "temporal")
     if types[0].base == "date" and name in ("hour", "minute", "second", "millisecond"):
         call.mismatch()
     return tt.BIGINT

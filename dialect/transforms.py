@@ -13,7 +13,7 @@ from __future__ import annotations
 from sqlglot import exp
 from sqlglot.generators.duckdb import DuckDBGenerator
 
-from lakegate.dialect import registry, zones
+from lakegate.dialect import registry, times, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import FloorMicros, ttype
 from lakegate.dialect.errors import DialectError
@@ -759,6 +759,10 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
         return checked_cast(g, f"CAST({sql} AS VARCHAR)", source, target)
     if target.is_integral and (source.is_integral or source.is_decimal) or target.is_decimal and source.is_numeric:
         return checked_cast(g, sql, source, target)
+    if target.base == "time" and source.base in ("time", "timestamp"):  # p <= 6 (analyze._cast)
+        if source.base == "time":
+            return times.round_time(sql, target.args[0], source.args[0])
+        return times.of_timestamp(sql, target.args[0])
     if target.base == "timestamp" and source.base in ("timestamp", "date"):
         precision = target.args[0]
         if source.base == "timestamp" and precision < source.args[0]:
@@ -898,6 +902,9 @@ def parse_varchar(g: Writer, sql: str, target: TType) -> str:
         )
     if target.base == "timestamp":
         return parse_timestamp(g, sql, target.args[0], bad)
+    if target.base == "time":
+        message = f"'Value cannot be cast to time: ' || {sql}"
+        return times.parse(sql, target.args[0], g.fail(message, "INVALID_CAST_ARGUMENT"))
     return cast(sql, target)
 
 
@@ -945,6 +952,8 @@ def varchar_of(g: Writer, sql: str, source: TType) -> str:
         return f"CAST({sql} AS VARCHAR)"
     if source.base == "timestamp":
         return timestamp_text(sql, source.args[0])
+    if source.base == "time":
+        return times.text(sql, source.args[0])
     if source.base == "timestamp_tz":
         zone = tt.zone_of(source)
         return timestamp_text(zones.local(sql, zone), source.args[0]) + f" || {string(' ' + zone)}"

@@ -447,6 +447,8 @@ def common_super_type(a: TType, b: TType) -> TType | None:
         return VARCHAR if la is None or lb is None else varchar(max(la, lb))
     if a.base == b.base == "timestamp":
         return TType(a.base, (max(a.args[0], b.args[0]),))
+    if a.base == b.base == "time":
+        return TType("time", (max(a.args[0], b.args[0]),))
     if a.base == b.base == "timestamp_tz":  # values of two zones: no one zone
         return timestamp(max(a.args[0], b.args[0]), True, zone_of(a) if zone_of(a) == zone_of(b) else None)
     if {a.base, b.base} == {"timestamp", "timestamp_tz"}:  # the timestamps take the session zone

@@ -155,7 +155,7 @@ class _Parser(Trino.Parser):
         return node
 
     def _parse_json_element(self):
-        value = self._parse_bitwise()
+        value = self._parse_lambda()  # a whole expression, as in any call (SqlBase.g4 #jsonValueExpression)
         if value is not None and self._match_text_seq("FORMAT", "JSON"):
             value.meta["format_json"] = self._match_text_seq("ENCODING") and self._parse_var().name or True
         return value

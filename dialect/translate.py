@@ -111,7 +111,8 @@ class _Parser(Trino.Parser):
         #jsonValue, #jsonExists); json_exists is a plain call, its ON ERROR behaviour in meta."""
         this = self._parse_bitwise()  # FORMAT JSON is how a string input is read anyway
         encoding = self._match_text_seq("FORMAT", "JSON") and self._match_text_seq("ENCODING") and self._parse_var()
-        self._match(TokenType.COMMA)
+        if not self._match(TokenType.COMMA):  # the path is required (SqlBase.g4 #jsonPathInvocation)
+            self.raise_error(f"mismatched input '{self._curr.text if self._curr else '<EOF>'}'. Expecting: ','")
         path = self._parse_bitwise()
         passing = self._parse_passing()
         if kind is None:

@@ -144,7 +144,8 @@ CONSTRUCTS: dict[str, Construct] = {
         "SELECT json_value(js, 'lax $.name'), json_value(js, 'strict $.n' RETURNING bigint DEFAULT -1 ON ERROR) FROM t",
         (exp.JSONValue,),
     ),
-    "json_query(... [WITH | WITHOUT [ARRAY] WRAPPER] [KEEP | OMIT QUOTES] [NULL ON EMPTY | ON ERROR])": Construct(
+    "json_query(... [RETURNING varchar] [WITH [CONDITIONAL | UNCONDITIONAL] [ARRAY] WRAPPER] [KEEP | OMIT QUOTES] "
+    "[NULL | EMPTY ARRAY | EMPTY OBJECT ON EMPTY | ON ERROR])": Construct(
         "json",
         "SELECT json_query(js, 'lax $.tags' WITHOUT ARRAY WRAPPER), json_query(js, 'strict $.name' OMIT QUOTES) FROM t",
         (exp.JSONExtract,),
@@ -161,7 +162,7 @@ CONSTRUCTS: dict[str, Construct] = {
         refused="not translated",
     ),
     "json_object (KEY ... VALUE ..., NULL | ABSENT ON NULL, WITH UNIQUE KEYS)": Construct(
-        "json", "SELECT json_object('a' : 1)", (exp.JSONObject,), refused="not translated"
+        "json", "SELECT json_object('a' : 1)", (exp.JSONObject,), refused="Trino orders its keys by a java.util.HashMap"
     ),
     # --- queries ---------------------------------------------------------------------------------
     "WITH (common table expressions)": Construct("queries", "WITH w AS (SELECT 1 AS x) SELECT x FROM w", (exp.With,)),

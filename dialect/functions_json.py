@@ -381,16 +381,24 @@ def _check_input(a, node, input_node: exp.Expression, scope, env, function: str)
 
 
 def _json_exists(call: Call) -> TType:
+    for clause in ("passing", "encoding"):
+        if call.node.meta.get(clause):
+            call.fail(f"unsupported in lakegate: json_exists ... {clause.upper()}", "NOT_SUPPORTED")
+    if call.node.meta.get("on_error") == "ERROR":
+        call.fail("unsupported in lakegate: json_exists ... ERROR ON ERROR", "NOT_SUPPORTED")
     need(call, "json", "string")
     call.node.meta["path"] = _sql_json_path(call.analyzer, call.node, "json_exists", call.args[1])
     return tt.BOOLEAN
 
 
 def _render_json_exists(g, node, args) -> str:
-    """true for an item, false for none; an error is FALSE ON ERROR, the default (json.md json_exists)."""
+    """true for an item, false for none; an error is as the ON ERROR clause says: FALSE (the
+    default), TRUE or UNKNOWN (NULL) (json.md json_exists)."""
     mode, steps = node.meta["path"]
     result = _path_result(g, args[0], mode, steps)
-    return f'list_transform([{result}], lambda "_r": "_r" IS NOT NULL AND "_r" <> {_ERROR})[1]'
+    on_error = {"TRUE": "true", "UNKNOWN": "NULL"}.get(node.meta.get("on_error"), "false")
+    body = f'CASE WHEN "_r" = {_ERROR} THEN {on_error} ELSE "_r" IS NOT NULL END'
+    return f'list_transform([{result}], lambda "_r": {body})[1]'
 
 
 register(
@@ -399,8 +407,8 @@ register(
     "json_exists(json_input, json_path) -> boolean",
     _json_exists,
     _render_json_exists,
-    notes="Paths of member and [index] accessors in lax or strict mode; FALSE ON ERROR (the default). "
-    "Other path features, PASSING and ON ERROR clauses are refused (NOT_SUPPORTED).",
+    notes="Paths of member and [index] accessors in lax or strict mode; FALSE (the default), TRUE and UNKNOWN "
+    "ON ERROR. Other path features, PASSING and ERROR ON ERROR are refused (NOT_SUPPORTED).",
 )
 
 
@@ -431,10 +439,10 @@ _VALUE_TARGETS = ("varchar", "bigint", "integer", "smallint", "tinyint", "double
 @handles(exp.JSONValue)
 def _json_value(a, node, scope, env) -> TType:
     """json_value(input, path [RETURNING type] [NULL | DEFAULT x ON EMPTY] [NULL | DEFAULT x ON ERROR])."""
-    _check_input(a, node, node.this, scope, env, "json_value")
     for key in set(node.args) - {"this", "path", "returning", "on_condition"}:
         if node.args.get(key):
             a.unsupported(f"json_value ... {key.upper()}", node)
+    _check_input(a, node, node.this, scope, env, "json_value")
     node.meta["path"] = _sql_json_path(a, node, "json_value", node.args["path"])
     returning = node.args.get("returning")
     target = tt.from_datatype(returning) if returning else tt.VARCHAR
@@ -507,10 +515,17 @@ def _json_query(a, node, scope, env) -> TType:
     """json_query(input, path [WITH | WITHOUT ... WRAPPER] [KEEP | OMIT QUOTES] [ON EMPTY] [ON ERROR])."""
     if not node.args.get("json_query"):
         a.unsupported("JSON path operator", node)
-    _check_input(a, node, node.this, scope, env, "json_query")
-    for key in set(node.args) - {"this", "expression", "json_query", "option", "quote", "on_condition"}:
+    returning = node.args.get("returning")  # RETURNING varchar: the default for text, json's text for json
+    varchar = isinstance(returning, exp.DataType) and returning.is_type("varchar") and not returning.expressions
+    node.meta["varchar"] = varchar
+    for key in (
+        set(node.args)
+        - {"this", "expression", "json_query", "option", "quote", "on_condition"}
+        - ({"returning"} if node.meta["varchar"] else set())
+    ):
         if node.args.get(key):
             a.unsupported(f"json_query ... {key.upper()}", node)
+    _check_input(a, node, node.this, scope, env, "json_query")
     node.meta["path"] = _sql_json_path(a, node, "json_query", node.args["expression"])
     option = node.args.get("option")
     wrapper = " ".join((option.name if option is not None else "").upper().split()) or None
@@ -525,7 +540,7 @@ def _json_query(a, node, scope, env) -> TType:
     allowed = ("NULL", "EMPTY ARRAY", "EMPTY OBJECT")
     node.meta["on"] = {what: _on(a, node, on.get(what.lower()), what, allowed) for what in ("EMPTY", "ERROR")}
     node.meta["wrapper"], node.meta["omit"] = _WRAPPERS[wrapper], omit
-    return tt.JSON if ttype(node.this).base == "json" else tt.VARCHAR
+    return tt.JSON if ttype(node.this).base == "json" and not node.meta.get("varchar") else tt.VARCHAR
 
 
 _UNSURE_ITEM = "NOT_SUPPORTED: json_query of a value holding a non-integer JSON number (its text is not kept)"
@@ -577,8 +592,52 @@ def _nested_json(node: exp.Expression) -> bool:
     )
 
 
+def _format_json(call: Call, node: exp.Expression) -> None:
+    """`'text' FORMAT JSON`: the text read as JSON and written back compactly, as Trino does
+    (Jackson readTree, members in their order); a constant string only."""
+    text = literal_str(call, call.args.index(node))
+    if node.meta_get("format_json") is not True or text is None:
+        call.fail(
+            "unsupported in lakegate: json_array argument ... FORMAT JSON of other than a string", "NOT_SUPPORTED"
+        )
+
+    def members(pairs):
+        if len({key for key, _ in pairs}) != len(pairs):
+            raise ValueError
+        return dict(pairs)
+
+    try:
+        value = json.loads(text, object_pairs_hook=members, parse_float=_no_float, parse_constant=_no_float)
+    except ValueError:
+        call.fail(
+            "unsupported in lakegate: json_array argument ... FORMAT JSON of text that is not JSON "
+            "with distinct keys and integer numbers",
+            "NOT_SUPPORTED",
+        )
+    written = json.dumps(value, ensure_ascii=False, separators=(",", ":"))
+    if "\\u" in written.replace("\\\\", ""):  # a control character: Jackson writes \u001F, Python \u001f
+        call.fail("unsupported in lakegate: json_array argument ... FORMAT JSON of control characters", "NOT_SUPPORTED")
+    node.meta["json"] = written
+
+
+def _no_float(text: str):
+    raise ValueError(text)
+
+
 def _json_array(call: Call) -> TType:
+    meta = call.node.meta_get
+    returning = meta("returning")
+    if returning is not None and not (
+        returning.is_type("varchar") and not returning.expressions and meta("returning_format") in (None, "JSON")
+    ):
+        target = returning.sql(dialect="trino")
+        call.fail(f"unsupported in lakegate: json_array ... RETURNING {target}", "NOT_SUPPORTED")
+    for node in call.args:
+        if node.meta_get("format_json"):
+            _format_json(call, node)
     for node, t in zip(call.args, call.types):
+        if node.meta_get("format_json"):
+            continue
         if isinstance(node, exp.JSONExtract) and node.meta.get("omit"):
             call.fail("unsupported in lakegate: json_query ... OMIT QUOTES inside json_array", "NOT_SUPPORTED")
         if t is None or not (t.is_numeric or t.base in ("boolean", "varchar", "json", "unknown", "date")):
@@ -592,12 +651,16 @@ def _render_json_array(g, node, args) -> str:
     texts = []
     for arg in args:
         t = ttype(arg)
-        if _nested_json(arg) or t.base == "json":
+        if arg.meta_get("format_json"):
+            texts.append(tf.string(arg.meta["json"]))
+        elif _nested_json(arg) or t.base == "json":
             texts.append(f"CAST({g.sql(arg)} AS VARCHAR)")
         elif t.base == "date":
             texts.append(jv.to_json(g, f"CAST({g.sql(arg)} AS VARCHAR)", tt.VARCHAR))
         else:
             texts.append(jv.to_json(g, g.sql(arg), t))
+    if node.meta_get("null") == "NULL":  # NULL ON NULL: a JSON null for each NULL
+        texts = [f"coalesce({text}, 'null')" for text in texts]
     return f"'[' || array_to_string([{', '.join(texts)}]::VARCHAR[], ',') || ']'" if texts else "'[]'"
 
 
@@ -607,6 +670,6 @@ register(
     "json_array([value, ...]) -> varchar",
     _json_array,
     _render_json_array,
-    notes="Without clauses: ABSENT ON NULL (the default); NULL ON NULL, FORMAT JSON and RETURNING are "
-    "not parsed (SYNTAX_ERROR from sqlglot).",
+    notes="ABSENT ON NULL (the default) and NULL ON NULL; RETURNING varchar; FORMAT JSON of a string literal. "
+    "RETURNING varchar(n) or varbinary, ENCODING and FORMAT JSON of other values are refused (NOT_SUPPORTED).",
 )

@@ -74,6 +74,92 @@ class _Parser(Trino.Parser):
         )
     }
     FUNCTION_PARSERS["NORMALIZE"] = lambda self: self._parse_normalize()
+    FUNCTION_PARSERS["JSON_QUERY"] = lambda self: self._parse_sql_json(exp.JSONExtract)
+    FUNCTION_PARSERS["JSON_VALUE"] = lambda self: self._parse_sql_json(exp.JSONValue)
+    FUNCTION_PARSERS["JSON_EXISTS"] = lambda self: self._parse_sql_json(None)
+    FUNCTION_PARSERS["JSON_ARRAY"] = lambda self: self._parse_json_array()
+    # SqlBase.g4 #jsonQuery: [ARRAY] after CONDITIONAL too (sqlglot spells it WRAPPED)
+    JSON_QUERY_OPTIONS = {
+        key: ("WRAPPER", ("ARRAY", "WRAPPER"), ("CONDITIONAL", "WRAPPER"), ("CONDITIONAL", "ARRAY", "WRAPPER"))
+        + (("UNCONDITIONAL", "WRAPPER"), ("UNCONDITIONAL", "ARRAY", "WRAPPER"))
+        for key in ("WITH", "WITHOUT")
+    }
+
+    def _parse_on_handling(self, on: str, *values: str):
+        # SqlBase.g4 #emptyBehavior / #jsonQueryBehavior: EMPTY ARRAY and EMPTY OBJECT are two words
+        for value in ("EMPTY ARRAY", "EMPTY OBJECT") if "EMPTY" in values else ():
+            if self._match_text_seq(*value.split(), "ON", on):
+                return f"{value} ON {on}"
+        return super()._parse_on_handling(on, *values)
+
+    def _parse_passing(self) -> list:
+        # PASSING value [FORMAT JSON [ENCODING e]] AS name, ... (SqlBase.g4 #jsonPathInvocation)
+        if not self._match_text_seq("PASSING"):
+            return []
+
+        def argument():
+            value = self._parse_format_json(self._parse_bitwise())
+            if self._match_text_seq("ENCODING"):
+                self._parse_var()
+            self._match(TokenType.ALIAS)
+            return exp.alias_(value, self._parse_id_var(any_token=False) or "")
+
+        return self._parse_csv(argument)
+
+    def _parse_sql_json(self, kind):
+        """json_query / json_value / json_exists with Trino's clauses (SqlBase.g4 #jsonQuery,
+        #jsonValue, #jsonExists); json_exists is a plain call, its ON ERROR behaviour in meta."""
+        this = self._parse_bitwise()  # FORMAT JSON is how a string input is read anyway
+        encoding = self._match_text_seq("FORMAT", "JSON") and self._match_text_seq("ENCODING") and self._parse_var()
+        if not self._match(TokenType.COMMA):  # the path is required (SqlBase.g4 #jsonPathInvocation)
+            self.raise_error(f"mismatched input '{self._curr.text if self._curr else '<EOF>'}'. Expecting: ','")
+        path = self._parse_bitwise()
+        passing = self._parse_passing()
+        if kind is None:
+            node = exp.Anonymous(this="json_exists", expressions=[this, path])
+            for value in ("TRUE", "FALSE", "UNKNOWN", "ERROR"):
+                if self._match_text_seq(value, "ON", "ERROR"):
+                    node.meta["on_error"] = value
+        elif kind is exp.JSONValue:
+            returning = self._match(TokenType.RETURNING) and self._parse_types()
+            node = exp.JSONValue(this=this, path=path, returning=returning, on_condition=self._parse_on_condition())
+        else:
+            returning = self._match(TokenType.RETURNING) and self._parse_format_json(self._parse_types())
+            node = exp.JSONExtract(
+                this=this,
+                expression=path,
+                option=self._parse_var_from_options(self.JSON_QUERY_OPTIONS, raise_unmatched=False),
+                json_query=True,
+                quote=self._parse_json_query_quote(),
+                on_condition=self._parse_on_condition(),
+            )
+            node.set("returning", returning or None)
+        for clause, value in (("passing", passing and exp.Tuple(expressions=passing)), ("encoding", encoding)):
+            if value:
+                node.meta[clause] = True
+                if kind is not None:
+                    node.set(clause, value)  # refused by the analyzer, naming the clause
+        return node
+
+    def _parse_json_array(self) -> exp.Expression:
+        # JSON_ARRAY([value [FORMAT JSON], ... [NULL | ABSENT ON NULL]] [RETURNING type [FORMAT JSON]])
+        # (SqlBase.g4 #jsonArray); the clauses are kept in meta, the elements as plain arguments.
+        values = [] if self._curr.token_type == TokenType.R_PAREN else self._parse_csv(self._parse_json_element)
+        node = exp.Anonymous(this="json_array", expressions=values)
+        for value in ("NULL", "ABSENT"):
+            if self._match_text_seq(value, "ON", "NULL"):
+                node.meta["null"] = value
+        if self._match(TokenType.RETURNING):
+            node.meta["returning"] = self._parse_types()
+            if self._match_text_seq("FORMAT", "JSON"):
+                node.meta["returning_format"] = self._match_text_seq("ENCODING") and self._parse_var().name or "JSON"
+        return node
+
+    def _parse_json_element(self):
+        value = self._parse_lambda()  # a whole expression, as in any call (SqlBase.g4 #jsonValueExpression)
+        if value is not None and self._match_text_seq("FORMAT", "JSON"):
+            value.meta["format_json"] = self._match_text_seq("ENCODING") and self._parse_var().name or True
+        return value
 
     def _parse_normalize(self) -> exp.Expression:
         # NORMALIZE(value [, NFC | NFD | NFKC | NFKD]) (SqlBase.g4 #normalize): the form keyword is
@@ -128,11 +214,47 @@ class _Parser(Trino.Parser):
         return super()._parse_in(this, alias)
 
 
+class _Generator(Trino.Generator):
+    # The SQL/JSON clauses _Parser keeps in meta, written back (the query forwarded to Trino).
+    def anonymous_sql(self, expression: exp.Anonymous) -> str:
+        name, meta = expression.name.lower(), expression.meta_get
+        clauses = ("on_error", "null", "returning")
+        if name not in ("json_array", "json_exists") or not (
+            any(meta(c) is not None for c in clauses) or any(a.meta_get("format_json") for a in expression.expressions)
+        ):
+            return super().anonymous_sql(expression)
+        args = []
+        for arg in expression.expressions:
+            form = arg.meta_get("format_json")
+            encoding = "" if form is True else f" ENCODING {form}"
+            args.append(self.sql(arg) + (f" FORMAT JSON{encoding}" if form else ""))
+        text = ", ".join(args)
+        if meta("on_error"):
+            text += f" {meta('on_error')} ON ERROR"
+        if meta("null"):
+            text += f" {meta('null')} ON NULL"
+        if meta("returning") is not None:
+            text += f" RETURNING {self.sql(meta('returning'))}"
+            form = meta("returning_format")
+            text += "" if not form else " FORMAT JSON" + ("" if form == "JSON" else f" ENCODING {form}")
+        return f"{name.upper()}({text})"
+
+    def jsonextract_sql(self, expression: exp.JSONExtract) -> str:
+        sql = super().jsonextract_sql(expression)
+        returning = expression.args.get("returning")
+        if not expression.args.get("json_query") or returning is None:
+            return sql
+        path = self.sql(expression, "expression")
+        at = sql.index(path, len("JSON_QUERY(") + len(self.sql(expression, "this"))) + len(path)
+        return f"{sql[:at]} RETURNING {self.sql(returning)}{sql[at:]}"
+
+
 class LakegateTrino(Trino):
     """Trino as sqlglot reads it, with function calls left uninterpreted."""
 
     INDEX_OFFSET = 0
     Parser = _Parser
+    Generator = _Generator
 
 
 _cache: OrderedDict = OrderedDict()

@@ -231,6 +231,24 @@ CONSTRUCTS: dict[str, Construct] = {
     "U&'...' Unicode string literal": Construct(
         "types and literals", "SELECT U&'Hello winter \\2603 !'", (exp.UnicodeString,)
     ),
+    "CHAR(n) type (CHAR '...' literals, casts to char(n))": Construct(
+        "literals",
+        "SELECT CAST('ab' AS char(3)) = CHAR 'ab '",
+        (exp.Cast,),
+        lambda n: n.args["to"].this == exp.DataType.Type.CHAR,
+    ),
+    "TIME(p) type (TIME '...' literals, casts to time(p))": Construct(
+        "literals",
+        "SELECT TIME '01:02:03.456' + INTERVAL '1' HOUR",
+        (exp.Cast,),
+        lambda n: n.args["to"].this == exp.DataType.Type.TIME,
+    ),
+    "(a, b) IN (multi-column subquery)": Construct(
+        "queries",
+        "SELECT (a, id) IN (SELECT a, id FROM t) FROM t",
+        (exp.In,),
+        lambda n: isinstance(n.this, exp.Tuple) and n.args.get("query") is not None,
+    ),
     "CAST to varbinary / VARBINARY '...'": Construct(
         "literals",
         "SELECT CAST('abc' AS varbinary)",

@@ -987,7 +987,14 @@ def _from_iso8601_timestamp(call: Call) -> TType:
     is answered in a UTC session only (there both forms give UTC)."""
     need(call, "string")
     text, zone = literal_str(call, 0), call.analyzer.time_zone
-    if text is not None and text.rstrip().endswith("Z"):
+    offset = re.search(r"T[0-9:.,]+([+-][0-9]{2}(?::?[0-9]{2})?)$", text.strip()) if text is not None else None
+    if offset is not None:  # a literal's offset is the value's zone (Joda's withOffsetParsed)
+        try:
+            zone = zones.canonical(offset.group(1))
+        except ValueError:
+            call.fail(f'Invalid format: "{text}"', "INVALID_FUNCTION_ARGUMENT")
+        call.node.meta["iso_text"] = text.strip()[: offset.start(1)]
+    elif text is not None and text.rstrip().endswith("Z"):
         zone = zones.UTC
     elif text is None and zone != zones.UTC:
         call.fail(
@@ -1001,8 +1008,8 @@ def _from_iso8601_timestamp(call: Call) -> TType:
 def _render_from_iso8601_timestamp(g, node, args) -> str:
     """DateTimeFunctions.fromISO8601Timestamp (Joda's ISODateTimeFormat.dateTimeParser) for the
     common forms; other forms and offsets other than Z are refused: Trino keeps the offset as the
-    value's zone, which lakegate's values cannot carry unless the query names it."""
-    text = g.sql(args[0])
+    value's zone, which lakegate's values carry when a literal names it (then read without it)."""
+    text = tf.string(node.meta["iso_text"]) if "iso_text" in node.meta else g.sql(args[0])
     pattern = tf.string(_ISO_DATETIME)
 
     def part(index: int, default: str = "0") -> str:
@@ -1054,7 +1061,7 @@ register(
     "from_iso8601_timestamp(string) -> timestamp(3) with time zone",
     _from_iso8601_timestamp,
     _render_from_iso8601_timestamp,
-    notes="yyyy-MM-dd[THH[:mm[:ss[.SSS]]]] with Z (UTC) or no offset (the session zone); other offsets are refused.",
+    notes="yyyy-MM-dd[THH[:mm[:ss[.SSS]]]] with Z (UTC), no offset (the session zone) or, in a literal, an offset (its zone).",
 )
 
 

@@ -1061,7 +1061,8 @@ register(
     "from_iso8601_timestamp(string) -> timestamp(3) with time zone",
     _from_iso8601_timestamp,
     _render_from_iso8601_timestamp,
-    notes="yyyy-MM-dd[THH[:mm[:ss[.SSS]]]] with Z (UTC), no offset (the session zone) or, in a literal, an offset (its zone).",
+    notes="yyyy-MM-dd[THH[:mm[:ss[.SSS]]]] with Z (UTC), no offset (the session zone) or, in a literal, "
+    "an offset (its zone).",
 )
 
 

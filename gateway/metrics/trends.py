@@ -91,7 +91,9 @@ def in_window(batches: Sequence[BatchInfo], window: Window | None, now: dt.datet
         return list(batches)
     if window.count is not None:
         return list(batches[-window.count :])
-    since = (now or dt.datetime.now(dt.UTC).replace(tzinfo=None)) - dt.timedelta(days=window.days or 0)
+    now = now or dt.datetime.now(dt.UTC).replace(tzinfo=None)
+    days = min(window.days or 0, (now - dt.datetime.min).days)  # more days than the calendar has: every batch
+    since = now - dt.timedelta(days=days)
     return [b for b in batches if b.time is not None and b.time >= since]
 
 

@@ -127,6 +127,7 @@ def test_dashboard_metrics_run_over_every_batch_and_show_the_trend_by_build(tren
         ("1", ["nightly-3"]),
         ("30d", ["nightly-2", "nightly-3"]),
         ("5d", ["nightly-3"]),
+        ("99999999999999999999d", ["nightly-1", "nightly-2", "nightly-3"]),  # more days than a datetime holds
     ],
 )
 def test_a_window_keeps_the_last_batches_or_days(trends_lake, window, batches):

@@ -214,7 +214,10 @@ class ImportReport:
 def message_count(mcap_path: Path, sources: set[str]) -> int | None:
     """The number of messages on `sources` from the file's summary (None without one)."""
     with open(mcap_path, "rb") as stream:
-        summary = make_reader(stream).get_summary()
+        try:
+            summary = make_reader(stream).get_summary()
+        except McapError as error:
+            raise _unreadable(mcap_path, error) from None
     if summary is None or summary.statistics is None:
         return None
     counts = summary.statistics.channel_message_counts
@@ -258,13 +261,19 @@ def import_mcap(
 def _messages(mcap_path: Path, by_source: dict[str, TopicMapping]) -> Iterator[tuple[TopicMapping, Any, Any]]:
     factories = [Ros2DecoderFactory(), ProtobufDecoderFactory(), _JsonDecoderFactory()]
     with open(mcap_path, "rb") as stream:
-        reader = make_reader(stream, decoder_factories=factories)
         try:
+            reader = make_reader(stream, decoder_factories=factories)
             messages = reader.iter_decoded_messages(topics=list(by_source), log_time_order=False)  # file order: no heap
             for _, channel, message, decoded in messages:
                 yield by_source[channel.topic], message, decoded
         except McapError as error:
-            raise McapImportError(f"{mcap_path}: cannot decode the MCAP file: {error}") from None
+            raise _unreadable(mcap_path, error) from None
+
+
+def _unreadable(mcap_path: Path, error: McapError) -> McapImportError:
+    """The error for a file the mcap reader refuses (not MCAP, cut short, unknown compression...)."""
+    why = str(error) or f"{type(error).__name__} (an empty or cut-short file)"
+    return McapImportError(f"{mcap_path}: cannot decode the MCAP file: {why}")
 
 
 def _value(path: MessagePath, decoded: Any, where: str, convert: Callable[[Any], Any]) -> Any:

@@ -155,6 +155,24 @@ def test_import_straight_into_a_job(files, tmp_path):
     assert con.execute("SELECT DISTINCT build_version, job_id FROM battery").fetchall() == [("2.0", "run-1")]
 
 
+def test_a_file_that_is_not_mcap_or_cut_short_is_one_clear_line(files, tmp_path):
+    """Garbage, an empty file and a recording killed midway (its first half) fail with one line naming
+    the file, write nothing to the output and leave no traceback."""
+    config, mapping, log = files
+    data = log.read_bytes()
+    cases = {"garbage.mcap": bytes(range(256)) * 8, "empty.mcap": b"", "cut.mcap": data[: len(data) // 2]}
+    for name, content in cases.items():
+        path, output = tmp_path / name, tmp_path / f"{name}.jsonl"
+        path.write_bytes(content)
+        result = lakegate(
+            "import", "mcap", path, "--mapping", mapping, "--output", output, "--metrics-config-path", config,
+            check=False,
+        )  # fmt: skip
+        assert result.returncode == 1, (name, result.stderr)
+        assert result.stderr.startswith(f"lakegate: {path}: cannot decode the MCAP file: "), (name, result.stderr)
+        assert "Traceback" not in result.stderr and not output.exists(), name
+
+
 def test_mapping_errors_name_the_mapping_file_line_and_column(files, tmp_path):
     config, _, log = files
     bad = tmp_path / "bad.yaml"

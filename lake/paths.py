@@ -25,15 +25,11 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import os
-import shutil
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
 
-try:
-    import fcntl
-except ImportError:  # pragma: no cover - not on POSIX
-    fcntl = None  # type: ignore[assignment]
+from lakegate.lake.storage import LOCAL
 
 #: The column of topic and event rows whose min/max the record keeps.
 TIMESTAMP_COLUMN = "timestamp"
@@ -258,8 +254,8 @@ def partition_value(directory: Path, key: str) -> str | None:
 
 def publish(source: Path, target: Path) -> None:
     """Move a finished file into place atomically (replacing any older version)."""
-    target.parent.mkdir(parents=True, exist_ok=True)
-    os.replace(source, target)
+    LOCAL.make_dirs(target.parent)
+    LOCAL.move(source, target)
 
 
 def publish_linked(source: Path, target: Path) -> None:
@@ -279,12 +275,9 @@ def link_reader(target: Path) -> None:
 
 def remove_published(target: Path) -> None:
     """Remove a published data file and the partition directories it leaves empty."""
-    with contextlib.suppress(FileNotFoundError):
-        target.unlink()
+    LOCAL.delete(target, missing_ok=True)
     for directory in (target.parent, target.parent.parent):
-        try:
-            directory.rmdir()
-        except OSError:
+        if not LOCAL.remove_empty_dir(directory):
             break
 
 
@@ -295,21 +288,21 @@ def staging(lake: Path, branch: str) -> Iterator[Path]:
     Scratch left behind by writers that died (their process is gone) is removed first.
     """
     root = branch_dir(lake, branch) / STAGING
-    root.mkdir(parents=True, exist_ok=True)
+    LOCAL.make_dirs(root)
     _remove_abandoned(root)
     directory = root / f"{os.getpid()}-{uuid.uuid4().hex}"
-    directory.mkdir()
+    LOCAL.make_dirs(directory)
     try:
         yield directory
     finally:
-        shutil.rmtree(directory, ignore_errors=True)
+        LOCAL.delete_tree(directory)
 
 
 def _remove_abandoned(root: Path) -> None:
-    for entry in root.iterdir():
+    for entry in LOCAL.list(root):
         pid_text = entry.name.split("-", 1)[0]
-        if entry.is_dir() and pid_text.isdigit() and not _writer_alive(pid_text):
-            shutil.rmtree(entry, ignore_errors=True)
+        if entry.is_dir and pid_text.isdigit() and not _writer_alive(pid_text):
+            LOCAL.delete_tree(entry.path)
 
 
 def _writer_alive(pid_text: str) -> bool:
@@ -350,13 +343,5 @@ def batch_lock(lake: Path, branch: str, batch_id: str) -> Iterator[None]:
 
 @contextlib.contextmanager
 def _locked(lake: Path, branch: str, name: str) -> Iterator[None]:
-    locks = branch_dir(lake, branch) / STAGING / "locks"
-    locks.mkdir(parents=True, exist_ok=True)
-    with open(locks / name, "a") as handle:
-        if fcntl is not None:
-            fcntl.flock(handle, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            if fcntl is not None:
-                fcntl.flock(handle, fcntl.LOCK_UN)
+    with LOCAL.lock(branch_dir(lake, branch) / STAGING / "locks" / name):
+        yield

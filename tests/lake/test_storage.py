@@ -1,0 +1,150 @@
+"""The lake's filesystem layer: the same operations on a local path, a `file://` URI and file
+systems that are not local (pyarrow's `mock://` and a SubTreeFileSystem), which refuse what
+needs a local one."""
+
+from __future__ import annotations
+
+import fcntl
+import os
+
+import pyarrow as pa
+import pyarrow.fs as pafs
+import pytest
+
+from lakegate.gateway.cli.errors import os_error_text
+from lakegate.lake.storage import LakeStorage, LocalOnlyError
+
+KINDS = ["path", "file-uri", "mock", "subtree"]
+
+
+def storage_of(kind: str, tmp_path) -> LakeStorage:
+    lake = tmp_path / "lake"
+    if kind == "path":
+        return LakeStorage(lake)
+    if kind == "file-uri":
+        return LakeStorage(lake.as_uri())
+    if kind == "mock":
+        return LakeStorage("mock:///bucket/lake")
+    lake.mkdir()
+    return LakeStorage("", pafs.SubTreeFileSystem(str(lake), pafs.LocalFileSystem()))
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_files_are_written_read_listed_and_globbed(kind, tmp_path):
+    storage = storage_of(kind, tmp_path)
+    storage.write_text(storage.path("main", "_configs", "v000001", "manifest.json"), "{}\n")
+    table = pa.table({"timestamp": [1, 2, 3]})
+    for batch, job in [("b1", "j1"), ("b1", "j2"), ("b2", "j1")]:
+        storage.write_parquet(table, storage.path("main", "odom", f"batch_id={batch}", f"job_id={job}", "1-a.parquet"))
+    storage.write_bytes(storage.path("main", "odom", "batch_id=b1", "job_id=j1", "notes.txt"), b"not data")
+
+    assert storage.read_text(storage.path("main", "_configs", "v000001", "manifest.json")) == "{}\n"
+    assert [e.name for e in storage.list(storage.path("main"))] == ["_configs", "odom"]
+    assert all(e.is_dir for e in storage.list(storage.path("main")))
+    found = storage.glob(storage.path("main", "odom"), "batch_id=*/job_id=*/*.parquet")
+    assert [e.path.split("/odom/")[1] for e in found] == [
+        "batch_id=b1/job_id=j1/1-a.parquet",
+        "batch_id=b1/job_id=j2/1-a.parquet",
+        "batch_id=b2/job_id=j1/1-a.parquet",
+    ]
+    first = found[0].path
+    assert storage.read_parquet(first).equals(table)
+    assert storage.parquet_file(first).metadata.num_rows == 3
+    assert storage.stat(first).size == found[0].size > 0
+    assert storage.read_head(storage.path("main", "odom", "batch_id=b1", "job_id=j1", "notes.txt"), 3) == b"not"
+    assert storage.is_file(first) and not storage.is_dir(first) and storage.exists(first)
+    assert storage.is_dir(storage.path("main", "odom")) and not storage.is_file(storage.path("main", "odom"))
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_missing_files_are_errors_naming_them_and_missing_directories_are_empty(kind, tmp_path):
+    storage = storage_of(kind, tmp_path)
+    missing = storage.path("main", "odom", "gone.parquet")
+    with pytest.raises(FileNotFoundError, match="gone.parquet"):
+        storage.read_bytes(missing)
+    with pytest.raises(FileNotFoundError) as raised:
+        storage.stat(missing)
+    assert raised.value.filename == missing
+    with pytest.raises(FileNotFoundError, match="gone.parquet"):
+        storage.delete(missing)
+    storage.delete(missing, missing_ok=True)
+    storage.delete_tree(storage.path("main", "nothing"))
+    assert storage.list(storage.path("nothing")) == [] and storage.glob(storage.path("nothing"), "*/*") == []
+    assert not storage.exists(missing) and not storage.is_file(missing) and not storage.is_dir(missing)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_move_replaces_a_file_and_refuses_a_directory_that_is_not_empty(kind, tmp_path):
+    storage = storage_of(kind, tmp_path)
+    old, new = storage.path("t", "data.parquet"), storage.path("_staging", "x", "data.parquet")
+    storage.write_bytes(old, b"old")
+    storage.write_bytes(new, b"new")
+    storage.move(new, old)
+    assert storage.read_bytes(old) == b"new" and not storage.exists(new)
+    storage.write_bytes(storage.path("v1", "manifest.json"), b"{}")
+    storage.write_bytes(storage.path("scratch", "manifest.json"), b"{}")
+    with pytest.raises(OSError):
+        storage.move(storage.path("scratch"), storage.path("v1"))
+    storage.delete_tree(storage.path("scratch"))
+    assert not storage.exists(storage.path("scratch")) and storage.exists(storage.path("v1", "manifest.json"))
+
+
+def test_a_local_move_is_a_rename_and_empty_directories_are_removed_alone(tmp_path):
+    storage = LakeStorage(tmp_path)
+    source, target = tmp_path / "_staging" / "a.parquet", tmp_path / "t" / "b=1" / "a.parquet"
+    storage.write_bytes(source, b"rows")
+    inode = source.stat().st_ino
+    storage.make_dirs(target.parent)
+    storage.move(source, target)
+    assert target.stat().st_ino == inode  # the same file under its new name: readers see all of it or none
+    assert not storage.remove_empty_dir(target.parent) and target.exists()
+    storage.delete(target)
+    assert storage.remove_empty_dir(target.parent) and not target.parent.exists()
+
+
+def test_a_file_uri_lake_is_the_same_lake_as_its_path(tmp_path):
+    by_path, by_uri = LakeStorage(tmp_path / "lake"), LakeStorage((tmp_path / "lake").as_uri())
+    assert by_uri.is_local and by_uri.root == by_path.root == str(tmp_path / "lake")
+    by_uri.write_text(by_uri.path("main", "x.txt"), "written by URI")
+    assert by_path.read_text(by_path.path("main", "x.txt")) == "written by URI"
+    assert (tmp_path / "lake" / "main" / "x.txt").read_text() == "written by URI"
+
+
+def test_hard_links_and_locks_on_a_local_lake(tmp_path):
+    storage = LakeStorage(tmp_path)
+    storage.write_bytes(tmp_path / "t" / "a.parquet", b"rows")
+    link = tmp_path / "_readers" / "t" / "a.parquet"
+    storage.hard_link(tmp_path / "t" / "a.parquet", link)
+    storage.hard_link(tmp_path / "t" / "a.parquet", link)  # already there: nothing to do
+    assert link.stat().st_ino == (tmp_path / "t" / "a.parquet").stat().st_ino
+    lock_file = tmp_path / "_staging" / "locks" / "01.lock"
+    with storage.lock(lock_file), open(lock_file) as other:
+        with pytest.raises(BlockingIOError):
+            fcntl.flock(other, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    with open(lock_file) as other:
+        fcntl.flock(other, fcntl.LOCK_EX | fcntl.LOCK_NB)  # released when the block ends
+
+
+@pytest.mark.parametrize("kind", ["mock", "subtree"])
+def test_a_lake_that_is_not_local_refuses_local_only_capabilities_in_one_line(kind, tmp_path):
+    storage = storage_of(kind, tmp_path)
+    storage.write_bytes(storage.path("t", "a.parquet"), b"rows")
+    assert not storage.is_local
+    attempts = {
+        "a reader link (a hard link)": lambda: storage.hard_link(storage.path("t", "a.parquet"), storage.path("r")),
+        "a lock (flock)": lambda: storage.lock(storage.path("01.lock")).__enter__(),
+        "a link to a local folder": lambda: storage.symlink(storage.path("logs"), tmp_path),
+        "the record": lambda: storage.local_path(storage.path("_lake.sqlite"), "the record"),
+    }
+    for capability, attempt in attempts.items():
+        with pytest.raises(LocalOnlyError) as raised:
+            attempt()
+        expected = (
+            f"object-store lakes are not supported yet: {capability} needs a local file system "
+            f"(the lake is at {storage.location})"
+        )
+        assert os_error_text(raised.value) == expected  # what the CLI prints, without a traceback
+    storage.write_bytes(storage.path("t", "b", "c.parquet"), b"rows")
+    storage.delete(storage.path("t", "b", "c.parquet"))
+    assert not storage.remove_empty_dir(storage.path("t", "b"))  # kept: no atomic "remove if empty" there
+    assert os.listdir(tmp_path) in ([], ["lake"])  # nothing escaped to the local disk beside the subtree

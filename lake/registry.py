@@ -7,6 +7,10 @@ path relative to the config as in the source folder, so the stored config finds 
 renaming a finished directory into place, so readers never see half of one and two writers never
 share a number. The newest version is `current()`; the catalog uses it (and older versions, for
 topics no longer declared) to know every table's columns.
+
+Versions are listed, stored and renamed through the lake's storage (`lake.storage`), so they work
+on any file system; loading one needs a local one, because the config loader and the custom
+templates it finds beside a config read local files.
 """
 
 from __future__ import annotations
@@ -15,13 +19,14 @@ import datetime as dt
 import hashlib
 import json
 import os
-import shutil
+import tempfile
 import uuid
 from collections.abc import Sequence
 from pathlib import Path
 
 from lakegate.lake import paths
 from lakegate.lake.config import Config, ConfigError, load_config
+from lakegate.lake.storage import LakeStorage
 
 _PREFIX = "v"
 MANIFEST = "manifest.json"
@@ -30,19 +35,18 @@ MANIFEST = "manifest.json"
 class BranchConfigs:
     """The config versions of one branch of a lake."""
 
-    def __init__(self, lake: Path, branch: str):
-        self.lake = Path(lake)
+    def __init__(self, lake: Path | str, branch: str):
+        """`lake`: the lake's location, a local path or a URI (`lake.storage`)."""
+        self.storage = LakeStorage(lake)
         self.branch = branch
-        self.root = paths.configs_dir(self.lake, branch)
+        self.root = paths.configs_dir(Path(self.storage.root), branch)
 
     def versions(self) -> list[int]:
         """Every stored version number, oldest first."""
-        if not self.root.is_dir():
-            return []
         found = []
-        for entry in self.root.iterdir():
+        for entry in self.storage.list(self.root):
             number = entry.name[len(_PREFIX) :]
-            if entry.name.startswith(_PREFIX) and number.isdigit() and (entry / MANIFEST).is_file():
+            if entry.name.startswith(_PREFIX) and number.isdigit() and self.storage.is_file(f"{entry.path}/{MANIFEST}"):
                 found.append(int(number))
         return sorted(found)
 
@@ -56,14 +60,15 @@ class BranchConfigs:
         return None if version is None else self.load(version)
 
     def files(self, version: int) -> list[Path]:
-        """The stored source files of `version`, in merge order."""
+        """The stored source files of `version`, in merge order, as local files (LocalOnlyError on
+        a lake that is not local: the config loader reads local files)."""
         directory = self._dir(version)
-        manifest = json.loads((directory / MANIFEST).read_text())
-        return [directory / name for name in manifest["files"]]
+        manifest = json.loads(self.storage.read_text(directory / MANIFEST))
+        return [self.storage.local_path(directory / name, "loading a stored config") for name in manifest["files"]]
 
     def load(self, version: int) -> Config:
         """The config of `version` (KeyError if there is no such version)."""
-        if not (self._dir(version) / MANIFEST).is_file():
+        if not self.storage.is_file(self._dir(version) / MANIFEST):
             raise KeyError(f"branch {self.branch!r} has no config version {version}")
         return load_config(self.files(version))
 
@@ -81,16 +86,13 @@ class BranchConfigs:
         latest = self.current_version()
         if latest is not None and self._manifest(latest).get("sha256") == digest:
             return latest
-        self.root.mkdir(parents=True, exist_ok=True)
         scratch = self.root / f"_new-{os.getpid()}-{uuid.uuid4().hex}"
-        scratch.mkdir()
         try:
             names = [f"{i:02d}-{name}" for i, (name, _) in enumerate(contents)]
             for name, (_, data) in zip(names, contents):
-                (scratch / name).write_bytes(data)
+                self.storage.write_bytes(scratch / name, data)
             for name, data in templates:  # where the stored config finds them: beside it, as beside the source
-                (scratch / name).parent.mkdir(parents=True, exist_ok=True)
-                (scratch / name).write_bytes(data)
+                self.storage.write_bytes(scratch / name, data)
             manifest = {
                 "files": names,
                 "templates": [name for name, _ in templates],
@@ -98,40 +100,36 @@ class BranchConfigs:
                 "sha256": digest,
                 "stored_at": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
             }
-            (scratch / MANIFEST).write_text(json.dumps(manifest, indent=2) + "\n")
+            self.storage.write_text(scratch / MANIFEST, json.dumps(manifest, indent=2) + "\n")
             number = (latest or 0) + 1
             while True:
                 try:
-                    os.rename(scratch, self._dir(number))
+                    self.storage.move(scratch, self._dir(number))
                     return number
                 except OSError:
-                    if not self._dir(number).exists():
+                    if not self.storage.exists(self._dir(number)):
                         raise
                     if self._manifest(number).get("sha256") == digest and number == self.current_version():
                         return number  # another writer stored the same config just now
                     number += 1
         finally:
-            shutil.rmtree(scratch, ignore_errors=True)
+            self.storage.delete_tree(scratch)
 
     def store_config(self, config: Config) -> int:
         """Store `config` by its source files, or (when built in memory) as YAML of its topics."""
         if config.paths and all(Path(p).is_file() for p in config.paths):
             return self.store(config.paths)
-        self.root.mkdir(parents=True, exist_ok=True)
-        generated = self.root / f"_gen-{os.getpid()}-{uuid.uuid4().hex}" / "config.resim.yaml"
-        generated.parent.mkdir()
-        try:
+        with tempfile.TemporaryDirectory(prefix="lakegate-config-") as scratch:
+            generated = Path(scratch) / "config.resim.yaml"
             generated.write_text(topics_yaml(config))
             return self.store([generated])
-        finally:
-            shutil.rmtree(generated.parent, ignore_errors=True)
 
     def _dir(self, version: int) -> Path:
         return self.root / f"{_PREFIX}{version:06d}"
 
     def _manifest(self, version: int) -> dict:
         try:
-            return json.loads((self._dir(version) / MANIFEST).read_text())
+            return json.loads(self.storage.read_text(self._dir(version) / MANIFEST))
         except (OSError, ValueError):
             return {}
 

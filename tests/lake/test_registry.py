@@ -10,6 +10,7 @@ import pytest
 from lakegate.lake import paths
 from lakegate.lake.config import Config, Topic
 from lakegate.lake.registry import BranchConfigs
+from lakegate.lake.storage import LocalOnlyError
 
 ODOM = "version: 1\ntopics:\n  odom:\n    schema: {x: float}\n"
 ODOM_Z = "version: 1\ntopics:\n  odom:\n    schema: {x: float, z: float}\n"
@@ -97,3 +98,22 @@ def test_concurrent_stores_never_share_a_number(tmp_path):
     assert configs.versions() == numbers
     assert sorted(next(iter(configs.load(n).topics)) for n in numbers) == [f"t{i}" for i in range(6)]
     assert not [p for p in paths.configs_dir(lake, "main").iterdir() if p.name.startswith("_")]
+
+
+def test_a_file_uri_lake_has_the_versions_of_its_path(tmp_path):
+    stored = BranchConfigs(tmp_path / "lake", "main").store([write(tmp_path, "a.yaml", ODOM)])
+    by_uri = BranchConfigs((tmp_path / "lake").as_uri(), "main")
+    assert by_uri.versions() == [stored] and list(by_uri.current().topics["odom"].fields) == ["x"]
+
+
+def test_versions_are_stored_on_a_lake_that_is_not_local_and_loading_one_is_refused(tmp_path):
+    configs = BranchConfigs("mock:///bucket/lake", "feature/x")
+    first, second = write(tmp_path, "a.yaml", ODOM), write(tmp_path, "b.yaml", ODOM_Z)
+    assert [configs.store([first]), configs.store([first]), configs.store([second])] == [1, 1, 2]
+    assert configs.versions() == [1, 2]
+    assert [e.name for e in configs.storage.list(configs.storage.path("feature%2Fx", "_configs"))] == [
+        "v000001",
+        "v000002",
+    ]
+    with pytest.raises(LocalOnlyError, match="object-store lakes are not supported yet: loading a stored config"):
+        configs.current()

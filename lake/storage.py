@@ -195,11 +195,18 @@ class LakeStorage:
             return False
         return True
 
-    def copy_tree(self, source: Path, target: StoragePath) -> None:
-        """Copy a local directory (a user's files, e.g. a job's logs) into the lake at `target`."""
-        for file in sorted(source.rglob("*")):
-            if file.is_file():
-                self.write_bytes(f"{_text(target)}/{file.relative_to(source).as_posix()}", file.read_bytes())
+    def put(self, source: Path, target: StoragePath) -> None:
+        """Copy a local file or directory (a user's files, e.g. a job's logs) into the lake at `target`."""
+        files = [source]
+        if source.is_dir():
+            self.make_dirs(target)
+            files = sorted(f for f in source.rglob("*") if f.is_file())
+        for file in files:
+            destination = f"{_text(target)}/{file.relative_to(source).as_posix()}" if file != source else _text(target)
+            self.make_dirs(_parent(destination))
+            pafs.copy_files(
+                str(file), destination, source_filesystem=pafs.LocalFileSystem(), destination_filesystem=self.filesystem
+            )
 
     # -- only on a local file system ----------------------------------------------------------
 

@@ -45,6 +45,7 @@ from lakegate.lake.config import Config, ConfigError, load_config
 from lakegate.lake.ingest import IngestError, ingest_job
 from lakegate.lake.metadata import MetadataError, load_metadata_file
 from lakegate.lake.paths import LakePathError
+from lakegate.lake.storage import LakeStorage
 
 BRANCH = "debug"
 #: Seconds open requests get to finish once the server is stopped.
@@ -146,16 +147,15 @@ def referenced_files(emissions: Path, config: Config) -> set[str]:
     return names
 
 
-def copy_referenced(source: Path, names: set[str], target: Path) -> None:
-    """Copy the files `names` of folder `source` (only those inside it) to `target`, replacing it."""
-    shutil.rmtree(target, ignore_errors=True)
-    target.mkdir(parents=True)
+def copy_referenced(source: Path, names: set[str], storage: LakeStorage, target: Path) -> None:
+    """Copy the files `names` of folder `source` (only those inside it) to `target` in the lake, replacing it."""
+    storage.delete_tree(target)
+    storage.make_dirs(target)
     root = source.resolve()
     for name in sorted(n for n in names if "\0" not in n):
         path = (root / name).resolve()
         if path.is_relative_to(root) and path != root and path.is_file():
-            (target / path.relative_to(root)).parent.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(path, target / path.relative_to(root))
+            storage.put(path, target / path.relative_to(root))
 
 
 class DebugJob:
@@ -203,14 +203,15 @@ class DebugJob:
             raise ValueError(f"bad metadata: {error.problems[0]}") from None
         self._ingested = stamp
         logs = paths.logs_dir(self.lake, self.branch, self.batch_id, self.job_id)
+        storage = LakeStorage(self.lake)
         if self.logs_dir is None:
-            copy_referenced(self.emissions.parent, referenced_files(self.emissions, config), logs)
-        elif not logs.exists():
-            logs.parent.mkdir(parents=True, exist_ok=True)
+            copy_referenced(self.emissions.parent, referenced_files(self.emissions, config), storage, logs)
+        elif not storage.exists(logs):
+            storage.make_dirs(logs.parent)
             try:
-                logs.symlink_to(self.logs_dir.resolve(), target_is_directory=True)
+                storage.symlink(logs, self.logs_dir.resolve())
             except OSError:
-                shutil.copytree(self.logs_dir, logs)
+                storage.put(self.logs_dir, logs)
         return sum(report.rows.values())
 
     def refresh(self, config: Config) -> bool:

@@ -12,7 +12,6 @@ them to `<lake>/trends.html`. Running it again replaces the batches and their re
 from __future__ import annotations
 
 import argparse
-import shutil
 import sys
 import time
 from datetime import timedelta
@@ -31,6 +30,7 @@ from lakegate.lake import paths
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file
 from lakegate.lake.registry import BranchConfigs
+from lakegate.lake.storage import LakeStorage
 
 BRANCH = "main"
 BATCH = "nav-regression-1"
@@ -84,7 +84,7 @@ def _step(text: str) -> None:
 
 def _ingest(lake: Path, batch: str, jobs: list[GeneratedJob], config, progress: bool) -> int:
     """Ingest generated jobs into `batch` (copying their logs into the lake); the rows written."""
-    rows = 0
+    rows, storage = 0, LakeStorage(lake)
     for job in tqdm(jobs, desc=f"ingesting {batch}", unit="job", disable=not progress, file=sys.stderr, leave=False):
         report = ingest_job(
             lake,
@@ -97,8 +97,8 @@ def _ingest(lake: Path, batch: str, jobs: list[GeneratedJob], config, progress: 
         )
         rows += sum(report.rows.values())
         logs = paths.logs_dir(lake, BRANCH, batch, job.job_id)
-        shutil.rmtree(logs, ignore_errors=True)
-        shutil.copytree(job.logs_dir, logs)
+        storage.delete_tree(logs)
+        storage.put(job.logs_dir, logs)
     return rows
 
 

@@ -47,6 +47,7 @@ from lakegate.gateway.metrics.templates import TEMPLATES, json_value, public_fil
 from lakegate.lake.config import Config, ConfigError, Metric, load_config
 from lakegate.lake.config_schema import SET_METRIC_TYPES
 from lakegate.lake.registry import BranchConfigs
+from lakegate.lake.storage import LOCAL
 
 #: Rows an ad hoc query shows (the total is always counted).
 QUERY_ROWS = 1000
@@ -812,7 +813,7 @@ class DashboardSession:
             raise SessionError(f"job {job_id!r} has no log files")
         root = root.resolve()
         path = None if "\0" in name else (root / name).resolve()
-        if path is None or not path.is_relative_to(root) or not path.is_file():
+        if path is None or not path.is_relative_to(root) or not LOCAL.is_file(path):
             raise SessionError(f"no file {name!r} in the logs of job {job_id!r}")
         return path
 

@@ -63,6 +63,7 @@ from lakegate.gateway.metrics.results import ResultsWriter
 from lakegate.gateway.metrics.templates import TemplateError, render
 from lakegate.lake import paths
 from lakegate.lake.config import Config, Location, Metric
+from lakegate.lake.storage import LakeStorage
 
 PASSED, WARNING, BLOCKER, ERROR, NOT_RUN = "PASSED", "WARNING", "BLOCKER", "ERROR", "NOT_RUN"
 #: Statuses from best to worst; NOT_RUN is below all and never makes anything worse.
@@ -268,6 +269,7 @@ class MetricsEngine:
 
     def __init__(self, lake: Path, engine: Engine | None = None, *, threads: int = 2):
         self.lake = Path(lake)
+        self.storage = LakeStorage(self.lake)
         self._owns_engine = engine is None
         self.engine = engine if engine is not None else Engine.open(self.lake)
         self.threads = max(1, threads)
@@ -394,7 +396,7 @@ class MetricsEngine:
     def logs_dir(self, branch: str, batch_id: str, job_id: str) -> Path | None:
         """The job's log files in the lake (`<branch>/_logs/<batch>/<job>/`), if there are any."""
         directory = paths.logs_dir(self.lake, branch, batch_id, job_id)
-        return directory if directory.is_dir() else None
+        return directory if self.storage.is_dir(directory) else None
 
     # -- a batch --------------------------------------------------------------------------------
 

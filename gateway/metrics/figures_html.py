@@ -21,6 +21,7 @@ from typing import Any
 from plotly.offline import get_plotlyjs
 
 from lakegate.gateway.metrics.templates import Rendered, display_value, format_number, image_mime
+from lakegate.lake.storage import LOCAL
 
 #: Badge colours of metric statuses.
 STATUS_COLOURS = {
@@ -235,7 +236,7 @@ def _images(paths: list[str]) -> tuple[str, list[str]]:
     for name in paths:
         path = Path(name)
         try:
-            size = path.stat().st_size
+            size = LOCAL.stat(path).size
             mime = image_mime(path)
         except OSError as exc:
             problems.append(f"{path.name}: cannot be read ({exc.strerror})")
@@ -246,7 +247,7 @@ def _images(paths: list[str]) -> tuple[str, list[str]]:
         if size > MAX_IMAGE_BYTES:
             problems.append(f"{path.name}: {size} bytes, too large to embed (limit {MAX_IMAGE_BYTES})")
             continue
-        data = base64.b64encode(path.read_bytes()).decode("ascii")
+        data = base64.b64encode(LOCAL.read_bytes(path)).decode("ascii")
         caption = html.escape(path.name)
         figures.append(
             f'<figure><img src="data:{mime};base64,{data}" alt="{caption}"><figcaption>{caption}</figcaption></figure>'
@@ -255,7 +256,7 @@ def _images(paths: list[str]) -> tuple[str, list[str]]:
 
 
 def _data_uri(path: Path, mime: str) -> str:
-    return f"data:{mime};base64,{base64.b64encode(path.read_bytes()).decode('ascii')}"
+    return f"data:{mime};base64,{base64.b64encode(LOCAL.read_bytes(path)).decode('ascii')}"
 
 
 def _too_large(name: str, size: int) -> str:

@@ -22,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from lakegate.lake.storage import LOCAL
+
 #: Templates this module renders.
 TEMPLATES = ("line", "bar", "table", "scalar", "image", "state_timeline", "histogram", "pie", "video", "artifact")
 #: Templates that show files of the job's logs named by the result's one column; their
@@ -117,8 +119,7 @@ def state_colour(state: str) -> str:
 
 def image_mime(path: Path) -> str | None:
     """The MIME type of a PNG, GIF or JPEG file, from its first bytes; None for anything else."""
-    with open(path, "rb") as f:
-        head = f.read(8)
+    head = LOCAL.read_head(path, 8)
     return next((mime for magic, mime in _IMAGE_MAGIC if head.startswith(magic)), None)
 
 
@@ -131,8 +132,7 @@ def public_file_table(table: dict | None) -> dict:
 
 def video_mime(path: Path) -> str | None:
     """The MIME type of an MP4, WebM or GIF file, from its first bytes; None for anything else."""
-    with open(path, "rb") as f:
-        head = f.read(12)
+    head = LOCAL.read_head(path, 12)
     if head[4:8] == b"ftyp":
         return "video/mp4"
     if head.startswith(_WEBM_MAGIC):
@@ -457,12 +457,12 @@ def _log_files(result: _Result, logs_dir: Path | None) -> Rendered:
         path = (root / name).resolve()
         if not path.is_relative_to(root):
             failed.setdefault(f"outside the job's logs ({root})", []).append(name)
-        elif not path.is_file():
+        elif not LOCAL.is_file(path):
             failed.setdefault(f"missing from the job's logs ({root})", []).append(name)
         elif (mime := mime_of(path)) is None:
             failed.setdefault(unshowable, []).append(name)
         else:
-            found.append([name, str(path), path.stat().st_size, mime])
+            found.append([name, str(path), LOCAL.stat(path).size, mime])
     noun = {"image": "image", "video": "video", "artifact": "file"}[result.template]
     text = _plural(len(found), noun)
     count = sum(len(names) for names in failed.values())

@@ -57,6 +57,26 @@ def test_files_are_written_read_listed_and_globbed(kind, tmp_path):
 
 
 @pytest.mark.parametrize("kind", KINDS)
+def test_local_folders_are_put_into_the_lake(kind, tmp_path):
+    storage = storage_of(kind, tmp_path)
+    logs = tmp_path / "logs"
+    (logs / "camera").mkdir(parents=True)
+    (logs / "camera" / "a.png").write_bytes(b"\x89PNG")
+    (logs / "notes.txt").write_text("hi")
+    (tmp_path / "empty").mkdir()
+    storage.put(logs, storage.path("main", "_logs", "b1", "j1"))
+    storage.put(tmp_path / "empty", storage.path("main", "_logs", "b1", "j2"))
+    storage.put(logs / "notes.txt", storage.path("main", "_logs", "b2", "j1", "notes.txt"))
+    assert [e.path.split("/_logs/")[1] for e in storage.glob(storage.path("main", "_logs"), "*/*/*")] == [
+        "b1/j1/camera",
+        "b1/j1/notes.txt",
+        "b2/j1/notes.txt",
+    ]
+    assert storage.read_bytes(storage.path("main", "_logs", "b1", "j1", "camera", "a.png")) == b"\x89PNG"
+    assert storage.is_dir(storage.path("main", "_logs", "b1", "j2"))
+
+
+@pytest.mark.parametrize("kind", KINDS)
 def test_missing_files_are_errors_naming_them_and_missing_directories_are_empty(kind, tmp_path):
     storage = storage_of(kind, tmp_path)
     missing = storage.path("main", "odom", "gone.parquet")

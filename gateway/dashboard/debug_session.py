@@ -112,7 +112,7 @@ class BranchConfig:
             )
         files = self.registry.files(version)
         names = [re.sub(r"^\d+-", "", f.name) for f in files]  # stored as 00-<name>, 01-<name> ...
-        return ConfigFiles(files, names, [f.read_text(encoding="utf-8") for f in files], version)
+        return ConfigFiles(files, names, [self.registry.storage.read_text(f) for f in files], version)
 
 
 # -- editing YAML, keeping the rest of the document -----------------------------------------------

@@ -16,11 +16,12 @@ from __future__ import annotations
 import contextlib
 import errno
 import fnmatch
+import functools
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path, PurePosixPath
-from typing import Any
+from typing import Any, TypeVar
 
 import pyarrow as pa
 import pyarrow.fs as pafs
@@ -32,6 +33,7 @@ except ImportError:  # pragma: no cover - not on POSIX
     fcntl = None  # type: ignore[assignment]
 
 StoragePath = str | os.PathLike
+T = TypeVar("T")
 
 
 class LocalOnlyError(OSError):
@@ -55,6 +57,23 @@ class Entry:
     is_dir: bool
     size: int | None  # bytes, None for a directory
     mtime_ns: int | None
+
+
+def _plain_errors(method: Callable[..., T]) -> Callable[..., T]:
+    """Raise pyarrow's OSErrors as Python's own, `<reason>: '<path>'` (the path is the method's
+    first), which the CLI prints in one line like every other file error."""
+
+    @functools.wraps(method)
+    def wrapper(self: LakeStorage, *args: Any, **options: Any) -> T:
+        try:
+            return method(self, *args, **options)
+        except OSError as error:
+            if error.errno is None or error.filename is not None or isinstance(error, LocalOnlyError):
+                raise
+            path = next(_text(arg) for arg in args if isinstance(arg, str | os.PathLike))
+            raise type(error)(error.errno, os.strerror(error.errno), path) from None
+
+    return wrapper
 
 
 class LakeStorage:
@@ -86,6 +105,7 @@ class LakeStorage:
 
     # -- reading and writing ----------------------------------------------------------------
 
+    @_plain_errors
     def read_bytes(self, path: StoragePath) -> bytes:
         with self.filesystem.open_input_stream(_text(path)) as stream:
             return stream.read()
@@ -93,11 +113,13 @@ class LakeStorage:
     def read_text(self, path: StoragePath) -> str:
         return self.read_bytes(path).decode("utf-8")
 
+    @_plain_errors
     def read_head(self, path: StoragePath, size: int) -> bytes:
         """The first `size` bytes of a file (fewer if it is shorter)."""
         with self.filesystem.open_input_stream(_text(path)) as stream:
             return stream.read(size)
 
+    @_plain_errors
     def write_bytes(self, path: StoragePath, data: bytes) -> None:
         """Write a whole file (its directory is made if missing). Not atomic: write under a
         fresh name and `move` it into place when readers may be looking."""
@@ -108,19 +130,23 @@ class LakeStorage:
     def write_text(self, path: StoragePath, text: str) -> None:
         self.write_bytes(path, text.encode("utf-8"))
 
+    @_plain_errors
     def read_parquet(self, path: StoragePath, **options: Any) -> pa.Table:
         return pq.read_table(_text(path), filesystem=self.filesystem, **options)
 
+    @_plain_errors
     def parquet_file(self, path: StoragePath) -> pq.ParquetFile:
         """A Parquet file open for reading (its schema, metadata, row groups)."""
         return pq.ParquetFile(self.filesystem.open_input_file(_text(path)))
 
+    @_plain_errors
     def write_parquet(self, table: pa.Table, path: StoragePath, **options: Any) -> None:
         self.make_dirs(_parent(path))
         pq.write_table(table, _text(path), filesystem=self.filesystem, **options)
 
     # -- what is there ------------------------------------------------------------------------
 
+    @_plain_errors
     def stat(self, path: StoragePath) -> Entry:
         """The file or directory at `path`; FileNotFoundError naming it if there is none."""
         info = self.filesystem.get_file_info(_text(path))
@@ -137,6 +163,7 @@ class LakeStorage:
     def is_dir(self, path: StoragePath) -> bool:
         return self.filesystem.get_file_info(_text(path)).type == pafs.FileType.Directory
 
+    @_plain_errors
     def list(self, directory: StoragePath) -> list[Entry]:
         """The entries of a directory, sorted by name; none for a missing directory."""
         selector = pafs.FileSelector(_text(directory), allow_not_found=True)
@@ -160,16 +187,19 @@ class LakeStorage:
 
     # -- changing -----------------------------------------------------------------------------
 
+    @_plain_errors
     def make_dirs(self, path: StoragePath) -> None:
         """Make a directory and its parents (nothing if it exists)."""
         self.filesystem.create_dir(_text(path), recursive=True)
 
+    @_plain_errors
     def move(self, source: StoragePath, target: StoragePath) -> None:
         """Move a file or directory to `target`, replacing a file there (a directory there that
         is not empty is an OSError). Atomic on a local file system (a rename), where
         publishing relies on it; object stores copy and delete."""
         self.filesystem.move(_text(source), _text(target))
 
+    @_plain_errors
     def delete(self, path: StoragePath, *, missing_ok: bool = False) -> None:
         """Delete a file (FileNotFoundError if there is none, unless `missing_ok`)."""
         try:
@@ -195,6 +225,7 @@ class LakeStorage:
             return False
         return True
 
+    @_plain_errors
     def put(self, source: Path, target: StoragePath) -> None:
         """Copy a local file or directory (a user's files, e.g. a job's logs) into the lake at `target`."""
         files = [source]

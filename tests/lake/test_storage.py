@@ -109,6 +109,19 @@ def test_move_replaces_a_file_and_refuses_a_directory_that_is_not_empty(kind, tm
     assert not storage.exists(storage.path("scratch")) and storage.exists(storage.path("v1", "manifest.json"))
 
 
+def test_local_file_errors_read_as_python_s_own_naming_the_path(tmp_path):
+    storage = LakeStorage(tmp_path)
+    storage.write_bytes(tmp_path / "file", b"")
+    attempts = {
+        "No such file or directory": lambda: storage.read_bytes(tmp_path / "gone.parquet"),
+        "Not a directory": lambda: storage.write_bytes(tmp_path / "file" / "x" / "a.parquet", b""),
+    }
+    for reason, attempt in attempts.items():
+        with pytest.raises(OSError) as raised:
+            attempt()
+        assert os_error_text(raised.value).startswith(f"{reason}: '{tmp_path}/")
+
+
 def test_a_local_move_is_a_rename_and_empty_directories_are_removed_alone(tmp_path):
     storage = LakeStorage(tmp_path)
     source, target = tmp_path / "_staging" / "a.parquet", tmp_path / "t" / "b=1" / "a.parquet"

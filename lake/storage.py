@@ -1,14 +1,14 @@
-"""The lake's one filesystem layer: every file of the lake is read, written, listed, moved and
-deleted through a `LakeStorage`, over `pyarrow.fs` (local disk, or any file system pyarrow knows by
-URI: `s3://`, `gs://`, `hdfs://`, `mock://`).
+"""The lake's one filesystem layer: the lake's files are read, written, listed, moved and deleted
+through a `LakeStorage`, over `pyarrow.fs` (local disk, or any file system pyarrow knows by URI:
+`s3://`, `gs://`, `hdfs://`, `mock://`). What does not go through it yet, and why, is in
+docs/lake-format.md, "Filesystem layer"; tests/test_architecture.py keeps the list.
 
 A storage is made from the lake's location, a local path or a URI. Its methods take paths of
 that file system, as `pyarrow.fs` does: local paths (str or Path) on a local lake, `bucket/key`
 paths on an object store; `root` is the lake's own. Hard links (the reader links), `flock` locks
 and symbolic links exist only on a local file system: the other file systems refuse them with
-`LocalOnlyError`. The file record (`_lake.sqlite`) is a SQLite database, which needs a local
-POSIX file system too: `local_path` is how its owner gets one (see docs/lake-format.md,
-"Filesystem layer").
+`LocalOnlyError`. So does `local_path`, for what needs a path of this machine: the file record
+(`_lake.sqlite`) is a SQLite database, which needs a local POSIX file system.
 """
 
 from __future__ import annotations
@@ -225,7 +225,6 @@ class LakeStorage:
             return False
         return True
 
-    @_plain_errors
     def put(self, source: Path, target: StoragePath) -> None:
         """Copy a local file or directory (a user's files, e.g. a job's logs) into the lake at `target`."""
         files = [source]

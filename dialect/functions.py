@@ -3146,7 +3146,6 @@ REJECTED: dict[str, str] = {
     "features": "machine learning functions are not available",
     "evaluate_classifier_predictions": "machine learning functions are not available",
     "json_object": "Trino 476 builds the object in a java.util.HashMap (JsonObjectFunction): no defined key order",
-    "from_unixtime_nanos": "DuckDB has no nanosecond timestamp with time zone",
     "word_stem": "language stemming not translated",
     "uuid": "random UUIDs not translated",
     "color": "color functions are not available",

@@ -1,0 +1,46 @@
+"""from_unixtime_nanos (issue 14 family 5): nanoseconds since the epoch as a timestamp(9) with time
+zone in the session zone, held as dialect/zoned_nanos.py describes.
+
+Source: trinodb/trino core/trino-main/src/main/java/io/trino/operator/scalar/DateTimeFunctions.java
+(fromUnixtimeNanosLong; FromUnixtimeNanosDecimal rounds a decimal HALF_UP to whole nanoseconds);
+cases in tests/dialect/cases/cov_nanos.yaml.
+"""
+
+from __future__ import annotations
+
+from lakegate.dialect import transforms as tf
+from lakegate.dialect import trino_types as tt
+from lakegate.dialect.analyze import Call
+from lakegate.dialect.registry import register
+
+#: DuckDB's TIMESTAMP_NS holds every bigint of nanoseconds but these two, its infinities.
+_LAST_NANOS = 2**63 - 2
+
+
+def _from_unixtime_nanos(call: Call) -> tt.TType:
+    types = call.types
+    if len(types) != 1 or types[0] is None or not (types[0].is_integral or types[0].is_decimal or types[0].is_unknown):
+        call.mismatch()
+    return tt.timestamp(9, True, call.analyzer.time_zone)
+
+
+def _render_from_unixtime_nanos(g, node, args) -> str:
+    """make_timestamp_ns of the whole nanoseconds (DuckDB's CAST of a decimal to BIGINT rounds half away
+    from zero, as Trino's MathFunctions.Round.roundShort)."""
+    nanos = f"CAST({g.sql(args[0])} AS BIGINT)"
+    message = tf.string("unsupported in lakegate: from_unixtime_nanos of ") + f" || {nanos}"
+    return (
+        f"CASE WHEN {nanos} NOT BETWEEN {-_LAST_NANOS} AND {_LAST_NANOS} THEN {g.fail(message, 'NOT_SUPPORTED')} "
+        f"ELSE make_timestamp_ns({nanos}) END"
+    )
+
+
+register(
+    "from_unixtime_nanos",
+    "datetime",
+    "from_unixtime_nanos(unixtime) -> timestamp(9) with time zone",
+    _from_unixtime_nanos,
+    _render_from_unixtime_nanos,
+    notes="In the session time zone. Such values can be shown, compared with each other, ordered, "
+    "grouped, aggregated with min / max / count / arbitrary, and moved with AT TIME ZONE; other uses are refused.",
+)

@@ -13,7 +13,7 @@ from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import Call
 from lakegate.dialect.registry import register
 
-#: DuckDB's TIMESTAMP_NS holds every bigint of nanoseconds but these two, its infinities.
+#: The largest magnitude of nanoseconds DuckDB's TIMESTAMP_NS holds (the bigints past it are its infinities).
 _LAST_NANOS = 2**63 - 2
 
 
@@ -28,7 +28,11 @@ def _render_from_unixtime_nanos(g, node, args) -> str:
     """make_timestamp_ns of the whole nanoseconds (DuckDB's CAST of a decimal to BIGINT rounds half away
     from zero, as Trino's MathFunctions.Round.roundShort)."""
     nanos = f"CAST({g.sql(args[0])} AS BIGINT)"
-    message = tf.string("unsupported in lakegate: from_unixtime_nanos of ") + f" || {nanos}"
+    message = (
+        tf.string("unsupported in lakegate: from_unixtime_nanos of ")
+        + f" || {nanos} || "
+        + tf.string(" (DuckDB's TIMESTAMP_NS keeps its extreme values for its infinities)")
+    )
     return (
         f"CASE WHEN {nanos} NOT BETWEEN {-_LAST_NANOS} AND {_LAST_NANOS} THEN {g.fail(message, 'NOT_SUPPORTED')} "
         f"ELSE make_timestamp_ns({nanos}) END"

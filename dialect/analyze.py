@@ -845,7 +845,7 @@ class Analyzer:
         if handler is None:
             self.unsupported(trino_name(node), node)
         t = handler(self, node, scope, env)
-        zoned_nanos.check_use(self, node)
+        zoned_nanos.check_use(self, node, t)
         if zoned_nanos.is_zoned_nanos(t) and not zoned_nanos.produces(node):
             self.unsupported(
                 f"{t} (lakegate keeps zoned timestamps in microseconds, past them only from_unixtime_nanos)", node

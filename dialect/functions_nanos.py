@@ -45,6 +45,7 @@ register(
     "from_unixtime_nanos(unixtime) -> timestamp(9) with time zone",
     _from_unixtime_nanos,
     _render_from_unixtime_nanos,
-    notes="In the session time zone. Such values can be shown, compared with each other, ordered, "
-    "grouped, aggregated with min / max / count / arbitrary, and moved with AT TIME ZONE; other uses are refused.",
+    notes="In the session time zone. Such values can be shown, compared with each other, ordered, grouped, "
+    "aggregated with min / max / count / arbitrary, moved with AT TIME ZONE and cast to timestamp(p), date and "
+    "varchar; other uses are refused.",
 )

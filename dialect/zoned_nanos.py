@@ -6,7 +6,7 @@ in that zone with nine fraction digits (gateway/engine/trino_values.py).
 Only what that representation answers exactly is translated: the values themselves as results,
 comparisons of two such values (=, <, BETWEEN, IN, IS [NOT] DISTINCT FROM; instants, as Trino
 compares them), IS NULL, ORDER BY, GROUP BY and DISTINCT, min / max / count / arbitrary, typeof,
-AT TIME ZONE, and CAST to timestamp(p), date and varchar (of the wall time in the value's zone, as
+to_unixtime, AT TIME ZONE, and CAST to timestamp(p), date and varchar (of the wall time in the value's zone, as
 TimestampWithTimeZoneToTimestampCast and friends; the timestamp(9) functions then apply). Everything
 else on them (fields, arithmetic, date functions, comparisons with other types) and every other way
 to a timestamp(7..9) with time zone (literals, casts) is refused with NOT_SUPPORTED naming the
@@ -25,7 +25,7 @@ from lakegate.dialect.guard import trino_name
 from lakegate.dialect.trino_types import TType
 
 #: The functions that give or take such values.
-FUNCTIONS = frozenset({"from_unixtime_nanos", "min", "max", "count", "arbitrary", "typeof"})
+FUNCTIONS = frozenset({"from_unixtime_nanos", "min", "max", "count", "arbitrary", "typeof", "to_unixtime"})
 #: The aggregates (and from_unixtime_nanos) whose result is such a value.
 _PRODUCERS = frozenset({"from_unixtime_nanos", "min", "max", "arbitrary"})
 #: Trino's operators, by the sqlglot node that parses them.
@@ -82,7 +82,7 @@ def check_use(analyzer: Any, node: exp.Expression, t: TType) -> None:
         what = f"{name} on timestamp(9) with time zone"
     analyzer.unsupported(
         f"{what} (lakegate translates only comparisons of two such values, min, max, count, arbitrary, "
-        "typeof, AT TIME ZONE, ordering and casts to timestamp, date and varchar for them)",
+        "typeof, to_unixtime, AT TIME ZONE, ordering and casts to timestamp, date and varchar for them)",
         node,
     )
 

@@ -17,7 +17,7 @@ from typing import NoReturn
 
 from sqlglot import exp
 
-from lakegate.dialect import registry, times, zones
+from lakegate.dialect import registry, times, zoned_nanos, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.guard import trino_name
@@ -845,9 +845,10 @@ class Analyzer:
         if handler is None:
             self.unsupported(trino_name(node), node)
         t = handler(self, node, scope, env)
-        if t.base == "timestamp_tz" and t.args[0] > 6:
+        zoned_nanos.check_use(self, node, t)
+        if zoned_nanos.is_zoned_nanos(t) and not zoned_nanos.produces(node):
             self.unsupported(
-                f"{t} (lakegate keeps zoned timestamps in microseconds; digits past them would be dropped)", node
+                f"{t} (lakegate keeps zoned timestamps in microseconds, past them only from_unixtime_nanos)", node
             )
         if t.base == "timestamp" and t.args[0] > 9:
             self.unsupported(f"{t} (lakegate keeps nanoseconds at most; digits past them would be dropped)", node)

@@ -93,6 +93,10 @@ _RUNTIME = (
 )
 
 
+#: DuckDB's words before the message of a Python function that failed (gateway/engine/udfs.py
+#: raises Trino-named messages).
+_UDF_FAILURE = re.compile(r"Python exception occurred while executing the UDF: \w+: ")
+
 #: An absolute file path in a DuckDB message (a lake file it read): at least two folders deep.
 _PATH = re.compile(r"(?<![\w.:/])/(?:[^\s/'\"]+/)+([^\s/'\"]+)")
 
@@ -102,7 +106,7 @@ def runtime_error(message: str) -> DialectError:
     and message (DuckDB's 'Invalid Input Error: ' prefix removed, absolute paths cut to their file
     name). No position: Trino reports none for run-time failures either."""
     first = message.strip().splitlines()[0] if message.strip() else message
-    first = _PATH.sub(r".../\1", first)
+    first = _PATH.sub(r".../\1", _UDF_FAILURE.sub("", first))
     named = re.match(r"(?:[A-Za-z ]+ Error: )?([A-Z][A-Z_]+): (.*)", first)
     if named and named.group(1) in ERROR_CODES:
         return DialectError(named.group(2), error_name=named.group(1))

@@ -13,7 +13,7 @@ from __future__ import annotations
 from sqlglot import exp
 from sqlglot.generators.duckdb import DuckDBGenerator
 
-from lakegate.dialect import registry, times, zones
+from lakegate.dialect import registry, times, zoned_nanos, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import FloorMicros, ttype
 from lakegate.dialect.errors import DialectError
@@ -732,6 +732,11 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
         return sql
     if source.is_unknown:
         return cast("NULL", target)
+    if zoned_nanos.is_zoned_nanos(source):  # to timestamp, date or varchar (zoned_nanos.check_use)
+        wall = zoned_nanos.wall_time(sql, tt.zone_of(source))
+        if target.base == "varchar":
+            return varchar_of(g, wall, tt.timestamp(9)) + f" || {string(' ' + tt.zone_of(source))}"
+        return cast_value(g, wall, tt.timestamp(9), target)
     if target.base == "char":  # truncated or padded with spaces: the padded text the client gets
         return f"rpad({sql}, {target.args[0]}, ' ')"
     if target.base == "json":

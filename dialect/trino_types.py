@@ -379,6 +379,8 @@ def duckdb_type(t: TType) -> str | None:
     """The DuckDB type holding values of Trino type `t`; None for `unknown` (NULL) and rows with
     unnamed fields, which DuckDB cannot name in a CAST."""
     base = t.base
+    if base == "timestamp_tz" and t.args[0] > 6:
+        return "TIMESTAMP_NS"  # its UTC instant (dialect/zoned_nanos.py)
     if base in _DUCK:
         return _DUCK[base]
     if base == "decimal":

@@ -46,7 +46,7 @@ from lakegate.dialect import guard
 from lakegate.dialect.errors import DialectError, runtime_error
 from lakegate.dialect.scope import Scope
 from lakegate.dialect.translate import Translation, translate
-from lakegate.gateway.engine import introspection
+from lakegate.gateway.engine import introspection, udfs
 from lakegate.gateway.engine.limits import Limits
 from lakegate.lake import paths
 from lakegate.lake.catalog import Catalog
@@ -400,6 +400,7 @@ class DuckDBBackend:
                     "python_enable_replacements": False,
                 },
             )
+            udfs.install(database)
             self._lock_down(database)
             self._database = database
         return self._database

@@ -26,6 +26,7 @@ from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError, runtime_error
 from lakegate.dialect.statements import Reader
 from lakegate.dialect.translate import translate
+from lakegate.gateway.engine import udfs
 from lakegate.gateway.engine.backend import BATCH_ROWS, Backend, QueryResult, Run, in_zones
 from lakegate.gateway.engine.introspection import CATALOG
 from lakegate.gateway.engine.session import PROPERTIES, Answer, Session
@@ -215,6 +216,7 @@ class Metadata:
                 "python_enable_replacements": False,
             },
         )
+        udfs.install(self._db)
         self._db.execute("SET TimeZone = 'UTC'")
         self._db.execute("SET enable_external_access = false")
         self._db.execute("SET lock_configuration = true")

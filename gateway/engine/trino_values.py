@@ -391,9 +391,10 @@ def _column(t: TType, column: pa.Array) -> list:
         return [format(Decimal(s), "f") if s is not None and "E" in s else s for s in texts.to_pylist()]
     if base == "timestamp" and pa.types.is_timestamp(arrow_type) and arrow_type.tz is None:
         return _temporal_texts(column, t.args[0], _as_string)
-    if base == "timestamp_tz" and pa.types.is_timestamp(arrow_type) and arrow_type.tz is not None:
+    if base == "timestamp_tz" and pa.types.is_timestamp(arrow_type):
+        zone = arrow_type.tz or "UTC"  # a timestamp(p > 6) with time zone is its UTC instant (dialect/zoned_nanos.py)
         return _temporal_texts(
-            column, t.args[0], lambda c: pc.strftime(c, format="%Y-%m-%d %H:%M:%S"), " " + _zone_name(arrow_type.tz)
+            column, t.args[0], lambda c: pc.strftime(c, format="%Y-%m-%d %H:%M:%S"), " " + _zone_name(zone)
         )
     if base == "date" and pa.types.is_date(arrow_type):
         return column.cast(pa.string()).to_pylist()

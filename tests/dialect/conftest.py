@@ -25,6 +25,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 
+from lakegate.gateway.engine import udfs
+
 _J1 = '{"name": "alpha", "n": 1, "tags": ["a", "b"], "pos": {"x": 1.5}}'
 
 #: table -> (column -> (Trino type, Arrow type)), in column order.
@@ -197,6 +199,7 @@ class FixtureLake:
         """A new in-memory DuckDB connection with one view per table, in UTC, that can read only the
         fixture directory and whose configuration is locked."""
         con = duckdb.connect()
+        udfs.install(con)
         con.execute("SET TimeZone = 'UTC'")
         for table in self.schema:
             path = str(self.root / f"{table}.parquet").replace("'", "''")

@@ -132,7 +132,11 @@ def _zone_name(value: dt.datetime) -> str:
 
 
 def in_zone(value, zone: str | None):
-    """A timestamp with time zone DuckDB gave (in UTC) in the zone its column's values carry."""
+    """A timestamp with time zone DuckDB gave (in UTC) in the zone its column's values carry; epoch
+    nanoseconds (see _arrow_rows) as that timestamp to the second and its nanoseconds."""
+    if isinstance(value, int) and not isinstance(value, bool) and zone is not None:
+        seconds, nanos = divmod(value, 10**9)
+        return in_zone(dt.datetime.fromtimestamp(seconds, dt.UTC), zone), nanos
     if not isinstance(value, dt.datetime) or zone in (None, "UTC"):
         return value
     if zone[0] in "+-":
@@ -169,6 +173,10 @@ def to_protocol(value, ttype: tuple):
         seconds, nanos = divmod(value, 10**9)
         text = (dt.datetime(1970, 1, 1) + dt.timedelta(seconds=seconds)).strftime("%Y-%m-%d %H:%M:%S")
         return text + ("." + f"{nanos:09d}"[: args[0]] if args[0] else "")
+    if base == "timestamp_tz" and isinstance(value, tuple):  # (timestamp to the second, nanoseconds)
+        stamp, nanos = value
+        fraction = "." + f"{nanos:09d}"[: args[0]] if args[0] else ""
+        return stamp.strftime("%Y-%m-%d %H:%M:%S") + fraction + " " + _zone_name(stamp)
     if base in ("timestamp", "timestamp_tz") and isinstance(value, dt.datetime):
         text = value.strftime("%Y-%m-%d %H:%M:%S")
         precision = args[0] if args else 3
@@ -334,7 +342,7 @@ def _java_text(value) -> str:
 
 
 def _nanoseconds(ttype: tuple) -> bool:
-    return ttype[0] == "timestamp" and bool(ttype[1]) and ttype[1][0] > 6
+    return ttype[0] in ("timestamp", "timestamp_tz") and bool(ttype[1]) and ttype[1][0] > 6
 
 
 def _arrow_rows(table: pa.Table) -> list[tuple]:

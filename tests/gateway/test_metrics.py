@@ -361,6 +361,22 @@ def test_metric_queries_are_answered_as_the_server_answers_them(nav):
     assert ["job_id", "varchar", "", ""] in shown.rendered.table["rows"]
 
 
+def test_metric_queries_use_the_engine_python_functions(nav):
+    """The hash functions the engine registers (gateway/engine/udfs.py) and from_unixtime_nanos
+    answer in metric queries too."""
+    job = nav.jobs[0]
+    metric = Metric(
+        name="hashes",
+        type="test",
+        template="table",
+        query_string="SELECT to_hex(murmur3(to_utf8('hashme'))), CAST(min(from_unixtime_nanos(timestamp)) "
+        "= from_unixtime_nanos(min(timestamp)) AS varchar) FROM odom_linear_velocity",
+    )
+    evaluated = nav.engine.evaluate(metric, BRANCH, Scope(BATCH, job.job_id))
+    assert evaluated.status == "PASSED", evaluated.error
+    assert evaluated.rendered.table["rows"] == [["93192FE805BE23041C8318F67EC4F2BC", "true"]]  # TestVarbinaryFunctions
+
+
 # -- errors, skipping, unsupported ---------------------------------------------------------------
 
 

@@ -1,0 +1,55 @@
+"""The Python functions lakegate's translations call in DuckDB (lakegate.dialect.functions_hashes
+lists them): `install` registers them on a connection, before it is locked down. They compute
+what Trino's VarbinaryFunctions and HmacFunctions compute, byte for byte: sha512 and hmac_sha512
+with hashlib/hmac, xxhash64 with the xxhash package (XXH64, seed 0, big-endian as Trino gives the
+long), murmur3 with mmh3 (MurmurHash3 x64 128, seed 0, its two longs little-endian as airlift's
+Murmur3Hash128), the SpookyHash V2 pair with spooky_hash.py (a port of airlift's SpookyHashV2, seed 0,
+big-endian). A function that fails raises a Trino-named error (GENERIC_INTERNAL_ERROR naming it).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import hmac
+from collections.abc import Callable
+
+import duckdb
+import mmh3
+import xxhash
+from duckdb.sqltypes import BLOB
+
+from lakegate.dialect.functions_hashes import UDF_PREFIX, UDFS
+from lakegate.gateway.engine import spooky_hash
+
+#: Trino name -> the function, its parameters those of the Trino function (DuckDB reads its arity).
+_FUNCTIONS: dict[str, Callable[..., bytes]] = {
+    "sha512": lambda data: hashlib.sha512(data).digest(),
+    "hmac_sha512": lambda data, key: hmac.digest(key, data, "sha512"),
+    "xxhash64": lambda data: xxhash.xxh64_digest(data),
+    "murmur3": lambda data: mmh3.hash_bytes(data),
+    "spooky_hash_v2_32": lambda data: (spooky_hash.hash64(data) & 0xFFFFFFFF).to_bytes(4, "big"),
+    "spooky_hash_v2_64": lambda data: spooky_hash.hash64(data).to_bytes(8, "big"),
+}
+
+
+def trino_named(name: str, function: Callable[..., bytes]) -> Callable[..., bytes]:
+    """`function` raising, when it fails, an error that lakegate.dialect.errors.runtime_error
+    reads as Trino's GENERIC_INTERNAL_ERROR naming the Trino function `name`."""
+
+    @functools.wraps(function)  # its signature, whose parameters DuckDB counts
+    def call(*args: bytes) -> bytes:
+        try:
+            return function(*args)
+        except Exception as error:  # any failure of the library becomes the query's error
+            raise RuntimeError(f"GENERIC_INTERNAL_ERROR: {name} failed: {error}") from error
+
+    return call
+
+
+def install(connection: duckdb.DuckDBPyConnection) -> None:
+    """Register every function of `UDFS` on `connection` (NULL arguments give NULL without a call)."""
+    for name, (count, _) in UDFS.items():
+        connection.create_function(
+            UDF_PREFIX + name, trino_named(name, _FUNCTIONS[name]), [BLOB] * count, BLOB, side_effects=False
+        )

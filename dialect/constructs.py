@@ -29,6 +29,7 @@ class Construct:
     test: Callable[[exp.Expression], bool] | None = None
     refused: str = ""
     in_text: Callable[[exp.Expression, str], bool] | None = None  # a test that reads the query text
+    names: tuple[str, ...] = ()  # the names Trino's function reference lists it under (cast, extract, ...)
 
     def used_by(self, node: exp.Expression, sql: str) -> bool:
         if not isinstance(node, self.nodes):
@@ -106,6 +107,9 @@ CONSTRUCTS: dict[str, Construct] = {
     "AND / OR / NOT": Construct("operators", "SELECT NOT (true AND false OR true)", (exp.And, exp.Or, exp.Not)),
     "|| (concatenation)": Construct("operators", "SELECT 'a' || 'b'", (exp.DPipe,)),
     "CASE": Construct("operators", "SELECT CASE WHEN a > 1 THEN 'x' ELSE 'y' END FROM t", (exp.Case,)),
+    "IF(condition, true_value [, false_value])": Construct(
+        "operators", "SELECT if(a > 1, 'x'), if(a > 1, 'x', 'y') FROM t", (exp.If,), names=("if",)
+    ),
     "ARRAY[...] constructor": Construct("operators", "SELECT ARRAY[1, 2]", (exp.Array,)),
     "[] (subscript)": Construct("operators", "SELECT arr[1] FROM t", (exp.Bracket,)),
     "-> (lambda)": Construct("operators", "SELECT transform(nums, x -> x + 1) FROM t", (exp.Lambda,)),
@@ -122,15 +126,22 @@ CONSTRUCTS: dict[str, Construct] = {
         "literals", "SELECT JSON '[1, 2]'", (exp.ParseJSON,), lambda n: bool(n.args.get("is_literal"))
     ),
     "CAST / TRY_CAST": Construct(
-        "literals", "SELECT CAST(a AS varchar), TRY_CAST(s AS bigint) FROM t", (exp.Cast, exp.TryCast)
+        "literals",
+        "SELECT CAST(a AS varchar), TRY_CAST(s AS bigint) FROM t",
+        (exp.Cast, exp.TryCast),
+        names=("cast", "try_cast"),
     ),
     "CAST to and from json": Construct(
         "literals", "SELECT CAST(CAST(arr AS JSON) AS array(varchar)) FROM t", (exp.Cast, exp.TryCast), _casts_json
     ),
     "AT TIME ZONE": Construct("literals", "SELECT ts AT TIME ZONE 'UTC' FROM t", (exp.AtTimeZone,)),
-    "EXTRACT(field FROM x)": Construct("literals", "SELECT EXTRACT(YEAR FROM ts) FROM t", (exp.Extract,)),
+    "EXTRACT(field FROM x)": Construct(
+        "literals", "SELECT EXTRACT(YEAR FROM ts) FROM t", (exp.Extract,), names=("extract",)
+    ),
     "SUBSTRING(x FROM i FOR n)": Construct("literals", "SELECT SUBSTRING(s FROM 2 FOR 1) FROM t", (exp.Substring,)),
-    "POSITION(x IN y)": Construct("literals", "SELECT POSITION('a' IN s) FROM t", (exp.StrPosition,)),
+    "POSITION(x IN y)": Construct(
+        "literals", "SELECT POSITION('a' IN s) FROM t", (exp.StrPosition,), names=("position",)
+    ),
     "TRIM([BOTH | LEADING | TRAILING] x FROM y)": Construct(
         "literals", "SELECT TRIM(BOTH 'x' FROM s) FROM t", (exp.Trim,)
     ),
@@ -138,6 +149,17 @@ CONSTRUCTS: dict[str, Construct] = {
         "literals",
         "SELECT current_date, current_timestamp, localtimestamp",
         (exp.CurrentDate, exp.CurrentTimestamp, exp.Localtimestamp),
+        names=("current_date", "current_timestamp", "localtimestamp"),
+    ),
+    "current_time": Construct(
+        "literals",
+        "SELECT current_time",
+        (exp.CurrentTime,),
+        refused="time(3) with time zone is not translated",
+        names=("current_time",),
+    ),
+    "localtime": Construct(
+        "literals", "SELECT localtime", (exp.Localtime,), refused="not translated", names=("localtime",)
     ),
     "json_value(... [RETURNING type] [NULL | DEFAULT x ON EMPTY] [NULL | DEFAULT x ON ERROR])": Construct(
         "json",

@@ -3152,12 +3152,10 @@ REJECTED: dict[str, str] = {
     "inverse_beta_cdf": "statistical distribution functions not translated",
     "normal_cdf": "statistical distribution functions not translated",
     "inverse_normal_cdf": "statistical distribution functions not translated",
-    "truncate_n": "not translated",
     "version": "answered by the SQL endpoint, not the dialect layer",
     "current_user": "not translated",
     "current_catalog": "not translated",
     "current_schema": "not translated",
-    "sequence_timestamp": "not translated",
     "ip_prefix": "IP address functions are not available",
 }
 

@@ -385,9 +385,9 @@ def generate(families: list[Family], supported: dict, rejected: dict[str, str], 
     out += [
         "",
         f"Functions: {counts['supported']} supported, {counts['rejected']} rejected with a "
-        f"reason, {counts['not implemented']} not implemented, {counts['construct']} constructs. Constructs: {supported_constructs} "
-        f"supported, {len(constructs) - supported_constructs} rejected with a reason. Functions "
-        f"and constructs supported: {counts['supported'] + supported_constructs}.",
+        f"reason, {counts['not implemented']} not implemented, {counts['construct']} constructs. "
+        f"Constructs: {supported_constructs} supported, {len(constructs) - supported_constructs} rejected "
+        f"with a reason. Functions and constructs supported: {counts['supported'] + supported_constructs}.",
     ]
     out += sections
     out += [

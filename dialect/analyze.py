@@ -625,6 +625,8 @@ class Analyzer:
             self.fail(f"{clause} clause must evaluate to a boolean: actual type {t}", node, "TYPE_MISMATCH")
 
     def set_operation(self, node: exp.SetOperation, outer: Scope | None) -> list[OutCol]:
+        if node.args.get("by_name"):  # Trino matches the common columns by name; DuckDB's BY NAME keeps all
+            self.unsupported(f"{node.key.upper()} CORRESPONDING", node)
         scope = self._with(node, outer)
         branches = []
         for branch in (node.this, node.expression):
@@ -1065,7 +1067,10 @@ def _identifier(a: Analyzer, node, scope, env):
 def _dot(a: Analyzer, node, scope, env):
     t = a.expr(node.this, scope, env)
     if not isinstance(node.expression, exp.Identifier):
-        a.unsupported("dereference", node)
+        a.unsupported(
+            "row_expression.* (every field of a row)" if isinstance(node.expression, exp.Star) else "a field reference",
+            node,
+        )
     result, real = a.field(t, node.expression.name, node.expression.quoted, node)
     node.meta["field"] = real
     return result

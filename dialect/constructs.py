@@ -309,6 +309,20 @@ CONSTRUCTS: dict[str, Construct] = {
         ),
         refused="not translated (ties would be ranked before DISTINCT); nor WITH TIES of a set operation",
     ),
+    "UNION / INTERSECT / EXCEPT CORRESPONDING": Construct(
+        "queries",
+        "SELECT a, id FROM t UNION ALL CORRESPONDING SELECT id, a FROM t",
+        (exp.Union, exp.Intersect, exp.Except),
+        lambda n: bool(n.args.get("by_name")),
+        refused="not translated (DuckDB's BY NAME keeps every column, Trino only the common ones)",
+    ),
+    "row_expression.* [AS (column_alias, ...)]": Construct(
+        "queries",
+        "SELECT (ROW(1, true)).*",
+        (exp.Dot, exp.Aliases),
+        lambda n: isinstance(n, exp.Aliases) or isinstance(n.expression, exp.Star),
+        refused="not translated",
+    ),
     "TABLESAMPLE": Construct(
         "queries",
         "SELECT a FROM t TABLESAMPLE BERNOULLI (50)",

@@ -309,14 +309,14 @@ CONSTRUCTS: dict[str, Construct] = {
         ),
         refused="not translated (ties would be ranked before DISTINCT); nor WITH TIES of a set operation",
     ),
-    "UNION / INTERSECT / EXCEPT CORRESPONDING": Construct(
+    "CORRESPONDING (UNION / INTERSECT / EXCEPT by column name)": Construct(
         "queries",
         "SELECT a, id FROM t UNION ALL CORRESPONDING SELECT id, a FROM t",
         (exp.Union, exp.Intersect, exp.Except),
         lambda n: bool(n.args.get("by_name")),
         refused="not translated (DuckDB's BY NAME keeps every column, Trino only the common ones)",
     ),
-    "row_expression.* [AS (column_alias, ...)]": Construct(
+    "row_expression.* (every field of a row, AS (column_alias, ...))": Construct(
         "queries",
         "SELECT (ROW(1, true)).*",
         (exp.Dot, exp.Aliases),

@@ -62,6 +62,8 @@ def resolve_named_windows(select: exp.Select, sql: str, fail: Fail) -> list[exp.
     drop the WINDOW clause; the definitions, resolved, for analysing their expressions (Trino
     analyzes every definition, used or not)."""
     definitions = select.args.get("windows") or []
+    if not definitions:  # a reference then names nothing: the analyzer's window handler says so
+        return []
     defined: dict[str, exp.Window] = {}
     for definition in definitions:
         key = _key(definition.this)

@@ -21,7 +21,9 @@ from lakegate.dialect import registry, times, zoned_nanos, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.guard import trino_name
+from lakegate.dialect.named_windows import resolve_named_windows, window_keys
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.with_ties import rank_filter, rank_keys, with_ties
 
 #: Output column of a query: (Trino name or None when anonymous, name in the DuckDB SQL, type).
 OutCol = tuple["str | None", str, TType]
@@ -349,8 +351,12 @@ class Analyzer:
         ):
             if node.args.get(key):
                 self.unsupported(
-                    key.upper().rstrip("_"), node.args[key] if isinstance(node.args[key], exp.Expression) else node
+                    {"sample": "TABLESAMPLE"}.get(key, key.upper().rstrip("_")),
+                    node.args[key] if isinstance(node.args[key], exp.Expression) else node,
                 )
+        definitions = resolve_named_windows(node, self.sql, self.fail)
+        if with_ties(node.args.get("limit")) and node.args.get("order") is not None:
+            node.meta["rank_keys"] = rank_keys(node)
         scope = self._with(node, outer)
         from_ = node.args.get("from_")
         if from_ is not None:
@@ -367,8 +373,9 @@ class Analyzer:
         having = node.args.get("having")
         if having is not None:
             self.condition(having.this, scope, "HAVING")
-        for window in node.args.get("windows") or []:
-            self.unsupported("named WINDOW clause", window)
+        node.meta["window_keys"] = [key for d in definitions for key in window_keys(d)]
+        for key in node.meta["window_keys"]:  # Trino analyzes every WINDOW definition, used or not
+            self.expr(key, scope, {})
         distinct = node.args.get("distinct")
         if distinct is not None and distinct.args.get("on"):
             self.unsupported("DISTINCT ON", distinct)
@@ -405,7 +412,7 @@ class Analyzer:
         group = node.args.get("group")
         having = node.args.get("having")
         items = [i.this if isinstance(i, exp.Alias) else i for i in node.expressions]
-        checked = items + ([having.this] if having is not None else [])
+        checked = items + ([having.this] if having is not None else []) + node.meta.get("window_keys", [])
         for grouping in self.groupings:
             if group is None and grouping.find_ancestor(exp.Select) is node:
                 self.fail(
@@ -483,13 +490,13 @@ class Analyzer:
             if isinstance(clause, exp.Fetch):
                 count = clause.args.get("count")
                 options = clause.args.get("limit_options")  # where sqlglot keeps WITH TIES now
-                if (
-                    clause.args.get("with_ties")
-                    or clause.args.get("percent")
-                    or options
-                    and options.args.get("with_ties")
-                ):
-                    self.unsupported("FETCH ... WITH TIES", clause)
+                if clause.args.get("percent") or options and options.args.get("percent"):
+                    self.unsupported("FETCH FIRST ... PERCENT", clause)
+                if isinstance(count, exp.Literal) and count.name == "0":
+                    message = "FETCH FIRST row count must be positive (actual value: 0)"
+                    self.fail(message, clause, "NUMERIC_VALUE_OUT_OF_RANGE")
+                if with_ties(clause):
+                    self.fetch_with_ties(node, clause, scope)
             else:
                 count = clause.expression
             if count is not None and not (
@@ -497,6 +504,26 @@ class Analyzer:
             ):
                 if not (isinstance(count, exp.Var) and count.name.upper() == "ALL"):
                     self.fail(f"{key.upper()} must be a non-negative integer literal", clause, "TYPE_MISMATCH")
+
+    def fetch_with_ties(self, node: exp.Expression, fetch: exp.Fetch, scope: Scope | None) -> None:
+        """FETCH FIRST n ROWS WITH TIES becomes QUALIFY rank() ... <= offset + n (dialect/with_ties.py)."""
+        order = node.args.get("order")
+        if order is None:
+            self.fail("FETCH FIRST WITH TIES clause requires ORDER BY", fetch, "MISSING_ORDER_BY")
+        keys = node.meta.get("rank_keys") if isinstance(node, exp.Select) else None
+        if keys is None or node.args.get("distinct") is not None:
+            of = "SELECT DISTINCT" if keys is not None else "a set operation or parenthesized query"
+            self.unsupported(f"FETCH FIRST ... WITH TIES of {of}", fetch)
+        if any(o.meta.get("key") for o in order.expressions) or any(k.find(exp.Window) for k in keys):
+            self.unsupported("FETCH FIRST ... WITH TIES ordered by an array, a row or a window function", fetch)
+        count, offset = fetch.args.get("count"), node.args.get("offset")
+        rows = int(count.name) if isinstance(count, exp.Literal) and count.name.isdigit() else 1
+        if offset is not None and isinstance(offset.expression, exp.Literal) and offset.expression.name.isdigit():
+            rows += int(offset.expression.name)
+        condition = rank_filter(keys, rows)
+        node.set("qualify", exp.Qualify(this=condition))
+        self.condition(condition, scope, "FETCH FIRST WITH TIES")
+        node.set("limit", None)
 
     def order_item(self, ordered: exp.Ordered, outputs: list[OutCol], scope: Scope) -> None:
         target = ordered.this
@@ -598,6 +625,8 @@ class Analyzer:
             self.fail(f"{clause} clause must evaluate to a boolean: actual type {t}", node, "TYPE_MISMATCH")
 
     def set_operation(self, node: exp.SetOperation, outer: Scope | None) -> list[OutCol]:
+        if node.args.get("by_name"):  # Trino matches the common columns by name; DuckDB's BY NAME keeps all
+            self.unsupported(f"{node.key.upper()} CORRESPONDING", node)
         scope = self._with(node, outer)
         branches = []
         for branch in (node.this, node.expression):
@@ -787,6 +816,8 @@ class Analyzer:
 
     def join(self, join: exp.Join, scope: Scope) -> None:
         kind = (join.args.get("kind") or "").upper()
+        if (join.args.get("method") or "").upper() == "NATURAL":  # StatementAnalyzer.visitJoin refuses it so
+            self.fail("Natural join not supported", join, "NOT_SUPPORTED")
         if (
             kind in ("SEMI", "ANTI", "ASOF", "POSITIONAL")
             or join.args.get("method")
@@ -1037,7 +1068,10 @@ def _identifier(a: Analyzer, node, scope, env):
 def _dot(a: Analyzer, node, scope, env):
     t = a.expr(node.this, scope, env)
     if not isinstance(node.expression, exp.Identifier):
-        a.unsupported("dereference", node)
+        a.unsupported(
+            "row_expression.* (every field of a row)" if isinstance(node.expression, exp.Star) else "a field reference",
+            node,
+        )
     result, real = a.field(t, node.expression.name, node.expression.quoted, node)
     node.meta["field"] = real
     return result
@@ -1726,8 +1760,8 @@ def _filter(a: Analyzer, node, scope, env):
 
 @handles(exp.Window)
 def _window(a: Analyzer, node, scope, env):
-    if node.args.get("alias") is not None and node.this is None:
-        a.unsupported("named window", node)
+    if node.args.get("alias") is not None:  # a name that no WINDOW clause of its query defines
+        a.fail(f"Cannot resolve WINDOW name {node.args['alias'].name}", node.args["alias"], "INVALID_WINDOW_REFERENCE")
     inner = node.this
     nulls = None
     if isinstance(inner, (exp.IgnoreNulls, exp.RespectNulls)):

@@ -29,6 +29,7 @@ class Construct:
     test: Callable[[exp.Expression], bool] | None = None
     refused: str = ""
     in_text: Callable[[exp.Expression, str], bool] | None = None  # a test that reads the query text
+    names: tuple[str, ...] = ()  # the names Trino's function reference lists it under (cast, extract, ...)
 
     def used_by(self, node: exp.Expression, sql: str) -> bool:
         if not isinstance(node, self.nodes):
@@ -106,6 +107,9 @@ CONSTRUCTS: dict[str, Construct] = {
     "AND / OR / NOT": Construct("operators", "SELECT NOT (true AND false OR true)", (exp.And, exp.Or, exp.Not)),
     "|| (concatenation)": Construct("operators", "SELECT 'a' || 'b'", (exp.DPipe,)),
     "CASE": Construct("operators", "SELECT CASE WHEN a > 1 THEN 'x' ELSE 'y' END FROM t", (exp.Case,)),
+    "IF(condition, true_value [, false_value])": Construct(
+        "operators", "SELECT if(a > 1, 'x'), if(a > 1, 'x', 'y') FROM t", (exp.If,), names=("if",)
+    ),
     "ARRAY[...] constructor": Construct("operators", "SELECT ARRAY[1, 2]", (exp.Array,)),
     "[] (subscript)": Construct("operators", "SELECT arr[1] FROM t", (exp.Bracket,)),
     "-> (lambda)": Construct("operators", "SELECT transform(nums, x -> x + 1) FROM t", (exp.Lambda,)),
@@ -122,15 +126,22 @@ CONSTRUCTS: dict[str, Construct] = {
         "literals", "SELECT JSON '[1, 2]'", (exp.ParseJSON,), lambda n: bool(n.args.get("is_literal"))
     ),
     "CAST / TRY_CAST": Construct(
-        "literals", "SELECT CAST(a AS varchar), TRY_CAST(s AS bigint) FROM t", (exp.Cast, exp.TryCast)
+        "literals",
+        "SELECT CAST(a AS varchar), TRY_CAST(s AS bigint) FROM t",
+        (exp.Cast, exp.TryCast),
+        names=("cast", "try_cast"),
     ),
     "CAST to and from json": Construct(
         "literals", "SELECT CAST(CAST(arr AS JSON) AS array(varchar)) FROM t", (exp.Cast, exp.TryCast), _casts_json
     ),
     "AT TIME ZONE": Construct("literals", "SELECT ts AT TIME ZONE 'UTC' FROM t", (exp.AtTimeZone,)),
-    "EXTRACT(field FROM x)": Construct("literals", "SELECT EXTRACT(YEAR FROM ts) FROM t", (exp.Extract,)),
+    "EXTRACT(field FROM x)": Construct(
+        "literals", "SELECT EXTRACT(YEAR FROM ts) FROM t", (exp.Extract,), names=("extract",)
+    ),
     "SUBSTRING(x FROM i FOR n)": Construct("literals", "SELECT SUBSTRING(s FROM 2 FOR 1) FROM t", (exp.Substring,)),
-    "POSITION(x IN y)": Construct("literals", "SELECT POSITION('a' IN s) FROM t", (exp.StrPosition,)),
+    "POSITION(x IN y)": Construct(
+        "literals", "SELECT POSITION('a' IN s) FROM t", (exp.StrPosition,), names=("position",)
+    ),
     "TRIM([BOTH | LEADING | TRAILING] x FROM y)": Construct(
         "literals", "SELECT TRIM(BOTH 'x' FROM s) FROM t", (exp.Trim,)
     ),
@@ -138,6 +149,17 @@ CONSTRUCTS: dict[str, Construct] = {
         "literals",
         "SELECT current_date, current_timestamp, localtimestamp",
         (exp.CurrentDate, exp.CurrentTimestamp, exp.Localtimestamp),
+        names=("current_date", "current_timestamp", "localtimestamp"),
+    ),
+    "current_time": Construct(
+        "literals",
+        "SELECT current_time",
+        (exp.CurrentTime,),
+        refused="time(3) with time zone is not translated",
+        names=("current_time",),
+    ),
+    "localtime": Construct(
+        "literals", "SELECT localtime", (exp.Localtime,), refused="not translated", names=("localtime",)
     ),
     "json_value(... [RETURNING type] [NULL | DEFAULT x ON EMPTY] [NULL | DEFAULT x ON ERROR])": Construct(
         "json",
@@ -171,7 +193,8 @@ CONSTRUCTS: dict[str, Construct] = {
         "WITH RECURSIVE r(n) AS (SELECT 1 UNION ALL SELECT n + 1 FROM r WHERE n < 3) SELECT n FROM r",
         (exp.With,),
         lambda node: bool(node.args.get("recursive")),
-        refused="not translated",
+        refused="Trino unrolls the recursion to max_recursion_depth (10) steps and fails past them; DuckDB "
+        "recurses until no new rows",
     ),
     "SELECT DISTINCT": Construct(
         "queries", "SELECT DISTINCT s FROM t", (exp.Distinct,), lambda n: isinstance(n.parent, exp.Select)
@@ -202,7 +225,7 @@ CONSTRUCTS: dict[str, Construct] = {
         "SELECT 1 FROM t NATURAL JOIN t AS o",
         (exp.Join,),
         lambda n: (n.method or "").upper() == "NATURAL",
-        refused="not translated",
+        refused="Trino refuses it too: NOT_SUPPORTED 'Natural join not supported' (StatementAnalyzer.visitJoin)",
     ),
     "UNNEST [WITH ORDINALITY]": Construct(
         "queries", "SELECT x, n FROM t CROSS JOIN UNNEST(nums) WITH ORDINALITY AS u(x, n)", (exp.Unnest,)
@@ -269,15 +292,42 @@ CONSTRUCTS: dict[str, Construct] = {
         "SELECT a FROM t ORDER BY a OFFSET 1 ROWS FETCH FIRST 1 ROWS ONLY",
         (exp.Limit, exp.Offset, exp.Fetch),
     ),
-    "FETCH ... WITH TIES": Construct(
+    "FETCH FIRST ... WITH TIES": Construct(
         "queries",
-        "SELECT a FROM t ORDER BY a FETCH FIRST 1 ROWS WITH TIES",
+        "SELECT g, count(*) AS n FROM t GROUP BY g ORDER BY n DESC OFFSET 1 ROWS FETCH FIRST 1 ROWS WITH TIES",
         (exp.LimitOptions,),
         lambda n: bool(n.args.get("with_ties")),
+    ),
+    "FETCH FIRST ... WITH TIES of SELECT DISTINCT": Construct(
+        "queries",
+        "SELECT DISTINCT a FROM t ORDER BY a FETCH FIRST 1 ROWS WITH TIES",
+        (exp.LimitOptions,),
+        lambda n: (
+            bool(n.args.get("with_ties"))
+            and (select := n.find_ancestor(exp.Select)) is not None
+            and select.args.get("distinct") is not None
+        ),
+        refused="not translated (ties would be ranked before DISTINCT); nor WITH TIES of a set operation",
+    ),
+    "CORRESPONDING (UNION / INTERSECT / EXCEPT by column name)": Construct(
+        "queries",
+        "SELECT a, id FROM t UNION ALL CORRESPONDING SELECT id, a FROM t",
+        (exp.Union, exp.Intersect, exp.Except),
+        lambda n: bool(n.args.get("by_name")),
+        refused="not translated (DuckDB's BY NAME keeps every column, Trino only the common ones)",
+    ),
+    "row_expression.* (every field of a row, AS (column_alias, ...))": Construct(
+        "queries",
+        "SELECT (ROW(1, true)).*",
+        (exp.Dot, exp.Aliases),
+        lambda n: isinstance(n, exp.Aliases) or isinstance(n.expression, exp.Star),
         refused="not translated",
     ),
     "TABLESAMPLE": Construct(
-        "queries", "SELECT a FROM t TABLESAMPLE BERNOULLI (50)", (exp.TableSample,), refused="not translated"
+        "queries",
+        "SELECT a FROM t TABLESAMPLE BERNOULLI (50)",
+        (exp.TableSample,),
+        refused="random: the rows differ from run to run",
     ),
     "json_table (table function)": Construct(
         "queries",
@@ -348,9 +398,8 @@ CONSTRUCTS: dict[str, Construct] = {
     ),
     "named WINDOW clause": Construct(
         "aggregation",
-        "SELECT sum(a) OVER w FROM t WINDOW w AS (ORDER BY id)",
+        "SELECT sum(a) OVER w, rank() OVER (w ORDER BY b) FROM t WINDOW w AS (PARTITION BY g)",
         (exp.Select,),
         lambda n: bool(n.args.get("windows")),
-        refused="not translated",
     ),
 }

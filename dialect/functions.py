@@ -3156,12 +3156,10 @@ REJECTED: dict[str, str] = {
     "inverse_beta_cdf": _COMMONS_MATH,
     "normal_cdf": _COMMONS_MATH,
     "inverse_normal_cdf": _COMMONS_MATH,
-    "truncate_n": "not translated",
     "version": "answered by the SQL endpoint, not the dialect layer",
     "current_user": "not translated",
     "current_catalog": "not translated",
     "current_schema": "not translated",
-    "sequence_timestamp": "not translated",
     "ip_prefix": "IP address functions are not available",
 }
 

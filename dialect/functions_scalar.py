@@ -678,6 +678,8 @@ def _render_wilson(bound: int) -> Render:
 def _vectors(call: Call) -> TType:
     if len(call.args) != 2:
         call.mismatch()
+    if call.name.startswith("cosine_") and all(t is not None and t.base == "map" for t in call.types):
+        call.fail(f"unsupported in lakegate: {call.name} of maps (sparse vectors) is not translated", "NOT_SUPPORTED")
     for t in call.types:
         if t is None or not (t.is_unknown or (t.base == "array" and (t.element.is_numeric or t.element.is_unknown))):
             call.mismatch()

@@ -452,6 +452,7 @@ _TRINO_SYNTAX = {
     exp.UnicodeString: "Unicode string literal U&'...'",
     exp.JSONValue: "function 'json_value'",
     exp.GroupingSets: "GROUPING SETS",
+    exp.Aliases: "row_expression.* AS (column_alias, ...)",
 }
 _LEADING_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 

@@ -23,6 +23,7 @@ import lakegate.dialect.functions  # noqa: F401  (these fill the function regist
 import lakegate.dialect.functions_hashes  # noqa: F401
 import lakegate.dialect.functions_json  # noqa: F401
 import lakegate.dialect.functions_nanos  # noqa: F401
+import lakegate.dialect.functions_refused  # noqa: F401
 import lakegate.dialect.functions_scalar  # noqa: F401
 import lakegate.dialect.functions_struct  # noqa: F401
 from lakegate.dialect import guard
@@ -32,6 +33,7 @@ from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import analyze
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.transforms import Writer, finalize, hoist_derived_order
+from lakegate.dialect.unparsed import unparsed_construct
 
 if TYPE_CHECKING:
     from lakegate.dialect.scope import Scope
@@ -427,6 +429,9 @@ def parse(sql: str) -> exp.Expression:
             s for s in dialect.parser().parse(tokens, sql) if s is not None and not isinstance(s, exp.Semicolon)
         ]  # `; -- comment` is no statement
     except ParseError as error:
+        construct = unparsed_construct(sql)
+        if construct is not None:
+            raise DialectError(f"unsupported in lakegate: {construct}", error_name="NOT_SUPPORTED") from None
         raise _parse_error(error) from None
     except TokenError as error:
         raise DialectError(f"syntax error: {error}", error_name="SYNTAX_ERROR") from None

@@ -305,6 +305,7 @@ def generate(families: list[Family], supported: dict, rejected: dict[str, str], 
             uses[name] += 1
 
     family_of = _catalogue_family()
+    construct_of = {n: (row, c) for row, c in constructs.items() for n in c.names}
     for name, spec in supported.items():
         family_of[name] = spec.family
     for name in rejected:
@@ -330,6 +331,8 @@ def generate(families: list[Family], supported: dict, rejected: dict[str, str], 
         "(`NOT_SUPPORTED`); the reason says why.",
         "- **rejected (not implemented)**: a Trino function that lakegate does not know; a query "
         "using it is refused (`FUNCTION_NOT_FOUND`).",
+        "- **construct**: not a function but syntax (CAST, EXTRACT, IF, current_date, ...): its status "
+        "is that of its row in the SQL constructs table at the end of the page.",
         "- **cases**: how many conformance cases (`tests/dialect/cases/*.yaml`) call the function; "
         "each case is a Trino query with the result (values and types) or error Trino gives, run "
         "end to end through translation and DuckDB. Functions are found with sqlglot's Trino "
@@ -344,7 +347,7 @@ def generate(families: list[Family], supported: dict, rejected: dict[str, str], 
         out.append(f"| {family.name} | {len(family.cases)} | {_cell(family.title)}: {_cell(family.description)} |")
     out += ["", "## Time zones", "", *(f"- {rule}" for rule in zones.RULES)]
 
-    counts = {"supported": 0, "rejected": 0, "not implemented": 0}
+    counts = {"supported": 0, "rejected": 0, "not implemented": 0, "construct": 0}
     sections = []
     order = [f for f in CATALOGUE if f in by_family] + sorted(set(by_family) - set(CATALOGUE))
     for family in order:
@@ -368,6 +371,11 @@ def generate(families: list[Family], supported: dict, rejected: dict[str, str], 
             elif name in rejected:
                 status, detail = f"rejected ({_cell(rejected[name])})", ""
                 counts["rejected"] += 1
+            elif name in construct_of:
+                row, construct = construct_of[name]
+                refused = f"rejected ({_cell(construct.refused)})" if construct.refused else "supported"
+                status, detail = f"{refused} as a construct", f"see the construct {_cell(row)}"
+                counts["construct"] += 1
             else:
                 status, detail = "rejected (not implemented)", ""
                 counts["not implemented"] += 1
@@ -377,9 +385,9 @@ def generate(families: list[Family], supported: dict, rejected: dict[str, str], 
     out += [
         "",
         f"Functions: {counts['supported']} supported, {counts['rejected']} rejected with a "
-        f"reason, {counts['not implemented']} not implemented. Constructs: {supported_constructs} "
-        f"supported, {len(constructs) - supported_constructs} rejected with a reason. Functions "
-        f"and constructs supported: {counts['supported'] + supported_constructs}.",
+        f"reason, {counts['not implemented']} not implemented, {counts['construct']} constructs. "
+        f"Constructs: {supported_constructs} supported, {len(constructs) - supported_constructs} rejected "
+        f"with a reason. Functions and constructs supported: {counts['supported'] + supported_constructs}.",
     ]
     out += sections
     out += [

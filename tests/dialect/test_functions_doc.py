@@ -48,6 +48,14 @@ class _Spec:
         self.family, self.signature, self.notes = family, signature, notes
 
 
+class _Construct:
+    def __init__(self, names: tuple[str, ...], refused: str = ""):
+        self.family, self.names, self.refused = "literals", names, refused
+
+    def used_by(self, node, sql: str) -> bool:
+        return False
+
+
 def test_generate_lists_statuses_and_counts_calls(tmp_path):
     (tmp_path / "demo.yaml").write_text(
         "family: demo\ntitle: Demo\ndescription: two cases\ncases:\n"
@@ -60,12 +68,17 @@ def test_generate_lists_statuses_and_counts_calls(tmp_path):
         docs.load_families(tmp_path),
         {"cardinality": _Spec("array", "cardinality(array(E)) -> bigint", "1-based")},
         {"ngrams": "not translated"},
+        {"CAST": _Construct(("cast", "try_cast")), "current_time": _Construct(("current_time",), "not translated")},
     )
     assert "| `cardinality` | supported | 2 | `cardinality(array(E)) -> bigint` 1-based |" in text
     assert "| `ngrams` | rejected (not translated) | 1 |" in text
     assert "| `zip_with` | rejected (not implemented) | 0 |" in text
     assert "| `filter` | rejected (not implemented) | 0 |" in text  # FILTER (WHERE ...) is not a call
     assert "| demo | 2 | Demo: two cases |" in text
+    # a construct listed among the functions says what its row says, not "not implemented"
+    assert "| `cast` | supported as a construct | 0 | see the construct CAST |" in text
+    assert "| `current_time` | rejected (not translated) as a construct | 0 | see the construct current_time |" in text
+    assert "| CAST | literals | supported | 0 |" in text
 
 
 def test_called_names_uses_tokens_not_strings():

@@ -586,8 +586,8 @@ def json_query(g, node: exp.JSONExtract) -> str:
 # --- json_array (SQL/JSON constructor, without clauses) --------------------------------------------
 def _nested_json(node: exp.Expression) -> bool:
     """A JSON-returning function as an argument: its text is embedded as JSON ("the FORMAT option is
-    implicit", json.md json_array)."""
-    return (isinstance(node, exp.Anonymous) and node.name.lower() == "json_array") or (
+    implicit", json.md json_array and json_object)."""
+    return (isinstance(node, exp.Anonymous) and node.name.lower() in ("json_array", "json_object")) or (
         isinstance(node, exp.JSONExtract) and node.args.get("json_query") and not node.meta.get("omit")
     )
 
@@ -598,7 +598,7 @@ def _format_json(call: Call, node: exp.Expression) -> None:
     text = literal_str(call, call.args.index(node))
     if node.meta_get("format_json") is not True or text is None:
         call.fail(
-            "unsupported in lakegate: json_array argument ... FORMAT JSON of other than a string", "NOT_SUPPORTED"
+            f"unsupported in lakegate: {call.name} argument ... FORMAT JSON of other than a string", "NOT_SUPPORTED"
         )
 
     def members(pairs):
@@ -610,13 +610,15 @@ def _format_json(call: Call, node: exp.Expression) -> None:
         value = json.loads(text, object_pairs_hook=members, parse_float=_no_float, parse_constant=_no_float)
     except ValueError:
         call.fail(
-            "unsupported in lakegate: json_array argument ... FORMAT JSON of text that is not JSON "
+            f"unsupported in lakegate: {call.name} argument ... FORMAT JSON of text that is not JSON "
             "with distinct keys and integer numbers",
             "NOT_SUPPORTED",
         )
     written = json.dumps(value, ensure_ascii=False, separators=(",", ":"))
     if "\\u" in written.replace("\\\\", ""):  # a control character: Jackson writes \u001F, Python \u001f
-        call.fail("unsupported in lakegate: json_array argument ... FORMAT JSON of control characters", "NOT_SUPPORTED")
+        call.fail(
+            f"unsupported in lakegate: {call.name} argument ... FORMAT JSON of control characters", "NOT_SUPPORTED"
+        )
     node.meta["json"] = written
 
 
@@ -632,33 +634,40 @@ def _json_array(call: Call) -> TType:
     ):
         target = returning.sql(dialect="trino")
         call.fail(f"unsupported in lakegate: json_array ... RETURNING {target}", "NOT_SUPPORTED")
-    for node in call.args:
-        if node.meta_get("format_json"):
-            _format_json(call, node)
     for node, t in zip(call.args, call.types):
-        if node.meta_get("format_json"):
-            continue
-        if isinstance(node, exp.JSONExtract) and node.meta.get("omit"):
-            call.fail("unsupported in lakegate: json_query ... OMIT QUOTES inside json_array", "NOT_SUPPORTED")
-        if t is None or not (t.is_numeric or t.base in ("boolean", "varchar", "json", "unknown", "date")):
-            call.fail(f"unsupported in lakegate: json_array of a {t} value", "NOT_SUPPORTED")
+        check_json_value(call, node, t)
     return tt.VARCHAR
 
 
+def check_json_value(call: Call, node: exp.Expression, t: TType | None) -> None:
+    """Refuse (NOT_SUPPORTED) a json_array element or json_object value lakegate does not write as
+    Trino does (SqlJsonLiteralConverter.getJsonNode); note the text of a FORMAT JSON literal."""
+    if node.meta_get("format_json"):
+        _format_json(call, node)
+        return
+    if isinstance(node, exp.JSONExtract) and node.meta.get("omit"):
+        call.fail(f"unsupported in lakegate: json_query ... OMIT QUOTES inside {call.name}", "NOT_SUPPORTED")
+    if t is None or not (t.is_numeric or t.base in ("boolean", "varchar", "json", "unknown", "date")):
+        call.fail(f"unsupported in lakegate: {call.name} of a {t} value", "NOT_SUPPORTED")
+
+
+def json_value_text(g, arg: exp.Expression) -> str:
+    """The JSON text of a json_array element or json_object value checked by check_json_value:
+    booleans, numbers as Jackson writes them, JSON (FORMAT JSON, a nested JSON function, a json
+    value) as it is, other values as JSON strings of their varchar text; NULL for NULL."""
+    t = ttype(arg)
+    if arg.meta_get("format_json"):
+        return tf.string(arg.meta["json"])
+    if _nested_json(arg) or t.base == "json":
+        return f"CAST({g.sql(arg)} AS VARCHAR)"
+    if t.base == "date":
+        return jv.to_json(g, f"CAST({g.sql(arg)} AS VARCHAR)", tt.VARCHAR)
+    return jv.to_json(g, g.sql(arg), t)
+
+
 def _render_json_array(g, node, args) -> str:
-    """The elements as JSON (booleans, numbers as Jackson writes them, other values as JSON strings of
-    their varchar text); NULLs are left out, ABSENT ON NULL being the default."""
-    texts = []
-    for arg in args:
-        t = ttype(arg)
-        if arg.meta_get("format_json"):
-            texts.append(tf.string(arg.meta["json"]))
-        elif _nested_json(arg) or t.base == "json":
-            texts.append(f"CAST({g.sql(arg)} AS VARCHAR)")
-        elif t.base == "date":
-            texts.append(jv.to_json(g, f"CAST({g.sql(arg)} AS VARCHAR)", tt.VARCHAR))
-        else:
-            texts.append(jv.to_json(g, g.sql(arg), t))
+    """The elements as JSON; NULLs are left out, ABSENT ON NULL being the default."""
+    texts = [json_value_text(g, arg) for arg in args]
     if node.meta_get("null") == "NULL":  # NULL ON NULL: a JSON null for each NULL
         texts = [f"coalesce({text}, 'null')" for text in texts]
     return f"'[' || array_to_string([{', '.join(texts)}]::VARCHAR[], ',') || ']'" if texts else "'[]'"

@@ -161,9 +161,6 @@ CONSTRUCTS: dict[str, Construct] = {
         lambda n: _is_sql_json_path(n, simple=False),
         refused="not translated",
     ),
-    "json_object (KEY ... VALUE ..., NULL | ABSENT ON NULL, WITH UNIQUE KEYS)": Construct(
-        "json", "SELECT json_object('a' : 1)", (exp.JSONObject,), refused="Trino orders its keys by a java.util.HashMap"
-    ),
     # --- queries ---------------------------------------------------------------------------------
     "WITH (common table expressions)": Construct("queries", "WITH w AS (SELECT 1 AS x) SELECT x FROM w", (exp.With,)),
     "WITH RECURSIVE": Construct(

@@ -3136,7 +3136,6 @@ REJECTED: dict[str, str] = {
     "regress": "machine learning functions are not available",
     "features": "machine learning functions are not available",
     "evaluate_classifier_predictions": "machine learning functions are not available",
-    "json_object": "Trino 476 builds the object in a java.util.HashMap (JsonObjectFunction): no defined key order",
     "from_unixtime_nanos": "DuckDB has no nanosecond timestamp with time zone",
     "sha512": "DuckDB has no SHA-512",
     "xxhash64": "DuckDB has no xxHash64 (its hash() is another function)",

@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 from sqlglot import exp
 
+from lakegate.dialect import json_path
+
 
 @dataclass(frozen=True)
 class Construct:
@@ -70,7 +72,19 @@ def _join(side: str = "", kind: str = "", using: bool = False) -> Callable[[exp.
 _SIMPLE_PATH = re.compile(r'(lax|strict)\s+\$(\s*(\.[A-Za-z_][A-Za-z0-9_]*|\."([^"\\]|\\.)*"|\[\s*\d+\s*\]))*\s*')
 
 
-def _is_sql_json_path(node: exp.Expression, simple: bool = True) -> bool:
+def _json_path_kind(node: exp.Expression) -> str:
+    """ "simple" (member and [index] accessors), "sequence" (the other features json_path translates)
+    or "refused"."""
+    if _SIMPLE_PATH.fullmatch(node.name):
+        return "simple"
+    try:
+        json_path.parse(node.name)
+    except json_path.PathNotSupported:
+        return "refused"
+    return "sequence"
+
+
+def _is_sql_json_path(node: exp.Expression, kind: str = "simple") -> bool:
     """A string literal that is the path argument of json_exists / json_value / json_query."""
     parent = node.parent
     is_path = (
@@ -83,7 +97,7 @@ def _is_sql_json_path(node: exp.Expression, simple: bool = True) -> bool:
         and parent.name.lower() == "json_exists"
         and parent.expressions.index(node) == 1
     )
-    return is_path and node.is_string and bool(_SIMPLE_PATH.fullmatch(node.name)) == simple
+    return bool(is_path and node.is_string and _json_path_kind(node) == kind)
 
 
 def _in_expression(node: exp.Expression) -> bool:
@@ -154,11 +168,17 @@ CONSTRUCTS: dict[str, Construct] = {
     "JSON path, lax or strict, of member and [index] accessors": Construct(
         "json", "SELECT json_exists(js, 'strict $.tags[0]') FROM t", (exp.Literal,), lambda n: _is_sql_json_path(n)
     ),
-    "JSON path (wildcards, filters, item methods, last, ranges, PASSING variables)": Construct(
+    "JSON path wildcards .* and [*], subscript lists, ranges and last, filters, size(), type()": Construct(
         "json",
-        "SELECT json_exists(js, 'lax $.tags[*]') FROM t",
+        "SELECT json_exists(js, 'lax $.*'), json_query(js, 'lax $.tags[0 to last]' WITH ARRAY WRAPPER) FROM t",
         (exp.Literal,),
-        lambda n: _is_sql_json_path(n, simple=False),
+        lambda n: _is_sql_json_path(n, "sequence"),
+    ),
+    "JSON path item method (but size(), type()), arithmetic, .., like_regex, starts with, $var": Construct(
+        "json",
+        "SELECT json_value(js, 'lax $.pos.x.floor()') FROM t",
+        (exp.Literal,),
+        lambda n: _is_sql_json_path(n, "refused"),
         refused="not translated",
     ),
     # --- queries ---------------------------------------------------------------------------------

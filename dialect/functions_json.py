@@ -12,6 +12,7 @@ import re
 
 from sqlglot import exp
 
+from lakegate.dialect import json_path as jp
 from lakegate.dialect import json_values as jv
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
@@ -296,82 +297,38 @@ register(
 
 
 # --- SQL/JSON path functions (json_exists, json_value, json_query) ---------------------------------
-#: A path lakegate translates: `lax` or `strict`, then member (`.key`, `."key"`) and array
-#: subscript (`[n]`) accessors only (json.md, "JSON path language"). Each step yields one item, no
-#: item (empty) or an error; the sequences of wildcards, filters and lax unwrapping are not translated.
-_SQL_JSON_PATH = re.compile(
-    r'(lax|strict)\s+\$((?:\s*(?:\.[A-Za-z_][A-Za-z0-9_]*|\."(?:[^"\\]|\\.)*"|\[\s*\d+\s*\]))*)\s*'
-)
-_STEP = re.compile(r'\.([A-Za-z_][A-Za-z0-9_]*)|\."((?:[^"\\]|\\.)*)"|\[\s*(\d+)\s*\]')
-
-#: The state between steps: a JSON text (one item), NULL (empty sequence) or this marker (an error).
-_ERROR = "'\\u0000error'"
-_LAX_UNWRAP = "NOT_SUPPORTED: a lax JSON path member accessor on an array (Trino unwraps the array) is not translated"
-_REPEATED_KEY = "NOT_SUPPORTED: a JSON path member accessor on an object with a repeated key is not translated"
+_ERROR = jp.ERROR
 
 
 def _sql_json_path(a, node: exp.Expression, function: str, path: exp.Expression) -> tuple[str, list]:
-    """The mode and steps of a path literal ((kind, value) with kind "key" or "index"), or a refusal
-    naming the function and the path."""
+    """The mode and steps of a path literal (json_path.parse), or a refusal naming the function,
+    the path and what in it is not translated."""
     text = path.name if isinstance(path, exp.Literal) and path.is_string else None
-    match = _SQL_JSON_PATH.fullmatch(text) if text is not None else None
-    if match is None:
-        a.unsupported(
-            f"JSON path {path.sql(dialect='trino')} in function '{function}' "
-            "(lakegate translates lax or strict paths of member and [index] accessors)",
-            node,
-        )
-    steps = []
-    for step in _STEP.finditer(match.group(2)):
-        if step.group(3) is not None:
-            steps.append(("index", int(step.group(3))))
-        else:
-            name = step.group(1) if step.group(1) is not None else json.loads(f'"{step.group(2)}"')
-            steps.append(("key", name))
-    return match.group(1), steps
+    if text is None:
+        a.unsupported(f"JSON path {path.sql(dialect='trino')} in function '{function}' (a path literal only)", node)
+    try:
+        return jp.parse(text)
+    except jp.PathNotSupported as error:
+        a.unsupported(f"JSON path {path.sql(dialect='trino')} in function '{function}': {error}", node)
 
 
-def _step(current: str, mode: str, kind: str, value, depth: int) -> str:
-    """One accessor applied to the state `current` (bound once, as a lambda parameter)."""
-    c = f'"_c{depth}"'
-    kind_ = f"json_type({c})"
-    missing = "NULL" if mode == "lax" else _ERROR
-    if kind == "key":
-        member = f"CAST(json_extract({c}, {tf.string('$.' + json.dumps(value, ensure_ascii=False))}) AS VARCHAR)"
-        repeated = f"len(json_keys({c})) <> len(list_distinct(json_keys({c})))"
-        body = (
-            f"CASE WHEN {c} IS NULL OR {c} = {_ERROR} THEN {c} "
-            f"WHEN {kind_} = 'OBJECT' THEN CASE WHEN {repeated} THEN error({tf.string(_REPEATED_KEY)}) "
-            f"ELSE coalesce({member}, {missing}) END "
-            + (
-                f"WHEN {kind_} = 'ARRAY' THEN error({tf.string(_LAX_UNWRAP)}) ELSE NULL END"
-                if mode == "lax"
-                else f"ELSE {_ERROR} END"
-            )
-        )
-    else:
-        element = f"CAST(json_extract({c}, '$[{value}]') AS VARCHAR)"
-        wrapped = c if value == 0 else "NULL"  # lax wraps a non-array in a one-element array
-        body = (
-            f"CASE WHEN {c} IS NULL OR {c} = {_ERROR} THEN {c} "
-            f"WHEN {kind_} = 'ARRAY' THEN coalesce({element}, {missing}) "
-            + (f"ELSE {wrapped} END" if mode == "lax" else f"ELSE {_ERROR} END")
-        )
-    return f"list_transform([{current}], lambda {c}: {body})[1]"
+def _path_sequence(g, input_node: exp.Expression, mode: str, steps: list) -> str:
+    """The path's result sequence (json_path.sequence) over the input; input that is not JSON is
+    the error sequence, a NULL input NULL."""
+    value = g.sql(input_node)
+    if ttype(input_node).base != "json":  # the text compacted, as Trino writes the item it read
+        compact = f"CAST(json({value}) AS VARCHAR)"
+        value = f"CASE WHEN {jv.valid(value)} THEN {compact} WHEN {value} IS NOT NULL THEN {_ERROR} END"
+    return jp.sequence(mode, steps, value)
 
 
 def _path_result(g, input_node: exp.Expression, mode: str, steps: list) -> str:
-    """The item the path yields from the input: a JSON text, NULL (empty) or the error marker
-    (input that is not JSON, or a strict structural error)."""
-    value = g.sql(input_node)
-    current = (
-        value
-        if ttype(input_node).base == "json"
-        else f"CASE WHEN {jv.valid(value)} THEN {value} WHEN {value} IS NOT NULL THEN {_ERROR} END"
+    """The one item of the path's sequence: a JSON text, NULL (empty) or the error marker (an
+    error, or more than one item: json_value and json_query without a wrapper need one)."""
+    sequence = _path_sequence(g, input_node, mode, steps)
+    return _bind(
+        sequence, '"_s"', f'CASE WHEN list_contains("_s", {_ERROR}) OR len("_s") > 1 THEN {_ERROR} ELSE "_s"[1] END'
     )
-    for depth, (kind, step) in enumerate(steps):
-        current = _step(current, mode, kind, step, depth)
-    return current
 
 
 def _check_input(a, node, input_node: exp.Expression, scope, env, function: str) -> None:
@@ -395,9 +352,9 @@ def _render_json_exists(g, node, args) -> str:
     """true for an item, false for none; an error is as the ON ERROR clause says: FALSE (the
     default), TRUE or UNKNOWN (NULL) (json.md json_exists)."""
     mode, steps = node.meta["path"]
-    result = _path_result(g, args[0], mode, steps)
+    result = _path_sequence(g, args[0], mode, steps)
     on_error = {"TRUE": "true", "UNKNOWN": "NULL"}.get(node.meta.get("on_error"), "false")
-    body = f'CASE WHEN "_r" = {_ERROR} THEN {on_error} ELSE "_r" IS NOT NULL END'
+    body = f'CASE WHEN list_contains("_r", {_ERROR}) THEN {on_error} ELSE coalesce(len("_r"), 0) > 0 END'
     return f'list_transform([{result}], lambda "_r": {body})[1]'
 
 
@@ -407,8 +364,9 @@ register(
     "json_exists(json_input, json_path) -> boolean",
     _json_exists,
     _render_json_exists,
-    notes="Paths of member and [index] accessors in lax or strict mode; FALSE (the default), TRUE and UNKNOWN "
-    "ON ERROR. Other path features, PASSING and ERROR ON ERROR are refused (NOT_SUPPORTED).",
+    notes="Paths in lax or strict mode as json_path.py translates them (accessors, wildcards, subscripts, last, "
+    "filters, size(), type()); FALSE (the default), TRUE and UNKNOWN ON ERROR. Other path features, PASSING and "
+    "ERROR ON ERROR are refused (NOT_SUPPORTED).",
 )
 
 
@@ -565,22 +523,34 @@ def json_query(g, node: exp.JSONExtract) -> str:
     key is refused at run time."""
     mode, steps = node.meta["path"]
     empty, error = (_behaviour(g, node.meta["on"][w], tt.VARCHAR) for w in ("EMPTY", "ERROR"))
-    item = '"_r"'
-    kind = f"json_type({item})"
-    text = (
-        f"CASE WHEN regexp_matches({jv.without_strings(item)}, '[0-9][.eE]') "
-        f"THEN error({tf.string(_UNSURE_ITEM)}) "
-        f"WHEN {_repeated_key(item)} THEN error({tf.string(_REPEATED_ITEM_KEY)}) ELSE {item} END"
-    )
-    if node.meta["omit"]:
-        text = f"CASE WHEN {kind} = 'VARCHAR' THEN json_extract_string({item}, '$') ELSE {text} END"
+    items, first = '"_s"', '"_s"[1]'
+
+    def checked(text: str) -> str:
+        return (
+            f"CASE WHEN regexp_matches({jv.without_strings(text)}, '[0-9][.eE]') "
+            f"THEN error({tf.string(_UNSURE_ITEM)}) "
+            f"WHEN {_repeated_key(text)} THEN error({tf.string(_REPEATED_ITEM_KEY)}) ELSE {text} END"
+        )
+
+    wrapped = checked(f"'[' || array_to_string({items}, ',') || ']'")
     wrapper = node.meta["wrapper"]
     if wrapper == "UNCONDITIONAL":
-        text = f"'[' || {text} || ']'"
+        text = wrapped
     elif wrapper == "CONDITIONAL":
-        text = f"CASE WHEN {kind} IN ('ARRAY', 'OBJECT') THEN {text} ELSE '[' || {text} || ']' END"
-    body = f"CASE WHEN {item} IS NULL THEN {empty} WHEN {item} = {_ERROR} THEN {error} ELSE {text} END"
-    return _bind(_path_result(g, node.this, mode, steps), item, body)
+        one_structure = f"len({items}) = 1 AND json_type({first}) IN ('ARRAY', 'OBJECT')"
+        text = f"CASE WHEN {one_structure} THEN {checked(first)} ELSE {wrapped} END"
+    else:
+        single = checked(first)
+        if node.meta["omit"]:
+            single = (
+                f"CASE WHEN json_type({first}) = 'VARCHAR' THEN json_extract_string({first}, '$') ELSE {single} END"
+            )
+        text = f"CASE WHEN len({items}) > 1 THEN {error} ELSE {single} END"
+    body = (
+        f"CASE WHEN list_contains({items}, {_ERROR}) THEN {error} "
+        f"WHEN coalesce(len({items}), 0) = 0 THEN {empty} ELSE {text} END"
+    )
+    return _bind(_path_sequence(g, node.this, mode, steps), items, body)
 
 
 # --- json_array (SQL/JSON constructor, without clauses) --------------------------------------------

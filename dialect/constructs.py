@@ -168,15 +168,15 @@ CONSTRUCTS: dict[str, Construct] = {
     "JSON path, lax or strict, of member and [index] accessors": Construct(
         "json", "SELECT json_exists(js, 'strict $.tags[0]') FROM t", (exp.Literal,), lambda n: _is_sql_json_path(n)
     ),
-    "JSON path wildcards .* and [*], subscript lists, ranges and last, filters, size(), type()": Construct(
+    "JSON path wildcards, subscript lists, ranges, last, filters, size(), type(), abs(), floor(), ceiling()": Construct(
         "json",
         "SELECT json_exists(js, 'lax $.*'), json_query(js, 'lax $.tags[0 to last]' WITH ARRAY WRAPPER) FROM t",
         (exp.Literal,),
         lambda n: _is_sql_json_path(n, "sequence"),
     ),
-    "JSON path item method (but size(), type()), arithmetic, .., like_regex, starts with, $var": Construct(
+    "JSON path item method (double(), keyvalue(), datetime()), arithmetic, .., like_regex, $var": Construct(
         "json",
-        "SELECT json_value(js, 'lax $.pos.x.floor()') FROM t",
+        "SELECT json_value(js, 'lax $.pos.x.double()') FROM t",
         (exp.Literal,),
         lambda n: _is_sql_json_path(n, "refused"),
         refused="not translated",

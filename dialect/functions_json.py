@@ -365,8 +365,8 @@ register(
     _json_exists,
     _render_json_exists,
     notes="Paths in lax or strict mode as json_path.py translates them (accessors, wildcards, subscripts, last, "
-    "filters, size(), type()); FALSE (the default), TRUE and UNKNOWN ON ERROR. Other path features, PASSING and "
-    "ERROR ON ERROR are refused (NOT_SUPPORTED).",
+    "filters, size(), type(), abs(), floor(), ceiling()); FALSE (the default), TRUE and UNKNOWN ON ERROR. "
+    "Other path features, PASSING and ERROR ON ERROR are refused (NOT_SUPPORTED).",
 )
 
 

@@ -6,9 +6,10 @@ sequence an error (the input is not JSON, or a structural error in strict mode).
 `lax` / `strict` mode; member accessors `.key`, `."key"`, the wildcard member accessor `.*`, array
 accessors with subscripts (`[1]`, `[1, 3 to 5]`, `[last]`, `[last - 1]`) and the wildcard `[*]`;
 filters `?(...)` of comparisons (`==`, `!=`, `<>`, `<`, `<=`, `>`, `>=`) between `@`-paths and
-literals, `exists(...)`, `&&`, `||`, `!`; the item methods `size()` and `type()`. Others are refused,
-named. Facts: trinodb/trino docs/src/main/sphinx/functions/json.md ("JSON path language"),
-io.trino.json.PathEvaluationVisitor and PathPredicateEvaluationVisitor.
+literals, `exists(...)`, `starts with`, `is unknown`, `&&`, `||`, `!`; the item methods `size()`,
+`type()`, `abs()`, `floor()` and `ceiling()`. Others are refused, named. Facts: trinodb/trino
+docs/src/main/sphinx/functions/json.md ("JSON path language"), io.trino.json.PathEvaluationVisitor
+and PathPredicateEvaluationVisitor.
 """
 
 from __future__ import annotations
@@ -91,7 +92,7 @@ class _Parser:
                 elif kind == "name" and self.peek("("):
                     self.take("(")
                     self.take(")")
-                    if value not in ("size", "type") or relative:
+                    if value not in ("size", "type", "abs", "floor", "ceiling"):
                         raise PathNotSupported(f"JSON path item method {value}()")
                     steps.append(("method", value))
                 elif kind == "name":
@@ -165,7 +166,9 @@ class _Parser:
             inner = self.disjunction()
             self.take(")")
             if self.peek("is"):
-                raise PathNotSupported("JSON path predicate is unknown")
+                self.take()
+                self.take("unknown")
+                return Logic("is unknown", (inner,))
             return inner
         if self.peek("exists"):
             self.take()
@@ -176,6 +179,13 @@ class _Parser:
                 raise PathNotSupported("JSON path exists() of a literal")
             return Logic("exists", (path,))
         left = self.operand()
+        if self.peek("starts") and not isinstance(left, Literal):
+            self.take()
+            self.take("with")
+            prefix = self.operand()
+            if not (isinstance(prefix, Literal) and prefix.kind == "string"):
+                raise PathNotSupported("JSON path starts with other than a string literal")
+            return Logic("starts with", (left, prefix.value))
         if not any(self.peek(op) for op in ("==", "!=", "<>", "<", "<=", ">", ">=")):
             found = self.tokens[self.at][1] if self.peek() else "the end"
             raise PathNotSupported(f"JSON path predicate at {found}")
@@ -301,9 +311,11 @@ class _Writer:
             return self.each(
                 sequence, lambda x: f"[CASE WHEN json_type({x}) = 'ARRAY' THEN {size(x)} ELSE {other} END]"
             )
-        kinds = {"OBJECT": "object", "ARRAY": "array", "VARCHAR": "string", "BOOLEAN": "boolean", "NULL": "null"}
-        cases = " ".join(f"WHEN '{k}' THEN '\"{v}\"'" for k, v in kinds.items())
-        return self.each(sequence, lambda x: f"[CASE json_type({x}) {cases} ELSE '\"number\"' END]")
+        if name == "type":  # no unwrapping
+            kinds = {"OBJECT": "object", "ARRAY": "array", "VARCHAR": "string", "BOOLEAN": "boolean", "NULL": "null"}
+            cases = " ".join(f"WHEN '{k}' THEN '\"{v}\"'" for k, v in kinds.items())
+            return self.each(sequence, lambda x: f"[CASE json_type({x}) {cases} ELSE '\"number\"' END]")
+        return self.each(self.unwrap(sequence), lambda x: f"[{_number_method(name, x)}]")
 
     def _filter(self, sequence: str, predicate) -> str:
         x = self.var()
@@ -315,6 +327,10 @@ class _Writer:
         if isinstance(node, Logic):
             if node.op == "!":
                 return f"(NOT {self.predicate(node.args[0], current)})"
+            if node.op == "is unknown":
+                return f"({self.predicate(node.args[0], current)} IS NULL)"
+            if node.op == "starts with":
+                return self.starts_with(node.args[0], node.args[1], current)
             if node.op == "exists":
                 seq = self.steps(f"[{current}]", node.args[0])
                 return f"CASE WHEN list_contains({seq}, {ERROR}) THEN NULL ELSE len({seq}) > 0 END"
@@ -341,18 +357,32 @@ class _Writer:
             codes = f"list_transform({scalars}, lambda {y}: {self._scalar(y, node.op, right)})"
             found_null = has["null"] if node.op == "!=" else "false"
             if self.lax:
-                first_error, first_true = f"list_position({codes}, 2)", f"list_position({codes}, 1)"
-                scalars = (
-                    f"CASE WHEN {first_error} IS NOT NULL AND ({first_true} IS NULL OR {first_error} < {first_true}) "
-                    f"THEN NULL ELSE list_contains({codes}, 1) END"
-                )
-                result = f"CASE WHEN {found_null} THEN true ELSE {scalars} END"
+                result = f"CASE WHEN {found_null} THEN true ELSE {self._any(codes)} END"
             else:
-                result = (
-                    f"CASE WHEN list_contains({codes}, 2) THEN NULL ELSE list_contains({codes}, 1) OR {found_null} END"
-                )
+                result = f"({self._any(codes)} OR {found_null})"
             result = f"CASE WHEN {has['nonscalar']} THEN NULL ELSE {result} END"
         return f"CASE WHEN list_contains({raw}, {ERROR}) THEN NULL WHEN len({seq}) = 0 THEN false ELSE {result} END"
+
+    def _any(self, codes: str) -> str:
+        """Whether any of the codes (1 true, 0 false, 2 error) is true: unknown on an error, in lax
+        mode only on an error before the first true (PathPredicateEvaluationVisitor stops early)."""
+        if not self.lax:
+            return f"CASE WHEN list_contains({codes}, 2) THEN NULL ELSE list_contains({codes}, 1) END"
+        first_error, first_true = f"list_position({codes}, 2)", f"list_position({codes}, 1)"
+        return (
+            f"CASE WHEN {first_error} IS NOT NULL AND ({first_true} IS NULL OR {first_error} < {first_true}) "
+            f"THEN NULL ELSE list_contains({codes}, 1) END"
+        )
+
+    def starts_with(self, path: list, prefix: str, current: str) -> str:
+        """visitIrStartsWithPredicate: every item must be text; true when one starts with the prefix."""
+        raw = self.steps(f"[{current}]", path)
+        seq = self.unwrap(raw)
+        y = self.var()
+        test = f"CAST(starts_with(json_extract_string({y}, '$'), {tf.string(prefix)}) AS INTEGER)"
+        codes = f"list_transform({seq}, lambda {y}: CASE WHEN json_type({y}) = 'VARCHAR' THEN {test} ELSE 2 END)"
+        answer = f"CASE WHEN len({seq}) = 0 THEN false ELSE {self._any(codes)} END"
+        return f"CASE WHEN list_contains({raw}, {ERROR}) THEN NULL ELSE {answer} END"
 
     def _scalar(self, y: str, op: str, right: Literal) -> str:
         """1 (true), 0 (false) or 2 (the types do not compare: an error) for one scalar item."""
@@ -371,6 +401,20 @@ class _Writer:
             compared = f"CAST({y} AS BOOLEAN) {sql_op} {right.value}"
             accepts = "= 'BOOLEAN'"
         return f"CASE WHEN {kind} {accepts} THEN CAST({compared} AS INTEGER) ELSE 2 END"
+
+
+def _number_method(name: str, x: str) -> str:
+    """abs(), floor() or ceiling() of a JSON number (an integer stays an integer, a double a double:
+    DuckDB writes it with a fraction, which the functions' output checks refuse as text); another
+    item is an error (the method requires a number)."""
+    integer = x
+    if name == "abs":  # the negative bound of int and of bigint (Jackson's IntNode, LongNode) overflows
+        integer = f"CASE WHEN {x} IN ('-2147483648', '-9223372036854775808') THEN {ERROR} ELSE ltrim({x}, '-') END"
+    double = f"CAST({name.replace('ceiling', 'ceil')}(CAST({x} AS DOUBLE)) AS VARCHAR)"
+    return (
+        f"CASE json_type({x}) WHEN 'DOUBLE' THEN {double} "
+        f"WHEN 'BIGINT' THEN {integer} WHEN 'UBIGINT' THEN {integer} ELSE {ERROR} END"
+    )
 
 
 def _elements(x: str) -> str:

@@ -306,6 +306,10 @@ def _sql_json_path(a, node: exp.Expression, function: str, path: exp.Expression)
     text = path.name if isinstance(path, exp.Literal) and path.is_string else None
     if text is None:
         a.unsupported(f"JSON path {path.sql(dialect='trino')} in function '{function}' (a path literal only)", node)
+    if not re.match(r"\s*(lax|strict)\b", text):  # JsonPath.g4: the mode is required
+        token = re.match(r"\s*(\w+|\S)", text)
+        first = token.group(1) if token else "<EOF>"
+        a.fail(f"mismatched input '{first}' expecting {{'lax', 'strict'}}", path, "SYNTAX_ERROR")
     try:
         return jp.parse(text)
     except jp.PathNotSupported as error:
@@ -320,15 +324,6 @@ def _path_sequence(g, input_node: exp.Expression, mode: str, steps: list) -> str
         compact = f"CAST(json({value}) AS VARCHAR)"
         value = f"CASE WHEN {jv.valid(value)} THEN {compact} WHEN {value} IS NOT NULL THEN {_ERROR} END"
     return jp.sequence(mode, steps, value)
-
-
-def _path_result(g, input_node: exp.Expression, mode: str, steps: list) -> str:
-    """The one item of the path's sequence: a JSON text, NULL (empty) or the error marker (an
-    error, or more than one item: json_value and json_query without a wrapper need one)."""
-    sequence = _path_sequence(g, input_node, mode, steps)
-    return _bind(
-        sequence, '"_s"', f'CASE WHEN list_contains("_s", {_ERROR}) OR len("_s") > 1 THEN {_ERROR} ELSE "_s"[1] END'
-    )
 
 
 def _check_input(a, node, input_node: exp.Expression, scope, env, function: str) -> None:
@@ -354,7 +349,7 @@ def _render_json_exists(g, node, args) -> str:
     mode, steps = node.meta["path"]
     result = _path_sequence(g, args[0], mode, steps)
     on_error = {"TRUE": "true", "UNKNOWN": "NULL"}.get(node.meta.get("on_error"), "false")
-    body = f'CASE WHEN list_contains("_r", {_ERROR}) THEN {on_error} ELSE coalesce(len("_r"), 0) > 0 END'
+    body = f'CASE WHEN "_r" IS NULL THEN NULL WHEN list_contains("_r", {_ERROR}) THEN {on_error} ELSE len("_r") > 0 END'
     return f'list_transform([{result}], lambda "_r": {body})[1]'
 
 
@@ -452,7 +447,10 @@ def json_value(g, node: exp.JSONValue) -> str:
         f"WHEN {kind} = 'NULL' THEN NULL WHEN {kind} IN ('OBJECT', 'ARRAY') THEN {error} "
         f"ELSE coalesce({converted}, {error}) END"
     )
-    return _bind(_path_result(g, node.this, mode, steps), item, body)
+    # the one item of the sequence: a JSON text, NULL (empty) or the error marker (also for more than one item)
+    single = f'CASE WHEN list_contains("_s", {_ERROR}) OR len("_s") > 1 THEN {_ERROR} ELSE "_s"[1] END'
+    value = f'CASE WHEN "_s" IS NULL THEN NULL ELSE {_bind(single, item, body)} END'  # NULL input: NULL
+    return _bind(_path_sequence(g, node.this, mode, steps), '"_s"', value)
 
 
 _WRAPPERS = {
@@ -547,8 +545,8 @@ def json_query(g, node: exp.JSONExtract) -> str:
             )
         text = f"CASE WHEN len({items}) > 1 THEN {error} ELSE {single} END"
     body = (
-        f"CASE WHEN list_contains({items}, {_ERROR}) THEN {error} "
-        f"WHEN coalesce(len({items}), 0) = 0 THEN {empty} ELSE {text} END"
+        f"CASE WHEN {items} IS NULL THEN NULL WHEN list_contains({items}, {_ERROR}) THEN {error} "
+        f"WHEN len({items}) = 0 THEN {empty} ELSE {text} END"
     )
     return _bind(_path_sequence(g, node.this, mode, steps), items, body)
 

@@ -615,18 +615,23 @@ def check_json_value(call: Call, node: exp.Expression, t: TType | None) -> None:
         return
     if isinstance(node, exp.JSONExtract) and node.meta.get("omit"):
         call.fail(f"unsupported in lakegate: json_query ... OMIT QUOTES inside {call.name}", "NOT_SUPPORTED")
+    if t is not None and t.base == "json" and not _nested_json(node):
+        # a value of the json type: an "other" value cast to varchar (json.md), which fails for objects and arrays
+        call.fail(
+            f"unsupported in lakegate: {call.name} of a json value (use FORMAT JSON on its text)", "NOT_SUPPORTED"
+        )
     if t is None or not (t.is_numeric or t.base in ("boolean", "varchar", "json", "unknown", "date")):
         call.fail(f"unsupported in lakegate: {call.name} of a {t} value", "NOT_SUPPORTED")
 
 
 def json_value_text(g, arg: exp.Expression) -> str:
     """The JSON text of a json_array element or json_object value checked by check_json_value:
-    booleans, numbers as Jackson writes them, JSON (FORMAT JSON, a nested JSON function, a json
-    value) as it is, other values as JSON strings of their varchar text; NULL for NULL."""
+    booleans, numbers as Jackson writes them, JSON (FORMAT JSON, a nested JSON function) as it is,
+    other values as JSON strings of their varchar text; NULL for NULL."""
     t = ttype(arg)
     if arg.meta_get("format_json"):
         return tf.string(arg.meta["json"])
-    if _nested_json(arg) or t.base == "json":
+    if _nested_json(arg):
         return f"CAST({g.sql(arg)} AS VARCHAR)"
     if t.base == "date":
         return jv.to_json(g, f"CAST({g.sql(arg)} AS VARCHAR)", tt.VARCHAR)

@@ -88,6 +88,8 @@ class _Parser:
                 if value == "*":
                     steps.append(("members",))
                 elif kind == "string":
+                    if json.loads(value) == "*":  # DuckDB's JSON path reads $."*" as the wildcard
+                        raise PathNotSupported('JSON path member accessor ."*"')
                     steps.append(("key", json.loads(value)))
                 elif kind == "name" and self.peek("("):
                     self.take("(")

@@ -168,13 +168,13 @@ CONSTRUCTS: dict[str, Construct] = {
     "JSON path, lax or strict, of member and [index] accessors": Construct(
         "json", "SELECT json_exists(js, 'strict $.tags[0]') FROM t", (exp.Literal,), lambda n: _is_sql_json_path(n)
     ),
-    "JSON path wildcards, subscript lists, ranges, last, filters, size(), type(), abs(), floor(), ceiling()": Construct(
+    "JSON path wildcards, subscript lists, ranges, last, filters, size(), type(), floor(), keyvalue()": Construct(
         "json",
         "SELECT json_exists(js, 'lax $.*'), json_query(js, 'lax $.tags[0 to last]' WITH ARRAY WRAPPER) FROM t",
         (exp.Literal,),
         lambda n: _is_sql_json_path(n, "sequence"),
     ),
-    "JSON path item method (double(), keyvalue(), datetime()), arithmetic, .., like_regex, $var": Construct(
+    "JSON path item method (double(), datetime(), ...), arithmetic, .., like_regex, $var": Construct(
         "json",
         "SELECT json_value(js, 'lax $.pos.x.double()') FROM t",
         (exp.Literal,),

@@ -7,7 +7,8 @@ sequence an error (the input is not JSON, or a structural error in strict mode).
 accessors with subscripts (`[1]`, `[1, 3 to 5]`, `[last]`, `[last - 1]`) and the wildcard `[*]`;
 filters `?(...)` of comparisons (`==`, `!=`, `<>`, `<`, `<=`, `>`, `>=`) between `@`-paths and
 literals, `exists(...)`, `starts with`, `is unknown`, `&&`, `||`, `!`; the item methods `size()`,
-`type()`, `abs()`, `floor()` and `ceiling()`. Others are refused, named. Facts: trinodb/trino
+`type()`, `abs()`, `floor()`, `ceiling()` and (once per path, outside filters) `keyvalue()`. Others
+are refused, named. Facts: trinodb/trino
 docs/src/main/sphinx/functions/json.md ("JSON path language"), io.trino.json.PathEvaluationVisitor
 and PathPredicateEvaluationVisitor.
 """
@@ -94,6 +95,9 @@ class _Parser:
                 elif kind == "name" and self.peek("("):
                     self.take("(")
                     self.take(")")
+                    if value == "keyvalue" and not relative and all(s != ("keyvalue",) for s in steps):
+                        steps.append(("keyvalue",))  # its "id" counts objects: one keyvalue() per path, outside filters
+                        continue
                     if value not in ("size", "type", "abs", "floor", "ceiling"):
                         raise PathNotSupported(f"JSON path item method {value}()")
                     steps.append(("method", value))
@@ -318,6 +322,24 @@ class _Writer:
             cases = " ".join(f"WHEN '{k}' THEN '\"{v}\"'" for k, v in kinds.items())
             return self.each(sequence, lambda x: f"[CASE json_type({x}) {cases} ELSE '\"number\"' END]")
         return self.each(self.unwrap(sequence), lambda x: f"[{_number_method(name, x)}]")
+
+    def _keyvalue(self, sequence: str) -> str:
+        """Each member of each object as {"name": key, "value": value, "id": the object's position}
+        (visitIrKeyValueMethod, a new visitor, so ids from 0, per evaluation); a non-object is an error."""
+        items, i, k = self.var(), self.var(), self.var()
+        x = f"{items}[{i} + 1]"
+        keys, values = f"json_keys({x})", f"CAST(json_extract({x}, '$.*') AS VARCHAR[])"
+        member = (
+            f"'{{\"name\":' || CAST(to_json({keys}[{k} + 1]) AS VARCHAR) || ',\"value\":' || {values}[{k} + 1] "
+            f"|| ',\"id\":' || {i} || '}}'"
+        )
+        each = (
+            f"CASE WHEN {x} = {ERROR} THEN [{x}] WHEN json_type({x}) <> 'OBJECT' THEN [{ERROR}] "
+            f"WHEN {_repeated(x)} THEN [error({tf.string(_REPEATED_KEY)})] "
+            f"ELSE list_transform(range(len({keys})), lambda {k}: {member}) END"
+        )
+        per_item = f"flatten(list_transform(range(len({items})), lambda {i}: {each}))"
+        return f"list_transform([{self.unwrap(sequence)}], lambda {items}: {per_item})[1]"
 
     def _filter(self, sequence: str, predicate) -> str:
         x = self.var()

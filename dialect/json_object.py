@@ -7,8 +7,9 @@ ObjectMapper.writeTree (JsonOutputFunctions), so the members come out in the Has
 order, which is deterministic: by bucket `spread(key.hashCode()) & (capacity - 1)`, and within a
 bucket in insertion order (a resize splits buckets keeping their relative order). The capacity
 starts at 16 and doubles when the size exceeds 3/4 of it. A bucket of 9 members turns into a tree
-(or forces an early resize); lakegate refuses that at run time. The order is computed in DuckDB
-from the keys, so key expressions work as literal keys do.
+(or forces an early resize): lakegate refuses, at run time, 9 keys sharing a bucket of the first
+16-bucket table (every later bucket holds a subset of one of those), so the order it writes is never
+a guess. The order is computed in DuckDB from the keys, so key expressions work as literal keys do.
 
 Errors as JsonObjectFunction raises them, at run time, in member order: a NULL key, a repeated key
 (NOT_SUPPORTED, or INVALID_FUNCTION_ARGUMENT under WITH UNIQUE KEYS). Facts: trinodb/trino
@@ -27,8 +28,8 @@ from lakegate.dialect.functions_json import check_json_value, json_value_text
 from lakegate.dialect.registry import register
 from lakegate.dialect.trino_types import TType
 
-#: java.util.HashMap: the first table's capacity, the load factor's threshold (3/4) and the size of
-#: a bucket that is turned into a tree (TREEIFY_THRESHOLD + 1).
+#: java.util.HashMap: the first table's capacity, and the size of a bucket that is turned into a
+#: tree (TREEIFY_THRESHOLD + 1); the table doubles past 3/4 full (DEFAULT_LOAD_FACTOR).
 _FIRST_CAPACITY = 16
 _TREE_BUCKET = 9
 
@@ -37,7 +38,7 @@ _DUPLICATE = "NOT_SUPPORTED: cannot construct a JSON object with duplicate key"
 _TREE = "NOT_SUPPORTED: json_object with 9 or more keys in one bucket of Java's HashMap (their order is not reproduced)"
 
 
-def java_hash_sql(text: str) -> str:
+def _java_hash_sql(text: str) -> str:
     """Java's String.hashCode of a VARCHAR as a 32-bit unsigned BIGINT (s[0]*31^(n-1) + ... over
     UTF-16 code units, modulo 2^32), then HashMap.hash's spread (h ^ (h >>> 16))."""
     point = f'unicode({text}["_i" + 1])'
@@ -112,7 +113,7 @@ def _render_json_object(g, node, args) -> str:
         f"{jv.to_json(g, key, tt.VARCHAR)} || ':' || coalesce({value}, 'null') END)"
         for i, (key, value) in enumerate(zip(keys, values))
     )
-    hashed = f'struct_pack("h" := {java_hash_sql(_field("k"))}, "i" := {_field("i")}, "m" := {_field("m")})'
+    hashed = f'struct_pack("h" := {_java_hash_sql(_field("k"))}, "i" := {_field("i")}, "m" := {_field("m")})'
     members = f'list_transform(list_filter([{entries}], lambda "_e": {_field("m")} IS NOT NULL), lambda "_e": {hashed})'
     result = f'list_transform([{members}], lambda "_o": {_object_text(len(keys))})[1]' if keys else "'{}'"
     if checks:

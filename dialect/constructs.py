@@ -17,6 +17,8 @@ from dataclasses import dataclass
 
 from sqlglot import exp
 
+from lakegate.dialect import json_path
+
 
 @dataclass(frozen=True)
 class Construct:
@@ -71,7 +73,19 @@ def _join(side: str = "", kind: str = "", using: bool = False) -> Callable[[exp.
 _SIMPLE_PATH = re.compile(r'(lax|strict)\s+\$(\s*(\.[A-Za-z_][A-Za-z0-9_]*|\."([^"\\]|\\.)*"|\[\s*\d+\s*\]))*\s*')
 
 
-def _is_sql_json_path(node: exp.Expression, simple: bool = True) -> bool:
+def _json_path_kind(node: exp.Expression) -> str:
+    """ "simple" (member and [index] accessors), "sequence" (the other features json_path translates)
+    or "refused"."""
+    if _SIMPLE_PATH.fullmatch(node.name):
+        return "simple"
+    try:
+        json_path.parse(node.name)
+    except json_path.PathNotSupported:
+        return "refused"
+    return "sequence"
+
+
+def _is_sql_json_path(node: exp.Expression, kind: str = "simple") -> bool:
     """A string literal that is the path argument of json_exists / json_value / json_query."""
     parent = node.parent
     is_path = (
@@ -84,7 +98,7 @@ def _is_sql_json_path(node: exp.Expression, simple: bool = True) -> bool:
         and parent.name.lower() == "json_exists"
         and parent.expressions.index(node) == 1
     )
-    return is_path and node.is_string and bool(_SIMPLE_PATH.fullmatch(node.name)) == simple
+    return bool(is_path and node.is_string and _json_path_kind(node) == kind)
 
 
 def _in_expression(node: exp.Expression) -> bool:
@@ -176,15 +190,18 @@ CONSTRUCTS: dict[str, Construct] = {
     "JSON path, lax or strict, of member and [index] accessors": Construct(
         "json", "SELECT json_exists(js, 'strict $.tags[0]') FROM t", (exp.Literal,), lambda n: _is_sql_json_path(n)
     ),
-    "JSON path (wildcards, filters, item methods, last, ranges, PASSING variables)": Construct(
+    "JSON path wildcards, subscript lists, ranges, last, filters, size(), type(), floor(), keyvalue()": Construct(
         "json",
-        "SELECT json_exists(js, 'lax $.tags[*]') FROM t",
+        "SELECT json_exists(js, 'lax $.*'), json_query(js, 'lax $.tags[0 to last]' WITH ARRAY WRAPPER) FROM t",
         (exp.Literal,),
-        lambda n: _is_sql_json_path(n, simple=False),
-        refused="not translated",
+        lambda n: _is_sql_json_path(n, "sequence"),
     ),
-    "json_object (KEY ... VALUE ..., NULL | ABSENT ON NULL, WITH UNIQUE KEYS)": Construct(
-        "json", "SELECT json_object('a' : 1)", (exp.JSONObject,), refused="Trino orders its keys by a java.util.HashMap"
+    "JSON path item method (double(), datetime(), ...), arithmetic, .., like_regex, $var": Construct(
+        "json",
+        "SELECT json_value(js, 'lax $.pos.x.double()') FROM t",
+        (exp.Literal,),
+        lambda n: _is_sql_json_path(n, "refused"),
+        refused="not translated",
     ),
     # --- queries ---------------------------------------------------------------------------------
     "WITH (common table expressions)": Construct("queries", "WITH w AS (SELECT 1 AS x) SELECT x FROM w", (exp.With,)),

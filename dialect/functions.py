@@ -3145,7 +3145,6 @@ REJECTED: dict[str, str] = {
     "regress": "machine learning functions are not available",
     "features": "machine learning functions are not available",
     "evaluate_classifier_predictions": "machine learning functions are not available",
-    "json_object": "Trino 476 builds the object in a java.util.HashMap (JsonObjectFunction): no defined key order",
     "word_stem": "language stemming not translated",
     "uuid": "random UUIDs not translated",
     "color": "color functions are not available",

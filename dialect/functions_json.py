@@ -12,6 +12,7 @@ import re
 
 from sqlglot import exp
 
+from lakegate.dialect import json_path as jp
 from lakegate.dialect import json_values as jv
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
@@ -296,82 +297,33 @@ register(
 
 
 # --- SQL/JSON path functions (json_exists, json_value, json_query) ---------------------------------
-#: A path lakegate translates: `lax` or `strict`, then member (`.key`, `."key"`) and array
-#: subscript (`[n]`) accessors only (json.md, "JSON path language"). Each step yields one item, no
-#: item (empty) or an error; the sequences of wildcards, filters and lax unwrapping are not translated.
-_SQL_JSON_PATH = re.compile(
-    r'(lax|strict)\s+\$((?:\s*(?:\.[A-Za-z_][A-Za-z0-9_]*|\."(?:[^"\\]|\\.)*"|\[\s*\d+\s*\]))*)\s*'
-)
-_STEP = re.compile(r'\.([A-Za-z_][A-Za-z0-9_]*)|\."((?:[^"\\]|\\.)*)"|\[\s*(\d+)\s*\]')
-
-#: The state between steps: a JSON text (one item), NULL (empty sequence) or this marker (an error).
-_ERROR = "'\\u0000error'"
-_LAX_UNWRAP = "NOT_SUPPORTED: a lax JSON path member accessor on an array (Trino unwraps the array) is not translated"
-_REPEATED_KEY = "NOT_SUPPORTED: a JSON path member accessor on an object with a repeated key is not translated"
+_ERROR = jp.ERROR
 
 
 def _sql_json_path(a, node: exp.Expression, function: str, path: exp.Expression) -> tuple[str, list]:
-    """The mode and steps of a path literal ((kind, value) with kind "key" or "index"), or a refusal
-    naming the function and the path."""
+    """The mode and steps of a path literal (json_path.parse), or a refusal naming the function,
+    the path and what in it is not translated."""
     text = path.name if isinstance(path, exp.Literal) and path.is_string else None
-    match = _SQL_JSON_PATH.fullmatch(text) if text is not None else None
-    if match is None:
-        a.unsupported(
-            f"JSON path {path.sql(dialect='trino')} in function '{function}' "
-            "(lakegate translates lax or strict paths of member and [index] accessors)",
-            node,
-        )
-    steps = []
-    for step in _STEP.finditer(match.group(2)):
-        if step.group(3) is not None:
-            steps.append(("index", int(step.group(3))))
-        else:
-            name = step.group(1) if step.group(1) is not None else json.loads(f'"{step.group(2)}"')
-            steps.append(("key", name))
-    return match.group(1), steps
+    if text is None:
+        a.unsupported(f"JSON path {path.sql(dialect='trino')} in function '{function}' (a path literal only)", node)
+    if not re.match(r"\s*(lax|strict)\b", text):  # JsonPath.g4: the mode is required
+        token = re.match(r"\s*(\w+|\S)", text)
+        first = token.group(1) if token else "<EOF>"
+        a.fail(f"mismatched input '{first}' expecting {{'lax', 'strict'}}", path, "SYNTAX_ERROR")
+    try:
+        return jp.parse(text)
+    except jp.PathNotSupported as error:
+        a.unsupported(f"JSON path {path.sql(dialect='trino')} in function '{function}': {error}", node)
 
 
-def _step(current: str, mode: str, kind: str, value, depth: int) -> str:
-    """One accessor applied to the state `current` (bound once, as a lambda parameter)."""
-    c = f'"_c{depth}"'
-    kind_ = f"json_type({c})"
-    missing = "NULL" if mode == "lax" else _ERROR
-    if kind == "key":
-        member = f"CAST(json_extract({c}, {tf.string('$.' + json.dumps(value, ensure_ascii=False))}) AS VARCHAR)"
-        repeated = f"len(json_keys({c})) <> len(list_distinct(json_keys({c})))"
-        body = (
-            f"CASE WHEN {c} IS NULL OR {c} = {_ERROR} THEN {c} "
-            f"WHEN {kind_} = 'OBJECT' THEN CASE WHEN {repeated} THEN error({tf.string(_REPEATED_KEY)}) "
-            f"ELSE coalesce({member}, {missing}) END "
-            + (
-                f"WHEN {kind_} = 'ARRAY' THEN error({tf.string(_LAX_UNWRAP)}) ELSE NULL END"
-                if mode == "lax"
-                else f"ELSE {_ERROR} END"
-            )
-        )
-    else:
-        element = f"CAST(json_extract({c}, '$[{value}]') AS VARCHAR)"
-        wrapped = c if value == 0 else "NULL"  # lax wraps a non-array in a one-element array
-        body = (
-            f"CASE WHEN {c} IS NULL OR {c} = {_ERROR} THEN {c} "
-            f"WHEN {kind_} = 'ARRAY' THEN coalesce({element}, {missing}) "
-            + (f"ELSE {wrapped} END" if mode == "lax" else f"ELSE {_ERROR} END")
-        )
-    return f"list_transform([{current}], lambda {c}: {body})[1]"
-
-
-def _path_result(g, input_node: exp.Expression, mode: str, steps: list) -> str:
-    """The item the path yields from the input: a JSON text, NULL (empty) or the error marker
-    (input that is not JSON, or a strict structural error)."""
+def _path_sequence(g, input_node: exp.Expression, mode: str, steps: list) -> str:
+    """The path's result sequence (json_path.sequence) over the input; input that is not JSON is
+    the error sequence, a NULL input NULL."""
     value = g.sql(input_node)
-    current = (
-        value
-        if ttype(input_node).base == "json"
-        else f"CASE WHEN {jv.valid(value)} THEN {value} WHEN {value} IS NOT NULL THEN {_ERROR} END"
-    )
-    for depth, (kind, step) in enumerate(steps):
-        current = _step(current, mode, kind, step, depth)
-    return current
+    if ttype(input_node).base != "json":  # the text compacted, as Trino writes the item it read
+        compact = f"CAST(json({value}) AS VARCHAR)"
+        value = f"CASE WHEN {jv.valid(value)} THEN {compact} WHEN {value} IS NOT NULL THEN {_ERROR} END"
+    return jp.sequence(mode, steps, value)
 
 
 def _check_input(a, node, input_node: exp.Expression, scope, env, function: str) -> None:
@@ -395,9 +347,9 @@ def _render_json_exists(g, node, args) -> str:
     """true for an item, false for none; an error is as the ON ERROR clause says: FALSE (the
     default), TRUE or UNKNOWN (NULL) (json.md json_exists)."""
     mode, steps = node.meta["path"]
-    result = _path_result(g, args[0], mode, steps)
+    result = _path_sequence(g, args[0], mode, steps)
     on_error = {"TRUE": "true", "UNKNOWN": "NULL"}.get(node.meta.get("on_error"), "false")
-    body = f'CASE WHEN "_r" = {_ERROR} THEN {on_error} ELSE "_r" IS NOT NULL END'
+    body = f'CASE WHEN "_r" IS NULL THEN NULL WHEN list_contains("_r", {_ERROR}) THEN {on_error} ELSE len("_r") > 0 END'
     return f'list_transform([{result}], lambda "_r": {body})[1]'
 
 
@@ -407,8 +359,9 @@ register(
     "json_exists(json_input, json_path) -> boolean",
     _json_exists,
     _render_json_exists,
-    notes="Paths of member and [index] accessors in lax or strict mode; FALSE (the default), TRUE and UNKNOWN "
-    "ON ERROR. Other path features, PASSING and ERROR ON ERROR are refused (NOT_SUPPORTED).",
+    notes="Paths in lax or strict mode as json_path.py translates them (accessors, wildcards, subscripts, last, "
+    "filters, size(), type(), abs(), floor(), ceiling()); FALSE (the default), TRUE and UNKNOWN ON ERROR. "
+    "Other path features, PASSING and ERROR ON ERROR are refused (NOT_SUPPORTED).",
 )
 
 
@@ -494,7 +447,10 @@ def json_value(g, node: exp.JSONValue) -> str:
         f"WHEN {kind} = 'NULL' THEN NULL WHEN {kind} IN ('OBJECT', 'ARRAY') THEN {error} "
         f"ELSE coalesce({converted}, {error}) END"
     )
-    return _bind(_path_result(g, node.this, mode, steps), item, body)
+    # the one item of the sequence: a JSON text, NULL (empty) or the error marker (also for more than one item)
+    single = f'CASE WHEN list_contains("_s", {_ERROR}) OR len("_s") > 1 THEN {_ERROR} ELSE "_s"[1] END'
+    value = f'CASE WHEN "_s" IS NULL THEN NULL ELSE {_bind(single, item, body)} END'  # NULL input: NULL
+    return _bind(_path_sequence(g, node.this, mode, steps), '"_s"', value)
 
 
 _WRAPPERS = {
@@ -565,29 +521,41 @@ def json_query(g, node: exp.JSONExtract) -> str:
     key is refused at run time."""
     mode, steps = node.meta["path"]
     empty, error = (_behaviour(g, node.meta["on"][w], tt.VARCHAR) for w in ("EMPTY", "ERROR"))
-    item = '"_r"'
-    kind = f"json_type({item})"
-    text = (
-        f"CASE WHEN regexp_matches({jv.without_strings(item)}, '[0-9][.eE]') "
-        f"THEN error({tf.string(_UNSURE_ITEM)}) "
-        f"WHEN {_repeated_key(item)} THEN error({tf.string(_REPEATED_ITEM_KEY)}) ELSE {item} END"
-    )
-    if node.meta["omit"]:
-        text = f"CASE WHEN {kind} = 'VARCHAR' THEN json_extract_string({item}, '$') ELSE {text} END"
+    items, first = '"_s"', '"_s"[1]'
+
+    def checked(text: str) -> str:
+        return (
+            f"CASE WHEN regexp_matches({jv.without_strings(text)}, '[0-9][.eE]') "
+            f"THEN error({tf.string(_UNSURE_ITEM)}) "
+            f"WHEN {_repeated_key(text)} THEN error({tf.string(_REPEATED_ITEM_KEY)}) ELSE {text} END"
+        )
+
+    wrapped = checked(f"'[' || array_to_string({items}, ',') || ']'")
     wrapper = node.meta["wrapper"]
     if wrapper == "UNCONDITIONAL":
-        text = f"'[' || {text} || ']'"
+        text = wrapped
     elif wrapper == "CONDITIONAL":
-        text = f"CASE WHEN {kind} IN ('ARRAY', 'OBJECT') THEN {text} ELSE '[' || {text} || ']' END"
-    body = f"CASE WHEN {item} IS NULL THEN {empty} WHEN {item} = {_ERROR} THEN {error} ELSE {text} END"
-    return _bind(_path_result(g, node.this, mode, steps), item, body)
+        one_structure = f"len({items}) = 1 AND json_type({first}) IN ('ARRAY', 'OBJECT')"
+        text = f"CASE WHEN {one_structure} THEN {checked(first)} ELSE {wrapped} END"
+    else:
+        single = checked(first)
+        if node.meta["omit"]:
+            single = (
+                f"CASE WHEN json_type({first}) = 'VARCHAR' THEN json_extract_string({first}, '$') ELSE {single} END"
+            )
+        text = f"CASE WHEN len({items}) > 1 THEN {error} ELSE {single} END"
+    body = (
+        f"CASE WHEN {items} IS NULL THEN NULL WHEN list_contains({items}, {_ERROR}) THEN {error} "
+        f"WHEN len({items}) = 0 THEN {empty} ELSE {text} END"
+    )
+    return _bind(_path_sequence(g, node.this, mode, steps), items, body)
 
 
 # --- json_array (SQL/JSON constructor, without clauses) --------------------------------------------
 def _nested_json(node: exp.Expression) -> bool:
     """A JSON-returning function as an argument: its text is embedded as JSON ("the FORMAT option is
-    implicit", json.md json_array)."""
-    return (isinstance(node, exp.Anonymous) and node.name.lower() == "json_array") or (
+    implicit", json.md json_array and json_object)."""
+    return (isinstance(node, exp.Anonymous) and node.name.lower() in ("json_array", "json_object")) or (
         isinstance(node, exp.JSONExtract) and node.args.get("json_query") and not node.meta.get("omit")
     )
 
@@ -598,7 +566,7 @@ def _format_json(call: Call, node: exp.Expression) -> None:
     text = literal_str(call, call.args.index(node))
     if node.meta_get("format_json") is not True or text is None:
         call.fail(
-            "unsupported in lakegate: json_array argument ... FORMAT JSON of other than a string", "NOT_SUPPORTED"
+            f"unsupported in lakegate: {call.name} argument ... FORMAT JSON of other than a string", "NOT_SUPPORTED"
         )
 
     def members(pairs):
@@ -610,13 +578,15 @@ def _format_json(call: Call, node: exp.Expression) -> None:
         value = json.loads(text, object_pairs_hook=members, parse_float=_no_float, parse_constant=_no_float)
     except ValueError:
         call.fail(
-            "unsupported in lakegate: json_array argument ... FORMAT JSON of text that is not JSON "
+            f"unsupported in lakegate: {call.name} argument ... FORMAT JSON of text that is not JSON "
             "with distinct keys and integer numbers",
             "NOT_SUPPORTED",
         )
     written = json.dumps(value, ensure_ascii=False, separators=(",", ":"))
     if "\\u" in written.replace("\\\\", ""):  # a control character: Jackson writes \u001F, Python \u001f
-        call.fail("unsupported in lakegate: json_array argument ... FORMAT JSON of control characters", "NOT_SUPPORTED")
+        call.fail(
+            f"unsupported in lakegate: {call.name} argument ... FORMAT JSON of control characters", "NOT_SUPPORTED"
+        )
     node.meta["json"] = written
 
 
@@ -632,33 +602,45 @@ def _json_array(call: Call) -> TType:
     ):
         target = returning.sql(dialect="trino")
         call.fail(f"unsupported in lakegate: json_array ... RETURNING {target}", "NOT_SUPPORTED")
-    for node in call.args:
-        if node.meta_get("format_json"):
-            _format_json(call, node)
     for node, t in zip(call.args, call.types):
-        if node.meta_get("format_json"):
-            continue
-        if isinstance(node, exp.JSONExtract) and node.meta.get("omit"):
-            call.fail("unsupported in lakegate: json_query ... OMIT QUOTES inside json_array", "NOT_SUPPORTED")
-        if t is None or not (t.is_numeric or t.base in ("boolean", "varchar", "json", "unknown", "date")):
-            call.fail(f"unsupported in lakegate: json_array of a {t} value", "NOT_SUPPORTED")
+        check_json_value(call, node, t)
     return tt.VARCHAR
 
 
+def check_json_value(call: Call, node: exp.Expression, t: TType | None) -> None:
+    """Refuse (NOT_SUPPORTED) a json_array element or json_object value lakegate does not write as
+    Trino does (SqlJsonLiteralConverter.getJsonNode); note the text of a FORMAT JSON literal."""
+    if node.meta_get("format_json"):
+        _format_json(call, node)
+        return
+    if isinstance(node, exp.JSONExtract) and node.meta.get("omit"):
+        call.fail(f"unsupported in lakegate: json_query ... OMIT QUOTES inside {call.name}", "NOT_SUPPORTED")
+    if t is not None and t.base == "json" and not _nested_json(node):
+        # a value of the json type: an "other" value cast to varchar (json.md), which fails for objects and arrays
+        call.fail(
+            f"unsupported in lakegate: {call.name} of a json value (use FORMAT JSON on its text)", "NOT_SUPPORTED"
+        )
+    if t is None or not (t.is_numeric or t.base in ("boolean", "varchar", "json", "unknown", "date")):
+        call.fail(f"unsupported in lakegate: {call.name} of a {t} value", "NOT_SUPPORTED")
+
+
+def json_value_text(g, arg: exp.Expression) -> str:
+    """The JSON text of a json_array element or json_object value checked by check_json_value:
+    booleans, numbers as Jackson writes them, JSON (FORMAT JSON, a nested JSON function) as it is,
+    other values as JSON strings of their varchar text; NULL for NULL."""
+    t = ttype(arg)
+    if arg.meta_get("format_json"):
+        return tf.string(arg.meta["json"])
+    if _nested_json(arg):
+        return f"CAST({g.sql(arg)} AS VARCHAR)"
+    if t.base == "date":
+        return jv.to_json(g, f"CAST({g.sql(arg)} AS VARCHAR)", tt.VARCHAR)
+    return jv.to_json(g, g.sql(arg), t)
+
+
 def _render_json_array(g, node, args) -> str:
-    """The elements as JSON (booleans, numbers as Jackson writes them, other values as JSON strings of
-    their varchar text); NULLs are left out, ABSENT ON NULL being the default."""
-    texts = []
-    for arg in args:
-        t = ttype(arg)
-        if arg.meta_get("format_json"):
-            texts.append(tf.string(arg.meta["json"]))
-        elif _nested_json(arg) or t.base == "json":
-            texts.append(f"CAST({g.sql(arg)} AS VARCHAR)")
-        elif t.base == "date":
-            texts.append(jv.to_json(g, f"CAST({g.sql(arg)} AS VARCHAR)", tt.VARCHAR))
-        else:
-            texts.append(jv.to_json(g, g.sql(arg), t))
+    """The elements as JSON; NULLs are left out, ABSENT ON NULL being the default."""
+    texts = [json_value_text(g, arg) for arg in args]
     if node.meta_get("null") == "NULL":  # NULL ON NULL: a JSON null for each NULL
         texts = [f"coalesce({text}, 'null')" for text in texts]
     return f"'[' || array_to_string([{', '.join(texts)}]::VARCHAR[], ',') || ']'" if texts else "'[]'"

@@ -26,6 +26,7 @@ import lakegate.dialect.functions_nanos  # noqa: F401
 import lakegate.dialect.functions_refused  # noqa: F401
 import lakegate.dialect.functions_scalar  # noqa: F401
 import lakegate.dialect.functions_struct  # noqa: F401
+import lakegate.dialect.json_object  # noqa: F401
 from lakegate.dialect import guard
 from lakegate.dialect import params as parameters
 from lakegate.dialect import scope as scoping
@@ -71,7 +72,6 @@ class _Parser(Trino.Parser):
             "SUBSTRING",
             "TRIM",
             "LISTAGG",
-            "JSON_OBJECT",
             "JSON_QUERY",
             "JSON_VALUE",
             "JSON_TABLE",
@@ -82,6 +82,7 @@ class _Parser(Trino.Parser):
     FUNCTION_PARSERS["JSON_VALUE"] = lambda self: self._parse_sql_json(exp.JSONValue)
     FUNCTION_PARSERS["JSON_EXISTS"] = lambda self: self._parse_sql_json(None)
     FUNCTION_PARSERS["JSON_ARRAY"] = lambda self: self._parse_json_array()
+    FUNCTION_PARSERS["JSON_OBJECT"] = lambda self: self._parse_json_object()
     # SqlBase.g4 #jsonQuery: [ARRAY] after CONDITIONAL too (sqlglot spells it WRAPPED)
     JSON_QUERY_OPTIONS = {
         key: ("WRAPPER", ("ARRAY", "WRAPPER"), ("CONDITIONAL", "WRAPPER"), ("CONDITIONAL", "ARRAY", "WRAPPER"))
@@ -153,6 +154,32 @@ class _Parser(Trino.Parser):
         for value in ("NULL", "ABSENT"):
             if self._match_text_seq(value, "ON", "NULL"):
                 node.meta["null"] = value
+        return self._parse_json_returning(node)
+
+    def _parse_json_object(self) -> exp.Expression:
+        # JSON_OBJECT([member, ... [NULL | ABSENT ON NULL] [WITH | WITHOUT UNIQUE [KEYS]]] [RETURNING type
+        # [FORMAT JSON]]) (SqlBase.g4 #jsonObject; a member is `[KEY] key VALUE value` or `key : value`):
+        # the keys and values alternate as plain arguments, the clauses are kept in meta.
+        args = []
+        while args or self._curr.token_type not in (TokenType.R_PAREN, TokenType.RETURNING):
+            self._match_text_seq("KEY")
+            key = self._parse_bitwise()
+            if not (self._match(TokenType.COLON) or self._match_text_seq("VALUE")):
+                self.raise_error("mismatched input. Expecting: ':', 'VALUE'")
+            args += [key, self._parse_json_element()]
+            if not self._match(TokenType.COMMA):
+                break
+        node = exp.Anonymous(this="json_object", expressions=args)
+        for value in ("NULL", "ABSENT"):
+            if self._match_text_seq(value, "ON", "NULL"):
+                node.meta["null"] = value
+        for value in ("WITH", "WITHOUT"):
+            if self._match_text_seq(value, "UNIQUE"):
+                self._match_text_seq("KEYS")
+                node.meta["unique"] = value
+        return self._parse_json_returning(node)
+
+    def _parse_json_returning(self, node: exp.Anonymous) -> exp.Anonymous:
         if self._match(TokenType.RETURNING):
             node.meta["returning"] = self._parse_types()
             if self._match_text_seq("FORMAT", "JSON"):
@@ -223,8 +250,12 @@ class _Generator(Trino.Generator):
     def anonymous_sql(self, expression: exp.Anonymous) -> str:
         name, meta = expression.name.lower(), expression.meta_get
         clauses = ("on_error", "null", "returning")
-        if name not in ("json_array", "json_exists") or not (
-            any(meta(c) is not None for c in clauses) or any(a.meta_get("format_json") for a in expression.expressions)
+        if name != "json_object" and (
+            name not in ("json_array", "json_exists")
+            or not (
+                any(meta(c) is not None for c in clauses)
+                or any(a.meta_get("format_json") for a in expression.expressions)
+            )
         ):
             return super().anonymous_sql(expression)
         args = []
@@ -232,16 +263,20 @@ class _Generator(Trino.Generator):
             form = arg.meta_get("format_json")
             encoding = "" if form is True else f" ENCODING {form}"
             args.append(self.sql(arg) + (f" FORMAT JSON{encoding}" if form else ""))
+        if name == "json_object":  # keys and values alternate: `key : value`
+            args = [f"{key} : {value}" for key, value in zip(args[::2], args[1::2])]
         text = ", ".join(args)
         if meta("on_error"):
             text += f" {meta('on_error')} ON ERROR"
         if meta("null"):
             text += f" {meta('null')} ON NULL"
+        if meta("unique"):
+            text += f" {meta('unique')} UNIQUE KEYS"
         if meta("returning") is not None:
             text += f" RETURNING {self.sql(meta('returning'))}"
             form = meta("returning_format")
             text += "" if not form else " FORMAT JSON" + ("" if form == "JSON" else f" ENCODING {form}")
-        return f"{name.upper()}({text})"
+        return f"{name.upper()}({text.strip()})"
 
     def jsonextract_sql(self, expression: exp.JSONExtract) -> str:
         sql = super().jsonextract_sql(expression)

@@ -13,7 +13,7 @@ from __future__ import annotations
 from sqlglot import exp
 from sqlglot.generators.duckdb import DuckDBGenerator
 
-from lakegate.dialect import registry, times, zones
+from lakegate.dialect import chars, registry, times, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import FloorMicros, ttype
 from lakegate.dialect.errors import DialectError
@@ -99,6 +99,8 @@ class Writer(DuckDBGenerator):
             return sql
         if source.is_unknown:
             return cast("NULL", target)
+        if target.base == "char":  # from char or varchar (chars.py)
+            return chars.pad(sql, target.args[0])
         if target.base == "timestamp_tz" and source.base in ("timestamp", "date"):  # in the session zone
             return zones.instant(f"CAST({sql} AS TIMESTAMP)", self.time_zone)
         if self.time_zone != zones.UTC and _inside(target, "timestamp_tz") and _inside(source, "date", "timestamp"):
@@ -733,7 +735,7 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
     if source.is_unknown:
         return cast("NULL", target)
     if target.base == "char":  # truncated or padded with spaces: the padded text the client gets
-        return f"rpad({sql}, {target.args[0]}, ' ')"
+        return chars.pad(sql, target.args[0])
     if target.base == "json":
         return registry.JSON_CASTS["to_json"](g, sql, source)
     if source.base == "json":
@@ -743,7 +745,7 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
         length = tt.varchar_length(target)
         if length is None:
             return text
-        if source.base == "varchar":
+        if source.base in ("varchar", "char"):  # a char's padded text (CharacterStringCasts.charToVarcharCast)
             return f"left({text}, {length})"
         message = f"'Value ' || ({text}) || ' cannot be represented as varchar({length})'"
         return f"CASE WHEN length({text}) > {length} THEN {g.fail(message, 'INVALID_CAST_ARGUMENT')} ELSE {text} END"
@@ -1230,7 +1232,9 @@ def _cast_branches(operation: exp.SetOperation, outputs: list) -> None:
     for branch in _branches(operation):
         if isinstance(branch, exp.Select):
             for item, (_, _, common) in zip(branch.expressions, outputs):
-                if ttype(item.this) != common and not ttype(item.this).base == common.base == "varchar":
+                if common.base == "char":
+                    chars.cast_to(item.this, common)
+                elif ttype(item.this) != common and not ttype(item.this).base == common.base == "varchar":
                     _wrap(item, common)
 
 

@@ -1,0 +1,52 @@
+"""Trino's char(n) in DuckDB's VARCHAR: a char(n) value is kept as its text padded with spaces to n
+characters, which is the value Trino's client gets (io.trino.spi.type.CharType.getObjectValue pads).
+
+Trino (476) keeps a char value without its trailing spaces and compares char values as if padded
+with spaces to a common length (io.trino.spi.type.Chars.compareChars); padded texts of one length
+compare the same way, byte by byte. Mixed operands are coerced the way Trino 476 coerces them
+(io.trino.type.TypeCoercion.coerceTypeBase): varchar(x) becomes char(x) (unbounded varchar
+char(65536), CharType.MAX_LENGTH), and char(x) with char(y) becomes char(max(x, y)); char never
+becomes varchar implicitly (that direction came with trinodb/trino#29939, after 476).
+The coercions here are explicit casts put into the tree, so every writer of a comparison, CASE or
+set operation sees operands of one char type.
+"""
+
+from __future__ import annotations
+
+from sqlglot import exp
+
+from lakegate.dialect import trino_types as tt
+from lakegate.dialect.trino_types import TType
+
+
+def pad(sql: str, length: int) -> str:
+    """DuckDB text `sql` as a char(length): truncated to `length` characters or padded with spaces
+    (CharacterStringCasts.varcharToCharCast and charToCharCast, then the padding the client sees)."""
+    return f"rpad({sql}, {length}, ' ')"
+
+
+def concat_type(left: TType, right: TType) -> TType | None:
+    """The type of `left || right` and concat(left, right) when one side is char and the other char,
+    varchar or NULL: char(x + y) (io.trino.operator.scalar.StringFunctions.concat(char(x), char(y)),
+    two arguments only); None when that passes CharType.MAX_LENGTH."""
+    length = tt.as_char(left).args[0] + tt.as_char(right).args[0]
+    return TType("char", (length,)) if length <= tt.CHAR_MAX_LENGTH else None
+
+
+def cast_to(node: exp.Expression, target: TType) -> None:
+    """Put an explicit cast of the analyzed `node` to char type `target` in its place (written by
+    transforms.cast_value as the padded text), unless `node` already has that type."""
+    source = node.meta.get("t")
+    if source is None or source == target:
+        return
+    cast = exp.Cast(to=exp.DataType.build(f"char({target.args[0]})"))
+    node.replace(cast)
+    cast.set("this", node)
+    cast.meta.update({"from": source, "t": target})
+
+
+def coerce(nodes: list[exp.Expression], common: TType) -> None:
+    """Cast the operands of a comparison, IN or BETWEEN to their common type when it is char(n)."""
+    if common.base == "char":
+        for node in nodes:
+            cast_to(node, common)

@@ -1492,6 +1492,8 @@ def _cast(a: Analyzer, node, scope, env):
     try:
         target = tt.from_datatype(node.args["to"])
     except ValueError as error:
+        if node.args["to"].this == exp.DataType.Type.TIMETZ:
+            a.unsupported(times.with_time_zone(node, _typed_literal(a, node)), node)
         a.unsupported(f"cast to {error}", node)
     if _typed_literal(a, node):
         text = node.this.name.strip()

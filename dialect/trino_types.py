@@ -40,8 +40,8 @@ class TType:
             return f"{base}({args[0]})" if args else base
         if base in ("timestamp", "time"):
             return f"{base}({args[0]})"
-        if base == "timestamp_tz":
-            return f"timestamp({args[0]}) with time zone"
+        if base in ("timestamp_tz", "time_tz"):
+            return f"{base[:-3]}({args[0]}) with time zone"
         if base == "interval_ds":
             return "interval day to second"
         if base == "interval_ym":

@@ -1249,7 +1249,7 @@ def _comparison(a: Analyzer, node, scope, env):
         a.unsupported(f"ordering comparison ({_OPS[type(node)]}) of {common}: its elements hold arrays or rows", node)
     node.meta["compare"] = common
     _in_session_zone(a, [node.this, node.expression], common)
-    chars.coerce([node.this, node.expression], common)
+    chars.coerce([node.this, node.expression], common, type(node) in (exp.EQ, exp.NEQ, exp.NullSafeEQ, exp.NullSafeNEQ))
     return tt.BOOLEAN
 
 
@@ -1300,7 +1300,7 @@ def _in(a: Analyzer, node, scope, env):
         for item in node.expressions:
             common = _comparable(a, item, common, a.expr(item, scope, env), "IN")
         _in_session_zone(a, [node.this, *node.expressions], common)
-        chars.coerce([node.this, *node.expressions], common)
+        chars.coerce([node.this, *node.expressions], common, equality=True)
     node.meta["compare"] = common
     return tt.BOOLEAN
 

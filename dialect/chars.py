@@ -13,6 +13,8 @@ set operation sees operands of one char type.
 
 from __future__ import annotations
 
+from typing import Any
+
 from sqlglot import exp
 
 from lakegate.dialect import trino_types as tt
@@ -33,20 +35,51 @@ def concat_type(left: TType, right: TType) -> TType | None:
     return TType("char", (length,)) if length <= tt.CHAR_MAX_LENGTH else None
 
 
-def cast_to(node: exp.Expression, target: TType) -> None:
+def cast_to(node: exp.Expression, target: TType, trimmed: bool = False) -> None:
     """Put an explicit cast of the analyzed `node` to char type `target` in its place (written by
-    transforms.cast_value as the padded text), unless `node` already has that type."""
+    transforms.cast_value as the padded text), unless `node` already has that type. A `trimmed` cast
+    is written as the value without trailing spaces instead, which only equality may compare."""
     source = node.meta.get("t")
-    if source is None or source == target:
+    if source is None or source == target and not trimmed:
         return
     cast = exp.Cast(to=exp.DataType.build(f"char({target.args[0]})"))
     node.replace(cast)
     cast.set("this", node)
-    cast.meta.update({"from": source, "t": target})
+    cast.meta.update({"from": source, "t": target, "trimmed": trimmed})
 
 
-def coerce(nodes: list[exp.Expression], common: TType) -> None:
-    """Cast the operands of a comparison, IN or BETWEEN to their common type when it is char(n)."""
+def coerce(nodes: list[exp.Expression], common: TType, equality: bool = False) -> None:
+    """Cast the operands of a comparison, IN or BETWEEN to their common type when it is char(n). At
+    char(65536) (a char with an unbounded varchar) the operands of `equality` (=, <>, IS DISTINCT
+    FROM, IN) are compared without their trailing spaces, as equal padded values are equal unpadded."""
     if common.base == "char":
+        trimmed = equality and common.args[0] == tt.CHAR_MAX_LENGTH
         for node in nodes:
-            cast_to(node, common)
+            cast_to(node, common, trimmed)
+
+
+def trimmed(g: Any, node: exp.Cast) -> str:
+    """A `trimmed` cast (see cast_to): its operand without trailing spaces, cut to 65536 characters."""
+    if node.meta["from"].is_unknown:
+        return "CAST(NULL AS VARCHAR)"
+    return f"rtrim({_unpadded(g, node)}, ' ')"
+
+
+def compare(g: Any, op: str, left: exp.Expression, right: exp.Expression) -> str:
+    """`left op right` for an ordering `op` at char(65536), the common type of a char and an unbounded
+    varchar, without writing 65536-character values: padded values order alike at any common length
+    at least both lengths (Chars.compareChars)."""
+    a, b = (_unpadded(g, side) for side in (left, right))
+    length = f"CAST(greatest(length({a}), length({b})) AS INTEGER)"
+    return f"rpad({a}, {length}, ' ') {op} rpad({b}, {length}, ' ')"
+
+
+def _unpadded(g: Any, node: exp.Expression) -> str:
+    """DuckDB text of a char(65536) operand before its padding: a cast's char operand, or its varchar
+    operand cut to 65536 characters (CharacterStringCasts.varcharToCharCast)."""
+    source = node.meta.get("from") if isinstance(node, exp.Cast) else None
+    if source is not None and source.base == "char":
+        return g.sql(node.this)
+    if source is not None and source.base == "varchar":
+        return f"left({g.sql(node.this)}, {tt.CHAR_MAX_LENGTH})"
+    return g.sql(node)

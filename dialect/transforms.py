@@ -421,6 +421,8 @@ def ieee_comparison(g: Writer, node: exp.Binary) -> str:
     common = node.meta.get("compare")
     if common is None or isinstance(node.expression, (exp.Any, exp.All)):
         return f"{left} {op} {right}"
+    if common == tt.as_char(tt.VARCHAR) and op not in ("=", "<>"):  # char and unbounded varchar (= in chars.coerce)
+        return chars.compare(g, op, node.this, node.expression)
     if common.is_approx:
         # number literals are never NaN: only the other sides need the check
         sides = [
@@ -658,6 +660,8 @@ def array_constructor(g: Writer, node: exp.Array) -> str:
 # --- casts ---------------------------------------------------------------------------------------
 @transform(exp.Cast)
 def trino_cast(g: Writer, node: exp.Cast) -> str:
+    if node.meta.get("trimmed"):
+        return chars.trimmed(g, node)
     return cast_value(g, *cast_operand(g, node), ttype(node))
 
 

@@ -229,8 +229,8 @@ def _check_char_use(a: Analyzer, node: exp.Expression) -> None:
         return
     a.unsupported(
         f"{trino_name(node)} of {char_types[0]} values (lakegate translates char in casts, comparisons, "
-        "CASE, coalesce, LIKE, ||, and the char overloads of length, lower, upper, trim, ltrim, rtrim, substr "
-        "and concat)",
+        "CASE, coalesce, LIKE, ||, and the char overloads of length, lower, upper, trim, ltrim, rtrim, substr, "
+        "lpad and concat)",
         node,
     )
 

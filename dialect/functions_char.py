@@ -18,7 +18,7 @@ from lakegate.dialect import chars
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import Call, ttype
-from lakegate.dialect.registry import Render, overload
+from lakegate.dialect.registry import SUPPORTED, Render, overload
 from lakegate.dialect.trino_types import TType
 
 _TEXT = ("char", "varchar", "unknown")
@@ -125,4 +125,10 @@ overload(
     _concat_type,
     _concat,
     "concat(char(x), char(y)) -> char(x + y) (two arguments; varchar and NULL coerced to char)",
+)
+overload(
+    "lpad",
+    _char_call(lambda t: tt.VARCHAR, _INTEGRAL, ("varchar", "unknown")),
+    SUPPORTED["lpad"].render,
+    "lpad(char(x), size, padstring) -> varchar (of the padded value: StringFunctions.leftPad, trinodb/trino#16907)",
 )

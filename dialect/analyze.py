@@ -215,10 +215,6 @@ def _check_char_use(a: Analyzer, node: exp.Expression) -> None:
         node = node.meta["replaced_by"]
     types = [child.meta.get("t") for child in node.iter_expressions() if child._meta]
     char_types = [t for t in types if t is not None and _has_char(t)]
-    if isinstance(node, exp.Case) and node.args.get("this") is not None:  # CASE x WHEN y: x = y, not coerced
-        compared = {ttype(n) for n in (node.this, *(b.this for b in node.args["ifs"]))} - {tt.UNKNOWN}
-        if len(compared) > 1 and any(_has_char(t) for t in compared):
-            a.unsupported(f"CASE comparing {' and '.join(sorted(map(str, compared)))} in its WHEN clauses", node)
     if not char_types or isinstance(node, _CHAR_NODES) or isinstance(node, exp.DPipe) and not node.meta.get("array"):
         return
     if isinstance(node, exp.Anonymous) and (node.name.lower() in _CHAR_FUNCTIONS or node.meta.get("char")):
@@ -1445,6 +1441,11 @@ def _case(a: Analyzer, node, scope, env):
         elif cond.base not in ("boolean", "unknown"):
             a.fail(f"CASE WHEN clause must evaluate to a boolean (actual: {cond})", branch.this, "TYPE_MISMATCH")
         results.append(_set(branch, a.expr(branch.args["true"], scope, env)))
+    if operand is not None:  # the operand and the WHEN values are compared at their common type
+        compared = [node.this, *(branch.this for branch in node.args.get("ifs") or [])]
+        common = tt.common_super_type_of([ttype(n) for n in compared])
+        if common is not None:
+            chars.coerce(compared, common, equality=True)
     default = node.args.get("default")
     if default is not None:
         results.append(a.expr(default, scope, env))

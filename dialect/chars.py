@@ -69,9 +69,21 @@ def compare(g: Any, op: str, left: exp.Expression, right: exp.Expression) -> str
     """`left op right` for an ordering `op` at char(65536), the common type of a char and an unbounded
     varchar, without writing 65536-character values: padded values order alike at any common length
     at least both lengths (Chars.compareChars)."""
-    a, b = (_unpadded(g, side) for side in (left, right))
-    length = f"CAST(greatest(length({a}), length({b})) AS INTEGER)"
-    return f"rpad({a}, {length}, ' ') {op} rpad({b}, {length}, ' ')"
+    a, b = _padded_alike(g, [left, right])
+    return f"{a} {op} {b}"
+
+
+def between(g: Any, value: exp.Expression, low: exp.Expression, high: exp.Expression) -> str:
+    """`value BETWEEN low AND high` at char(65536), padded alike as in `compare`."""
+    v, lo, hi = _padded_alike(g, [value, low, high])
+    return f"{v} BETWEEN {lo} AND {hi}"
+
+
+def _padded_alike(g: Any, nodes: list[exp.Expression]) -> list[str]:
+    """The char(65536) operands padded to the longest of their unpadded lengths."""
+    texts = [_unpadded(g, node) for node in nodes]
+    length = f"CAST(greatest({', '.join(f'length({t})' for t in texts)}) AS INTEGER)"
+    return [f"rpad({t}, {length}, ' ')" for t in texts]
 
 
 def _unpadded(g: Any, node: exp.Expression) -> str:

@@ -560,6 +560,8 @@ def ieee_between(g: Writer, node: exp.Between) -> str:
     if common is not None and common.base in ("array", "row"):
         value, low, high = (g.coerce(side, common) for side in (node.this, node.args["low"], node.args["high"]))
         return f"({ordered_comparison(low, value, common, '<=')} AND {ordered_comparison(value, high, common, '<=')})"
+    if common == tt.as_char(tt.VARCHAR):  # char and unbounded varchar
+        return chars.between(g, node.this, node.args["low"], node.args["high"])
     sql = g.between_sql(node)
     if common is None or not common.is_approx:
         return sql

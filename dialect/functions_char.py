@@ -4,7 +4,7 @@ text padded to n characters (dialect/chars.py); Trino keeps it without trailing 
 overload below is written from the Trino function applied to that trimmed value
 (trinodb/trino core/trino-main/src/main/java/io/trino/operator/scalar/StringFunctions.java, checked by
 core/trino-main/src/test/java/io/trino/operator/scalar/TestStringFunctions.java: testCharLength,
-testCharLeftTrim, testCharRightTrim, testCharTrim, testCharLower, testCharUpper, testCharSubstring).
+testCharLeftTrim and the substr cases of char, trinodb/trino#3599).
 """
 
 from __future__ import annotations

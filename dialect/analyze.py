@@ -17,7 +17,7 @@ from typing import NoReturn
 
 from sqlglot import exp
 
-from lakegate.dialect import registry, times, zoned_nanos, zones
+from lakegate.dialect import chars, registry, times, zoned_nanos, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.guard import trino_name
@@ -198,22 +198,59 @@ def _has_char(t: TType) -> bool:
     return any(inner.base == "char" for inner in (t, *tt.inner_types(t)))
 
 
+#: Operations that take char(n) operands exactly (dialect/chars.py): casts, IS NULL, LIKE (on the
+#: padded text, LikeFunctions.likeChar), CASE and IF (Writer.coerce pads to the common char type),
+#: `||` of char (_char_concat); comparisons, IN and BETWEEN once their operands are cast to one char type.
+_CHAR_NODES = (exp.Cast, exp.TryCast, exp.Paren, exp.Alias, exp.Is, exp.Ordered, exp.Like, exp.Case, exp.If)
+
+#: Functions that take char(n) values whole: typeof, count, min, max, arbitrary (ordering and picking
+#: padded texts of one length), coalesce, greatest and least (their arguments coerced to the common
+#: char type); the char overloads of string functions mark their calls (functions_char.py).
+_CHAR_FUNCTIONS = ("typeof", "count", "min", "max", "arbitrary", "any_value", "coalesce", "greatest", "least")
+
+
 def _check_char_use(a: Analyzer, node: exp.Expression) -> None:
-    """Refuse an operation on char(n) values (written as their padded text) other than a cast, typeof,
-    count, IS NULL and the comparison of two values of the same char(n) (padded texts of one length)."""
+    """Refuse an operation on char(n) values (written as their padded text) that lakegate does not
+    translate with Trino's char semantics (arrays, maps and rows of char, functions without a char
+    overload here, comparisons with a subquery of another type)."""
+    if node._meta and "replaced_by" in node.meta:  # SUBSTRING(x FROM ...) and TRIM(... FROM x) as calls
+        node = node.meta["replaced_by"]
     types = [child.meta.get("t") for child in node.iter_expressions() if child._meta]
-    chars = [t for t in types if t is not None and _has_char(t)]
-    if not chars or isinstance(node, (exp.Cast, exp.TryCast, exp.Paren, exp.Alias, exp.Is, exp.Ordered)):
+    char_types = [t for t in types if t is not None and _has_char(t)]
+    if not char_types or isinstance(node, _CHAR_NODES) or isinstance(node, exp.DPipe) and not node.meta.get("array"):
         return
-    if isinstance(node, exp.Anonymous) and node.name.lower() in ("typeof", "count"):
+    if isinstance(node, exp.Anonymous) and (node.name.lower() in _CHAR_FUNCTIONS or node.meta.get("char")):
         return
-    if isinstance(node, _COMPARISONS) and all(t is not None and (t == chars[0] or t.is_unknown) for t in types):
+    if isinstance(node, (*_COMPARISONS, exp.In, exp.Between)) and all(
+        t is not None and (t == char_types[0] or t.is_unknown) for t in types
+    ):
         return
     a.unsupported(
-        f"{trino_name(node)} of {chars[0]} values (lakegate translates char only in casts, typeof, "
-        "count, IS NULL and comparisons of the same char(n))",
+        f"{trino_name(node)} of {char_types[0]} values (lakegate translates char in casts, comparisons, "
+        "CASE, coalesce, LIKE, ||, and the char overloads of length, lower, upper, trim, ltrim, rtrim, substr, "
+        "lpad and concat)",
         node,
     )
+
+
+def _check_char_subquery(a: Analyzer, node: exp.Expression, left: TType, column: TType, common: TType) -> None:
+    """Refuse IN, ANY and ALL comparing a char with a subquery column of another type: the column's
+    values would have to be padded to the common char type inside the subquery."""
+    if common.base == "char" and left != column:
+        what = "IN" if isinstance(node, exp.In) else f"{_OPS[type(node)]} {node.expression.key.upper()}"
+        a.unsupported(f"{what} (subquery) comparing {left} with {column}", node)
+
+
+def _char_concat(a: Analyzer, node: exp.Expression, sides: list[exp.Expression]) -> TType:
+    """`x || y` with a char operand: the other side coerced to char, the result char(x + y)
+    (StringFunctions.concat(char(x), char(y)) pads the left value, keeps the right one)."""
+    types = [ttype(side) for side in sides]
+    t = chars.concat_type(*types)
+    if t is None:
+        a.unsupported(f"concatenation of {types[0]} and {types[1]} (longer than char(65536))", node)
+    for side, side_type in zip(sides, types):
+        chars.cast_to(side, tt.as_char(side_type))
+    return t
 
 
 def floor_micros(node: exp.Expression) -> exp.Expression:
@@ -858,6 +895,8 @@ class Analyzer:
             common = tt.common_super_type(left[0][1][2], right[0][1][2])
             if common is None:
                 self.fail(f"Column types of '{ident.name}' in USING do not match", ident, "TYPE_MISMATCH")
+            if common.base == "char" and left[0][1][2] != right[0][1][2]:  # the join keys would need padding
+                self.unsupported(f"JOIN USING ({ident.name}) of {left[0][1][2]} and {right[0][1][2]}", ident)
             self.zoned_cast_in_utc_only(left[0][1][2], right[0][1][2], ident, f"JOIN USING ({ident.name})")
             values = [_using_value(source, col, common) for source, col in (left[0], right[0])]
             sql[name] = {"RIGHT": values[1], "FULL": f"COALESCE({values[0]}, {values[1]})"}.get(side, values[0])
@@ -1224,6 +1263,7 @@ def _comparison(a: Analyzer, node, scope, env):
         if len(cols) != 1:
             a.fail("Multiple columns returned by subquery are not yet supported", sub, "NOT_SUPPORTED")
         common = _comparable(a, node, left, cols[0][2], _OPS[type(node)])
+        _check_char_subquery(a, node, left, cols[0][2], common)
         if common.base == "timestamp_tz" and {left.base, cols[0][2].base} != {"timestamp_tz"}:
             a.unsupported(f"{node.expression.key.upper()} comparing {left} with {cols[0][2]}", node.expression)
         node.meta["compare"] = common
@@ -1240,6 +1280,7 @@ def _comparison(a: Analyzer, node, scope, env):
         a.unsupported(f"ordering comparison ({_OPS[type(node)]}) of {common}: its elements hold arrays or rows", node)
     node.meta["compare"] = common
     _in_session_zone(a, [node.this, node.expression], common)
+    chars.coerce([node.this, node.expression], common, type(node) in (exp.EQ, exp.NEQ, exp.NullSafeEQ, exp.NullSafeNEQ))
     return tt.BOOLEAN
 
 
@@ -1282,6 +1323,7 @@ def _in(a: Analyzer, node, scope, env):
         if len(cols) != 1:
             return _row_in(a, node, left, [c[2] for c in cols])
         common = _comparable(a, node, left, cols[0][2], "IN")
+        _check_char_subquery(a, node, left, cols[0][2], common)
     else:
         if node.args.get("unnest") or node.args.get("field"):
             a.unsupported("IN UNNEST", node)
@@ -1289,6 +1331,7 @@ def _in(a: Analyzer, node, scope, env):
         for item in node.expressions:
             common = _comparable(a, item, common, a.expr(item, scope, env), "IN")
         _in_session_zone(a, [node.this, *node.expressions], common)
+        chars.coerce([node.this, *node.expressions], common, equality=True)
     node.meta["compare"] = common
     return tt.BOOLEAN
 
@@ -1320,6 +1363,7 @@ def _between(a: Analyzer, node, scope, env):
         a.unsupported(f"BETWEEN of {common}: its elements hold arrays or rows", node)
     node.meta["compare"] = common
     _in_session_zone(a, [node.this, node.args["low"], node.args["high"]], common)
+    chars.coerce([node.this, node.args["low"], node.args["high"]], common)
     return tt.BOOLEAN
 
 
@@ -1412,6 +1456,8 @@ def _dpipe(a: Analyzer, node, scope, env):
         return tt.array(element)
     if "varbinary" in (left.base, right.base) and {left.base, right.base} <= {"varbinary", "unknown"}:
         return tt.VARBINARY
+    if "char" in (left.base, right.base) and {left.base, right.base} <= {"char", "varchar", "unknown"}:
+        return _char_concat(a, node, [node.this, node.expression])
     for t in (left, right):
         if t.base not in ("varchar", "char", "unknown"):
             a.fail(f"Cannot apply operator: {left} || {right}", node, "TYPE_MISMATCH")
@@ -1430,6 +1476,11 @@ def _case(a: Analyzer, node, scope, env):
         elif cond.base not in ("boolean", "unknown"):
             a.fail(f"CASE WHEN clause must evaluate to a boolean (actual: {cond})", branch.this, "TYPE_MISMATCH")
         results.append(_set(branch, a.expr(branch.args["true"], scope, env)))
+    if operand is not None:  # the operand and the WHEN values are compared at their common type
+        compared = [node.this, *(branch.this for branch in node.args.get("ifs") or [])]
+        common = tt.common_super_type_of([ttype(n) for n in compared])
+        if common is not None:
+            chars.coerce(compared, common, equality=True)
     default = node.args.get("default")
     if default is not None:
         results.append(a.expr(default, scope, env))
@@ -1477,6 +1528,8 @@ def _cast(a: Analyzer, node, scope, env):
     try:
         target = tt.from_datatype(node.args["to"])
     except ValueError as error:
+        if node.args["to"].this == exp.DataType.Type.TIMETZ:
+            a.unsupported(times.with_time_zone(node, _typed_literal(a, node)), node)
         a.unsupported(f"cast to {error}", node)
     if _typed_literal(a, node):
         text = node.this.name.strip()
@@ -1493,6 +1546,9 @@ def _cast(a: Analyzer, node, scope, env):
             a.unsupported("timestamp literal with a time zone", node)
         elif target.base == "time":
             target = _time_literal_type(a, node, text)
+    if source.base == "char" and target.base == "varchar":
+        node.meta["from"] = source
+        return target  # the padded text, cut to the varchar's length (CharacterStringCasts.charToVarcharCast)
     if _has_char(source) or _has_char(target):
         if source.base not in ("varchar", "char", "unknown") or target.base != "char":
             a.unsupported(f"CAST({source} AS {target})", node)
@@ -1910,7 +1966,7 @@ def _at_time_zone(a: Analyzer, node, scope, env):
 @handles(exp.Substring)
 def _substring(a: Analyzer, node, scope, env):
     t = a.expr(node.this, scope, env)
-    if t.base == "varbinary":  # SUBSTRING(binary FROM s [FOR n]) is the substr(binary, ...) call
+    if t.base in ("varbinary", "char"):  # SUBSTRING(x FROM s [FOR n]) is the substr(x, ...) call
         args = [node.this] + [node.args[k] for k in ("start", "length") if node.args.get(k) is not None]
         call = exp.Anonymous(this="substr", expressions=args)
         node.replace(call)
@@ -1931,6 +1987,12 @@ def _trim(a: Analyzer, node, scope, env):
     chars = node.args.get("expression")
     if chars is not None:
         a.expr(chars, scope, env)
+    if t.base == "char":  # TRIM([BOTH | LEADING | TRAILING] ...) of a char is its trim, ltrim or rtrim call
+        name = {"BOTH": "trim", "LEADING": "ltrim", "TRAILING": "rtrim"}[(node.args.get("position") or "BOTH").upper()]
+        call = exp.Anonymous(this=name, expressions=[node.this] + ([chars] if chars is not None else []))
+        node.replace(call)
+        node.meta["replaced_by"] = call
+        return _set(call, a.function(call, scope, env))
     if t.base not in ("varchar", "unknown"):
         a.fail(f"Unexpected parameters ({t}) for function trim", node, "FUNCTION_NOT_FOUND")
     return t if t.base == "varchar" else tt.VARCHAR

@@ -271,7 +271,7 @@ CONSTRUCTS: dict[str, Construct] = {
     "U&'...' Unicode string literal": Construct(
         "types and literals", "SELECT U&'Hello winter \\2603 !'", (exp.UnicodeString,)
     ),
-    "CHAR(n) type (CHAR '...' literals, casts to char(n))": Construct(
+    "CHAR(n) type (CHAR '...' literals, casts, comparisons, ||, string functions)": Construct(
         "literals",
         "SELECT CAST('ab' AS char(3)) = CHAR 'ab '",
         (exp.Cast,),

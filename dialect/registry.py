@@ -72,8 +72,8 @@ def overload(name: str, accepts: Callable[[Any], TType | None], render: Render, 
         call.node.meta["overload"] = render
         return result
 
-    def render_either(g: Any, node: exp.Expression, args: list) -> str:
-        return node.meta.get("overload", base.render)(g, node, args)
+    def render_either(g: Any, node: exp.Expression, args: list) -> str:  # an earlier overload's calls: base's
+        return render(g, node, args) if node.meta.get("overload") is render else base.render(g, node, args)
 
     register(
         name, base.family, f"{base.signature}; {signature}", infer, render_either, base.kind, base.notes, replaces=True

@@ -13,7 +13,7 @@ from __future__ import annotations
 from sqlglot import exp
 from sqlglot.generators.duckdb import DuckDBGenerator
 
-from lakegate.dialect import registry, times, zoned_nanos, zones
+from lakegate.dialect import chars, registry, times, zoned_nanos, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import FloorMicros, ttype
 from lakegate.dialect.errors import DialectError
@@ -99,6 +99,8 @@ class Writer(DuckDBGenerator):
             return sql
         if source.is_unknown:
             return cast("NULL", target)
+        if target.base == "char":  # from char or varchar (chars.py)
+            return chars.pad(sql, target.args[0])
         if target.base == "timestamp_tz" and source.base in ("timestamp", "date"):  # in the session zone
             return zones.instant(f"CAST({sql} AS TIMESTAMP)", self.time_zone)
         if self.time_zone != zones.UTC and _inside(target, "timestamp_tz") and _inside(source, "date", "timestamp"):
@@ -419,6 +421,8 @@ def ieee_comparison(g: Writer, node: exp.Binary) -> str:
     common = node.meta.get("compare")
     if common is None or isinstance(node.expression, (exp.Any, exp.All)):
         return f"{left} {op} {right}"
+    if common == tt.as_char(tt.VARCHAR) and op not in ("=", "<>"):  # char and unbounded varchar (= in chars.coerce)
+        return chars.compare(g, op, node.this, node.expression)
     if common.is_approx:
         # number literals are never NaN: only the other sides need the check
         sides = [
@@ -556,6 +560,8 @@ def ieee_between(g: Writer, node: exp.Between) -> str:
     if common is not None and common.base in ("array", "row"):
         value, low, high = (g.coerce(side, common) for side in (node.this, node.args["low"], node.args["high"]))
         return f"({ordered_comparison(low, value, common, '<=')} AND {ordered_comparison(value, high, common, '<=')})"
+    if common == tt.as_char(tt.VARCHAR):  # char and unbounded varchar
+        return chars.between(g, node.this, node.args["low"], node.args["high"])
     sql = g.between_sql(node)
     if common is None or not common.is_approx:
         return sql
@@ -656,6 +662,8 @@ def array_constructor(g: Writer, node: exp.Array) -> str:
 # --- casts ---------------------------------------------------------------------------------------
 @transform(exp.Cast)
 def trino_cast(g: Writer, node: exp.Cast) -> str:
+    if node.meta.get("trimmed"):
+        return chars.trimmed(g, node)
     return cast_value(g, *cast_operand(g, node), ttype(node))
 
 
@@ -738,7 +746,7 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
             return varchar_of(g, wall, tt.timestamp(9)) + f" || {string(' ' + tt.zone_of(source))}"
         return cast_value(g, wall, tt.timestamp(9), target)
     if target.base == "char":  # truncated or padded with spaces: the padded text the client gets
-        return f"rpad({sql}, {target.args[0]}, ' ')"
+        return chars.pad(sql, target.args[0])
     if target.base == "json":
         return registry.JSON_CASTS["to_json"](g, sql, source)
     if source.base == "json":
@@ -748,7 +756,7 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
         length = tt.varchar_length(target)
         if length is None:
             return text
-        if source.base == "varchar":
+        if source.base in ("varchar", "char"):  # a char's padded text (CharacterStringCasts.charToVarcharCast)
             return f"left({text}, {length})"
         message = f"'Value ' || ({text}) || ' cannot be represented as varchar({length})'"
         return f"CASE WHEN length({text}) > {length} THEN {g.fail(message, 'INVALID_CAST_ARGUMENT')} ELSE {text} END"
@@ -1235,7 +1243,9 @@ def _cast_branches(operation: exp.SetOperation, outputs: list) -> None:
     for branch in _branches(operation):
         if isinstance(branch, exp.Select):
             for item, (_, _, common) in zip(branch.expressions, outputs):
-                if ttype(item.this) != common and not ttype(item.this).base == common.base == "varchar":
+                if common.base == "char":
+                    chars.cast_to(item.this, common)
+                elif ttype(item.this) != common and not ttype(item.this).base == common.base == "varchar":
                     _wrap(item, common)
 
 

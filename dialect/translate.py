@@ -20,6 +20,7 @@ from sqlglot.errors import ParseError, TokenError
 from sqlglot.tokens import TokenType
 
 import lakegate.dialect.functions  # noqa: F401  (these fill the function registry)
+import lakegate.dialect.functions_char  # noqa: F401
 import lakegate.dialect.functions_hashes  # noqa: F401
 import lakegate.dialect.functions_json  # noqa: F401
 import lakegate.dialect.functions_nanos  # noqa: F401

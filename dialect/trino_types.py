@@ -14,6 +14,7 @@ from sqlglot import exp
 
 MAX_PRECISION = 38
 MAX_VARCHAR = 2147483647
+CHAR_MAX_LENGTH = 65536  # io.trino.spi.type.CharType.MAX_LENGTH
 
 #: Integral types by width, and the decimal precision each converts to (io.trino.type.TypeCoercion).
 INTEGRAL = {"tinyint": 3, "smallint": 5, "integer": 10, "bigint": 19}
@@ -39,8 +40,8 @@ class TType:
             return f"{base}({args[0]})" if args else base
         if base in ("timestamp", "time"):
             return f"{base}({args[0]})"
-        if base == "timestamp_tz":
-            return f"timestamp({args[0]}) with time zone"
+        if base in ("timestamp_tz", "time_tz"):
+            return f"{base[:-3]}({args[0]}) with time zone"
         if base == "interval_ds":
             return "interval day to second"
         if base == "interval_ym":
@@ -162,6 +163,17 @@ def in_zone(t: TType, zone: str) -> TType:
 def with_precision(t: TType, precision: int) -> TType:
     """A timestamp type at another precision (a zone kept)."""
     return TType(t.base, (precision, *t.args[1:]))
+
+
+def as_char(t: TType) -> TType:
+    """The char type Trino 476 coerces `t` (char, varchar or unknown) to: varchar(x) is char(x), an
+    unbounded varchar char(65536), NULL char(0) (io.trino.type.TypeCoercion.coerceTypeBase)."""
+    if t.base == "char":
+        return t
+    if t.base != "varchar":
+        return TType("char", (0,))
+    length = varchar_length(t)
+    return TType("char", (CHAR_MAX_LENGTH if length is None else min(length, CHAR_MAX_LENGTH),))
 
 
 def varchar_length(t: TType) -> int | None:
@@ -444,6 +456,8 @@ def common_super_type(a: TType, b: TType) -> TType | None:
         return decimal(min(MAX_PRECISION, digits + scale), scale)
     if a.is_numeric and b.is_numeric:
         return DOUBLE if DOUBLE in (a, b) else REAL
+    if {a.base, b.base} <= {"char", "varchar"} and "char" in (a.base, b.base):  # varchar(x) -> char(x), chars.py
+        return TType("char", (max(as_char(a).args[0], as_char(b).args[0]),))
     if a.base == "varchar" and b.base == "varchar":
         la, lb = varchar_length(a), varchar_length(b)
         return VARCHAR if la is None or lb is None else varchar(max(la, lb))

@@ -3,6 +3,7 @@ branches) register the same Trino name, importing the dialect fails instead of o
 
 from __future__ import annotations
 
+import duckdb
 import pytest
 
 from lakegate.dialect import registry, translate  # noqa: F401  (translate fills the registry)
@@ -20,3 +21,11 @@ def test_an_overload_must_extend_a_registered_function():
     with pytest.raises(ValueError, match="'no_such_function' is not yet registered"):
         registry.register("no_such_function", "math", "", spec.infer, spec.render, replaces=True)
     assert "no_such_function" not in registry.SUPPORTED
+
+
+def test_each_overload_of_a_function_renders_its_own_calls():
+    """lpad has a varbinary overload (functions_scalar) and a char one over it (functions_char): a call
+    taken by neither falls through both to the varchar rule."""
+    sql = "SELECT lpad(CAST('a' AS char(2)), 3, 'x'), lpad(to_utf8('a'), 3, to_utf8('b')), lpad('a', 3, 'x')"
+    duckdb_sql = translate.translate(sql, {}).duckdb_sql
+    assert duckdb.connect().execute(duckdb_sql).fetchall() == [("xa ", b"bba", "xxa")]

@@ -23,13 +23,14 @@ from ruamel.yaml import YAML
 from ruamel.yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
 from lakegate.lake import paths
+from lakegate.lake.batch_files import job_id_position, job_rows
 from lakegate.lake.config_yaml import FileReader, RawProblem, describe, did_you_mean
 from lakegate.lake.record import Change, current_file
 from lakegate.lake.schema import METADATA_COLUMNS, file_schema
 
-#: Column names in table order; batch_id and job_id live only in the partition directories.
+#: Column names in table order; batch_id lives only in the partition directories.
 COLUMN_NAMES = tuple(name for name, _ in METADATA_COLUMNS)
-#: The Arrow schema of the Parquet file (all columns but the partition ones).
+#: The Arrow schema of the Parquet file (all columns but the partition key; a file may hold many jobs).
 FILE_SCHEMA = file_schema(paths.METADATA_TABLE, METADATA_COLUMNS)
 _TYPES = dict(METADATA_COLUMNS)
 _YAML = YAML(typ="safe", pure=True).constructor  # the config loader's library (YAML 1.2)
@@ -265,8 +266,9 @@ def read_metadata_row(lake: Path, branch: str, batch_id: str, job_id: str) -> di
     target = current_file(lake, branch, paths.METADATA_TABLE, batch_id, job_id)
     if target is None:
         return None
-    table = pq.read_table(target, schema=FILE_SCHEMA, partitioning=None)
-    stored = table.to_pylist()[0]
+    v1 = paths.is_v1_path(target.as_posix())
+    table = job_rows(target, job_id, v1=v1, position=job_id_position(paths.METADATA_TABLE, ()))
+    stored = table.select(FILE_SCHEMA.names).cast(FILE_SCHEMA).to_pylist()[0]
     stored.update(batch_id=batch_id, job_id=job_id)
     return {name: stored.get(name) for name in COLUMN_NAMES}
 

@@ -19,12 +19,20 @@ from lakegate.lake import paths
 from lakegate.lake.config import Config
 from lakegate.lake.ingest import scan
 from lakegate.lake.ingest.rules import MAX_PROBLEMS, BadLines, IngestError, LineProblem
-from lakegate.lake.ingest.scan import Block, Hinter, Result, merge_results, process_block, read_blocks, topic_plans
+from lakegate.lake.ingest.scan import (
+    JOB_FILE_COLUMNS,
+    Block,
+    Hinter,
+    Result,
+    merge_results,
+    process_block,
+    read_blocks,
+    topic_plans,
+)
 from lakegate.lake.ingest.write import JobWriter
 from lakegate.lake.metadata import build_metadata_row, metadata_table, write_metadata_file
 from lakegate.lake.record import Change
 from lakegate.lake.registry import BranchConfigs
-from lakegate.lake.schema import JOB_COLUMNS
 
 
 @dataclass
@@ -80,7 +88,7 @@ def ingest_job(
     bad = 0
     lines = 0
     with paths.job_lock(lake, branch, batch_id, job_id), paths.staging(lake, branch) as scratch:
-        writer = JobWriter(scratch, plans, {c: row[c] for c in JOB_COLUMNS})
+        writer = JobWriter(scratch, plans, {c: row[c] for c in JOB_FILE_COLUMNS})
         quarantine = scratch / "quarantine.jsonl"
         with (
             open(quarantine, "w", encoding="utf-8") as bad_lines,

@@ -111,15 +111,10 @@ def test_ids_that_are_allowed_read_back_exactly_as_hive_partitions(value, tmp_pa
     target.parent.mkdir(parents=True)
     pq.write_table(pa.table({"v": [1]}), target)
     glob = paths.table_glob(tmp_path, "main", "t").replace("'", "''")
-    row = (
-        duckdb.connect()
-        .execute(
-            f"SELECT batch_id, job_id FROM read_parquet('{glob}', hive_partitioning = true, "
-            "hive_types = {'batch_id': VARCHAR, 'job_id': VARCHAR})"
-        )
-        .fetchone()
-    )
-    assert row == (value, value)
+    hive = "hive_partitioning = true, hive_types = {'batch_id': VARCHAR}"
+    row = duckdb.connect().execute(f"SELECT batch_id FROM read_parquet('{glob}', {hive})").fetchone()
+    assert row == (value,)
+    assert target.name.endswith(f"-{value}.parquet")  # the job id, for humans
 
 
 def test_table_names_that_would_collide_are_refused():
@@ -131,16 +126,14 @@ def test_table_names_that_would_collide_are_refused():
 
 def test_layout(tmp_path):
     fresh = paths.new_data_file(tmp_path, "feature/x", "odom", "b1", "j1")
-    assert fresh.parent == tmp_path / "feature%2Fx" / "odom" / "batch_id=b1" / "job_id=j1"
-    assert fresh.name.startswith(f"{os.getpid()}-") and fresh.suffix == ".parquet"
+    assert fresh.parent == tmp_path / "feature%2Fx" / "odom" / "batch_id=b1"
+    assert fresh.name.startswith(f"{os.getpid()}-") and fresh.name.endswith("-j1.parquet")
     assert fresh != paths.new_data_file(tmp_path, "feature/x", "odom", "b1", "j1")  # never overwrites a file
     assert (
         paths.new_data_file(tmp_path, "main", "metric_results", "b1", None).parent
         == tmp_path / "main" / "metric_results" / "batch_id=b1"
     )
-    assert paths.table_glob(tmp_path, "main", "odom") == str(
-        tmp_path / "main" / "odom" / "batch_id=*" / "job_id=*" / "*.parquet"
-    )
+    assert paths.table_glob(tmp_path, "main", "odom") == str(tmp_path / "main" / "odom" / "batch_id=*" / "*.parquet")
     assert paths.quarantine_file(tmp_path, "main", "b1", "j1") == tmp_path / "main" / "_quarantine" / "b1" / "j1.jsonl"
 
 
@@ -172,7 +165,7 @@ def test_staging_is_removed_afterwards_and_abandoned_scratch_is_cleaned(tmp_path
         assert alive.exists()  # our own process is alive: not touched
     assert not scratch.exists()
     # nothing staged is ever matched by a table glob
-    assert not list(Path(tmp_path).glob("main/*/batch_id=*/job_id=*/*.parquet"))
+    assert not list(Path(tmp_path).glob("main/*/batch_id=*/*.parquet"))
 
 
 def test_job_lock_serialises_writers_of_one_job(tmp_path):

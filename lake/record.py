@@ -336,6 +336,17 @@ class Change:
         _pause("added")
         return entry
 
+    def add_jobs(self, table: str, batch_id: str, staged: Path, job_ids: Sequence[str]) -> list[FileEntry]:
+        """Publish `staged`, which holds one row of each job of `job_ids` (a `metadata` file of many
+        jobs, sorted by job), as their file."""
+        target = paths.new_data_file(self.lake, self.branch, table, batch_id, None)
+        paths.publish_linked(staged, target)
+        described = describe_file(self.record.root, table, batch_id, "", target)
+        found = [dataclasses.replace(described, job_id=job_id, rows=1) for job_id in job_ids]
+        self.entries.extend(found)
+        _pause("added")
+        return found
+
     def add_merged(self, entries: Sequence[FileEntry]) -> list[FileEntry]:
         """Publish the rows of `entries` (current files of jobs of one table and batch) as one file per
         distinct schema, sorted by job, and stage their rows naming it; returns them. A job whose file

@@ -20,7 +20,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from lakegate.lake import paths
-from lakegate.lake.record import Change, FileEntry, Record
+from lakegate.lake.record import LAYOUT, Change, FileEntry, Record
 
 
 @dataclass(frozen=True)
@@ -35,6 +35,22 @@ class Compacted:
     @property
     def changed(self) -> bool:
         return self.files_after != self.files_before
+
+
+def migrate(lake: Path, branch: str, *, progress: bool = False) -> tuple[int, int] | None:
+    """Migrate a layout v1 branch (every batch's files merged, `job_id` written into them); returns its
+    data files before and after, or None when the branch is in layout v2 already."""
+    record = Record(lake, branch)
+    try:
+        if record.layout() == LAYOUT:
+            return None
+        before = len({entry.path for entry in record.snapshot().files})
+        change = Change(lake, branch, progress=progress)
+        with change.hold(()):
+            change.discard()
+        return before, len({entry.path for entry in record.snapshot().files})
+    finally:
+        record.close()
 
 
 def compact(lake: Path, branch: str, batch_ids: list[str] | None = None, *, progress: bool = False) -> list[Compacted]:

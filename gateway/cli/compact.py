@@ -8,7 +8,7 @@ from pathlib import Path
 
 from lakegate.gateway.cli.errors import UserError
 from lakegate.lake.catalog import Catalog
-from lakegate.lake.compaction import compact
+from lakegate.lake.compaction import compact, migrate
 from lakegate.lake.paths import LakePathError
 
 
@@ -48,6 +48,12 @@ def compact_command(args: argparse.Namespace) -> int:
     if args.branch not in Catalog(args.lake).branches():
         raise UserError(f"no branch {args.branch!r} in {args.lake}")
     try:
+        migrated = migrate(args.lake, args.branch, progress=progress)
+        if migrated is not None:
+            print(
+                f"migrated branch {args.branch!r} to layout v2 (job_id in the files, each batch's files of a "
+                f"table merged): {migrated[0]:,} files -> {migrated[1]:,}"
+            )
         done = compact(args.lake, args.branch, args.batches, progress=progress)
     except (LookupError, LakePathError) as exc:
         raise UserError(str(exc)) from None

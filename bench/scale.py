@@ -6,7 +6,7 @@ Builds (the source once, cached in bench/.work/scale/) a source lake: 40 simulat
 (fixtures/generate.py) ingested into batch `nav-40` of branch `main`, with the example config.
 Each branch of N jobs holds that batch (the 40 jobs' own files, hard-linked) plus N - 40 filler
 jobs in batches of 100, written directly as compacted batches: per table and batch one file of
-the 40 jobs' rows repeated under the filler jobs' ids (sorted by job, a row group per job, as
+the 40 jobs' rows repeated under the filler jobs' ids (sorted by job, as
 `lakegate lake compact` writes them), recorded directly in the branch's file record (one
 transaction), so 10,000 jobs build in a few minutes.
 

@@ -1,7 +1,7 @@
 """Compaction: a batch's per-job files become one file per table (`lakegate lake compact`).
 
-Each job table's files of the batch are merged into one file sorted by `job_id`, one row group per
-job (`lake.batch_files`), and the record is switched to them in ONE commit for every table of the
+Each job table's files of the batch are merged into one file sorted by `job_id` (`lake.batch_files`),
+and the record is switched to them in ONE commit for every table of the
 batch: a reader sees the batch all old or all new, and a compaction killed before its commit leaves
 only files no record row names (removed by the next write of the batch). Each job keeps its own
 record row (rows, time range), so scoped queries still find only their job's rows. It runs under

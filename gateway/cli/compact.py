@@ -18,7 +18,7 @@ def add_parser(commands: argparse._SubParsersAction) -> None:
         "compact",
         help="merge each batch's per-job files into one file per table (and migrate a layout v1 branch)",
         description="Merge the per-job Parquet files of each batch into one file per table, sorted by job_id "
-        "with one row group per job, in one commit per batch (a query sees each batch all old or all new; "
+        "(small jobs share row groups), in one commit per batch (a query sees each batch all old or all new; "
         "every answer stays the same). A job ingested again later replaces its rows inside the batch's "
         "file. A branch written by an earlier lakegate (job_id=<J>/ directories) is migrated first, which "
         "`lakegate trino-ddl` needs. `lakegate metrics run` compacts the batch it evaluates.",

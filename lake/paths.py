@@ -369,15 +369,17 @@ def batch_lock(lake: Path, branch: str, batch_id: str) -> Iterator[None]:
 
 
 @contextlib.contextmanager
-def batch_files_lock(lake: Path, branch: str, batch_id: str) -> Iterator[None]:
+def batch_files_lock(lake: Path, branch: str, *batch_ids: str) -> Iterator[None]:
     """Hold the lock every record commit that changes a batch's job-table files takes (ingest, metadata
     updates, metrics run, compaction): files shared by the batch's jobs change under it alone.
 
+    Batches share 64 lock files by hash; several batches' are taken in one order, each file once.
     Lock order: `batch_lock`, then `job_lock`, then this, then `layout_lock`.
     """
-    check_segment(batch_id, "batch id")
-    stripe = hashlib.sha1(batch_id.encode()).digest()[0] % 64
-    with _locked(lake, branch, f"files-{stripe:02d}.lock"):
+    stripes = sorted({hashlib.sha1(check_segment(b, "batch id").encode()).digest()[0] % 64 for b in batch_ids})
+    with contextlib.ExitStack() as stack:
+        for stripe in stripes:
+            stack.enter_context(_locked(lake, branch, f"files-{stripe:02d}.lock"))
         yield
 
 

@@ -399,9 +399,7 @@ class Change:
     def hold(self, batch_ids: Iterable[str]) -> Iterator[None]:
         """Hold the files locks of `batch_ids` (in order) and migrate a layout v1 branch: a caller that
         reads the batches' current files before adding (compaction) sees them unchanged until `commit`."""
-        with contextlib.ExitStack() as stack:
-            for batch_id in sorted(set(batch_ids)):
-                stack.enter_context(paths.batch_files_lock(self.lake, self.branch, batch_id))
+        with paths.batch_files_lock(self.lake, self.branch, *batch_ids):
             self._upgrade()
             self._holding = True
             try:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import os
 import subprocess
 import sys
@@ -193,3 +194,11 @@ def test_job_lock_serialises_writers_of_one_job(tmp_path):
         assert float(waiter.stdout) > 0.3  # it had to wait for the holder
     finally:
         holder.wait()
+
+
+def test_the_files_lock_of_batches_sharing_a_lock_file_is_taken_once(tmp_path):
+    stripe = hashlib.sha1(b"a").digest()[0] % 64
+    other = next(f"b{i}" for i in range(10_000) if hashlib.sha1(f"b{i}".encode()).digest()[0] % 64 == stripe)
+    with paths.batch_files_lock(tmp_path, "main", "a", other):  # flock twice in one process would wait forever
+        locks = sorted(p.name for p in (paths.branch_dir(tmp_path, "main") / paths.STAGING / "locks").iterdir())
+    assert locks == [f"files-{stripe:02d}.lock"]

@@ -419,8 +419,15 @@ class Change:
             self.record.close()
 
     def _switch(self, what: str, layout: int | None = None) -> list[Path]:
-        self._split()
-        superseded = self.record.commit(what, self.entries + self._moved, self.dropped, layout=layout)
+        try:
+            self._split()
+            superseded = self.record.commit(what, self.entries + self._moved, self.dropped, layout=layout)
+        except BaseException:
+            for entry in {e.path: e for e in self._moved}.values():  # files split for this commit
+                paths.remove_published(self.record.root / entry.path)
+                paths.remove_published(paths.reader_path(self.record.root, entry.path))
+            self._moved = []
+            raise
         committed, self.entries, self._moved = self.entries, [], []
         for relative in superseded:  # gone for Trino now; lakegate's queries keep the reader link a while
             paths.remove_published(self.record.root / relative)

@@ -10,7 +10,7 @@ superseded files' visible names; their reader links stay `GRACE_SECONDS` (listed
 a query that listed them still reads them. Readers take one `snapshot` per generation and read
 the reader links, so they see a job's tables all old or all new, and never list the tree. A
 writer killed before its commit leaves only files no row references: lakegate never reads them,
-and the next writer of that job removes them. See docs/lake-format.md.
+and the next writer of that batch removes them. See docs/lake-format.md.
 
 Layout v2 (`PRAGMA user_version` 2): every table is partitioned by batch only and `job_id` is a
 column, so a file may hold many jobs of one batch (compaction, `lake.compaction`); each job keeps

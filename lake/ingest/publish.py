@@ -152,7 +152,7 @@ def ingest_job(
         write_metadata_file(metadata_table(row), metadata_file)
         staged[paths.METADATA_TABLE] = metadata_file
         version = BranchConfigs(lake, branch).store_config(config)
-        published = _publish(lake, branch, batch_id, job_id, staged)
+        published = _publish(lake, branch, batch_id, job_id, staged, progress)
         quarantine_target = paths.quarantine_file(lake, branch, batch_id, job_id)
         if bad:
             paths.publish(quarantine, quarantine_target)
@@ -176,9 +176,12 @@ def ingest_job(
     )
 
 
-def _publish(lake: Path, branch: str, batch_id: str, job_id: str, staged: dict[str, Path]) -> list[Path]:
-    """Make the staged files the job's tables, all at once (one record commit); the old files go."""
-    change = Change(lake, branch)
+def _publish(
+    lake: Path, branch: str, batch_id: str, job_id: str, staged: dict[str, Path], progress: bool
+) -> list[Path]:
+    """Make the staged files the job's tables, all at once (one record commit); the old files go
+    (`progress`: a bar on standard error if a layout v1 branch is migrated first)."""
+    change = Change(lake, branch, progress=progress)
     for name, file in staged.items():
         change.add(name, batch_id, job_id, file)
     change.replace_job(batch_id, job_id)

@@ -127,6 +127,29 @@ def test_a_reader_keeps_its_snapshot_while_a_batch_is_compacted(lake):
         assert sorted(map(str, con.execute(f"SELECT * FROM ({sql})").fetchall())) == expected[table]
 
 
+def test_queries_during_a_compaction_count_every_row_once(lake):
+    """A real `lakegate lake compact` runs while queries read every table of the batch: each query
+    sees the batch's files all old or all new (never both, never neither), so its counts never change."""
+    tables = [t for t in Catalog(lake).schema("main") if t != paths.METRIC_RESULTS_TABLE]
+    sql = " UNION ALL ".join(f"SELECT '{t}', count(*) FROM \"{t}\" WHERE batch_id = 'b1'" for t in tables)
+    with MetricsEngine(lake) as engine:
+        expected = sorted(engine.query(sql, "main", None).rows())
+        process = subprocess.Popen(
+            [*CLI, "lake", "compact", "--lake", lake, "--branch", "main", "--batch", "b1"],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        seen = 0
+        while process.poll() is None or seen == 0:
+            assert sorted(engine.query(sql, "main", None).rows()) == expected
+            seen += 1
+        assert process.returncode == 0, process.stderr.read()
+        assert "compacted batch 'b1'" in process.stdout.read()
+        assert sorted(engine.query(sql, "main", None).rows()) == expected
+    assert all(len(files_of(lake, table, "b1")) <= 1 for table in tables)
+
+
 def test_reingest_of_a_job_after_compaction_replaces_only_that_job(lake, tmp_path):
     compact(lake, "main")
     jobs = jobs_of(lake, "b1")

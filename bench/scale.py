@@ -2,16 +2,19 @@
 
     python3 dev.py bench scale [--sizes 100,1000,10000] [--runs 3]
 
-Builds (once, cached in bench/.work/scale/) a source lake: 40 simulated navigation jobs
+Builds (the source once, cached in bench/.work/scale/) a source lake: 40 simulated navigation jobs
 (fixtures/generate.py) ingested into batch `nav-40` of branch `main`, with the example config.
-Each branch of N jobs holds that batch plus N - 40 filler jobs (batches of 100): the 40 jobs'
-files hard-linked under new partitions and recorded directly in the branch's file record (one
-transaction; no footer read), so 10,000 jobs (120,000 files) build in a minute or two. Filler
-rows keep the job ids of the files they link (their partition values are the new ones).
+Each branch of N jobs holds that batch (the 40 jobs' own files, hard-linked) plus N - 40 filler
+jobs in batches of 100, written directly as compacted batches: per table and batch one file of
+the 40 jobs' rows repeated under the filler jobs' ids (sorted by job, as
+`lakegate lake compact` writes them), recorded directly in the branch's file record (one
+transaction), so 10,000 jobs build in a few minutes.
 
 On each branch, measures (median of `--runs`):
 
-* `lakegate metrics run` of batch `nav-40` with the "Nav Metrics" set (a fresh process each);
+* `lakegate metrics run --no-compact` of batch `nav-40` with the "Nav Metrics" set (a fresh
+  process each), then `lakegate lake compact --batch nav-40` once (the queries below run on
+  the compacted branch);
 * through a warm `lakegate serve` (the official `trino` client, after one warm-up each): the query
   of test metric "Maximum Localization Error (job)" (session properties `batch_id` and `job_id`),
   of batch metric "Average Speed" (`batch_id`),
@@ -41,9 +44,11 @@ import subprocess
 import sys
 import time
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 
 import duckdb
+import pyarrow as pa
 import trino
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -54,11 +59,12 @@ from lakegate.dialect.scope import Scope  # noqa: E402
 from lakegate.fixtures.generate import CONFIG_PATH, generate_batch  # noqa: E402
 from lakegate.gateway.engine.backend import DuckDBBackend  # noqa: E402
 from lakegate.lake import paths  # noqa: E402
+from lakegate.lake.batch_files import job_rows, write_jobs  # noqa: E402
 from lakegate.lake.catalog import Catalog  # noqa: E402
 from lakegate.lake.config import load_config  # noqa: E402
 from lakegate.lake.ingest import ingest_job  # noqa: E402
 from lakegate.lake.metadata import load_metadata_file  # noqa: E402
-from lakegate.lake.record import RECORD, FileEntry, Record  # noqa: E402
+from lakegate.lake.record import LAYOUT, RECORD, FileEntry, Record  # noqa: E402
 from lakegate.lake.registry import BranchConfigs  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -78,7 +84,7 @@ def source() -> tuple[Path, list]:
     """The source lake (40 ingested jobs) and the generated jobs, built once."""
     lake, inputs = WORK / "source", WORK / "inputs"
     jobs = generate_batch(inputs, jobs=JOBS)  # deterministic: the same files every time
-    if not (lake / ".complete").exists():
+    if not (lake / ".complete").exists() or Record(lake, BRANCH).layout() != LAYOUT:  # built before layout v2
         shutil.rmtree(lake, ignore_errors=True)
         registry = BranchConfigs(lake, BRANCH)
         config = registry.load(registry.store([CONFIG_PATH]))
@@ -97,10 +103,9 @@ def source() -> tuple[Path, list]:
 
 
 def build(size: int, source_lake: Path) -> Path:
-    """A lake whose branch holds batch nav-40 and `size` - 40 filler jobs (hard links), built once."""
-    lake = WORK / f"jobs-{size}"
-    if (lake / ".complete").exists():
-        return lake
+    """A lake whose branch holds batch nav-40 (hard links) and `size` - 40 filler jobs (compacted
+    batches of 100), built once."""
+    lake = WORK / f"jobs-{size}"  # built again each time: the measures write to it
     shutil.rmtree(lake, ignore_errors=True)
     source_root = paths.branch_dir(source_lake, BRANCH)
     root = paths.branch_dir(lake, BRANCH)
@@ -113,30 +118,42 @@ def build(size: int, source_lake: Path) -> Path:
         by_job.setdefault(entry.job_id, []).append(entry)
     sources = sorted(by_job)
     entries = []
-    for index in range(size):
-        if index < JOBS:
-            batch, job = BATCH, sources[index]
-        else:
-            batch, job = f"filler-{(index - JOBS) // FILLER_BATCH:04d}", f"job-{index:05d}"
-        for entry in by_job[sources[index % JOBS]]:
-            target = paths.partition_dir(lake, BRANCH, entry.table, batch, job) / Path(entry.path).name
+    for job in sources[: min(size, JOBS)]:  # nav-40: the ingested jobs' own files
+        for entry in by_job[job]:
+            target = root / entry.path
             _link(source_root / entry.path, target)
-            _link(source_root / entry.path, paths.reader_path(root, target.relative_to(root).as_posix()))
-            entries.append(
-                FileEntry(
-                    entry.table,
-                    batch,
-                    job,
-                    target.relative_to(root).as_posix(),
-                    entry.rows,
-                    entry.min_ts,
-                    entry.max_ts,
-                    entry.columns,
-                )
-            )
+            _link(source_root / entry.path, paths.reader_path(root, entry.path))
+            entries.append(entry)
+    tables = sorted({entry.table for entry in originals})
+    rows = {  # (table, source job) -> its rows, read once
+        (entry.table, entry.job_id): job_rows(source_root / entry.path, entry.job_id, v1=False, position=0)
+        for entry in originals
+    }
+    fillers = [f"job-{index:05d}" for index in range(JOBS, size)]
+    with paths.staging(lake, BRANCH) as scratch:
+        for start in range(0, len(fillers), FILLER_BATCH):
+            batch = f"filler-{start // FILLER_BATCH:04d}"
+            jobs = fillers[start : start + FILLER_BATCH]
+            for table in tables:
+                parts, described = [], []
+                for offset, job in enumerate(jobs):
+                    source_job = sources[(start + offset) % JOBS]
+                    found = rows.get((table, source_job))
+                    if found is None:
+                        continue
+                    ids = pa.repeat(pa.scalar(job, pa.string()), found.num_rows)
+                    parts.append((job, found.set_column(found.schema.get_field_index("job_id"), "job_id", ids)))
+                    described.append((job, next(e for e in by_job[source_job] if e.table == table)))
+                if not parts:
+                    continue
+                staged = scratch / "batch.parquet"
+                write_jobs(staged, parts)
+                target = paths.new_data_file(lake, BRANCH, table, batch, None)
+                paths.publish_linked(staged, target)
+                relative = target.relative_to(root).as_posix()
+                entries += [replace(entry, batch_id=batch, job_id=job, path=relative) for job, entry in described]
     record.commit(f"bench: {size} jobs", entries)
     record.close()
-    (lake / ".complete").touch()
     return lake
 
 
@@ -171,7 +188,12 @@ def metrics_run(lake: Path) -> tuple[float, float]:
         METRICS_SET,
         "--format",
         "json",
+        "--no-compact",
     )
+
+
+def compact(lake: Path) -> tuple[float, float]:
+    return command("lake", "compact", "--lake", str(lake), "--branch", BRANCH, "--batch", BATCH)
 
 
 def ingest(lake: Path, job, run: int | str) -> tuple[float, float]:
@@ -304,6 +326,7 @@ def main(argv: list[str] | None = None) -> int:
         lake = build(size, source_lake)
         built = time.perf_counter() - started
         row = medians([metrics_run(lake) for _ in range(args.runs)], "metrics run")
+        row |= medians([compact(lake)], "lake compact of nav-40")
         row |= served(lake, args.runs, jobs[0])
         row |= medians([ingest(lake, jobs[run % JOBS], run) for run in range(args.runs)], "ingest")
         figures[size] = row
@@ -331,8 +354,10 @@ def _lines(
 ) -> list[str]:
     measures = list(figures[sizes[0]])
     lines = [
-        f"Branches of {', '.join(f'{s:,}' for s in sizes)} jobs (12 Parquet files per job); batch `{BATCH}` "
-        f"(40 jobs) is the same in each. Medians of {runs} runs (queries: of {max(runs, 5)}, warm); the "
+        f"Branches of {', '.join(f'{s:,}' for s in sizes)} jobs: batch `{BATCH}` (40 jobs, 12 Parquet "
+        f"files per job) is the same in each, the other jobs are in compacted batches of {FILLER_BATCH} (one file "
+        "per table and batch); the queries run after `lake compact` of nav-40. "
+        f"Medians of {runs} runs (queries: of {max(runs, 5)}, warm; `lake compact`: one run); the "
         "goals are judged on CPU seconds (user + system of the process), least disturbed by the other load "
         "on this shared machine (2 cores). "
         f"Load average (1, 5, 15 min) at the start: {', '.join(f'{x:.2f}' for x in load_before)}; "

@@ -3,9 +3,11 @@
 The tables of a branch are the topics its configs declare (from the config registry:
 the current version's topics, then topics only older versions declare that still have
 files), `events` and `metadata`. `view_sql` gives, per table, a DuckDB SELECT over the
-table's Parquet files as the branch's record lists them, never a glob of the tree (Hive
-partitions `batch_id`/`job_id` read as VARCHAR, never auto-cast) with the columns of
-`schema` in order; a table without files is an empty SELECT with the same columns and
+table's Parquet files as the branch's record lists them, never a glob of the tree (the Hive
+partition `batch_id` read as VARCHAR, never auto-cast; `job_id` is a column of the files, or in a
+layout v1 branch a partition too) with the columns of `schema` in order; a file shared by many
+jobs is read once, or filtered to the snapshot's jobs of it (`Snapshot.filtered`: a job's scope);
+a table without files is an empty SELECT with the same columns and
 types. Columns that a topic gained or changed across config versions are read with
 `union_by_name` and cast to the current type (NULL in files written before the column
 existed); other tables are read without it (their files all have the same columns, and
@@ -149,9 +151,15 @@ class Catalog:
         if not self.pending:
             return found
         pending = {key: entry for key, entry in self.pending.items() if files and _in_scope(entry, batch_id, job_id)}
-        files = {entry.key: entry for entry in found.files} | pending
+        current = {entry.key: entry for entry in found.files}
+        merged = current | pending
+        replaced = {current[key].path for key in pending if key in current}
+        kept = {entry.path for entry in merged.values()}
+        filtered = found.filtered | (replaced & kept)  # shared files some of whose jobs are pending
+        if job_id is not None:
+            filtered |= {entry.path for entry in pending.values() if entry.job_id}
         tables = found.tables | {entry.table for entry in self.pending.values()}
-        return Snapshot(found.generation, tuple(files.values()), tables)
+        return Snapshot(found.generation, tuple(merged.values()), tables, frozenset(filtered))
 
     def jobs(self, branch: str, batch_id: str | None = None) -> list[JobRef]:
         """The jobs (those with a metadata row) of a branch, or of one batch, sorted."""
@@ -225,22 +233,48 @@ class Catalog:
         root = str(paths.branch_dir(self.lake, branch))
         views = {}
         for spec in self._specs(branch, snapshot):
-            files, bad = [], []
+            files: dict[str, list[FileEntry]] = {}
+            bad = []
             for entry in snapshot.of(spec.name):
                 reader = paths.reader_file(root, entry.path)
-                (bad if reader in unreadable else files).append((entry, reader))
-            selects = [self._files_sql(spec, files)] if files else []
-            selects += [_unreadable_sql(spec, entry) for entry, _ in bad]
+                if reader in unreadable:
+                    bad.append(entry)
+                else:
+                    files.setdefault(reader, []).append(entry)
+            selects = self._selects(spec, files, snapshot.filtered)
+            selects += [_unreadable_sql(spec, entry) for entry in bad]
             if not selects:
                 columns = ", ".join(f"CAST(NULL AS {duckdb_type(t)}) AS {_quote_ident(c)}" for c, t in spec.columns)
                 selects = [f"SELECT {columns} WHERE false"]
             views[spec.name] = " UNION ALL ".join(selects)
         return views
 
+    @classmethod
+    def _selects(cls, spec: _Spec, files: dict[str, list[FileEntry]], filtered: Collection[str]) -> list[str]:
+        """The SELECTs over `files` (reader path -> the entries naming it): one over the layout v2
+        files, one over the layout v1 files (partitioned by job too), one per file in `filtered`
+        (with only its listed jobs' rows)."""
+        v2, v1, own = [], [], []
+        for reader, entries in files.items():
+            path = entries[0].path
+            if paths.is_v1_path(path):
+                v1.append((entries, reader))
+            elif path in filtered:
+                own.append((entries, reader))
+            else:
+                v2.append((entries, reader))
+        selects = [cls._files_sql(spec, v2, paths.PARTITION_KEYS)] if v2 else []
+        selects += [cls._files_sql(spec, v1, paths.V1_KEYS)] if v1 else []
+        for entries, reader in own:
+            jobs = ", ".join(_quote_text(entry.job_id) for entry in entries)
+            where = f" WHERE {_quote_ident('job_id')} IN ({jobs})"
+            selects.append(cls._files_sql(spec, [(entries, reader)], paths.PARTITION_KEYS) + where)
+        return selects
+
     @staticmethod
-    def _files_sql(spec: _Spec, files: Sequence[tuple[FileEntry, str]]) -> str:
-        """A SELECT over `files` (entry, reader path) with the columns of `spec`."""
-        hive_types = ", ".join(f"'{key}': VARCHAR" for key in paths.partition_keys(spec.name))
+    def _files_sql(spec: _Spec, files: Sequence[tuple[list[FileEntry], str]], keys: tuple[str, ...]) -> str:
+        """A SELECT over `files` (entries, reader path) partitioned by `keys`, with the columns of `spec`."""
+        hive_types = ", ".join(f"'{key}': VARCHAR" for key in keys)
         listed = ", ".join(_quote_text(reader) for _, reader in files)
         source = (
             f"read_parquet([{listed}], hive_partitioning = true, hive_types = {{{hive_types}}}"
@@ -248,7 +282,7 @@ class Catalog:
         )
         present = None
         if spec.by_name:
-            present = {column for entry, _ in files for column in entry.columns} | set(paths.partition_keys(spec.name))
+            present = {column for entries, _ in files for column in entries[0].columns} | set(keys)
         items = []
         for column, trino in spec.columns:
             if present is None and trino != "timestamp(3)":
@@ -265,13 +299,18 @@ class Catalog:
         """The branch's files whose Parquet footer cannot be read, with why (reads every footer)."""
         root = paths.branch_dir(self.lake, branch)
         found = []
+        problems: dict[str, str | None] = {}  # path -> why (a shared file is read once)
         for entry in self.snapshot(branch).files:
-            try:
-                pq.read_metadata(root / entry.path)
-            except FileNotFoundError:
-                found.append((entry, "the file is missing"))
-            except (OSError, pa.ArrowException):
-                found.append((entry, "the file is corrupt or not Parquet"))
+            if entry.path not in problems:
+                problems[entry.path] = None
+                try:
+                    pq.read_metadata(root / entry.path)
+                except FileNotFoundError:
+                    problems[entry.path] = "the file is missing"
+                except (OSError, pa.ArrowException):
+                    problems[entry.path] = "the file is corrupt or not Parquet"
+            if problems[entry.path] is not None:
+                found.append((entry, problems[entry.path]))
         return found
 
     def connect(self, branch: str) -> duckdb.DuckDBPyConnection:

@@ -6,8 +6,8 @@ missing: ids (uuid5 of the matching name, so re-ingesting a job gives the same i
 random uuid4), `branch_name` (the branch), `job_status` ('SUCCEEDED'), and
 `job_conflated_status` ('ERROR' for a FAILED job, else NULL until metrics run).
 `write_metadata_row` replaces a job's row atomically (`update_metadata_row` changes some
-columns with it); `stage_metadata_row` adds a new row to a larger record change (`metrics run`
-switches every job's statuses and the batch's results at once).
+columns with it); `stage_metadata_rows` adds new rows of a batch's jobs, in one file, to a larger
+record change (`metrics run` switches every job's statuses and the batch's results at once).
 """
 
 from __future__ import annotations
@@ -23,13 +23,14 @@ from ruamel.yaml import YAML
 from ruamel.yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
 from lakegate.lake import paths
+from lakegate.lake.batch_files import job_id_position, job_rows, write_jobs
 from lakegate.lake.config_yaml import FileReader, RawProblem, describe, did_you_mean
 from lakegate.lake.record import Change, current_file
 from lakegate.lake.schema import METADATA_COLUMNS, file_schema
 
-#: Column names in table order; batch_id and job_id live only in the partition directories.
+#: Column names in table order; batch_id lives only in the partition directories.
 COLUMN_NAMES = tuple(name for name, _ in METADATA_COLUMNS)
-#: The Arrow schema of the Parquet file (all columns but the partition ones).
+#: The Arrow schema of the Parquet file (all columns but the partition key; a file may hold many jobs).
 FILE_SCHEMA = file_schema(paths.METADATA_TABLE, METADATA_COLUMNS)
 _TYPES = dict(METADATA_COLUMNS)
 _YAML = YAML(typ="safe", pure=True).constructor  # the config loader's library (YAML 1.2)
@@ -248,12 +249,26 @@ def write_metadata_row(lake: Path, branch: str, batch_id: str, job_id: str, row:
 
 def stage_metadata_row(change: Change, scratch: Path, batch_id: str, job_id: str, row: dict[str, Any]) -> None:
     """Add a job's new metadata row to `change` (written via `scratch`); it shows once `change` commits."""
-    for key, given in (("batch_id", batch_id), ("job_id", job_id)):
-        if row.get(key, given) != given:
-            raise MetadataError([f"row has {key} {row[key]!r} but is written for {key} {given!r}"])
+    _check_ids(row, batch_id, job_id)
     staged = scratch / "metadata.parquet"
     write_metadata_file(metadata_table(row), staged)
     change.add(paths.METADATA_TABLE, batch_id, job_id, staged)
+
+
+def stage_metadata_rows(change: Change, scratch: Path, batch_id: str, rows: dict[str, dict[str, Any]]) -> None:
+    """Add new metadata rows of jobs of one batch (job id -> row) to `change` as ONE file, sorted by job
+    (one row group each); they show once `change` commits."""
+    for job_id, row in rows.items():
+        _check_ids(row, batch_id, job_id)
+    staged = scratch / "metadata.parquet"
+    write_jobs(staged, [(job_id, metadata_table(row)) for job_id, row in rows.items()])
+    change.add_jobs(paths.METADATA_TABLE, batch_id, staged, sorted(rows))
+
+
+def _check_ids(row: dict[str, Any], batch_id: str, job_id: str) -> None:
+    for key, given in (("batch_id", batch_id), ("job_id", job_id)):
+        if row.get(key, given) != given:
+            raise MetadataError([f"row has {key} {row[key]!r} but is written for {key} {given!r}"])
 
 
 def write_metadata_file(table: pa.Table, path: Path) -> None:
@@ -265,8 +280,9 @@ def read_metadata_row(lake: Path, branch: str, batch_id: str, job_id: str) -> di
     target = current_file(lake, branch, paths.METADATA_TABLE, batch_id, job_id)
     if target is None:
         return None
-    table = pq.read_table(target, schema=FILE_SCHEMA, partitioning=None)
-    stored = table.to_pylist()[0]
+    v1 = paths.is_v1_path(target.as_posix())
+    table = job_rows(target, job_id, v1=v1, position=job_id_position(paths.METADATA_TABLE, ()))
+    stored = table.select(FILE_SCHEMA.names).cast(FILE_SCHEMA).to_pylist()[0]
     stored.update(batch_id=batch_id, job_id=job_id)
     return {name: stored.get(name) for name in COLUMN_NAMES}
 

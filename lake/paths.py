@@ -2,8 +2,8 @@
 
 Layout (see DESIGN.md, "Lake on disk")::
 
-    <lake>/<branch-dir>/<table>/batch_id=<B>/job_id=<J>/<pid>-<id>.parquet   topics, metadata, events
-    <lake>/<branch-dir>/metric_results/batch_id=<B>/<pid>-<id>.parquet       evaluated metrics (per batch)
+    <lake>/<branch-dir>/<table>/batch_id=<B>/<pid>-<id>.parquet       topics, metadata, events, metric_results
+    <lake>/<branch-dir>/<table>/batch_id=<B>/job_id=<J>/<name>.parquet   the same, in lakes of layout v1
     <lake>/<branch-dir>/_lake.sqlite                                   which file is current (`lake.record`)
     <lake>/<branch-dir>/_readers/<table>/...                           hard links lakegate's queries read
     <lake>/<branch-dir>/_logs/<B>/<J>/...                              job log files (images the metrics show)
@@ -12,8 +12,11 @@ Layout (see DESIGN.md, "Lake on disk")::
     <lake>/<branch-dir>/_staging/...                                   scratch space of running writers
 
 A branch name is encoded into exactly one safe path segment (`encode_branch`), reversibly.
+Every table is partitioned by `batch_id` only (layout v2); `job_id` is a column in the files (a
+job's own file holds one job, a compacted file every job of its batch). Layout v1 (still read,
+migrated by the first writer: `lake.compaction`) had a `job_id=<J>` directory per job.
 Batch ids, job ids and table names are used as they are, so they are checked
-(`check_segment`): readers glob `<table>/batch_id=*/job_id=*/*.parquet` and parse Hive
+(`check_segment`): readers glob `<table>/batch_id=*/*.parquet` and parse Hive
 partitions, which rules out `/`, glob characters, `=`, `%` (Hive values are URL-decoded)
 and `\\`. Writers prepare files under `_staging/`, `publish` each with `os.replace` under a
 fresh name (`new_data_file`, never overwriting a file a reader may use), and make them current
@@ -44,8 +47,11 @@ LOGS = "_logs"
 READERS = "_readers"
 #: Names a topic may not have, because the branch directory uses them.
 RESERVED_TABLES = frozenset({METADATA_TABLE, EVENTS_TABLE, METRIC_RESULTS_TABLE})
-#: Tables partitioned by batch only (`<table>/batch_id=<B>/data.parquet`).
+#: Tables with one file per batch, whose record rows have job_id '' (the others: a row per job).
 BATCH_TABLES = frozenset({METRIC_RESULTS_TABLE})
+#: The Hive partition keys of every table (layout v2); layout v1 had `V1_KEYS` for job tables.
+PARTITION_KEYS = ("batch_id",)
+V1_KEYS = ("batch_id", "job_id")
 
 _SAFE = frozenset("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789-_.")
 _MAX_SEGMENT = 240  # bytes; file systems allow 255
@@ -161,21 +167,28 @@ def table_dir(lake: Path, branch: str, table: str) -> Path:
     return branch_dir(lake, branch) / table
 
 
-def partition_dir(lake: Path, branch: str, table: str, batch_id: str, job_id: str | None) -> Path:
-    """`<lake>/<branch-dir>/<table>/batch_id=<B>/job_id=<J>` (ids checked; job_id None: the batch's)."""
+def partition_dir(lake: Path, branch: str, table: str, batch_id: str) -> Path:
+    """`<lake>/<branch-dir>/<table>/batch_id=<B>` (the batch id checked)."""
     check_segment(batch_id, "batch id")
-    directory = table_dir(lake, branch, table) / f"batch_id={batch_id}"
-    return directory if job_id is None else directory / f"job_id={check_segment(job_id, 'job id')}"
+    return table_dir(lake, branch, table) / f"batch_id={batch_id}"
 
 
 def new_data_file(lake: Path, branch: str, table: str, batch_id: str, job_id: str | None) -> Path:
-    """A fresh file name for `table`'s rows of one job (job_id None: of one batch, `BATCH_TABLES`).
+    """A fresh file name in `table`'s partition of one batch, for the rows of one job (its id ends
+    the name, for humans) or of many (job_id None: a batch table's file, or a compacted file).
 
     The name starts with the writer's process id, so files of writers that died are recognised.
     """
-    if (job_id is None) != (table in BATCH_TABLES):
-        raise ValueError(f"table {table!r} is partitioned by {', '.join(partition_keys(table))}")
-    return partition_dir(lake, branch, table, batch_id, job_id) / f"{os.getpid()}-{uuid.uuid4().hex}.parquet"
+    suffix = "" if job_id is None else f"-{check_segment(job_id, 'job id')}"
+    name = f"{os.getpid()}-{uuid.uuid4().hex}{suffix}"
+    if len(name.encode("utf-8", "surrogatepass")) > _MAX_SEGMENT - len(".parquet"):
+        name = f"{os.getpid()}-{uuid.uuid4().hex}"
+    return partition_dir(lake, branch, table, batch_id) / f"{name}.parquet"
+
+
+def is_v1_path(relative: str) -> bool:
+    """Whether a data file's path (relative to its branch) is in a layout v1 `job_id=` directory."""
+    return "/job_id=" in relative
 
 
 def abandoned_files(directory: Path) -> list[Path]:
@@ -210,12 +223,17 @@ def table_names(lake: Path, branch: str) -> list[str]:
 
 
 def partition_keys(table: str) -> tuple[str, ...]:
-    """The Hive partition keys of `table`'s directories."""
-    return ("batch_id",) if table in BATCH_TABLES else ("batch_id", "job_id")
+    """The Hive partition keys of `table`'s directories (every table: `batch_id`)."""
+    return PARTITION_KEYS
 
 
 def _file_pattern(table: str) -> str:
     return "/".join([*(f"{key}=*" for key in partition_keys(table)), "*.parquet"])
+
+
+def v1_data_files(lake: Path, branch: str, table: str) -> Iterator[Path]:
+    """The data files of `table` in layout v1 `batch_id=<B>/job_id=<J>/` directories, lazily."""
+    return table_dir(lake, branch, table).glob("batch_id=*/job_id=*/*.parquet")
 
 
 def table_glob(lake: Path, branch: str, table: str) -> str:
@@ -266,7 +284,7 @@ def publish_linked(source: Path, target: Path) -> None:
 
 def link_reader(target: Path) -> None:
     """Add the reader link of a published file (`reader_path`; the branch is its table's parent)."""
-    root = target.parents[3] if target.parent.name.startswith("job_id=") else target.parents[2]
+    root = target.parents[3] if target.parent.name.startswith("job_id=") else target.parents[2]  # v1, v2
     link = reader_path(root, target.relative_to(root).as_posix())
     link.parent.mkdir(parents=True, exist_ok=True)
     with contextlib.suppress(FileExistsError):
@@ -277,6 +295,8 @@ def remove_published(target: Path) -> None:
     """Remove a published data file and the partition directories it leaves empty."""
     LOCAL.delete(target, missing_ok=True)
     for directory in (target.parent, target.parent.parent):
+        if "=" not in directory.name:  # a table's own directory stays (Trino's table location)
+            break
         if not LOCAL.remove_empty_dir(directory):
             break
 
@@ -338,6 +358,28 @@ def batch_lock(lake: Path, branch: str, batch_id: str) -> Iterator[None]:
     check_segment(batch_id, "batch id")
     stripe = hashlib.sha1(batch_id.encode()).digest()[0] % 64
     with _locked(lake, branch, f"batch-{stripe:02d}.lock"):
+        yield
+
+
+@contextlib.contextmanager
+def batch_files_lock(lake: Path, branch: str, *batch_ids: str) -> Iterator[None]:
+    """Hold the lock every record commit that changes a batch's job-table files takes (ingest, metadata
+    updates, metrics run, compaction): files shared by the batch's jobs change under it alone.
+
+    Batches share 64 lock files by hash; several batches' are taken in one order, each file once.
+    Lock order: `batch_lock`, then `job_lock`, then this, then `layout_lock`.
+    """
+    stripes = sorted({hashlib.sha1(check_segment(b, "batch id").encode()).digest()[0] % 64 for b in batch_ids})
+    with contextlib.ExitStack() as stack:
+        for stripe in stripes:
+            stack.enter_context(_locked(lake, branch, f"files-{stripe:02d}.lock"))
+        yield
+
+
+@contextlib.contextmanager
+def layout_lock(lake: Path, branch: str) -> Iterator[None]:
+    """Hold the branch's layout lock (the migration of a layout v1 branch takes it)."""
+    with _locked(lake, branch, "layout.lock"):
         yield
 
 

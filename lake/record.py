@@ -10,15 +10,23 @@ superseded files' visible names; their reader links stay `GRACE_SECONDS` (listed
 a query that listed them still reads them. Readers take one `snapshot` per generation and read
 the reader links, so they see a job's tables all old or all new, and never list the tree. A
 writer killed before its commit leaves only files no row references: lakegate never reads them,
-and the next writer of that job removes them. See docs/lake-format.md.
+and the next writer of that batch removes them. See docs/lake-format.md.
 
-A lake written before the record existed (`data.parquet` files, no record) is migrated when the
+Layout v2 (`PRAGMA user_version` 2): every table is partitioned by batch only and `job_id` is a
+column, so a file may hold many jobs of one batch (compaction, `lake.compaction`); each job keeps
+its own row, all of them with the file's path. A file holds exactly the rows of the jobs whose rows
+name it: a commit that replaces some of its jobs rewrites it for the others (`Change`), under the
+batch's `paths.batch_files_lock`. A branch still in layout v1 (`job_id=<J>/` directories) is read as
+it is and migrated by its first writer, in one commit.
+
+A lake written before the record existed (`data.parquet` files, no record) is recorded when the
 record is first opened: its files are listed once, inside the record's first write transaction.
 """
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import functools
 import json
 import os
@@ -28,9 +36,11 @@ from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import pyarrow as pa
 import pyarrow.parquet as pq
+from tqdm import tqdm
 
-from lakegate.lake import paths
+from lakegate.lake import batch_files, paths
 
 RECORD = "_lake.sqlite"
 #: How long a superseded file stays readable by lakegate's queries that listed it (its hidden link).
@@ -49,6 +59,10 @@ CREATE TABLE IF NOT EXISTS files (
 CREATE INDEX IF NOT EXISTS files_of_job ON files (batch_id, job_id);
 CREATE TABLE IF NOT EXISTS trash (path TEXT PRIMARY KEY, superseded_at REAL NOT NULL);
 """
+#: The index a layout v2 record has besides `_SCHEMA`'s (a file may be shared by many rows).
+_PATH_INDEX = "CREATE INDEX IF NOT EXISTS files_by_path ON files (path)"
+#: The layout of a branch whose record says so (`PRAGMA user_version`; 0 and 1 are layout v1).
+LAYOUT = 2
 
 
 @dataclass(frozen=True)
@@ -82,6 +96,8 @@ class Snapshot:
     generation: int
     files: tuple[FileEntry, ...]
     tables: frozenset[str] = frozenset()
+    #: Paths (shared files) whose rows a reader keeps only for the jobs this snapshot lists with them.
+    filtered: frozenset[str] = frozenset()
 
     def of(self, table: str) -> list[FileEntry]:
         return self._by_table.get(table, [])
@@ -140,7 +156,9 @@ class Record:
                     for statement in _SCHEMA.split(";")[:-1]:
                         db.execute(statement)
                     if db.execute("SELECT count(*) FROM commits").fetchone()[0] == 0:
-                        _migrate(db, self.root)
+                        if not _migrate(db, self.root):
+                            db.execute(_PATH_INDEX)
+                            db.execute(f"PRAGMA user_version = {LAYOUT}")
             self._db = db
         return self._db
 
@@ -148,6 +166,10 @@ class Record:
         if self._db is not None:
             self._db.close()
             self._db = None
+
+    def layout(self) -> int:
+        """The branch's layout: 2, or 1 for a branch written with `job_id=<J>/` directories."""
+        return LAYOUT if self._connect().execute("PRAGMA user_version").fetchone()[0] >= LAYOUT else 1
 
     def generation(self) -> int:
         """The id of the last commit (changes whenever any table of the branch changes)."""
@@ -174,7 +196,9 @@ class Record:
                 else []
             )
             tables = frozenset(row[0] for row in db.execute(_TABLES) if row[0] is not None)
-        return Snapshot(generation, tuple(_entry(row) for row in rows), tables)
+        entries = tuple(_entry(row) for row in rows)
+        shared = frozenset(e.path for e in entries if e.job_id) if job_id is not None else frozenset()
+        return Snapshot(generation, entries, tables, shared)
 
     def batches(self) -> list[str]:
         """The batches with at least one job (a `metadata` row), sorted (read from the index alone)."""
@@ -202,11 +226,22 @@ class Record:
         )
         return None if row is None else _entry(row)
 
-    def commit(self, what: str, entries: Sequence[FileEntry], drop_jobs: Iterable[tuple[str, str]] = ()) -> list[str]:
+    def commit(
+        self,
+        what: str,
+        entries: Sequence[FileEntry],
+        drop_jobs: Iterable[tuple[str, str]] = (),
+        *,
+        layout: int | None = None,
+    ) -> list[str]:
         """One transaction: drop every table's rows of `drop_jobs` (batch, job), replace the rows of
-        `entries`' keys by them, add a commit; returns the paths no row references any more."""
+        `entries`' keys by them, add a commit (and set the branch's `layout`); returns the paths no
+        row references any more."""
         db = self._connect()
         with _transaction(db, immediate=True):
+            if layout is not None:
+                db.execute(_PATH_INDEX)
+                db.execute(f"PRAGMA user_version = {layout}")
             old: set[str] = set()
             for batch_id, job_id in drop_jobs:
                 old.update(
@@ -234,7 +269,11 @@ class Record:
                         commit_id,
                     ),
                 )
-            superseded = sorted(old - {entry.path for entry in entries})
+            superseded = sorted(
+                path
+                for path in old - {entry.path for entry in entries}
+                if db.execute("SELECT 1 FROM files WHERE path = ? LIMIT 1", (path,)).fetchone() is None
+            )
             db.executemany(
                 "INSERT OR REPLACE INTO trash VALUES (?, ?)", [(_hidden(path), time.time()) for path in superseded]
             )
@@ -253,14 +292,9 @@ class Record:
         """The hidden links still in their grace period."""
         return {r[0] for r in self._connect().execute("SELECT path FROM trash")}
 
-    def referenced(self, batch_id: str, job_id: str = "") -> set[str]:
-        """The paths the record holds for one job (or batch)."""
-        return {
-            r[0]
-            for r in self._connect().execute(
-                "SELECT path FROM files WHERE batch_id = ? AND job_id = ?", (batch_id, job_id)
-            )
-        }
+    def referenced(self, batch_id: str) -> set[str]:
+        """The paths the record holds for one batch (its jobs' and its own)."""
+        return {r[0] for r in self._connect().execute("SELECT path FROM files WHERE batch_id = ?", (batch_id,))}
 
 
 def current_file(lake: Path, branch: str, table: str, batch_id: str, job_id: str = "") -> Path | None:
@@ -276,16 +310,22 @@ def current_file(lake: Path, branch: str, table: str, batch_id: str, job_id: str
 class Change:
     """Files staged for one atomic switch of a branch's record (see the module docstring).
 
-    `add` moves a finished file into its partition under a fresh name; `commit` switches the
-    record to them in one transaction and removes what they supersede. Writers of the same job
-    must hold its `paths.job_lock` around `commit` (batch tables: the batch's lock).
+    `add` moves a finished file into its partition under a fresh name (`add_merged`: one file for
+    many jobs); `commit` switches the record to them in one transaction and removes what they
+    supersede. It takes the `paths.batch_files_lock` of every batch whose job tables it changes
+    (unless `hold` holds them), migrates a layout v1 branch first, and rewrites each file shared with
+    jobs it does not replace without the jobs it replaces. Writers of the same job must hold its
+    `paths.job_lock` around `commit` (batch tables: the batch's lock).
     """
 
-    def __init__(self, lake: Path, branch: str):
+    def __init__(self, lake: Path, branch: str, *, progress: bool = False):
         self.lake, self.branch = Path(lake), branch
         self.record = Record(lake, branch)
         self.entries: list[FileEntry] = []
         self.dropped: list[tuple[str, str]] = []
+        self.progress = progress
+        self._moved: list[FileEntry] = []  # other jobs' rows, moved out of files this change splits
+        self._holding = False
 
     def add(self, table: str, batch_id: str, job_id: str | None, staged: Path) -> FileEntry:
         """Publish `staged` as the file of `table` for one job (job_id None: for one batch)."""
@@ -296,41 +336,163 @@ class Change:
         _pause("added")
         return entry
 
+    def add_jobs(self, table: str, batch_id: str, staged: Path, job_ids: Sequence[str]) -> list[FileEntry]:
+        """Publish `staged`, which holds one row of each job of `job_ids` (a `metadata` file of many
+        jobs, sorted by job), as their file."""
+        target = paths.new_data_file(self.lake, self.branch, table, batch_id, None)
+        paths.publish_linked(staged, target)
+        described = describe_file(self.record.root, table, batch_id, "", target)
+        found = [dataclasses.replace(described, job_id=job_id, rows=1) for job_id in job_ids]
+        self.entries.extend(found)
+        _pause("added")
+        return found
+
+    def add_merged(self, entries: Sequence[FileEntry]) -> list[FileEntry]:
+        """Publish the rows of `entries` (current files of jobs of one table and batch) as one file per
+        distinct schema, sorted by job, and stage their rows naming it; returns them. A job whose file
+        cannot be read is left out (it keeps its file)."""
+        found = self._merge(entries)
+        self.entries.extend(found)
+        return found
+
+    def _merge(self, entries: Sequence[FileEntry]) -> list[FileEntry]:
+        root = self.record.root
+        groups: list[tuple[pa.Schema, list[tuple[FileEntry, pa.Table]]]] = []
+        for entry in entries:
+            try:
+                rows = batch_files.job_rows(
+                    root / entry.path,
+                    entry.job_id,
+                    v1=paths.is_v1_path(entry.path),
+                    position=batch_files.job_id_position(entry.table, entry.columns),
+                )
+            except (OSError, pa.ArrowException):
+                continue
+            schema = rows.schema.remove_metadata()
+            group = next((g for s, g in groups if s.equals(schema)), None)
+            if group is None:
+                groups.append((schema, group := []))
+            group.append((entry, rows))
+        merged = []
+        for schema, group in groups:
+            first = group[0][0]
+            target = paths.new_data_file(self.lake, self.branch, first.table, first.batch_id, None)
+            with paths.staging(self.lake, self.branch) as scratch:
+                staged = scratch / "merged.parquet"
+                batch_files.write_jobs(staged, [(entry.job_id, rows) for entry, rows in group])
+                paths.publish_linked(staged, target)
+            relative = target.relative_to(root).as_posix()
+            merged += [dataclasses.replace(e, path=relative, columns=tuple(schema.names)) for e, _ in group]
+        _pause("added")
+        return merged
+
     def replace_job(self, batch_id: str, job_id: str) -> None:
         """Drop every table's file of this job that `add` does not replace."""
         self.dropped.append((batch_id, job_id))
+
+    def _batches(self) -> list[str]:
+        """The batches whose job tables this change replaces rows of."""
+        found = {e.batch_id for e in self.entries if e.table not in paths.BATCH_TABLES}
+        return sorted(found | {batch_id for batch_id, _ in self.dropped})
+
+    @contextlib.contextmanager
+    def hold(self, batch_ids: Iterable[str]) -> Iterator[None]:
+        """Hold the files locks of `batch_ids` (in order) and migrate a layout v1 branch: a caller that
+        reads the batches' current files before adding (compaction) sees them unchanged until `commit`."""
+        with paths.batch_files_lock(self.lake, self.branch, *batch_ids):
+            self._upgrade()
+            self._holding = True
+            try:
+                yield
+            finally:
+                self._holding = False
 
     def commit(self, what: str) -> list[Path]:
         """Switch the record; returns the published files."""
         _pause("commit")
         try:
-            superseded = self.record.commit(what, self.entries, self.dropped)
-            committed, self.entries = self.entries, []
-            for relative in superseded:  # gone for Trino now; lakegate's queries keep the reader link a while
-                paths.remove_published(self.record.root / relative)
-            for relative in self.record.expired(GRACE_SECONDS):
-                paths.remove_published(self.record.root / relative)
-            for batch_id, job_id in {(e.batch_id, e.job_id) for e in committed} | set(self.dropped):
-                self._sweep(batch_id, job_id)
+            if self._holding:
+                return self._switch(what)
+            with self.hold(self._batches()):
+                return self._switch(what)
         finally:
             self.record.close()
-        return [self.record.root / entry.path for entry in committed]
+
+    def _switch(self, what: str, layout: int | None = None) -> list[Path]:
+        try:
+            self._split()
+            superseded = self.record.commit(what, self.entries + self._moved, self.dropped, layout=layout)
+        except BaseException:
+            for entry in {e.path: e for e in self._moved}.values():  # files split for this commit
+                paths.remove_published(self.record.root / entry.path)
+                paths.remove_published(paths.reader_path(self.record.root, entry.path))
+            self._moved = []
+            raise
+        committed, self.entries, self._moved = self.entries, [], []
+        for relative in superseded:  # gone for Trino now; lakegate's queries keep the reader link a while
+            paths.remove_published(self.record.root / relative)
+        for relative in self.record.expired(GRACE_SECONDS):
+            paths.remove_published(self.record.root / relative)
+        for batch_id in {e.batch_id for e in committed} | {batch_id for batch_id, _ in self.dropped}:
+            self._sweep(batch_id)
+        return list(dict.fromkeys(self.record.root / entry.path for entry in committed))
+
+    def _split(self) -> None:
+        """Rewrite each shared file that loses some of its jobs to this change for the jobs it keeps."""
+        replaced = {entry.key for entry in self.entries}
+        dropped = set(self.dropped)
+        for batch_id in self._batches():
+            by_path: dict[str, list[FileEntry]] = {}
+            for entry in self.record.snapshot(batch_id).files:
+                if entry.table not in paths.BATCH_TABLES:
+                    by_path.setdefault(entry.path, []).append(entry)
+            for group in by_path.values():
+                kept = [e for e in group if e.key not in replaced and (e.batch_id, e.job_id) not in dropped]
+                if kept and len(kept) < len(group):
+                    self._moved += self._merge(kept)
+
+    def _upgrade(self) -> None:
+        """Migrate a layout v1 branch (`job_id=<J>/` directories) to layout v2 in one commit: each
+        batch's files of each table become one file holding its jobs (unreadable files stay)."""
+        if self.record.layout() == LAYOUT:
+            return
+        with paths.layout_lock(self.lake, self.branch):
+            if self.record.layout() == LAYOUT:
+                return
+            migration = Change(self.lake, self.branch)
+            groups: dict[tuple[str, str], list[FileEntry]] = {}
+            for entry in self.record.snapshot().files:
+                if paths.is_v1_path(entry.path):
+                    groups.setdefault((entry.table, entry.batch_id), []).append(entry)
+            bar = tqdm(groups.values(), desc="migrating to layout v2", unit="file", disable=not self.progress)
+            for group in bar:
+                migration.add_merged(group)
+            try:
+                migration._switch("layout v2", layout=LAYOUT)
+            finally:
+                migration.record.close()
+            keep = {entry.path for entry in self.record.snapshot().files}
+            for table in paths.table_names(self.lake, self.branch):  # what killed v1 writers left
+                for directory in {file.parent for file in paths.v1_data_files(self.lake, self.branch, table)}:
+                    for file in paths.abandoned_files(directory):
+                        if file.relative_to(self.record.root).as_posix() not in keep:
+                            paths.remove_published(file)
 
     def discard(self) -> None:
         """Remove the files added and not committed (a no-op after `commit`)."""
-        for entry in self.entries:
+        for entry in {e.path: e for e in self.entries + self._moved}.values():
             paths.remove_published(self.record.root / entry.path)
             paths.remove_published(paths.reader_path(self.record.root, entry.path))
-        self.entries = []
+        self.entries, self._moved = [], []
         self.record.close()
 
-    def _sweep(self, batch_id: str, job_id: str) -> None:
-        """Remove files of one job that no row references and no living writer is about to commit."""
-        referenced = self.record.referenced(batch_id, job_id)
+    def _sweep(self, batch_id: str) -> None:
+        """Remove files of one batch that no row references and no living writer is about to commit."""
+        referenced = self.record.referenced(batch_id)
         keep = referenced | {_hidden(path) for path in referenced} | self.record.trashed()
         root = self.record.root
         for table in paths.table_names(self.lake, self.branch):
-            directory = paths.partition_dir(self.lake, self.branch, table, batch_id, job_id or None)
+            directory = paths.partition_dir(self.lake, self.branch, table, batch_id)
             links = root / paths.READERS / directory.relative_to(root)
             for file in paths.abandoned_files(directory) + paths.abandoned_files(links):
                 if file.relative_to(root).as_posix() not in keep:
@@ -395,16 +557,19 @@ def _created(db: sqlite3.Connection) -> bool:
     return db.execute("SELECT count(*) FROM commits").fetchone()[0] > 0
 
 
-def _migrate(db: sqlite3.Connection, root: Path) -> None:
-    """Record the files of a lake written before the record existed (one listing of the branch)."""
+def _migrate(db: sqlite3.Connection, root: Path) -> bool:
+    """Record the files of a lake written before the record existed (one listing of the branch, in
+    layout v1); returns whether there were any (the branch is then in layout v1)."""
     lake, branch = root.parent, paths.decode_branch(root.name)
     db.execute("INSERT INTO commits (what) VALUES ('create')")
+    found = False
     for table in paths.table_names(lake, branch):
-        for file in paths.data_files(lake, branch, table):
-            batch_id = paths.partition_value(
-                file.parent if table in paths.BATCH_TABLES else file.parent.parent, "batch_id"
-            )
-            job_id = "" if table in paths.BATCH_TABLES else paths.partition_value(file.parent, "job_id")
+        batch_table = table in paths.BATCH_TABLES
+        files = paths.data_files(lake, branch, table) if batch_table else paths.v1_data_files(lake, branch, table)
+        for file in files:
+            found = True
+            batch_id = paths.partition_value(file.parent if batch_table else file.parent.parent, "batch_id")
+            job_id = "" if batch_table else paths.partition_value(file.parent, "job_id")
             paths.link_reader(file)
             try:
                 entry = describe_file(root, table, batch_id, job_id, file)
@@ -414,3 +579,4 @@ def _migrate(db: sqlite3.Connection, root: Path) -> None:
                 "INSERT OR REPLACE INTO files VALUES (?, ?, ?, ?, ?, ?, ?, ?, 1)",
                 (*entry.key, entry.path, entry.rows, entry.min_ts, entry.max_ts, json.dumps(entry.columns)),
             )
+    return found

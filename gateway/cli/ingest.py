@@ -8,6 +8,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from lakegate.gateway.cli import compact
 from lakegate.gateway.cli.errors import UserError, add_strict_option, print_config_warnings, writable_lake
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.config import Config, ConfigError, find_default_config, load_config
@@ -99,6 +100,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     ls.add_argument("--lake", required=True, type=Path, metavar="DIR", help="the lake's directory")
     ls.add_argument("--branch", metavar="B", help="the branch to describe")
     ls.set_defaults(func=ls_command)
+    compact.add_parser(commands)
 
 
 def _config(args: argparse.Namespace) -> Config:

@@ -51,6 +51,7 @@ from lakegate.gateway.metrics.trends import (
     write_trends,
 )
 from lakegate.lake.catalog import Catalog
+from lakegate.lake.compaction import compact_batch
 from lakegate.lake.config import Config, ConfigError, load_config
 from lakegate.lake.paths import LakePathError
 from lakegate.lake.registry import BranchConfigs
@@ -135,6 +136,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         action=argparse.BooleanOptionalAction,
         default=None,
         help="show a progress bar on standard error (default: when it is a terminal)",
+    )
+    run.add_argument(
+        "--compact",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="merge the batch's per-job files into one file per table afterwards, as `lakegate lake compact` "
+        "does (default; --no-compact leaves them)",
     )
     run.set_defaults(func=run_command)
 
@@ -328,6 +336,8 @@ def run_command(args: argparse.Namespace) -> int:
             progress=progress,
             keep_figures=args.report is not None,
         )
+        if args.compact:  # the batch is complete once its batch metrics are evaluated
+            compact_batch(args.lake, args.branch, args.batch, progress=progress)
     except DialectError as error:
         raise UserError(str(error)) from None
     except OSError as error:

@@ -16,8 +16,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "trino-ddl",
         help="print the Trino DDL that registers the lake's tables in a Trino cluster",
         description="Print the Trino Hive-connector DDL (one schema per branch, one external Parquet table per "
-        "lake table partitioned by batch_id and job_id, then partition sync calls) that registers "
-        "the lake's tables in a Trino cluster, once the lake's files are copied to --location. "
+        "lake table partitioned by batch_id, job_id a column, then partition sync calls) that registers "
+        "the lake's tables in a Trino cluster, once the lake's files are copied to --location. A branch "
+        "written by an earlier lakegate is refused until 'lakegate lake compact' migrates it. "
         "Run the output in Trino (e.g. trino --file ddl.sql); run it again after new ingests.",
     )
     parser.add_argument("--lake", required=True, type=Path, metavar="DIR", help="the lake's directory")

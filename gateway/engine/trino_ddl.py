@@ -1,9 +1,10 @@
 """Trino Hive-connector DDL that registers the lake's tables in a Trino cluster (`lakegate trino-ddl`).
 
 Per branch, one schema at `<location>/<branch-dir>`; per table, an external Parquet table at
-`<location>/<branch-dir>/<table>` partitioned by its Hive partition keys (`batch_id`, `job_id`;
-`batch_id` only for `metric_results`), partition columns last as the Hive connector requires,
-then a `sync_partition_metadata` call that registers the partitions already on storage.
+`<location>/<branch-dir>/<table>` partitioned by its Hive partition key `batch_id` (last, as the
+Hive connector requires; `job_id` is a column of the files: a compacted file holds many jobs),
+then a `sync_partition_metadata` call that registers the partitions already on storage. A branch
+still in layout v1 (`job_id=<J>/` directories) is refused: `lakegate lake compact` migrates it.
 
 Schema names: Hive metastores keep lower-case `[a-z0-9_]` names, so a branch name is lower-cased
 and every other character becomes `_`; a name that changed gets a short hash of the branch name
@@ -145,11 +146,18 @@ def branch_tables(catalog: Catalog, branch: str, location: str, prefix: str = ""
 
 
 def _escaped_ids(catalog: Catalog, branch: str) -> list[str]:
-    """Batch / job ids of the branch that Hive would escape in a directory name."""
-    ids = set()
-    for job in catalog.jobs(branch):
-        ids.update(i for i in job if any(c in _HIVE_ESCAPED for c in i))
-    return sorted(ids)
+    """Batch ids of the branch that Hive would escape in a directory name."""
+    return [batch for batch in catalog.batches(branch) if any(c in _HIVE_ESCAPED for c in batch)]
+
+
+def _check_layout(catalog: Catalog, branch: str) -> None:
+    """DDLError for a branch with files in layout v1 (`job_id=<J>/` directories, no job_id column)."""
+    if any(paths.is_v1_path(entry.path) for entry in catalog.snapshot(branch).files):
+        raise DDLError(
+            f"branch {branch!r} is in the layout of earlier lakegate versions (a job_id=<J>/ directory per "
+            f"job, which Trino would read without job_id): run 'lakegate lake compact --lake {catalog.lake} "
+            f"--branch {branch}' first; it moves job_id into the files"
+        )
 
 
 def ddl(
@@ -171,10 +179,13 @@ def ddl(
     for branch in chosen:
         if branch not in known:
             raise DDLError(f"no branch {branch!r} in the lake {lake} (branches: {', '.join(known) or 'none'})")
+        _check_layout(lake_catalog, branch)
     schemas = {branch: schema_name(branch, schema_prefix) for branch in chosen}
     lines = [
         f"-- Trino Hive-connector DDL for the lakegate lake {lake}, copied to {location}.",
         "-- Run it again after ingesting: CREATE ... IF NOT EXISTS keeps what exists, the calls add new partitions.",
+        "-- Tables registered before lakegate's layout v2 (partitioned by batch_id and job_id) must be dropped",
+        "-- first (DROP TABLE of an external table leaves its files).",
     ]
     for branch in chosen:
         schema = quote_ident(catalog) + "." + quote_ident(schemas[branch])

@@ -30,7 +30,7 @@ import pyarrow.parquet as pq
 
 from lakegate.gateway.metrics.metric_result import MetricResult
 from lakegate.lake import paths
-from lakegate.lake.metadata import read_metadata_row, stage_metadata_row
+from lakegate.lake.metadata import read_metadata_row, stage_metadata_rows
 from lakegate.lake.record import Change, FileEntry, current_file
 from lakegate.lake.schema import METRIC_RESULTS_COLUMNS, file_schema
 
@@ -97,6 +97,7 @@ class ResultsWriter:
         self._scratch = self._stack.enter_context(paths.staging(lake, branch))
         self._staged = self._scratch / "metric_results.parquet"
         self._writer = self._stack.enter_context(pq.ParquetWriter(self._staged, SCHEMA, compression="zstd"))
+        self._statuses: dict[str, dict[str, Any]] = {}  # job -> its new metadata row, not yet published
 
     def write(self, results: Sequence[MetricResult]) -> None:
         rows = [result_row(r, **self._row) for r in results]
@@ -108,21 +109,30 @@ class ResultsWriter:
         if row is None:
             raise LookupError(f"job {job_id!r} of batch {self.batch_id!r} has no metadata row any more")
         row.update(statuses)
-        stage_metadata_row(self._change, self._scratch, self.batch_id, job_id, row)
+        self._statuses[job_id] = row
+
+    def _publish_statuses(self) -> None:
+        """Publish the staged rows as one `metadata` file of the batch (one file, however many jobs)."""
+        if self._statuses:
+            stage_metadata_rows(self._change, self._scratch, self.batch_id, self._statuses)
+            self._statuses = {}
 
     @property
     def pending(self) -> list[FileEntry]:
-        """The staged files so far (the new metadata rows), for a catalog that shows them early."""
+        """The staged metadata rows (published now, not committed), for a catalog that shows them early."""
+        self._publish_statuses()
         return list(self._change.entries)
 
     def commit_statuses(self) -> None:
         """Commit the staged statuses now, before the results (for a backend that cannot see staged files)."""
+        self._publish_statuses()
         self._change.commit(f"statuses {self.batch_id}")
         self._change = Change(self.lake, self.branch)
 
     def commit(self) -> Path:
         """Publish the written rows as the batch's results, with the staged statuses; returns the file."""
         self._writer.close()
+        self._publish_statuses()
         entry = self._change.add(paths.METRIC_RESULTS_TABLE, self.batch_id, None, self._staged)
         self._change.commit(f"metrics run {self.batch_id}")
         self.close()

@@ -19,12 +19,20 @@ from lakegate.lake import paths
 from lakegate.lake.config import Config
 from lakegate.lake.ingest import scan
 from lakegate.lake.ingest.rules import MAX_PROBLEMS, BadLines, IngestError, LineProblem
-from lakegate.lake.ingest.scan import Block, Hinter, Result, merge_results, process_block, read_blocks, topic_plans
+from lakegate.lake.ingest.scan import (
+    JOB_FILE_COLUMNS,
+    Block,
+    Hinter,
+    Result,
+    merge_results,
+    process_block,
+    read_blocks,
+    topic_plans,
+)
 from lakegate.lake.ingest.write import JobWriter
 from lakegate.lake.metadata import build_metadata_row, metadata_table, write_metadata_file
 from lakegate.lake.record import Change
 from lakegate.lake.registry import BranchConfigs
-from lakegate.lake.schema import JOB_COLUMNS
 
 
 @dataclass
@@ -80,7 +88,7 @@ def ingest_job(
     bad = 0
     lines = 0
     with paths.job_lock(lake, branch, batch_id, job_id), paths.staging(lake, branch) as scratch:
-        writer = JobWriter(scratch, plans, {c: row[c] for c in JOB_COLUMNS})
+        writer = JobWriter(scratch, plans, {c: row[c] for c in JOB_FILE_COLUMNS})
         quarantine = scratch / "quarantine.jsonl"
         with (
             open(quarantine, "w", encoding="utf-8") as bad_lines,
@@ -144,7 +152,7 @@ def ingest_job(
         write_metadata_file(metadata_table(row), metadata_file)
         staged[paths.METADATA_TABLE] = metadata_file
         version = BranchConfigs(lake, branch).store_config(config)
-        published = _publish(lake, branch, batch_id, job_id, staged)
+        published = _publish(lake, branch, batch_id, job_id, staged, progress)
         quarantine_target = paths.quarantine_file(lake, branch, batch_id, job_id)
         if bad:
             paths.publish(quarantine, quarantine_target)
@@ -168,9 +176,12 @@ def ingest_job(
     )
 
 
-def _publish(lake: Path, branch: str, batch_id: str, job_id: str, staged: dict[str, Path]) -> list[Path]:
-    """Make the staged files the job's tables, all at once (one record commit); the old files go."""
-    change = Change(lake, branch)
+def _publish(
+    lake: Path, branch: str, batch_id: str, job_id: str, staged: dict[str, Path], progress: bool
+) -> list[Path]:
+    """Make the staged files the job's tables, all at once (one record commit); the old files go
+    (`progress`: a bar on standard error if a layout v1 branch is migrated first)."""
+    change = Change(lake, branch, progress=progress)
     for name, file in staged.items():
         change.add(name, batch_id, job_id, file)
     change.replace_job(batch_id, job_id)

@@ -26,6 +26,8 @@ from lakegate.lake.types import INT64_MAX, MAX_LINE_BYTES
 BLOCK_SIZE = 16 << 20
 THREADS = 2
 LINE = "_line"  # line number column of intermediate tables
+#: The columns of a topic's file that hold the same value on every row of a job (`job_id` too).
+JOB_FILE_COLUMNS = (*JOB_COLUMNS, "job_id")
 
 
 class Plan:
@@ -36,7 +38,7 @@ class Plan:
         self.topic = topic
         self.name = topic.name
         self.file_schema = file_schema(topic.name, topic_columns(topic))
-        self.schema = pa.schema([field for field in self.file_schema if field.name not in JOB_COLUMNS])
+        self.schema = pa.schema([field for field in self.file_schema if field.name not in JOB_FILE_COLUMNS])
         # metric[] values are normalised by check_value; a topic without fields has no Arrow struct
         self.fast = bool(topic.fields) and "metric[]" not in topic.fields.values()
         if self.fast:

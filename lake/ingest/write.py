@@ -9,8 +9,8 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from lakegate.lake import paths
-from lakegate.lake.ingest.scan import LINE, Plan
-from lakegate.lake.schema import EVENTS_COLUMNS, JOB_COLUMNS, TIMESTAMP, file_schema
+from lakegate.lake.ingest.scan import JOB_FILE_COLUMNS, LINE, Plan
+from lakegate.lake.schema import EVENTS_COLUMNS, TIMESTAMP, file_schema
 
 #: Rows buffered per topic before they are written as (part of) a row group.
 ROWS_PER_WRITE = 128 * 1024
@@ -50,7 +50,7 @@ class JobWriter:
             self._flush(index)
 
     def _constants(self, count: int) -> list[pa.Array]:
-        return [pa.repeat(pa.scalar(self.job_values.get(name), pa.string()), count) for name in JOB_COLUMNS]
+        return [pa.repeat(pa.scalar(self.job_values.get(name), pa.string()), count) for name in JOB_FILE_COLUMNS]
 
     def _flush(self, index: int) -> None:
         tables = self.buffers.pop(index, [])

@@ -431,7 +431,7 @@ def test_an_unreadable_file_fails_only_the_queries_that_read_it(tmp_path, job):
     table, batch and job, never a path (Trino's Hive connector raises HIVE_BAD_DATA for a file it
     cannot read: io.trino.plugin.hive.HiveErrorCode)."""
     lake = build_lake(tmp_path, jobs=[("b1", "j1", 3), ("b1", "j2", 2)])
-    bad = next(lake.glob(f"main/odom/batch_id=b1/job_id={job}/*.parquet"))
+    bad = next(lake.glob(f"main/odom/batch_id=b1/*-{job}.parquet"))
     bad.write_bytes(b"not parquet at all" * 10)
     other = "j2" if job == "j1" else "j1"
     backend = DuckDBBackend(lake, memory_limit="256MB", threads=1)
@@ -453,7 +453,7 @@ def test_query_serve_and_lake_ls_with_a_corrupt_file(tmp_path):
     with one corrupt file: only the queries that read it fail, with a clear message and no
     traceback or path; `lake ls` lists the branch and reports the file as unreadable."""
     lake = build_lake(tmp_path, jobs=[("b1", "j1", 3), ("b1", "j2", 2)])
-    next(lake.glob("main/odom/batch_id=b1/job_id=j1/*.parquet")).write_bytes(b"PAR1 truncated")
+    next(lake.glob("main/odom/batch_id=b1/*-j1.parquet")).write_bytes(b"PAR1 truncated")
     cli = [sys.executable, "-m", "lakegate.gateway.cli"]
 
     def run(*args: str) -> subprocess.CompletedProcess:
@@ -495,7 +495,7 @@ def test_query_serve_and_lake_ls_with_a_corrupt_file(tmp_path):
 
 def test_a_file_deleted_by_hand_fails_only_its_job(tmp_path):
     lake = build_lake(tmp_path, jobs=[("b1", "j1", 3), ("b1", "j2", 2)])
-    for file in lake.glob("**/odom/batch_id=b1/job_id=j1/*.parquet"):  # the visible file and the reader link
+    for file in lake.glob("**/odom/batch_id=b1/*-j1.parquet"):  # the visible file and the reader link
         file.unlink()
     backend = DuckDBBackend(lake, memory_limit="256MB", threads=1)
     try:
@@ -568,7 +568,7 @@ def test_a_scoped_query_reads_only_the_files_of_its_scope(tmp_path):
     backend = DuckDBBackend(lake, memory_limit="256MB", threads=1)
     try:
         assert backend.execute("SELECT count(*) FROM odom").rows() == [(9,)]
-        first = next(lake.glob("main/odom/batch_id=b1/job_id=j1/*.parquet"))
+        first = next(lake.glob("main/odom/batch_id=b1/*-j1.parquet"))
         first.write_bytes(b"not parquet at all" * 10)  # the reader link is the same file
         sql = "SELECT m.experience_name, count(*) FROM odom o JOIN metadata m ON o.job_id = m.job_id GROUP BY 1"
         assert backend.execute(sql, scope=Scope(batch_id="b1", job_id="j2")).rows() == [("exp j2", 2)]

@@ -41,7 +41,7 @@ def parquet(lake, sql: str) -> list[tuple]:
     """`sql` run by DuckDB over the lake's Parquet files of branch main (`{table}` placeholders)."""
     tables = {
         name: f"read_parquet('{paths.table_glob(lake, 'main', name)}', hive_partitioning = true, "
-        "hive_types = {'batch_id': VARCHAR, 'job_id': VARCHAR})"
+        "hive_types = {'batch_id': VARCHAR})"
         for name in ("metadata", "odom_linear_velocity")
     }
     return duckdb.sql(sql.format(**tables)).fetchall()

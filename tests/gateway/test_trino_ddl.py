@@ -25,6 +25,7 @@ from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file
 from lakegate.lake.registry import BranchConfigs
+from tests.lake.v1_lake import to_v1
 
 CLI = [sys.executable, "-m", "lakegate.gateway.cli"]
 LOCATION = "s3://robot-lake/it's/lake"
@@ -155,6 +156,7 @@ def test_the_ddl_registers_every_table_of_every_branch_as_the_catalog_describes_
         seen.add((branch, table.name))
         columns = [(c.name, c.args["kind"]) for c in create.this.expressions]
         keys = paths.partition_keys(table.name)
+        assert keys == ("batch_id",)  # job_id is a data column: a compacted file holds many jobs
         declared = catalog.schema(branch)[table.name]
         # the catalog's columns, partition columns moved last, each with the catalog's type
         assert [name for name, _ in columns] == [c for c in declared if c not in keys] + list(keys)
@@ -169,7 +171,7 @@ def test_the_ddl_registers_every_table_of_every_branch_as_the_catalog_describes_
         # the external table reads the lake's files: every data column is in them, with a matching type
         for data_file in paths.data_files(lake, branch, table.name):
             file_schema = pq.read_schema(data_file)
-            assert not set(keys) & set(file_schema.names)
+            assert not set(keys) & set(file_schema.names) and "job_id" in file_schema.names
             for name, kind in columns[: -len(keys)]:
                 assert matches_parquet(kind, file_schema.field(name).type), (data_file, name, file_schema.field(name))
     assert seen == expected_tables
@@ -287,6 +289,33 @@ def test_tables_whose_names_differ_only_in_case_are_refused(tmp_path):
     result = lakegate("trino-ddl", "--lake", lake, "--location", "s3://b/l")
     assert result.returncode == 1
     assert "tables 'odom' and 'Odom' would be the same name in Trino" in result.stderr
+
+
+def test_a_layout_v1_branch_is_refused_until_lake_compact_migrates_it(tmp_path):
+    config_file = tmp_path / "config.resim.yaml"
+    config_file.write_text("version: 1\ntopics:\n  odom:\n    schema: {x: float}\n")
+    emissions = tmp_path / "e.jsonl"
+    emissions.write_text('{"$metadata": {"topic": "odom", "timestamp": 1}, "$data": {"x": 1.0}}\n')
+    lake = tmp_path / "lake"
+    for job in ("j1", "j2"):
+        ingest_job(lake, "main", "b1", job, [emissions], config=load_config([config_file]))
+    to_v1(lake)
+    refused = lakegate("trino-ddl", "--lake", lake, "--location", "s3://b/l")
+    assert refused.returncode == 1 and not refused.stdout
+    assert refused.stderr == (
+        "lakegate: branch 'main' is in the layout of earlier lakegate versions (a job_id=<J>/ directory per job, "
+        f"which Trino would read without job_id): run 'lakegate lake compact --lake {lake} --branch main' first; "
+        "it moves job_id into the files\n"
+    )
+    compacted = lakegate("lake", "compact", "--lake", lake, "--branch", "main")
+    assert compacted.returncode == 0, compacted.stderr
+    assert compacted.stdout == (
+        "migrated branch 'main' to layout v2 (job_id in the files, each batch's files of a table merged): "
+        "4 files -> 2\nbatch 'b1' (2 job(s)) is compacted already: 2 files\n"
+    )
+    assert lakegate("trino-ddl", "--lake", lake, "--location", "s3://b/l").returncode == 0
+    (odom,) = paths.data_files(lake, "main", "odom")
+    assert pq.read_table(odom).column("job_id").to_pylist() == ["j1", "j2"]
 
 
 def test_ids_hive_would_escape_are_warned_about(tmp_path):

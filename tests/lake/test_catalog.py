@@ -182,7 +182,7 @@ def test_views_only_read_inside_the_lake_and_quote_every_name(tmp_path):
         for piece in sql.split("read_parquet('")[1:]:
             path = piece.split("', hive_partitioning")[0].replace("''", "'")
             assert path.startswith(str(paths.branch_dir(lake, "main")) + "/")
-    assert "hive_types = {'batch_id': VARCHAR, 'job_id': VARCHAR}" in views["odom"]
+    assert "hive_types = {'batch_id': VARCHAR})" in views["odom"]  # job_id is a column of the files
     assert Catalog(lake).connect("main").execute("SELECT COUNT(*) FROM odom").fetchall() == [(1,)]
 
 

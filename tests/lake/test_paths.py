@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import os
 import subprocess
 import sys
@@ -111,15 +112,10 @@ def test_ids_that_are_allowed_read_back_exactly_as_hive_partitions(value, tmp_pa
     target.parent.mkdir(parents=True)
     pq.write_table(pa.table({"v": [1]}), target)
     glob = paths.table_glob(tmp_path, "main", "t").replace("'", "''")
-    row = (
-        duckdb.connect()
-        .execute(
-            f"SELECT batch_id, job_id FROM read_parquet('{glob}', hive_partitioning = true, "
-            "hive_types = {'batch_id': VARCHAR, 'job_id': VARCHAR})"
-        )
-        .fetchone()
-    )
-    assert row == (value, value)
+    hive = "hive_partitioning = true, hive_types = {'batch_id': VARCHAR}"
+    row = duckdb.connect().execute(f"SELECT batch_id FROM read_parquet('{glob}', {hive})").fetchone()
+    assert row == (value,)
+    assert target.name.endswith(f"-{value}.parquet")  # the job id, for humans
 
 
 def test_table_names_that_would_collide_are_refused():
@@ -131,16 +127,14 @@ def test_table_names_that_would_collide_are_refused():
 
 def test_layout(tmp_path):
     fresh = paths.new_data_file(tmp_path, "feature/x", "odom", "b1", "j1")
-    assert fresh.parent == tmp_path / "feature%2Fx" / "odom" / "batch_id=b1" / "job_id=j1"
-    assert fresh.name.startswith(f"{os.getpid()}-") and fresh.suffix == ".parquet"
+    assert fresh.parent == tmp_path / "feature%2Fx" / "odom" / "batch_id=b1"
+    assert fresh.name.startswith(f"{os.getpid()}-") and fresh.name.endswith("-j1.parquet")
     assert fresh != paths.new_data_file(tmp_path, "feature/x", "odom", "b1", "j1")  # never overwrites a file
     assert (
         paths.new_data_file(tmp_path, "main", "metric_results", "b1", None).parent
         == tmp_path / "main" / "metric_results" / "batch_id=b1"
     )
-    assert paths.table_glob(tmp_path, "main", "odom") == str(
-        tmp_path / "main" / "odom" / "batch_id=*" / "job_id=*" / "*.parquet"
-    )
+    assert paths.table_glob(tmp_path, "main", "odom") == str(tmp_path / "main" / "odom" / "batch_id=*" / "*.parquet")
     assert paths.quarantine_file(tmp_path, "main", "b1", "j1") == tmp_path / "main" / "_quarantine" / "b1" / "j1.jsonl"
 
 
@@ -172,7 +166,7 @@ def test_staging_is_removed_afterwards_and_abandoned_scratch_is_cleaned(tmp_path
         assert alive.exists()  # our own process is alive: not touched
     assert not scratch.exists()
     # nothing staged is ever matched by a table glob
-    assert not list(Path(tmp_path).glob("main/*/batch_id=*/job_id=*/*.parquet"))
+    assert not list(Path(tmp_path).glob("main/*/batch_id=*/*.parquet"))
 
 
 def test_job_lock_serialises_writers_of_one_job(tmp_path):
@@ -200,3 +194,11 @@ def test_job_lock_serialises_writers_of_one_job(tmp_path):
         assert float(waiter.stdout) > 0.3  # it had to wait for the holder
     finally:
         holder.wait()
+
+
+def test_the_files_lock_of_batches_sharing_a_lock_file_is_taken_once(tmp_path):
+    stripe = hashlib.sha1(b"a").digest()[0] % 64
+    other = next(f"b{i}" for i in range(10_000) if hashlib.sha1(f"b{i}".encode()).digest()[0] % 64 == stripe)
+    with paths.batch_files_lock(tmp_path, "main", "a", other):  # flock twice in one process would wait forever
+        locks = sorted(p.name for p in (paths.branch_dir(tmp_path, "main") / paths.STAGING / "locks").iterdir())
+    assert locks == [f"files-{stripe:02d}.lock"]

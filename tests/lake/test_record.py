@@ -19,6 +19,7 @@ import pytest
 from lakegate.lake import paths
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.record import PAUSE_ENV, RECORD, Record
+from tests.lake.v1_lake import to_v1
 
 CONFIG = """\
 version: 1
@@ -103,14 +104,14 @@ def test_kill_9_between_publishing_and_commit_leaves_the_old_version_whole(tmp_p
     finally:
         killed.wait(30)
     assert killed.returncode == -signal.SIGKILL
-    leftover = [p for p in lake.glob("main/*/batch_id=b1/job_id=j1/*.parquet") if p.name.startswith(f"{killed.pid}-")]
+    leftover = [p for p in lake.glob("main/*/batch_id=b1/*.parquet") if p.name.startswith(f"{killed.pid}-")]
     assert leftover, "the killed ingest had published a file under its new name"
     assert state(lake) == before  # every table of the job: the old version, whole
     again = ingest_cli(tmp_path, lake, emissions(tmp_path, "new", odom=5, goals=0), "new")
     assert again.wait(60) == 0, again.stderr.read()
     assert state(lake) == {"odom": (5, ["new"]), "goal": (0, None), "metadata": (1, ["new"])}
     assert not any(p.exists() for p in leftover)  # the dead writer's files were removed
-    assert len(list(lake.glob("main/*/batch_id=b1/job_id=j1/*.parquet"))) == 2  # odom and metadata only
+    assert len(list(lake.glob("main/*/batch_id=b1/*.parquet"))) == 2  # odom and metadata only
 
 
 def test_the_record_keeps_rows_timestamps_and_columns(tmp_path):
@@ -124,7 +125,7 @@ def test_the_record_keeps_rows_timestamps_and_columns(tmp_path):
     finally:
         record.close()
     assert (odom.rows, odom.min_ts, odom.max_ts) == (4, 0, 3)
-    assert odom.columns == ("timestamp", "x", "experience_name", "build_version")
+    assert odom.columns == ("timestamp", "x", "experience_name", "build_version", "job_id")
     assert sorted(e.table for e in snapshot.files) == ["goal", "metadata", "odom"]
     assert {t.name: t.row_count for t in Catalog(lake).tables("main")} == {
         "odom": 4,
@@ -140,26 +141,27 @@ def test_a_lake_written_before_the_record_is_migrated_when_first_opened(tmp_path
     lake = tmp_path / "lake"
     process = ingest_cli(tmp_path, lake, emissions(tmp_path, "e", odom=3, goals=1), "legacy")
     assert process.wait(60) == 0, process.stderr.read()
-    for file in list(lake.glob("main/*/batch_id=*/job_id=*/*.parquet")):
-        file.rename(file.parent / "data.parquet")  # the layout written before the record
-    for name in (RECORD, RECORD + "-wal", RECORD + "-shm"):
-        (lake / "main" / name).unlink(missing_ok=True)
+    to_v1(lake)  # the layout written before the record: data.parquet in job_id=J/ directories
     assert state(lake) == {"odom": (3, ["legacy"]), "goal": (1, ["legacy"]), "metadata": (1, ["legacy"])}
     assert (lake / "main" / RECORD).is_file()
     again = ingest_cli(tmp_path, lake, emissions(tmp_path, "e2", odom=2, goals=0), "new")
     assert again.wait(60) == 0, again.stderr.read()
     assert state(lake) == {"odom": (2, ["new"]), "goal": (0, None), "metadata": (1, ["new"])}
-    assert not list(lake.glob("main/*/batch_id=*/job_id=*/data.parquet"))
+    assert not list(lake.glob("main/*/batch_id=*/job_id=*/*"))  # migrated to layout v2 by the ingest
+    assert Record(lake, "main").layout() == 2
 
 
 def test_files_no_record_row_holds_are_invisible_to_lakegate(tmp_path):
     lake = tmp_path / "lake"
     process = ingest_cli(tmp_path, lake, emissions(tmp_path, "e", odom=3, goals=1), "x")
     assert process.wait(60) == 0, process.stderr.read()
-    stray = paths.partition_dir(lake, "main", "odom", "b1", "j1") / "1-stray.parquet"
+    stray = paths.partition_dir(lake, "main", "odom", "b1") / "1-stray.parquet"
     pq.write_table(
-        pa.table({"timestamp": [9], "x": [9.0], "experience_name": ["stray"], "build_version": [None]}), stray
+        pa.table(
+            {"timestamp": [9], "x": [9.0], "experience_name": ["stray"], "build_version": [None], "job_id": ["j1"]}
+        ),
+        stray,
     )
     assert state(lake)["odom"] == (3, ["x"])
-    glob = str(lake / "main" / "odom" / "*" / "*" / "*.parquet")
+    glob = str(lake / "main" / "odom" / "*" / "*.parquet")
     assert duckdb.connect().execute(f"SELECT count(*) FROM '{glob}'").fetchone() == (4,)  # what a glob would see

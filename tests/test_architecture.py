@@ -197,6 +197,7 @@ _FILE_IO_ALLOWED = {
     ("lake/paths.py", "table_names"): "pending with the layout change (listing a branch)",
     ("lake/paths.py", "data_files"): "pending with the layout change (listing a table)",
     ("lake/paths.py", "link_reader"): "pending with the layout change (reader links)",
+    ("lake/paths.py", "v1_data_files"): "pending with the layout change (listing a layout v1 table)",
     ("lake/config_yaml.py", "FileReader.compose"): "config files: the user's, or a stored version's local copy",
     ("lake/emitter.py", "Emitter.__init__"): "the emissions file a job writes: a user path",
     ("lake/mcap_import.py", "message_count"): "reads the user's MCAP file",

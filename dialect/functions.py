@@ -442,7 +442,8 @@ register(
 register(
     "approx_percentile",
     "aggregate",
-    "approx_percentile(x[, w], percentage) -> same as x; approx_percentile(x[, w], array(double)) -> array",
+    "approx_percentile(x[, w], percentage) -> same as x (real for a decimal x); "
+    "approx_percentile(x[, w], array(double)) -> array",
     _approx_percentile,
     _render_approx_percentile,
     kind="aggregate",

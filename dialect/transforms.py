@@ -346,14 +346,17 @@ def unscaled(g: Writer, node: exp.Expression) -> str:
     """The unscaled integer value (HUGEINT) of an integral or decimal expression."""
     t = ttype(node)
     sql = g.sql(node)
+    if t.is_decimal and t.args[1] == 38:  # 10^38 is no decimal(38,0): read the digits
+        return f"CAST(replace(CAST({sql} AS VARCHAR), '.', '') AS HUGEINT)"
     if t.is_decimal and t.args[1]:
         return f"CAST({sql} * {ten(t.args[1])} AS HUGEINT)"
     return f"CAST({sql} AS HUGEINT)"
 
 
-def rounded_quotient(g: Writer, numerator: str, denominator: str, result: TType) -> str:
+def rounded_quotient(g: Writer, numerator: str, denominator: str, result: TType, checked: bool = False) -> str:
     """numerator / denominator (HUGEINT unscaled values) rounded HALF_UP, as a decimal of type
-    `result` whose unscaled value is the quotient."""
+    `result` whose unscaled value is the quotient; `checked`: a quotient past 38 digits fails with
+    Trino's 'Decimal overflow' (DecimalOperators.divide*)."""
     denominator = nonzero(g, denominator)
     quotient = (
         f"({numerator}) // ({denominator}) + CASE WHEN 2 * abs(({numerator}) % ({denominator})) >= "
@@ -361,6 +364,8 @@ def rounded_quotient(g: Writer, numerator: str, denominator: str, result: TType)
     )
     scale = result.args[1]
     value = f"CAST({quotient} AS DECIMAL(38,0))"
+    if checked:  # TRY_CAST: DuckDB folds constant branches it does not take too
+        value = f"CASE WHEN abs({quotient}) >= {_TEN_38} THEN {decimal_overflow(g)} ELSE TRY_{value} END"
     if scale:
         value = f"{value} * {ten(-scale)}"
     return cast(value, result)
@@ -371,10 +376,30 @@ def decimal_division(g: Writer, left: exp.Expression, right: exp.Expression, res
     values and round HALF_UP (io.trino.type.DecimalOperators)."""
     (_, s1), (_, s2) = tt.as_decimal(ttype(left)).args, tt.as_decimal(ttype(right)).args
     rescale = result.args[1] - s1 + s2
-    numerator = unscaled(g, left)
-    if rescale:
-        numerator = f"{numerator} * CAST({ten(rescale)} AS HUGEINT)"
-    return rounded_quotient(g, numerator, unscaled(g, right), result)
+    numerator, divisor = unscaled(g, left), unscaled(g, right)
+    if not rescale:
+        return rounded_quotient(g, numerator, divisor, result, checked=True)
+    # The rescaled dividend past 128 bits: Trino divides in 256 bits; lakegate answers only the
+    # quotients that surely overflow and refuses the rest (never an answer from a wrapped value).
+    # DuckDB may compute the branch a CASE does not take: that one multiplies by 0 instead.
+    wide = f"abs({numerator}) > CAST('{(2**127 - 1) // 10**rescale}' AS HUGEINT)"
+    factor = f"CAST('1{'0' * rescale}' AS HUGEINT)" if rescale <= 38 else "0"  # past 10^38 only 0 is not wide
+    rescaled = f"{numerator} * CASE WHEN {wide} THEN 0 ELSE {factor} END"
+    quotient = rounded_quotient(g, rescaled, divisor, result, checked=True)
+    estimate = f"abs(CAST({numerator} AS DOUBLE)) * 1e{rescale} / abs(CAST({divisor} AS DOUBLE))"
+    refused = string(
+        "NOT_SUPPORTED: unsupported in lakegate: decimal division whose dividend at the result scale exceeds 128 bits"
+    )
+    too_wide = f"CASE WHEN {estimate} >= 1.01e38 THEN {decimal_overflow(g)} ELSE error({refused}) END"
+    return f"CASE WHEN {wide} AND ({divisor}) <> 0 THEN {too_wide} ELSE {quotient} END"
+
+
+_TEN_38 = f"CAST('1{'0' * 38}' AS HUGEINT)"
+
+
+def decimal_overflow(g: Writer) -> str:
+    """Trino's failure of a decimal result past 38 digits (DecimalOperators)."""
+    return g.fail(string("Decimal overflow"), "NUMERIC_VALUE_OUT_OF_RANGE")
 
 
 @transform(exp.Mod)

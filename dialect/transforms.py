@@ -832,6 +832,11 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
     return cast(sql, target)
 
 
+def _cast_name(t: TType) -> str:
+    """A numeric type as Trino's cast messages name it: INTEGER, DECIMAL(5, 2)."""
+    return f"DECIMAL({t.args[0]}, {t.args[1]})" if t.is_decimal else t.base.upper()
+
+
 def checked_cast(g: Writer, sql: str, source: TType, target: TType) -> str:
     """A numeric CAST that can overflow: Trino's error (NUMERIC_VALUE_OUT_OF_RANGE for integers,
     INVALID_CAST_ARGUMENT for decimals and doubles) instead of DuckDB's."""
@@ -840,6 +845,9 @@ def checked_cast(g: Writer, sql: str, source: TType, target: TType) -> str:
     duck = tt.duckdb_type(target)
     if target.is_integral and not source.is_approx:
         error_name, message = "NUMERIC_VALUE_OUT_OF_RANGE", f"'Out of range for {target}: ' || ({sql})"
+    elif target.is_decimal and (source.is_integral or source.is_decimal):  # DecimalCasts, DecimalConversions
+        error_name = "INVALID_CAST_ARGUMENT"
+        message = f"'Cannot cast {_cast_name(source)} ''' || ({sql}) || ''' to {_cast_name(target)}'"
     else:
         error_name, message = "INVALID_CAST_ARGUMENT", f"'Cannot cast {source} ''' || ({sql}) || ''' to {target}'"
     return (
@@ -926,7 +934,13 @@ def parse_varchar(g: Writer, sql: str, target: TType) -> str:
             if target.is_approx
             else f"trim({sql}, chr(32) || chr(9) || chr(10) || chr(13))"
         )
-        return f"CASE WHEN regexp_matches({sql}, {string(pattern)}) THEN {cast(value, target)} ELSE {bad} END"
+        converted = cast(value, target)
+        if target.is_decimal:  # DecimalCasts.varcharToShortDecimal / varcharToLongDecimal
+            head = f"'Cannot cast VARCHAR ''' || {sql} || ''' to {_cast_name(target)}. '"
+            bad = g.fail(f"{head} || 'Value is not a number.'", "INVALID_CAST_ARGUMENT")
+            too_large = g.fail(f"{head} || 'Value too large.'", "INVALID_CAST_ARGUMENT")
+            converted = f"CASE WHEN TRY_{converted} IS NULL THEN {too_large} ELSE TRY_{converted} END"
+        return f"CASE WHEN regexp_matches({sql}, {string(pattern)}) THEN {converted} ELSE {bad} END"
     if target.base == "boolean":
         return (
             f"CASE WHEN lower({sql}) IN ('t', '1', 'true') THEN true "

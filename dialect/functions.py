@@ -167,7 +167,7 @@ def _render_avg(g, node, args) -> str:
     scale = t.args[1]
     total = g.agg(node, "sum", [g.sql(args[0])])
     count = g.agg(node, "count", [g.sql(args[0])])
-    numerator = f"CAST({total} * {tf.ten(scale)} AS HUGEINT)" if scale else f"CAST({total} AS HUGEINT)"
+    numerator = tf.unscaled_sql(total, tt.decimal(38, scale))  # DuckDB's sum of decimal(p, s) is decimal(38, s)
     return f"CASE WHEN {count} = 0 THEN NULL ELSE {tf.rounded_quotient(g, numerator, count, t)} END"
 
 

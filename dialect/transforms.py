@@ -13,7 +13,7 @@ from __future__ import annotations
 from sqlglot import exp
 from sqlglot.generators.duckdb import DuckDBGenerator
 
-from lakegate.dialect import chars, registry, times, zoned_nanos, zones
+from lakegate.dialect import chars, registry, times, wide_decimals, zoned_nanos, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import FloorMicros, ttype
 from lakegate.dialect.errors import DialectError
@@ -344,13 +344,18 @@ def nonzero(g: Writer, sql: str) -> str:
 
 def unscaled(g: Writer, node: exp.Expression) -> str:
     """The unscaled integer value (HUGEINT) of an integral or decimal expression."""
-    t = ttype(node)
-    sql = g.sql(node)
-    if t.is_decimal and t.args[1] == 38:  # 10^38 is no decimal(38,0): read the digits
+    return unscaled_sql(g.sql(node), ttype(node))
+
+
+def unscaled_sql(sql: str, t: TType) -> str:
+    """The unscaled integer value (HUGEINT) of `sql`, of integral or decimal type `t`."""
+    if not (t.is_decimal and t.args[1]):
+        return f"CAST({sql} AS HUGEINT)"
+    precision, scale = t.args
+    if precision + scale > 38:  # DuckDB's x * 10^s could overflow 38 digits: read the digits
         return f"CAST(replace(CAST({sql} AS VARCHAR), '.', '') AS HUGEINT)"
-    if t.is_decimal and t.args[1]:
-        return f"CAST({sql} * {ten(t.args[1])} AS HUGEINT)"
-    return f"CAST({sql} AS HUGEINT)"
+    # in 128 bits: DuckDB multiplies two short decimals in 64, whatever the result's precision
+    return f"CAST(CAST({sql} AS DECIMAL(38,{scale})) * {ten(scale)} AS HUGEINT)"
 
 
 def rounded_quotient(g: Writer, numerator: str, denominator: str, result: TType, checked: bool = False) -> str:
@@ -379,18 +384,17 @@ def decimal_division(g: Writer, left: exp.Expression, right: exp.Expression, res
     numerator, divisor = unscaled(g, left), unscaled(g, right)
     if not rescale:
         return rounded_quotient(g, numerator, divisor, result, checked=True)
-    # The rescaled dividend past 128 bits: Trino divides in 256 bits; lakegate answers only the
-    # quotients that surely overflow and refuses the rest (never an answer from a wrapped value).
+    # The rescaled dividend past 128 bits: divided exactly by a Python function (wide_decimals).
     # DuckDB may compute the branch a CASE does not take: that one multiplies by 0 instead.
     wide = f"abs({numerator}) > CAST('{(2**127 - 1) // 10**rescale}' AS HUGEINT)"
     factor = f"CAST('1{'0' * rescale}' AS HUGEINT)" if rescale <= 38 else "0"  # past 10^38 only 0 is not wide
     rescaled = f"{numerator} * CASE WHEN {wide} THEN 0 ELSE {factor} END"
     quotient = rounded_quotient(g, rescaled, divisor, result, checked=True)
-    estimate = f"abs(CAST({numerator} AS DOUBLE)) * 1e{rescale} / abs(CAST({divisor} AS DOUBLE))"
-    refused = string(
-        "NOT_SUPPORTED: unsupported in lakegate: decimal division whose dividend at the result scale exceeds 128 bits"
-    )
-    too_wide = f"CASE WHEN {estimate} >= 1.01e38 THEN {decimal_overflow(g)} ELSE error({refused}) END"
+    exact = f"{wide_decimals.UDF_NAME}({numerator}, {divisor}, {rescale}, {'false' if g.in_try else 'true'})"
+    too_wide = f"CAST({exact} AS DECIMAL(38,0))"
+    if result.args[1]:
+        too_wide = f"{too_wide} * {ten(-result.args[1])}"
+    too_wide = cast(too_wide, result)
     return f"CASE WHEN {wide} AND ({divisor}) <> 0 THEN {too_wide} ELSE {quotient} END"
 
 

@@ -105,6 +105,11 @@ _UDF_FAILURE = re.compile(r"Python exception occurred while executing the UDF: \
 _PATH = re.compile(r"(?<![\w.:/])/(?:[^\s/'\"]+/)+([^\s/'\"]+)")
 
 
+#: DuckDB's decimal +, - and * past 38 digits (the result types match Trino's, widened to 38 at most):
+#: Trino says "Decimal overflow" (io.trino.type.DecimalOperators).
+_DECIMAL_OVERFLOW = re.compile(r"Overflow in (?:addition|subtract|multiplication) of DECIMAL\(")
+
+
 def runtime_error(message: str) -> DialectError:
     """The DialectError for a DuckDB error raised while running translated SQL: Trino's error name
     and message (DuckDB's 'Invalid Input Error: ' prefix removed, absolute paths cut to their file
@@ -114,6 +119,8 @@ def runtime_error(message: str) -> DialectError:
     named = re.match(r"(?:[A-Za-z ]+ Error: )?([A-Z][A-Z_]+): (.*)", first)
     if named and named.group(1) in ERROR_CODES:
         return DialectError(named.group(2), error_name=named.group(1))
+    if _DECIMAL_OVERFLOW.search(first):
+        return DialectError("Decimal overflow", error_name="NUMERIC_VALUE_OUT_OF_RANGE")
     name = next((n for marker, n in _RUNTIME if marker in first), "GENERIC_USER_ERROR")
     text = (
         first.split(": ", 1)[1]

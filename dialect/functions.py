@@ -167,7 +167,7 @@ def _render_avg(g, node, args) -> str:
     scale = t.args[1]
     total = g.agg(node, "sum", [g.sql(args[0])])
     count = g.agg(node, "count", [g.sql(args[0])])
-    numerator = f"CAST({total} * {tf.ten(scale)} AS HUGEINT)" if scale else f"CAST({total} AS HUGEINT)"
+    numerator = tf.unscaled_sql(total, tt.decimal(38, scale))  # DuckDB's sum of decimal(p, s) is decimal(38, s)
     return f"CASE WHEN {count} = 0 THEN NULL ELSE {tf.rounded_quotient(g, numerator, count, t)} END"
 
 
@@ -267,15 +267,23 @@ def _approx_percentile(call: Call) -> TType:
     if len(call.args) != 2:
         call.fail("approx_percentile with weights or accuracy is not supported in lakegate", "NOT_SUPPORTED")
     x, p = call.types
-    if x is None or not (x.is_integral or x.is_approx or x.is_unknown):
+    if x is None or not (x.is_integral or x.is_approx or x.is_decimal or x.is_unknown):
         call.mismatch()
     if not _constant_percentage(call):
         call.fail("unsupported in lakegate: approx_percentile with a percentage that is not a literal", "NOT_SUPPORTED")
     if p is not None and p.base == "array":
-        return tt.array(tt.BIGINT if x.is_integral else x)
+        return tt.array(percentile_type(x))
     if p is None or not (p.is_numeric or p.is_unknown):
         call.mismatch()
-    return tt.BIGINT if x.is_integral else x
+    return percentile_type(x)
+
+
+def percentile_type(x: TType) -> TType:
+    """approx_percentile's value type: Trino has bigint, double and real forms; integers take the
+    bigint one, a decimal coerces to real, the most specific form it fits (trinodb/trino#23880)."""
+    if x.is_integral:
+        return tt.BIGINT
+    return tt.REAL if x.is_decimal else x
 
 
 def _typed_number_literal(node: exp.Expression) -> str | None:
@@ -434,7 +442,8 @@ register(
 register(
     "approx_percentile",
     "aggregate",
-    "approx_percentile(x[, w], percentage) -> same as x; approx_percentile(x[, w], array(double)) -> array",
+    "approx_percentile(x[, w], percentage) -> same as x (real for a decimal x); "
+    "approx_percentile(x[, w], array(double)) -> array",
     _approx_percentile,
     _render_approx_percentile,
     kind="aggregate",
@@ -961,11 +970,35 @@ def _ceil_floor(call: Call) -> TType:
 
 
 def _truncate(call: Call) -> TType:
+    if len(call.args) == 2:
+        return _truncate_n(call)
     (t,) = need(call, "number")
     if t.is_decimal:
         p, s = t.args
         return tt.decimal(max(1, p - s), 0)
     return t
+
+
+def _truncate_n(call: Call) -> TType:
+    """truncate(x, n): Trino has it for decimal(p, s) and INTEGER n only (MathFunctions.TruncateN), an
+    integral x taken as a decimal; a double or real x is FUNCTION_NOT_FOUND as in Trino."""
+    x, n = need(call, "number", "integral")
+    if not (x.is_decimal or x.is_integral) or n.base == "bigint":
+        call.mismatch()
+    if not (n.is_unknown or call.literal(1) is not None):  # DuckDB's trunc needs a constant
+        call.fail("unsupported in lakegate: truncate(x, n) with a non-literal n", "NOT_SUPPORTED")
+    return tt.as_decimal(x)
+
+
+def _render_truncate(g, node, args) -> str:
+    """truncate(decimal, n) drops digits toward zero and keeps the type (DuckDB's trunc narrows the
+    scale: cast back); n beyond the scale keeps x, n at or below -(p - s) gives 0, as TruncateN does."""
+    t = ttype(node)
+    if len(args) == 1:
+        return tf.cast(f"trunc({g.sql(args[0])})", t)
+    if ttype(args[1]).is_unknown:
+        return tf.cast("NULL", t)
+    return tf.cast(f"trunc({tf.cast(g.sql(args[0]), t)}, {g.sql(args[1])})", t)
 
 
 def _sign(call: Call) -> TType:
@@ -1057,9 +1090,9 @@ register(
 register(
     "truncate",
     "math",
-    "truncate(x) -> same (decimal(p-s,0) for decimals)",
+    "truncate(x) -> same (decimal(p-s,0) for decimals); truncate(decimal(p,s), integer n) -> decimal(p,s)",
     _truncate,
-    call_as("trunc", cast_result=True),
+    _render_truncate,
 )
 register("sign", "math", "sign(x) -> same", _sign, _render_sign, notes="sign(NaN) is NaN (Java's Math.signum).")
 register("mod", "math", "mod(n, m) -> same as n % m", _mod, _render_mod)

@@ -17,7 +17,7 @@ from lakegate.dialect import functions
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import Call, ttype
-from lakegate.dialect.functions import array_arg, fixed, literal_int, need, null_if_any_null, sqls
+from lakegate.dialect.functions import array_arg, fixed, literal_int, need, null_if_any_null, percentile_type, sqls
 from lakegate.dialect.registry import overload, register
 from lakegate.dialect.trino_types import TType
 
@@ -868,12 +868,14 @@ def _percentages(node: exp.Expression) -> list[float] | None:
 def weighted_percentile(call: Call) -> TType:
     """approx_percentile(x, w, percentage[s])."""
     x, w, p = call.types
-    if x is None or not (x.is_integral or x.is_approx or x.is_unknown) or w is None or not w.is_integral:
+    if x is None or not (x.is_integral or x.is_approx or x.is_decimal or x.is_unknown):
+        call.mismatch()
+    if w is None or not w.is_integral:
         call.mismatch()
     call.node.meta["percentages"] = _percentages(call.args[2])
     if call.node.meta["percentages"] is None:
         call.fail("unsupported in lakegate: approx_percentile with a percentage that is not a literal", "NOT_SUPPORTED")
-    t = tt.BIGINT if x.is_integral or x.is_unknown else x
+    t = tt.BIGINT if x.is_unknown else percentile_type(x)
     return tt.array(t) if p is not None and p.base == "array" else t
 
 

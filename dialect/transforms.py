@@ -13,7 +13,7 @@ from __future__ import annotations
 from sqlglot import exp
 from sqlglot.generators.duckdb import DuckDBGenerator
 
-from lakegate.dialect import chars, registry, times, zoned_nanos, zones
+from lakegate.dialect import chars, registry, times, wide_decimals, zoned_nanos, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import FloorMicros, ttype
 from lakegate.dialect.errors import DialectError
@@ -344,16 +344,24 @@ def nonzero(g: Writer, sql: str) -> str:
 
 def unscaled(g: Writer, node: exp.Expression) -> str:
     """The unscaled integer value (HUGEINT) of an integral or decimal expression."""
-    t = ttype(node)
-    sql = g.sql(node)
-    if t.is_decimal and t.args[1]:
-        return f"CAST({sql} * {ten(t.args[1])} AS HUGEINT)"
-    return f"CAST({sql} AS HUGEINT)"
+    return unscaled_sql(g.sql(node), ttype(node))
 
 
-def rounded_quotient(g: Writer, numerator: str, denominator: str, result: TType) -> str:
+def unscaled_sql(sql: str, t: TType) -> str:
+    """The unscaled integer value (HUGEINT) of `sql`, of integral or decimal type `t`."""
+    if not (t.is_decimal and t.args[1]):
+        return f"CAST({sql} AS HUGEINT)"
+    precision, scale = t.args
+    if precision + scale > 38:  # DuckDB's x * 10^s could overflow 38 digits: read the digits
+        return f"CAST(replace(CAST({sql} AS VARCHAR), '.', '') AS HUGEINT)"
+    # in 128 bits: DuckDB multiplies two short decimals in 64, whatever the result's precision
+    return f"CAST(CAST({sql} AS DECIMAL(38,{scale})) * {ten(scale)} AS HUGEINT)"
+
+
+def rounded_quotient(g: Writer, numerator: str, denominator: str, result: TType, checked: bool = False) -> str:
     """numerator / denominator (HUGEINT unscaled values) rounded HALF_UP, as a decimal of type
-    `result` whose unscaled value is the quotient."""
+    `result` whose unscaled value is the quotient; `checked`: a quotient past 38 digits fails with
+    Trino's 'Decimal overflow' (DecimalOperators.divide*)."""
     denominator = nonzero(g, denominator)
     quotient = (
         f"({numerator}) // ({denominator}) + CASE WHEN 2 * abs(({numerator}) % ({denominator})) >= "
@@ -361,6 +369,8 @@ def rounded_quotient(g: Writer, numerator: str, denominator: str, result: TType)
     )
     scale = result.args[1]
     value = f"CAST({quotient} AS DECIMAL(38,0))"
+    if checked:  # TRY_CAST: DuckDB folds constant branches it does not take too
+        value = f"CASE WHEN abs({quotient}) >= {_TEN_38} THEN {decimal_overflow(g)} ELSE TRY_{value} END"
     if scale:
         value = f"{value} * {ten(-scale)}"
     return cast(value, result)
@@ -371,10 +381,29 @@ def decimal_division(g: Writer, left: exp.Expression, right: exp.Expression, res
     values and round HALF_UP (io.trino.type.DecimalOperators)."""
     (_, s1), (_, s2) = tt.as_decimal(ttype(left)).args, tt.as_decimal(ttype(right)).args
     rescale = result.args[1] - s1 + s2
-    numerator = unscaled(g, left)
-    if rescale:
-        numerator = f"{numerator} * CAST({ten(rescale)} AS HUGEINT)"
-    return rounded_quotient(g, numerator, unscaled(g, right), result)
+    numerator, divisor = unscaled(g, left), unscaled(g, right)
+    if not rescale:
+        return rounded_quotient(g, numerator, divisor, result, checked=True)
+    # The rescaled dividend past 128 bits: divided exactly by a Python function (wide_decimals).
+    # DuckDB may compute the branch a CASE does not take: that one multiplies by 0 instead.
+    wide = f"abs({numerator}) > CAST('{(2**127 - 1) // 10**rescale}' AS HUGEINT)"
+    factor = f"CAST('1{'0' * rescale}' AS HUGEINT)" if rescale <= 38 else "0"  # past 10^38 only 0 is not wide
+    rescaled = f"{numerator} * CASE WHEN {wide} THEN 0 ELSE {factor} END"
+    quotient = rounded_quotient(g, rescaled, divisor, result, checked=True)
+    exact = f"{wide_decimals.UDF_NAME}({numerator}, {divisor}, {rescale}, {'false' if g.in_try else 'true'})"
+    too_wide = f"CAST({exact} AS DECIMAL(38,0))"
+    if result.args[1]:
+        too_wide = f"{too_wide} * {ten(-result.args[1])}"
+    too_wide = cast(too_wide, result)
+    return f"CASE WHEN {wide} AND ({divisor}) <> 0 THEN {too_wide} ELSE {quotient} END"
+
+
+_TEN_38 = f"CAST('1{'0' * 38}' AS HUGEINT)"
+
+
+def decimal_overflow(g: Writer) -> str:
+    """Trino's failure of a decimal result past 38 digits (DecimalOperators)."""
+    return g.fail(string("Decimal overflow"), "NUMERIC_VALUE_OUT_OF_RANGE")
 
 
 @transform(exp.Mod)
@@ -807,6 +836,11 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
     return cast(sql, target)
 
 
+def _cast_name(t: TType) -> str:
+    """A numeric type as Trino's cast messages name it: INTEGER, DECIMAL(5, 2)."""
+    return f"DECIMAL({t.args[0]}, {t.args[1]})" if t.is_decimal else t.base.upper()
+
+
 def checked_cast(g: Writer, sql: str, source: TType, target: TType) -> str:
     """A numeric CAST that can overflow: Trino's error (NUMERIC_VALUE_OUT_OF_RANGE for integers,
     INVALID_CAST_ARGUMENT for decimals and doubles) instead of DuckDB's."""
@@ -815,6 +849,9 @@ def checked_cast(g: Writer, sql: str, source: TType, target: TType) -> str:
     duck = tt.duckdb_type(target)
     if target.is_integral and not source.is_approx:
         error_name, message = "NUMERIC_VALUE_OUT_OF_RANGE", f"'Out of range for {target}: ' || ({sql})"
+    elif target.is_decimal and (source.is_integral or source.is_decimal):  # DecimalCasts, DecimalConversions
+        error_name = "INVALID_CAST_ARGUMENT"
+        message = f"'Cannot cast {_cast_name(source)} ''' || ({sql}) || ''' to {_cast_name(target)}'"
     else:
         error_name, message = "INVALID_CAST_ARGUMENT", f"'Cannot cast {source} ''' || ({sql}) || ''' to {target}'"
     return (
@@ -901,7 +938,13 @@ def parse_varchar(g: Writer, sql: str, target: TType) -> str:
             if target.is_approx
             else f"trim({sql}, chr(32) || chr(9) || chr(10) || chr(13))"
         )
-        return f"CASE WHEN regexp_matches({sql}, {string(pattern)}) THEN {cast(value, target)} ELSE {bad} END"
+        converted = cast(value, target)
+        if target.is_decimal:  # DecimalCasts.varcharToShortDecimal / varcharToLongDecimal
+            head = f"'Cannot cast VARCHAR ''' || {sql} || ''' to {_cast_name(target)}. '"
+            bad = g.fail(f"{head} || 'Value is not a number.'", "INVALID_CAST_ARGUMENT")
+            too_large = g.fail(f"{head} || 'Value too large.'", "INVALID_CAST_ARGUMENT")
+            converted = f"CASE WHEN TRY_{converted} IS NULL THEN {too_large} ELSE TRY_{converted} END"
+        return f"CASE WHEN regexp_matches({sql}, {string(pattern)}) THEN {converted} ELSE {bad} END"
     if target.base == "boolean":
         return (
             f"CASE WHEN lower({sql}) IN ('t', '1', 'true') THEN true "

@@ -10,7 +10,10 @@ import re
 
 #: (pattern over the query text, the construct as Trino's documentation names it)
 _CONSTRUCTS = (
-    (re.compile(r"\boverlay\s*\(.*\bPLACING\b", re.IGNORECASE | re.DOTALL), "overlay(string PLACING ...)"),
+    (  # trinodb/trino pull request 30026 (merged 2026-06-23) added it, long after Trino 476
+        re.compile(r"\boverlay\s*\(.*\bPLACING\b", re.IGNORECASE | re.DOTALL),
+        "overlay(string PLACING ...), which Trino added after 476 (the release lakegate answers as)",
+    ),
     (re.compile(r"\b\d+(?:_\d+)+\b"), "numeric literal with _ digit separators (10_000)"),
     (
         re.compile(r"\bWHEN\s+(?:[<>=!]|(?:NOT\s+)?(?:BETWEEN|IN|LIKE)\b|IS\b)", re.IGNORECASE),

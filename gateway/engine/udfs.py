@@ -17,8 +17,9 @@ from collections.abc import Callable
 import duckdb
 import mmh3
 import xxhash
-from duckdb.sqltypes import BLOB
+from duckdb.sqltypes import BLOB, BOOLEAN, HUGEINT, INTEGER
 
+from lakegate.dialect import wide_decimals
 from lakegate.dialect.functions_hashes import UDF_PREFIX, UDFS
 from lakegate.gateway.engine import spooky_hash
 
@@ -48,8 +49,16 @@ def trino_named(name: str, function: Callable[..., bytes]) -> Callable[..., byte
 
 
 def install(connection: duckdb.DuckDBPyConnection) -> None:
-    """Register every function of `UDFS` on `connection` (NULL arguments give NULL without a call)."""
+    """Register every function of `UDFS` and the wide decimal division on `connection` (NULL
+    arguments give NULL without a call)."""
     for name, (count, _) in UDFS.items():
         connection.create_function(
             UDF_PREFIX + name, trino_named(name, _FUNCTIONS[name]), [BLOB] * count, BLOB, side_effects=False
         )
+    connection.create_function(
+        wide_decimals.UDF_NAME,
+        wide_decimals.divide,
+        [HUGEINT, HUGEINT, INTEGER, BOOLEAN],
+        HUGEINT,
+        side_effects=False,
+    )

@@ -130,6 +130,9 @@ def test_runtime_errors_map_to_trino_names():
         runtime_error("Conversion Error: Could not convert string 'x' to INT32").error_name == "INVALID_CAST_ARGUMENT"
     )
     assert runtime_error("Out of Range Error: Overflow in addition of INT32").error_name == "NUMERIC_VALUE_OUT_OF_RANGE"
+    decimal = runtime_error("Out of Range Error: Overflow in subtract of DECIMAL(38) (-99 - 1);")
+    assert (decimal.error_name, decimal.message) == ("NUMERIC_VALUE_OUT_OF_RANGE", "Decimal overflow")
+    assert "Overflow in addition of INT32" in runtime_error("Overflow in addition of INT32 (1 + 2)!").message
 
 
 # --- the table -------------------------------------------------------------------------------

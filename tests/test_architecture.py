@@ -187,17 +187,11 @@ _PENDING_MODULES = {
     "lake/metadata.py",
     "lake/ingest/",
     "gateway/engine/backend.py",
-    "gateway/engine/trino_ddl.py",
     "gateway/metrics/results.py",
 }
 #: (module, function) -> why its file operations are not on the lake's files, or are not routed yet.
 _FILE_IO_ALLOWED = {
     ("lake/storage.py", "*"): "the filesystem layer itself",
-    ("lake/paths.py", "abandoned_files"): "pending with the layout change (listing a partition)",
-    ("lake/paths.py", "table_names"): "pending with the layout change (listing a branch)",
-    ("lake/paths.py", "data_files"): "pending with the layout change (listing a table)",
-    ("lake/paths.py", "link_reader"): "pending with the layout change (reader links)",
-    ("lake/paths.py", "v1_data_files"): "pending with the layout change (listing a layout v1 table)",
     ("lake/config_yaml.py", "FileReader.compose"): "config files: the user's, or a stored version's local copy",
     ("lake/emitter.py", "Emitter.__init__"): "the emissions file a job writes: a user path",
     ("lake/mcap_import.py", "message_count"): "reads the user's MCAP file",

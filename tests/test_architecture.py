@@ -183,8 +183,6 @@ _STORAGE_NAMES = {"storage", "LOCAL"}
 #: their file operations through lake/storage.py after merging it.
 _PENDING_MODULES = {
     "lake/record.py",
-    "lake/catalog.py",
-    "lake/metadata.py",
     "lake/ingest/",
     "gateway/engine/backend.py",
     "gateway/metrics/results.py",

@@ -182,7 +182,6 @@ _STORAGE_NAMES = {"storage", "LOCAL"}
 #: Modules (and a folder) another engineer is rewriting for the lake's new layout: the lead routes
 #: their file operations through lake/storage.py after merging it.
 _PENDING_MODULES = {
-    "lake/record.py",
     "lake/ingest/",
     "gateway/engine/backend.py",
     "gateway/metrics/results.py",

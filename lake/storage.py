@@ -17,6 +17,7 @@ import contextlib
 import errno
 import fnmatch
 import functools
+import io
 import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -143,6 +144,20 @@ class LakeStorage:
     def write_parquet(self, table: pa.Table, path: StoragePath, **options: Any) -> None:
         self.make_dirs(_parent(path))
         pq.write_table(table, _text(path), filesystem=self.filesystem, **options)
+
+    @_plain_errors
+    def parquet_writer(self, path: StoragePath, schema: pa.Schema, **options: Any) -> pq.ParquetWriter:
+        """A Parquet file open for writing in parts (`write_table`, then `close`); its directory is
+        made if missing. Not atomic, as `write_bytes`."""
+        self.make_dirs(_parent(path))
+        return pq.ParquetWriter(_text(path), schema, filesystem=self.filesystem, **options)
+
+    @_plain_errors
+    def text_writer(self, path: StoragePath) -> io.TextIOWrapper:
+        """A UTF-8 text file open for writing in parts (its directory is made if missing); close
+        it, or use it as a context manager. Not atomic, as `write_bytes`."""
+        self.make_dirs(_parent(path))
+        return io.TextIOWrapper(self.filesystem.open_output_stream(_text(path)), encoding="utf-8")
 
     # -- what is there ------------------------------------------------------------------------
 

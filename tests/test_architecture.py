@@ -183,7 +183,6 @@ _STORAGE_NAMES = {"storage", "LOCAL"}
 #: their file operations through lake/storage.py after merging it.
 _PENDING_MODULES = {
     "gateway/engine/backend.py",
-    "gateway/metrics/results.py",
 }
 #: (module, function) -> why its file operations are not on the lake's files, or are not routed yet.
 _FILE_IO_ALLOWED = {

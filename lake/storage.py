@@ -1,6 +1,6 @@
 """The lake's one filesystem layer: the lake's files are read, written, listed, moved and deleted
 through a `LakeStorage`, over `pyarrow.fs` (local disk, or any file system pyarrow knows by URI:
-`s3://`, `gs://`, `hdfs://`, `mock://`). What does not go through it yet, and why, is in
+`s3://`, `gs://`, `hdfs://`, `mock://`). What does not go through it, and why, is in
 docs/lake-format.md, "Filesystem layer"; tests/test_architecture.py keeps the list.
 
 A storage is made from the lake's location, a local path or a URI. Its methods take paths of

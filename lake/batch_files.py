@@ -19,9 +19,9 @@ from pathlib import Path
 
 import pyarrow as pa
 import pyarrow.compute as pc
-import pyarrow.parquet as pq
 
 from lakegate.lake import paths
+from lakegate.lake.storage import LOCAL
 
 JOB_ID = "job_id"
 #: Rows a row group holds before the next job starts a new one (jobs smaller than this share one).
@@ -34,8 +34,8 @@ def job_rows(source: Path, job_id: str, *, v1: bool, position: int) -> pa.Table:
     """The rows of one job in `source`: all of a v1 file (`job_id` added at `position`), else those
     whose `job_id` is `job_id` (row groups of other jobs are skipped by their statistics)."""
     if not v1:
-        return pq.read_table(source, filters=pc.field(JOB_ID) == job_id, partitioning=None)
-    table = pq.read_table(source, partitioning=None)
+        return LOCAL.read_parquet(source, filters=pc.field(JOB_ID) == job_id, partitioning=None)
+    table = LOCAL.read_parquet(source, partitioning=None)
     return table.add_column(position, JOB_ID, pa.repeat(pa.scalar(job_id, pa.string()), table.num_rows))
 
 
@@ -51,7 +51,7 @@ def write_jobs(target: Path, parts: Sequence[tuple[str, pa.Table]]) -> None:
     ordered = sorted(parts, key=lambda part: part[0])
     schema = ordered[0][1].schema
     strings = [f.name for f in schema if pa.types.is_string(f.type)]
-    with pq.ParquetWriter(target, schema, compression="zstd", use_dictionary=strings) as writer:
+    with LOCAL.parquet_writer(target, schema, compression="zstd", use_dictionary=strings) as writer:
         group: list[pa.Table] = []
         for _, rows in ordered:
             group.append(rows.cast(schema))

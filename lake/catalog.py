@@ -25,7 +25,6 @@ from typing import NamedTuple
 
 import duckdb
 import pyarrow as pa
-import pyarrow.parquet as pq
 
 from lakegate.lake import paths
 from lakegate.lake.config import Config, Topic
@@ -39,6 +38,7 @@ from lakegate.lake.schema import (
     duckdb_type,
     topic_columns,
 )
+from lakegate.lake.storage import LOCAL
 
 
 @dataclass
@@ -118,11 +118,11 @@ class Catalog:
 
     def branches(self) -> list[str]:
         """Every branch with a directory in the lake, sorted."""
-        if not self.lake.is_dir():
+        if not LOCAL.is_dir(self.lake):
             return []
         names = []
-        for entry in self.lake.iterdir():
-            if entry.is_dir():
+        for entry in LOCAL.list(self.lake):
+            if entry.is_dir:
                 try:
                     names.append(paths.decode_branch(entry.name))
                 except paths.LakePathError:
@@ -304,7 +304,7 @@ class Catalog:
             if entry.path not in problems:
                 problems[entry.path] = None
                 try:
-                    pq.read_metadata(root / entry.path)
+                    LOCAL.parquet_file(root / entry.path)
                 except FileNotFoundError:
                     problems[entry.path] = "the file is missing"
                 except (OSError, pa.ArrowException):

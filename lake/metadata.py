@@ -18,7 +18,6 @@ from pathlib import Path
 from typing import Any
 
 import pyarrow as pa
-import pyarrow.parquet as pq
 from ruamel.yaml import YAML
 from ruamel.yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
@@ -27,6 +26,7 @@ from lakegate.lake.batch_files import job_id_position, job_rows, write_jobs
 from lakegate.lake.config_yaml import FileReader, RawProblem, describe, did_you_mean
 from lakegate.lake.record import Change, current_file
 from lakegate.lake.schema import METADATA_COLUMNS, file_schema
+from lakegate.lake.storage import LOCAL
 
 #: Column names in table order; batch_id lives only in the partition directories.
 COLUMN_NAMES = tuple(name for name, _ in METADATA_COLUMNS)
@@ -272,7 +272,7 @@ def _check_ids(row: dict[str, Any], batch_id: str, job_id: str) -> None:
 
 
 def write_metadata_file(table: pa.Table, path: Path) -> None:
-    pq.write_table(table, path, compression="zstd")
+    LOCAL.write_parquet(table, path, compression="zstd")
 
 
 def read_metadata_row(lake: Path, branch: str, batch_id: str, job_id: str) -> dict[str, Any] | None:

@@ -18,7 +18,7 @@ migrated by the first writer: `lake.compaction`) had a `job_id=<J>` directory pe
 Batch ids, job ids and table names are used as they are, so they are checked
 (`check_segment`): readers glob `<table>/batch_id=*/*.parquet` and parse Hive
 partitions, which rules out `/`, glob characters, `=`, `%` (Hive values are URL-decoded)
-and `\\`. Writers prepare files under `_staging/`, `publish` each with `os.replace` under a
+and `\\`. Writers prepare files under `_staging/`, `publish` each by a rename (`LOCAL.move`) under a
 fresh name (`new_data_file`, never overwriting a file a reader may use), and make them current
 in the branch's record (`lake.record`); a killed writer leaves only files no record row holds.
 """
@@ -193,9 +193,8 @@ def is_v1_path(relative: str) -> bool:
 
 def abandoned_files(directory: Path) -> list[Path]:
     """Parquet files in a partition directory that no living writer is about to publish."""
-    if not directory.is_dir():
-        return []
-    return [file for file in directory.glob("*.parquet") if not _writer_alive(file.name.split("-", 1)[0])]
+    files = LOCAL.glob(directory, "*.parquet")
+    return [Path(file.path) for file in files if not file.is_dir and not _writer_alive(file.name.split("-", 1)[0])]
 
 
 def reader_path(branch_root: Path, relative: str) -> Path:
@@ -216,10 +215,7 @@ def reader_file(branch_root: str, relative: str) -> str:
 
 def table_names(lake: Path, branch: str) -> list[str]:
     """The table directories of a branch (not `_`/`.` ones), sorted."""
-    root = branch_dir(lake, branch)
-    if not root.is_dir():
-        return []
-    return sorted(entry.name for entry in root.iterdir() if entry.is_dir() and entry.name[0] not in "_.")
+    return [entry.name for entry in LOCAL.list(branch_dir(lake, branch)) if entry.is_dir and entry.name[0] not in "_."]
 
 
 def partition_keys(table: str) -> tuple[str, ...]:
@@ -231,9 +227,9 @@ def _file_pattern(table: str) -> str:
     return "/".join([*(f"{key}=*" for key in partition_keys(table)), "*.parquet"])
 
 
-def v1_data_files(lake: Path, branch: str, table: str) -> Iterator[Path]:
-    """The data files of `table` in layout v1 `batch_id=<B>/job_id=<J>/` directories, lazily."""
-    return table_dir(lake, branch, table).glob("batch_id=*/job_id=*/*.parquet")
+def v1_data_files(lake: Path, branch: str, table: str) -> list[Path]:
+    """The data files of `table` in layout v1 `batch_id=<B>/job_id=<J>/` directories."""
+    return _files(table_dir(lake, branch, table), "batch_id=*/job_id=*/*.parquet")
 
 
 def table_glob(lake: Path, branch: str, table: str) -> str:
@@ -241,9 +237,13 @@ def table_glob(lake: Path, branch: str, table: str) -> str:
     return str(table_dir(lake, branch, table) / _file_pattern(table))
 
 
-def data_files(lake: Path, branch: str, table: str) -> Iterator[Path]:
-    """The data files of `table` on `branch` (those `table_glob` matches), lazily."""
-    return table_dir(lake, branch, table).glob(_file_pattern(table))
+def data_files(lake: Path, branch: str, table: str) -> list[Path]:
+    """The data files of `table` on `branch` (those `table_glob` matches), sorted."""
+    return _files(table_dir(lake, branch, table), _file_pattern(table))
+
+
+def _files(directory: Path, pattern: str) -> list[Path]:
+    return [Path(entry.path) for entry in LOCAL.glob(directory, pattern) if not entry.is_dir]
 
 
 def configs_dir(lake: Path, branch: str) -> Path:
@@ -286,9 +286,7 @@ def link_reader(target: Path) -> None:
     """Add the reader link of a published file (`reader_path`; the branch is its table's parent)."""
     root = target.parents[3] if target.parent.name.startswith("job_id=") else target.parents[2]  # v1, v2
     link = reader_path(root, target.relative_to(root).as_posix())
-    link.parent.mkdir(parents=True, exist_ok=True)
-    with contextlib.suppress(FileExistsError):
-        os.link(target, link)
+    LOCAL.hard_link(target, link)
 
 
 def remove_published(target: Path) -> None:

@@ -37,10 +37,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pyarrow as pa
-import pyarrow.parquet as pq
 from tqdm import tqdm
 
 from lakegate.lake import batch_files, paths
+from lakegate.lake.storage import LOCAL
 
 RECORD = "_lake.sqlite"
 #: How long a superseded file stays readable by lakegate's queries that listed it (its hidden link).
@@ -112,7 +112,7 @@ class Snapshot:
 
 def describe_file(root: Path, table: str, batch_id: str, job_id: str, path: Path) -> FileEntry:
     """The record entry of a Parquet file (read from its footer) under branch directory `root`."""
-    meta = pq.read_metadata(path)
+    meta = LOCAL.parquet_file(path).metadata
     names = tuple(meta.schema.to_arrow_schema().names)
     low = high = None
     if paths.TIMESTAMP_COLUMN in names:
@@ -137,7 +137,7 @@ class Record:
         nothing: a read-only mount or a full disk can still be read."""
         if self._db is None:
             path = self.root / RECORD
-            if path.is_file() and not os.access(self.root, os.W_OK):  # a read-only lake
+            if LOCAL.is_file(path) and not os.access(self.root, os.W_OK):  # a read-only lake
                 db = sqlite3.connect(
                     f"{path.resolve().as_uri()}?mode=ro",
                     uri=True,
@@ -146,7 +146,7 @@ class Record:
                     check_same_thread=False,
                 )
             else:
-                self.root.mkdir(parents=True, exist_ok=True)
+                LOCAL.make_dirs(self.root)
                 db = sqlite3.connect(
                     path, timeout=BUSY_TIMEOUT_MS / 1000, isolation_level=None, check_same_thread=False
                 )
@@ -180,7 +180,7 @@ class Record:
         every file, or with `batch_id` and/or `job_id` only the files a query of that scope reads
         (the job's files and its batch's batch-level files; found by index, the branch is not read);
         `files=False`: only the generation and the tables, no file."""
-        if not self.root.is_dir():
+        if not LOCAL.is_dir(self.root):
             return Snapshot(0, ())
         where, args = _scope_condition(batch_id, job_id)
         db = self._connect()
@@ -202,7 +202,7 @@ class Record:
 
     def batches(self) -> list[str]:
         """The batches with at least one job (a `metadata` row), sorted (read from the index alone)."""
-        if not self.root.is_dir():
+        if not LOCAL.is_dir(self.root):
             return []
         return [
             row[0]
@@ -213,7 +213,7 @@ class Record:
 
     def find(self, table: str, batch_id: str, job_id: str = "") -> FileEntry | None:
         """The file of one table's job (or batch), if any."""
-        if not self.root.is_dir():
+        if not LOCAL.is_dir(self.root):
             return None
         row = (
             self._connect()

@@ -1,6 +1,6 @@
 """The lake's one filesystem layer: the lake's files are read, written, listed, moved and deleted
 through a `LakeStorage`, over `pyarrow.fs` (local disk, or any file system pyarrow knows by URI:
-`s3://`, `gs://`, `hdfs://`, `mock://`). What does not go through it yet, and why, is in
+`s3://`, `gs://`, `hdfs://`, `mock://`). What does not go through it, and why, is in
 docs/lake-format.md, "Filesystem layer"; tests/test_architecture.py keeps the list.
 
 A storage is made from the lake's location, a local path or a URI. Its methods take paths of
@@ -17,6 +17,7 @@ import contextlib
 import errno
 import fnmatch
 import functools
+import io
 import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -143,6 +144,20 @@ class LakeStorage:
     def write_parquet(self, table: pa.Table, path: StoragePath, **options: Any) -> None:
         self.make_dirs(_parent(path))
         pq.write_table(table, _text(path), filesystem=self.filesystem, **options)
+
+    @_plain_errors
+    def parquet_writer(self, path: StoragePath, schema: pa.Schema, **options: Any) -> pq.ParquetWriter:
+        """A Parquet file open for writing in parts (`write_table`, then `close`); its directory is
+        made if missing. Not atomic, as `write_bytes`."""
+        self.make_dirs(_parent(path))
+        return pq.ParquetWriter(_text(path), schema, filesystem=self.filesystem, **options)
+
+    @_plain_errors
+    def text_writer(self, path: StoragePath) -> io.TextIOWrapper:
+        """A UTF-8 text file open for writing in parts (its directory is made if missing); close
+        it, or use it as a context manager. Not atomic, as `write_bytes`."""
+        self.make_dirs(_parent(path))
+        return io.TextIOWrapper(self.filesystem.open_output_stream(_text(path)), encoding="utf-8")
 
     # -- what is there ------------------------------------------------------------------------
 

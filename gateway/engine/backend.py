@@ -51,6 +51,7 @@ from lakegate.gateway.engine.limits import Limits
 from lakegate.lake import paths
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.record import FileEntry, Record, Snapshot
+from lakegate.lake.storage import LOCAL
 
 #: Rows per streamed record batch.
 BATCH_ROWS = 65_536
@@ -287,7 +288,7 @@ class _Branch:
     def vanished(self, error: BaseException) -> bool:
         """Whether the error is about a listed file that is gone (a writer replaced it)."""
         message = str(error)
-        return any(path in message and not os.path.exists(path) for path in self.known())
+        return any(path in message and not LOCAL.exists(path) for path in self.known())
 
     def known(self) -> dict[str, str]:
         """Every file the views list (branch-wide and scoped): reader path -> how messages name it."""
@@ -352,7 +353,7 @@ class DuckDBBackend:
         if self.catalog is None:
             return []
         try:
-            stamp = os.stat(self.lake).st_mtime_ns
+            stamp = LOCAL.stat(self.lake).mtime_ns
         except FileNotFoundError:
             return []
         listed_stamp, listed = self._listed
@@ -373,7 +374,7 @@ class DuckDBBackend:
             except paths.LakePathError as error:
                 raise DialectError(str(error), error_name="SCHEMA_NOT_FOUND") from None
         directory, configs = found
-        if not os.path.isdir(directory):
+        if not LOCAL.is_dir(directory):
             known = ", ".join(self.branches()) or "none"
             raise DialectError(
                 f"Schema '{branch}' does not exist: no branch '{branch}' in the lake (branches: {known})",
@@ -382,7 +383,7 @@ class DuckDBBackend:
         self._paths[branch] = found  # only branches that exist
         record = self._records.setdefault(branch, Record(self.lake, branch))
         try:
-            return record.generation(), os.stat(configs).st_mtime_ns
+            return record.generation(), LOCAL.stat(configs).mtime_ns
         except FileNotFoundError:
             return record.generation(), None
 
@@ -483,7 +484,7 @@ class DuckDBBackend:
             named = {path for path in files if path in failed}
             if named <= unreadable:
                 raise state.failure(duckdb.Error(failed))
-            if not all(map(os.path.exists, named)) and self._records[branch].generation() != snapshot.generation:
+            if not all(map(LOCAL.exists, named)) and self._records[branch].generation() != snapshot.generation:
                 return False
             unreadable |= named  # corrupt, or missing although the record holds it
         return True

@@ -140,7 +140,7 @@ def branch_tables(catalog: Catalog, branch: str, location: str, prefix: str = ""
         partitions = [(key, hive_type(columns[key], f"{where}, column {key!r}")) for key in keys]
         if any(t != "varchar" for _, t in partitions):
             raise DDLError(f"{where}: partition columns must be varchar")
-        has_files = next(paths.data_files(catalog.lake, branch, table), None) is not None
+        has_files = bool(paths.data_files(catalog.lake, branch, table))
         found.append(TableDDL(schema, table, data + partitions, keys, f"{branch_location}/{table}", has_files))
     return found
 

@@ -26,13 +26,13 @@ from typing import Any
 
 import orjson
 import pyarrow as pa
-import pyarrow.parquet as pq
 
 from lakegate.gateway.metrics.metric_result import MetricResult
 from lakegate.lake import paths
 from lakegate.lake.metadata import read_metadata_row, stage_metadata_rows
 from lakegate.lake.record import Change, FileEntry, current_file
 from lakegate.lake.schema import METRIC_RESULTS_COLUMNS, file_schema
+from lakegate.lake.storage import LOCAL
 
 #: The Arrow schema of a batch's results file (batch_id lives in the directory name).
 SCHEMA = file_schema(paths.METRIC_RESULTS_TABLE, METRIC_RESULTS_COLUMNS)
@@ -96,7 +96,7 @@ class ResultsWriter:
         self._stack = contextlib.ExitStack()
         self._scratch = self._stack.enter_context(paths.staging(lake, branch))
         self._staged = self._scratch / "metric_results.parquet"
-        self._writer = self._stack.enter_context(pq.ParquetWriter(self._staged, SCHEMA, compression="zstd"))
+        self._writer = self._stack.enter_context(LOCAL.parquet_writer(self._staged, SCHEMA, compression="zstd"))
         self._statuses: dict[str, dict[str, Any]] = {}  # job -> its new metadata row, not yet published
 
     def write(self, results: Sequence[MetricResult]) -> None:
@@ -155,5 +155,5 @@ def read_results(lake: Path, branch: str, batch_id: str) -> list[dict[str, Any]]
     target = current_file(lake, branch, paths.METRIC_RESULTS_TABLE, batch_id)
     if target is None:
         return []
-    table = pq.read_table(target, schema=SCHEMA, partitioning=None)
+    table = LOCAL.read_parquet(target, schema=SCHEMA, partitioning=None)
     return [{"batch_id": batch_id, **row} for row in table.to_pylist()]

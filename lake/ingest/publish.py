@@ -33,6 +33,7 @@ from lakegate.lake.ingest.write import JobWriter
 from lakegate.lake.metadata import build_metadata_row, metadata_table, write_metadata_file
 from lakegate.lake.record import Change
 from lakegate.lake.registry import BranchConfigs
+from lakegate.lake.storage import LOCAL
 
 
 @dataclass
@@ -91,7 +92,7 @@ def ingest_job(
         writer = JobWriter(scratch, plans, {c: row[c] for c in JOB_FILE_COLUMNS})
         quarantine = scratch / "quarantine.jsonl"
         with (
-            open(quarantine, "w", encoding="utf-8") as bad_lines,
+            LOCAL.text_writer(quarantine) as bad_lines,
             ThreadPoolExecutor(scan.THREADS, thread_name_prefix="lakegate-ingest") as pool,
             tqdm(
                 total=sum(p.stat().st_size for p in files),
@@ -157,7 +158,7 @@ def ingest_job(
         if bad:
             paths.publish(quarantine, quarantine_target)
         else:
-            quarantine_target.unlink(missing_ok=True)
+            LOCAL.delete(quarantine_target, missing_ok=True)
     return IngestReport(
         branch=branch,
         batch_id=batch_id,

@@ -11,6 +11,7 @@ import pyarrow.parquet as pq
 from lakegate.lake import paths
 from lakegate.lake.ingest.scan import JOB_FILE_COLUMNS, LINE, Plan
 from lakegate.lake.schema import EVENTS_COLUMNS, TIMESTAMP, file_schema
+from lakegate.lake.storage import LOCAL
 
 #: Rows buffered per topic before they are written as (part of) a row group.
 ROWS_PER_WRITE = 128 * 1024
@@ -80,7 +81,7 @@ class JobWriter:
         writer = self.writers.get(name)
         if writer is None:
             strings = [f.name for f in table.schema if pa.types.is_string(f.type)]  # numbers rarely repeat
-            writer = pq.ParquetWriter(
+            writer = LOCAL.parquet_writer(
                 self.scratch / f"{name}.parquet", table.schema, compression="zstd", use_dictionary=strings
             )
             self.writers[name] = writer

@@ -57,6 +57,22 @@ def test_files_are_written_read_listed_and_globbed(kind, tmp_path):
 
 
 @pytest.mark.parametrize("kind", KINDS)
+def test_parquet_and_text_files_are_written_in_parts(kind, tmp_path):
+    storage = storage_of(kind, tmp_path)
+    parquet = storage.path("main", "_staging", "1-a", "odom.parquet")
+    with storage.parquet_writer(parquet, pa.schema([("timestamp", pa.int64())]), compression="zstd") as writer:
+        writer.write_table(pa.table({"timestamp": [1, 2]}))
+        writer.write_table(pa.table({"timestamp": [3]}))
+    text = storage.path("main", "_staging", "1-a", "quarantine.jsonl")
+    with storage.text_writer(text) as lines:
+        lines.writelines(["{}\n", "caf\u00e9\n"])
+
+    assert storage.read_parquet(parquet).column("timestamp").to_pylist() == [1, 2, 3]
+    assert storage.parquet_file(parquet).metadata.num_row_groups == 2
+    assert storage.read_bytes(text) == "{}\ncaf\u00e9\n".encode()
+
+
+@pytest.mark.parametrize("kind", KINDS)
 def test_local_folders_are_put_into_the_lake(kind, tmp_path):
     storage = storage_of(kind, tmp_path)
     logs = tmp_path / "logs"

@@ -20,7 +20,7 @@ from sqlglot import exp
 from lakegate.dialect import chars, registry, times, zoned_nanos, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
-from lakegate.dialect.guard import trino_name
+from lakegate.dialect.guard import COMPARISON_OPERATORS, trino_name
 from lakegate.dialect.named_windows import resolve_named_windows, window_keys
 from lakegate.dialect.trino_types import TType
 from lakegate.dialect.with_ties import rank_filter, rank_keys, with_ties
@@ -237,7 +237,7 @@ def _check_char_subquery(a: Analyzer, node: exp.Expression, left: TType, column:
     """Refuse IN, ANY and ALL comparing a char with a subquery column of another type: the column's
     values would have to be padded to the common char type inside the subquery."""
     if common.base == "char" and left != column:
-        what = "IN" if isinstance(node, exp.In) else f"{_OPS[type(node)]} {node.expression.key.upper()}"
+        what = "IN" if isinstance(node, exp.In) else f"{COMPARISON_OPERATORS[type(node)]} {node.expression.key.upper()}"
         a.unsupported(f"{what} (subquery) comparing {left} with {column}", node)
 
 
@@ -1224,17 +1224,6 @@ def _comparable(a: Analyzer, node, left: TType, right: TType, op: str) -> TType:
     return common
 
 
-_OPS = {
-    exp.EQ: "=",
-    exp.NEQ: "<>",
-    exp.GT: ">",
-    exp.GTE: ">=",
-    exp.LT: "<",
-    exp.LTE: "<=",
-    exp.NullSafeEQ: "IS NOT DISTINCT FROM",
-    exp.NullSafeNEQ: "IS DISTINCT FROM",
-}
-
 
 def _quantified(node: exp.Expression) -> exp.Expression:
     """`x op ALL (VALUES ...)` and `SOME (...)` as sqlglot parses them (a call named ALL / SOME) made
@@ -1262,7 +1251,7 @@ def _comparison(a: Analyzer, node, scope, env):
         cols = a.query(query, scope)
         if len(cols) != 1:
             a.fail("Multiple columns returned by subquery are not yet supported", sub, "NOT_SUPPORTED")
-        common = _comparable(a, node, left, cols[0][2], _OPS[type(node)])
+        common = _comparable(a, node, left, cols[0][2], COMPARISON_OPERATORS[type(node)])
         _check_char_subquery(a, node, left, cols[0][2], common)
         if common.base == "timestamp_tz" and {left.base, cols[0][2].base} != {"timestamp_tz"}:
             a.unsupported(f"{node.expression.key.upper()} comparing {left} with {cols[0][2]}", node.expression)
@@ -1272,12 +1261,13 @@ def _comparison(a: Analyzer, node, scope, env):
         if isinstance(side, exp.Subquery):
             side.meta["row_ok"] = True  # `(a, b) = (SELECT x, y ...)`: a row there (_scalar_subquery)
     left, right = a.expr(node.this, scope, env), a.expr(node.expression, scope, env)
-    common = _comparable(a, node, left, right, _OPS[type(node)])
+    op = COMPARISON_OPERATORS[type(node)]
+    common = _comparable(a, node, left, right, op)
     json_order = common.base == "json" and type(node) not in (exp.EQ, exp.NEQ, exp.NullSafeEQ, exp.NullSafeNEQ)
     if json_order or (common.base == "map" and type(node) not in (exp.EQ, exp.NEQ)):
-        a.fail(f"Cannot apply operator: {left} {_OPS[type(node)]} {right}", node, "TYPE_MISMATCH")
+        a.fail(f"Cannot apply operator: {left} {op} {right}", node, "TYPE_MISMATCH")
     if type(node) not in (exp.EQ, exp.NEQ) and _nested_order(common):
-        a.unsupported(f"ordering comparison ({_OPS[type(node)]}) of {common}: its elements hold arrays or rows", node)
+        a.unsupported(f"ordering comparison ({op}) of {common}: its elements hold arrays or rows", node)
     node.meta["compare"] = common
     _in_session_zone(a, [node.this, node.expression], common)
     chars.coerce([node.this, node.expression], common, type(node) in (exp.EQ, exp.NEQ, exp.NullSafeEQ, exp.NullSafeNEQ))

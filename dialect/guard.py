@@ -454,6 +454,17 @@ _TRINO_SYNTAX = {
     exp.GroupingSets: "GROUPING SETS",
     exp.Aliases: "row_expression.* AS (column_alias, ...)",
 }
+#: Trino's comparison operators, by the sqlglot node that parses them.
+COMPARISON_OPERATORS = {
+    exp.EQ: "=",
+    exp.NEQ: "<>",
+    exp.GT: ">",
+    exp.GTE: ">=",
+    exp.LT: "<",
+    exp.LTE: "<=",
+    exp.NullSafeEQ: "IS NOT DISTINCT FROM",
+    exp.NullSafeNEQ: "IS DISTINCT FROM",
+}
 _LEADING_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 

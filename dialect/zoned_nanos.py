@@ -21,7 +21,7 @@ from sqlglot import exp
 
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect import zones
-from lakegate.dialect.guard import trino_name
+from lakegate.dialect.guard import COMPARISON_OPERATORS, trino_name
 from lakegate.dialect.trino_types import TType
 
 #: The functions that give or take such values.
@@ -30,14 +30,7 @@ FUNCTIONS = frozenset({"from_unixtime_nanos", "min", "max", "count", "arbitrary"
 _PRODUCERS = frozenset({"from_unixtime_nanos", "min", "max", "arbitrary"})
 #: Trino's operators, by the sqlglot node that parses them.
 _OPERATORS = {
-    exp.EQ: "=",
-    exp.NEQ: "<>",
-    exp.GT: ">",
-    exp.GTE: ">=",
-    exp.LT: "<",
-    exp.LTE: "<=",
-    exp.NullSafeEQ: "IS NOT DISTINCT FROM",
-    exp.NullSafeNEQ: "IS DISTINCT FROM",
+    **COMPARISON_OPERATORS,
     exp.Between: "BETWEEN",
     exp.In: "IN",
     exp.Add: "+",
@@ -45,7 +38,7 @@ _OPERATORS = {
     exp.Mul: "*",
     exp.Div: "/",
 }
-_COMPARISONS = tuple(list(_OPERATORS)[:10])
+_COMPARISONS = (*COMPARISON_OPERATORS, exp.Between, exp.In)
 #: The expressions that pass such a value through unchanged.
 _CARRIERS = (exp.Alias, exp.Paren, exp.Column, exp.Window, exp.AtTimeZone, exp.Distinct, exp.Ordered, exp.Is)
 

@@ -1224,7 +1224,6 @@ def _comparable(a: Analyzer, node, left: TType, right: TType, op: str) -> TType:
     return common
 
 
-
 def _quantified(node: exp.Expression) -> exp.Expression:
     """`x op ALL (VALUES ...)` and `SOME (...)` as sqlglot parses them (a call named ALL / SOME) made
     the ALL / ANY node it gives `ANY (VALUES ...)` (SOME is ANY in Trino's grammar, SqlBase.g4)."""

@@ -7,10 +7,8 @@ from __future__ import annotations
 
 import os
 import shutil
-import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import duckdb
@@ -27,6 +25,7 @@ from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file, read_metadata_row, update_metadata_row
 from lakegate.lake.record import PAUSE_ENV, Record
 from lakegate.lake.registry import BranchConfigs
+from tests.lake.killing import kill_when_paused
 from tests.lake.v1_lake import to_v1
 
 CLI = [sys.executable, "-m", "lakegate.gateway.cli"]
@@ -237,15 +236,7 @@ def test_a_compaction_killed_before_its_commit_leaves_the_lake_as_it_was(lake, t
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
     )
-    try:
-        deadline = time.monotonic() + 120
-        while not marker.exists() and killed.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.01)
-        assert marker.exists(), killed.stderr.read() if killed.poll() is not None else "never paused"
-        os.kill(killed.pid, signal.SIGKILL)
-    finally:
-        killed.wait(30)
-    assert killed.returncode == -signal.SIGKILL
+    kill_when_paused(killed, marker, 120)
     leftover = [p for p in files_of(lake, "events", "b1") if p.name.startswith(f"{killed.pid}-")]
     assert leftover, "the killed compaction had published its files"
     record = Record(lake, "main")

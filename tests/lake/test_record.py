@@ -5,10 +5,8 @@ from __future__ import annotations
 
 import json
 import os
-import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import duckdb
@@ -19,6 +17,7 @@ import pytest
 from lakegate.lake import paths
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.record import PAUSE_ENV, RECORD, Record
+from tests.lake.killing import kill_when_paused
 from tests.lake.v1_lake import to_v1
 
 CONFIG = """\
@@ -95,15 +94,7 @@ def test_kill_9_between_publishing_and_commit_leaves_the_old_version_whole(tmp_p
     killed = ingest_cli(
         tmp_path, lake, emissions(tmp_path, "new", odom=5, goals=0), "new", env={PAUSE_ENV: f"{point}:{marker}"}
     )
-    try:
-        deadline = time.monotonic() + 60
-        while not marker.exists() and killed.poll() is None and time.monotonic() < deadline:
-            time.sleep(0.01)
-        assert marker.exists(), killed.stderr.read() if killed.poll() is not None else "never paused"
-        os.kill(killed.pid, signal.SIGKILL)
-    finally:
-        killed.wait(30)
-    assert killed.returncode == -signal.SIGKILL
+    kill_when_paused(killed, marker)
     leftover = [p for p in lake.glob("main/*/batch_id=b1/*.parquet") if p.name.startswith(f"{killed.pid}-")]
     assert leftover, "the killed ingest had published a file under its new name"
     assert state(lake) == before  # every table of the job: the old version, whole

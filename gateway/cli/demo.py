@@ -27,6 +27,7 @@ from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.gateway.metrics.report import write_report
 from lakegate.gateway.metrics.trends import branch_batches, evaluate_trends, metrics_of, write_trends
 from lakegate.lake import paths
+from lakegate.lake.compaction import compact_batch
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file
 from lakegate.lake.registry import BranchConfigs
@@ -151,6 +152,8 @@ def demo_command(args: argparse.Namespace) -> int:
             progress=progress,
         )
         print(format_table(evaluation))
+        done = compact_batch(lake, BRANCH, BATCH, progress=progress)  # as `metrics run` does
+        _step(f"    batch compacted, as after every metrics run: {done.files_before} files -> {done.files_after}")
         report_path = write_report(evaluation, lake / "report.html")
         _step("5/6 wrote the report with every figure")
 

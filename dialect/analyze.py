@@ -17,7 +17,7 @@ from typing import NoReturn
 
 from sqlglot import exp
 
-from lakegate.dialect import chars, registry, times, zoned_nanos, zones
+from lakegate.dialect import chars, registry, row_star, times, zoned_nanos, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.guard import COMPARISON_OPERATORS, trino_name
@@ -581,15 +581,23 @@ class Analyzer:
     def projection(self, node: exp.Select, scope: Scope) -> list[OutCol]:
         items: list[exp.Expression] = []
         for item in node.expressions:
+            row = row_star.target(item, scope)
+            if row is not None:
+                items.extend(row_star.expand(self, item, row, scope, len(items)))
+                continue
+            whole = item.this if isinstance(item, exp.Aliases) else item
             star = (
-                item
-                if isinstance(item, exp.Star)
-                else (item if isinstance(item, exp.Column) and isinstance(item.this, exp.Star) else None)
+                whole
+                if isinstance(whole, exp.Star)
+                else (whole if isinstance(whole, exp.Column) and isinstance(whole.this, exp.Star) else None)
             )
             if star is None:
                 items.append(item)
                 continue
-            items.extend(self.expand_star(star, scope))
+            if isinstance(item, exp.Aliases) and isinstance(star, exp.Star):
+                self.fail("Column aliases not supported", item, "NOT_SUPPORTED")
+            columns = self.expand_star(star, scope)
+            items.extend(row_star.rename(self, item, columns) if isinstance(item, exp.Aliases) else columns)
         node.set("expressions", items)
         outputs = []
         for index, item in enumerate(items):
@@ -612,7 +620,7 @@ class Analyzer:
             wanted = star.table.lower()
             sources = [s for s in scope.sources if s.name == wanted]
             if not sources:
-                self.fail(f"Table '{star.table}' not found in FROM clause", star, "TABLE_NOT_FOUND")
+                self.fail(f"Unable to resolve reference {star.table}", star, "TABLE_NOT_FOUND")
         else:
             if star.args.get("except_") or star.args.get("replace") or star.args.get("rename"):
                 self.unsupported("SELECT * EXCEPT / REPLACE", star)
@@ -1106,6 +1114,9 @@ def _identifier(a: Analyzer, node, scope, env):
 @handles(exp.Dot)
 def _dot(a: Analyzer, node, scope, env):
     t = a.expr(node.this, scope, env)
+    if "row_position" in node.meta:  # a field of row_expression.* (dialect/row_star.py), by position
+        node.meta["field"] = node.meta["row_position"]
+        return t.args[node.meta["row_position"] - 1][1]
     if not isinstance(node.expression, exp.Identifier):
         a.unsupported(
             "row_expression.* (every field of a row)" if isinstance(node.expression, exp.Star) else "a field reference",

@@ -338,7 +338,6 @@ CONSTRUCTS: dict[str, Construct] = {
         "SELECT (ROW(1, true)).*",
         (exp.Dot, exp.Aliases),
         lambda n: isinstance(n, exp.Aliases) or isinstance(n.expression, exp.Star),
-        refused="not translated",
     ),
     "TABLESAMPLE": Construct(
         "queries",

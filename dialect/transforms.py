@@ -202,7 +202,10 @@ def lambda_parameter(g: Writer, node: exp.Identifier) -> str:
 
 @transform(exp.Dot)
 def row_field(g: Writer, node: exp.Dot) -> str:
-    return f"struct_extract({g.sql(node.this)}, {string(node.meta['field'])})"
+    field = node.meta["field"]
+    if isinstance(field, int):  # by position (row_expression.*: dialect/row_star.py)
+        return f"struct_extract_at({g.sql(node.this)}, {field})"
+    return f"struct_extract({g.sql(node.this)}, {string(field)})"
 
 
 @transform(exp.Lambda)

@@ -503,6 +503,8 @@ class Analyzer:
                     )
             return
         if isinstance(node, exp.Column) and node._meta and node.meta.get("ref") is not None:
+            if any(_same_field_or_inside(node.meta["ref"], key) for key in keys):
+                return  # `t.r` or `t.r.f1` with GROUP BY r: the same column, or a field of it
             if node.meta["ref"][0] in qualifiers and not node.meta.get("lambda"):
                 self.fail(
                     f"'{node.sql(dialect='trino')}' must be an aggregate expression or appear in GROUP BY clause",
@@ -1039,6 +1041,15 @@ class Analyzer:
         if name in _MICROS_READERS:
             args[:] = [floor_micros(arg) for arg in args]
         return t
+
+
+def _same_field_or_inside(ref: tuple, key: exp.Expression) -> bool:
+    """Whether a column reference (qualifier, column, field path) is GROUP BY key `key`, a column,
+    or one of its fields."""
+    if not (isinstance(key, exp.Column) and key._meta and key.meta.get("ref") is not None):
+        return False
+    qualifier, column, path = key.meta["ref"]
+    return ref[:2] == (qualifier, column) and ref[2][: len(path)] == path
 
 
 def _ident_name(ident: exp.Expression) -> str:

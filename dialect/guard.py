@@ -16,6 +16,7 @@ from sqlglot.dialects.trino import Trino
 from sqlglot.errors import TokenError
 from sqlglot.tokens import TokenType
 
+from lakegate.dialect import unparsed
 from lakegate.dialect.errors import DialectError
 
 #: Largest query text accepted, in UTF-8 bytes (Trino's default `query.max-length` is 1,000,000).
@@ -515,7 +516,7 @@ def check(expression: exp.Expression) -> None:
         elif isinstance(node, (exp.Table, exp.Lateral)):
             source = node.this
             if isinstance(source, exp.JSONTable):
-                _fail("unsupported in lakegate: table function 'json_table'", source, "NOT_SUPPORTED")
+                _fail(f"unsupported in lakegate: {unparsed.JSON_TABLE}", source, "NOT_SUPPORTED")
             if isinstance(source, exp.Func) and not isinstance(source, exp.Unnest):
                 name = _function_name(source)
                 label = "TABLE(...)" if name == "table" else f"'{name}'"

@@ -8,8 +8,12 @@ from __future__ import annotations
 
 import re
 
+#: The refusal of json_table (functions/json.md), parsed by sqlglot or not.
+JSON_TABLE = "table function 'json_table' is not translated (json_value, json_query and json_exists are)"
+
 #: (pattern over the query text, the construct as Trino's documentation names it)
 _CONSTRUCTS = (
+    (re.compile(r"\bjson_table\s*\(", re.IGNORECASE), JSON_TABLE),  # AS name, PLAN, PASSING, ... do not parse
     (  # trinodb/trino pull request 30026 (merged 2026-06-23) added it, long after Trino 476
         re.compile(r"\boverlay\s*\(.*\bPLACING\b", re.IGNORECASE | re.DOTALL),
         "overlay(string PLACING ...), which Trino added after 476 (the release lakegate answers as)",

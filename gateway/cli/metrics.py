@@ -106,14 +106,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         action="store_true",
         help="evaluate every metric of the config (for configs without metrics sets)",
     )
-    run.add_argument(
-        "--metrics-config-path",
-        action="append",
-        type=Path,
-        metavar="P",
-        dest="config_paths",
-        help="evaluate this config instead of the branch's stored one (repeat to merge several)",
-    )
+    _evaluated_config(run)
     add_strict_option(run)
     run.add_argument(
         "--format",
@@ -189,14 +182,7 @@ def _add_trends_parsers(commands: argparse._SubParsersAction) -> None:
             metavar="S",
             help="only the metrics of this set (default: every metric of its type in the config)",
         )
-        parser.add_argument(
-            "--metrics-config-path",
-            action="append",
-            type=Path,
-            metavar="P",
-            dest="config_paths",
-            help="evaluate this config instead of the branch's stored one (repeat to merge several)",
-        )
+        _evaluated_config(parser)
         parser.add_argument(
             "--format",
             choices=("table", "json"),
@@ -234,6 +220,17 @@ def _batch_list(text: str) -> list[str]:
     if not batches:
         raise argparse.ArgumentTypeError(f"expected batch ids separated by commas, got {text!r}")
     return list(dict.fromkeys(batches))
+
+
+def _evaluated_config(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--metrics-config-path",
+        action="append",
+        type=Path,
+        metavar="P",
+        dest="config_paths",
+        help="evaluate this config instead of the branch's stored one (repeat to merge several)",
+    )
 
 
 def _lake_and_branch(parser: argparse.ArgumentParser) -> None:

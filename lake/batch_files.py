@@ -39,6 +39,14 @@ def job_rows(source: Path, job_id: str, *, v1: bool, position: int) -> pa.Table:
     return table.add_column(position, JOB_ID, pa.repeat(pa.scalar(job_id, pa.string()), table.num_rows))
 
 
+def jobs_rows(source: Path, job_ids: Sequence[str], *, v1: bool, position: int) -> dict[str, pa.Table]:
+    """The rows of each of `job_ids` in `source`, read once (a v1 file holds one job: `job_rows`)."""
+    if v1:
+        return {job_id: job_rows(source, job_id, v1=True, position=position) for job_id in job_ids}
+    table = LOCAL.read_parquet(source, filters=pc.field(JOB_ID).isin(list(job_ids)), partitioning=None)
+    return {job_id: table.filter(pc.field(JOB_ID) == job_id) for job_id in job_ids}
+
+
 def job_id_position(table: str, names: Sequence[str]) -> int:
     """Where `job_id` goes among a v1 file's columns `names`: after `org_id` in `metadata` (its place in
     the table), last in topics and `events` (after `build_version`)."""

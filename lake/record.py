@@ -358,21 +358,26 @@ class Change:
     def _merge(self, entries: Sequence[FileEntry]) -> list[FileEntry]:
         root = self.record.root
         groups: list[tuple[pa.Schema, list[tuple[FileEntry, pa.Table]]]] = []
+        by_path: dict[str, list[FileEntry]] = {}
         for entry in entries:
+            by_path.setdefault(entry.path, []).append(entry)
+        for path, shared in by_path.items():  # each file read once, however many of its jobs are kept
             try:
-                rows = batch_files.job_rows(
-                    root / entry.path,
-                    entry.job_id,
-                    v1=paths.is_v1_path(entry.path),
-                    position=batch_files.job_id_position(entry.table, entry.columns),
+                jobs = batch_files.jobs_rows(
+                    root / path,
+                    [entry.job_id for entry in shared],
+                    v1=paths.is_v1_path(path),
+                    position=batch_files.job_id_position(shared[0].table, shared[0].columns),
                 )
             except (OSError, pa.ArrowException):
                 continue
-            schema = rows.schema.remove_metadata()
-            group = next((g for s, g in groups if s.equals(schema)), None)
-            if group is None:
-                groups.append((schema, group := []))
-            group.append((entry, rows))
+            for entry in shared:
+                rows = jobs[entry.job_id]
+                schema = rows.schema.remove_metadata()
+                group = next((g for s, g in groups if s.equals(schema)), None)
+                if group is None:
+                    groups.append((schema, group := []))
+                group.append((entry, rows))
         merged = []
         for schema, group in groups:
             first = group[0][0]

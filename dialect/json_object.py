@@ -6,10 +6,11 @@ Trino (io.trino.operator.scalar.json.JsonObjectFunction) puts the members into a
 ObjectMapper.writeTree (JsonOutputFunctions), so the members come out in the HashMap's iteration
 order, which is deterministic: by bucket `spread(key.hashCode()) & (capacity - 1)`, and within a
 bucket in insertion order (a resize splits buckets keeping their relative order). The capacity
-starts at 16 and doubles when the size exceeds 3/4 of it. A bucket of 9 members turns into a tree
-(or forces an early resize): lakegate refuses, at run time, 9 keys sharing a bucket of the first
-16-bucket table (every later bucket holds a subset of one of those), so the order it writes is never
-a guess. The order is computed in DuckDB from the keys, so key expressions work as literal keys do.
+starts at 16 and doubles when the size exceeds 3/4 of it. A member put into a bucket that already
+holds 8 turns the bucket into a tree, or forces an early resize (HashMap.putVal, treeifyBin):
+lakegate refuses, at run time, a member that finds 8 earlier ones in its bucket of the table at the
+time it is put, so the order it writes is never a guess. The order is computed in DuckDB from the
+keys, so key expressions work as literal keys do.
 
 Errors as JsonObjectFunction raises them, at run time, in member order: a NULL key, a repeated key
 (NOT_SUPPORTED, or INVALID_FUNCTION_ARGUMENT under WITH UNIQUE KEYS). Facts: trinodb/trino
@@ -135,9 +136,14 @@ def _object_text(pairs: int) -> str:
     text = f"'{{' || array_to_string(list_transform({ordered}, lambda \"_e\": {_field('m')}), ',') || '}}'"
     if pairs < _TREE_BUCKET:
         return text
-    buckets = f'list_transform("_o", lambda "_e": {_field("h")} & {_FIRST_CAPACITY - 1})'
-    crowded = f'list_max(list_transform({buckets}, lambda "_b": len(list_filter({buckets}, lambda "_c": "_c" = "_b"))))'
-    return f"CASE WHEN {crowded} >= {_TREE_BUCKET} THEN error({tf.string(_TREE)}) ELSE {text} END"
+    # The capacity when member "_p" (1-based) is put, with "_p" - 1 members already in the map.
+    then = "CASE " + " ".join(f'WHEN "_p" - 1 <= {size} THEN {capacity - 1}' for size, capacity in tables) + " END"
+    earlier = (
+        f'len(list_filter(list_slice("_o", 1, "_p" - 1), '
+        f'lambda "_c": (struct_extract("_c", \'h\') & {then}) = ({_field("h")} & {then})))'
+    )
+    crowded = f'list_max(list_transform("_o", lambda "_e", "_p": {earlier}))'
+    return f"CASE WHEN {crowded} >= {_TREE_BUCKET - 1} THEN error({tf.string(_TREE)}) ELSE {text} END"
 
 
 def _may_equal(a: exp.Expression, b: exp.Expression) -> bool:

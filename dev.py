@@ -5,6 +5,9 @@
     python3 dev.py test [ARGS...]   create .venv, install lakegate[test], lint (ruff), run the test suite
     python3 dev.py lint             only the lint: `ruff check` and `ruff format --check`
     python3 dev.py bench NAME       run bench/NAME.py (results go to bench/RESULTS.md)
+    python3 dev.py trino start|stop|status
+                                    a real Trino 476 on 127.0.0.1, the judge the tests compare with
+                                    (fetched with Maven, cached outside the repository; tools/trino_server.py)
     python3 dev.py lakegate ARGS    run any lakegate command inside .venv
 
 The virtual environment is reinstalled only when pyproject.toml changes.
@@ -61,6 +64,8 @@ def main(argv: list[str]) -> int:
         return 0
     command, rest = argv[0], argv[1:]
     ensure_venv()
+    if command == "trino":
+        return _run([PY, ROOT / "tools" / "trino_server.py", *rest])
     if command == "demo":
         return _run([BIN / "lakegate", "demo", *rest])
     if command == "lint":

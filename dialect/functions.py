@@ -3031,6 +3031,14 @@ register(
     fixed(tt.VARCHAR),
     lambda g, node, args: tf.string(g.time_zone),
 )
+register(
+    "current_groups",
+    "session",
+    "current_groups() -> array(varchar)",
+    fixed(tt.array(tt.VARCHAR)),
+    lambda g, node, args: "CAST([] AS VARCHAR[])",
+    notes="Always empty: lakegate has no group provider (nor has a Trino without one).",
+)
 
 
 def _zone_argument(call: Call, source: str) -> TType:
@@ -3189,9 +3197,6 @@ REJECTED: dict[str, str] = {
     "normal_cdf": _COMMONS_MATH,
     "inverse_normal_cdf": _COMMONS_MATH,
     "version": "answered by the SQL endpoint, not the dialect layer",
-    "current_user": "not translated",
-    "current_catalog": "not translated",
-    "current_schema": "not translated",
     "ip_prefix": "IP address functions are not available",
 }
 

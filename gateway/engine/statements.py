@@ -29,6 +29,7 @@ from lakegate.dialect import guard
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.params import parse_execute
+from lakegate.dialect.session_functions import SessionNames
 from lakegate.dialect.statements import Reader
 from lakegate.dialect.translate import parse
 from lakegate.gateway.engine.backend import Backend, QueryResult
@@ -196,9 +197,10 @@ class Planner:
             offset = sql.rfind(query)
         plan = self._plan(sql, query, offset, session)
         branch = plan.branch if plan.branch is not None or plan.system else self._default_branch(session)
+        names = _session_names(session)
         if branch is not None:
             return self.backend.execute(
-                plan.sql, branch=branch, scope=session.scope(), params=params, time_zone=session.zone()
+                plan.sql, branch=branch, scope=session.scope(), params=params, time_zone=session.zone(), session=names
             )
         if kind == "explain":
             raise DialectError(
@@ -207,7 +209,9 @@ class Planner:
                 column=1,
                 error_name="NOT_SUPPORTED",
             )
-        return self.metadata.run(plan.sql, plan.system, params, user=session.user, time_zone=session.zone())
+        return self.metadata.run(
+            plan.sql, plan.system, params, user=session.user, time_zone=session.zone(), session=names
+        )
 
     def _default_branch(self, session: Session) -> str | None:
         """Where a query that reads no table runs: the session's branch, else any branch (None: the
@@ -323,6 +327,13 @@ class Planner:
             for (column, trino_type), alias in zip(result.columns, aliased)
         ]
         return Answer(_DESCRIBE_OUTPUT, rows)
+
+
+def _session_names(session: Session) -> SessionNames:
+    """What current_user, current_catalog and current_schema answer: Trino lower-cases the session's
+    catalog and schema names (as sent, whether they exist or not) and keeps the user as it is."""
+    catalog, schema = session.catalog, session.schema
+    return SessionNames(session.user, catalog and catalog.lower(), schema and schema.lower())
 
 
 def _is_execute(sql: str) -> bool:

@@ -24,6 +24,7 @@ import pyarrow as pa
 
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError, runtime_error
+from lakegate.dialect.session_functions import SessionNames
 from lakegate.dialect.statements import Reader
 from lakegate.dialect.translate import translate
 from lakegate.gateway.engine import udfs
@@ -524,12 +525,13 @@ class Metadata:
         params: Sequence[object] = (),
         user: str | None = None,
         time_zone: str = "UTC",
+        session: SessionNames | None = None,
     ) -> QueryResult:
         """Start one Trino query whose (unqualified) table names are the `refs`' table names, over
-        those system tables as `user` sees them, in the session zone `time_zone`. Raises DialectError;
-        the result streams and can be canceled."""
+        those system tables as `user` sees them, in the session zone `time_zone`, its session
+        functions answered from `session`. Raises DialectError; the result streams and can be canceled."""
         schema = {ref.table: dict(self.tables(ref.catalog, ref.schema)[ref.table]) for ref in refs}
-        translation = translate(sql, schema, params=params, time_zone=time_zone)
+        translation = translate(sql, schema, params=params, time_zone=time_zone, session=session)
         with self._lock:
             cursor = self._db.cursor()
         try:

@@ -26,10 +26,11 @@ import trino
 from sqlglot import exp
 from sqlglot.tokens import TokenType
 
-from lakegate.dialect import guard
+from lakegate.dialect import guard, session_functions
 from lakegate.dialect import params as parameters
 from lakegate.dialect.errors import ERROR_CODES, DialectError
 from lakegate.dialect.scope import Scope, restrict
+from lakegate.dialect.session_functions import SessionNames
 from lakegate.dialect.translate import LakegateTrino, parse
 from lakegate.dialect.trino_types import TType, parse_type
 from lakegate.gateway.engine.backend import QueryResult
@@ -465,14 +466,22 @@ class TrinoBackend:
         scope: Scope | None = None,
         params: Sequence[object] = (),
         time_zone: str = "UTC",
+        session: SessionNames | None = None,
     ) -> QueryResult:
         """Send one Trino-dialect query, restricted to `scope` with `params` bound, to the cluster;
         its rows stream back as Arrow batches. Raises DialectError (remote errors as
-        RemoteQueryError, positions in `sql`); the cluster is read in UTC, so another session zone is refused."""
+        RemoteQueryError, positions in `sql`); the cluster is read in UTC, so another session zone is
+        refused, and so are the session functions (the cluster would answer with its own catalog and
+        schema names, not lakegate's; `session` is not used)."""
         if time_zone != "UTC":
             raise DialectError(
                 f"unsupported in lakegate: session time zone '{time_zone}' with the Trino backend (it reads in UTC)",
                 error_name="NOT_SUPPORTED",
+            )
+        called = session_functions.called(parse(sql)) if isinstance(sql, str) and session_functions.used(sql) else []
+        if called:
+            raise DialectError(
+                f"unsupported in lakegate: {called[0]} with the Trino backend", error_name="NOT_SUPPORTED"
             )
         forwarded = self.forward(sql, branch=branch, scope=scope, params=params)
         cursor = self._connection(branch).cursor()

@@ -178,3 +178,19 @@ def test_prepared_statement_over_the_lake(lake_server, server_lake, jdbc_probe):
     assert counted["rows"] == [[expected, batch]]
     empty = answers[next(call for call in answers if "LIMIT 1" in call)]
     assert empty == {"columns": [["job_id", "varchar", 12]], "rows": []}
+
+
+def test_system_jdbc_tables_are_trinos(lake_server, trino_url):
+    """Every table of system.jdbc that the driver reads, with Trino's columns and types."""
+    sql = (
+        "SELECT table_name, column_name, data_type FROM system.information_schema.columns "
+        "WHERE table_schema = 'jdbc' ORDER BY table_name, ordinal_position"
+    )
+    answers = []
+    for url in (lake_server.url, trino_url):
+        host, port = url.split("://")[1].split(":")
+        cursor = trino.dbapi.connect(host=host, port=int(port), user="tester").cursor()
+        cursor.execute(sql)
+        answers.append(cursor.fetchall())
+    assert answers[0] == answers[1]
+    assert {row[0] for row in answers[0]} >= {"catalogs", "schemas", "tables", "columns", "types", "procedures"}

@@ -50,8 +50,17 @@ def trino_cli(jdk, trino_jar) -> Callable[..., subprocess.CompletedProcess]:
 
 
 def _errors(stderr: bytes) -> list[str]:
-    """The CLI's error lines (not the JVM's warnings about jline's terminal)."""
-    return [line for line in stderr.decode().splitlines() if "failed" in line.lower() or line.startswith("\x1b[31")]
+    """What the CLI prints of its errors, without the query ids and the JVM's warnings about jline's
+    terminal: each `Query <id> failed: <message>` as its message, then the statement's line and caret."""
+    lines = stderr.decode().splitlines()
+    out = []
+    for i, line in enumerate(lines):
+        if line.startswith("Query ") and " failed: " in line:
+            out.append(line.split(" failed: ", 1)[1])
+            out += [text for text in lines[i + 1 : i + 3] if text.startswith("LINE ") or text.strip() == "^"]
+        elif line.startswith("\x1b[31"):  # an error of the CLI itself, in red
+            out.append(line)
+    return out
 
 
 @pytest.mark.parametrize("output_format", ["CSV", "JSON"])
@@ -89,18 +98,13 @@ def test_json_of_nested_values_fails_as_on_trino(lake_server, trino_url, trino_c
 
 
 def test_errors_print_as_trino_prints_them(lake_server, trino_url, trino_cli):
-    """The same message for a runtime error and an unknown function; a statement that does not parse
-    fails on both at the same position (lakegate does not list the parser's expected tokens)."""
-    for sql in ("SELECT 1 / 0", "SELECT nosuch(1)", "SELEC 1"):
-        args = ["--output-format", "CSV", "--execute", sql]
-        lakegate, judge = trino_cli(lake_server.url, *args), trino_cli(trino_url, *args)
-        assert (lakegate.returncode, lakegate.stdout) == (judge.returncode, judge.stdout) == (1, b""), sql
-        expected = [line.split(": ", 1)[1] for line in _errors(judge.stderr)]  # "Query <id> failed: <message>"
-        printed = [line.split(": ", 1)[1] for line in _errors(lakegate.stderr)]
-        if sql == "SELEC 1":
-            assert [m.split(": ")[0] for m in printed] == [m.split(": ")[0] for m in expected] == ["line 1:1"]
-        else:
-            assert printed == expected != [], sql
+    """Errors go on (`--ignore-errors`) with the same messages, positions and carets as on Trino."""
+    sql = "SELECT 1 / 0; SELECT nosuch(1); SELECT 2 AS two; SELEC 1; SELECT x FROM (VALUES 1) AS t(y)"
+    args = ["--ignore-errors", "--output-format", "CSV", "--execute", sql]
+    lakegate, judge = trino_cli(lake_server.url, *args), trino_cli(trino_url, *args)
+    assert (lakegate.returncode, lakegate.stdout) == (judge.returncode, judge.stdout) == (1, b'"2"\n')
+    assert _errors(lakegate.stderr) == _errors(judge.stderr)
+    assert len(_errors(judge.stderr)) == 10  # four messages, three with their line and caret
 
 
 @pytest.mark.parametrize("output_format", ["CSV", "JSON"])

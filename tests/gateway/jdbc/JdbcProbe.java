@@ -18,8 +18,9 @@ import java.util.Properties;
  * browse a catalog tree: every catalog, the schemas of a catalog ('%' or none), the tables of a
  * schema (no pattern; '%'; '%' with the types TABLE and VIEW), the columns of one table (by its
  * name, and by its name escaped with getSearchStringEscape as DataGrip passes it) and of the whole
- * schema, the type list, the table types, the procedures and user-defined types of the schema, and
- * the keys and indexes of the table. Each QUERY is then run as a PreparedStatement with each
+ * schema, the type list, the table types, the procedures (and their columns), user-defined types,
+ * super types, super tables and attributes of the schema, and the pseudo columns, keys and indexes
+ * of the table. Each QUERY is then run as a PreparedStatement with each
  * PARAMETER bound in turn (setLong when it parses as an integer, else setString).
  */
 public final class JdbcProbe {
@@ -56,6 +57,13 @@ public final class JdbcProbe {
             call("getTableTypes()", meta::getTableTypes);
             call("getProcedures(catalog, schema, %)", () -> meta.getProcedures(catalog, schema, "%"));
             call("getUDTs(catalog, schema, %, null)", () -> meta.getUDTs(catalog, schema, "%", null));
+            call("getProcedureColumns(catalog, schema, %, %)",
+                    () -> meta.getProcedureColumns(catalog, schema, "%", "%"));
+            call("getSuperTypes(catalog, schema, %)", () -> meta.getSuperTypes(catalog, schema, "%"));
+            call("getSuperTables(catalog, schema, %)", () -> meta.getSuperTables(catalog, schema, "%"));
+            call("getAttributes(catalog, schema, %, %)", () -> meta.getAttributes(catalog, schema, "%", "%"));
+            call("getPseudoColumns(catalog, schema, table, %)",
+                    () -> meta.getPseudoColumns(catalog, schema, table, "%"));
             call("getPrimaryKeys(catalog, schema, table)", () -> meta.getPrimaryKeys(catalog, schema, table));
             call("getImportedKeys(catalog, schema, table)", () -> meta.getImportedKeys(catalog, schema, table));
             call("getIndexInfo(catalog, schema, table)",

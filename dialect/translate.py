@@ -321,6 +321,7 @@ def translate(
     content is hashed. Raises DialectError with Trino's error name and the position in `sql`.
     """
     schema_key = schema_version if schema_version is not None else _schema_key(schema)
+    session = session if session_functions.used(sql) else None  # one cache entry for every session otherwise
     key = (sql, schema_key, _hashable(scope), _params_key(params), time_zone, session)
     with _lock:
         hit = _cache.get(key)

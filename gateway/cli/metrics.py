@@ -29,6 +29,8 @@ from lakegate.gateway.cli.errors import (
     print_config_warnings,
     writable_lake,
 )
+from lakegate.gateway.engine.trino_backend import TrinoBackend
+from lakegate.gateway.engine.trino_registration import jobs_seen
 from lakegate.gateway.metrics.evaluation import (
     BLOCKER,
     ERROR,
@@ -324,6 +326,8 @@ def run_command(args: argparse.Namespace) -> int:
     progress = sys.stderr.isatty() if args.progress is None else args.progress
     engine = engine_from_args(args, args.lake)
     try:
+        if isinstance(engine.backend, TrinoBackend):
+            _check_cluster_sees_batch(engine.backend, catalog, args)
         evaluation = MetricsEngine(args.lake, engine, threads=args.threads).evaluate_batch(
             args.branch,
             args.batch,
@@ -349,6 +353,17 @@ def run_command(args: argparse.Namespace) -> int:
         " (the results are stored in the lake)",
     )
     return exit_code(evaluation)
+
+
+def _check_cluster_sees_batch(backend: TrinoBackend, catalog: Catalog, args: argparse.Namespace) -> None:
+    """UserError when the cluster lacks jobs of the batch (its partitions were never synced):
+    the metrics would silently read less than the lake has."""
+    seen, jobs = jobs_seen(backend, args.branch, args.batch), len(catalog.jobs(args.branch, args.batch))
+    if seen != jobs:
+        raise UserError(
+            f"the Trino cluster at {backend.url} sees {seen} of the {jobs} job(s) of batch {args.batch!r}: "
+            f"register the lake again (lakegate trino-ddl --lake {args.lake} --apply --trino-url {backend.url})"
+        )
 
 
 def _show(

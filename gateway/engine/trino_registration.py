@@ -306,3 +306,25 @@ def unregister(lake: Path, connection: TrinoBackend) -> list[str]:
             dropped.append(schema)
     _record(lake, connection.url, None)
     return dropped
+
+
+def sync_local(lake: Path, connection: TrinoBackend, branch: str) -> bool:
+    """Register `branch` again (new tables, columns and partitions) when the lake's registration in
+    the cluster at `connection` reads the lake where it is (`local:///...`, never a copy, whose
+    files may lag) in the catalog the connection uses; whether it did."""
+    registration = read_registration(lake, connection.url)
+    if registration is None or registration.location != local_location(lake):
+        return False
+    if registration.catalog != connection.catalog or connection.schema_for(branch) != schema_name(
+        branch, registration.schema_prefix
+    ):
+        return False
+    register(
+        lake,
+        connection,
+        location=registration.location,
+        catalog=registration.catalog,
+        schema_prefix=registration.schema_prefix,
+        branches=[branch],
+    )
+    return True

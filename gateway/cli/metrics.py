@@ -29,6 +29,8 @@ from lakegate.gateway.cli.errors import (
     print_config_warnings,
     writable_lake,
 )
+from lakegate.gateway.engine.trino_backend import TrinoBackend
+from lakegate.gateway.engine.trino_registration import RegistrationError, jobs_seen, sync_local
 from lakegate.gateway.metrics.evaluation import (
     BLOCKER,
     ERROR,
@@ -324,6 +326,8 @@ def run_command(args: argparse.Namespace) -> int:
     progress = sys.stderr.isatty() if args.progress is None else args.progress
     engine = engine_from_args(args, args.lake)
     try:
+        if isinstance(engine.backend, TrinoBackend):
+            _check_cluster_sees_batch(engine.backend, catalog, args)
         evaluation = MetricsEngine(args.lake, engine, threads=args.threads).evaluate_batch(
             args.branch,
             args.batch,
@@ -335,7 +339,9 @@ def run_command(args: argparse.Namespace) -> int:
         )
         if args.compact:  # the batch is complete once its batch metrics are evaluated
             compact_batch(args.lake, args.branch, args.batch, progress=progress)
-    except DialectError as error:
+        if isinstance(engine.backend, TrinoBackend):  # the batch's new metric_results partition
+            sync_local(args.lake, engine.backend, args.branch)
+    except (DialectError, RegistrationError) as error:
         raise UserError(str(error)) from None
     except OSError as error:
         raise UserError(f"cannot store the results in the lake: {os_error_text(error)}") from None
@@ -349,6 +355,21 @@ def run_command(args: argparse.Namespace) -> int:
         " (the results are stored in the lake)",
     )
     return exit_code(evaluation)
+
+
+def _check_cluster_sees_batch(backend: TrinoBackend, catalog: Catalog, args: argparse.Namespace) -> None:
+    """Sync the cluster's partitions of the branch when it lacks jobs of the batch and the lake's
+    registration there reads the lake itself; UserError when it still lacks them: the metrics
+    would silently read less than the lake has."""
+    jobs = len(catalog.jobs(args.branch, args.batch))
+    seen = jobs_seen(backend, args.branch, args.batch)
+    if seen != jobs and sync_local(args.lake, backend, args.branch):
+        seen = jobs_seen(backend, args.branch, args.batch)
+    if seen != jobs:
+        raise UserError(
+            f"the Trino cluster at {backend.url} sees {seen} of the {jobs} job(s) of batch {args.batch!r}: "
+            f"register the lake again (lakegate trino-ddl --lake {args.lake} --apply --trino-url {backend.url})"
+        )
 
 
 def _show(

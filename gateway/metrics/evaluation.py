@@ -63,6 +63,7 @@ from lakegate.gateway.metrics.results import ResultsWriter
 from lakegate.gateway.metrics.templates import TemplateError, render
 from lakegate.lake import paths
 from lakegate.lake.config import Config, Location, Metric
+from lakegate.lake.record import job_logs_dir
 from lakegate.lake.storage import LakeStorage
 
 PASSED, WARNING, BLOCKER, ERROR, NOT_RUN = "PASSED", "WARNING", "BLOCKER", "ERROR", "NOT_RUN"
@@ -394,8 +395,8 @@ class MetricsEngine:
         return events
 
     def logs_dir(self, branch: str, batch_id: str, job_id: str) -> Path | None:
-        """The job's log files in the lake (`<branch>/_logs/<batch>/<job>/`), if there are any."""
-        directory = paths.logs_dir(self.lake, branch, batch_id, job_id)
+        """The job's log files in the lake (`record.job_logs_dir`), if there are any."""
+        directory = job_logs_dir(self.lake, branch, batch_id, job_id)
         return directory if self.storage.is_dir(directory) else None
 
     # -- a batch --------------------------------------------------------------------------------

@@ -9,7 +9,14 @@ from pathlib import Path
 from typing import Any
 
 from lakegate.gateway.cli import compact
-from lakegate.gateway.cli.errors import UserError, add_strict_option, print_config_warnings, writable_lake
+from lakegate.gateway.cli.errors import (
+    CONFIG_PATHS_HELP,
+    UserError,
+    add_strict_option,
+    existing_configs,
+    print_config_warnings,
+    writable_lake,
+)
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.config import Config, ConfigError, find_default_config, load_config
 from lakegate.lake.ingest import IngestError, IngestReport, LineProblem, ingest_job
@@ -55,7 +62,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         type=Path,
         metavar="P",
         dest="config_paths",
-        help="config file declaring the topics (repeat to merge several; default: the branch's "
+        help=f"config file declaring the topics ({CONFIG_PATHS_HELP}; default: the branch's "
         "current config in the lake, else .resim/metrics/config.resim.yaml)",
     )
     add_strict_option(ingest)
@@ -127,10 +134,7 @@ def _config(args: argparse.Namespace) -> Config:
                 ".resim/metrics/config.resim.yaml here; pass --metrics-config-path"
             )
         paths = [found]
-    for path in paths:
-        if not path.is_file():
-            raise UserError(f"config file {str(path)!r} does not exist")
-    config = load_config(paths, strict=args.strict)
+    config = load_config(existing_configs(paths), strict=args.strict)
     print_config_warnings(config)
     return config
 

@@ -338,6 +338,9 @@ class MetricsEngine:
         except TemplateError as error:
             result.status, result.error = ERROR, MetricError(str(error), query="template")
             return
+        if result.rendered.files_missing:  # a WARNING with the reason, not a silent PASS
+            reason = "; ".join(result.rendered.problems)
+            result.status, result.error = WARNING, MetricError(f"none of the files the query names is there: {reason}")
         if metric.status is not None:
             check = metric.status
             try:

@@ -21,6 +21,8 @@ from lakegate.gateway.cli.errors import UserError, os_error_text, positive
 from lakegate.gateway.metrics.compare import (
     ALPHA,
     FLAKE_WINDOW,
+    GONE,
+    NEW,
     SAME,
     Comparison,
     MetricChange,
@@ -222,7 +224,8 @@ def format_comparison(comparison: Comparison, *, every_metric: bool = False, str
         for j in comparison.jobs
     ]
     lines = _aligned(("TAG", "EXPERIENCE", "BASE", "NEW", "RUNS"), jobs)
-    shown = [m for m in comparison.metrics if every_metric or m.changed]
+    whole = {(j.experience, j.tag) for j in comparison.jobs if j.tag in (NEW, GONE)}  # listed above already
+    shown = [m for m in comparison.metrics if every_metric or (m.changed and (m.experience, m.tag) not in whole)]
     if shown:
         rows = [
             (
@@ -239,7 +242,7 @@ def format_comparison(comparison: Comparison, *, every_metric: bool = False, str
             for m in shown
         ]
         lines += ["", *_aligned(("TAG", "EXPERIENCE", "METRIC", "STATUS", "BASE", "NEW", "CHANGE", "REL", "P"), rows)]
-    unchanged = sum(1 for m in comparison.metrics if not m.changed)
+    unchanged = len(comparison.metrics) - len(shown)
     counts = comparison.counts()
     metric_counts = comparison.metric_counts()
     summary = ", ".join(f"{count} {tag}" for tag, count in counts.items() if count)
@@ -250,7 +253,7 @@ def format_comparison(comparison: Comparison, *, every_metric: bool = False, str
         f"{comparison.base} ({', '.join(comparison.base_builds) or '?'}) -> {comparison.new} "
         f"({', '.join(comparison.new_builds) or '?'}) on branch {comparison.branch!r}: "
         f"experiences: {summary or 'none'}; metrics: {metric_summary or 'no change'}"
-        f"{f' ({unchanged} unchanged not listed)' if unchanged and not every_metric else ''}; "
+        f"{f' ({unchanged} unchanged or of new and gone experiences not listed)' if unchanged else ''}; "
         f"flaky: {', '.join(sorted(comparison.flaky)) or 'none'}; {comparison.seconds:.1f} s",
         f"new failures: {', '.join(str(j.experience) for j in failures) or 'none'}",
     ]

@@ -323,6 +323,21 @@ def latest_batch_of_build(engine: MetricsEngine, branch: str, build: str) -> str
     return found[-1]
 
 
+def previous_build_batch(engine: MetricsEngine, branch: str, batch: str) -> str:
+    """The base a batch is compared with by default: the latest earlier batch (by time) of another build,
+    else the batch just before it; LookupError when it is unknown or the branch's first batch."""
+    known = branch_batches(engine, branch)
+    ids = [b.batch_id for b in known]
+    if batch not in ids:
+        raise LookupError(f"no batch {batch!r} on branch {branch!r} (batches: {', '.join(ids) or 'none'})")
+    earlier = known[: ids.index(batch)]
+    if not earlier:
+        raise LookupError(f"batch {batch!r} is the first batch of branch {branch!r}: there is nothing to compare with")
+    builds = known[ids.index(batch)].builds
+    other = [b.batch_id for b in earlier if b.builds != builds]
+    return other[-1] if other else earlier[-1].batch_id
+
+
 def compare_batches(
     engine: MetricsEngine,
     branch: str,

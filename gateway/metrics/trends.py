@@ -196,8 +196,11 @@ def _batches_item(evaluation: TrendsEvaluation) -> Item:
     return "Batches", render("Batches", "table", columns, rows), info
 
 
-def trends_html(evaluation: TrendsEvaluation, *, link_base: str = "", plotlyjs: str | bool = True) -> str:
-    """The page of an evaluation: its batches, then every metric; links go to `link_base`'s dashboard."""
+def trends_html(
+    evaluation: TrendsEvaluation, *, link_base: str = "", plotlyjs: str | bool = True, intro: str = ""
+) -> str:
+    """The page of an evaluation: its batches, then every metric; links go to `link_base`'s dashboard
+    (`intro`: HTML shown under the title)."""
     kind = "Dashboard" if evaluation.kind == "dashboard" else "Report"
     title = f"{kind} of branch {evaluation.branch}: {evaluation.status}"
     sections = [
@@ -209,6 +212,7 @@ def trends_html(evaluation: TrendsEvaluation, *, link_base: str = "", plotlyjs: 
         [(name, items) for name, items in sections if items],
         link=lambda value: batch_link(evaluation.branch, value, link_base),
         plotlyjs=plotlyjs,
+        intro=intro,
     )
 
 

@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import datetime as dt
 import json
+import urllib.error
+import urllib.request
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +25,8 @@ from lakegate.lake.emitter import Emitter
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.registry import BranchConfigs
 
+from .conftest import serve
+from .test_dashboard_browser import ARGS, CHROMIUM, _artifacts, _require_browser
 from .test_metrics_command import lakegate
 from .test_trino_backend import same, start_server, stop_server
 
@@ -69,6 +73,13 @@ metrics:
     type: batch
     query_string: SELECT AVG(value) FROM sample
     template: scalar
+  Mean by Build:
+    type: dashboard
+    query_string: |
+      SELECT 'mean', m.build_version, AVG(s.value)
+      FROM sample s JOIN metadata m ON s.batch_id = m.batch_id AND s.job_id = m.job_id
+      GROUP BY m.build_version ORDER BY MIN(m.time)
+    template: line
 metrics sets:
   Base Set:
     metrics: [Mean Value, Value Distribution, Value Over Time, Mode, Old Metric, Batch Mean]
@@ -332,3 +343,66 @@ def test_compare_through_a_trino_backend_matches_the_embedded_engine(built, tmp_
         stop_server(process)
     assert embedded.pop("seconds") >= 0 and forwarded.pop("seconds") >= 0
     assert same(forwarded, embedded)
+
+
+def _get(url: str) -> tuple[int, str]:
+    try:
+        with urllib.request.urlopen(url, timeout=60) as answer:
+            return answer.status, answer.read().decode()
+    except urllib.error.HTTPError as error:
+        return error.code, error.read().decode()
+
+
+def test_the_served_compare_page_in_a_real_browser(built, tmp_path):
+    """From a batch page ("compare with the previous build"), then two batches picked on the compare
+    page, then on the trends page: Chromium draws the same comparison as `lakegate compare`."""
+    lake, _ = built
+    sync_api = _require_browser()
+    server = serve(lake, tmp_path / "serve.log")
+    try:
+        status, page = _get(f"{server.url}/dashboard/compare/?branch=main&batch=nope")
+        assert status == 400 and "no batch &#x27;nope&#x27; on branch &#x27;main&#x27;" in page
+        status, page = _get(f"{server.url}/dashboard/compare/?branch=main&batch=base")
+        assert status == 400 and "is the first batch of branch" in page
+        expected = compare(lake, "--base", "base", "--batch", "new")[1]["counts"]["experiences"]
+        with sync_api.sync_playwright() as playwright:
+            browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
+            try:
+                page = browser.new_page(viewport={"width": 1400, "height": 1000})
+                page.set_default_timeout(30_000)
+                errors: list[str] = []
+                page.on("pageerror", lambda error: errors.append(str(error)))
+                page.goto(f"{server.url}/dashboard/?branch=main&batch=new")
+                page.wait_for_selector("body[data-ready=true]")
+                page.click("#compare-previous")
+                page.wait_for_url("**/dashboard/compare/?*")
+                assert page.title() == "Compare base -> new on branch main"
+                summary = page.locator("article.lg-metric").first.locator("table")
+                shown = {
+                    row.locator("td").nth(0).inner_text(): row.locator("td").nth(1).inner_text()
+                    for row in summary.locator("tbody tr").all()
+                }
+                assert {tag: shown[tag] for tag in expected} == {tag: str(n) for tag, n in expected.items()}
+                shifted = page.locator("article.lg-metric", has_text="Value Distribution (Shifted)")
+                shifted.locator(".main-svg").first.wait_for()  # Plotly drew it: base and new in one figure
+                assert shifted.locator(".barlayer .trace").count() == 2
+                page.screenshot(path=str(_artifacts(tmp_path) / "compare.png"), full_page=True)
+                page.select_option("#compare-base", "new")
+                page.select_option("#compare-batch", "flaky-only")
+                page.click("#compare-go")
+                page.wait_for_url("**base=new&batch=flaky-only")
+                assert page.title() == "Compare new -> flaky-only on branch main"
+                page.goto(f"{server.url}/dashboard/trends/?branch=main")
+                page.wait_for_selector("#lg-figure-2 .main-svg")
+                assert page.locator("#compare-base").input_value() == "new"  # the last two batches by default
+                assert page.locator("#compare-batch").input_value() == "flaky-only"
+                page.select_option("#compare-base", "base")
+                page.select_option("#compare-batch", "new")
+                page.click("#compare-go")
+                page.wait_for_url("**base=base&batch=new")
+                assert page.locator("h1").inner_text() == "Compare base -> new on branch main"
+                assert not errors
+            finally:
+                browser.close()
+    finally:
+        server.stop()

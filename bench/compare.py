@@ -24,7 +24,6 @@ Reports the median seconds of each and the ratio. Writes section "Compare" of be
 from __future__ import annotations
 
 import argparse
-import datetime as dt
 import json
 import os
 import shutil
@@ -176,8 +175,9 @@ def main() -> int:
     median = statistics.median(r["seconds"] for r in ours)
     base_median = statistics.median(r["seconds"] for r in baseline)
     first = ours[0]
+    experiences = min(EXPERIENCES, jobs)
     lines = [
-        f"Two batches of {jobs:,} jobs ({min(EXPERIENCES, jobs)} experiences, each run {jobs // min(EXPERIENCES, jobs)} "
+        f"Two batches of {jobs:,} jobs ({experiences} experiences, each run {jobs // experiences} "
         f"times per batch), each job with 4 test metrics (scalar with status, histogram and line of {SAMPLES} values, "
         "state timeline of 20 states) and 2 batch metrics, written with the lake's writers. "
         f"Median of {runs} alternating runs, each in a fresh process.",

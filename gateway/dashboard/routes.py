@@ -22,7 +22,8 @@
                                                          batches (gateway/metrics/trends.py): the page of
                                                          `lakegate metrics dashboard`, evaluated per request,
                                                          read-only, through the server's limits; a form
-                                                         picks two of its batches to compare
+                                                         picks two of its batches to compare; trend alerts
+                                                         (&k=3&builds=10: gateway/metrics/alerts.py)
     GET    /dashboard/compare/?branch=B&batch=Y[&base=X]  the page of `lakegate compare` (base: the latest
                                                          batch of the previous build when not given)
 
@@ -49,6 +50,7 @@ from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, Redirect
 from lakegate.dialect.errors import DialectError
 from lakegate.gateway.dashboard.debug_session import BranchConfig, DashboardSession, SessionError
 from lakegate.gateway.engine.engine import Engine
+from lakegate.gateway.metrics.alerts import HISTORY, K, alerts_html, trend_checks
 from lakegate.gateway.metrics.compare import compare_batches, previous_build_batch
 from lakegate.gateway.metrics.compare_page import compare_html
 from lakegate.gateway.metrics.evaluation import MetricsEngine
@@ -140,9 +142,18 @@ class DashboardState:
         )
         return self.add(session)
 
-    def trends(self, branch: str, window: str | None = None, metrics_set: str | None = None) -> str:
+    def trends(
+        self,
+        branch: str,
+        window: str | None = None,
+        metrics_set: str | None = None,
+        *,
+        k: float = K,
+        history: int = HISTORY,
+    ) -> str:
         """The trends page of a branch: its stored config's dashboard metrics over the batches of
-        `window` (every batch when None), evaluated now; SessionError for what cannot be shown."""
+        `window` (every batch when None), evaluated now, with the trend alerts (`k` standard deviations
+        of the `history` previous builds); SessionError for what cannot be shown."""
         if branch not in self.catalog.branches():
             raise SessionError(f"no branch {branch!r} in the lake")
         chosen = Window.parse(window) if window else None
@@ -160,7 +171,8 @@ class DashboardState:
         )
         ids = [b.batch_id for b in batches]
         form = self.compare_form(branch, ids[-2] if len(ids) > 1 else None, ids[-1] if ids else None)
-        return trends_html(evaluation, plotlyjs="/dashboard/static/plotly.min.js", intro=form)
+        alerts = alerts_html(trend_checks(self.evaluator, branch, ids, k=k, history=history))
+        return trends_html(evaluation, plotlyjs="/dashboard/static/plotly.min.js", intro=form + alerts)
 
     def compare(self, branch: str, batch: str | None, base: str | None = None) -> str:
         """The comparison page of batch `batch` with `base` (default: the latest batch of the previous
@@ -276,12 +288,16 @@ def dashboard_router(state: DashboardState) -> APIRouter:
 
     @router.get("/trends/", include_in_schema=False)
     def trends(
-        branch: str | None = None, window: str | None = None, metrics_set: str | None = Query(None, alias="set")
+        branch: str | None = None,
+        window: str | None = None,
+        metrics_set: str | None = Query(None, alias="set"),
+        k: float = Query(K, gt=0),
+        builds: int = Query(HISTORY, ge=2),
     ) -> HTMLResponse:
         if branch is None:
             return HTMLResponse(call(state.trends_index), headers={"Cache-Control": "no-cache"})
         try:
-            page = state.trends(branch, window, metrics_set)
+            page = state.trends(branch, window, metrics_set, k=k, history=builds)
         except (SessionError, LakePathError, DialectError, ValueError) as error:
             return HTMLResponse(_error_page(str(error)), status_code=400)
         return HTMLResponse(page, headers={"Cache-Control": "no-cache"})

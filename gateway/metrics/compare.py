@@ -36,7 +36,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import orjson
-from scipy import stats
 
 from lakegate.dialect.scope import Scope
 from lakegate.gateway.metrics.evaluation import MetricsEngine
@@ -291,6 +290,8 @@ def series_values(template: str, figure: dict) -> list:
 
 def two_sample_test(template: str, base: Sequence, new: Sequence) -> SeriesTest | None:
     """The two-sample test of a series metric's values (None when a side has no values)."""
+    from scipy import stats  # here: importing SciPy takes a while, and only comparisons need it
+
     if not base or not new:
         return None
     if template == "state_timeline":

@@ -216,9 +216,10 @@ def trends_html(
     )
 
 
-def write_trends(evaluation: TrendsEvaluation, path: Path, *, link_base: str = "") -> Path:
-    """Write the page of an evaluation to `path` (folders created, plotly.js embedded); returns the path."""
+def write_trends(evaluation: TrendsEvaluation, path: Path, *, link_base: str = "", intro: str = "") -> Path:
+    """Write the page of an evaluation to `path` (folders created, plotly.js embedded; `intro`: HTML
+    under the title); returns the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(trends_html(evaluation, link_base=link_base), encoding="utf-8")
+    path.write_text(trends_html(evaluation, link_base=link_base, intro=intro), encoding="utf-8")
     return path

@@ -122,20 +122,19 @@ def segments(sequence: list[str]) -> list[str]:
     return [s for i, s in enumerate(sequence) if i == 0 or sequence[i - 1] != s]
 
 
-@pytest.fixture(scope="module")
-def built(tmp_path_factory):
-    """The lake, and per batch: experience -> list of runs (values, states, status)."""
-    root = tmp_path_factory.mktemp("compare")
+def make_lake(root: Path, batches: list[tuple[str, str, dict[str, list[tuple[float, int]]], str]]):
+    """A lake of `batches` ((batch, build, experience -> runs as (mean, extra STOP states), metrics set)),
+    evaluated; returns (lake, per batch: experience -> list of runs (values, states, status))."""
     (root / "config.resim.yaml").write_text(CONFIG)
     lake = root / "lake"
     registry = BranchConfigs(lake, "main")
     config = registry.load(registry.store([root / "config.resim.yaml"]))
     truth: dict[str, dict[str, list]] = {}
     minute = 0
-    for batch, plan, side in (("base", PLAN, 0), ("new", PLAN, 1), ("flaky-only", FLAKY_ONLY, 1)):
+    for batch, build, plan, _ in batches:
         truth[batch] = {}
-        for experience, sides in plan.items():
-            for run, (mean, stops) in enumerate(sides[side] or []):
+        for experience, runs in plan.items():
+            for run, (mean, stops) in enumerate(runs):
                 rng = np.random.default_rng([ord(c) for c in f"{batch}/{experience}/{run}"])
                 values = rng.normal(mean, 1.0, SAMPLES).tolist()
                 sequence = states(stops)
@@ -150,7 +149,7 @@ def built(tmp_path_factory):
                 minute += 1
                 metadata = {
                     "experience_name": experience,
-                    "build_version": BUILDS[batch],
+                    "build_version": build,
                     "time": (START + dt.timedelta(minutes=minute)).isoformat(),
                 }
                 ingest_job(lake, "main", batch, job, [path], config=config, metadata=metadata)
@@ -158,9 +157,20 @@ def built(tmp_path_factory):
                     {"values": values, "states": sequence, "status": expected_status(float(np.mean(values)))}
                 )
     with MetricsEngine(lake) as engine:
-        for batch, metrics_set in (("base", "Base Set"), ("new", "New Set"), ("flaky-only", "New Set")):
+        for batch, _, _, metrics_set in batches:
             engine.evaluate_batch("main", batch, config.metrics_in_set(metrics_set), metrics_set=metrics_set)
     return lake, truth
+
+
+@pytest.fixture(scope="module")
+def built(tmp_path_factory):
+    """The lake of the base, the new and the flaky-only batch, and what each run was made of."""
+    batches = [
+        ("base", BUILDS["base"], {e: runs[0] for e, runs in PLAN.items() if runs[0]}, "Base Set"),
+        ("new", BUILDS["new"], {e: runs[1] for e, runs in PLAN.items() if runs[1]}, "New Set"),
+        ("flaky-only", BUILDS["flaky-only"], {e: runs[1] for e, runs in FLAKY_ONLY.items()}, "New Set"),
+    ]
+    return make_lake(tmp_path_factory.mktemp("compare"), batches)
 
 
 SEVERITY = {"PASSED": 1, "WARNING": 2, "BLOCKER": 3}
@@ -404,5 +414,58 @@ def test_the_served_compare_page_in_a_real_browser(built, tmp_path):
                 assert not errors
             finally:
                 browser.close()
+    finally:
+        server.stop()
+
+
+#: Builds of the trend: Drifting's mean stays near 1 for three builds, then jumps to 5 (an alert).
+TREND = {"1.0": 1.0, "1.1": 1.2, "1.2": 0.9, "1.3": 5.0}
+
+
+@pytest.fixture(scope="module")
+def trend_lake(tmp_path_factory):
+    batches = [
+        (f"nightly-{build}", build, {"Drifting": [(mean, 0)], "Steady": [(1.0, 0)]}, "New Set")
+        for build, mean in TREND.items()
+    ]
+    return make_lake(tmp_path_factory.mktemp("trend"), batches)
+
+
+def test_trend_alerts_in_metrics_dashboard_and_on_the_trends_page(trend_lake, tmp_path):
+    lake, truth = trend_lake
+    run = ["metrics", "dashboard", "--lake", lake, "--branch", "main", "--format", "json"]
+    done = lakegate(*run, "--alert-k", "3", "--alert-builds", "3")
+    assert done.returncode == 0, done.stderr  # no --fail-on
+    checks = {c["metric"]: c for c in json.loads(done.stdout)["trend_checks"]}
+    builds = list(TREND)
+    for metric, per_build in {
+        "Mean Value": {
+            b: np.mean([np.mean(r["values"]) for runs in truth[f"nightly-{b}"].values() for r in runs]) for b in builds
+        },
+        "Batch Mean": {
+            b: np.mean([v for runs in truth[f"nightly-{b}"].values() for r in runs for v in r["values"]])
+            for b in builds
+        },
+    }.items():
+        earlier = [float(per_build[b]) for b in builds[:-1]]
+        mean, sd = float(np.mean(earlier)), float(np.std(earlier, ddof=1))
+        check = checks[metric]
+        assert check["build"] == "1.3" and check["history_builds"] == builds[:-1]
+        assert check["value"] == pytest.approx(float(per_build["1.3"]), rel=1e-12)
+        assert (check["mean"], check["sd"]) == (pytest.approx(mean, rel=1e-12), pytest.approx(sd, rel=1e-9))
+        assert check["alert"] == (abs(float(per_build["1.3"]) - mean) > 3 * sd)
+    assert checks["Mean Value"]["alert"] is True  # Drifting's jump of about 4 standard deviations of its history
+    assert lakegate(*run, "--fail-on", "regression").returncode == 5
+    assert lakegate(*run, "--fail-on", "regression", "--alert-k", "1000").returncode == 0
+    assert lakegate(*run, "--fail-on", "regression", "--alert-builds", "1").returncode == 0  # 2 builds needed
+    table = lakegate("metrics", "dashboard", "--lake", lake, "--branch", "main", "--report", tmp_path / "t.html")
+    assert "ALERT Mean Value: build 1.3" in table.stdout
+    assert "Trend alerts" in (tmp_path / "t.html").read_text()
+    server = serve(lake, tmp_path / "serve.log")
+    try:
+        status, page = _get(f"{server.url}/dashboard/trends/?branch=main")
+        assert status == 200 and '<li class="lg-alert">Mean Value: build 1.3' in page
+        status, page = _get(f"{server.url}/dashboard/trends/?branch=main&k=1000")
+        assert status == 200 and "lg-alert" not in page.split("Trend alerts", 1)[1][:200]
     finally:
         server.stop()

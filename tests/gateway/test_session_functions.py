@@ -8,6 +8,9 @@ from __future__ import annotations
 import pytest
 import trino
 
+from lakegate.dialect.errors import DialectError
+from lakegate.gateway.engine.trino_backend import TrinoBackend
+
 SESSION_SQL = "SELECT current_catalog, current_schema, current_user, current_path, current_timezone(), current_groups()"
 
 
@@ -93,3 +96,19 @@ def test_lake_queries_read_the_session(lake_server):
     )
     ((user, schema, count),) = rows
     assert (user, schema) == ("alice", "main") and count > 0
+
+
+def test_refused_with_the_trino_backend(lake_server):
+    """A forwarding backend would get the cluster's own catalog and schema names: refused by name."""
+    backend = TrinoBackend(lake_server.url, user="tester", catalog="lake", schema_map={"*": "{branch}"})
+    try:
+        with pytest.raises(DialectError) as refused:
+            backend.execute("SELECT 1, current_schema", branch="main")
+        assert (refused.value.error_name, refused.value.message) == (
+            "NOT_SUPPORTED",
+            "unsupported in lakegate: current_schema with the Trino backend",
+        )
+        forwarded = backend.execute("SELECT 'current_user' AS text", branch="main")
+        assert [row for batch in forwarded.batches for row in batch.to_pylist()] == [{"text": "current_user"}]
+    finally:
+        backend.close()

@@ -1,7 +1,8 @@
 """The official Trino CLI (io.trino:trino-cli:476, its executable jar) in batch mode against a real
 `lakegate serve`: `--execute` with `--output-format CSV` and `JSON`. Queries that read no table
 print exactly what the same CLI prints against the real Trino 476; queries over the lake print the
-rows DuckDB reads from the lake's Parquet files.
+rows DuckDB reads from the lake's Parquet files, and exactly what the CLI prints against the real
+Trino reading the same Parquet files through its hive catalog (`lakegate trino-ddl --apply`).
 """
 
 from __future__ import annotations
@@ -9,7 +10,10 @@ from __future__ import annotations
 import csv
 import io
 import json
+import shutil
 import subprocess
+import sys
+import uuid
 from collections.abc import Callable
 from pathlib import Path
 
@@ -17,6 +21,8 @@ import duckdb
 import pytest
 
 from lakegate.lake import paths
+
+CLI = [sys.executable, "-m", "lakegate.gateway.cli"]
 
 #: Literal queries: one of each type a CLI renders, with the characters CSV and JSON must escape.
 LITERALS = [
@@ -136,3 +142,40 @@ def test_lake_queries(output_format, lake_server, server_lake: Path, trino_cli):
 
 def _nulls(names: list[str], row: tuple) -> dict:
     return {k: None for k, v in zip(names, row) if v is None}
+
+
+LAKE_QUERIES = (
+    "SELECT batch_id, job_id, experience_name, experience_tag_names, test_suite_revision, build_creation_timestamp "
+    "FROM metadata ORDER BY job_id;\n"
+    "SELECT job_id, count(*) AS n, min(x) AS lo, max(x) AS hi, min(timestamp) AS first "
+    "FROM odom_linear_velocity GROUP BY job_id ORDER BY job_id"
+)
+
+
+@pytest.fixture(scope="module")
+def trino_schema(server_lake, trino_url, tmp_path_factory):
+    """The test lake's branch main as a schema of the real Trino's hive catalog, reading a copy of
+    the very same Parquet files (`lakegate trino-ddl --apply`; dropped at the end)."""
+    lake = tmp_path_factory.mktemp("cli-lake") / "lake"
+    shutil.copytree(server_lake, lake)
+    prefix = f"clients_cli_{uuid.uuid4().hex[:8]}_"
+
+    def lakegate(*args: str) -> None:
+        done = subprocess.run([*CLI, *args, "--lake", str(lake), "--trino-url", trino_url], capture_output=True)
+        assert done.returncode == 0, done.stderr.decode()[-2000:]
+
+    lakegate("trino-ddl", "--apply", "--schema-prefix", prefix)
+    yield f"{prefix}main"
+    lakegate("trino-ddl", "--drop")
+
+
+@pytest.mark.parametrize("output_format", ["CSV_HEADER", "JSON"])
+def test_lake_queries_print_as_trino_prints_them(output_format, lake_server, trino_url, trino_schema, trino_cli):
+    queries = LAKE_QUERIES if output_format != "JSON" else LAKE_QUERIES.split(";\n")[1]  # JSON: no arrays
+    args = ["--output-format", output_format, "--execute", queries]
+    lakegate = trino_cli(lake_server.url, "--catalog", "lake", "--schema", "main", *args)
+    judge = trino_cli(trino_url, "--catalog", "hive", "--schema", trino_schema, *args)
+    assert judge.returncode == 0, judge.stderr.decode()[-2000:]
+    assert lakegate.returncode == 0, lakegate.stderr.decode()[-2000:]
+    assert lakegate.stdout == judge.stdout
+    assert lakegate.stdout.count(b"\n") >= 3  # a row per job at least

@@ -25,6 +25,9 @@ supported) counts for nothing. One metric:
   exactly (e.g. `config.resim.yaml:57:9`); the rest of the set still runs;
 * the result does not fit the template: ERROR with the template's message;
 * no rows and `skip_if_no_data: true`: NOT_RUN;
+* no rows, or one row of NULLs only (`MIN(x)` over no rows), and `skip_if_no_data: false`: NO_DATA,
+  and the status check does not run (SignalFlag's config reference); NO_DATA, like NOT_RUN, never
+  makes a job or batch worse;
 * `type: dashboard | report` metrics run over many batches (`gateway/metrics/trends.py`): in a
   batch they are NOT_RUN naming the command that runs them (they never fail a batch);
 * `template_type: custom`: the result is rendered by the metric's Liquid template (`custom`);
@@ -66,8 +69,9 @@ from lakegate.lake.config import Config, Location, Metric
 from lakegate.lake.storage import LakeStorage
 
 PASSED, WARNING, BLOCKER, ERROR, NOT_RUN = "PASSED", "WARNING", "BLOCKER", "ERROR", "NOT_RUN"
-#: Statuses from best to worst; NOT_RUN is below all and never makes anything worse.
-SEVERITY = {NOT_RUN: 0, PASSED: 1, WARNING: 2, BLOCKER: 3, ERROR: 4}
+NO_DATA = "NO_DATA"
+#: Statuses from best to worst; NOT_RUN and NO_DATA are below all and never make anything worse.
+SEVERITY = {NOT_RUN: 0, NO_DATA: 0, PASSED: 1, WARNING: 2, BLOCKER: 3, ERROR: 4}
 #: Metric types a batch evaluates (`evaluate_batch`).
 EVALUATED_TYPES = ("test", "batch")
 #: Metric types that run over many batches (`Scope.batches`, gateway/metrics/trends.py), and the
@@ -79,9 +83,9 @@ MULTI_BATCH_COMMANDS = {
 
 
 def worst(statuses: Sequence[str] | Any) -> str:
-    """The worst of some statuses; PASSED when there are none (or only NOT_RUN)."""
+    """The worst of some statuses; PASSED when there are none (or only NOT_RUN and NO_DATA)."""
     found = max(statuses, key=SEVERITY.__getitem__, default=PASSED)
-    return PASSED if found == NOT_RUN else found
+    return PASSED if SEVERITY[found] == 0 else found
 
 
 def conflated_status(job_status: str | None, metrics_status: str) -> str:
@@ -213,6 +217,32 @@ def select_metrics(config: Config, metrics_set: str | None = None, *, all_metric
     return config.metrics_in_set(metrics_set)
 
 
+def no_data(rows: Sequence[tuple]) -> bool:
+    """SignalFlag's NO_DATA: a query that returns no rows, or one row of NULLs only (an aggregate
+    such as MIN(x) over no rows). COUNT(*) over no rows is a row with a value (0): data."""
+    return not rows or (len(rows) == 1 and all(value is None for value in rows[0]))
+
+
+def check_batch_metrics(metrics: Sequence[Metric], metrics_set: str | None) -> None:
+    """ValueError when `metrics` hold no test or batch metric: evaluating them on a batch would only
+    replace its statuses and results with NOT_RUN rows, so the batch is left alone and the command
+    that runs them is named (a set of `type: dashboard` metrics: `lakegate metrics dashboard`)."""
+    if any(metric.type in EVALUATED_TYPES for metric in metrics):
+        return
+    where = f"metrics set {metrics_set!r}" if metrics_set else "the config"
+    kinds = sorted({metric.type for metric in metrics})
+    commands = "; ".join(
+        f"{kind} metrics: {MULTI_BATCH_COMMANDS[kind]}" + (f" --metrics-set {metrics_set!r}" if metrics_set else "")
+        for kind in kinds
+        if kind in MULTI_BATCH_COMMANDS
+    )
+    raise ValueError(
+        f"{where} holds no test or batch metric ({', '.join(kinds) or 'no'} metrics only), so there is nothing "
+        f"to evaluate on a batch; its statuses and results are left as they are"
+        + (f" (run {commands})" if commands else "")
+    )
+
+
 def unsupported_reason(metric: Metric, scope: Scope) -> str | None:
     """Why a metric cannot be evaluated in `scope`, or None when it can."""
     if metric.type in MULTI_BATCH_COMMANDS and scope.batches is None:
@@ -327,6 +357,11 @@ class MetricsEngine:
             result.status = NOT_RUN
             result.error = MetricError("skipped: the query returned no rows (skip_if_no_data)")
             return
+        if not metric.skip_if_no_data and no_data(rows):
+            what = "no rows" if not rows else "one row of NULLs"
+            result.status = NO_DATA
+            result.error = MetricError(f"the query returned {what}; the status check does not run (NO_DATA)")
+            return
         try:
             if metric.template_type == CUSTOM:
                 result.rendered = render_custom(metric, answer.columns, rows)
@@ -335,18 +370,30 @@ class MetricsEngine:
                     metric.name, metric.template or "", answer.columns, rows, units=metric.units, logs_dir=logs_dir
                 )
         except TemplateError as error:
+            # The status check does not read the figure: it still runs, and its outcome is told
+            # beside the template's error (ERROR, the worse of the two, is the metric's status).
             result.status, result.error = ERROR, MetricError(str(error), query="template")
+            outcome = self._judge(metric, branch, scope)
+            if metric.status is not None:
+                told = outcome[0] if outcome[1] is None else f"{outcome[0]} ({outcome[1]})"
+                result.error = MetricError(f"{error}; the status check gave {told}", query="template")
             return
-        if metric.status is not None:
-            check = metric.status
-            try:
-                if check.block is not None and self._any_rows(check.query_string, branch, scope, check.block):
-                    result.status = BLOCKER
-                elif check.warn is not None and self._any_rows(check.query_string, branch, scope, check.warn):
-                    result.status = WARNING
-            except DialectError as error:
-                result.status = ERROR
-                result.error = _query_error(error, check.query_string, check.query_location, "status query")
+        result.status, result.error = self._judge(metric, branch, scope)
+
+    def _judge(self, metric: Metric, branch: str, scope: Scope) -> tuple[str, MetricError | None]:
+        """The status check's outcome: BLOCKER when the status query finds rows with `block`, else
+        WARNING when it finds rows with `warn`, else PASSED (also with no check); ERROR when it fails."""
+        check = metric.status
+        if check is None:
+            return PASSED, None
+        try:
+            if check.block is not None and self._any_rows(check.query_string, branch, scope, check.block):
+                return BLOCKER, None
+            if check.warn is not None and self._any_rows(check.query_string, branch, scope, check.warn):
+                return WARNING, None
+        except DialectError as error:
+            return ERROR, _query_error(error, check.query_string, check.query_location, "status query")
+        return PASSED, None
 
     def _any_rows(self, sql: str, branch: str, scope: Scope, threshold: Any) -> bool:
         answer = self.query(sql, branch, scope, (threshold,))
@@ -417,8 +464,10 @@ class MetricsEngine:
         With `store`, replaces the batch's rows of `metric_results` (written job by job while the
         others are evaluated) and the jobs' statuses in their metadata rows, in one commit. Without
         `keep_figures`, each job's Plotly figures are dropped from the returned results once
-        stored (they can be large). LookupError when the batch has no jobs.
+        stored (they can be large). LookupError when the batch has no jobs; ValueError, before anything
+        is read or written, when `metrics` hold no test or batch metric (`check_batch_metrics`).
         """
+        check_batch_metrics(metrics, metrics_set)
         started = time.perf_counter()
         evaluated_at = dt.datetime.now(dt.UTC).replace(tzinfo=None)
         test_metrics = [m for m in metrics if m.type == "test"]

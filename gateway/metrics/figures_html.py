@@ -30,6 +30,7 @@ STATUS_COLOURS = {
     "BLOCKER": "#c62828",
     "ERROR": "#6a1b9a",
     "NOT_RUN": "#757575",
+    "NO_DATA": "#90a4ae",
 }
 #: Rows of a table template shown in HTML; the full result stays in `Rendered.table`.
 MAX_TABLE_ROWS = 2000
@@ -93,7 +94,7 @@ def report_html(
     """One offline page showing many metrics, grouped in titled sections.
 
     Each metric is (name, rendered or None when it has no result, info) where info may hold
-    "status" (PASSED, WARNING, BLOCKER, ERROR or NOT_RUN), "description", "units", "error" and
+    "status" (PASSED, WARNING, BLOCKER, ERROR, NOT_RUN or NO_DATA), "description", "units", "error" and
     "link_columns" (default `LINK_COLUMNS`): with `link`, a table's cells in those columns are
     links to `link(value)`. `plotlyjs` is `figure_html`'s `include_plotlyjs` (True: embedded).
     """

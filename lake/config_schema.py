@@ -64,7 +64,7 @@ class Key:
     """What one key's value must be.
 
     kind: `version` (the integer 1), `string`, `query` (non-blank string), `boolean`,
-    `threshold` (number or string), `data` (any mapping, kept as plain data), `names`
+    `threshold` (a number; SignalFlag refuses '0.5'), `data` (any mapping, kept as plain data), `names`
     (list of unique strings), `fields` (mapping of field names to field types),
     `section` (a mapping checked against `section`), `named` (a mapping of names to
     mappings checked against `section`).
@@ -214,7 +214,7 @@ def _key_schema(key: Key, defs: dict[str, Any]) -> dict[str, Any]:
     elif kind == "boolean":
         schema = {"type": "boolean"}
     elif kind == "threshold":
-        schema = {"type": ["number", "string"]}
+        schema = {"type": "number"}
     elif kind == "data":
         schema = {"type": "object"}
     elif kind == "names":

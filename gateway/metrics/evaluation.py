@@ -61,11 +61,13 @@ from lakegate.dialect.scope import Scope
 from lakegate.gateway.engine.backend import DuckDBBackend, QueryResult
 from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.metrics.custom import CUSTOM, render_custom
+from lakegate.gateway.metrics.job_media import names_jobs, render_job_media
 from lakegate.gateway.metrics.metric_result import MetricError, MetricResult
 from lakegate.gateway.metrics.results import ResultsWriter
-from lakegate.gateway.metrics.templates import TemplateError, render
+from lakegate.gateway.metrics.templates import Rendered, TemplateError, render
 from lakegate.lake import paths
 from lakegate.lake.config import Config, Location, Metric
+from lakegate.lake.registry import BranchConfigs
 from lakegate.lake.storage import LakeStorage
 
 PASSED, WARNING, BLOCKER, ERROR, NOT_RUN = "PASSED", "WARNING", "BLOCKER", "ERROR", "NOT_RUN"
@@ -365,6 +367,8 @@ class MetricsEngine:
         try:
             if metric.template_type == CUSTOM:
                 result.rendered = render_custom(metric, answer.columns, rows)
+            elif scope.job_id is None and names_jobs(metric.template, answer.columns):
+                result.rendered = self._job_media(metric, branch, scope, rows)
             else:
                 result.rendered = render(
                     metric.name, metric.template or "", answer.columns, rows, units=metric.units, logs_dir=logs_dir
@@ -379,6 +383,23 @@ class MetricsEngine:
                 result.error = MetricError(f"{error}; the status check gave {told}", query="template")
             return
         result.status, result.error = self._judge(metric, branch, scope)
+
+    def _job_media(self, metric: Metric, branch: str, scope: Scope, rows: list[tuple]) -> Rendered:
+        """A batch image or video result of `[label, job_id]` rows (job_media): each job's files."""
+        template = metric.template or ""
+        config = BranchConfigs(self.lake, branch).current()
+        topics = config.topics.values() if config is not None else ()
+        media = [(topic.name, name) for topic in topics for name, kind in topic.fields.items() if kind == template]
+
+        def files_of(job_id: str, topic: str, column: str) -> list[str]:
+            sql = f"SELECT {_quoted(column)} FROM {_quoted(topic)} WHERE job_id = ? ORDER BY timestamp"
+            answer = self.query(sql, branch, Scope(scope.batch_id, job_id), (job_id,))
+            return [value for (value,) in answer.rows() if value is not None]
+
+        def logs_dir_of(job_id: str) -> Path | None:
+            return self.logs_dir(branch, scope.batch_id or "", job_id)
+
+        return render_job_media(metric.name, template, rows, media, files_of, logs_dir_of)
 
     def _judge(self, metric: Metric, branch: str, scope: Scope) -> tuple[str, MetricError | None]:
         """The status check's outcome: BLOCKER when the status query finds rows with `block`, else
@@ -592,6 +613,10 @@ class MetricsEngine:
             results=job_results,
             logs_dir=logs,
         )
+
+
+def _quoted(name: str) -> str:
+    return '"' + name.replace('"', '""') + '"'
 
 
 def _query_error(error: DialectError, sql: str, start: Location | None, which: str) -> MetricError:

@@ -641,3 +641,43 @@ def test_config_position_maps_query_positions_into_the_file(tmp_path):
     assert config_position(Location(file, 7, 6), "SELECT w\n", 1, 8) is None  # folded: no exact place
     assert config_position(Location(file, 5, 6), "SELECT other", 1, 8) is None  # not the file's text
     assert config_position(None, "SELECT 1", 1, 1) is None
+
+
+def test_a_batch_image_metric_of_labels_and_job_ids_shows_each_jobs_files(nav, tmp_path):
+    """ReSim's isaacsim-demo config (.resim/metrics/config.resim.yml, "Camera feed (bright scenes)")
+    has batch image metrics returning [experience_name, job_id]: each listed job's image files, labelled."""
+    config_path = write_config(
+        tmp_path,
+        """\
+      Camera feeds:
+        type: batch
+        query_string: |
+          SELECT m.experience_name, c.job_id FROM camera_gif c JOIN metadata m ON c.job_id = m.job_id
+          WHERE m.job_id IN (?, ?) ORDER BY m.experience_name
+        template: image
+      Camera feeds of nobody:
+        type: batch
+        query_string: SELECT 'nobody' AS label, 'no-such-job' AS job_id
+        template: image
+    """,
+    )
+    picked = nav.jobs[:2]
+    text = config_path.read_text().replace("IN (?, ?)", f"IN ('{picked[0].job_id}', '{picked[1].job_id}')")
+    config_path.write_text(text)
+    config = load_config(config_path)
+    scope = Scope(BATCH)
+    feeds = nav.engine.evaluate(config.metrics["Camera feeds"], BRANCH, scope)
+    assert feeds.status == "PASSED", feeds.error
+    expected = []
+    for job in sorted(picked, key=lambda j: nav.metadata[j.job_id]["experience_name"]):
+        for _, data in nav.emissions[job.job_id]["camera_gif"]:
+            expected.append((f"{nav.metadata[job.job_id]['experience_name']}: {data['filename']}", job.job_id))
+    rows = feeds.rendered.table["rows"]
+    assert len({job for _, job in expected}) == 2  # both jobs logged camera images
+    assert [row[0] for row in rows] == [caption for caption, _ in expected]
+    for row, (_, job_id) in zip(rows, expected):
+        assert Path(row[1]).parent == paths.logs_dir(nav.lake, BRANCH, BATCH, job_id).resolve()
+        assert Path(row[1]).is_file() and row[3] == "image/gif"
+    assert feeds.rendered.text == f"{len(expected)} images of 2 jobs" and feeds.rendered.problems == []
+    nobody = nav.engine.evaluate(config.metrics["Camera feeds of nobody"], BRANCH, scope)
+    assert nobody.rendered.problems == ["nobody: job no-such-job has no image files"]

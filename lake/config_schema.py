@@ -19,8 +19,12 @@ METRIC_TYPES = ("test", "batch", "dashboard", "report")
 SET_METRIC_TYPES = ("test", "batch")
 TEMPLATE_TYPES = ("system", "custom")
 TEMPLATES = ("line", "bar", "table", "scalar", "image", "state_timeline", "histogram", "pie", "video", "artifact")
-#: Table names of the lake that a topic may not take.
-RESERVED_TOPIC_NAMES = ("metadata", "events", "metric_results")
+#: Tables ReSim's platform generates for every job (from resource_metrics.resim.jsonl and
+#: test_length_metric.resim.jsonl): SignalFlag's validator (open-core signalflag/demo/config_test.py,
+#: BUILTIN_TABLES) lets no topic shadow them.
+PLATFORM_TABLES = ("container_performance", "test_length_seconds")
+#: Table names of the lake, and of ReSim's platform, that a topic may not take.
+RESERVED_TOPIC_NAMES = ("metadata", "events", "metric_results", *PLATFORM_TABLES)
 #: Columns every topic row has besides its declared fields.
 TOPIC_COLUMNS = ("timestamp", "batch_id", "job_id", "experience_name", "build_version")
 

@@ -681,3 +681,24 @@ def test_a_batch_image_metric_of_labels_and_job_ids_shows_each_jobs_files(nav, t
     assert feeds.rendered.text == f"{len(expected)} images of 2 jobs" and feeds.rendered.problems == []
     nobody = nav.engine.evaluate(config.metrics["Camera feeds of nobody"], BRANCH, scope)
     assert nobody.rendered.problems == ["nobody: job no-such-job has no image files"]
+
+
+def test_platform_tables_are_named_when_a_query_reads_them(nav, tmp_path):
+    """container_performance and test_length_seconds are tables ReSim's platform generates (SignalFlag's
+    validator, open-core signalflag/demo/config_test.py, BUILTIN_TABLES); lakegate says so when a query reads one."""
+    config_path = write_config(
+        tmp_path,
+        """\
+      Peak memory:
+        type: test
+        query_string: SELECT MAX(memory_bytes) FROM container_performance
+        template: scalar
+    """,
+    )
+    config = load_config(config_path)
+    result = nav.engine.evaluate(config.metrics["Peak memory"], BRANCH, Scope(BATCH, nav.jobs[0].job_id))
+    assert result.status == "ERROR"
+    assert result.error.message == (
+        "Table 'lake.main.container_performance' does not exist (container_performance is a table ReSim's platform "
+        "generates for each job; lakegate does not provide it yet: docs/resim-compat.md)"
+    )

@@ -43,6 +43,7 @@ def warnings_of(path: Path | list[Path]) -> list[tuple[int, int, str]]:
 
 #: How a warning (lakegate stricter than ReSim on purpose) ends when --strict refuses it.
 STRICT = " (ReSim accepts this; refused because of --strict)"
+RESERVED = "metadata, events, metric_results, container_performance, test_length_seconds"
 
 
 def one_error(folder: Path, text: str) -> tuple[int, int, str]:
@@ -316,9 +317,18 @@ def test_unknown_field_type_with_did_you_mean(tmp_path):
         ("_private", "topic '_private' starts with '_' or '.', which topic names may not"),
         (".hidden", "topic '.hidden' starts with '_' or '.', which topic names may not"),
         ('"tab\\there"', "topic 'tab\there' contains a control character"),
-        ("metadata", "topic 'metadata' is a reserved table name (metadata, events, metric_results)"),
-        ("Events", "topic 'Events' is a reserved table name (metadata, events, metric_results)"),
-        ("metric_results", "topic 'metric_results' is a reserved table name (metadata, events, metric_results)"),
+        (
+            "metadata",
+            f"topic 'metadata' is a reserved table name ({RESERVED})",
+        ),
+        (
+            "Events",
+            f"topic 'Events' is a reserved table name ({RESERVED})",
+        ),
+        (
+            "metric_results",
+            f"topic 'metric_results' is a reserved table name ({RESERVED})",
+        ),
     ],
 )
 def test_bad_topic_names(tmp_path, name, message):
@@ -970,3 +980,9 @@ def test_a_quoted_threshold_is_refused_as_signalflag_refuses_it(tmp_path):
     """,
         )
     ) == [(4, 61, "'block' in status of metric 'M' must be a number, not a quoted string, got string '0.5'")]
+
+
+def test_topics_do_not_shadow_the_platform_tables(tmp_path):
+    """SignalFlag's validator: `set(topics) & BUILTIN_TABLES` must be empty."""
+    found = errors(write(tmp_path, "version: 1\ntopics:\n  test_length_seconds:\n    schema: {v: float}\n"))
+    assert len(found) == 1 and "test_length_seconds" in found[0][2] and "reserved table name" in found[0][2]

@@ -69,6 +69,7 @@ from lakegate.gateway.metrics.templates import Rendered, TemplateError, render
 from lakegate.lake import paths
 from lakegate.lake.config import Config, Location, Metric
 from lakegate.lake.config_schema import PLATFORM_TABLES
+from lakegate.lake.record import job_logs_dir
 from lakegate.lake.registry import BranchConfigs
 from lakegate.lake.storage import LakeStorage
 
@@ -384,7 +385,13 @@ class MetricsEngine:
                 told = outcome[0] if outcome[1] is None else f"{outcome[0]} ({outcome[1]})"
                 result.error = MetricError(f"{error}; the status check gave {told}", query="template")
             return
-        result.status, result.error = self._judge(metric, branch, scope)
+        if result.rendered.files_missing:  # a WARNING with the reason, not a silent PASS
+            reason = "; ".join(result.rendered.problems)
+            result.status, result.error = WARNING, MetricError(f"none of the files the query names is there: {reason}")
+        status, error = self._judge(metric, branch, scope)
+        if status != PASSED:  # the status check's outcome wins over a missing-files WARNING
+            result.status = status
+            result.error = error if error is not None else result.error
 
     def _job_media(self, metric: Metric, branch: str, scope: Scope, rows: list[tuple]) -> Rendered:
         """A batch image or video result of `[label, job_id]` rows (job_media): each job's files."""
@@ -464,8 +471,8 @@ class MetricsEngine:
         return events
 
     def logs_dir(self, branch: str, batch_id: str, job_id: str) -> Path | None:
-        """The job's log files in the lake (`<branch>/_logs/<batch>/<job>/`), if there are any."""
-        directory = paths.logs_dir(self.lake, branch, batch_id, job_id)
+        """The job's log files in the lake (`record.job_logs_dir`), if there are any."""
+        directory = job_logs_dir(self.lake, branch, batch_id, job_id)
         return directory if self.storage.is_dir(directory) else None
 
     # -- a batch --------------------------------------------------------------------------------

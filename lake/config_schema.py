@@ -19,8 +19,12 @@ METRIC_TYPES = ("test", "batch", "dashboard", "report")
 SET_METRIC_TYPES = ("test", "batch")
 TEMPLATE_TYPES = ("system", "custom")
 TEMPLATES = ("line", "bar", "table", "scalar", "image", "state_timeline", "histogram", "pie", "video", "artifact")
-#: Table names of the lake that a topic may not take.
-RESERVED_TOPIC_NAMES = ("metadata", "events", "metric_results")
+#: Tables ReSim's platform generates for every job (from resource_metrics.resim.jsonl and
+#: test_length_metric.resim.jsonl): SignalFlag's validator (open-core signalflag/demo/config_test.py,
+#: BUILTIN_TABLES) lets no topic shadow them.
+PLATFORM_TABLES = ("container_performance", "test_length_seconds")
+#: Table names of the lake, and of ReSim's platform, that a topic may not take.
+RESERVED_TOPIC_NAMES = ("metadata", "events", "metric_results", *PLATFORM_TABLES)
 #: Columns every topic row has besides its declared fields.
 TOPIC_COLUMNS = ("timestamp", "batch_id", "job_id", "experience_name", "build_version")
 
@@ -64,7 +68,7 @@ class Key:
     """What one key's value must be.
 
     kind: `version` (the integer 1), `string`, `query` (non-blank string), `boolean`,
-    `threshold` (number or string), `data` (any mapping, kept as plain data), `names`
+    `threshold` (a number; SignalFlag refuses '0.5'), `data` (any mapping, kept as plain data), `names`
     (list of unique strings), `fields` (mapping of field names to field types),
     `section` (a mapping checked against `section`), `named` (a mapping of names to
     mappings checked against `section`).
@@ -235,7 +239,7 @@ def _key_schema(key: Key, defs: dict[str, Any]) -> dict[str, Any]:
     elif kind == "boolean":
         schema = {"type": "boolean"}
     elif kind == "threshold":
-        schema = {"type": ["number", "string"]}
+        schema = {"type": "number"}
     elif kind == "data":
         schema = {"type": "object"}
     elif kind == "names":

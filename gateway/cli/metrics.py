@@ -47,6 +47,7 @@ from lakegate.gateway.metrics.evaluation import (
     BatchEvaluation,
     MetricResult,
     MetricsEngine,
+    check_batch_metrics,
     select_metrics,
 )
 from lakegate.gateway.metrics.gating import FAIL_STATES, fail_exit_code, parse_fail_on_states
@@ -446,13 +447,14 @@ def run_command(args: argparse.Namespace) -> int:
     try:
         config, version = _run_config(args)
         metrics = select_metrics(config, args.metrics_set, all_metrics=args.all_metrics)
+        check_batch_metrics(metrics, args.metrics_set)
         batches = catalog.batches(args.branch)
     except ConfigError as error:
         print_config_problems(error)
         return EXIT_USAGE
     except KeyError as error:
         raise UserError(str(error.args[0])) from None
-    except LakePathError as error:
+    except (LakePathError, ValueError) as error:
         raise UserError(str(error)) from None
     if args.batch not in batches:
         raise UserError(

@@ -43,6 +43,7 @@ def warnings_of(path: Path | list[Path]) -> list[tuple[int, int, str]]:
 
 #: How a warning (lakegate stricter than ReSim on purpose) ends when --strict refuses it.
 STRICT = " (ReSim accepts this; refused because of --strict)"
+RESERVED = "metadata, events, metric_results, container_performance, test_length_seconds"
 
 
 def one_error(folder: Path, text: str) -> tuple[int, int, str]:
@@ -323,9 +324,18 @@ def test_unknown_field_type_with_did_you_mean(tmp_path):
         ("_private", "topic '_private' starts with '_' or '.', which topic names may not"),
         (".hidden", "topic '.hidden' starts with '_' or '.', which topic names may not"),
         ('"tab\\there"', "topic 'tab\there' contains a control character"),
-        ("metadata", "topic 'metadata' is a reserved table name (metadata, events, metric_results)"),
-        ("Events", "topic 'Events' is a reserved table name (metadata, events, metric_results)"),
-        ("metric_results", "topic 'metric_results' is a reserved table name (metadata, events, metric_results)"),
+        (
+            "metadata",
+            f"topic 'metadata' is a reserved table name ({RESERVED})",
+        ),
+        (
+            "Events",
+            f"topic 'Events' is a reserved table name ({RESERVED})",
+        ),
+        (
+            "metric_results",
+            f"topic 'metric_results' is a reserved table name ({RESERVED})",
+        ),
     ],
 )
 def test_bad_topic_names(tmp_path, name, message):
@@ -486,8 +496,8 @@ def test_status_must_be_a_mapping_and_thresholds_scalars(tmp_path):
         )
     ) == [
         (3, 85, "status of metric 'A' must be a mapping, got string 'block'"),
-        (5, 49, "'block' in status of metric 'B' must be a number or a string, got a list"),
-        (5, 60, "'warn' in status of metric 'B' must be a number or a string, got boolean true"),
+        (5, 49, "'block' in status of metric 'B' must be a number, got a list"),
+        (5, 60, "'warn' in status of metric 'B' must be a number, got boolean true"),
     ]
 
 
@@ -686,12 +696,12 @@ def test_yaml_1_2_scalars_stay_strings(tmp_path):
             query_string: SELECT 1 WHERE ? = 'x'
             template: scalar
             units: on
-            status: {query_string: "SELECT 1 WHERE ? = 'x'", block: 1:30, warn: yes}
+            template_settings: {at: 1:30, show: yes}
     """,
         )
     )
     metric = config.metrics["M"]
-    assert (metric.units, metric.status.block, metric.status.warn) == ("on", "1:30", "yes")
+    assert (metric.units, metric.template_settings) == ("on", {"at": "1:30", "show": "yes"})
     assert list(config.topics["t"].fields) == ["on"]
 
 
@@ -857,7 +867,7 @@ AGREEMENT = [
     (True, "version: 1\n"),
     (True, "version: 1\ntopics:\nmetrics:\nmetrics sets:\n"),
     (True, "version: 1\ntopics: {t: {event: true, schema: {a: bigint, b: 'string[]'}}}\n"),
-    (True, f"version: 1\nmetrics: {{M: {M}, status: {{query_string: 'SELECT ?', block: 1.5, warn: abc}}}}}}\n"),
+    (True, f"version: 1\nmetrics: {{M: {M}, status: {{query_string: 'SELECT ?', block: 1.5, warn: 2}}}}}}\n"),
     (True, f"version: 1\nmetrics: {{M: {M}, skip_if_no_data: true, template_settings: {{a: 1}}, units: s}}}}\n"),
     (
         True,
@@ -883,6 +893,7 @@ AGREEMENT = [
     (False, "version: 1\nmetrics: {M: {type: test, description: d, query_string: ' ', template: line}}\n"),
     (False, f"version: 1\nmetrics: {{M: {M}, status: {{query_string: 'SELECT ?'}}}}}}\n"),
     (False, f"version: 1\nmetrics: {{M: {M}, status: {{query_string: 'SELECT ?', block: true}}}}}}\n"),
+    (False, f"version: 1\nmetrics: {{M: {M}, status: {{query_string: 'SELECT ?', block: '0.5'}}}}}}\n"),
     (False, "version: 1\nmetrics: {M: {type: test, description: d, query_string: x}}\n"),
     (False, "version: 1\nmetrics: {M: {type: test, description: d, query_string: x, template_type: custom}}\n"),
     (False, f"version: 1\nmetrics: {{M: {M}, template_file: f.json}}}}\n"),
@@ -962,3 +973,25 @@ def test_unit_is_units_and_the_same_value_twice_is_no_warning(tmp_path):
     """,
     )
     assert warnings_of(path) == [] and load_config(path, strict=True).metrics["A"].units == "s"
+
+
+def test_a_quoted_threshold_is_refused_as_signalflag_refuses_it(tmp_path):
+    """SignalFlag's validator (open-core signalflag/demo/config_test.py) requires block and warn to be
+    numbers: the platform refuses a quoted '0.5' at sync with "Expected Number but got String"."""
+    assert errors(
+        write(
+            tmp_path,
+            """
+        version: 1
+        metrics:
+          M: {type: test, description: d, query_string: SELECT 1, template: scalar,
+              status: {query_string: 'SELECT 1 WHERE 1 > ?', block: '0.5', warn: 0.25}}
+    """,
+        )
+    ) == [(4, 61, "'block' in status of metric 'M' must be a number, not a quoted string, got string '0.5'")]
+
+
+def test_topics_do_not_shadow_the_platform_tables(tmp_path):
+    """SignalFlag's validator: `set(topics) & BUILTIN_TABLES` must be empty."""
+    found = errors(write(tmp_path, "version: 1\ntopics:\n  test_length_seconds:\n    schema: {v: float}\n"))
+    assert len(found) == 1 and "test_length_seconds" in found[0][2] and "reserved table name" in found[0][2]

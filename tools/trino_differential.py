@@ -56,7 +56,6 @@ OPEN: dict[str, str] = {
     "cov-varbinary/concat-null": "concat(X'58', NULL): AMBIGUOUS_FUNCTION_CALL",
     "duckdb_syntax/list-literal": "SELECT [1, 2] answers [1, 2] (array(integer))",
     "identifiers_syntax/trailing-semicolon": "SELECT 1; is a SYNTAX_ERROR",
-    "zw_errors/lag-null-offset-is-null": "lag(a, NULL): INVALID_FUNCTION_ARGUMENT 'Offset must not be null'",
     "zw_precision/date-functions-on-nanoseconds": "date_format of a timestamp(9) rounds to millis: 00:00:00.000000",
     "zw_structured_nulls/concat-with-null": "concat(ARRAY[1], NULL): AMBIGUOUS_FUNCTION_CALL",
     "zw_timestamps/date-format-f-is-millis": "date_format of a timestamp(6) rounds to milliseconds: 112000",

@@ -204,6 +204,7 @@ _FILE_IO_ALLOWED = {
     ("gateway/metrics/evaluation.py", "_file_lines"): "lines of a loaded (local) config file",
     ("gateway/metrics/report.py", "write_report"): "writes the user's report file",
     ("gateway/metrics/trends.py", "write_trends"): "writes the user's trends file",
+    ("gateway/metrics/compare_page.py", "write_compare"): "writes the user's comparison page",
     ("gateway/server/auth.py", "Users.load"): "reads the user's users file",
 }
 

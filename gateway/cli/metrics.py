@@ -7,8 +7,9 @@ metric errored or a job failed (ERROR); 1 for usage and config errors (nothing e
 when the results or the report cannot be written (a read-only or full disk; the lake keeps what
 it had). With `--fail-on-states S,...` the exit code is SignalFlag's instead (`gating`): the
 batch's status, if it is one of those states, gives 7 (BLOCKER), 2 (ERROR) or 8 (WARNING); any
-other status gives 0. Malformed command lines are argparse's: usage on standard error and exit
-code 2, like any argparse program.
+other status gives 0. `metrics dashboard --fail-on regression`: 5 when nothing blocks or errs but a
+trend alert fires (gateway/metrics/alerts.py). Malformed command lines are argparse's: usage on
+standard error and exit code 2, like any argparse program.
 
 `metrics validate` and `metrics config-schema` are SignalFlag's names for `config check` and
 `config schema`.
@@ -36,6 +37,9 @@ from lakegate.gateway.cli.errors import (
     print_config_warnings,
     writable_lake,
 )
+from lakegate.gateway.engine.trino_backend import TrinoBackend
+from lakegate.gateway.engine.trino_registration import RegistrationError, jobs_seen, sync_local
+from lakegate.gateway.metrics.alerts import HISTORY, K, TrendCheck, alerts_html, trend_checks
 from lakegate.gateway.metrics.evaluation import (
     BLOCKER,
     ERROR,
@@ -64,7 +68,7 @@ from lakegate.lake.config import Config, ConfigError, load_config
 from lakegate.lake.paths import LakePathError
 from lakegate.lake.registry import BranchConfigs
 
-EXIT_OK, EXIT_USAGE, EXIT_BLOCKER, EXIT_ERROR = 0, 1, 2, 3
+EXIT_OK, EXIT_USAGE, EXIT_BLOCKER, EXIT_ERROR, EXIT_REGRESSION = 0, 1, 2, 3, 5
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -210,6 +214,26 @@ def _add_trends_parsers(commands: argparse._SubParsersAction) -> None:
         metavar="N",
         help="a dashboard of the config's 'dashboards:' section: its metrics_set's dashboard metrics over the "
         "batches of its day_range (instead of --metrics-set)",
+    )
+    dashboard.add_argument(
+        "--alert-k",
+        type=positive(float),
+        default=K,
+        metavar="K",
+        help=f"trend alert: a scalar metric whose latest build lies outside K standard deviations of its previous "
+        f"builds (default {K:g})",
+    )
+    dashboard.add_argument(
+        "--alert-builds",
+        type=positive(int),
+        default=HISTORY,
+        metavar="N",
+        help=f"trend alert: compare the latest build with the N builds before it (default {HISTORY}; 2 at least)",
+    )
+    dashboard.add_argument(
+        "--fail-on",
+        choices=("regression",),
+        help="exit 5 when a trend alert fires (and nothing blocks or errs)",
     )
     report = commands.add_parser(
         "report",
@@ -438,6 +462,8 @@ def run_command(args: argparse.Namespace) -> int:
     progress = sys.stderr.isatty() if args.progress is None else args.progress
     engine = engine_from_args(args, args.lake)
     try:
+        if isinstance(engine.backend, TrinoBackend):
+            _check_cluster_sees_batch(engine.backend, catalog, args)
         evaluation = MetricsEngine(args.lake, engine, threads=args.threads).evaluate_batch(
             args.branch,
             args.batch,
@@ -449,7 +475,9 @@ def run_command(args: argparse.Namespace) -> int:
         )
         if args.compact:  # the batch is complete once its batch metrics are evaluated
             compact_batch(args.lake, args.branch, args.batch, progress=progress)
-    except DialectError as error:
+        if isinstance(engine.backend, TrinoBackend):  # the batch's new metric_results partition
+            sync_local(args.lake, engine.backend, args.branch)
+    except (DialectError, RegistrationError) as error:
         raise UserError(str(error)) from None
     except OSError as error:
         raise UserError(f"cannot store the results in the lake: {os_error_text(error)}") from None
@@ -463,6 +491,21 @@ def run_command(args: argparse.Namespace) -> int:
         " (the results are stored in the lake)",
     )
     return exit_code(evaluation, args.fail_on_states)
+
+
+def _check_cluster_sees_batch(backend: TrinoBackend, catalog: Catalog, args: argparse.Namespace) -> None:
+    """Sync the cluster's partitions of the branch when it lacks jobs of the batch and the lake's
+    registration there reads the lake itself; UserError when it still lacks them: the metrics
+    would silently read less than the lake has."""
+    jobs = len(catalog.jobs(args.branch, args.batch))
+    seen = jobs_seen(backend, args.branch, args.batch)
+    if seen != jobs and sync_local(args.lake, backend, args.branch):
+        seen = jobs_seen(backend, args.branch, args.batch)
+    if seen != jobs:
+        raise UserError(
+            f"the Trino cluster at {backend.url} sees {seen} of the {jobs} job(s) of batch {args.batch!r}: "
+            f"register the lake again (lakegate trino-ddl --lake {args.lake} --apply --trino-url {backend.url})"
+        )
 
 
 def _show(
@@ -536,16 +579,51 @@ def trends_command(args: argparse.Namespace) -> int:
             window=getattr(args, "window", None),
             config_version=version,
         )
+        checks = (
+            trend_checks(engine, args.branch, [b.batch_id for b in batches], k=args.alert_k, history=args.alert_builds)
+            if kind == "dashboard"
+            else []
+        )
     except (DialectError, LakePathError) as error:
         raise UserError(str(error)) from None
     finally:
         queries.close()
-    _show(args, evaluation, format_trends, lambda path: write_trends(evaluation, path, link_base=args.link_base))
+    shown = _WithAlerts(evaluation, checks) if kind == "dashboard" else evaluation
+    _show(
+        args,
+        shown,
+        lambda _: format_trends(evaluation) + format_alerts(checks),
+        lambda path: write_trends(evaluation, path, link_base=args.link_base, intro=alerts_html(checks)),
+    )
     if args.fail_on_states:
         return fail_exit_code(evaluation.status, args.fail_on_states)
     if any(r.status == BLOCKER for r in evaluation.results):
         return EXIT_BLOCKER
-    return EXIT_ERROR if evaluation.status == ERROR else EXIT_OK
+    if evaluation.status == ERROR:
+        return EXIT_ERROR
+    if getattr(args, "fail_on", None) == "regression" and any(c.alert for c in checks):
+        return EXIT_REGRESSION
+    return EXIT_OK
+
+
+class _WithAlerts:
+    """A dashboard evaluation and its trend checks, as `--format json` shows them."""
+
+    def __init__(self, evaluation: TrendsEvaluation, checks: list[TrendCheck]):
+        self.evaluation, self.checks = evaluation, checks
+
+    def as_dict(self) -> dict[str, Any]:
+        return {**self.evaluation.as_dict(), "trend_checks": [c.as_dict() for c in self.checks]}
+
+
+def format_alerts(checks: list[TrendCheck]) -> str:
+    """The trend alerts as text lines after the dashboard's table ("" when no metric has 2 earlier builds)."""
+    if not checks:
+        return ""
+    alerts = [c for c in checks if c.alert]
+    lines = [f"trend alerts: {len(alerts)} of {len(checks)} scalar metrics moved beyond their history"]
+    lines += [f"  ALERT {c}" for c in alerts]
+    return "\n" + "\n".join(lines)
 
 
 def format_trends(evaluation: TrendsEvaluation) -> str:

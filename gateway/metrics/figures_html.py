@@ -89,8 +89,10 @@ def report_html(
     *,
     link: Linker | None = None,
     plotlyjs: str | bool = True,
+    intro: str = "",
 ) -> str:
-    """One offline page showing many metrics, grouped in titled sections.
+    """One offline page showing many metrics, grouped in titled sections (`intro`: HTML shown
+    under the title and the status counts, e.g. a served page's links).
 
     Each metric is (name, rendered or None when it has no result, info) where info may hold
     "status" (PASSED, WARNING, BLOCKER, ERROR or NOT_RUN), "description", "units", "error" and
@@ -113,7 +115,7 @@ def report_html(
         f"<span>{_badge(status)} {count}</span>" for status, count in sorted(counts.items(), key=_status_order)
     )
     charts = any(_has_chart(rendered) for _, metrics in sections for _, rendered, _ in metrics if rendered)
-    body = f'<h1>{html.escape(title)}</h1>\n<p class="lg-summary">{summary}</p>\n' + "\n".join(parts)
+    body = f'<h1>{html.escape(title)}</h1>\n<p class="lg-summary">{summary}</p>\n{intro}' + "\n".join(parts)
     return _page(title, _plotly_script(plotlyjs) if charts else "", body)
 
 

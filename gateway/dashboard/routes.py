@@ -26,6 +26,8 @@
                                                          (&k=3&builds=10: gateway/metrics/alerts.py)
     GET    /dashboard/compare/?branch=B&batch=Y[&base=X]  the page of `lakegate compare` (base: the latest
                                                          batch of the previous build when not given)
+    GET    /dashboard/trends/?branch=B&dashboard=N       the config's dashboard N (`dashboards:`): its set's
+                                                         dashboard metrics over its day_range
 
 A session (`debug_session.DashboardSession`) is one batch seen through a config plus the edits
 made in the page. `lakegate metrics debug` opens one on its debug job; `lakegate serve` mounts
@@ -57,7 +59,9 @@ from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.gateway.metrics.results import read_results
 from lakegate.gateway.metrics.trends import Window, branch_batches, evaluate_trends, in_window, metrics_of, trends_html
 from lakegate.lake.catalog import Catalog
+from lakegate.lake.config import ConfigError
 from lakegate.lake.paths import LakePathError
+from lakegate.lake.registry import BranchConfigs
 
 STATIC = Path(__file__).resolve().parent / "static"
 #: Files of the page, by URL name.
@@ -147,20 +151,30 @@ class DashboardState:
         branch: str,
         window: str | None = None,
         metrics_set: str | None = None,
+        dashboard: str | None = None,
         *,
         k: float = K,
         history: int = HISTORY,
     ) -> str:
-        """The trends page of a branch: its stored config's dashboard metrics over the batches of
-        `window` (every batch when None), evaluated now, with the trend alerts (`k` standard deviations
-        of the `history` previous builds); SessionError for what cannot be shown."""
+        """The trends page of a branch: its stored config's dashboard metrics (of `metrics_set`, or of
+        the set of the config's `dashboard`) over the batches of `window` (default: the dashboard's
+        day_range, else every batch), evaluated now, with the trend alerts (`k` standard deviations of
+        the `history` previous builds); SessionError for what cannot be shown."""
         if branch not in self.catalog.branches():
             raise SessionError(f"no branch {branch!r} in the lake")
         chosen = Window.parse(window) if window else None
         source = BranchConfig(self.lake, branch)
         files = source.read()
         try:
-            metrics = metrics_of(source.registry.load(files.version), "dashboard", metrics_set)
+            config = source.registry.load(files.version)
+            if dashboard is not None:
+                if metrics_set is not None:
+                    raise SessionError("dashboard and set both choose the metrics: give one")
+                named = config.dashboard(dashboard)
+                metrics_set = named.metrics_set
+                if chosen is None and named.day_range is not None:
+                    chosen = Window(days=named.day_range)
+            metrics = metrics_of(config, "dashboard", metrics_set)
         except KeyError as error:
             raise SessionError(str(error.args[0])) from None
         if not metrics:
@@ -215,7 +229,8 @@ class DashboardState:
     def trends_index(self) -> str:
         """A page linking to each branch's trends page."""
         items = "".join(
-            f'<li><a href="?{urlencode({"branch": b})}">{html.escape(b)}</a></li>' for b in self.catalog.branches()
+            f'<li><a href="?{urlencode({"branch": b})}">{html.escape(b)}</a>{self._dashboard_links(b)}</li>'
+            for b in self.catalog.branches()
         )
         return (
             '<!DOCTYPE html>\n<html lang="en">\n<head><meta charset="utf-8"><title>lakegate · trends</title></head>\n'
@@ -223,6 +238,20 @@ class DashboardState:
             f"<ul>{items or '<li>no branches yet</li>'}</ul>\n"
             '<p><a href="../">Batches: the metrics dashboard</a></p>\n</body>\n</html>\n'
         )
+
+    def _dashboard_links(self, branch: str) -> str:
+        """`: <a>N</a>, ...` for each dashboard of the branch's stored config ('' when it has none or does not load)."""
+        try:
+            config = BranchConfigs(self.lake, branch).current()
+        except ConfigError:
+            return ""
+        if config is None or not config.dashboards:
+            return ""
+        links = ", ".join(
+            f'<a href="?{html.escape(urlencode({"branch": branch, "dashboard": name}))}">{html.escape(name)}</a>'
+            for name in config.dashboards
+        )
+        return f": {links}"
 
     def listing(self) -> dict[str, Any]:
         """Branches with their batches and jobs (never a session id: the debug session's is in its URL)."""
@@ -291,13 +320,14 @@ def dashboard_router(state: DashboardState) -> APIRouter:
         branch: str | None = None,
         window: str | None = None,
         metrics_set: str | None = Query(None, alias="set"),
+        dashboard: str | None = None,
         k: float = Query(K, gt=0),
         builds: int = Query(HISTORY, ge=2),
     ) -> HTMLResponse:
         if branch is None:
             return HTMLResponse(call(state.trends_index), headers={"Cache-Control": "no-cache"})
         try:
-            page = state.trends(branch, window, metrics_set, k=k, history=builds)
+            page = state.trends(branch, window, metrics_set, dashboard, k=k, history=builds)
         except (SessionError, LakePathError, DialectError, ValueError) as error:
             return HTMLResponse(_error_page(str(error)), status_code=400)
         return HTMLResponse(page, headers={"Cache-Control": "no-cache"})

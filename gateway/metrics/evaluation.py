@@ -65,6 +65,7 @@ from lakegate.gateway.metrics.custom import CUSTOM, render_custom
 from lakegate.gateway.metrics.job_media import names_jobs, render_job_media
 from lakegate.gateway.metrics.metric_result import MetricError, MetricResult
 from lakegate.gateway.metrics.results import ResultsWriter
+from lakegate.gateway.metrics.template_settings import apply_template_settings, unused_settings
 from lakegate.gateway.metrics.templates import Rendered, TemplateError, render
 from lakegate.lake import paths
 from lakegate.lake.config import Config, Location, Metric
@@ -385,6 +386,11 @@ class MetricsEngine:
                 told = outcome[0] if outcome[1] is None else f"{outcome[0]} ({outcome[1]})"
                 result.error = MetricError(f"{error}; the status check gave {told}", query="template")
             return
+        if metric.template_settings and metric.template_type != CUSTOM:
+            apply_template_settings(result.rendered.figure, metric.template_settings)
+            unused = unused_settings(metric.template_settings)
+            if unused:
+                result.rendered.problems.append(f"template_settings not used by lakegate: {', '.join(unused)}")
         if result.rendered.files_missing:  # a WARNING with the reason, not a silent PASS
             reason = "; ".join(result.rendered.problems)
             result.status, result.error = WARNING, MetricError(f"none of the files the query names is there: {reason}")

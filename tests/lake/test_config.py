@@ -13,6 +13,7 @@ from lakegate.lake.config import (
     ConfigError,
     Location,
     count_placeholders,
+    expand_config_paths,
     find_default_config,
     load_config,
 )
@@ -995,3 +996,80 @@ def test_topics_do_not_shadow_the_platform_tables(tmp_path):
     """SignalFlag's validator: `set(topics) & BUILTIN_TABLES` must be empty."""
     found = errors(write(tmp_path, "version: 1\ntopics:\n  test_length_seconds:\n    schema: {v: float}\n"))
     assert len(found) == 1 and "test_length_seconds" in found[0][2] and "reserved table name" in found[0][2]
+
+
+# -- SignalFlag's merge: global per file, dashboards, config path patterns -------------------------
+
+
+def test_global_skip_if_no_data_applies_to_its_own_file_and_a_metric_setting_wins(tmp_path):
+    metric = "{type: test, query_string: SELECT 1, template: scalar"
+    first = write(
+        tmp_path,
+        f"""
+        version: 1
+        global:
+          skip-if-no-data: true
+        metrics:
+          A: {metric}}}
+          B: {metric}, skip_if_no_data: false}}
+        """,
+        "a.resim.yml",
+    )
+    second = write(
+        tmp_path,
+        f"""
+        version: 1
+        metrics:
+          C: {metric}}}
+          D: {metric}, skip-if-no-data: true}}
+        """,
+        "b.resim.yml",
+    )
+    config = load_config([first, second])
+    assert {m.name: m.skip_if_no_data for m in config.metrics.values()} == {
+        "A": True,
+        "B": False,
+        "C": False,
+        "D": True,
+    }
+
+
+def test_dashboards_name_a_known_set_and_a_positive_day_range(tmp_path):
+    text = """
+        version: 1
+        metrics:
+          T: {type: dashboard, query_string: SELECT 1, template: scalar}
+        metrics sets:
+          Trends: {metrics: [T]}
+        dashboards:
+          Weekly: {metrics_set: Trends, day_range: 7, refresh: auto, description: the week}
+          Typo: {metrics_set: Trend}
+          Forever: {metrics_set: Trends, day_range: 0}
+    """
+    assert errors(write(tmp_path, text)) == [
+        (8, 3, "dashboard 'Typo' names unknown metrics set 'Trend' (did you mean 'Trends'?)"),
+        (9, 3, "dashboard 'Forever': day_range must be a positive number of days, got 0"),
+    ]
+    config = load_config(write(tmp_path, text.split("          Typo")[0]))
+    weekly = config.dashboard("Weekly")
+    assert (weekly.metrics_set, weekly.day_range, weekly.refresh, weekly.description) == (
+        "Trends",
+        7,
+        "auto",
+        "the week",
+    )
+    with pytest.raises(KeyError, match="no dashboard 'weekly' \\(did you mean 'Weekly'\\?\\)"):
+        config.dashboard("weekly")
+
+
+def test_config_path_patterns_resolve_as_signalflags_cli(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for name in ("b.yml", "a.yml", "c.yaml", "notes.txt"):
+        (tmp_path / "m").mkdir(exist_ok=True)
+        (tmp_path / "m" / name).write_text("version: 1\n")
+    assert expand_config_paths(["m/*.yml", "m/c.yaml"]) == [Path("m/a.yml"), Path("m/b.yml"), Path("m/c.yaml")]
+    assert expand_config_paths(["m/c.yml,m/a.yaml"]) == [Path("m/c.yaml"), Path("m/a.yml")]  # commas; the twin
+    with pytest.raises(FileNotFoundError, match="glob pattern 'x/\\*.yml' matched no config files"):
+        expand_config_paths(["x/*.yml"])
+    with pytest.raises(FileNotFoundError, match="config file 'm/d.yml' does not exist \\(nor its .yaml twin\\)"):
+        expand_config_paths(["m/d.yml"])

@@ -10,6 +10,8 @@ import subprocess
 import sys
 import textwrap
 import threading
+import urllib.error
+import urllib.request
 from pathlib import Path
 
 import pytest
@@ -19,6 +21,7 @@ from lakegate.lake.config import ConfigError
 from lakegate.lake.metadata import read_metadata_row
 from lakegate.lake.record import job_logs_dir
 from lakegate.sdk import Batch, FailedStatesError, Test
+from tests.gateway.conftest import serve
 
 CLI = [sys.executable, "-m", "lakegate.gateway.cli"]
 #: A 1x1 PNG.
@@ -351,3 +354,23 @@ def test_dashboard_by_name(tmp_path):
     assert table["table"]["rows"] == [["1.0", 2], ["1.1", 2]]
     unknown = lakegate("metrics", "dashboard", "--lake", lake, "--branch", "main", "--name", "Nav Trend")
     assert unknown.returncode == 1 and "no dashboard 'Nav Trend' (did you mean 'Nav Trends'?)" in unknown.stderr
+
+    server = serve(lake, tmp_path / "serve.log")  # the same dashboard as a page of `lakegate serve`
+    try:
+        status, index = get(f"{server.url}/dashboard/trends/")
+        assert status == 200 and '<a href="?branch=main&amp;dashboard=Nav+Trends">Nav Trends</a>' in index
+        status, page = get(f"{server.url}/dashboard/trends/?branch=main&dashboard=Nav+Trends")
+        assert status == 200 and "Tests by Build" in page and "last 30 days" in page
+        assert "<tr><td>1.0</td><td>2</td></tr><tr><td>1.1</td><td>2</td></tr>" in page  # two tests of each build
+        status, page = get(f"{server.url}/dashboard/trends/?branch=main&dashboard=Other")
+        assert status == 400 and "no dashboard &#x27;Other&#x27;" in page
+    finally:
+        assert server.stop() == 0
+
+
+def get(url: str) -> tuple[int, str]:
+    try:
+        with urllib.request.urlopen(url, timeout=60) as response:
+            return response.status, response.read().decode()
+    except urllib.error.HTTPError as error:
+        return error.code, error.read().decode()

@@ -48,6 +48,19 @@ metrics:
       FROM odom_linear_velocity
     template_type: system
     template: line
+    template_settings:
+      xaxis: {label: Session time (s)}
+      yaxis: {label: Speed (m/s), min: 0}
+      series:
+        - {group_name: Speed, color: "#AE84DE"}
+      legend: {show: false}
+  Speed Distribution:
+    type: test
+    query_string: SELECT SQRT(POWER(x, 2) + POWER(y, 2)) AS "Speed (m/s)" FROM odom_linear_velocity
+    template_type: system
+    template: histogram
+    template_settings:
+      display: {bins: 7}
   Goals Missed:
     type: test
     query_string: SELECT MAX(count) - (SELECT COUNT(*) FROM time_to_goal) FROM goal_count
@@ -77,7 +90,7 @@ metrics:
     template: table
 metrics sets:
   Demo Metrics:
-    metrics: [Robot Speed, Goals Missed, Camera Frame, Time by Experience]
+    metrics: [Robot Speed, Speed Distribution, Goals Missed, Camera Frame, Time by Experience]
   Demo Trends:
     metrics: [Outcomes by Build Version]
 dashboards:
@@ -189,6 +202,17 @@ def test_signalflag_demo_flow_on_a_local_lake(tmp_path):
         assert {r["metric_name"]: r["status"] for r in rows if r["job_id"] is None} == {"Time by Experience": "PASSED"}
         frames = [r for r in rows if r["metric_name"] == "Camera Frame"]
         assert [r["status"] for r in frames] == ["PASSED", "PASSED"], side
+        speed = next(r for r in rows if r["metric_name"] == "Robot Speed")  # template_settings honoured
+        figure, details = json.loads(speed["figure_json"]), json.loads(speed["details_json"])
+        assert figure["layout"]["xaxis"]["title"]["text"] == "Session time (s)"
+        assert (figure["layout"]["yaxis"]["title"]["text"], figure["layout"]["yaxis"]["range"]) == (
+            "Speed (m/s)",
+            [0, None],
+        )
+        assert figure["data"][0]["line"]["color"] == "#AE84DE"
+        assert "template_settings not used by lakegate: legend" in details["problems"]
+        histogram = next(r for r in rows if r["metric_name"] == "Speed Distribution")
+        assert json.loads(histogram["figure_json"])["data"][0]["nbinsx"] == 7
         for job_id in batch.job_statuses:
             logs = job_logs_dir(lake, "sdk-demo", batch.id, job_id)
             assert sorted(p.name for p in logs.iterdir()) == ["front.png", "run.log"]

@@ -132,11 +132,17 @@ METRIC = Section(
         ),
         "template": Key("string", "How the query result is rendered.", choices=TEMPLATES),
         "template_file": Key("string", "The custom template file (with template_type: custom)."),
-        "template_settings": Key("data", "Settings passed to the template.", nullable=True),
+        "template_settings": Key(
+            "data",
+            "Settings of a system template: xaxis.label, yaxis.label, yaxis.min, yaxis.max, display.bins, "
+            "series (group_name and color).",
+            nullable=True,
+        ),
         "units": Key("string", "Units of the values, shown with the metric (after a scalar value)."),
         "unit": Key("string", "Same as units (some ReSim configs write unit)."),
         "status": Key("section", "A pass/fail check run with the block and warn thresholds.", section=STATUS),
         "skip_if_no_data": Key("boolean", "Skip the metric when its topics have no rows."),
+        "skip-if-no-data": Key("boolean", "Same as skip_if_no_data (the spelling of SignalFlag's global section)."),
     },
     when=(
         When("template_type", "system", requires=("template",), refuses=("template_file",)),
@@ -165,6 +171,17 @@ METRICS_SET = Section(
     },
 )
 
+GLOBAL = Section(
+    "global",
+    {
+        "skip-if-no-data": Key(
+            "boolean",
+            "Every metric of this file that does not set skip_if_no_data itself is skipped when its query "
+            "has no rows (SignalFlag: the setting is scoped per file).",
+        )
+    },
+)
+
 FILE = Section(
     "the config file",
     {
@@ -179,8 +196,12 @@ FILE = Section(
         ),
         "metrics": Key("named", "Metrics, by name.", nullable=True, section=METRIC, what="metric"),
         "metrics sets": Key("named", "Metrics sets, by name.", nullable=True, section=METRICS_SET, what="metrics set"),
-        "dashboards": Key("data", "Dashboards (loaded, not evaluated yet).", nullable=True),
-        "global": Key("data", "Settings for the whole config (loaded, not used yet).", nullable=True),
+        "dashboards": Key(
+            "data",
+            "Dashboards by name: metrics_set (the set shown), day_range (days of batches), refresh, description.",
+            nullable=True,
+        ),
+        "global": Key("section", "Settings for the metrics of this file.", nullable=True, section=GLOBAL),
     },
 )
 
@@ -236,7 +257,7 @@ def _key_schema(key: Key, defs: dict[str, Any]) -> dict[str, Any]:
     else:
         raise ValueError(f"unknown key kind {kind!r}")
     if key.nullable:
-        schema = _nullable(schema)
+        schema = {"anyOf": [schema, {"type": "null"}]} if "$ref" in schema else _nullable(schema)
     return {"description": key.doc, **schema}
 
 

@@ -36,7 +36,7 @@ RawProblem = tuple[str, int, int, str]
 #: A warning as (path, line, column, message, what lakegate does instead of refusing).
 RawWarning = tuple[str, int, int, str, str]
 #: What an empty (null) value of a nullable key stands for.
-_EMPTY = {"names": list, "named": list, "data": dict, "fields": dict}
+_EMPTY = {"names": list, "named": list, "data": dict, "fields": dict, "section": dict}
 
 
 def did_you_mean(word: str, choices: Any) -> str:

@@ -40,12 +40,10 @@ from lakegate.gateway.metrics.compare_page import write_compare
 from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.gateway.metrics.report import write_report
 from lakegate.gateway.metrics.trends import branch_batches, evaluate_trends, metrics_of, write_trends
-from lakegate.lake import paths
 from lakegate.lake.compaction import compact_batch
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file
 from lakegate.lake.registry import BranchConfigs
-from lakegate.lake.storage import LakeStorage
 
 BRANCH = "main"
 BATCH = "nav-regression-1"
@@ -123,7 +121,7 @@ def _step(text: str) -> None:
 
 def _ingest(lake: Path, batch: str, jobs: list[GeneratedJob], config, progress: bool) -> int:
     """Ingest generated jobs into `batch` (copying their logs into the lake); the rows written."""
-    rows, storage = 0, LakeStorage(lake)
+    rows = 0
     for job in tqdm(jobs, desc=f"ingesting {batch}", unit="job", disable=not progress, file=sys.stderr, leave=False):
         report = ingest_job(
             lake,
@@ -133,11 +131,9 @@ def _ingest(lake: Path, batch: str, jobs: list[GeneratedJob], config, progress: 
             [job.emissions_path],
             config=config,
             metadata=load_metadata_file(job.metadata_path),
+            logs=job.logs_dir,
         )
         rows += sum(report.rows.values())
-        logs = paths.logs_dir(lake, BRANCH, batch, job.job_id)
-        storage.delete_tree(logs)
-        storage.put(job.logs_dir, logs)
     return rows
 
 

@@ -63,6 +63,7 @@ from lakegate.gateway.metrics.results import ResultsWriter
 from lakegate.gateway.metrics.templates import TemplateError, render
 from lakegate.lake import paths
 from lakegate.lake.config import Config, Location, Metric
+from lakegate.lake.record import job_logs_dir
 from lakegate.lake.storage import LakeStorage
 
 PASSED, WARNING, BLOCKER, ERROR, NOT_RUN = "PASSED", "WARNING", "BLOCKER", "ERROR", "NOT_RUN"
@@ -337,6 +338,9 @@ class MetricsEngine:
         except TemplateError as error:
             result.status, result.error = ERROR, MetricError(str(error), query="template")
             return
+        if result.rendered.files_missing:  # a WARNING with the reason, not a silent PASS
+            reason = "; ".join(result.rendered.problems)
+            result.status, result.error = WARNING, MetricError(f"none of the files the query names is there: {reason}")
         if metric.status is not None:
             check = metric.status
             try:
@@ -394,8 +398,8 @@ class MetricsEngine:
         return events
 
     def logs_dir(self, branch: str, batch_id: str, job_id: str) -> Path | None:
-        """The job's log files in the lake (`<branch>/_logs/<batch>/<job>/`), if there are any."""
-        directory = paths.logs_dir(self.lake, branch, batch_id, job_id)
+        """The job's log files in the lake (`record.job_logs_dir`), if there are any."""
+        directory = job_logs_dir(self.lake, branch, batch_id, job_id)
         return directory if self.storage.is_dir(directory) else None
 
     # -- a batch --------------------------------------------------------------------------------

@@ -79,6 +79,8 @@ class Rendered:
     images: list[str] = field(default_factory=list)
     #: Non-fatal issues, e.g. missing image files or values that cannot be drawn.
     problems: list[str] = field(default_factory=list)
+    #: Image, video and artifact: the query named files and none of them is in the job's logs.
+    files_missing: bool = False
 
 
 class TemplateError(ValueError):
@@ -463,6 +465,7 @@ def _log_files(result: _Result, logs_dir: Path | None) -> Rendered:
             failed.setdefault(unshowable, []).append(name)
         else:
             found.append([name, str(path), LOCAL.stat(path).size, mime])
+    files_missing = bool(result.rows) and not found and unshowable not in failed
     noun = {"image": "image", "video": "video", "artifact": "file"}[result.template]
     text = _plural(len(found), noun)
     count = sum(len(names) for names in failed.values())
@@ -474,6 +477,7 @@ def _log_files(result: _Result, logs_dir: Path | None) -> Rendered:
         text=text,
         images=[path for _, path, _, _ in found] if result.template == "image" else [],
         problems=[_grouped_problem(what, names) for what, names in failed.items()],
+        files_missing=files_missing,
     )
 
 

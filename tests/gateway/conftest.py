@@ -191,6 +191,7 @@ def build_server_lake(root: Path) -> Path:
             [job.emissions_path],
             config=config,
             metadata=load_metadata_file(job.metadata_path),
+            logs=job.logs_dir,
         )
     config_file = root / "all-types.resim.yaml"
     config_file.write_text(ALL_TYPES_CONFIG)

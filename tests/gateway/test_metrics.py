@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import math
-import shutil
 import textwrap
 from collections import defaultdict
 from dataclasses import dataclass
@@ -25,10 +24,10 @@ from lakegate.gateway.metrics.evaluation import (
     select_metrics,
     worst,
 )
-from lakegate.lake import paths
 from lakegate.lake.config import Location, Metric, StatusCheck, load_config
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file, read_metadata_row
+from lakegate.lake.record import job_logs_dir
 from lakegate.lake.registry import BranchConfigs
 
 BRANCH, BATCH = "main", "nav"
@@ -45,8 +44,7 @@ def read_emissions(path: Path) -> dict[str, list[tuple[int, dict]]]:
 
 def ingest(lake: Path, batch: str, job: GeneratedJob, config, **metadata) -> None:
     values = {**load_metadata_file(job.metadata_path), **metadata}
-    ingest_job(lake, BRANCH, batch, job.job_id, [job.emissions_path], config=config, metadata=values)
-    shutil.copytree(job.logs_dir, paths.logs_dir(lake, BRANCH, batch, job.job_id), dirs_exist_ok=True)
+    ingest_job(lake, BRANCH, batch, job.job_id, [job.emissions_path], config=config, metadata=values, logs=job.logs_dir)
 
 
 def flat(points) -> list:
@@ -233,7 +231,8 @@ def test_covariance_table_has_trino_decimal_text(nav):
 def test_camera_image_resolved_in_the_job_logs(nav):
     for job in nav.jobs:
         rendered = nav.result("Stereo Camera Feed", job.job_id).rendered
-        expected = paths.logs_dir(nav.lake, BRANCH, BATCH, job.job_id) / "camera.gif"
+        expected = job_logs_dir(nav.lake, BRANCH, BATCH, job.job_id) / "camera.gif"
+        assert "/_job_logs/" in str(expected)  # the folder the ingest recorded, not the hand-copied _logs
         assert rendered.images == [str(expected.resolve())] and rendered.problems == []
 
 

@@ -57,6 +57,7 @@ def nav(tmp_path_factory):
                 [job.emissions_path],
                 config=config,
                 metadata=load_metadata_file(job.metadata_path),
+                logs=job.logs_dir,
             )
         return name
 

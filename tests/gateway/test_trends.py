@@ -72,7 +72,16 @@ def trends_lake(tmp_path_factory):
         jobs = generate_batch(root / batch, jobs=3, seed=seed, samples_per_goal=6, build_version=build, build_time=made)
         for job in jobs:
             metadata = load_metadata_file(job.metadata_path)
-            ingest_job(lake, "main", batch, job.job_id, [job.emissions_path], config=config, metadata=metadata)
+            ingest_job(
+                lake,
+                "main",
+                batch,
+                job.job_id,
+                [job.emissions_path],
+                config=config,
+                metadata=metadata,
+                logs=job.logs_dir,
+            )
         emissions[batch] = [job.emissions_path for job in jobs]
     return lake, emissions
 

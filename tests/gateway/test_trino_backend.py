@@ -356,6 +356,7 @@ def test_metrics_run_forwarded_to_trino_gives_the_duckdb_results(tmp_path_factor
                 [job.emissions_path],
                 config=config,
                 metadata=load_metadata_file(job.metadata_path),
+                logs=job.logs_dir,
             )
     run = ["metrics", "run", "--branch", "main", "--batch", "nav", "--all-metrics", "--format", "json"]
     process, url = start_server(root / "trino", root / "serve.log")

@@ -200,8 +200,15 @@ def test_real_world_extras_load(tmp_path):
     assert (weekly.type, weekly.template_type, weekly.template_file) == ("report", "custom", "templates/weekly.json")
     assert weekly.template_settings == {"colors": ["red", "blue"], "legend": {"show": False}}
     assert config.metrics["Board"].type == "dashboard"
-    assert config.dashboards == {"Overview": {"metrics": ["Board"], "layout": {"columns": 2}}}
-    assert config.global_settings == {"refresh_s": 30, "owner": "nav-team"}
+    overview = config.dashboards["Overview"]
+    assert overview.settings == {"metrics": ["Board"], "layout": {"columns": 2}}
+    assert (overview.metrics_set, overview.day_range) == (None, None)
+    assert config.global_settings == {}
+    # SignalFlag's global section has one setting: other keys warn (ignored), as unknown keys do
+    assert [(w.location.line, w.message) for w in config.warnings] == [
+        (3, "unknown key 'refresh_s' in global of the config file: ignored"),
+        (4, "unknown key 'owner' in global of the config file: ignored"),
+    ]
     assert config.summary() == "1 topic, 6 metrics, 0 metrics sets, 1 dashboard"
 
 
@@ -791,12 +798,12 @@ def test_merge_duplicates_name_both_files(tmp_path):
     with pytest.raises(ConfigError) as caught:
         load_config([first, second])
     assert [str(p) for p in caught.value.problems] == [
-        f"{second}:3:3: metrics set 'S' is already defined at {first}:7:3",
-        f"{second}:5:3: metric 'M' is already defined at {first}:5:3",
-        f"{second}:7:3: topic 'speed' is already defined at {first}:3:3",
+        f"{second}:3:3: duplicate metrics set name 'S' found across config files (first defined at {first}:7:3)",
+        f"{second}:5:3: duplicate metric name 'M' found across config files (first defined at {first}:5:3)",
+        f"{second}:7:3: duplicate topic name 'speed' found across config files (first defined at {first}:3:3)",
         f"{second}:8:3: topic 'SPEED' differs only in letter case from topic 'speed' ({first}:3:3); "
         "SQL table names ignore case",
-        f"{second}:10:3: 'D' in dashboards is already defined at {first}:9:3",
+        f"{second}:10:3: duplicate dashboard name 'D' found across config files (first defined at {first}:9:3)",
     ]
 
 
@@ -857,7 +864,9 @@ AGREEMENT = [
         "version: 1\nmetrics: {M: {type: report, description: d, query_string: x, template_type: custom, "
         "template_file: f.json}}\n",
     ),
-    (True, "version: 1\ndashboards: {D: {any: [thing]}}\nglobal: {x: 1}\n"),
+    (True, "version: 1\ndashboards: {D: {any: [thing]}}\nglobal: {skip-if-no-data: true}\n"),
+    (False, "version: 1\nglobal: {x: 1}\n"),
+    (False, "version: 1\nglobal: {skip-if-no-data: 1}\n"),
     (False, "topics: {}\n"),
     (False, "version: 2\n"),
     (False, "version: 1\nextra: 1\n"),

@@ -169,7 +169,7 @@ def compare_command(args: argparse.Namespace) -> int:
     finally:
         queries.close()
     if args.format == "json":
-        json.dump(comparison.as_dict(), sys.stdout, ensure_ascii=False, indent=2, default=_json_default)
+        json.dump(comparison.as_dict(), sys.stdout, ensure_ascii=False, indent=2)
         sys.stdout.write("\n")
     else:
         print(format_comparison(comparison, every_metric=args.all, strict=args.strict))
@@ -182,10 +182,6 @@ def compare_command(args: argparse.Namespace) -> int:
     if args.fail_on == "new-failures" and comparison.new_failures(strict=args.strict):
         return EXIT_NEW_FAILURES
     return EXIT_OK
-
-
-def _json_default(value: object) -> object:
-    raise TypeError(f"not JSON: {value!r}")
 
 
 def _number(value: float | None) -> str:

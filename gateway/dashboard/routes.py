@@ -41,6 +41,7 @@ import re
 import secrets
 import threading
 from collections import OrderedDict
+from collections.abc import Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -57,7 +58,15 @@ from lakegate.gateway.metrics.compare import compare_batches, previous_build_bat
 from lakegate.gateway.metrics.compare_page import compare_html
 from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.gateway.metrics.results import read_results
-from lakegate.gateway.metrics.trends import Window, branch_batches, evaluate_trends, in_window, metrics_of, trends_html
+from lakegate.gateway.metrics.trends import (
+    BatchInfo,
+    Window,
+    branch_batches,
+    evaluate_trends,
+    in_window,
+    metrics_of,
+    trends_html,
+)
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.config import ConfigError
 from lakegate.lake.paths import LakePathError
@@ -184,7 +193,7 @@ class DashboardState:
             self.evaluator, branch, metrics, batches, kind="dashboard", window=chosen, config_version=files.version
         )
         ids = [b.batch_id for b in batches]
-        form = self.compare_form(branch, ids[-2] if len(ids) > 1 else None, ids[-1] if ids else None)
+        form = self.compare_form(branch, ids[-2] if len(ids) > 1 else None, ids[-1] if ids else None, batches)
         alerts = alerts_html(trend_checks(self.evaluator, branch, ids, k=k, history=history))
         return trends_html(evaluation, plotlyjs="/dashboard/static/plotly.min.js", intro=form + alerts)
 
@@ -203,9 +212,12 @@ class DashboardState:
         intro = self.compare_form(branch, base, batch)
         return compare_html(comparison, plotlyjs="/dashboard/static/plotly.min.js", intro=intro)
 
-    def compare_form(self, branch: str, base: str | None, batch: str | None) -> str:
-        """A form that picks two batches of a branch (base, new) and opens their comparison page."""
-        batches = branch_batches(self.evaluator, branch)
+    def compare_form(
+        self, branch: str, base: str | None, batch: str | None, batches: Sequence[BatchInfo] | None = None
+    ) -> str:
+        """A form that picks two of `batches` (default: every batch of the branch), base and new, and opens
+        their comparison page."""
+        batches = branch_batches(self.evaluator, branch) if batches is None else batches
 
         def select(name: str, chosen: str | None) -> str:
             options = "".join(

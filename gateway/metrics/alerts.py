@@ -18,6 +18,7 @@ from typing import Any
 
 from lakegate.dialect.scope import Scope
 from lakegate.gateway.metrics.evaluation import MetricsEngine
+from lakegate.gateway.metrics.flakes import has_results
 from lakegate.gateway.metrics.templates import format_number
 
 #: Default k (standard deviations) and number of earlier builds.
@@ -86,8 +87,9 @@ class TrendCheck:
 def trend_checks(
     engine: MetricsEngine, branch: str, batches: Sequence[str], *, k: float = K, history: int = HISTORY
 ) -> list[TrendCheck]:
-    """The check of every scalar metric with at least 2 earlier builds in `batches`; alerts first."""
-    if not batches:
+    """The check of every scalar metric with at least 2 earlier builds in `batches`; alerts first (none
+    when no batch of the branch was evaluated)."""
+    if not batches or not has_results(engine, branch):
         return []
     series: dict[str, list[tuple[Any, str, float]]] = {}
     for metric, build, started, value in engine.query(_VALUES_SQL, branch, Scope(batches=tuple(batches))).rows():

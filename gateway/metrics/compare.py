@@ -39,7 +39,7 @@ import orjson
 
 from lakegate.dialect.scope import Scope
 from lakegate.gateway.metrics.evaluation import MetricsEngine
-from lakegate.gateway.metrics.flakes import Flake, find_flakes, flaky_experiences
+from lakegate.gateway.metrics.flakes import Flake, find_flakes, flaky_experiences, has_results
 from lakegate.gateway.metrics.trends import branch_batches
 
 NEW_FAILURE, FLAKY, STILL_FAILING, GONE, NEW, FIXED, SAME = (
@@ -356,6 +356,8 @@ def compare_batches(
     for batch in (base, new):
         if batch not in known:
             raise LookupError(f"no batch {batch!r} on branch {branch!r} (batches: {', '.join(known) or 'none'})")
+    if not has_results(engine, branch):
+        raise LookupError(f"no batch of branch {branch!r} was evaluated: run 'lakegate metrics run' on both batches")
     builds = {b.batch_id: b.builds for b in ordered}
     scope = Scope(batches=(base, new))
     params = (base, new)

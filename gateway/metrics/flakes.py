@@ -96,6 +96,11 @@ class Flake:
         }
 
 
+def has_results(engine: MetricsEngine, branch: str) -> bool:
+    """Whether the branch has a `metric_results` table (some batch of it was evaluated)."""
+    return bool(engine.query("SHOW TABLES LIKE 'metric_results'", branch, None).rows())
+
+
 def find_flakes(
     engine: MetricsEngine, branch: str, batches: Sequence[str], *, cv_threshold: float = CV_THRESHOLD
 ) -> list[Flake]:
@@ -104,7 +109,8 @@ def find_flakes(
         return []
     scope = Scope(batches=tuple(batches))
     worst_cv: dict[tuple[Any, Any], tuple[float, str]] = {}
-    for build, experience, metric, _, mean, sd in engine.query(_CV_SQL, branch, scope).rows():
+    cv_rows = engine.query(_CV_SQL, branch, scope).rows() if has_results(engine, branch) else []
+    for build, experience, metric, _, mean, sd in cv_rows:
         if sd is None or not mean:
             continue
         cv = float(sd) / abs(float(mean))

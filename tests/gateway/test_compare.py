@@ -12,12 +12,15 @@ from __future__ import annotations
 
 import datetime as dt
 import json
+import re
 import urllib.error
 import urllib.request
+import uuid
 from pathlib import Path
 
 import numpy as np
 import pytest
+import trino
 from scipy import stats
 
 from lakegate.gateway.metrics.evaluation import MetricsEngine
@@ -469,3 +472,37 @@ def test_trend_alerts_in_metrics_dashboard_and_on_the_trends_page(trend_lake, tm
         assert status == 200 and "lg-alert" not in page.split("Trend alerts", 1)[1][:200]
     finally:
         server.stop()
+
+
+def test_compare_on_the_real_trino_matches_the_embedded_engine(built, trino_url):
+    """The lake registered in the real Trino 476 (`lakegate trino-ddl`, hive catalog over the lake's
+    folder): `compare` and `flakes` forwarded there answer as on the embedded engine."""
+    lake, _ = built
+    prefix = f"compare_{uuid.uuid4().hex[:8]}_"
+    ddl = lakegate("trino-ddl", "--lake", lake, "--location", f"local://{lake.resolve()}", "--schema-prefix", prefix)
+    assert ddl.returncode == 0, ddl.stderr
+    schema = f"{prefix}main"
+    host, port = trino_url.removeprefix("http://").split(":")
+    cursor = trino.dbapi.connect(host=host, port=int(port), user="compare").cursor()
+    try:
+        for statement in re.sub(r"^--.*$", "", ddl.stdout, flags=re.M).split(";"):
+            if statement.strip():
+                cursor.execute(statement)
+                cursor.fetchall()
+        remote = ["--backend", "trino", "--trino-url", trino_url, "--trino-schema-map", f"main={schema}"]
+        for command in (["compare", "--base", "base", "--batch", "new"], ["flakes", "--all"]):
+            answers = [
+                lakegate(*command, "--lake", lake, "--branch", "main", "--format", "json", *extra)
+                for extra in ([], remote)
+            ]
+            assert [a.returncode for a in answers] == [0, 0], answers[1].stderr
+            embedded, forwarded = (json.loads(a.stdout) for a in answers)
+            embedded.pop("seconds", None), forwarded.pop("seconds", None)
+            assert same(forwarded, embedded)
+    finally:
+        cursor.execute(f"SHOW TABLES FROM hive.{schema}")
+        for (table,) in cursor.fetchall():
+            cursor.execute(f'DROP TABLE hive.{schema}."{table}"')
+            cursor.fetchall()
+        cursor.execute(f"DROP SCHEMA hive.{schema}")
+        cursor.fetchall()

@@ -110,7 +110,7 @@ def build_lake(rows: int) -> Path:
             "y": pa.array(generator.normal(0.0, 0.2, per_job)),
             "z": pa.array(np.zeros(per_job)),
         }
-        constants = {"experience_name": f"experience {i % 3}", "build_version": "1.0"}
+        constants = {"experience_name": f"experience {i % 3}", "build_version": "1.0", "job_id": job}
         table = pa.table(
             {
                 f.name: columns[f.name]

@@ -46,7 +46,7 @@ from tests.lake.v1_lake import to_v1
 PREFIX = f"forwarding_{uuid.uuid4().hex[:8]}_"
 
 
-def lakegate(*args, timeout: float = 600) -> subprocess.CompletedProcess:
+def lakegate(*args, timeout: float = 1800) -> subprocess.CompletedProcess:
     return subprocess.run([*CLI, *map(str, args)], capture_output=True, text=True, timeout=timeout)
 
 
@@ -188,7 +188,7 @@ def comparable_output(output: dict, kinds: tuple[set[str], set[str]]) -> dict:
     return output
 
 
-@pytest.mark.timeout(1800)
+@pytest.mark.timeout(3600)
 def test_every_metric_forwarded_to_trino_gives_the_embedded_results(tmp_path_factory, trino_url, registered):
     root = tmp_path_factory.mktemp("forwarding")
     lakes = {"embedded": demo_lake(root)}
@@ -414,7 +414,7 @@ def test_registering_says_what_stands_in_the_way(tmp_path, trino_url, registered
     )
     refused = lakegate(*apply, "--trino-url", trino_url, "--schema-prefix", PREFIX + "way_")
     assert refused.returncode == 1 and refused.stderr == (
-        f"lakegate: table hive.{schema}.odom is partitioned by ARRAY['batch_id', 'job_id'], as an earlier "
+        f"lakegate: table hive.{schema}.odom is partitioned by ARRAY['batch_id','job_id'], as an earlier "
         "lakegate registered it; this lake's layout is partitioned by ARRAY['batch_id']: drop it "
         f'(DROP TABLE "hive"."{schema}"."odom" leaves its files) and run this again\n'
     )

@@ -221,7 +221,8 @@ def main() -> int:
     lines = [
         f"- Trino 476 at {url} (single node, heap 2 GB, hive catalog over the same Parquet files through "
         f"`lakegate trino-ddl --apply`; {java}) vs `lakegate serve` (embedded DuckDB, 2 threads); "
-        "both through the `trino` Python client, one connection each, every answer checked equal first",
+        "both through the `trino` Python client, one connection each; the first job's metric answers, "
+        "the batch metrics' and every ad hoc answer checked equal first",
         f"- metrics lake: 1 batch of {jobs} jobs, {topic_rows:,} topic rows; ad hoc lake: 10 jobs, "
         f"`{TOPIC}` of {rows:,} rows",
         f"- median of {runs} alternating run(s); ratio = lakegate / Trino (below 1: lakegate is faster); "

@@ -129,10 +129,12 @@ def main() -> int:
     ]
     try:
         reader.start()
-        time.sleep(2.0)
+        deadline = time.monotonic() + 120
+        while len(reader.answers) < 3 and time.monotonic() < deadline:
+            time.sleep(0.5)
         baseline = [a for _, _, a in reader.answers if isinstance(a, dict)]
         if not baseline:
-            raise SystemExit("Trino answered no query before the writes")
+            raise SystemExit(f"Trino answered no query before the writes: {reader.answers}")
         expected = baseline[-1]
         if sum(expected.values()) == 0 or len(expected) != jobs:
             raise SystemExit(f"Trino does not see the {jobs} jobs before the writes: {expected}")

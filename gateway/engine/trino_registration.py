@@ -7,7 +7,9 @@ registered by an earlier lakegate (partitioned by `batch_id` and `job_id`), is a
 columns a topic gained since are added (`ALTER TABLE ... ADD COLUMN`); a table whose column changed
 type is an error. Every table's partitions are then synced with `sync_partition_metadata(...,
 'FULL')` (new batches added, vanished ones dropped), so running it again after ingests is all that
-keeps the cluster current. Tables without data files yet are left out until a later run.
+keeps the cluster current. A table without data files yet gets its (empty) directory when the
+lake is registered where it is, so Trino has every table lakegate has; for a copy it is left out
+until a later run.
 `unregister` drops what a registration made (the files stay).
 
 The registration is recorded in the lake, `<lake>/_trino.json`, one entry per Trino URL: catalog,
@@ -42,6 +44,7 @@ from lakegate.gateway.engine.trino_ddl import (
     schema_name,
     sync_partitions,
 )
+from lakegate.lake import paths
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.storage import LOCAL
 
@@ -248,8 +251,10 @@ def register(
             registered.setdefault(table, []).append((column, data_type))
         for table in branch_tables(lake_catalog, branch, location, schema_prefix):
             if not table.has_files and table.name not in registered:
-                report.left_out.append(table.name)
-                continue
+                if location != local_location(lake):  # a copy: its location may not exist yet
+                    report.left_out.append(table.name)
+                    continue
+                LOCAL.make_dirs(paths.table_dir(lake, branch, table.name))  # an empty table, as lakegate has it
             (report.kept if table.name in registered else report.created).append(table.name)
             report.added_columns += _ensure_table(cluster, catalog, table, registered.get(table.name))
             cluster.run(sync_partitions(catalog, table, "FULL"))

@@ -185,7 +185,8 @@ class Generator:
         if t in NUMERIC:
             op = self.pick(["+", "-", "*", "/", "%"])
             if t == "double" and self.chance(0.3):
-                return f"({e()} {op} {self.pick(['2', '1.5', "BIGINT '3'", '0.25'])})"
+                constant = self.pick(["2", "1.5", "BIGINT '3'", "0.25"])
+                return f"({e()} {op} {constant})"
             return self.pick([f"({e()} {op} {e()})", f"(-{e()})"])
         if t == "varchar":
             return self.pick([f"({e()} || {e()})", f"{e('array(varchar)')}[1]", f"CAST({e('bigint')} AS varchar)"])

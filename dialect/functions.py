@@ -479,14 +479,35 @@ for _name, _duck in (
 
 
 def _bivariate(call: Call) -> TType:
-    """corr, covar_* and regr_*: real over two reals, double otherwise (Trino's Real* aggregations)."""
+    """corr, covar_* and regr_*: double when an argument is double or decimal, else real: Trino
+    coerces integers (and NULL) to real, the cheaper coercion, and runs its Real* aggregation."""
     types = need(call, "number", "number")
-    return tt.REAL if all(t.base == "real" for t in types) else tt.DOUBLE
+    return tt.DOUBLE if any(t.base in ("double", "decimal") for t in types) else tt.REAL
+
+
+def _render_bivariate(g, node, args) -> str:
+    """The aggregate over the arguments as Trino coerced them (to real, for a real result: the
+    values rounded to float, computed in double, the result rounded to float); corr and regr_* are
+    NULL when the result is not finite (a zero variance, NaN or infinite input, an overflow), as
+    the real Trino 476 answers."""
+    name = node.name.lower()
+    values = [g.sql(a) for a in args]
+    if ttype(node).base == "real":
+        values = [f"CAST(CAST({v} AS REAL) AS DOUBLE)" for v in values]
+    sql = g.agg(node, name, values)
+    if name != "covar_samp" and name != "covar_pop":
+        sql = f"CASE WHEN isfinite({sql}) THEN {sql} END"
+    return tf.cast(sql, ttype(node))
 
 
 for _name in ("corr", "covar_samp", "covar_pop", "regr_slope", "regr_intercept"):
     register(
-        _name, "aggregate", f"{_name}(y, x) -> double; real for two reals", _bivariate, agg_as(_name), kind="aggregate"
+        _name,
+        "aggregate",
+        f"{_name}(y, x) -> real (double when y or x is double or decimal)",
+        _bivariate,
+        _render_bivariate,
+        kind="aggregate",
     )
 #: ListaggAggregationFunction: the output limit (DEFAULT_MAX_PAGE_SIZE_IN_BYTES) and its error.
 LISTAGG_MAX_BYTES = 1_048_576

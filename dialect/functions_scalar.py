@@ -884,13 +884,6 @@ for _name in ("trim", "ltrim", "rtrim"):
         f"{_name}(string, characters) -> varchar",
     )
 overload("strpos", _strpos_instance, _render_strpos_instance, "strpos(string, substring, instance) -> bigint")
-register(
-    "ends_with",
-    "string",
-    "ends_with(string, substring) -> boolean",
-    fixed(tt.BOOLEAN, "string", "string"),
-    lambda g, node, args: "ends_with({}, {})".format(*sqls(g, args)),
-)
 register("luhn_check", "string", "luhn_check(string) -> boolean", fixed(tt.BOOLEAN, "string"), _render_luhn_check)
 register(
     "normalize",

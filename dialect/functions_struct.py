@@ -1,7 +1,7 @@
 """Maps, arrays and aggregates lifted for issue 14 (families 2-4): the map functions and the
 aggregates that build maps, split_to_map, the set-like and combinatorial array functions, sequence
-over dates and timestamps, array_first/last, the vector functions, and the bitwise, moment,
-entropy, lambda and weighted-percentile aggregates. Registered into `registry.SUPPORTED` when
+over dates and timestamps, the vector functions, and the bitwise, moment, lambda and
+weighted-percentile aggregates. Registered into `registry.SUPPORTED` when
 lakegate.dialect.translate imports this module.
 
 DuckDB maps keep their entries in insertion order, as Trino's map blocks do; lambdas over map
@@ -721,32 +721,6 @@ def render_temporal_sequence(g, node, args) -> str:
     return f'list_transform(range(0, {count}), lambda "_i": {value})'
 
 
-def _render_entropy(g, node, args) -> str:
-    """EntropyAggregation: log2 entropy of the counts' fractions, (ln S - sum(c ln c) / S) / ln 2 at
-    least 0, over the positive counts (NULL and 0 add nothing); 0.0 when they sum to 0 (no rows
-    included); a negative count fails."""
-    c = f"CAST({g.sql(args[0])} AS BIGINT)"
-    total = g.agg(node, "sum", [f"CAST({c} AS DOUBLE)"])
-    weighted = g.agg(node, "sum", [f"CASE WHEN {c} > 0 THEN {c} * ln({c}) END"])
-    negative = g.fail(tf.string("Entropy count argument must be non-negative"))
-    entropy = f"greatest((ln({total}) - {weighted} / {total}) / ln(2.0), 0.0)"
-    return (
-        f"CASE WHEN {g.agg(node, 'min', [c])} < 0 THEN {negative} "
-        f"WHEN coalesce({total}, 0) > 0 THEN {entropy} ELSE CAST(0.0 AS DOUBLE) END"
-    )
-
-
-register(
-    "entropy",
-    "aggregate",
-    "entropy(c) -> double",
-    fixed(tt.DOUBLE, "integral"),
-    _render_entropy,
-    kind="aggregate",
-    notes="Equal to Trino's up to floating-point rounding (the sums are added in another order).",
-)
-
-
 # === split_to_map, split_to_multimap ==============================================================
 def _split_to_map(call: Call) -> TType:
     need(call, "string", "string", "string")
@@ -815,34 +789,6 @@ register(
 )
 
 
-# === array_first, array_last ======================================================================
-def _array_first(call: Call) -> TType:
-    if not 1 <= len(call.args) <= (2 if call.name == "array_first" else 1):
-        call.mismatch()
-    arr = array_arg(call)
-    if len(call.args) == 2 and call.lam(1, [arr.element]).base not in ("boolean", "unknown"):
-        call.mismatch()
-    return arr.element
-
-
-def _render_array_first(g, node, args) -> str:
-    """ArrayFirstFunction / ArrayLastFunction: NULL for an empty array; with a predicate, the first
-    element for which it is true."""
-    arr = g.sql(args[0])
-    if len(args) == 2:
-        arr = f"list_filter({arr}, {g.lambda_(args[1])})"
-    return f"{arr}[{1 if node.name.lower() == 'array_first' else -1}]"
-
-
-register(
-    "array_first",
-    "array",
-    "array_first(array(E)[, function(E, boolean)]) -> E",
-    _array_first,
-    _render_array_first,
-    notes="NULL for an empty array (the subscript operator fails).",
-)
-register("array_last", "array", "array_last(array(E)) -> E", _array_first, _render_array_first)
 
 
 # === approx_percentile with weights ===============================================================

@@ -129,6 +129,14 @@ def _double(value: Any) -> Any:
     return "NaN" if value != value else ("Infinity" if value > 0 else "-Infinity")
 
 
+def _real(value: Any) -> Any:
+    """A REAL value as Trino's JSON writes it: the float's shortest digits (0.78571427), not the
+    digits of the double it widens to (0.7857142686843872)."""
+    if value is None or not math.isfinite(value):
+        return _double(value)
+    return float(next(t for t in (f"{value:.{n}g}" for n in range(1, 10)) if _as_float32(float(t)) == value))
+
+
 def _decimal(scale: int) -> Encoder:
     quantum = Decimal(1).scaleb(-scale)
 
@@ -268,7 +276,9 @@ def _as_float32(value: float) -> float:
 
 def _make_encoder(t: TType) -> Encoder:
     base, args = t.base, t.args
-    if base in ("real", "double"):
+    if base == "real":
+        return _real
+    if base == "double":
         return _double
     if base == "decimal":
         return _decimal(args[1])
@@ -379,7 +389,9 @@ def _column(t: TType, column: pa.Array) -> list:
     base = t.base
     if t.is_integral and not pa.types.is_integer(arrow_type):  # e.g. a HUGEINT arriving as decimal
         return [None if v is None else int(v) for v in column.to_pylist()]
-    if base in ("real", "double") and pa.types.is_floating(arrow_type):
+    if base == "real" and pa.types.is_floating(arrow_type):
+        return [_real(v) for v in column.to_pylist()]
+    if base == "double" and pa.types.is_floating(arrow_type):
         values = column.to_pylist()
         if pc.all(pc.is_finite(column)).as_py() is not False:
             return values

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import math
 import re
+import struct
 from typing import Any
 
 from trino_fuzz.sides import Outcome
@@ -81,6 +82,8 @@ def _same(a: Any, b: Any, t: str) -> bool:
     if _floating(t):
         x = _SPECIAL.get(a, a) if isinstance(a, str) else float(a)
         y = _SPECIAL.get(b, b) if isinstance(b, str) else float(b)
+        if t == "real" and math.isfinite(x) and math.isfinite(y):  # a float's digits: exactly the same float
+            return struct.pack("f", x) == struct.pack("f", y)
         if math.isnan(x) or math.isnan(y):
             return math.isnan(x) and math.isnan(y)
         if math.isinf(x) or math.isinf(y):

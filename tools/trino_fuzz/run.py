@@ -32,6 +32,8 @@ DEFAULT_TRINO = "http://127.0.0.1:18080"
 SCHEMA_PREFIX = "fuzzer_"
 #: lakegate's refusals: the construct is named and not answered (never a silent difference).
 REFUSALS = frozenset({"NOT_SUPPORTED"})
+#: Queries lakegate's Engine runs at once (as the server does).
+LAKEGATE_THREADS = 2
 
 
 @dataclass
@@ -84,10 +86,11 @@ def fuzz(
         tables = {name: list(columns.items()) for name, columns in mine.engine.backend.schema("main").items()}
         generator = Generator(seed, discover(), tables)
         batch = [generator.query() for _ in range(queries)]
-        with ThreadPoolExecutor(jobs) as pool:
+        with ThreadPoolExecutor(jobs) as pool, ThreadPoolExecutor(LAKEGATE_THREADS) as own:
             answers = pool.map(trino.run, (q.sql for q in batch))
-            for done, (query, theirs) in enumerate(zip(batch, answers), 1):
-                verdict = judge(query, mine.run(query.sql), theirs)
+            own_answers = own.map(mine.run, (q.sql for q in batch))
+            for done, (query, theirs, ours) in enumerate(zip(batch, answers, own_answers), 1):
+                verdict = judge(query, ours, theirs)
                 counts[verdict.kind] += 1
                 if verdict.kind == "mismatched":
                     mismatches.append(verdict)

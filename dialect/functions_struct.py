@@ -789,8 +789,6 @@ register(
 )
 
 
-
-
 # === approx_percentile with weights ===============================================================
 def _percentages(node: exp.Expression) -> list[float] | None:
     """The constant percentages of a literal, a typed literal or an ARRAY of them, else None."""

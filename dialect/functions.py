@@ -25,6 +25,7 @@ _KINDS: dict[str, Callable[[TType], bool]] = {
     "any": lambda t: True,
     "number": lambda t: t.is_numeric or t.is_unknown,
     "integral": lambda t: t.is_integral or t.is_unknown,
+    "integer": lambda t: t.base in ("tinyint", "smallint", "integer", "unknown"),  # not bigint: no implicit narrowing
     "approx": lambda t: t.is_numeric or t.is_unknown,
     "string": lambda t: t.base in ("varchar", "unknown"),
     "boolean": lambda t: t.base in ("boolean", "unknown"),
@@ -1325,8 +1326,9 @@ def _render_split(g, node, args) -> str:
     sql = f"string_split({value}, {delim})"
     if len(args) == 3:
         limit = g.sql(args[2])
-        sql = (
-            f"CASE WHEN ({limit}) <= 0 THEN {g.fail(tf.string('Limit must be positive'))} "
+        sql = (  # NULL on NULL input, before any check (the real Trino 476 answers so)
+            f"CASE WHEN ({value}) IS NULL OR ({delim}) IS NULL OR ({limit}) IS NULL THEN NULL "
+            f"WHEN ({limit}) <= 0 THEN {g.fail(tf.string('Limit must be positive'))} "
             f"WHEN len({sql}) <= ({limit}) THEN {sql} ELSE list_append({sql}[1:({limit}) - 1], "
             f"array_to_string({sql}[({limit}):], {delim})) END"
         )
@@ -1352,19 +1354,24 @@ def _pad(call: Call) -> TType:
     return tt.VARCHAR
 
 
+def pad_checks(value: str, size: str, pad: str, empty: str, message: str) -> list[tuple[str, str]]:
+    """The argument checks of lpad / rpad, made only when no argument is NULL (the functions return
+    NULL on NULL input before checking anything, as the real Trino 476 answers)."""
+    given = f"({value}) IS NOT NULL AND ({size}) IS NOT NULL AND ({pad}) IS NOT NULL AND "
+    return [
+        (f"{given}(({size}) < 0 OR ({size}) > 2147483647)", "Target length must be in the range [0..2147483647]"),
+        (
+            f"{given}({size}) > {MAX_PAD_LENGTH}",
+            f"Target length must be at most {MAX_PAD_LENGTH} in lakegate (Trino allows up to 2147483647)",
+        ),
+        (f"{given}{empty}", message),
+    ]
+
+
 def _render_pad(g, node, args) -> str:
     value, size, pad = sqls(g, args)
     width = checked(
-        g,
-        f"CAST({size} AS INTEGER)",
-        (
-            (f"({size}) < 0 OR ({size}) > 2147483647", "Target length must be in the range [0..2147483647]"),
-            (
-                f"({size}) > {MAX_PAD_LENGTH}",
-                f"Target length must be at most {MAX_PAD_LENGTH} in lakegate (Trino allows up to 2147483647)",
-            ),
-            (f"{pad} = ''", "Padding string must not be empty"),
-        ),
+        g, f"CAST({size} AS INTEGER)", pad_checks(value, size, pad, f"{pad} = ''", "Padding string must not be empty")
     )
     return f"{node.name.lower()}({value}, {width}, {pad})"
 
@@ -2109,9 +2116,9 @@ def _render_trim_array(g, node, args) -> str:
     too_big = g.fail(
         f"{tf.string('size must not exceed array cardinality ')} || len({arr}) || {tf.string(': ')} || {size}"
     )
-    return (
-        f"CASE WHEN {size} < 0 THEN {negative} WHEN {size} > len({arr}) THEN {too_big} "
-        f"ELSE list_slice({arr}, 1, len({arr}) - {size}) END"
+    return (  # NULL on NULL input, before any check (the real Trino 476 answers so)
+        f"CASE WHEN ({arr}) IS NULL OR {size} IS NULL THEN NULL WHEN {size} < 0 THEN {negative} "
+        f"WHEN {size} > len({arr}) THEN {too_big} ELSE list_slice({arr}, 1, len({arr}) - {size}) END"
     )
 
 

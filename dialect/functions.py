@@ -995,6 +995,8 @@ def _truncate(call: Call) -> TType:
     if len(call.args) == 2:
         return _truncate_n(call)
     (t,) = need(call, "number")
+    if t.is_integral:  # Trino has truncate(decimal), not truncate(integer): the integer is a decimal(p, 0)
+        return tt.as_decimal(t)
     if t.is_decimal:
         p, s = t.args
         return tt.decimal(max(1, p - s), 0)
@@ -1112,7 +1114,8 @@ register(
 register(
     "truncate",
     "math",
-    "truncate(x) -> same (decimal(p-s,0) for decimals); truncate(decimal(p,s), integer n) -> decimal(p,s)",
+    "truncate(x) -> same (decimal(p-s,0) for decimals, decimal(p,0) for integers); "
+    "truncate(decimal(p,s), integer n) -> decimal(p,s)",
     _truncate,
     _render_truncate,
 )
@@ -1471,12 +1474,26 @@ register(
     _render_split_part,
     notes="NULL when the index is beyond the last field, as in Trino (DuckDB gives '').",
 )
-register("chr", "string", "chr(n) -> varchar(1)", fixed(tt.varchar(1), "integral"), call_as("chr"))
+register(
+    "chr",
+    "string",
+    "chr(n) -> varchar(1)",
+    fixed(tt.varchar(1), "integral"),
+    lambda g, node, args: f"chr(CAST({g.sql(args[0])} AS INTEGER))",
+)
+def _codepoint(call: Call) -> TType:
+    """codepoint takes varchar(1) only: a longer or unbounded varchar is FUNCTION_NOT_FOUND in Trino."""
+    (t,) = need(call, "string")
+    if t.base == "varchar" and (not t.args or t.args[0] > 1):
+        call.mismatch()
+    return tt.INTEGER
+
+
 register(
     "codepoint",
     "string",
-    "codepoint(string) -> integer",
-    fixed(tt.INTEGER, "string"),
+    "codepoint(varchar(1)) -> integer",
+    _codepoint,
     lambda g, node, args: (
         f"CASE WHEN length({g.sql(args[0])}) <> 1 THEN "
         f"{g.fail(tf.string('Input string must be a single character string'))} "
@@ -1506,8 +1523,9 @@ def _render_hamming(g, node, args) -> str:
     a, b = sqls(g, args)
     same_length = "The input strings to hamming_distance function must have the same length"
     differing = f'list_filter(range(1, length({a}) + 1), lambda "_i": substr({a}, "_i", 1) <> substr({b}, "_i", 1))'
-    return (
-        f"CASE WHEN length({a}) <> length({b}) THEN {g.fail(tf.string(same_length))} "
+    return (  # NULL when either is NULL (the real Trino 476 answers so)
+        f"CASE WHEN ({a}) IS NULL OR ({b}) IS NULL THEN NULL "
+        f"WHEN length({a}) <> length({b}) THEN {g.fail(tf.string(same_length))} "
         f"ELSE CAST(len({differing}) AS BIGINT) END"
     )
 
@@ -1621,6 +1639,7 @@ def _group_semantics(call: Call, group_index: int) -> None:
     if group is None:
         if pattern is None or capturing_groups(pattern):
             call.fail("regexp group must be a literal integer in lakegate", "NOT_SUPPORTED")
+        call.node.meta["dynamic_group"] = True  # a pattern without groups: 0 is the only valid group
         return
     if pattern is None:
         if group:
@@ -1656,25 +1675,39 @@ def _regexp_extract_all(call: Call) -> TType:
     return result
 
 
-def _group(g, args, index: int) -> str:
-    return g.sql(args[index]) if len(args) > index else "0"
+def _group(g, node, args, index: int) -> str:
+    """The group argument as DuckDB's INTEGER constant (0 for a non-literal group: `_group_checked`)."""
+    if len(args) <= index or node.meta.get("dynamic_group"):
+        return "0"
+    sql = g.sql(args[index])
+    return sql if sql.isdigit() else f"CAST({sql} AS INTEGER)"
+
+
+def _group_checked(g, node, args, sql: str) -> str:
+    """`sql` for a non-literal group of a pattern without groups: NULL for a NULL group, Trino's
+    error for another group than 0 (DuckDB wants a constant group)."""
+    if not node.meta.get("dynamic_group"):
+        return sql
+    group = g.sql(args[2])
+    error = g.fail(f"{tf.string('Pattern has 0 groups. Cannot access group ')} || CAST(({group}) AS VARCHAR)")
+    return f"CASE WHEN ({group}) IS NULL THEN NULL WHEN ({group}) <> 0 THEN {error} ELSE {sql} END"
 
 
 def _render_regexp_extract(g, node, args) -> str:
-    value, pattern, group = g.sql(args[0]), g.sql(args[1]), _group(g, args, 2)
+    value, pattern, group = g.sql(args[0]), g.sql(args[1]), _group(g, node, args, 2)
     extracted = f"regexp_extract({value}, {pattern}, {group})"
     if group.isdigit() and int(group) > 9:  # DuckDB's regexp_extract reads groups 0 to 9 only
         extracted = f"regexp_extract_all({value}, {pattern}, {group})[1]"
     if node.meta.get("null_if_empty"):
         extracted = f"nullif({extracted}, '')"
-    return f"CASE WHEN regexp_matches({value}, {pattern}) THEN {extracted} END"
+    return _group_checked(g, node, args, f"CASE WHEN regexp_matches({value}, {pattern}) THEN {extracted} END")
 
 
 def _render_regexp_extract_all(g, node, args) -> str:
-    sql = f"regexp_extract_all({g.sql(args[0])}, {g.sql(args[1])}, {_group(g, args, 2)})"
+    sql = f"regexp_extract_all({g.sql(args[0])}, {g.sql(args[1])}, {_group(g, node, args, 2)})"
     if node.meta.get("null_if_empty"):
         sql = f'list_transform({sql}, lambda "_e": nullif("_e", \'\'))'
-    return sql
+    return _group_checked(g, node, args, sql)
 
 
 class IllegalGroupReference(ValueError):

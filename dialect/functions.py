@@ -1481,6 +1481,8 @@ register(
     fixed(tt.varchar(1), "integral"),
     lambda g, node, args: f"chr(CAST({g.sql(args[0])} AS INTEGER))",
 )
+
+
 def _codepoint(call: Call) -> TType:
     """codepoint takes varchar(1) only: a longer or unbounded varchar is FUNCTION_NOT_FOUND in Trino."""
     (t,) = need(call, "string")

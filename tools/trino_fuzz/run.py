@@ -1,7 +1,7 @@
 """The differential fuzzer: random Trino queries over a small lake, answered by lakegate and by the
 real Trino reading the same Parquet files; every difference is a mismatch (`python3 dev.py fuzz`).
 
-    python3 dev.py fuzz --queries N --seed S [--trino URL] [--out FILE] [--lake DIR] [--jobs K]
+    python3 dev.py fuzz --queries N --seed S [--trino URL] [--out FILE] [--lake DIR] [--jobs K] [--seconds T]
 
 Prints `tried T, equal E, lakegate refused R, both errored B, mismatched M`:
 equal: the same result types and rows; lakegate refused: lakegate said NOT_SUPPORTED (naming the
@@ -17,6 +17,7 @@ import argparse
 import json
 import sys
 import tempfile
+import time
 from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -34,6 +35,8 @@ SCHEMA_PREFIX = "fuzzer_"
 REFUSALS = frozenset({"NOT_SUPPORTED"})
 #: Queries lakegate's Engine runs at once (as the server does).
 LAKEGATE_THREADS = 2
+#: Queries generated and judged at a time (a --seconds bound is checked between chunks).
+CHUNK = 100
 
 
 @dataclass
@@ -74,8 +77,10 @@ def fuzz(
     out: Path | None,
     jobs: int = 6,
     progress: bool = False,
+    seconds: float | None = None,
 ) -> tuple[Counter, list[Verdict]]:
-    """Generate and judge `queries` queries; the counts per verdict and the mismatches."""
+    """Generate and judge `queries` queries (fewer when `seconds` run out: the generator's order is
+    the same, so a bounded run is a prefix of the unbounded one); the counts and the mismatches."""
     lake = fuzz_lake.build(lake_dir)
     trino = Trino(trino_url, f"{SCHEMA_PREFIX}main")
     register(trino, lake, SCHEMA_PREFIX)
@@ -85,16 +90,20 @@ def fuzz(
     try:
         tables = {name: list(columns.items()) for name, columns in mine.engine.backend.schema("main").items()}
         generator = Generator(seed, discover(), tables)
-        batch = [generator.query() for _ in range(queries)]
+        deadline = time.monotonic() + seconds if seconds else None
         with ThreadPoolExecutor(jobs) as pool, ThreadPoolExecutor(LAKEGATE_THREADS) as own:
-            answers = pool.map(trino.run, (q.sql for q in batch))
-            own_answers = own.map(mine.run, (q.sql for q in batch))
-            for done, (query, theirs, ours) in enumerate(zip(batch, answers, own_answers), 1):
-                verdict = judge(query, ours, theirs)
-                counts[verdict.kind] += 1
-                if verdict.kind == "mismatched":
-                    mismatches.append(verdict)
-                if progress and done % 500 == 0:
+            for start in range(0, queries, CHUNK):
+                if deadline is not None and time.monotonic() > deadline:
+                    break
+                batch = [generator.query() for _ in range(min(CHUNK, queries - start))]
+                answers = pool.map(trino.run, (q.sql for q in batch))
+                own_answers = own.map(mine.run, (q.sql for q in batch))
+                for query, theirs, ours in zip(batch, answers, own_answers):
+                    verdict = judge(query, ours, theirs)
+                    counts[verdict.kind] += 1
+                    if verdict.kind == "mismatched":
+                        mismatches.append(verdict)
+                if progress and (start // CHUNK) % 5 == 4:
                     print(f"... {summary(counts)}", file=sys.stderr, flush=True)
     finally:
         mine.close()
@@ -137,8 +146,13 @@ def main(argv: list[str] | None = None) -> int:
         help="where the fuzz lake is built (reused when up to date)",
     )
     parser.add_argument("--jobs", type=int, default=6, metavar="K", help="queries Trino runs at once (default 6)")
+    parser.add_argument(
+        "--seconds", type=float, metavar="T", help="stop generating after about T seconds (the summary counts what ran)"
+    )
     args = parser.parse_args(argv)
-    counts, mismatches = fuzz(args.queries, args.seed, args.trino, args.lake, args.out, args.jobs, progress=True)
+    counts, mismatches = fuzz(
+        args.queries, args.seed, args.trino, args.lake, args.out, args.jobs, progress=True, seconds=args.seconds
+    )
     print(summary(counts))
     if mismatches:
         print(f"mismatches written to {args.out}")

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 
+import pytest
 from trino_fuzz.compare import differ
 from trino_fuzz.run import fuzz, summary
 from trino_fuzz.sides import Outcome
@@ -31,6 +32,7 @@ def test_comparison_tells_answers_apart():
     assert differ(Outcome(types=["real", "array(double)", "json"], rows=answer.rows), answer, ordered=False)
 
 
+@pytest.mark.timeout(900)  # about 2 minutes on an idle 2-core machine; far more when it is shared
 def test_fuzzed_queries_answer_as_trino_does(trino_url, tmp_path):
     out = tmp_path / "mismatches.jsonl"
     counts, mismatches = fuzz(QUERIES, SEED, trino_url, tmp_path / "lake", out)

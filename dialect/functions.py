@@ -2376,8 +2376,9 @@ def _slice(call: Call) -> TType:
 def _render_slice(g, node, args) -> str:
     arr, start, length = sqls(g, args)
     begin = f"CASE WHEN ({start}) > 0 THEN ({start}) ELSE len({arr}) + ({start}) + 1 END"
-    return (
-        f"CASE WHEN ({start}) = 0 THEN {g.fail(tf.string('SQL array indices start at 1'))} "
+    return (  # NULL on NULL input, before any check (the real Trino 476 answers so)
+        f"CASE WHEN ({arr}) IS NULL OR ({start}) IS NULL OR ({length}) IS NULL THEN NULL "
+        f"WHEN ({start}) = 0 THEN {g.fail(tf.string('SQL array indices start at 1'))} "
         f"WHEN ({length}) < 0 THEN {g.fail(tf.string('length must be greater than or equal to 0'))} "
         f"WHEN ({start}) < 0 AND -({start}) > len({arr}) THEN list_slice({arr}, 1, 0) "
         f"ELSE list_slice({arr}, {begin}, {begin} + ({length}) - 1) END"

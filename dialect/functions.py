@@ -1326,7 +1326,7 @@ def _split(call: Call) -> TType:
 
 def _render_split(g, node, args) -> str:
     value, delim = g.sql(args[0]), g.sql(args[1])
-    sql = f"string_split({value}, {delim})"
+    sql = f"CASE WHEN ({delim}) IS NULL THEN NULL ELSE string_split({value}, {delim}) END"
     if len(args) == 3:
         limit = g.sql(args[2])
         sql = (  # NULL on NULL input, before any check (the real Trino 476 answers so)
@@ -1399,7 +1399,10 @@ def _substr(call: Call) -> TType:
 
 def _render_substr(g, node, args) -> str:
     sub = exp.Substring(this=args[0], start=args[1], length=args[2] if len(args) == 3 else None)
-    return tf.substring_from(g, sub)
+    sql = tf.substring_from(g, sub)
+    if len(args) == 3 and not isinstance(args[2], exp.Literal):  # a NULL length is NULL (DuckDB: '')
+        sql = f"CASE WHEN ({g.sql(args[2])}) IS NULL THEN NULL ELSE {sql} END"
+    return sql
 
 
 def _render_trim(name: str) -> Render:

@@ -25,6 +25,7 @@ _KINDS: dict[str, Callable[[TType], bool]] = {
     "any": lambda t: True,
     "number": lambda t: t.is_numeric or t.is_unknown,
     "integral": lambda t: t.is_integral or t.is_unknown,
+    "integer": lambda t: t.base in ("tinyint", "smallint", "integer", "unknown"),  # not bigint: no implicit narrowing
     "approx": lambda t: t.is_numeric or t.is_unknown,
     "string": lambda t: t.base in ("varchar", "unknown"),
     "boolean": lambda t: t.base in ("boolean", "unknown"),
@@ -479,14 +480,35 @@ for _name, _duck in (
 
 
 def _bivariate(call: Call) -> TType:
-    """corr, covar_* and regr_*: real over two reals, double otherwise (Trino's Real* aggregations)."""
+    """corr, covar_* and regr_*: double when an argument is double or decimal, else real: Trino
+    coerces integers (and NULL) to real, the cheaper coercion, and runs its Real* aggregation."""
     types = need(call, "number", "number")
-    return tt.REAL if all(t.base == "real" for t in types) else tt.DOUBLE
+    return tt.DOUBLE if any(t.base in ("double", "decimal") for t in types) else tt.REAL
+
+
+def _render_bivariate(g, node, args) -> str:
+    """The aggregate over the arguments as Trino coerced them (to real, for a real result: the
+    values rounded to float, computed in double, the result rounded to float); corr and regr_* are
+    NULL when the result is not finite (a zero variance, NaN or infinite input, an overflow), as
+    the real Trino 476 answers."""
+    name = node.name.lower()
+    values = [g.sql(a) for a in args]
+    if ttype(node).base == "real":
+        values = [f"CAST(CAST({v} AS REAL) AS DOUBLE)" for v in values]
+    sql = g.agg(node, name, values)
+    if name != "covar_samp" and name != "covar_pop":
+        sql = f"CASE WHEN isfinite({sql}) THEN {sql} END"
+    return tf.cast(sql, ttype(node))
 
 
 for _name in ("corr", "covar_samp", "covar_pop", "regr_slope", "regr_intercept"):
     register(
-        _name, "aggregate", f"{_name}(y, x) -> double; real for two reals", _bivariate, agg_as(_name), kind="aggregate"
+        _name,
+        "aggregate",
+        f"{_name}(y, x) -> real (double when y or x is double or decimal)",
+        _bivariate,
+        _render_bivariate,
+        kind="aggregate",
     )
 #: ListaggAggregationFunction: the output limit (DEFAULT_MAX_PAGE_SIZE_IN_BYTES) and its error.
 LISTAGG_MAX_BYTES = 1_048_576
@@ -999,6 +1021,8 @@ def _truncate(call: Call) -> TType:
     if len(call.args) == 2:
         return _truncate_n(call)
     (t,) = need(call, "number")
+    if t.is_integral:  # Trino has truncate(decimal), not truncate(integer): the integer is a decimal(p, 0)
+        return tt.as_decimal(t)
     if t.is_decimal:
         p, s = t.args
         return tt.decimal(max(1, p - s), 0)
@@ -1118,7 +1142,8 @@ register(
 register(
     "truncate",
     "math",
-    "truncate(x) -> same (decimal(p-s,0) for decimals); truncate(decimal(p,s), integer n) -> decimal(p,s)",
+    "truncate(x) -> same (decimal(p-s,0) for decimals, decimal(p,0) for integers); "
+    "truncate(decimal(p,s), integer n) -> decimal(p,s)",
     _truncate,
     _render_truncate,
 )
@@ -1329,11 +1354,12 @@ def _split(call: Call) -> TType:
 
 def _render_split(g, node, args) -> str:
     value, delim = g.sql(args[0]), g.sql(args[1])
-    sql = f"string_split({value}, {delim})"
+    sql = f"CASE WHEN ({delim}) IS NULL THEN NULL ELSE string_split({value}, {delim}) END"
     if len(args) == 3:
         limit = g.sql(args[2])
-        sql = (
-            f"CASE WHEN ({limit}) <= 0 THEN {g.fail(tf.string('Limit must be positive'))} "
+        sql = (  # NULL on NULL input, before any check (the real Trino 476 answers so)
+            f"CASE WHEN ({value}) IS NULL OR ({delim}) IS NULL OR ({limit}) IS NULL THEN NULL "
+            f"WHEN ({limit}) <= 0 THEN {g.fail(tf.string('Limit must be positive'))} "
             f"WHEN len({sql}) <= ({limit}) THEN {sql} ELSE list_append({sql}[1:({limit}) - 1], "
             f"array_to_string({sql}[({limit}):], {delim})) END"
         )
@@ -1359,19 +1385,24 @@ def _pad(call: Call) -> TType:
     return tt.VARCHAR
 
 
+def pad_checks(value: str, size: str, pad: str, empty: str, message: str) -> list[tuple[str, str]]:
+    """The argument checks of lpad / rpad, made only when no argument is NULL (the functions return
+    NULL on NULL input before checking anything, as the real Trino 476 answers)."""
+    given = f"({value}) IS NOT NULL AND ({size}) IS NOT NULL AND ({pad}) IS NOT NULL AND "
+    return [
+        (f"{given}(({size}) < 0 OR ({size}) > 2147483647)", "Target length must be in the range [0..2147483647]"),
+        (
+            f"{given}({size}) > {MAX_PAD_LENGTH}",
+            f"Target length must be at most {MAX_PAD_LENGTH} in lakegate (Trino allows up to 2147483647)",
+        ),
+        (f"{given}{empty}", message),
+    ]
+
+
 def _render_pad(g, node, args) -> str:
     value, size, pad = sqls(g, args)
     width = checked(
-        g,
-        f"CAST({size} AS INTEGER)",
-        (
-            (f"({size}) < 0 OR ({size}) > 2147483647", "Target length must be in the range [0..2147483647]"),
-            (
-                f"({size}) > {MAX_PAD_LENGTH}",
-                f"Target length must be at most {MAX_PAD_LENGTH} in lakegate (Trino allows up to 2147483647)",
-            ),
-            (f"{pad} = ''", "Padding string must not be empty"),
-        ),
+        g, f"CAST({size} AS INTEGER)", pad_checks(value, size, pad, f"{pad} = ''", "Padding string must not be empty")
     )
     return f"{node.name.lower()}({value}, {width}, {pad})"
 
@@ -1396,7 +1427,10 @@ def _substr(call: Call) -> TType:
 
 def _render_substr(g, node, args) -> str:
     sub = exp.Substring(this=args[0], start=args[1], length=args[2] if len(args) == 3 else None)
-    return tf.substring_from(g, sub)
+    sql = tf.substring_from(g, sub)
+    if len(args) == 3 and not isinstance(args[2], exp.Literal):  # a NULL length is NULL (DuckDB: '')
+        sql = f"CASE WHEN ({g.sql(args[2])}) IS NULL THEN NULL ELSE {sql} END"
+    return sql
 
 
 def _render_trim(name: str) -> Render:
@@ -1471,12 +1505,28 @@ register(
     _render_split_part,
     notes="NULL when the index is beyond the last field, as in Trino (DuckDB gives '').",
 )
-register("chr", "string", "chr(n) -> varchar(1)", fixed(tt.varchar(1), "integral"), call_as("chr"))
+register(
+    "chr",
+    "string",
+    "chr(n) -> varchar(1)",
+    fixed(tt.varchar(1), "integral"),
+    lambda g, node, args: f"chr(CAST({g.sql(args[0])} AS INTEGER))",
+)
+
+
+def _codepoint(call: Call) -> TType:
+    """codepoint takes varchar(1) only: a longer or unbounded varchar is FUNCTION_NOT_FOUND in Trino."""
+    (t,) = need(call, "string")
+    if t.base == "varchar" and (not t.args or t.args[0] > 1):
+        call.mismatch()
+    return tt.INTEGER
+
+
 register(
     "codepoint",
     "string",
-    "codepoint(string) -> integer",
-    fixed(tt.INTEGER, "string"),
+    "codepoint(varchar(1)) -> integer",
+    _codepoint,
     lambda g, node, args: (
         f"CASE WHEN length({g.sql(args[0])}) <> 1 THEN "
         f"{g.fail(tf.string('Input string must be a single character string'))} "
@@ -1506,8 +1556,9 @@ def _render_hamming(g, node, args) -> str:
     a, b = sqls(g, args)
     same_length = "The input strings to hamming_distance function must have the same length"
     differing = f'list_filter(range(1, length({a}) + 1), lambda "_i": substr({a}, "_i", 1) <> substr({b}, "_i", 1))'
-    return (
-        f"CASE WHEN length({a}) <> length({b}) THEN {g.fail(tf.string(same_length))} "
+    return (  # NULL when either is NULL (the real Trino 476 answers so)
+        f"CASE WHEN ({a}) IS NULL OR ({b}) IS NULL THEN NULL "
+        f"WHEN length({a}) <> length({b}) THEN {g.fail(tf.string(same_length))} "
         f"ELSE CAST(len({differing}) AS BIGINT) END"
     )
 
@@ -1621,6 +1672,7 @@ def _group_semantics(call: Call, group_index: int) -> None:
     if group is None:
         if pattern is None or capturing_groups(pattern):
             call.fail("regexp group must be a literal integer in lakegate", "NOT_SUPPORTED")
+        call.node.meta["dynamic_group"] = True  # a pattern without groups: 0 is the only valid group
         return
     if pattern is None:
         if group:
@@ -1656,25 +1708,39 @@ def _regexp_extract_all(call: Call) -> TType:
     return result
 
 
-def _group(g, args, index: int) -> str:
-    return g.sql(args[index]) if len(args) > index else "0"
+def _group(g, node, args, index: int) -> str:
+    """The group argument as DuckDB's INTEGER constant (0 for a non-literal group: `_group_checked`)."""
+    if len(args) <= index or node.meta.get("dynamic_group"):
+        return "0"
+    sql = g.sql(args[index])
+    return sql if sql.isdigit() else f"CAST({sql} AS INTEGER)"
+
+
+def _group_checked(g, node, args, sql: str) -> str:
+    """`sql` for a non-literal group of a pattern without groups: NULL for a NULL group, Trino's
+    error for another group than 0 (DuckDB wants a constant group)."""
+    if not node.meta.get("dynamic_group"):
+        return sql
+    group = g.sql(args[2])
+    error = g.fail(f"{tf.string('Pattern has 0 groups. Cannot access group ')} || CAST(({group}) AS VARCHAR)")
+    return f"CASE WHEN ({group}) IS NULL THEN NULL WHEN ({group}) <> 0 THEN {error} ELSE {sql} END"
 
 
 def _render_regexp_extract(g, node, args) -> str:
-    value, pattern, group = g.sql(args[0]), g.sql(args[1]), _group(g, args, 2)
+    value, pattern, group = g.sql(args[0]), g.sql(args[1]), _group(g, node, args, 2)
     extracted = f"regexp_extract({value}, {pattern}, {group})"
     if group.isdigit() and int(group) > 9:  # DuckDB's regexp_extract reads groups 0 to 9 only
         extracted = f"regexp_extract_all({value}, {pattern}, {group})[1]"
     if node.meta.get("null_if_empty"):
         extracted = f"nullif({extracted}, '')"
-    return f"CASE WHEN regexp_matches({value}, {pattern}) THEN {extracted} END"
+    return _group_checked(g, node, args, f"CASE WHEN regexp_matches({value}, {pattern}) THEN {extracted} END")
 
 
 def _render_regexp_extract_all(g, node, args) -> str:
-    sql = f"regexp_extract_all({g.sql(args[0])}, {g.sql(args[1])}, {_group(g, args, 2)})"
+    sql = f"regexp_extract_all({g.sql(args[0])}, {g.sql(args[1])}, {_group(g, node, args, 2)})"
     if node.meta.get("null_if_empty"):
         sql = f'list_transform({sql}, lambda "_e": nullif("_e", \'\'))'
-    return sql
+    return _group_checked(g, node, args, sql)
 
 
 class IllegalGroupReference(ValueError):
@@ -2116,9 +2182,9 @@ def _render_trim_array(g, node, args) -> str:
     too_big = g.fail(
         f"{tf.string('size must not exceed array cardinality ')} || len({arr}) || {tf.string(': ')} || {size}"
     )
-    return (
-        f"CASE WHEN {size} < 0 THEN {negative} WHEN {size} > len({arr}) THEN {too_big} "
-        f"ELSE list_slice({arr}, 1, len({arr}) - {size}) END"
+    return (  # NULL on NULL input, before any check (the real Trino 476 answers so)
+        f"CASE WHEN ({arr}) IS NULL OR {size} IS NULL THEN NULL WHEN {size} < 0 THEN {negative} "
+        f"WHEN {size} > len({arr}) THEN {too_big} ELSE list_slice({arr}, 1, len({arr}) - {size}) END"
     )
 
 
@@ -2341,8 +2407,9 @@ def _slice(call: Call) -> TType:
 def _render_slice(g, node, args) -> str:
     arr, start, length = sqls(g, args)
     begin = f"CASE WHEN ({start}) > 0 THEN ({start}) ELSE len({arr}) + ({start}) + 1 END"
-    return (
-        f"CASE WHEN ({start}) = 0 THEN {g.fail(tf.string('SQL array indices start at 1'))} "
+    return (  # NULL on NULL input, before any check (the real Trino 476 answers so)
+        f"CASE WHEN ({arr}) IS NULL OR ({start}) IS NULL OR ({length}) IS NULL THEN NULL "
+        f"WHEN ({start}) = 0 THEN {g.fail(tf.string('SQL array indices start at 1'))} "
         f"WHEN ({length}) < 0 THEN {g.fail(tf.string('length must be greater than or equal to 0'))} "
         f"WHEN ({start}) < 0 AND -({start}) > len({arr}) THEN list_slice({arr}, 1, 0) "
         f"ELSE list_slice({arr}, {begin}, {begin} + ({length}) - 1) END"

@@ -13,6 +13,7 @@ from __future__ import annotations
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import Call
 from lakegate.dialect.functions import sqls
+from lakegate.dialect.functions_scalar import hmac_key_checked
 from lakegate.dialect.registry import Infer, Render, register
 
 #: The prefix of the DuckDB names of these functions (not callable from Trino SQL: the analyzer
@@ -40,7 +41,12 @@ def _binary_args(count: int) -> Infer:
 
 
 def _render(name: str) -> Render:
-    return lambda g, node, args: f"{UDF_PREFIX}{name}({', '.join(sqls(g, args))})"
+    def render(g, node, args) -> str:
+        values = sqls(g, args)
+        sql = f"{UDF_PREFIX}{name}({', '.join(values)})"
+        return hmac_key_checked(values[1], sql) if name.startswith("hmac_") else sql
+
+    return render
 
 
 for _name, (_count, _signature) in UDFS.items():

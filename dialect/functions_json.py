@@ -274,7 +274,9 @@ register(
 
 def _render_json_array_get(g, node, args) -> str:
     """The element at a 0-based index (negative: from the end); NULL outside the array and for a
-    JSON null element. A string element comes back unquoted, as Trino documents ("broken")."""
+    JSON null element, and for a text that is not JSON (such as what an unquoted string element
+    is: the real Trino 476 answers NULL). A string element comes back unquoted, as Trino
+    documents ("broken")."""
     text = _text(g, args[0])
     items, index = jv.elements(text), g.sql(args[1])
     position = f"CASE WHEN {index} >= 0 THEN {index} + 1 ELSE len({items}) + {index} + 1 END"
@@ -282,7 +284,7 @@ def _render_json_array_get(g, node, args) -> str:
     kind = f"json_type({element})"
     unquoted = f"json_extract_string({element}, '$')"
     return (
-        f"CASE WHEN json_type({text}) <> 'ARRAY' THEN NULL WHEN {kind} = 'NULL' THEN NULL "
+        f"CASE WHEN NOT json_valid({text}) OR json_type({text}) <> 'ARRAY' THEN NULL WHEN {kind} = 'NULL' THEN NULL "
         f"WHEN {kind} = 'VARCHAR' THEN {unquoted} ELSE {jv.exact_numbers(element)} END"
     )
 
@@ -643,7 +645,8 @@ def _render_json_array(g, node, args) -> str:
     texts = [json_value_text(g, arg) for arg in args]
     if node.meta_get("null") == "NULL":  # NULL ON NULL: a JSON null for each NULL
         texts = [f"coalesce({text}, 'null')" for text in texts]
-    return f"'[' || array_to_string([{', '.join(texts)}]::VARCHAR[], ',') || ']'" if texts else "'[]'"
+    # DuckDB's array_to_string of only NULLs is NULL: '' (Trino's json_array(NULL) is '[]')
+    return f"'[' || coalesce(array_to_string([{', '.join(texts)}]::VARCHAR[], ','), '') || ']'" if texts else "'[]'"
 
 
 register(

@@ -20,12 +20,12 @@ from lakegate.dialect import trino_types as tt
 from lakegate.dialect import zones
 from lakegate.dialect.analyze import Call, ttype
 from lakegate.dialect.functions import (
-    MAX_PAD_LENGTH,
     capturing_groups,
     checked,
     fixed,
     literal_str,
     need,
+    pad_checks,
     regexp_call,
     sqls,
 )
@@ -190,9 +190,16 @@ def _render_hmac(duck: str) -> Render:
             return f"unhex(array_to_string({xored}, ''))"
 
         inner = f"unhex({duck}({padded(0x36)} || {message}))"
-        return f"unhex({duck}({padded(0x5C)} || {inner}))"
+        return hmac_key_checked(key, f"unhex({duck}({padded(0x5C)} || {inner}))")
 
     return render
+
+
+def hmac_key_checked(key: str, sql: str) -> str:
+    """`sql`, or the error the real Trino 476 raises for an empty HMAC key (javax.crypto's
+    SecretKeySpec: GENERIC_INTERNAL_ERROR 'Empty key'), not caught by try()."""
+    empty = f"error({tf.string('GENERIC_INTERNAL_ERROR: Empty key')})"
+    return f"CASE WHEN octet_length(CAST({key} AS BLOB)) = 0 THEN {empty} ELSE {sql} END"
 
 
 def _render_from_big_endian(size: int, duck: str) -> Render:
@@ -467,18 +474,8 @@ def _render_pad_binary(g, node, args) -> str:
     """VarbinaryFunctions.leftPad / rightPad: `size` bytes, the padding repeated from its start, the
     value cut to `size` bytes when longer (on the hex text, two digits a byte)."""
     value, size, pad = sqls(g, args)
-    width = checked(
-        g,
-        f"CAST(2 * ({size}) AS INTEGER)",
-        (
-            (f"({size}) < 0 OR ({size}) > 2147483647", "Target length must be in the range [0..2147483647]"),
-            (
-                f"({size}) > {MAX_PAD_LENGTH}",
-                f"Target length must be at most {MAX_PAD_LENGTH} in lakegate (Trino allows up to 2147483647)",
-            ),
-            (f"octet_length({pad}) = 0", "Padding bytes must not be empty"),
-        ),
-    )
+    checks = pad_checks(value, size, pad, f"octet_length({pad}) = 0", "Padding bytes must not be empty")
+    width = checked(g, f"CAST(2 * ({size}) AS INTEGER)", checks)
     return f"unhex({node.name.lower()}(hex({value}), {width}, hex({pad})))"
 
 
@@ -513,7 +510,7 @@ _U64 = 2**64 - 1
 
 
 def _shift(call: Call) -> TType:
-    value, _ = need(call, "integral", "integral")
+    value, _ = need(call, "integral", "integer")  # BitwiseFunctions: the shift is an integer
     return tt.BIGINT if value.is_unknown else value
 
 
@@ -1063,7 +1060,7 @@ register(
 
 # === regular expressions (io.trino.operator.scalar.JoniRegexpFunctions) =========================
 def _regexp_position(call: Call) -> TType:
-    regexp_call(call, tt.INTEGER, (2, 3, 4), "string", "string", "integral", "integral")
+    regexp_call(call, tt.INTEGER, (2, 3, 4), "string", "string", "integer", "integer")
     if "\\G" in (literal_str(call, 1) or ""):
         call.fail("regexp_position with \\G is not supported in lakegate", "NOT_SUPPORTED")
     return tt.INTEGER

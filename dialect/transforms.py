@@ -555,9 +555,17 @@ def eager_constant_in_list(g: Writer, node: exp.In) -> str:
         return row_in_subquery(g, node)
     sql = g.in_sql(node)
     items = node.expressions
-    if node.find(exp.Column) is not None or all(isinstance(i, (exp.Literal, exp.Null)) for i in items):
+    common = node.meta.get("compare")
+    if node.find(exp.Column) is not None:
+        if items and common is not None and common.is_approx:
+            # NaN equals nothing when Trino evaluates IN over columns (DuckDB's IN matches NaN with
+            # NaN); Trino's constant folding does match it, as the constant case below does
+            value = g.coerce(node.this, common)
+            nulls = " OR ".join(f"({g.coerce(i, common)}) IS NULL" for i in items)
+            return f"CASE WHEN isnan({value}) THEN CASE WHEN {nulls} THEN NULL ELSE false END ELSE {sql} END"
         return sql
-    common = node.meta["compare"]
+    if all(isinstance(i, (exp.Literal, exp.Null)) for i in items):
+        return sql
     return f"CASE WHEN len([{', '.join(g.coerce(i, common) for i in items)}]) >= 0 THEN {sql} END"
 
 
@@ -756,9 +764,14 @@ def cast_operand(g: Writer, node: exp.Cast) -> tuple[str, TType]:
 def trino_try_cast(g: Writer, node: exp.TryCast) -> str:
     g.in_try += 1
     try:
-        sql = cast_value(g, *cast_operand(g, node), ttype(node))
+        operand, source = cast_operand(g, node)
+        target = ttype(node)
+        sql = cast_value(g, operand, source, target)
     finally:
         g.in_try -= 1
+    if target.base == source.base == "array" and target.args[0].base not in ("array", "map", "row"):
+        # Trino's TRY_CAST of an array is NULL when any element fails (not the element alone)
+        sql = f"CASE WHEN list_count({operand}) = list_count({sql}) THEN {sql} END"
     return try_wrap(sql)
 
 

@@ -31,9 +31,9 @@ class SessionNames:
     schema: str | None = None
 
 
-def used(sql: str) -> bool:
-    """Whether `sql` may call a session function (a cheap test of the text)."""
-    return "current_" in sql.lower()
+def used(sql: str | bytes) -> bool:
+    """Whether `sql` (text, or the bytes a client sent) may call a session function (a cheap test)."""
+    return (b"current_" if isinstance(sql, bytes) else "current_") in sql.lower()
 
 
 def _where(sql: str, offset: int) -> tuple[int, int]:

@@ -331,7 +331,7 @@ def test_two_branches_with_different_schemas_for_one_topic(tmp_path):
     lines = {"main": {"speed": 1.5}, "feature/text": {"speed": "fast", "unit": "m/s"}}
     for branch, config in (("main", float_config), ("feature/text", text_config)):
         assert (
-            lakegate("metrics", "sync", "--lake", lake, "--branch", branch, "--metrics-config-path", *config).returncode
+            lakegate("metrics", "sync", "--lake", lake, "--branch", branch, "--metrics-config-path", config).returncode
             == 0
         )
         emissions = tmp_path / f"{branch.replace('/', '_')}.jsonl"

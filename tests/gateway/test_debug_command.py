@@ -380,15 +380,18 @@ def test_exported_edits_load_back_with_the_same_values(tmp_path: Path, nav_jobs,
     )
     base, session = server.url.split("?session=")
     name = "Time to reach final goal"
-    edit = {"units": "on", "status": {"query_string": "SELECT 1 WHERE ? < 0", "block": 90, "warn": 1.5}}
-    request = urllib.request.Request(
-        f"{base}api/sessions/{session}/metrics/{urllib.parse.quote(name)}",
-        data=json.dumps(edit).encode(),
-        method="PUT",
-        headers={"Content-Type": "application/json"},
-    )
-    with urllib.request.urlopen(request, timeout=60) as response:
-        metric = next(m for m in json.loads(response.read())["metrics"] if m["name"] == name)
+
+    def edited(edit: dict) -> dict:
+        request = urllib.request.Request(
+            f"{base}api/sessions/{session}/metrics/{urllib.parse.quote(name)}",
+            data=json.dumps(edit).encode(),
+            method="PUT",
+            headers={"Content-Type": "application/json"},
+        )
+        with urllib.request.urlopen(request, timeout=60) as response:
+            return next(m for m in json.loads(response.read())["metrics"] if m["name"] == name)
+
+    metric = edited({"units": "on", "status": {"query_string": "SELECT 1 WHERE ? < 0", "block": 90, "warn": 1.5}})
     assert metric["units"] == "on" and metric["status"]["block"] == 90
     with zipfile.ZipFile(io.BytesIO(_get(f"{base}api/sessions/{session}/export"))) as archive:
         exported = tmp_path / "exported" / config.name
@@ -396,16 +399,7 @@ def test_exported_edits_load_back_with_the_same_values(tmp_path: Path, nav_jobs,
         exported.write_bytes(archive.read(config.name))
     loaded = load_config([exported]).metrics[name]
     assert (loaded.units, loaded.status.block, loaded.status.warn) == ("on", 90, 1.5)
-    edit = {"units": "1:30"}
-    request = urllib.request.Request(
-        f"{base}api/sessions/{session}/metrics/{urllib.parse.quote(name)}",
-        data=json.dumps(edit).encode(),
-        method="PUT",
-        headers={"Content-Type": "application/json"},
-    )
-    with urllib.request.urlopen(request, timeout=60) as response:
-        metric = next(m for m in json.loads(response.read())["metrics"] if m["name"] == name)
-    assert metric["units"] == "1:30"
+    assert edited({"units": "1:30"})["units"] == "1:30"
     assert server.stop() == 0
 
 

@@ -144,7 +144,9 @@ def main() -> int:
     emit_what = f"validated `emit()`, 3-float topic ({args.emits:,} emits)"
     series_what = f"`emit_series()` points ({args.points:,} points in one call)"
     ratio = {
-        (impl, mode): rate("ours", mode, "cpu") / rate(impl, mode, "cpu") for impl in REFERENCES for mode in ("emit", "series")
+        (impl, mode): rate("ours", mode, "cpu") / rate(impl, mode, "cpu")
+        for impl in REFERENCES
+        for mode in ("emit", "series")
     }
     met = all(ratio[impl, "emit"] >= GOAL for impl in REFERENCES)
     load = ", ".join(f"{x:.2f}" for x in os.getloadavg())

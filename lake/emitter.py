@@ -210,7 +210,9 @@ class _Codec:
         for i, (name, field_type) in enumerate(self.topic.fields.items()):
             v, t = f"v{i}", f"t{i}"
             if field_type in _FAST:
-                test, fast, slow = (part and part.replace("@", v).replace("NAME", repr(name)) for part in _FAST[field_type])
+                test, fast, slow = (
+                    part and part.replace("@", v).replace("NAME", repr(name)) for part in _FAST[field_type]
+                )
                 if slow is None:
                     checks.append(f"if not ({test}): {v} = _checked(TOPIC, {name!r}, {field_type!r}, {v})")
                     checks.append(f"{t} = {fast}")
@@ -525,7 +527,11 @@ class Emitter:
             raise ValidationError(f"unknown topic; {known}", topic=topic_name)
         body = _plain_data_json(topic_name, data)
         timestamp = _check_timestamp(topic_name, timestamp)
-        line = f'{{"$metadata": {{"topic": {_json_str(topic_name)}, "timestamp": {timestamp}'.encode() + end + f"{body}}}\n".encode()
+        line = (
+            f'{{"$metadata": {{"topic": {_json_str(topic_name)}, "timestamp": {timestamp}'.encode()
+            + end
+            + f"{body}}}\n".encode()
+        )
         _check_length(topic_name, line)
         return line
 

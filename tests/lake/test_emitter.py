@@ -648,8 +648,14 @@ def test_float_text_is_json_dumps_text_at_every_magnitude(emitter: Emitter, out:
     for i in range(0, len(values), 97):
         emitter.emit("robot_speed", {"speed": values[i]}, timestamp=i)
     emitter.close()
-    expected = [json.dumps({"$metadata": {"topic": "robot_speed", "timestamp": i}, "$data": {"speed": v}}) for i, v in enumerate(values)]
-    expected += [json.dumps({"$metadata": {"topic": "robot_speed", "timestamp": i}, "$data": {"speed": values[i]}}) for i in range(0, len(values), 97)]
+    expected = [
+        json.dumps({"$metadata": {"topic": "robot_speed", "timestamp": i}, "$data": {"speed": v}})
+        for i, v in enumerate(values)
+    ]
+    expected += [
+        json.dumps({"$metadata": {"topic": "robot_speed", "timestamp": i}, "$data": {"speed": values[i]}})
+        for i in range(0, len(values), 97)
+    ]
     assert out.read_text().splitlines() == expected
 
 

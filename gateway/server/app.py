@@ -20,8 +20,14 @@ an exception raised in the worker. Its slot is free at once: the worker counts a
 it returns, and at most `max_concurrent_queries` zombies are counted apart, so runaway work never
 jams the server. Shutdown waits at most `SHUTDOWN_GRACE` seconds for workers.
 
+A client that names encodings in `X-Trino-Query-Data-Encoding` gets its GET pages as segments of
+Trino's spooling protocol (`spooling`): the worker also encodes each page, small ones are inlined,
+larger ones are kept in the app's `SegmentStore` until acknowledged or expired (the reaper expires
+them; a finished query's segments stay for a client still reading them).
+
 Routes: /v1/statement, /v1/statement/executing/{id}/{slug}/{token} (GET, HEAD, DELETE),
-/v1/query/{id} (GET, DELETE), /v1/info, /v1/info/state. With `users`, every route but /v1/info and
+/v1/query/{id} (GET, DELETE), /v1/spooled/download/{segment} (GET, DELETE),
+/v1/spooled/ack/{segment} (GET), /v1/info, /v1/info/state. With `users`, every route but /v1/info and
 /v1/info/state needs HTTP Basic credentials (checked by `http_limits.Guard` before a body is read).
 """
 
@@ -55,6 +61,7 @@ from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.engine.session import Answer, Session
 from lakegate.gateway.engine.statements import Planner, static_result
 from lakegate.gateway.engine.trino_values import encode_columns, encode_rows
+from lakegate.gateway.server import spooling
 from lakegate.gateway.server.auth import Users
 from lakegate.gateway.server.host_check import HostCheck
 from lakegate.gateway.server.http_limits import Guard, authenticated_user
@@ -71,8 +78,9 @@ log = logging.getLogger("lakegate.server")
 
 #: Pages a worker may have ready before it waits for the client.
 BUFFERED_PAGES = 2
-#: Rows in a query's first page (later pages are sized to about Limits.page_bytes).
-FIRST_PAGE_ROWS = 1024
+#: Rows in a query's first page (later pages are sized to about Limits.page_bytes); as many as a
+#: segment Trino inlines, so that the spooling protocol's first segment is inline.
+FIRST_PAGE_ROWS = spooling.INLINE_MAX_ROWS
 MAX_PAGE_ROWS = 65_536
 #: The largest page that may also be a query's last document (larger ones get a last document of
 #: their own, so that a finished query keeps little for a retried request).
@@ -81,6 +89,8 @@ FINAL_PAGE_BYTES = 65_536
 REAP_INTERVAL = 0.25
 #: Longest shutdown waits for workers to stop (they are daemon threads: the process may end without them).
 SHUTDOWN_GRACE = 1.0
+#: Payload bytes of spooled segments the server holds at once; past them pages are inlined.
+SPOOLED_BYTES = 256 * 1024 * 1024
 JSON = "application/json"
 
 
@@ -88,6 +98,8 @@ JSON = "application/json"
 class _Page:
     data: bytes  # the JSON array of rows
     rows: int
+    payload: bytes | None = None  # the rows as a spooling segment's payload, when the client chose an encoding
+    sizes: dict[str, int] | None = None  # the payload's size attributes
 
 
 class _Stopped(Exception):
@@ -139,8 +151,18 @@ def _injected_planning_work(sql: str) -> None:
 class Query:
     """One statement: its state, the pages its worker produced, and the documents served so far."""
 
-    def __init__(self, query_id: str, sql: str, session: Session, dequeued: Callable[[], None] = lambda: None):
+    def __init__(
+        self,
+        query_id: str,
+        sql: str,
+        session: Session,
+        dequeued: Callable[[], None] = lambda: None,
+        *,
+        encoding: str | None = None,
+        segments: spooling.SegmentStore | None = None,
+    ):
         self.id, self.sql, self.session = query_id, sql, session
+        self.encoding, self._segments = encoding if segments is not None else None, segments
         self._dequeued = dequeued  # called once, when the query leaves the queue (runs or fails)
         self.slug = secrets.token_hex(8)
         self.lock = threading.Lock()
@@ -159,6 +181,7 @@ class Query:
         self.done = False  # the worker produced everything, or the query failed
         self.final = False  # the last document was served
         self.rows = 0
+        self.served_rows = 0  # rows of the documents served so far (a spooling segment's rowOffset)
         self.bytes = 0
         self.created = _now()
         self.started_at: datetime | None = None
@@ -322,6 +345,7 @@ class Query:
         with self.lock:
             whole = self.failure is not None or (self.done and self._fits())
             page = self._pages.popleft() if whole and self._pages else None
+            self.served_rows += 0 if page is None else page.rows
             self.final = whole
             self.body = self.document(base, 0, data=None if page is None else page.data, last=whole)
         return self.body
@@ -368,7 +392,7 @@ class Query:
                     self._space.notify_all()
                     last = self.done and not self._pages and self.failure is None and len(page.data) <= FINAL_PAGE_BYTES
                     self.final = last
-                    return self.document(base, token, data=page.data, last=last)
+                    return self.document(base, token, data=self._data(page, base), last=last)
                 version, done = self._version, self.done
             if done:
                 return self._last(base, token)
@@ -377,6 +401,21 @@ class Query:
                 with self.lock:
                     return self.document(base, token)
             await self._changes(version, remaining)
+
+    def _data(self, page: _Page, base: str) -> bytes:
+        """A GET reply's `data`: the page's rows, or its segment under the spooling protocol (lock held)."""
+        offset, self.served_rows = self.served_rows, self.served_rows + page.rows
+        if page.payload is None or self.encoding is None or self._segments is None:
+            return page.data
+        return spooling.segments_data(
+            self.encoding,
+            page.payload,
+            page.sizes or {},
+            rows=page.rows,
+            row_offset=offset,
+            base=base,
+            store=self._segments,
+        )
 
     def _last(self, base: str, token: int) -> bytes:
         with self.lock:
@@ -437,9 +476,12 @@ class Query:
         )
 
 
-def _pages(columns: Sequence[tuple[str, str]], batches: Iterator[pa.RecordBatch], limits: Limits) -> Iterator[_Page]:
-    """The result's rows as pages of JSON (sized to about limits.page_bytes); a result with more
-    than limits.max_rows rows fails."""
+def _pages(
+    columns: Sequence[tuple[str, str]], batches: Iterator[pa.RecordBatch], limits: Limits, encoding: str | None = None
+) -> Iterator[_Page]:
+    """The result's rows as pages of JSON (sized to about limits.page_bytes), each also encoded as a
+    spooling segment's payload when the client chose an `encoding`; a result with more than
+    limits.max_rows rows fails."""
     seen, chunk = 0, FIRST_PAGE_ROWS
     for batch in batches:
         offset = 0
@@ -453,7 +495,10 @@ def _pages(columns: Sequence[tuple[str, str]], batches: Iterator[pa.RecordBatch]
                     error_name="GENERIC_INSUFFICIENT_RESOURCES",
                 )
             data = orjson.dumps(list(zip(*encode_columns(columns, part))))  # rows as tuples: cheaper than lists
-            yield _Page(data, part.num_rows)
+            if encoding is None:
+                yield _Page(data, part.num_rows)
+            else:
+                yield _Page(data, part.num_rows, *spooling.encode(encoding, data))
             offset += part.num_rows
             chunk = max(1, min(MAX_PAGE_ROWS, limits.page_bytes * part.num_rows // max(1, len(data))))
 
@@ -463,8 +508,8 @@ class QueryManager:
     module docstring), a bounded queue, and the reaper that enforces the time limit, abandons
     queries clients left and forgets old ones."""
 
-    def __init__(self, planner: Planner, limits: Limits):
-        self.planner, self.limits = planner, limits
+    def __init__(self, planner: Planner, limits: Limits, segments: spooling.SegmentStore | None = None):
+        self.planner, self.limits, self.segments = planner, limits, segments
         self.ids = QueryIds()
         self._queries: dict[str, Query] = {}
         self._lock = threading.Lock()
@@ -476,13 +521,20 @@ class QueryManager:
         self._reaper = threading.Thread(target=self._reap, name="lakegate-reaper", daemon=True)
         self._reaper.start()
 
-    def create(self, sql: str, session: Session) -> Query:
+    def create(self, sql: str, session: Session, encoding: str | None = None) -> Query:
         """A new query for one statement, queued (`start` hands it to a worker), or failed with
-        QUERY_QUEUE_FULL when too many wait."""
+        QUERY_QUEUE_FULL when too many wait. `encoding`: the spooling protocol's, if the client chose one."""
         with self._lock:
             full = self._waiting >= self.limits.max_queued_queries
             self._waiting += 0 if full else 1
-        query = Query(self.ids.next(), sql, session, dequeued=(lambda: None) if full else self._dequeued)
+        query = Query(
+            self.ids.next(),
+            sql,
+            session,
+            dequeued=(lambda: None) if full else self._dequeued,
+            encoding=encoding,
+            segments=self.segments,
+        )
         with self._lock:
             self._queries[query.id] = query
         if full:
@@ -550,7 +602,7 @@ class QueryManager:
             batches = result.batches
             query.attach(result)
             held = None  # each page waits for the next, so that the last one ends the query with it
-            for page in _pages(result.columns, batches, self.limits):
+            for page in _pages(result.columns, batches, self.limits, query.encoding):
                 if held is not None:
                     query.put(held)
                 held = page
@@ -608,6 +660,8 @@ class QueryManager:
                 if query.done and not query.working and idle > limits.retention:
                     with self._lock:
                         self._queries.pop(query.id, None)
+            if self.segments is not None:
+                self.segments.expire(now)
 
     def close(self) -> None:
         """Fail every query (SERVER_SHUTTING_DOWN), stop the reaper and wait (at most
@@ -697,7 +751,7 @@ class _Endpoints:
         name = sessions.statement_name(sql)
         if name is not None or guard.classify(sql) == "call":
             return await self._answer(sql, session, base, is_session=name is not None)
-        query = self.manager.create(sql, session)
+        query = self.manager.create(sql, session, spooling.negotiate(request.headers.get(spooling.HEADER)))
         if query.failure is not None:  # refused (queue full)
             return Response(query.first_document(base), media_type=JSON)
         self.manager.start(query)
@@ -741,6 +795,19 @@ class _Endpoints:
             return PlainTextResponse(f"Query {request.path_params['query_id']} not found", 404)
         return Response(orjson.dumps(query.info()), media_type=JSON)
 
+    async def get_segment(self, request: Request) -> Response:
+        """A spooled segment's payload (GET its `uri`)."""
+        payload = self.manager.segments.get(request.path_params["segment_id"])
+        if payload is None:
+            return PlainTextResponse("Segment not found (unknown, acknowledged or expired)", 404)
+        return Response(payload, media_type="application/octet-stream")
+
+    async def ack_segment(self, request: Request) -> Response:
+        """Acknowledge a spooled segment (GET its `ackUri`, or DELETE its `uri`): it is forgotten."""
+        if not self.manager.segments.ack(request.path_params["segment_id"]):
+            return PlainTextResponse("Segment not found (unknown, acknowledged or expired)", 404)
+        return Response(status_code=200)
+
     async def get_info(self, request: Request) -> Response:
         return Response(info_document(self.started), media_type=JSON)
 
@@ -777,7 +844,8 @@ def create_app(
     owner closes it).
     """
     limits = engine.limits
-    manager = QueryManager(engine.planner, limits)
+    segments = spooling.SegmentStore(ttl=limits.client_timeout, max_bytes=SPOOLED_BYTES)
+    manager = QueryManager(engine.planner, limits, segments)
     engine.list_queries(
         lambda user: [query.row() for query in manager.queries() if users is None or query.session.user == user]
     )
@@ -788,7 +856,7 @@ def create_app(
         await run_in_threadpool(manager.close)
 
     app = FastAPI(title="lakegate", lifespan=lifespan, docs_url=None, redoc_url=None, openapi_url=None)
-    app.state.manager, app.state.engine = manager, engine
+    app.state.manager, app.state.engine, app.state.segments = manager, engine, segments
     endpoints = _Endpoints(manager, engine, users)
     executing = "/v1/statement/executing/{query_id}/{slug}/{token:int}"
     app.add_route("/v1/statement", endpoints.post_statement, methods=["POST"])
@@ -797,6 +865,9 @@ def create_app(
     app.add_route(executing, endpoints.delete, methods=["DELETE"])
     app.add_route("/v1/query/{query_id}", endpoints.get_query, methods=["GET"])
     app.add_route("/v1/query/{query_id}", endpoints.delete, methods=["DELETE"])
+    app.add_route(spooling.SEGMENT_PATH, endpoints.get_segment, methods=["GET"])
+    app.add_route(spooling.SEGMENT_PATH, endpoints.ack_segment, methods=["DELETE"])
+    app.add_route(spooling.ACK_PATH, endpoints.ack_segment, methods=["GET"])
     app.add_route("/v1/info", endpoints.get_info, methods=["GET"])
     app.add_route("/v1/info/state", endpoints.get_state, methods=["GET"])
     if dashboard_router is not None:

@@ -196,6 +196,7 @@ _FILE_IO_ALLOWED = {
     ("lake/registry.py", "_template_files"): "reads the user's template files to store them",
     ("gateway/cli/config.py", "schema_command"): "writes the user's --output file",
     ("gateway/cli/trino_ddl.py", "trino_ddl_command"): "writes the user's --output file",
+    ("gateway/cli/query.py", "_write_binary"): "writes the user's --output file (its .partial twin first)",
     ("gateway/cli/import_mcap.py", "import_mcap_command"): "writes the user's emissions file",
     ("gateway/cli/debug.py", "debug_command"): "removes its own temporary lake (tempfile)",
     ("gateway/dashboard/debug_session.py", "FileConfig.read"): "reads the user's config files",

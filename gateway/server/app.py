@@ -27,7 +27,8 @@ them; a finished query's segments stay for a client still reading them).
 
 Routes: /v1/statement, /v1/statement/executing/{id}/{slug}/{token} (GET, HEAD, DELETE),
 /v1/query/{id} (GET, DELETE), /v1/spooled/download/{segment} (GET, DELETE),
-/v1/spooled/ack/{segment} (GET), /v1/info, /v1/info/state. With `users`, every route but /v1/info and
+/v1/spooled/ack/{segment} (GET), /v1/arrow (POST: a result as Arrow IPC, `arrow_results`), /v1/info,
+/v1/info/state. With `users`, every route but /v1/info and
 /v1/info/state needs HTTP Basic credentials (checked by `http_limits.Guard` before a body is read).
 """
 
@@ -61,7 +62,7 @@ from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.engine.session import Answer, Session
 from lakegate.gateway.engine.statements import Planner, static_result
 from lakegate.gateway.engine.trino_values import encode_columns, encode_rows
-from lakegate.gateway.server import spooling
+from lakegate.gateway.server import arrow_results, spooling
 from lakegate.gateway.server.auth import Users
 from lakegate.gateway.server.host_check import HostCheck
 from lakegate.gateway.server.http_limits import Guard, authenticated_user
@@ -757,6 +758,20 @@ class _Endpoints:
         self.manager.start(query)
         return Response(await query.answer(base, self.limits.answer_wait), media_type=JSON)
 
+    async def post_arrow(self, request: Request) -> Response:
+        """POST /v1/arrow: the query's result as an Arrow IPC stream (`arrow_results`)."""
+        user = authenticated_user(request.scope)
+        if user is not None and request.headers.get("x-trino-user") not in (None, user):
+            return PlainTextResponse(
+                f"Access Denied: User {user} cannot impersonate user {request.headers['x-trino-user']}", 403
+            )
+        try:
+            session = sessions.from_headers(request.headers, user)
+            sql = (await request.body()).decode("utf-8")
+        except (sessions.HeaderError, UnicodeDecodeError) as error:
+            return PlainTextResponse(str(error), 400)
+        return await arrow_results.arrow_response(self.engine.planner, sql, session, self.limits)
+
     async def _answer(self, sql: str, session: Session, base: str, *, is_session: bool) -> Response:
         """A session statement or CALL, answered at once."""
         query_id = self.manager.ids.next()
@@ -860,6 +875,7 @@ def create_app(
     endpoints = _Endpoints(manager, engine, users)
     executing = "/v1/statement/executing/{query_id}/{slug}/{token:int}"
     app.add_route("/v1/statement", endpoints.post_statement, methods=["POST"])
+    app.add_route(arrow_results.PATH, endpoints.post_arrow, methods=["POST"])
     app.add_route(executing, endpoints.head_results, methods=["HEAD"])  # before GET, which also matches HEAD
     app.add_route(executing, endpoints.get_results, methods=["GET"])
     app.add_route(executing, endpoints.delete, methods=["DELETE"])

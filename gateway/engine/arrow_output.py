@@ -1,4 +1,5 @@
-"""`lakegate query --format arrow|parquet`: a result as Arrow IPC stream or Parquet, the fast way into
+"""A query result as an Arrow IPC stream or Parquet (`lakegate query --format arrow|parquet`, `POST
+/v1/arrow` of `lakegate serve`), the fast way into
 pandas, Polars or DuckDB (millions of rows a second, against about 250,000 through the Trino
 protocol's JSON).
 
@@ -13,6 +14,7 @@ refused with NOT_SUPPORTED before anything is written: `timestamp(p) with time z
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from typing import BinaryIO
 
 import pyarrow as pa
@@ -58,7 +60,7 @@ def result_schema(columns: list[tuple[str, str]]) -> pa.Schema:
     return pa.schema(fields)
 
 
-def _batches(result: QueryResult, schema: pa.Schema):
+def result_batches(result: QueryResult, schema: pa.Schema) -> Iterator[pa.RecordBatch]:
     """The result's batches under `schema` (a column of another Arrow type is cast, refusing any
     cast that would change a value)."""
     for batch in result.batches:
@@ -81,7 +83,7 @@ def write_arrow(result: QueryResult, out: BinaryIO) -> int:
     schema = result_schema(result.columns)
     rows = 0
     with pa.ipc.new_stream(out, schema) as writer:
-        for batch in _batches(result, schema):
+        for batch in result_batches(result, schema):
             writer.write_batch(batch)
             rows += batch.num_rows
     return rows
@@ -92,7 +94,7 @@ def write_parquet(result: QueryResult, out: BinaryIO | str) -> int:
     schema = result_schema(result.columns)
     rows = 0
     with pq.ParquetWriter(out, schema, compression="zstd") as writer:
-        for batch in _batches(result, schema):
+        for batch in result_batches(result, schema):
             writer.write_batch(batch)
             rows += batch.num_rows
     return rows

@@ -9,13 +9,23 @@ the columns of table `t` (analyzeAllColumnsFromTable).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NoReturn, Protocol
 
 from sqlglot import exp
 
 if TYPE_CHECKING:
-    from lakegate.dialect.analyze import Analyzer
     from lakegate.dialect.scope import Scope
+    from lakegate.dialect.trino_types import TType
+
+
+class Analyzer(Protocol):
+    """What the expansion asks of the analyzer (lakegate.dialect.analyze.Analyzer), which calls it."""
+
+    def fail(self, message: str, node: exp.Expression, error_name: str = ...) -> NoReturn: ...
+
+    def unsupported(self, what: str, node: exp.Expression) -> NoReturn: ...
+
+    def expr(self, node: exp.Expression, scope: Scope, env: dict[str, TType]) -> TType: ...
 
 #: Functions whose value differs per call: Trino computes the row once, the expansion once per field.
 _NON_DETERMINISTIC = frozenset({"rand", "random", "uuid", "shuffle"})

@@ -144,19 +144,27 @@ def _cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     return [list(cycle) for cycle in sorted(found)]
 
 
+def _targets(module: str, source: str, modules: set[str]) -> set[str]:
+    """The modules of `modules` that `module` (whose text is `source`) imports: every name of a
+    `from package import a, b` that is a module, and the module named by any import (which runs it).
+    The packages holding `module` are left out: Python runs them before `module` in any case."""
+    targets = set()
+    for _, imported, names in _imports(source):
+        targets |= ({imported} | {f"{imported}.{n}" for n in names}) & modules
+    return {t for t in targets if t != module and not module.startswith(t + ".")}
+
+
 def _graph() -> dict[str, set[str]]:
     """Module -> the lakegate modules it imports (anywhere in the file, TYPE_CHECKING blocks too)."""
     modules = {_module(p): p for p in _sources()}
-    graph = {}
-    for module, path in modules.items():
-        targets = set()
-        for _, imported, names in _imports((ROOT / path).read_text(encoding="utf-8")):
-            for name in [f"{imported}.{n}" for n in names] + [imported]:
-                if name in modules and name != module:
-                    targets.add(name)
-                    break
-        graph[module] = targets
-    return graph
+    return {m: _targets(m, (ROOT / p).read_text(encoding="utf-8"), set(modules)) for m, p in modules.items()}
+
+
+def test_every_imported_name_is_read() -> None:
+    """`from lakegate.dialect import a, b` imports both a and b (not only the first name)."""
+    modules = {"lakegate.dialect", "lakegate.dialect.a", "lakegate.dialect.b", "lakegate.dialect.c"}
+    source = "from lakegate.dialect import a, b\nfrom lakegate.dialect.c import name\n"
+    assert _targets("lakegate.gateway.x", source, modules) == modules
 
 
 def test_no_two_modules_import_each_other() -> None:
@@ -276,3 +284,27 @@ def test_every_allowed_file_operation_is_still_there() -> None:
         and key[1] not in {f for _, f, _ in _file_operations((ROOT / key[0]).read_text(encoding="utf-8"))}
     ]
     assert stale == []
+
+
+# -- modules small enough to read in one sitting --------------------------------------------------
+
+#: No hand-written module is longer than this many lines.
+MAX_MODULE_LINES = 800
+#: Modules longer than that because they are data (generated tables), by name, and why.
+_LONG_ALLOWED: dict[str, str] = {}
+#: Modules over the limit today, to be split (this list only shrinks).
+_TO_SPLIT = {
+    "dialect/functions.py",
+    "dialect/functions_scalar.py",
+    "dialect/functions_struct.py",
+    "dialect/analyze.py",
+    "dialect/transforms.py",
+    "gateway/server/app.py",
+    "gateway/dashboard/debug_session.py",
+}
+
+
+def test_no_module_is_too_long() -> None:
+    long = {p for p in _sources() if len((ROOT / p).read_text(encoding="utf-8").splitlines()) > MAX_MODULE_LINES}
+    assert sorted(long - _LONG_ALLOWED.keys() - _TO_SPLIT) == []
+    assert sorted(_TO_SPLIT - long) == [], "split already: take it off _TO_SPLIT"

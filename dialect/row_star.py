@@ -27,6 +27,7 @@ class Analyzer(Protocol):
 
     def expr(self, node: exp.Expression, scope: Scope, env: dict[str, TType]) -> TType: ...
 
+
 #: Functions whose value differs per call: Trino computes the row once, the expansion once per field.
 _NON_DETERMINISTIC = frozenset({"rand", "random", "uuid", "shuffle"})
 

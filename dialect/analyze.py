@@ -205,7 +205,7 @@ _CHAR_NODES = (exp.Cast, exp.TryCast, exp.Paren, exp.Alias, exp.Is, exp.Ordered,
 
 #: Functions that take char(n) values whole: typeof, count, min, max, arbitrary (ordering and picking
 #: padded texts of one length), coalesce, greatest and least (their arguments coerced to the common
-#: char type); the char overloads of string functions mark their calls (functions_char.py).
+#: char type); the char overloads of string functions mark their calls (functions/string.py).
 _CHAR_FUNCTIONS = ("typeof", "count", "min", "max", "arbitrary", "any_value", "coalesce", "greatest", "least")
 
 

@@ -2,7 +2,7 @@
 Trino holds (compact, keys as Trino orders them) in a VARCHAR. This module writes the SQL that reads such
 texts (validity, element lists, casts to SQL types) and that writes SQL values as JSON text
 (`CAST(x AS JSON)`), shared by the casts (transforms.py) and the JSON functions
-(functions_json.py).
+(functions/json.py).
 
 Facts followed (trinodb/trino 4xx, core/trino-main): io.trino.util.JsonUtil (JSON_FACTORY, the
 canonical text of json_parse: Jackson with ORDER_MAP_ENTRIES_BY_KEYS), io.trino.type.JsonOperators

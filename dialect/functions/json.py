@@ -1,13 +1,10 @@
-"""The JSON family (issue 14 family 1): Trino's `json` type, `JSON '...'` literals and the JSON
-functions, registered into functions.SUPPORTED. A json value is held in DuckDB as the exact JSON
-text Trino holds (json_values.py). Facts: trinodb/trino docs/src/main/sphinx/functions/json.md,
-io.trino.operator.scalar.JsonFunctions, JsonExtract, io.trino.util.JsonUtil (4xx: json_parse
-sorts object keys) and their tests TestJsonFunctions, TestJsonExtract.
+"""Trino's functions/json.md. JSON functions and operators: the `json` type, `JSON '...'` literals, the JSONPath
+and SQL/JSON path functions (the json_array / json_object constructors are in json_constructors.py). A json
+value is held in DuckDB as the exact JSON text Trino holds (dialect/json_values.py).
 """
 
 from __future__ import annotations
 
-import json
 import re
 
 from sqlglot import exp
@@ -17,12 +14,12 @@ from lakegate.dialect import json_values as jv
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import Call, handles, ttype
-from lakegate.dialect.functions import fixed, literal_str, need
+from lakegate.dialect.functions.arguments import fixed, literal_str, need
 from lakegate.dialect.registry import register
 from lakegate.dialect.trino_types import TType
 
 
-def _text(g, node: exp.Expression) -> str:
+def _json_text(g, node: exp.Expression) -> str:
     """The JSON text of a json or varchar argument, NULL where a varchar is not JSON Trino accepts
     (the text functions answer NULL for invalid JSON)."""
     sql = g.sql(node)
@@ -90,30 +87,10 @@ def _render_json_parse(g, node, args) -> str:
     return f"CASE WHEN {jv.valid(value)} THEN {value} WHEN {value} IS NOT NULL THEN {bad} END"
 
 
-register(
-    "json_parse",
-    "json",
-    "json_parse(string) -> json",
-    _json_parse,
-    _render_json_parse,
-    notes="Of a non-constant text only where the value's object key order cannot matter "
-    "(json_array_length, json_array_contains, is_json_scalar, CAST to SQL types).",
-)
-
-
 def _json_format(call: Call) -> TType:
     if len(call.args) != 1 or call.types[0] is None or call.types[0].base not in ("json", "unknown"):
         call.mismatch()
     return tt.VARCHAR
-
-
-register(
-    "json_format",
-    "json",
-    "json_format(json) -> varchar",
-    _json_format,
-    lambda g, node, args: f"CAST({g.sql(args[0])} AS VARCHAR)",
-)
 
 
 # --- JSONPath functions (JsonExtract) --------------------------------------------------------------
@@ -159,40 +136,8 @@ def _json_path(call: Call, result: TType | None = None) -> TType:
     return source if source.base == "varchar" else tt.VARCHAR
 
 
-register(
-    "is_json_scalar",
-    "json",
-    "is_json_scalar(json) -> boolean",
-    fixed(tt.BOOLEAN, "json"),
-    lambda g, node, args: (
-        f"CASE WHEN NOT {jv.valid(g.sql(args[0]))} THEN "
-        f"{g.fail(tf.string('Invalid JSON value: ') + ' || ' + g.sql(args[0]))} "
-        f"ELSE json_type({g.sql(args[0])}) NOT IN ('OBJECT', 'ARRAY') END"
-    ),
-)
-register(
-    "json_extract_scalar",
-    "json",
-    "json_extract_scalar(json, json_path) -> varchar",
-    _json_path,
-    _render_json_extract_scalar,
-    notes="NULL for objects, arrays, missing keys and invalid JSON text, as in Trino. A non-integer "
-    "number is refused at run time (NOT_SUPPORTED): Trino returns its text as written "
-    "(2.50), which DuckDB does not keep.",
-)
-register(
-    "json_extract",
-    "json",
-    "json_extract(json, json_path) -> json",
-    lambda call: _json_path(call, tt.JSON),
-    lambda g, node, args: jv.exact_numbers(f"json_extract({_text(g, args[0])}, {g.sql(args[1])})"),
-    notes="NULL for missing paths and invalid JSON text. A value holding a number Java would print in "
-    "scientific notation (or with an exponent as written) is refused at run time (NOT_SUPPORTED).",
-)
-
-
 def _render_json_size(g, node, args) -> str:
-    value, path = _text(g, args[0]), g.sql(args[1])
+    value, path = _json_text(g, args[0]), g.sql(args[1])
     kind = f"json_type({value}, {path})"
     return (
         f"CASE WHEN {kind} IS NULL THEN NULL "
@@ -201,28 +146,10 @@ def _render_json_size(g, node, args) -> str:
     )
 
 
-register(
-    "json_size",
-    "json",
-    "json_size(json, json_path) -> bigint",
-    lambda call: _json_path(call, tt.BIGINT),
-    _render_json_size,
-)
-
-
 # --- JSON array functions (JsonFunctions) ----------------------------------------------------------
 def _render_json_array_length(g, node, args) -> str:
-    value = _text(g, args[0])
+    value = _json_text(g, args[0])
     return f"CASE WHEN json_type({value}) = 'ARRAY' THEN CAST(json_array_length({value}) AS BIGINT) END"
-
-
-register(
-    "json_array_length",
-    "json",
-    "json_array_length(json) -> bigint",
-    fixed(tt.BIGINT, "json"),
-    _render_json_array_length,
-)
 
 
 def _json_array_contains(call: Call) -> TType:
@@ -254,7 +181,7 @@ def _render_json_array_contains(g, node, args) -> str:
     value = ttype(args[1])
     if value.is_unknown:
         return "CAST(NULL AS BOOLEAN)"
-    text = _text(g, args[0])
+    text = _json_text(g, args[0])
     needle = g.sql(args[1]) if value.is_integral or not value.is_numeric else f"CAST({g.sql(args[1])} AS DOUBLE)"
     matches = _element_matches(value, '"_e"', needle)
     return (
@@ -263,19 +190,10 @@ def _render_json_array_contains(g, node, args) -> str:
     )
 
 
-register(
-    "json_array_contains",
-    "json",
-    "json_array_contains(json, value) -> boolean",
-    _json_array_contains,
-    _render_json_array_contains,
-)
-
-
 def _render_json_array_get(g, node, args) -> str:
     """The element at a 0-based index (negative: from the end); NULL outside the array and for a
     JSON null element. A string element comes back unquoted, as Trino documents ("broken")."""
-    text = _text(g, args[0])
+    text = _json_text(g, args[0])
     items, index = jv.elements(text), g.sql(args[1])
     position = f"CASE WHEN {index} >= 0 THEN {index} + 1 ELSE len({items}) + {index} + 1 END"
     element = f"CASE WHEN {position} >= 1 THEN {items}[{position}] END"
@@ -285,15 +203,6 @@ def _render_json_array_get(g, node, args) -> str:
         f"CASE WHEN json_type({text}) <> 'ARRAY' THEN NULL WHEN {kind} = 'NULL' THEN NULL "
         f"WHEN {kind} = 'VARCHAR' THEN {unquoted} ELSE {jv.exact_numbers(element)} END"
     )
-
-
-register(
-    "json_array_get",
-    "json",
-    "json_array_get(json_array, index) -> json",
-    fixed(tt.JSON, "json", "integral"),
-    _render_json_array_get,
-)
 
 
 # --- SQL/JSON path functions (json_exists, json_value, json_query) ---------------------------------
@@ -351,18 +260,6 @@ def _render_json_exists(g, node, args) -> str:
     on_error = {"TRUE": "true", "UNKNOWN": "NULL"}.get(node.meta.get("on_error"), "false")
     body = f'CASE WHEN "_r" IS NULL THEN NULL WHEN list_contains("_r", {_ERROR}) THEN {on_error} ELSE len("_r") > 0 END'
     return f'list_transform([{result}], lambda "_r": {body})[1]'
-
-
-register(
-    "json_exists",
-    "json",
-    "json_exists(json_input, json_path) -> boolean",
-    _json_exists,
-    _render_json_exists,
-    notes="Paths in lax or strict mode as json_path.py translates them (accessors, wildcards, subscripts, last, "
-    "filters, size(), type(), abs(), floor(), ceiling()); FALSE (the default), TRUE and UNKNOWN ON ERROR. "
-    "Other path features, PASSING and ERROR ON ERROR are refused (NOT_SUPPORTED).",
-)
 
 
 def _bind(sql: str, name: str, body: str) -> str:
@@ -500,6 +397,7 @@ def _json_query(a, node, scope, env) -> TType:
 
 
 _UNSURE_ITEM = "NOT_SUPPORTED: json_query of a value holding a non-integer JSON number (its text is not kept)"
+
 _REPEATED_ITEM_KEY = (
     "NOT_SUPPORTED: json_query of a value holding an object with a repeated key (Trino keeps its last member)"
 )
@@ -551,107 +449,97 @@ def json_query(g, node: exp.JSONExtract) -> str:
     return _bind(_path_sequence(g, node.this, mode, steps), items, body)
 
 
-# --- json_array (SQL/JSON constructor, without clauses) --------------------------------------------
-def _nested_json(node: exp.Expression) -> bool:
-    """A JSON-returning function as an argument: its text is embedded as JSON ("the FORMAT option is
-    implicit", json.md json_array and json_object)."""
-    return (isinstance(node, exp.Anonymous) and node.name.lower() in ("json_array", "json_object")) or (
-        isinstance(node, exp.JSONExtract) and node.args.get("json_query") and not node.meta.get("omit")
+def install() -> None:
+    """Register the functions of this page (called by pages.py)."""
+
+    register(
+        "json_parse",
+        "json",
+        "json_parse(string) -> json",
+        _json_parse,
+        _render_json_parse,
+        notes="Of a non-constant text only where the value's object key order cannot matter "
+        "(json_array_length, json_array_contains, is_json_scalar, CAST to SQL types).",
     )
 
+    register(
+        "json_format",
+        "json",
+        "json_format(json) -> varchar",
+        _json_format,
+        lambda g, node, args: f"CAST({g.sql(args[0])} AS VARCHAR)",
+    )
 
-def _format_json(call: Call, node: exp.Expression) -> None:
-    """`'text' FORMAT JSON`: the text read as JSON and written back compactly, as Trino does
-    (Jackson readTree, members in their order); a constant string only."""
-    text = literal_str(call, call.args.index(node))
-    if node.meta_get("format_json") is not True or text is None:
-        call.fail(
-            f"unsupported in lakegate: {call.name} argument ... FORMAT JSON of other than a string", "NOT_SUPPORTED"
-        )
+    register(
+        "is_json_scalar",
+        "json",
+        "is_json_scalar(json) -> boolean",
+        fixed(tt.BOOLEAN, "json"),
+        lambda g, node, args: (
+            f"CASE WHEN NOT {jv.valid(g.sql(args[0]))} THEN "
+            f"{g.fail(tf.string('Invalid JSON value: ') + ' || ' + g.sql(args[0]))} "
+            f"ELSE json_type({g.sql(args[0])}) NOT IN ('OBJECT', 'ARRAY') END"
+        ),
+    )
+    register(
+        "json_extract_scalar",
+        "json",
+        "json_extract_scalar(json, json_path) -> varchar",
+        _json_path,
+        _render_json_extract_scalar,
+        notes="NULL for objects, arrays, missing keys and invalid JSON text, as in Trino. A non-integer "
+        "number is refused at run time (NOT_SUPPORTED): Trino returns its text as written "
+        "(2.50), which DuckDB does not keep.",
+    )
+    register(
+        "json_extract",
+        "json",
+        "json_extract(json, json_path) -> json",
+        lambda call: _json_path(call, tt.JSON),
+        lambda g, node, args: jv.exact_numbers(f"json_extract({_json_text(g, args[0])}, {g.sql(args[1])})"),
+        notes="NULL for missing paths and invalid JSON text. A value holding a number Java would print in "
+        "scientific notation (or with an exponent as written) is refused at run time (NOT_SUPPORTED).",
+    )
 
-    def members(pairs):
-        if len({key for key, _ in pairs}) != len(pairs):
-            raise ValueError
-        return dict(pairs)
+    register(
+        "json_size",
+        "json",
+        "json_size(json, json_path) -> bigint",
+        lambda call: _json_path(call, tt.BIGINT),
+        _render_json_size,
+    )
 
-    try:
-        value = json.loads(text, object_pairs_hook=members, parse_float=_no_float, parse_constant=_no_float)
-    except ValueError:
-        call.fail(
-            f"unsupported in lakegate: {call.name} argument ... FORMAT JSON of text that is not JSON "
-            "with distinct keys and integer numbers",
-            "NOT_SUPPORTED",
-        )
-    written = json.dumps(value, ensure_ascii=False, separators=(",", ":"))
-    if "\\u" in written.replace("\\\\", ""):  # a control character: Jackson writes \u001F, Python \u001f
-        call.fail(
-            f"unsupported in lakegate: {call.name} argument ... FORMAT JSON of control characters", "NOT_SUPPORTED"
-        )
-    node.meta["json"] = written
+    register(
+        "json_array_length",
+        "json",
+        "json_array_length(json) -> bigint",
+        fixed(tt.BIGINT, "json"),
+        _render_json_array_length,
+    )
 
+    register(
+        "json_array_contains",
+        "json",
+        "json_array_contains(json, value) -> boolean",
+        _json_array_contains,
+        _render_json_array_contains,
+    )
 
-def _no_float(text: str):
-    raise ValueError(text)
+    register(
+        "json_array_get",
+        "json",
+        "json_array_get(json_array, index) -> json",
+        fixed(tt.JSON, "json", "integral"),
+        _render_json_array_get,
+    )
 
-
-def _json_array(call: Call) -> TType:
-    meta = call.node.meta_get
-    returning = meta("returning")
-    if returning is not None and not (
-        returning.is_type("varchar") and not returning.expressions and meta("returning_format") in (None, "JSON")
-    ):
-        target = returning.sql(dialect="trino")
-        call.fail(f"unsupported in lakegate: json_array ... RETURNING {target}", "NOT_SUPPORTED")
-    for node, t in zip(call.args, call.types):
-        check_json_value(call, node, t)
-    return tt.VARCHAR
-
-
-def check_json_value(call: Call, node: exp.Expression, t: TType | None) -> None:
-    """Refuse (NOT_SUPPORTED) a json_array element or json_object value lakegate does not write as
-    Trino does (SqlJsonLiteralConverter.getJsonNode); note the text of a FORMAT JSON literal."""
-    if node.meta_get("format_json"):
-        _format_json(call, node)
-        return
-    if isinstance(node, exp.JSONExtract) and node.meta.get("omit"):
-        call.fail(f"unsupported in lakegate: json_query ... OMIT QUOTES inside {call.name}", "NOT_SUPPORTED")
-    if t is not None and t.base == "json" and not _nested_json(node):
-        # a value of the json type: an "other" value cast to varchar (json.md), which fails for objects and arrays
-        call.fail(
-            f"unsupported in lakegate: {call.name} of a json value (use FORMAT JSON on its text)", "NOT_SUPPORTED"
-        )
-    if t is None or not (t.is_numeric or t.base in ("boolean", "varchar", "json", "unknown", "date")):
-        call.fail(f"unsupported in lakegate: {call.name} of a {t} value", "NOT_SUPPORTED")
-
-
-def json_value_text(g, arg: exp.Expression) -> str:
-    """The JSON text of a json_array element or json_object value checked by check_json_value:
-    booleans, numbers as Jackson writes them, JSON (FORMAT JSON, a nested JSON function) as it is,
-    other values as JSON strings of their varchar text; NULL for NULL."""
-    t = ttype(arg)
-    if arg.meta_get("format_json"):
-        return tf.string(arg.meta["json"])
-    if _nested_json(arg):
-        return f"CAST({g.sql(arg)} AS VARCHAR)"
-    if t.base == "date":
-        return jv.to_json(g, f"CAST({g.sql(arg)} AS VARCHAR)", tt.VARCHAR)
-    return jv.to_json(g, g.sql(arg), t)
-
-
-def _render_json_array(g, node, args) -> str:
-    """The elements as JSON; NULLs are left out, ABSENT ON NULL being the default."""
-    texts = [json_value_text(g, arg) for arg in args]
-    if node.meta_get("null") == "NULL":  # NULL ON NULL: a JSON null for each NULL
-        texts = [f"coalesce({text}, 'null')" for text in texts]
-    return f"'[' || array_to_string([{', '.join(texts)}]::VARCHAR[], ',') || ']'" if texts else "'[]'"
-
-
-register(
-    "json_array",
-    "json",
-    "json_array([value, ...]) -> varchar",
-    _json_array,
-    _render_json_array,
-    notes="ABSENT ON NULL (the default) and NULL ON NULL; RETURNING varchar; FORMAT JSON of a string literal. "
-    "RETURNING varchar(n) or varbinary, ENCODING and FORMAT JSON of other values are refused (NOT_SUPPORTED).",
-)
+    register(
+        "json_exists",
+        "json",
+        "json_exists(json_input, json_path) -> boolean",
+        _json_exists,
+        _render_json_exists,
+        notes="Paths in lax or strict mode as json_path.py translates them (accessors, wildcards, subscripts, last, "
+        "filters, size(), type(), abs(), floor(), ceiling()); FALSE (the default), TRUE and UNKNOWN ON ERROR. "
+        "Other path features, PASSING and ERROR ON ERROR are refused (NOT_SUPPORTED).",
+    )

@@ -1,4 +1,7 @@
-"""json_object (issue 14 family 1): the SQL/JSON object constructor with its clauses, members in
+"""Trino's functions/json.md. The SQL/JSON constructors of json.md: json_array and json_object, with their
+clauses.
+
+json_object: the SQL/JSON object constructor with its clauses, members in
 the order Trino 476 writes them.
 
 Trino (io.trino.operator.scalar.json.JsonObjectFunction) puts the members into a
@@ -19,23 +22,125 @@ docs/src/main/sphinx/functions/json.md (json_object) and TestJsonObjectFunction.
 
 from __future__ import annotations
 
+import json
+
 from sqlglot import exp
 
 from lakegate.dialect import json_values as jv
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import Call, ttype
-from lakegate.dialect.functions_json import check_json_value, json_value_text
+from lakegate.dialect.functions.arguments import literal_str
 from lakegate.dialect.registry import register
 from lakegate.dialect.trino_types import TType
+
+
+# --- json_array (SQL/JSON constructor, without clauses) --------------------------------------------
+def _nested_json(node: exp.Expression) -> bool:
+    """A JSON-returning function as an argument: its text is embedded as JSON ("the FORMAT option is
+    implicit", json.md json_array and json_object)."""
+    return (isinstance(node, exp.Anonymous) and node.name.lower() in ("json_array", "json_object")) or (
+        isinstance(node, exp.JSONExtract) and node.args.get("json_query") and not node.meta.get("omit")
+    )
+
+
+def _format_json(call: Call, node: exp.Expression) -> None:
+    """`'text' FORMAT JSON`: the text read as JSON and written back compactly, as Trino does
+    (Jackson readTree, members in their order); a constant string only."""
+    text = literal_str(call, call.args.index(node))
+    if node.meta_get("format_json") is not True or text is None:
+        call.fail(
+            f"unsupported in lakegate: {call.name} argument ... FORMAT JSON of other than a string", "NOT_SUPPORTED"
+        )
+
+    def members(pairs):
+        if len({key for key, _ in pairs}) != len(pairs):
+            raise ValueError
+        return dict(pairs)
+
+    try:
+        value = json.loads(text, object_pairs_hook=members, parse_float=_no_float, parse_constant=_no_float)
+    except ValueError:
+        call.fail(
+            f"unsupported in lakegate: {call.name} argument ... FORMAT JSON of text that is not JSON "
+            "with distinct keys and integer numbers",
+            "NOT_SUPPORTED",
+        )
+    written = json.dumps(value, ensure_ascii=False, separators=(",", ":"))
+    if "\\u" in written.replace("\\\\", ""):  # a control character: Jackson writes \u001F, Python \u001f
+        call.fail(
+            f"unsupported in lakegate: {call.name} argument ... FORMAT JSON of control characters", "NOT_SUPPORTED"
+        )
+    node.meta["json"] = written
+
+
+def _no_float(text: str):
+    raise ValueError(text)
+
+
+def _json_array(call: Call) -> TType:
+    meta = call.node.meta_get
+    returning = meta("returning")
+    if returning is not None and not (
+        returning.is_type("varchar") and not returning.expressions and meta("returning_format") in (None, "JSON")
+    ):
+        target = returning.sql(dialect="trino")
+        call.fail(f"unsupported in lakegate: json_array ... RETURNING {target}", "NOT_SUPPORTED")
+    for node, t in zip(call.args, call.types):
+        check_json_value(call, node, t)
+    return tt.VARCHAR
+
+
+def check_json_value(call: Call, node: exp.Expression, t: TType | None) -> None:
+    """Refuse (NOT_SUPPORTED) a json_array element or json_object value lakegate does not write as
+    Trino does (SqlJsonLiteralConverter.getJsonNode); note the text of a FORMAT JSON literal."""
+    if node.meta_get("format_json"):
+        _format_json(call, node)
+        return
+    if isinstance(node, exp.JSONExtract) and node.meta.get("omit"):
+        call.fail(f"unsupported in lakegate: json_query ... OMIT QUOTES inside {call.name}", "NOT_SUPPORTED")
+    if t is not None and t.base == "json" and not _nested_json(node):
+        # a value of the json type: an "other" value cast to varchar (json.md), which fails for objects and arrays
+        call.fail(
+            f"unsupported in lakegate: {call.name} of a json value (use FORMAT JSON on its text)", "NOT_SUPPORTED"
+        )
+    if t is None or not (t.is_numeric or t.base in ("boolean", "varchar", "json", "unknown", "date")):
+        call.fail(f"unsupported in lakegate: {call.name} of a {t} value", "NOT_SUPPORTED")
+
+
+def json_value_text(g, arg: exp.Expression) -> str:
+    """The JSON text of a json_array element or json_object value checked by check_json_value:
+    booleans, numbers as Jackson writes them, JSON (FORMAT JSON, a nested JSON function) as it is,
+    other values as JSON strings of their varchar text; NULL for NULL."""
+    t = ttype(arg)
+    if arg.meta_get("format_json"):
+        return tf.string(arg.meta["json"])
+    if _nested_json(arg):
+        return f"CAST({g.sql(arg)} AS VARCHAR)"
+    if t.base == "date":
+        return jv.to_json(g, f"CAST({g.sql(arg)} AS VARCHAR)", tt.VARCHAR)
+    return jv.to_json(g, g.sql(arg), t)
+
+
+def _render_json_array(g, node, args) -> str:
+    """The elements as JSON; NULLs are left out, ABSENT ON NULL being the default."""
+    texts = [json_value_text(g, arg) for arg in args]
+    if node.meta_get("null") == "NULL":  # NULL ON NULL: a JSON null for each NULL
+        texts = [f"coalesce({text}, 'null')" for text in texts]
+    return f"'[' || array_to_string([{', '.join(texts)}]::VARCHAR[], ',') || ']'" if texts else "'[]'"
+
 
 #: java.util.HashMap: the first table's capacity, and the size of a bucket that is turned into a
 #: tree (TREEIFY_THRESHOLD + 1); the table doubles past 3/4 full (DEFAULT_LOAD_FACTOR).
 _FIRST_CAPACITY = 16
+
 _TREE_BUCKET = 9
 
+
 _NULL_KEY = "null value passed for JSON object key to JSON_OBJECT function"
+
 _DUPLICATE = "NOT_SUPPORTED: cannot construct a JSON object with duplicate key"
+
 _TREE = "NOT_SUPPORTED: json_object with 9 or more keys in one bucket of Java's HashMap (their order is not reproduced)"
 
 
@@ -86,7 +191,7 @@ def _json_object(call: Call) -> TType:
     return tt.VARBINARY if returning is not None and returning.is_type("varbinary") else tt.VARCHAR
 
 
-def _field(name: str) -> str:
+def _part(name: str) -> str:
     return f"struct_extract(\"_e\", '{name}')"
 
 
@@ -114,8 +219,8 @@ def _render_json_object(g, node, args) -> str:
         f"{jv.to_json(g, key, tt.VARCHAR)} || ':' || coalesce({value}, 'null') END)"
         for i, (key, value) in enumerate(zip(keys, values))
     )
-    hashed = f'struct_pack("h" := {_java_hash_sql(_field("k"))}, "i" := {_field("i")}, "m" := {_field("m")})'
-    members = f'list_transform(list_filter([{entries}], lambda "_e": {_field("m")} IS NOT NULL), lambda "_e": {hashed})'
+    hashed = f'struct_pack("h" := {_java_hash_sql(_part("k"))}, "i" := {_part("i")}, "m" := {_part("m")})'
+    members = f'list_transform(list_filter([{entries}], lambda "_e": {_part("m")} IS NOT NULL), lambda "_e": {hashed})'
     result = f'list_transform([{members}], lambda "_o": {_object_text(len(keys))})[1]' if keys else "'{}'"
     if checks:
         result = f"CASE {' '.join(checks)} ELSE {result} END"
@@ -131,16 +236,16 @@ def _object_text(pairs: int) -> str:
         if len(tables) == 1
         else "CASE " + " ".join(f'WHEN len("_o") <= {size} THEN {capacity - 1}' for size, capacity in tables) + " END"
     )
-    bucketed = f'struct_pack("b" := {_field("h")} & {mask}, "i" := {_field("i")}, "m" := {_field("m")})'
+    bucketed = f'struct_pack("b" := {_part("h")} & {mask}, "i" := {_part("i")}, "m" := {_part("m")})'
     ordered = f'list_sort(list_transform("_o", lambda "_e": {bucketed}))'
-    text = f"'{{' || array_to_string(list_transform({ordered}, lambda \"_e\": {_field('m')}), ',') || '}}'"
+    text = f"'{{' || array_to_string(list_transform({ordered}, lambda \"_e\": {_part('m')}), ',') || '}}'"
     if pairs < _TREE_BUCKET:
         return text
     # The capacity when member "_p" (1-based) is put, with "_p" - 1 members already in the map.
     then = "CASE " + " ".join(f'WHEN "_p" - 1 <= {size} THEN {capacity - 1}' for size, capacity in tables) + " END"
     earlier = (
         f'len(list_filter(list_slice("_o", 1, "_p" - 1), '
-        f'lambda "_c": (struct_extract("_c", \'h\') & {then}) = ({_field("h")} & {then})))'
+        f'lambda "_c": (struct_extract("_c", \'h\') & {then}) = ({_part("h")} & {then})))'
     )
     crowded = f'list_max(list_transform("_o", lambda "_e", "_p": {earlier}))'
     return f"CASE WHEN {crowded} >= {_TREE_BUCKET - 1} THEN error({tf.string(_TREE)}) ELSE {text} END"
@@ -152,14 +257,27 @@ def _may_equal(a: exp.Expression, b: exp.Expression) -> bool:
     return not both or a.name == b.name
 
 
-register(
-    "json_object",
-    "json",
-    "json_object([key : value, ...]) -> varchar",
-    _json_object,
-    _render_json_object,
-    notes="KEY ... VALUE and `:` members, NULL ON NULL (the default) and ABSENT ON NULL, WITH / WITHOUT UNIQUE "
-    "KEYS, RETURNING varchar or varbinary (UTF8), FORMAT JSON of a string literal; members in the order of "
-    "Trino's java.util.HashMap. RETURNING varchar(n), other encodings and 9 or more keys in one HashMap bucket "
-    "are refused (NOT_SUPPORTED).",
-)
+def install() -> None:
+    """Register the functions of this page (called by pages.py)."""
+
+    register(
+        "json_array",
+        "json",
+        "json_array([value, ...]) -> varchar",
+        _json_array,
+        _render_json_array,
+        notes="ABSENT ON NULL (the default) and NULL ON NULL; RETURNING varchar; FORMAT JSON of a string literal. "
+        "RETURNING varchar(n) or varbinary, ENCODING and FORMAT JSON of other values are refused (NOT_SUPPORTED).",
+    )
+
+    register(
+        "json_object",
+        "json",
+        "json_object([key : value, ...]) -> varchar",
+        _json_object,
+        _render_json_object,
+        notes="KEY ... VALUE and `:` members, NULL ON NULL (the default) and ABSENT ON NULL, WITH / WITHOUT UNIQUE "
+        "KEYS, RETURNING varchar or varbinary (UTF8), FORMAT JSON of a string literal; members in the order of "
+        "Trino's java.util.HashMap. RETURNING varchar(n), other encodings and 9 or more keys in one HashMap bucket "
+        "are refused (NOT_SUPPORTED).",
+    )

@@ -1,0 +1,62 @@
+"""The function modules of lakegate.dialect.functions, each the page of Trino's function reference it
+mirrors, and `install`, which registers all of them into lakegate.dialect.registry: the one list of
+the modules that fill the registry (a new page is added here)."""
+
+from __future__ import annotations
+
+from types import ModuleType
+
+from lakegate.dialect.functions import (
+    aggregate,
+    array,
+    binary,
+    bitwise,
+    comparison,
+    conditional,
+    conversion,
+    datetime,
+    datetime_formats,
+    json,
+    json_constructors,
+    lambdas,
+    map,
+    math,
+    refused,
+    regexp,
+    string,
+    teradata,
+    url,
+    window,
+)
+from lakegate.dialect.registry import SUPPORTED
+
+PAGES: tuple[ModuleType, ...] = (
+    aggregate,
+    array,
+    binary,
+    bitwise,
+    comparison,
+    conditional,
+    conversion,
+    datetime,
+    datetime_formats,
+    json,
+    json_constructors,
+    lambdas,
+    map,
+    math,
+    refused,
+    regexp,
+    string,
+    teradata,
+    url,
+    window,
+)
+
+
+def install() -> None:
+    """Fill the registry from every page, once (later calls do nothing)."""
+    if SUPPORTED:
+        return
+    for page in PAGES:
+        page.install()

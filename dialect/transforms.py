@@ -15,9 +15,9 @@ from sqlglot.generators.duckdb import DuckDBGenerator
 
 from lakegate.dialect import chars, registry, times, wide_decimals, zoned_nanos, zones
 from lakegate.dialect import trino_types as tt
-from lakegate.dialect.analyze import FloorMicros, ttype
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import FloorMicros, ttype
 
 
 class DuckCast(exp.Expression):

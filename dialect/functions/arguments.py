@@ -9,8 +9,8 @@ from collections.abc import Callable
 from sqlglot import exp
 
 from lakegate.dialect import trino_types as tt
-from lakegate.dialect.analyze import Call
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import Call
 
 # --- argument checks -----------------------------------------------------------------------------
 KINDS: dict[str, Callable[[TType], bool]] = {

@@ -6,7 +6,6 @@ from sqlglot import exp
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
-from lakegate.dialect.analyze import Call, ttype
 from lakegate.dialect.functions.arguments import VARBINARY, array_arg, binary_args, literal_int, need
 from lakegate.dialect.functions.rendering import (
     call_as,
@@ -19,6 +18,7 @@ from lakegate.dialect.functions.rendering import (
 )
 from lakegate.dialect.registry import overload, register
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import Call, ttype
 
 # --- rendering helpers ---------------------------------------------------------------------------
 #: Trino's limits on results sized by an argument (SequenceFunction.MAX_RESULT_ENTRIES,

@@ -12,11 +12,11 @@ from collections.abc import Callable
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
-from lakegate.dialect.analyze import Call, ttype
 from lakegate.dialect.functions.arguments import VARBINARY, binary_args, binary_in, fixed, need
 from lakegate.dialect.functions.rendering import sqls, utf8_valid
 from lakegate.dialect.registry import Infer, Render, register
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import Call, ttype
 
 _TEXT_OR_BINARY = ("varchar", "varbinary", "unknown")
 

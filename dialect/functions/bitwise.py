@@ -6,11 +6,11 @@ from __future__ import annotations
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
-from lakegate.dialect.analyze import Call, ttype
 from lakegate.dialect.functions.arguments import fixed, need
 from lakegate.dialect.functions.rendering import sqls
 from lakegate.dialect.registry import Render, register
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import Call, ttype
 
 
 # --- bitwise (io.trino.operator.scalar.BitwiseFunctions: bigint in, bigint out) ------------------

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 from lakegate.dialect import transforms as tf
-from lakegate.dialect.analyze import Call, ttype
 from lakegate.dialect.functions.arguments import common
 from lakegate.dialect.functions.rendering import nested, not_nan, null_if_any_null, ordered_pick
 from lakegate.dialect.registry import register
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import Call, ttype
 
 
 def _greatest(call: Call) -> TType:

@@ -6,11 +6,11 @@ import re
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
-from lakegate.dialect.analyze import Call, ttype
 from lakegate.dialect.functions.arguments import fixed, literal_str
 from lakegate.dialect.functions.rendering import MAX_PAD_LENGTH
 from lakegate.dialect.registry import register
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import Call, ttype
 
 
 # === conversion ===================================================================================

@@ -16,10 +16,10 @@ import re
 from lakegate.dialect import times, zoned_nanos, zones
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
-from lakegate.dialect.analyze import Call, ttype
 from lakegate.dialect.functions.arguments import KINDS, fixed, literal_int, literal_str, need
 from lakegate.dialect.registry import overload, register
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import Call, ttype
 
 # === date and time ================================================================================
 _UNITS = ("millisecond", "second", "minute", "hour", "day", "week", "month", "quarter", "year")

@@ -10,10 +10,10 @@ import re
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect import zones
-from lakegate.dialect.analyze import Call, ttype
 from lakegate.dialect.functions.arguments import literal_str, need
 from lakegate.dialect.registry import register
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import Call, ttype
 
 #: MySQL date_format specifiers Trino supports, as DuckDB strftime specifiers.
 MYSQL_FORMAT = {

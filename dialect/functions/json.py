@@ -13,10 +13,10 @@ from lakegate.dialect import json_path as jp
 from lakegate.dialect import json_values as jv
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
-from lakegate.dialect.analyze import Call, handles, ttype
 from lakegate.dialect.functions.arguments import fixed, literal_str, need
 from lakegate.dialect.registry import register
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import Call, handles, ttype
 
 
 def _json_text(g, node: exp.Expression) -> str:

@@ -29,10 +29,10 @@ from sqlglot import exp
 from lakegate.dialect import json_values as jv
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
-from lakegate.dialect.analyze import Call, ttype
 from lakegate.dialect.functions.arguments import literal_str
 from lakegate.dialect.registry import register
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import Call, ttype
 
 
 # --- json_array (SQL/JSON constructor, without clauses) --------------------------------------------

@@ -8,11 +8,11 @@ from sqlglot import exp
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
-from lakegate.dialect.analyze import Call, ttype
 from lakegate.dialect.functions.arguments import array_arg
 from lakegate.dialect.functions.rendering import nested
 from lakegate.dialect.registry import Render, register
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import Call, ttype
 
 
 def _array_sort(call: Call) -> TType:

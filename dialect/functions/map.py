@@ -8,7 +8,6 @@ from sqlglot import exp
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
-from lakegate.dialect.analyze import Call, ttype
 from lakegate.dialect.functions.arguments import array_arg, map_arg, need, plain_key
 from lakegate.dialect.functions.rendering import (
     ENTRY,
@@ -23,6 +22,7 @@ from lakegate.dialect.functions.rendering import (
 )
 from lakegate.dialect.registry import register
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import Call, ttype
 
 
 def _map(call: Call) -> TType:

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
-from lakegate.dialect.analyze import Call, remainder_fits, ttype
 from lakegate.dialect.functions.arguments import as_double, fixed, need
 from lakegate.dialect.functions.rendering import call_as, sqls
+from lakegate.dialect.infer_operators import remainder_fits
 from lakegate.dialect.registry import Render, register
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import Call, ttype
 
 
 # === math =========================================================================================

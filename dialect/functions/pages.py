@@ -28,7 +28,7 @@ from lakegate.dialect.functions import (
     url,
     window,
 )
-from lakegate.dialect.registry import SUPPORTED
+from lakegate.dialect.registry import REJECTED, SUPPORTED
 
 PAGES: tuple[ModuleType, ...] = (
     aggregate,
@@ -54,9 +54,16 @@ PAGES: tuple[ModuleType, ...] = (
 )
 
 
+#: Function name -> the name of the page module that registers it (or refuses it), filled by install.
+PAGE_OF: dict[str, str] = {}
+
+
 def install() -> None:
     """Fill the registry from every page, once (later calls do nothing)."""
     if SUPPORTED:
         return
     for page in PAGES:
+        before = set(SUPPORTED) | set(REJECTED)
         page.install()
+        for name in (set(SUPPORTED) | set(REJECTED)) - before:
+            PAGE_OF[name] = page.__name__.rsplit(".", 1)[1]

@@ -11,11 +11,11 @@ from sqlglot import exp
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
-from lakegate.dialect.analyze import Call
 from lakegate.dialect.functions.arguments import literal_int, literal_str, need
 from lakegate.dialect.functions.rendering import call_as, null_if_any_null, sqls
 from lakegate.dialect.registry import overload, register
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import Call
 
 
 # --- regular expressions -------------------------------------------------------------------------

@@ -9,9 +9,9 @@ from collections.abc import Iterable
 from sqlglot import exp
 
 from lakegate.dialect import transforms as tf
-from lakegate.dialect.analyze import ttype
 from lakegate.dialect.registry import Render
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import ttype
 
 MAX_PAD_LENGTH = 1_000_000
 

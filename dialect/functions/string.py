@@ -14,7 +14,6 @@ from sqlglot import exp
 from lakegate.dialect import chars
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
-from lakegate.dialect.analyze import Call, ttype
 from lakegate.dialect.functions.arguments import (
     KINDS_BINARY,
     VARBINARY,
@@ -27,6 +26,7 @@ from lakegate.dialect.functions.arguments import (
 from lakegate.dialect.functions.rendering import MAX_PAD_LENGTH, call_as, checked, null_if_any_null, sqls, utf8_valid
 from lakegate.dialect.registry import SUPPORTED, Render, overload, register
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import Call, ttype
 
 
 # === string =======================================================================================

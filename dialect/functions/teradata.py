@@ -8,11 +8,11 @@ import re
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
-from lakegate.dialect.analyze import Call
 from lakegate.dialect.functions.arguments import literal_str, need
 from lakegate.dialect.functions.datetime_formats import joda_field, render_format_datetime
 from lakegate.dialect.registry import register
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import Call
 
 # --- Teradata to_char / to_date / to_timestamp (plugin/trino-teradata-functions: DateFormatParser,
 # TeradataDateFunctions) -------------------------------------------------------------------------

@@ -6,11 +6,11 @@ from collections.abc import Callable
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
-from lakegate.dialect.analyze import Call
 from lakegate.dialect.functions.arguments import fixed, need
 from lakegate.dialect.functions.rendering import utf8_valid
 from lakegate.dialect.registry import Render, register
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import Call
 
 # === URL (io.trino.operator.scalar.UrlFunctions over java.net.URI) ==============================
 #: What java.net.URI reads, for the ASCII URLs lakegate answers: every character is a URI character

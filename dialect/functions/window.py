@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 from lakegate.dialect import trino_types as tt
-from lakegate.dialect.analyze import Call, ttype
 from lakegate.dialect.functions.arguments import common, fixed, need, same
 from lakegate.dialect.functions.rendering import agg_as, checked
 from lakegate.dialect.registry import register
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import Call, ttype
 
 
 # === window =======================================================================================

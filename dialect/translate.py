@@ -19,20 +19,23 @@ from sqlglot.dialects.trino import Trino
 from sqlglot.errors import ParseError, TokenError
 from sqlglot.tokens import TokenType
 
-from lakegate.dialect import guard
+from lakegate.dialect import guard, write_casts, write_operators
 from lakegate.dialect import params as parameters
 from lakegate.dialect import scope as scoping
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import analyze
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.functions import pages
-from lakegate.dialect.transforms import Writer, finalize, hoist_derived_order
+from lakegate.dialect.transforms import Writer
+from lakegate.dialect.tree_rewrites import finalize, hoist_derived_order
 from lakegate.dialect.unparsed import unparsed_construct
 
 if TYPE_CHECKING:
     from lakegate.dialect.scope import Scope
 
 pages.install()  # the function registry, from the one list of function modules
+#: The modules whose named transforms (`transforms.transform`) the Writer uses beside its own.
+WRITERS = (write_operators, write_casts)
 
 #: Number of translations kept in the cache.
 CACHE_SIZE = 1024

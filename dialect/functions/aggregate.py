@@ -8,6 +8,7 @@ from sqlglot import exp
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
+from lakegate.dialect import write_operators as ops
 from lakegate.dialect.functions.arguments import as_double, fixed, literal_int, map_arg, need, plain_key, same
 from lakegate.dialect.functions.rendering import (
     ENTRY,
@@ -47,8 +48,8 @@ def _render_avg(g, node, args) -> str:
     scale = t.args[1]
     total = g.agg(node, "sum", [g.sql(args[0])])
     count = g.agg(node, "count", [g.sql(args[0])])
-    numerator = tf.unscaled_sql(total, tt.decimal(38, scale))  # DuckDB's sum of decimal(p, s) is decimal(38, s)
-    return f"CASE WHEN {count} = 0 THEN NULL ELSE {tf.rounded_quotient(g, numerator, count, t)} END"
+    numerator = ops.unscaled_sql(total, tt.decimal(38, scale))  # DuckDB's sum of decimal(p, s) is decimal(38, s)
+    return f"CASE WHEN {count} = 0 THEN NULL ELSE {ops.rounded_quotient(g, numerator, count, t)} END"
 
 
 def _minmax(call: Call) -> TType:
@@ -195,7 +196,7 @@ def _render_sum(g, node, args) -> str:
     t = ttype(node)
     total = g.agg(node, "sum", [g.sql(args[0])])
     if t.is_integral:
-        return tf.checked_integer(g, total, t, tf.string("bigint addition overflow"))
+        return ops.checked_integer(g, total, t, tf.string("bigint addition overflow"))
     return tf.cast(total, t)
 
 

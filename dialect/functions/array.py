@@ -6,6 +6,7 @@ from sqlglot import exp
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
+from lakegate.dialect import write_casts as casts
 from lakegate.dialect.functions.arguments import VARBINARY, array_arg, binary_args, literal_int, need
 from lakegate.dialect.functions.rendering import (
     call_as,
@@ -84,7 +85,7 @@ def _array_join(call: Call) -> TType:
 def _render_array_join(g, node, args) -> str:
     arr, delim = g.sql(args[0]), g.sql(args[1])
     element = ttype(args[0]).element if ttype(args[0]).base == "array" else tt.UNKNOWN
-    text = tf.varchar_of(g, '"_e"', element)
+    text = casts.varchar_of(g, '"_e"', element)
     if len(args) == 3:
         text = f"coalesce({text}, {g.sql(args[2])})"
     items = arr if text == '"_e"' else f'list_transform({arr}, lambda "_e": {text})'

@@ -8,6 +8,7 @@ from sqlglot import exp
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
+from lakegate.dialect import write_casts as casts
 from lakegate.dialect.functions.arguments import common, need, same
 from lakegate.dialect.functions.rendering import call_as, sqls
 from lakegate.dialect.registry import register
@@ -50,7 +51,7 @@ def _render_try(g, node, args) -> str:
         sql = g.sql(args[0])
     finally:
         g.in_try -= 1
-    return tf.try_wrap(sql)
+    return casts.try_wrap(sql)
 
 
 def install() -> None:

@@ -16,6 +16,7 @@ import re
 from lakegate.dialect import times, zoned_nanos, zones
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
+from lakegate.dialect import write_casts as casts
 from lakegate.dialect.functions.arguments import KINDS, fixed, literal_int, literal_str, need
 from lakegate.dialect.registry import overload, register
 from lakegate.dialect.trino_types import TType
@@ -133,9 +134,9 @@ def _render_date_add(g, node, args) -> str:
         return tf.cast(zones.instant(f"({zones.local(value, zone)} + {interval})", zone), t)
     sql = f"({value} + {interval})"
     if t.base == "timestamp" and t.args[0] > 6:  # the nanoseconds below the microsecond stay (DateAdd)
-        return tf.with_nanos(sql, g.sql(args[2].this))
+        return casts.with_nanos(sql, g.sql(args[2].this))
     if t.base == "timestamp" and t.args[0] < 3 and unit == "millisecond":  # rounded to p digits (DateAdd)
-        return tf.round_timestamp(sql, t.args[0])
+        return casts.round_timestamp(sql, t.args[0])
     return tf.cast(sql, t)
 
 
@@ -319,9 +320,9 @@ def _render_to_iso8601(g, node, args) -> str:
     if t.base in ("date", "unknown"):
         return f"strftime(CAST({g.sql(args[0])} AS DATE), '%Y-%m-%d')"
     if t.base == "timestamp":
-        return f"replace({tf.timestamp_text(g.sql(args[0]), t.args[0])}, ' ', 'T')"
+        return f"replace({casts.timestamp_text(g.sql(args[0]), t.args[0])}, ' ', 'T')"
     sql, zone = g.sql(args[0]), tt.zone_of(t)
-    text = f"replace({tf.timestamp_text(zones.local(sql, zone), t.args[0])}, ' ', 'T')"
+    text = f"replace({casts.timestamp_text(zones.local(sql, zone), t.args[0])}, ' ', 'T')"
     minutes = f"(CAST(epoch({zones.local(sql, zone)}) - epoch({zones.local(sql, zones.UTC)}) AS BIGINT) // 60)"
     offset = (
         f"CASE WHEN {minutes} = 0 THEN 'Z' ELSE CASE WHEN {minutes} < 0 THEN '-' ELSE '+' END || "
@@ -352,7 +353,7 @@ def _render_human_readable_seconds(g, node, args) -> str:
         for n, unit in parts
     )
     text = f"concat_ws(', ', {rendered})"
-    invalid = g.fail(f"'Invalid argument found: ' || {tf.approx_text(x, tt.DOUBLE)}")
+    invalid = g.fail(f"'Invalid argument found: ' || {casts.approx_text(x, tt.DOUBLE)}")
     return (
         f"CASE WHEN {x} IS NULL THEN NULL WHEN NOT isfinite({x}) THEN {invalid} "
         f"WHEN {total} = 0 THEN '0 seconds' ELSE {text} END"
@@ -485,7 +486,7 @@ def _render_to_unixtime_nanos(g, node, args) -> str:
     """ToUnixTime of a LongTimestampWithTimeZone: epochMillis / 1000.0 + picosOfMilli / 1e12, in doubles
     (the milliseconds floored, the picoseconds of the millisecond never negative)."""
     nanos = f"epoch_ns({g.sql(args[0])})"
-    millis = tf.floor_div(nanos, 1_000_000)
+    millis = casts.floor_div(nanos, 1_000_000)
     return f"(CAST({millis} AS DOUBLE) / 1000.0 + CAST(({nanos} - {millis} * 1000000) * 1000 AS DOUBLE) / 1e12)"
 
 
@@ -585,7 +586,7 @@ def install() -> None:
             and c.types[0].base in ("varchar", "timestamp", "timestamp_tz", "date", "unknown")
             else c.mismatch()
         ),
-        lambda g, node, args: tf.cast_value(g, g.sql(args[0]), ttype(args[0]), tt.DATE),
+        lambda g, node, args: casts.cast_value(g, g.sql(args[0]), ttype(args[0]), tt.DATE),
     )
     register(
         "last_day_of_month",

@@ -8,6 +8,7 @@ from sqlglot import exp
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
+from lakegate.dialect import write_operators as ops
 from lakegate.dialect.functions.arguments import array_arg
 from lakegate.dialect.functions.rendering import nested
 from lakegate.dialect.registry import Render, register
@@ -162,7 +163,7 @@ def _checked_order(sorted_sql: str, element: TType) -> str:
     if element.base not in ("array", "row"):
         return sorted_sql
     pair = ('"_s"["_j"]', '"_s"["_j" + 1]')
-    reached, failure = tf.null_reached(*pair, element)
+    reached, failure = ops.null_reached(*pair, element)
     clash = (
         f'list_filter(range(1, len("_s")), lambda "_j": {pair[0]} IS NOT NULL AND {pair[1]} IS NOT NULL AND {reached})'
     )

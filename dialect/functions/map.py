@@ -8,6 +8,7 @@ from sqlglot import exp
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
+from lakegate.dialect import write_casts as casts
 from lakegate.dialect.functions.arguments import array_arg, map_arg, need, plain_key
 from lakegate.dialect.functions.rendering import (
     ENTRY,
@@ -86,7 +87,7 @@ def _key_text(g, sql: str, t: TType, depth: int = 0) -> str:
             _key_text(g, f"struct_extract_at({sql}, {i + 1})", field, depth) for i, (_, field) in enumerate(t.args)
         ]
         return "'[' || " + " || ', ' || ".join(f"coalesce({f}, 'null')" for f in fields) + " || ']'"
-    return tf.varchar_of(g, sql, t)
+    return casts.varchar_of(g, sql, t)
 
 
 def _indeterminate_keys(g, keys: str, t: TType) -> str:
@@ -133,7 +134,7 @@ def first_problem(g, keys: str, key_type: TType, entries: str | None = None) -> 
     given `entries`, which is itself NULL), else NULL: map constructors check entries in order
     (MapFromEntriesFunction, TransformKeysFunction)."""
     null_entry = f"WHEN ({entries})[{tf.quote('_i')}] IS NULL THEN 'map entry cannot be null' " if entries else ""
-    key_text = tf.varchar_of(g, '"_k"', key_type)
+    key_text = casts.varchar_of(g, '"_k"', key_type)
     duplicate = f"'Duplicate keys (' || {key_text} || ') are not allowed'"
     message = (
         f"CASE {null_entry}WHEN \"_k\" IS NULL THEN 'map key cannot be null' "

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
+from lakegate.dialect import write_operators as ops
 from lakegate.dialect.functions.arguments import as_double, fixed, need
 from lakegate.dialect.functions.rendering import call_as, sqls
 from lakegate.dialect.infer_operators import remainder_fits
@@ -56,7 +57,7 @@ def _round_integral(g, value: str, digits: str, t: TType) -> str:
     if t.base != "bigint":
         overflow = f"{tf.string(f'Out of range for {t.base}: ')} || CAST({rounded} AS VARCHAR)"
     too_small = g.fail(f"{tf.string('numerical overflow: ')} || CAST({value} AS VARCHAR)", "NUMERIC_VALUE_OUT_OF_RANGE")
-    return f"CASE WHEN ({digits}) < -18 THEN {too_small} ELSE {tf.checked_integer(g, rounded, t, overflow)} END"
+    return f"CASE WHEN ({digits}) < -18 THEN {too_small} ELSE {ops.checked_integer(g, rounded, t, overflow)} END"
 
 
 def _ceil_floor(call: Call) -> TType:
@@ -129,7 +130,7 @@ def _render_mod(g, node, args) -> str:
     left, right = g.sql(args[0]), g.sql(args[1])
     if t.is_approx:
         return tf.cast(f"CASE WHEN {right} = 0 THEN CAST('NaN' AS DOUBLE) ELSE {left} % {right} END", t)
-    return tf.cast(f"({left} % {tf.nonzero(g, right)})", t)
+    return tf.cast(f"({left} % {ops.nonzero(g, right)})", t)
 
 
 def double_fn(duck: str) -> Render:

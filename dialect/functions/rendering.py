@@ -9,6 +9,7 @@ from collections.abc import Iterable
 from sqlglot import exp
 
 from lakegate.dialect import transforms as tf
+from lakegate.dialect import write_operators as ops
 from lakegate.dialect.registry import Render
 from lakegate.dialect.trino_types import TType
 from lakegate.dialect.type_rules import ttype
@@ -68,7 +69,7 @@ def ordered_pick(arr: str, element: TType, largest: bool) -> str:
     finds it: each element is compared with the one kept so far, a NULL element makes the result
     NULL, and a comparison that reaches a NULL inside the elements fails as Trino's does."""
     kept = "struct_extract(\"_s\", 'v')"
-    reached, failure = tf.null_reached('"_x"', kept, element)
+    reached, failure = ops.null_reached('"_x"', kept, element)
     step = (
         f'CASE WHEN struct_extract("_s", \'n\') THEN "_s" '
         f'WHEN "_x" IS NULL THEN struct_pack(v := "_x", n := true) '

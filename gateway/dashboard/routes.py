@@ -44,7 +44,8 @@ from fastapi import APIRouter, Body, HTTPException, Query
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, RedirectResponse, Response
 
 from lakegate.dialect.errors import DialectError
-from lakegate.gateway.dashboard.debug_session import BranchConfig, DashboardSession, SessionError
+from lakegate.gateway.dashboard.config_edits import BranchConfig, SessionError
+from lakegate.gateway.dashboard.debug_session import DashboardSession
 from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.gateway.metrics.results import read_results

@@ -2,10 +2,10 @@
 
 Session statements and CALL are answered by the server before a query starts (`session.answer`,
 `server`); everything else comes here: EXECUTE / EXECUTE IMMEDIATE (the statement and its USING
-values), DESCRIBE INPUT / OUTPUT of a prepared statement, SHOW / DESCRIBE (`Metadata.show`), and
+values), DESCRIBE INPUT / OUTPUT of a prepared statement, SHOW / DESCRIBE (`SystemCatalog.show`), and
 queries and EXPLAIN.
 
-A query's table names are resolved against the session (`Metadata.resolve`): every table it reads
+A query's table names are resolved against the session (`SystemCatalog.resolve`): every table it reads
 must live in one branch (then the backend runs it on that branch, restricted to the session's
 scope) or be a system table (then it runs over the materialised system tables); a query that
 reads no table runs on the session's branch. Qualifiers (`lake.main.odom`, `"feature/x".odom`,
@@ -33,7 +33,7 @@ from lakegate.dialect.statements import Reader
 from lakegate.dialect.translate import parse
 from lakegate.gateway.engine.backend import Backend, QueryResult
 from lakegate.gateway.engine.session import Answer, Session, check_properties
-from lakegate.gateway.engine.system_tables import Metadata, TableRef
+from lakegate.gateway.engine.system_tables import SystemCatalog, TableRef
 from lakegate.gateway.engine.trino_values import arrow_type
 
 #: The Trino release whose behaviour lakegate follows, reported by /v1/info and `version()`.
@@ -149,7 +149,7 @@ class _Plan:
 class Planner:
     """Starts statements over `backend` and the system tables of `metadata`."""
 
-    def __init__(self, backend: Backend, metadata: Metadata):
+    def __init__(self, backend: Backend, metadata: SystemCatalog):
         self.backend, self.metadata = backend, metadata
 
     def start(self, sql: str, session: Session, params: Sequence[object] = ()) -> QueryResult:

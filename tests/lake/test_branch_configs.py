@@ -8,8 +8,8 @@ import sys
 import pytest
 
 from lakegate.lake import paths
+from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import Config, Topic
-from lakegate.lake.registry import BranchConfigs
 from lakegate.lake.storage import LocalOnlyError
 
 ODOM = "version: 1\ntopics:\n  odom:\n    schema: {x: float}\n"
@@ -85,7 +85,7 @@ def test_concurrent_stores_never_share_a_number(tmp_path):
         write(tmp_path, f"c{i}.yaml", f"version: 1\ntopics:\n  t{i}:\n    schema: {{x: int}}\n") for i in range(6)
     ]
     script = (
-        "import sys; from lakegate.lake.registry import BranchConfigs\n"
+        "import sys; from lakegate.lake.branch_configs import BranchConfigs\n"
         "print(BranchConfigs(sys.argv[1], 'main').store([sys.argv[2]]))"
     )
     procs = [

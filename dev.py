@@ -8,6 +8,9 @@
     python3 dev.py trino start|stop|status
                                     a real Trino 476 on 127.0.0.1, the judge the tests compare with
                                     (fetched with Maven, cached outside the repository; tools/trino_server.py)
+    python3 dev.py fuzz --queries N --seed S [--trino URL]
+                                    the differential fuzzer: random queries over a small lake, on lakegate and
+                                    on the real Trino; prints the counts, writes mismatches (tools/trino_fuzz/)
     python3 dev.py lakegate ARGS    run any lakegate command inside .venv
 
 The virtual environment is reinstalled only when pyproject.toml changes.
@@ -28,8 +31,8 @@ BIN = VENV / ("Scripts" if os.name == "nt" else "bin")
 PY = BIN / "python"
 
 
-def _run(cmd: list[str]) -> int:
-    return subprocess.call([str(c) for c in cmd], cwd=ROOT)
+def _run(cmd: list[str], env: dict[str, str] | None = None) -> int:
+    return subprocess.call([str(c) for c in cmd], cwd=ROOT, env=env)
 
 
 def ensure_venv(extras: str = "test") -> None:
@@ -66,6 +69,8 @@ def main(argv: list[str]) -> int:
     ensure_venv()
     if command == "trino":
         return _run([PY, ROOT / "tools" / "trino_server.py", *rest])
+    if command == "fuzz":
+        return _run([PY, "-m", "trino_fuzz.run", *rest], env={**os.environ, "PYTHONPATH": str(ROOT / "tools")})
     if command == "demo":
         return _run([BIN / "lakegate", "demo", *rest])
     if command == "lint":

@@ -21,7 +21,7 @@ import time
 import venv
 from pathlib import Path
 
-from results import write_section  # bench/ is on sys.path when this file runs as a script
+from results import parse_args, write_section  # bench/ is on sys.path when this file runs as a script
 
 ROOT = Path(__file__).resolve().parents[1]
 WORK = ROOT / "bench" / ".work"
@@ -94,7 +94,7 @@ def main() -> int:
     parser.add_argument("--emits", type=int, default=200_000, help="emit() calls per run (default 200000)")
     parser.add_argument("--points", type=int, default=200_000, help="points per emit_series() run (default 200000)")
     parser.add_argument("--worker", nargs=4, metavar=("IMPL", "MODE", "COUNT", "OUT"), help=argparse.SUPPRESS)
-    args = parser.parse_args()
+    args = parse_args(parser, runs=1, emits=2_000, points=2_000)
     if args.worker:
         impl, mode, count, out = args.worker
         worker(impl, mode, int(count), Path(out))

@@ -24,7 +24,7 @@ import time
 from pathlib import Path
 
 from mcap_ros2.writer import Writer
-from results import write_section  # bench/ is on sys.path when this file runs as a script
+from results import parse_args, write_section  # bench/ is on sys.path when this file runs as a script
 
 ROOT = Path(__file__).resolve().parents[1]
 WORK = ROOT / "bench" / ".work" / "mcap"
@@ -84,7 +84,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=3)
     parser.add_argument("--messages", type=int, default=1_000_000)
-    args = parser.parse_args()
+    args = parse_args(parser, runs=1, messages=2_000)
     WORK.mkdir(parents=True, exist_ok=True)
     (WORK / "config.resim.yaml").write_text(CONFIG)
     (WORK / "map.yaml").write_text(MAPPING)

@@ -24,7 +24,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from results import run_python, run_times, write_section  # noqa: E402
+from results import parse_args, run_python, run_times, write_section  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 WORK = ROOT / "bench" / ".work" / "ingest"
@@ -161,7 +161,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--lines", type=int, default=1_500_000, help="lines of the emissions file (default 1.5M)")
     parser.add_argument("--runs", type=int, default=3, help="measured runs of each side (default 3)")
-    args = parser.parse_args()
+    args = parse_args(parser, lines=5_000, runs=1)
     path = emissions(args.lines)
     small = emissions(args.lines // 3)
     size_mb = path.stat().st_size / 1e6

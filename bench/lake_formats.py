@@ -42,7 +42,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from results import timed, write_section  # noqa: E402
+from results import parse_args, timed, write_section  # noqa: E402
 from scale import BRANCH, source  # noqa: E402
 
 from lakegate.lake import paths  # noqa: E402
@@ -88,7 +88,7 @@ class HiveRecord(Format):
     def append(self, batch_id: str, job_id: str, rows: pa.Table) -> None:
         self.root.mkdir(parents=True, exist_ok=True)
         staged = self.root / "staged.parquet"
-        pq.write_table(rows.drop_columns(["batch_id", "job_id"]), staged)
+        pq.write_table(rows.drop_columns(["batch_id"]), staged)  # job_id is a column of the files (layout v2)
         change = Change(self.root, BRANCH)
         change.add(TABLE, batch_id, job_id, staged)
         change.replace_job(batch_id, job_id)
@@ -271,9 +271,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--jobs", type=int, default=1000, help="jobs written into each format")
     parser.add_argument("--batch-jobs", type=int, default=100, help="jobs per batch")
     parser.add_argument("--runs", type=int, default=5)
-    args = parser.parse_args(argv)
+    args = parse_args(parser, argv, jobs=4, batch_jobs=2, runs=1)
     load_before = os.getloadavg()
-    sources = job_rows(source()[0])
+    sources = job_rows(source(min(args.jobs, 40))[0])
     results: dict[str, dict[str, float]] = {}
     for kind in FORMATS:
         if kind.package and importlib.util.find_spec(kind.package) is None:

@@ -32,7 +32,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from results import run_python, run_times, write_section  # noqa: E402
+from results import parse_args, run_python, run_times, write_section  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 WORK = ROOT / "bench" / ".work" / "metrics"
@@ -165,7 +165,7 @@ def main() -> int:
     parser.add_argument("--jobs", type=int, default=100, help="jobs in the batch (default 100)")
     parser.add_argument("--rows-per-job", type=int, default=100_000, help="topic rows per job (default 100,000)")
     parser.add_argument("--runs", type=int, default=3, help="measured runs of each side (default 3)")
-    args = parser.parse_args()
+    args = parse_args(parser, jobs=3, rows_per_job=1_000, runs=1)
     lake, total_rows = prepare(args.jobs, args.rows_per_job)
     names = json.dumps(list(METRICS))
     runs: dict[str, list[dict]] = {"lakegate": [], "baseline": []}

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import platform
@@ -15,6 +16,8 @@ from importlib import metadata
 from pathlib import Path
 
 RESULTS = Path(__file__).resolve().parent / "RESULTS.md"
+#: Set by `parse_args(--smoke)`: tiny sizes, figures printed, RESULTS.md left alone.
+_smoke = False
 HEADER = "# Benchmark results\n\nEach section is written by the script it names; re-run it to refresh that section.\n"
 
 
@@ -79,8 +82,26 @@ def git_revision() -> str:
         return "unknown"
 
 
+def parse_args(
+    parser: argparse.ArgumentParser, argv: list[str] | None = None, **smoke_sizes: object
+) -> argparse.Namespace:
+    """The bench's arguments plus `--smoke`, which replaces its sizes by `smoke_sizes` (a run of
+    seconds that exercises every code path; CI runs every bench so, so none can rot) and leaves
+    RESULTS.md alone."""
+    global _smoke
+    parser.add_argument(
+        "--smoke", action="store_true", help="tiny sizes that run in seconds; print the figures, leave RESULTS.md alone"
+    )
+    args = parser.parse_args(argv)
+    if args.smoke:
+        _smoke = True
+        vars(args).update(smoke_sizes)
+    return args
+
+
 def write_section(title: str, command: str, lines: Iterable[str]) -> None:
-    """Replace (or append) the section `## title` of RESULTS.md with the given Markdown lines."""
+    """Replace (or append) the section `## title` of RESULTS.md with the given Markdown lines (only
+    print them under --smoke)."""
     body = "\n".join(
         [
             f"## {title}",
@@ -93,6 +114,9 @@ def write_section(title: str, command: str, lines: Iterable[str]) -> None:
             "",
         ]
     )
+    if _smoke:
+        print(body)
+        return
     text = RESULTS.read_text() if RESULTS.exists() else HEADER
     pattern = re.compile(rf"^## {re.escape(title)}\n.*?(?=^## |\Z)", re.S | re.M)
     text = pattern.sub(lambda _: body + "\n", text) if pattern.search(text) else text.rstrip("\n") + "\n\n" + body

@@ -52,7 +52,7 @@ import pyarrow as pa
 import trino
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from results import timed, write_section  # noqa: E402
+from results import parse_args, timed, write_section  # noqa: E402
 from server import Server  # noqa: E402
 
 from lakegate.dialect.scope import Scope  # noqa: E402
@@ -70,20 +70,20 @@ from lakegate.lake.record import LAYOUT, RECORD, FileEntry, Record  # noqa: E402
 ROOT = Path(__file__).resolve().parents[1]
 WORK = ROOT / "bench" / ".work" / "scale"
 CLI = [sys.executable, "-m", "lakegate.gateway.cli"]
-BRANCH, BATCH, JOBS, FILLER_BATCH = "main", "nav-40", 40, 100
+BRANCH, BATCH, FILLER_BATCH = "main", "nav-40", 100
 METRICS_SET = "Nav Metrics"
 TEST_METRIC, BATCH_METRIC = "Maximum Localization Error (job)", "Average Speed"  # of the example config
 COUNT = "SELECT count(*) FROM metadata"
 GROUP_BY = "SELECT job_id, count(*), max(speed) FROM robot_speed GROUP BY job_id"
 GOALS = {"metrics run": 1.2, "ingest": 1.2}
 #: The 20-branch memory measurement: branches, jobs per branch, the server's DuckDB memory budget.
-BRANCHES, BRANCH_JOBS, BUDGET = 20, 1000, "1GB"
+BUDGET = "1GB"
 
 
-def source() -> tuple[Path, list]:
-    """The source lake (40 ingested jobs) and the generated jobs, built once."""
-    lake, inputs = WORK / "source", WORK / "inputs"
-    jobs = generate_batch(inputs, jobs=JOBS)  # deterministic: the same files every time
+def source(count: int = 40) -> tuple[Path, list]:
+    """The source lake (`count` ingested jobs, 40 but under --smoke) and the generated jobs, built once."""
+    lake, inputs = WORK / f"source-{count}", WORK / f"inputs-{count}"
+    jobs = generate_batch(inputs, jobs=count)  # deterministic: the same files every time
     if not (lake / ".complete").exists() or Record(lake, BRANCH).layout() != LAYOUT:  # built before layout v2
         shutil.rmtree(lake, ignore_errors=True)
         registry = BranchConfigs(lake, BRANCH)
@@ -118,7 +118,7 @@ def build(size: int, source_lake: Path) -> Path:
         by_job.setdefault(entry.job_id, []).append(entry)
     sources = sorted(by_job)
     entries = []
-    for job in sources[: min(size, JOBS)]:  # nav-40: the ingested jobs' own files
+    for job in sources[:size]:  # nav-40: the ingested jobs' own files
         for entry in by_job[job]:
             target = root / entry.path
             _link(source_root / entry.path, target)
@@ -129,7 +129,7 @@ def build(size: int, source_lake: Path) -> Path:
         (entry.table, entry.job_id): job_rows(source_root / entry.path, entry.job_id, v1=False, position=0)
         for entry in originals
     }
-    fillers = [f"job-{index:05d}" for index in range(JOBS, size)]
+    fillers = [f"job-{index:05d}" for index in range(len(sources), size)]
     with paths.staging(lake, BRANCH) as scratch:
         for start in range(0, len(fillers), FILLER_BATCH):
             batch = f"filler-{start // FILLER_BATCH:04d}"
@@ -137,7 +137,7 @@ def build(size: int, source_lake: Path) -> Path:
             for table in tables:
                 parts, described = [], []
                 for offset, job in enumerate(jobs):
-                    source_job = sources[(start + offset) % JOBS]
+                    source_job = sources[(start + offset) % len(sources)]
                     found = rows.get((table, source_job))
                     if found is None:
                         continue
@@ -282,21 +282,21 @@ def _direct_query(lake: Path, sql: str, session: dict[str, str]) -> Callable[[],
     return lambda: connection.execute(duckdb_sql).fetchall()
 
 
-def twenty_branches(source_lake: Path) -> dict[str, float]:
-    """RSS and peak RSS (MB) of one server (memory budget BUDGET) after a query of each of BRANCHES
-    branches of BRANCH_JOBS jobs (hard links of one built branch; each its own record)."""
-    lake = WORK / f"branches-{BRANCHES}"
+def many_branches(source_lake: Path, branches: int, branch_jobs: int) -> dict[str, float]:
+    """RSS and peak RSS (MB) of one server (memory budget BUDGET) after a query of each of
+    `branches` branches of `branch_jobs` jobs (hard links of one built branch; each its own record)."""
+    lake = WORK / f"branches-{branches}x{branch_jobs}"
     if not (lake / ".complete").exists():
         shutil.rmtree(lake, ignore_errors=True)
-        one = paths.branch_dir(build(BRANCH_JOBS, source_lake), BRANCH)
-        for index in range(BRANCHES):
+        one = paths.branch_dir(build(branch_jobs, source_lake), BRANCH)
+        for index in range(branches):
             root = paths.branch_dir(lake, f"b{index:02d}")
             shutil.copytree(one, root, copy_function=os.link, ignore=shutil.ignore_patterns(RECORD))
             shutil.copy(one / RECORD, root / RECORD)
         (lake / ".complete").touch()
     server = Server(lake, ["--threads", "2", "--memory-limit", BUDGET])
     try:
-        for index in range(BRANCHES):
+        for index in range(branches):
             for sql in (COUNT, GROUP_BY):
                 connection = trino.dbapi.connect(
                     host="127.0.0.1", port=server.port, user="bench", catalog="lake", schema=f"b{index:02d}"
@@ -305,8 +305,8 @@ def twenty_branches(source_lake: Path) -> dict[str, float]:
                 cursor.execute(sql)
                 cursor.fetchall()
         return {
-            f"server RSS, {BRANCHES} branches open (MB)": server.memory("VmRSS") / 2**20,
-            f"server peak RSS, {BRANCHES} branches (MB)": server.memory("VmHWM") / 2**20,
+            f"server RSS, {branches} branches open (MB)": server.memory("VmRSS") / 2**20,
+            f"server peak RSS, {branches} branches (MB)": server.memory("VmHWM") / 2**20,
         }
     finally:
         server.stop()
@@ -316,10 +316,13 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--sizes", default="100,1000,10000", help="branch sizes in jobs (comma-separated)")
     parser.add_argument("--runs", type=int, default=3)
-    args = parser.parse_args(argv)
+    parser.add_argument("--batch-jobs", type=int, default=40, help="jobs of the evaluated batch nav-40")
+    parser.add_argument("--branches", type=int, default=20, help="branches open at once in the memory measure")
+    parser.add_argument("--branch-jobs", type=int, default=1000, help="jobs of each of those branches")
+    args = parse_args(parser, argv, sizes="4,8", runs=1, batch_jobs=2, branches=2, branch_jobs=4)
     sizes = [int(size) for size in args.sizes.split(",")]
     load_before = os.getloadavg()
-    source_lake, jobs = source()
+    source_lake, jobs = source(args.batch_jobs)
     figures: dict[int, dict[str, float]] = {}
     for size in sizes:
         started = time.perf_counter()
@@ -328,18 +331,18 @@ def main(argv: list[str] | None = None) -> int:
         row = medians([metrics_run(lake) for _ in range(args.runs)], "metrics run")
         row |= medians([compact(lake)], "lake compact of nav-40")
         row |= served(lake, args.runs, jobs[0])
-        row |= medians([ingest(lake, jobs[run % JOBS], run) for run in range(args.runs)], "ingest")
+        row |= medians([ingest(lake, jobs[run % len(jobs)], run) for run in range(args.runs)], "ingest")
         figures[size] = row
         print(json.dumps({"size": size, "built_s": round(built, 1), **row}), flush=True)
     empty = WORK / "empty"
     shutil.rmtree(empty, ignore_errors=True)
-    empty_ingest = medians([ingest(empty, jobs[run % JOBS], run) for run in range(args.runs)], "ingest")
-    branches = twenty_branches(source_lake)
+    empty_ingest = medians([ingest(empty, jobs[run % len(jobs)], run) for run in range(args.runs)], "ingest")
+    branches = many_branches(source_lake, args.branches, args.branch_jobs)
     print(json.dumps(branches), flush=True)
     write_section(
         "Scale",
         f"python3 dev.py bench scale --sizes {args.sizes} --runs {args.runs}",
-        _lines(sizes, figures, empty_ingest, branches, args.runs, load_before),
+        _lines(sizes, figures, empty_ingest, branches, args, load_before),
     )
     return 0
 
@@ -349,7 +352,7 @@ def _lines(
     figures: dict[int, dict[str, float]],
     empty_ingest: dict[str, float],
     branches: dict[str, float],
-    runs: int,
+    args: argparse.Namespace,
     load_before: tuple[float, float, float],
 ) -> list[str]:
     measures = list(figures[sizes[0]])
@@ -357,7 +360,7 @@ def _lines(
         f"Branches of {', '.join(f'{s:,}' for s in sizes)} jobs: batch `{BATCH}` (40 jobs, 12 Parquet "
         f"files per job) is the same in each, the other jobs are in compacted batches of {FILLER_BATCH} (one file "
         "per table and batch); the queries run after `lake compact` of nav-40. "
-        f"Medians of {runs} runs (queries: of {max(runs, 5)}, warm; `lake compact`: one run); the "
+        f"Medians of {args.runs} runs (queries: of {max(args.runs, 5)}, warm; `lake compact`: one run); the "
         "goals are judged on CPU seconds (user + system of the process), least disturbed by the other load "
         "on this shared machine (2 cores). "
         f"Load average (1, 5, 15 min) at the start: {', '.join(f'{x:.2f}' for x in load_before)}; "
@@ -401,7 +404,7 @@ def _lines(
     budget = int(BUDGET.removesuffix("GB")) * 1024
     for measure, value in branches.items():
         lines.append(
-            f"- {measure.replace(' (MB)', '')} ({BRANCHES} branches of {BRANCH_JOBS:,} jobs, each queried, "
+            f"- {measure.replace(' (MB)', '')} ({args.branches} branches of {args.branch_jobs:,} jobs, each queried, "
             f"`--memory-limit {BUDGET}`): {value:.0f} MB, "
             f"**{'within' if value <= budget else 'over'}** the budget"
         )

@@ -40,7 +40,7 @@ import requests
 import trino
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from results import median_of, timed, write_section  # noqa: E402
+from results import median_of, parse_args, timed, write_section  # noqa: E402
 from translate import JOBS, TOPIC, build_lake  # noqa: E402
 
 from lakegate.lake.catalog import Catalog  # noqa: E402
@@ -397,6 +397,7 @@ def mb(value: int) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--rows", type=int, default=ROWS, help=f"rows of the benchmark topic (default {ROWS:,})")
     parser.add_argument("--runs", type=int, default=3, help="runs of the fetch and aggregate measures (default 3)")
     parser.add_argument("--seconds", type=float, default=30.0, help="length of the concurrency test (default 30)")
     parser.add_argument("--clients", type=int, default=32, help="concurrent clients (default 32)")
@@ -407,9 +408,9 @@ def main() -> None:
         metavar="ARG",
         help="an extra argument for `lakegate serve` (repeat for several)",
     )
-    args = parser.parse_args()
+    args = parse_args(parser, rows=200_000, runs=1, seconds=2.0, clients=4)
     started, load_start = time.perf_counter(), os.getloadavg()[0]
-    lake = build_lake(ROWS)
+    lake = build_lake(args.rows)
     direct = direct_duckdb(lake)
     server = Server(lake, args.serve_arg)
     try:
@@ -424,7 +425,7 @@ def main() -> None:
         direct.close()
     bounded = fetched["peak_4m"] < 1.25 * fetched["peak_1m"]  # 4x the rows, less than 1.25x the memory
     lines = [
-        f"Lake: `{TOPIC}` with {ROWS:,} rows in {len(JOBS)} jobs of Parquet (bench/.work/translate), one metadata "
+        f"Lake: `{TOPIC}` with {args.rows:,} rows in {len(JOBS)} jobs of Parquet (bench/.work/translate), one metadata "
         f"row per job. Server: `lakegate serve` on 127.0.0.1{''.join(' ' + a for a in args.serve_arg)}; client: "
         f"`trino.dbapi` in this process; baseline: DuckDB in this process on the same Parquet files through the "
         f"lake's views ({THREADS} threads). Load average (1 min) at the start {load_start:.1f}, at the end "
@@ -437,7 +438,8 @@ def main() -> None:
         f"| fetch {fetched['rows']:,} rows x 3 columns, median of {args.runs} | {fetched['ours']:,.0f} rows/s | "
         f"{fetched['theirs']:,.0f} rows/s | >= {GOALS['rows_per_s']:,} rows/s | "
         f"{verdict(fetched['ours'] >= GOALS['rows_per_s'])} |",
-        f"| GROUP BY over {ROWS:,} rows, median of {len(summed['runs']['ours'])} | {summed['ours'] * 1e3:.0f} ms | "
+        f"| GROUP BY over {args.rows:,} rows, median of {len(summed['runs']['ours'])} | "
+        f"{summed['ours'] * 1e3:.0f} ms | "
         f"{summed['theirs'] * 1e3:.0f} ms | <= {GOALS['aggregate_ratio']}x | {summed['ratio']:.2f}x "
         f"{verdict(summed['ratio'] <= GOALS['aggregate_ratio'])} |",
         f"| {args.clients} concurrent clients, {load['elapsed']:.0f} s mix | {load['qps']:.1f} queries/s, p50 "

@@ -30,7 +30,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from results import median_of, timed, write_section  # noqa: E402
+from results import median_of, parse_args, timed, write_section  # noqa: E402
 
 from lakegate.dialect import translate as translate_module  # noqa: E402
 from lakegate.dialect.scope import Scope  # noqa: E402
@@ -110,7 +110,7 @@ def build_lake(rows: int) -> Path:
             "y": pa.array(generator.normal(0.0, 0.2, per_job)),
             "z": pa.array(np.zeros(per_job)),
         }
-        constants = {"experience_name": f"experience {i % 3}", "build_version": "1.0"}
+        constants = {"experience_name": f"experience {i % 3}", "build_version": "1.0", "job_id": job}
         table = pa.table(
             {
                 f.name: columns[f.name]
@@ -239,7 +239,7 @@ def main() -> None:
         default=15,
         help="runs per measurement; the median is reported (default 15: a query takes tens of ms)",
     )
-    args = parser.parse_args()
+    args = parse_args(parser, rows=20_000, runs=2)
     started = time.perf_counter()
     lake = build_lake(args.rows)
     schema = Catalog(lake).schema("main")

@@ -111,8 +111,10 @@ def char_concat(a: Analysis, node: exp.Expression, sides: list[exp.Expression]) 
 
 def check_range_offset(a: Analysis, keys: list, bound: exp.Expression, offset: TType) -> None:
     """A RANGE frame offset, as Trino's StatementAnalyzer checks it: one sort key, numeric with a
-    numeric offset or date/timestamp with an interval. lakegate takes a non-negative literal offset
-    over a double or integral key (an integer offset) or a date/timestamp key: what DuckDB frames alike."""
+    numeric offset or date/timestamp with an interval. lakegate takes any offset without a subquery
+    over a numeric key (typed literals, casts and expressions as well as plain numbers), and an interval
+    literal over a date or timestamp(p <= 6) key: what DuckDB frames alike. A negative or NULL offset
+    fails when the frame is computed (transforms.range_frame), as in Trino."""
     if len(keys) != 1:
         a.fail(
             "Window frame of type RANGE PRECEDING or FOLLOWING requires single sort item in ORDER BY "
@@ -135,15 +137,47 @@ def check_range_offset(a: Analysis, keys: list, bound: exp.Expression, offset: T
             bound,
             "TYPE_MISMATCH",
         )
-    literal = bound.this if isinstance(bound, exp.Interval) else bound
-    if (
-        not isinstance(literal, exp.Literal)
-        or literal.this.strip().startswith("-")
-        or key.base in ("decimal", "real", "timestamp_tz")
-        or (key.is_integral and not offset.is_integral)
+    unsupported = f"RANGE frame with offset {bound.sql(dialect='trino')} over a {key} sort key"
+    if bound.find(exp.Subquery, exp.Select):
+        a.unsupported(unsupported, bound)
+    if temporal and (
+        not (isinstance(bound, exp.Interval) and isinstance(bound.this, exp.Literal))
+        or key.base == "timestamp_tz"
         or (key.base == "timestamp" and key.args[0] > 6)  # DuckDB's frame bound would be in microseconds
     ):
-        a.unsupported(f"RANGE frame with offset {bound.sql(dialect='trino')} over a {key} sort key", bound)
+        a.unsupported(unsupported, bound)
+
+
+def _exact(t: TType) -> bool:
+    return t.is_integral or t.is_decimal
+
+
+def range_comparison_type(a: Analysis, key: TType, bounds: list[exp.Expression]) -> TType:
+    """The type Trino compares a numeric RANGE frame in: the sort key's common super type with each
+    offset (an integer key with a 2.5 offset compares as a decimal, a real key with a double offset as a
+    double); the key itself for a date or timestamp. The key is sorted as that type, which must keep
+    its distinct values distinct (a bigint key cast to double would make peers of values Trino keeps
+    apart), and both offsets must ask for the same comparison when it is approximate."""
+    if not key.is_numeric:
+        return key
+    wanted = [tt.common_super_type(key, ttype(bound)) for bound in bounds]
+    common = tt.common_super_type_of([key, *wanted])
+    if common is None or any(t != common and not (_exact(t) and _exact(common)) for t in wanted):
+        a.unsupported(f"RANGE frame whose offsets compare the {key} sort key as different types", bounds[0])
+    lossless = (
+        key == common
+        or _exact(common)
+        or (common.base == "double" and (key.base in ("tinyint", "smallint", "integer", "real")))
+        or (common.base == "double" and key.is_decimal and key.args[0] <= 15)
+        or (common.base == "real" and (key.base in ("tinyint", "smallint") or (key.is_decimal and key.args[0] <= 6)))
+    )
+    if not lossless:
+        a.unsupported(
+            f"RANGE frame with a {ttype(bounds[0])} offset over a {key} sort key (compared as {common}, "
+            f"in which distinct {key} values can be equal)",
+            bounds[0],
+        )
+    return common
 
 
 class Checks:

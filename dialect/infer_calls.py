@@ -8,7 +8,7 @@ from __future__ import annotations
 from sqlglot import exp
 
 from lakegate.dialect import trino_types as tt
-from lakegate.dialect.analysis_checks import check_range_offset
+from lakegate.dialect.analysis_checks import check_range_offset, range_comparison_type
 from lakegate.dialect.analyzer import Analyzer
 from lakegate.dialect.type_rules import floor_micros, handles, set, ttype
 
@@ -213,6 +213,8 @@ def _frame(a: Analyzer, spec: exp.WindowSpec, order: list, scope, env) -> None:
             check_range_offset(a, order, bound, bound_type)
         elif not bound_type.is_integral:
             a.fail(f"Window frame offset must be an integer: {bound_type}", bound, "TYPE_MISMATCH")
+    if kind == "RANGE" and offsets:
+        spec.meta["range_type"] = range_comparison_type(a, ttype(order[0].this), offsets)
 
 
 def a_literal_number(node: exp.Expression) -> exp.Literal | None:

@@ -75,6 +75,10 @@ def _cast(a: Analyzer, node, scope, env):
         a.unsupported(f"CAST({source} AS {target})", node)  # nested time(p > 6) or timestamp(p > 6)
     if not castable(source, target):
         a.fail(f"Cannot cast {source} to {target}", node, "TYPE_MISMATCH")
+    flat_array = source.base == target.base == "array" and target.args[0].base not in ("array", "map", "row")
+    if isinstance(node, exp.TryCast) and target.base in ("array", "map", "row") and source != target and not flat_array:
+        # Trino's TRY_CAST is NULL when any element fails; lakegate's casts would give NULL elements
+        a.unsupported(f"TRY_CAST({source} AS {target})", node)
     node.meta["from"] = source
     return target
 

@@ -137,11 +137,11 @@ class Writer(DuckDBGenerator):
         fail are windowed by their unchecked value (failures as NULL) and checked beside the window,
         on the same rows: a failing key fails the query, as in Trino."""
         over = self.over(window)
-        if "error(" not in over:
-            return f"{call} {over}"
         order = window.args.get("order")
         keys = [*(window.args.get("partition_by") or []), *(o.this for o in (order.expressions if order else []))]
         checks = [f"({sql}) IS NULL" for sql in map(self.sql, keys) if "error(" in sql]
+        if not checks:
+            return f"{call} {over}"
         self.in_try += 1
         try:
             over = self.over(window)
@@ -155,11 +155,14 @@ class Writer(DuckDBGenerator):
         if partition:
             parts.append("PARTITION BY " + ", ".join(self.sql(p) for p in partition))
         order = window.args.get("order")
-        if order is not None:
-            parts.append(self.order_sql(order).strip())
         spec = window.args.get("spec")
-        if spec is not None:
-            parts.append(self.sql(spec))
+        if spec is not None and spec.meta.get("range_type") is not None:
+            parts.extend(range_frame(self, order.expressions[0], spec))
+        else:
+            if order is not None:
+                parts.append(self.order_sql(order).strip())
+            if spec is not None:
+                parts.append(self.sql(spec))
         return f"OVER ({' '.join(parts)})"
 
     def lambda_(self, node: exp.Lambda) -> str:
@@ -493,3 +496,43 @@ def scalar_subquery_single_row(g: Writer, node: exp.Subquery) -> str:
         f"(SELECT CASE WHEN count(*) OVER () > 1 THEN {g.fail(message, 'SUBQUERY_MULTIPLE_ROWS')} "
         f'ELSE {value} END FROM {inner} AS "_s"({", ".join(names)}) LIMIT 1)'
     )
+
+
+def range_frame(g: Writer, key: exp.Ordered, spec: exp.WindowSpec) -> tuple[str, str]:
+    """ORDER BY and frame of a RANGE frame with offsets: the sort key and the offsets in the type Trino
+    compares them in (analysis_checks.range_comparison_type), each offset checked where the frame is computed:
+    negative or NULL fails with INVALID_WINDOW_FRAME, and a day-to-second interval that is not whole days
+    over a date key with Trino's date arithmetic error."""
+    t = spec.meta["range_type"]
+    order = "ORDER BY " + g.sql(exp.Ordered(this=exp.Var(this=g.coerce(key.this, t)), **_direction(key)))
+    bounds = []
+    for side in ("start", "end"):
+        bound, direction = spec.args.get(side), spec.args.get(f"{side}_side")
+        if not isinstance(bound, exp.Expression):  # UNBOUNDED PRECEDING / FOLLOWING, CURRENT ROW
+            bounds.append(" ".join(part for part in (bound or "CURRENT ROW", direction) if part))
+            continue
+        bounds.append(f"{_range_offset(g, bound, t, direction == 'PRECEDING')} {direction}")
+    return order, f"{spec.args['kind']} BETWEEN {bounds[0]} AND {bounds[1]}"
+
+
+def _direction(key: exp.Ordered) -> dict:
+    return {"desc": key.args.get("desc"), "nulls_first": key.args.get("nulls_first")}
+
+
+def _range_offset(g: Writer, bound: exp.Expression, key: TType, preceding: bool) -> str:
+    source = ttype(bound)
+    sql = g.sql(bound)
+    interval = source.base in ("interval_ds", "interval_ym")
+    value = sql if interval else g.coerce(bound, key)
+    zero = "INTERVAL 0 SECOND" if interval else "0"
+    checks = [
+        (
+            f"({sql}) IS NULL OR ({sql}) < {zero}",
+            "INVALID_WINDOW_FRAME: Window frame offset value must not be negative or null",
+        )
+    ]
+    if key.base == "date" and source.base == "interval_ds":
+        verb = "subtract hour, minutes or seconds from" if preceding else "add hour, minutes or seconds to"
+        checks.append((f"epoch({sql}) % 86400 <> 0", f"INVALID_FUNCTION_ARGUMENT: Cannot {verb} a date"))
+    whens = " ".join(f"WHEN {check} THEN error({string(message)})" for check, message in checks)
+    return f"(CASE {whens} ELSE {value} END)"

@@ -19,7 +19,7 @@ from sqlglot.dialects.trino import Trino
 from sqlglot.errors import ParseError, TokenError
 from sqlglot.tokens import TokenType
 
-from lakegate.dialect import guard, write_casts, write_operators
+from lakegate.dialect import guard, session_functions, write_casts, write_operators
 from lakegate.dialect import params as parameters
 from lakegate.dialect import scope as scoping
 from lakegate.dialect import trino_types as tt
@@ -307,22 +307,25 @@ def translate(
     params: Sequence[object] = (),
     schema_version: object = None,
     time_zone: str = "UTC",
+    session: session_functions.SessionNames | None = None,
 ) -> Translation:
     """Translate one Trino query over `schema` (table -> column -> Trino type name) to DuckDB.
 
     `scope` restricts every table to a batch or job, `params` bind the `?` placeholders, `time_zone`
-    is the session zone (a canonical zone: dialect/zones.py), and
+    is the session zone (a canonical zone: dialect/zones.py), `session` what `current_user`,
+    `current_catalog` and `current_schema` answer (None: they are refused), and
     `schema_version` (any hashable) identifies the schema for the cache; without it the schema's
     content is hashed. Raises DialectError with Trino's error name and the position in `sql`.
     """
     schema_key = schema_version if schema_version is not None else _schema_key(schema)
-    key = (sql, schema_key, _hashable(scope), _params_key(params), time_zone)
+    session = session if session_functions.used(sql) else None  # one cache entry for every session otherwise
+    key = (sql, schema_key, _hashable(scope), _params_key(params), time_zone, session)
     with _lock:
         hit = _cache.get(key)
         if hit is not None:
             _cache.move_to_end(key)
             return hit
-    result = _translate(sql, schema, schema_key, scope, params, time_zone)
+    result = _translate(sql, schema, schema_key, scope, params, time_zone, session)
     with _lock:
         _cache[key] = result
         if len(_cache) > CACHE_SIZE:
@@ -484,6 +487,7 @@ def _translate(
     scope: Scope | None,
     params: Sequence[object],
     time_zone: str,
+    session: session_functions.SessionNames | None = None,
 ) -> Translation:
     sql = guard.check_text(sql)
     tree = parse(sql)
@@ -492,6 +496,7 @@ def _translate(
         tree = scoping.restrict(tree, scope, tables=schema)
     tree = parameters.bind(tree, params)
     rewritten = scope is not None or bool(params) or ";" in sql  # Trino refuses a trailing ';'
+    rewritten |= session_functions.bind(tree, sql, session)
     if isinstance(tree, exp.Values):
         rewritten = True
         tree = exp.select("*").from_(

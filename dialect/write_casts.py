@@ -43,9 +43,14 @@ def cast_operand(g: Writer, node: exp.Cast) -> tuple[str, TType]:
 def trino_try_cast(g: Writer, node: exp.TryCast) -> str:
     g.in_try += 1
     try:
-        sql = cast_value(g, *cast_operand(g, node), ttype(node))
+        operand, source = cast_operand(g, node)
+        target = ttype(node)
+        sql = cast_value(g, operand, source, target)
     finally:
         g.in_try -= 1
+    if target.base == source.base == "array" and target.args[0].base not in ("array", "map", "row"):
+        # Trino's TRY_CAST of an array is NULL when any element fails (not the element alone)
+        sql = f"CASE WHEN list_count({operand}) = list_count({sql}) THEN {sql} END"
     return try_wrap(sql)
 
 

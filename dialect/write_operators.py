@@ -317,9 +317,17 @@ def eager_constant_in_list(g: Writer, node: exp.In) -> str:
         return row_in_subquery(g, node)
     sql = g.in_sql(node)
     items = node.expressions
-    if node.find(exp.Column) is not None or all(isinstance(i, (exp.Literal, exp.Null)) for i in items):
+    common = node.meta.get("compare")
+    if node.find(exp.Column) is not None:
+        if items and common is not None and common.is_approx:
+            # NaN equals nothing when Trino evaluates IN over columns (DuckDB's IN matches NaN with
+            # NaN); Trino's constant folding does match it, as the constant case below does
+            value = g.coerce(node.this, common)
+            nulls = " OR ".join(f"({g.coerce(i, common)}) IS NULL" for i in items)
+            return f"CASE WHEN isnan({value}) THEN CASE WHEN {nulls} THEN NULL ELSE false END ELSE {sql} END"
         return sql
-    common = node.meta["compare"]
+    if all(isinstance(i, (exp.Literal, exp.Null)) for i in items):
+        return sql
     return f"CASE WHEN len([{', '.join(g.coerce(i, common) for i in items)}]) >= 0 THEN {sql} END"
 
 

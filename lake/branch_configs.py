@@ -72,8 +72,9 @@ class BranchConfigs:
             raise KeyError(f"branch {self.branch!r} has no config version {version}")
         return load_config(self.files(version))
 
-    def store(self, sources: Sequence[str | Path]) -> int:
-        """Store config source files as a new version and return its number.
+    def store(self, sources: Sequence[str | Path], *, templates_path: str | Path | None = None) -> int:
+        """Store config source files as a new version and return its number, with the custom template
+        files they name (found beside them, in their `templates/` folder, or in `templates_path`).
 
         If the newest version has the same files (same contents, same order), its number is
         returned and nothing is stored.
@@ -81,7 +82,7 @@ class BranchConfigs:
         contents = [(Path(p).name, Path(p).read_bytes()) for p in sources]
         if not contents:
             raise ValueError("a config version needs at least one file")
-        templates = _template_files(sources)
+        templates = _template_files(sources, templates_path)
         digest = _digest(contents + templates)
         latest = self.current_version()
         if latest is not None and self._manifest(latest).get("sha256") == digest:
@@ -118,7 +119,7 @@ class BranchConfigs:
     def store_config(self, config: Config) -> int:
         """Store `config` by its source files, or (when built in memory) as YAML of its topics."""
         if config.paths and all(Path(p).is_file() for p in config.paths):
-            return self.store(config.paths)
+            return self.store(config.paths, templates_path=config.templates_path)
         with tempfile.TemporaryDirectory(prefix="lakegate-config-") as scratch:
             generated = Path(scratch) / "config.resim.yaml"
             generated.write_text(topics_yaml(config))
@@ -134,18 +135,24 @@ class BranchConfigs:
             return {}
 
 
-def _template_files(sources: Sequence[str | Path]) -> list[tuple[str, bytes]]:
+def _template_files(sources: Sequence[str | Path], templates_path: str | Path | None) -> list[tuple[str, bytes]]:
     """(path relative to its config's folder, contents) of every custom template file the config
-    names that exists there; none for a config that does not load (loading it says why)."""
+    names that exists there (one found in `templates_path`: under `templates/`, where the stored
+    config finds it); none for a config that does not load (loading it says why)."""
     try:
-        config = load_config(sources)
+        config = load_config(sources, templates_path=templates_path)
     except (ConfigError, OSError):
         return []
     found: dict[str, bytes] = {}
     for metric in config.metrics.values():
         path = metric.template_path()
         if path is not None and metric.location is not None:
-            name = path.relative_to(Path(metric.location.path).parent.resolve()).as_posix()
+            folder = Path(metric.location.path).parent.resolve()
+            if path.is_relative_to(folder):
+                name = path.relative_to(folder).as_posix()
+            else:
+                assert metric.templates_dir is not None
+                name = "templates/" + path.relative_to(metric.templates_dir.resolve()).as_posix()
             found.setdefault(name, path.read_bytes())
     return sorted(found.items())
 

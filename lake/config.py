@@ -11,8 +11,10 @@ walking lives in `config_yaml`.
 
 from __future__ import annotations
 
+import glob
+import os
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -23,6 +25,8 @@ from lakegate.lake.config_yaml import Entry, FileReader, Named, RawProblem, RawW
 
 #: Ends a warning that `strict` makes a problem.
 STRICT_NOTE = " (ReSim accepts this; refused because of --strict)"
+#: SignalFlag's `global:` setting (and the metric key it sets): skip a metric whose query has no rows.
+GLOBAL_SKIP = "skip-if-no-data"
 DEFAULT_CONFIG_PATH = Path(".resim/metrics/config.resim.yaml")
 #: Where `find_default_config` looks, relative to a folder, in this order.
 DEFAULT_CONFIG_PATHS = (DEFAULT_CONFIG_PATH, DEFAULT_CONFIG_PATH.with_suffix(".yml"))
@@ -93,18 +97,39 @@ class Metric:
     skip_if_no_data: bool = False
     location: Location | None = None
     query_location: Location | None = None  # where the query_string value starts
+    #: The templates folder given with the config (`templates_path`), searched last.
+    templates_dir: Path | None = None
 
     def template_path(self) -> Path | None:
         """The custom template file: next to the config file declaring the metric, else in its
-        `templates/` folder; None when neither exists inside that folder."""
+        `templates/` folder, else in `templates_dir`; None when none holds it (a file must stay inside
+        the folder it is looked up in)."""
         if not self.template_file or self.location is None or "\0" in self.template_file:
             return None
         folder = Path(self.location.path).parent.resolve()
-        for candidate in (folder / self.template_file, folder / "templates" / self.template_file):
+        places = [(folder, folder / self.template_file), (folder, folder / "templates" / self.template_file)]
+        if self.templates_dir is not None:
+            root = self.templates_dir.resolve()
+            places.append((root, root / self.template_file))
+        for root, candidate in places:
             path = candidate.resolve()
-            if path.is_relative_to(folder) and path.is_file():
+            if path.is_relative_to(root) and path.is_file():
                 return path
         return None
+
+
+@dataclass
+class Dashboard:
+    """A `dashboards:` entry: a page of the metrics of one set over the batches of the last `day_range` days."""
+
+    name: str
+    metrics_set: str | None = None
+    day_range: int | None = None  # None: every batch of the branch
+    refresh: Any = None
+    description: str = ""
+    #: The entry as written (keys lakegate does not use are kept here too).
+    settings: dict[str, Any] = field(default_factory=dict)
+    location: Location | None = None
 
 
 @dataclass
@@ -120,9 +145,11 @@ class Config:
     topics: dict[str, Topic] = field(default_factory=dict)
     metrics: dict[str, Metric] = field(default_factory=dict)
     metrics_sets: dict[str, MetricsSet] = field(default_factory=dict)
-    dashboards: dict[str, Any] = field(default_factory=dict)
+    dashboards: dict[str, Dashboard] = field(default_factory=dict)
+    #: The `global:` sections, merged (last file wins); each applies to its own file's metrics only.
     global_settings: dict[str, Any] = field(default_factory=dict)
     paths: list[str] = field(default_factory=list)
+    templates_path: str | None = None
     #: Findings where lakegate is stricter than ReSim on purpose (refused with strict=True).
     warnings: list[Problem] = field(default_factory=list)
 
@@ -133,6 +160,16 @@ class Config:
             known = ", ".join(repr(n) for n in self.metrics_sets) or "none"
             raise KeyError(f"no metrics set {name!r}{did_you_mean(name, self.metrics_sets)}; known sets: {known}")
         return [self.metrics[m] for m in metrics_set.metrics]
+
+    def dashboard(self, name: str) -> Dashboard:
+        """The dashboard `name`; KeyError naming the known dashboards, or saying it has no metrics_set."""
+        dashboard = self.dashboards.get(name)
+        if dashboard is None:
+            known = ", ".join(repr(n) for n in self.dashboards) or "none"
+            raise KeyError(f"no dashboard {name!r}{did_you_mean(name, self.dashboards)}; known dashboards: {known}")
+        if dashboard.metrics_set is None:
+            raise KeyError(f"dashboard {name!r} ({dashboard.location}) has no metrics_set")
+        return dashboard
 
     def summary(self) -> str:
         """`10 topics, 14 metrics, 1 metrics set` (and dashboards, when there are any)."""
@@ -177,17 +214,74 @@ def count_placeholders(sql: str) -> int:
     return code.count("?")
 
 
-def load_config(paths: str | Path | Sequence[str | Path], *, strict: bool = False) -> Config:
+def duplicate_message(noun: str, name: str, first: Location | None) -> str:
+    """SignalFlag's error for a name two config files define, with the first definition's place."""
+    return f"duplicate {noun} name '{name}' found across config files (first defined at {first})"
+
+
+def config_path_list(paths: str | os.PathLike[str] | Iterable[str | os.PathLike[str]] | None) -> list[Path]:
+    """One config path or several as a list (SignalFlag's `metrics_config_path`: a path or a sequence)."""
+    if paths is None:
+        return []
+    if isinstance(paths, (str, os.PathLike)):
+        return [Path(paths)]
+    return [Path(p) for p in paths]
+
+
+def expand_config_paths(patterns: Iterable[str | os.PathLike[str]]) -> list[Path]:
+    """The files of `--metrics-config-path` values, as SignalFlag's CLI resolves them: a value may hold
+    several paths separated by commas; a path with `*`, `?` or `[` is a glob whose matches are taken in
+    sorted order (none: an error); a literal path must exist, or its `.yml`/`.yaml` twin. Raises
+    FileNotFoundError naming the value."""
+    found: list[Path] = []
+    for value in patterns:
+        for text in (part.strip() for part in os.fspath(value).split(",")):
+            if not text:
+                continue
+            if any(c in text for c in "*?["):
+                matches = sorted(glob.glob(text, recursive=True))
+                files = [Path(m) for m in matches if Path(m).is_file()]
+                if not files:
+                    raise FileNotFoundError(f"glob pattern {text!r} matched no config files")
+                found += files
+                continue
+            path = Path(text)
+            twin = {".yml": ".yaml", ".yaml": ".yml"}.get(path.suffix)
+            if path.is_file():
+                found.append(path)
+            elif twin is not None and path.with_suffix(twin).is_file():
+                found.append(path.with_suffix(twin))
+            else:
+                raise FileNotFoundError(
+                    f"config file {text!r} does not exist" + (f" (nor its {twin} twin)" if twin else "")
+                )
+    return found
+
+
+def load_config(
+    paths: str | Path | Sequence[str | Path],
+    *,
+    strict: bool = False,
+    templates_path: str | Path | None = None,
+) -> Config:
     """Load, check and merge config files; raise ConfigError listing every problem found.
 
-    Findings where lakegate is stricter than ReSim are `Config.warnings`, or problems when `strict`.
+    Files are merged as SignalFlag merges them: topics, metrics, metrics sets and dashboards by name
+    (a name in two files is an error naming both places); every file has `version: 1`; a file's
+    `global: {skip-if-no-data: B}` applies to the metrics of that file that do not set it themselves.
+    Custom templates are found beside the file declaring the metric, in its `templates/` folder, or in
+    `templates_path`. Findings where lakegate is stricter than ReSim are `Config.warnings`, or
+    problems when `strict`.
     """
     path_list = [paths] if isinstance(paths, (str, Path)) else list(paths)
     if not path_list:
         raise ValueError("load_config needs at least one config file")
     raw: list[RawProblem] = []
     warnings: list[RawWarning] = []
-    builder = _Builder(Config(paths=[str(p) for p in path_list]), raw, warnings)
+    config = Config(
+        paths=[str(p) for p in path_list], templates_path=None if templates_path is None else str(templates_path)
+    )
+    builder = _Builder(config, raw, warnings)
     for path in path_list:
         reader = FileReader(str(path), raw, warnings)
         root = reader.compose()
@@ -241,16 +335,52 @@ class _Builder:
                     at(named.key),
                 )
             )
+        skip_default = self._global(entries.get("global"))
         for named in _value(entries, "metrics", []):
-            self._add("metric", self.config.metrics, self._metric(named, at))
+            self._add("metric", self.config.metrics, self._metric(named, at, skip_default))
         for named in _value(entries, "metrics sets", []):
             items = _value(named.entries, "metrics", [])
             metrics_set = MetricsSet(named.name, [name for name, _ in items], at(named.key))
             if self._add("metrics set", self.config.metrics_sets, metrics_set):
                 self._set_items.append((metrics_set, [(name, at(node)) for name, node in items]))
-        for key, target in (("dashboards", self.config.dashboards), ("global", self.config.global_settings)):
-            if key in entries:
-                self._merge_data(key, entries[key], target, reader, at)
+        if "dashboards" in entries:
+            self._dashboards(entries["dashboards"], reader, at)
+
+    def _global(self, entry: Entry | None) -> bool | None:
+        """The file's `global: {skip-if-no-data: B}` (SignalFlag's only global setting), or None."""
+        if entry is None or not entry.value:
+            return None
+        settings = {key: item.value for key, item in entry.value.items()}
+        self.config.global_settings.update(settings)
+        return settings.get(GLOBAL_SKIP)
+
+    def _dashboards(self, entry: Entry, reader: FileReader, at: Callable[[Any], Location]) -> None:
+        if not entry.value:
+            return
+        if not isinstance(entry.value, dict):
+            self._error(at(entry.node), f"dashboards must be a mapping, got {type(entry.value).__name__}")
+            return
+        nodes = reader.plain_keys(entry.node)
+        for name, settings in entry.value.items():
+            location = at(nodes.get(name, entry.node))
+            settings = settings if isinstance(settings, dict) else {}
+            day_range = settings.get("day_range")
+            if day_range is not None and (type(day_range) is not int or day_range <= 0):
+                self._error(
+                    location, f"dashboard '{name}': day_range must be a positive number of days, got {day_range!r}"
+                )
+                day_range = None
+            metrics_set = settings.get("metrics_set")
+            dashboard = Dashboard(
+                str(name),
+                None if metrics_set is None else str(metrics_set),
+                day_range,
+                settings.get("refresh"),
+                str(settings.get("description") or ""),
+                settings,
+                location,
+            )
+            self._add("dashboard", self.config.dashboards, dashboard)
 
     def _add_topic(self, topic: Topic) -> None:
         assert topic.location is not None
@@ -272,12 +402,12 @@ class _Builder:
     def _add(self, noun: str, into: dict[str, Any], thing: Any) -> bool:
         """Add a named thing unless another file defined it already (then report both places)."""
         if thing.name in into:
-            self._error(thing.location, f"{noun} '{thing.name}' is already defined at {into[thing.name].location}")
+            self._error(thing.location, duplicate_message(noun, thing.name, into[thing.name].location))
             return False
         into[thing.name] = thing
         return True
 
-    def _metric(self, named: Named, at: Callable[[Any], Location]) -> Metric:
+    def _metric(self, named: Named, at: Callable[[Any], Location], skip_default: bool | None = None) -> Metric:
         e = named.entries
         metric = Metric(
             name=named.name,
@@ -289,7 +419,8 @@ class _Builder:
             template_file=_value(e, "template_file", None),
             template_settings=_value(e, "template_settings", {}),
             units=self._units(named.name, e, at),
-            skip_if_no_data=_value(e, "skip_if_no_data", False),
+            skip_if_no_data=_value(e, "skip_if_no_data", _value(e, GLOBAL_SKIP, skip_default or False)),
+            templates_dir=None if self.config.templates_path is None else Path(self.config.templates_path),
             location=at(named.key),
             query_location=at(e["query_string"].node) if "query_string" in e else None,
         )
@@ -329,24 +460,17 @@ class _Builder:
                 f"placeholder (replaced by the block and warn thresholds), found {count}",
             )
 
-    def _merge_data(
-        self, section: str, entry: Entry, into: dict[str, Any], reader: FileReader, at: Callable[[Any], Location]
-    ) -> None:
-        """Merge a plain-data section; a key another file defined already is an error."""
-        key_nodes = reader.plain_keys(entry.node) if entry.value else {}
-        for name, value in entry.value.items():
-            location = at(key_nodes.get(name, entry.node))
-            if name in into:
-                self._error(
-                    location, f"'{name}' in {section} is already defined at {self._data_locations[section, name]}"
-                )
-            else:
-                into[name] = value
-                self._data_locations[section, name] = location
-
     def check_sets(self) -> None:
         """Every name in a metrics set must be a metric of the merged config (of any type, as in ReSim)."""
         metrics = self.config.metrics
+        for dashboard in self.config.dashboards.values():
+            if dashboard.metrics_set is not None and dashboard.metrics_set not in self.config.metrics_sets:
+                assert dashboard.location is not None
+                self._error(
+                    dashboard.location,
+                    f"dashboard '{dashboard.name}' names unknown metrics set '{dashboard.metrics_set}'"
+                    f"{did_you_mean(dashboard.metrics_set, self.config.metrics_sets)}",
+                )
         for metrics_set, items in self._set_items:
             for name, location in items:
                 if name not in metrics:

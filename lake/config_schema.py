@@ -19,8 +19,12 @@ METRIC_TYPES = ("test", "batch", "dashboard", "report")
 SET_METRIC_TYPES = ("test", "batch")
 TEMPLATE_TYPES = ("system", "custom")
 TEMPLATES = ("line", "bar", "table", "scalar", "image", "state_timeline", "histogram", "pie", "video", "artifact")
-#: Table names of the lake that a topic may not take.
-RESERVED_TOPIC_NAMES = ("metadata", "events", "metric_results")
+#: Tables ReSim's platform generates for every job (from resource_metrics.resim.jsonl and
+#: test_length_metric.resim.jsonl): SignalFlag's validator (open-core signalflag/demo/config_test.py,
+#: BUILTIN_TABLES) lets no topic shadow them.
+PLATFORM_TABLES = ("container_performance", "test_length_seconds")
+#: Table names of the lake, and of ReSim's platform, that a topic may not take.
+RESERVED_TOPIC_NAMES = ("metadata", "events", "metric_results", *PLATFORM_TABLES)
 #: Columns every topic row has besides its declared fields.
 TOPIC_COLUMNS = ("timestamp", "batch_id", "job_id", "experience_name", "build_version")
 
@@ -64,7 +68,7 @@ class Key:
     """What one key's value must be.
 
     kind: `version` (the integer 1), `string`, `query` (non-blank string), `boolean`,
-    `threshold` (number or string), `data` (any mapping, kept as plain data), `names`
+    `threshold` (a number; SignalFlag refuses '0.5'), `data` (any mapping, kept as plain data), `names`
     (list of unique strings), `fields` (mapping of field names to field types),
     `section` (a mapping checked against `section`), `named` (a mapping of names to
     mappings checked against `section`).
@@ -132,11 +136,17 @@ METRIC = Section(
         ),
         "template": Key("string", "How the query result is rendered.", choices=TEMPLATES),
         "template_file": Key("string", "The custom template file (with template_type: custom)."),
-        "template_settings": Key("data", "Settings passed to the template.", nullable=True),
+        "template_settings": Key(
+            "data",
+            "Settings of a system template: xaxis.label, yaxis.label, yaxis.min, yaxis.max, display.bins, "
+            "series (group_name and color).",
+            nullable=True,
+        ),
         "units": Key("string", "Units of the values, shown with the metric (after a scalar value)."),
         "unit": Key("string", "Same as units (some ReSim configs write unit)."),
         "status": Key("section", "A pass/fail check run with the block and warn thresholds.", section=STATUS),
         "skip_if_no_data": Key("boolean", "Skip the metric when its topics have no rows."),
+        "skip-if-no-data": Key("boolean", "Same as skip_if_no_data (the spelling of SignalFlag's global section)."),
     },
     when=(
         When("template_type", "system", requires=("template",), refuses=("template_file",)),
@@ -165,6 +175,17 @@ METRICS_SET = Section(
     },
 )
 
+GLOBAL = Section(
+    "global",
+    {
+        "skip-if-no-data": Key(
+            "boolean",
+            "Every metric of this file that does not set skip_if_no_data itself is skipped when its query "
+            "has no rows (SignalFlag: the setting is scoped per file).",
+        )
+    },
+)
+
 FILE = Section(
     "the config file",
     {
@@ -179,8 +200,12 @@ FILE = Section(
         ),
         "metrics": Key("named", "Metrics, by name.", nullable=True, section=METRIC, what="metric"),
         "metrics sets": Key("named", "Metrics sets, by name.", nullable=True, section=METRICS_SET, what="metrics set"),
-        "dashboards": Key("data", "Dashboards (loaded, not evaluated yet).", nullable=True),
-        "global": Key("data", "Settings for the whole config (loaded, not used yet).", nullable=True),
+        "dashboards": Key(
+            "data",
+            "Dashboards by name: metrics_set (the set shown), day_range (days of batches), refresh, description.",
+            nullable=True,
+        ),
+        "global": Key("section", "Settings for the metrics of this file.", nullable=True, section=GLOBAL),
     },
 )
 
@@ -214,7 +239,7 @@ def _key_schema(key: Key, defs: dict[str, Any]) -> dict[str, Any]:
     elif kind == "boolean":
         schema = {"type": "boolean"}
     elif kind == "threshold":
-        schema = {"type": ["number", "string"]}
+        schema = {"type": "number"}
     elif kind == "data":
         schema = {"type": "object"}
     elif kind == "names":
@@ -236,7 +261,7 @@ def _key_schema(key: Key, defs: dict[str, Any]) -> dict[str, Any]:
     else:
         raise ValueError(f"unknown key kind {kind!r}")
     if key.nullable:
-        schema = _nullable(schema)
+        schema = {"anyOf": [schema, {"type": "null"}]} if "$ref" in schema else _nullable(schema)
     return {"description": key.doc, **schema}
 
 

@@ -36,7 +36,7 @@ RawProblem = tuple[str, int, int, str]
 #: A warning as (path, line, column, message, what lakegate does instead of refusing).
 RawWarning = tuple[str, int, int, str, str]
 #: What an empty (null) value of a nullable key stands for.
-_EMPTY = {"names": list, "named": list, "data": dict, "fields": dict}
+_EMPTY = {"names": list, "named": list, "data": dict, "fields": dict, "section": dict}
 
 
 def did_you_mean(word: str, choices: Any) -> str:
@@ -261,9 +261,11 @@ class FileReader:
                 return self._constructor.construct_object(node)
             return self._wrong(node, f"{where} must be a boolean (true or false), got {describe(node)}")
         if kind == "threshold":
-            if _is(node, "int") or _is(node, "float") or _is(node, "str"):
+            if _is(node, "int") or _is(node, "float"):
                 return self._constructor.construct_object(node)
-            return self._wrong(node, f"{where} must be a number or a string, got {describe(node)}")
+            if _is(node, "str"):  # SignalFlag refuses it at sync: "Expected Number but got String"
+                return self._wrong(node, f"{where} must be a number, not a quoted string, got {describe(node)}")
+            return self._wrong(node, f"{where} must be a number, got {describe(node)}")
         if kind == "data":
             if not isinstance(node, MappingNode):
                 return self._wrong(node, f"{where} must be a mapping, got {describe(node)}")

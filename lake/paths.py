@@ -6,7 +6,10 @@ Layout (see docs/lake-format.md)::
     <lake>/<branch-dir>/<table>/batch_id=<B>/job_id=<J>/<name>.parquet   the same, in lakes of layout v1
     <lake>/<branch-dir>/_lake.sqlite                                   which file is current (`lake.record`)
     <lake>/<branch-dir>/_readers/<table>/...                           hard links lakegate's queries read
-    <lake>/<branch-dir>/_logs/<B>/<J>/...                              job log files (images the metrics show)
+    <lake>/<branch-dir>/_job_logs/<B>/<J>/<pid>-<id>/...               job log files (images the metrics show),
+                                                                       one folder per ingest; the record says which
+    <lake>/<branch-dir>/_logs/<B>/<J>/...                              the same, as copied by hand (read when the
+                                                                       record names no folder for the job)
     <lake>/<branch-dir>/_configs/v000001/...                           the branch's config versions
     <lake>/<branch-dir>/_quarantine/<B>/<J>.jsonl                      bad lines kept by --skip-bad-lines
     <lake>/<branch-dir>/_staging/...                                   scratch space of running writers
@@ -44,6 +47,7 @@ STAGING = "_staging"
 CONFIGS = "_configs"
 QUARANTINE = "_quarantine"
 LOGS = "_logs"
+JOB_LOGS = "_job_logs"
 READERS = "_readers"
 #: Names a topic may not have, because the branch directory uses them.
 RESERVED_TABLES = frozenset({METADATA_TABLE, EVENTS_TABLE, METRIC_RESULTS_TABLE})
@@ -262,6 +266,22 @@ def logs_dir(lake: Path, branch: str, batch_id: str, job_id: str) -> Path:
     check_segment(batch_id, "batch id")
     check_segment(job_id, "job id")
     return branch_dir(lake, branch) / LOGS / batch_id / job_id
+
+
+def new_logs_dir(lake: Path, branch: str, batch_id: str, job_id: str) -> Path:
+    """A fresh folder for one ingest's copy of a job's logs (`<branch-dir>/_job_logs/<B>/<J>/<pid>-<id>`);
+    the branch's record makes it the job's logs in the ingest's commit."""
+    check_segment(batch_id, "batch id")
+    check_segment(job_id, "job id")
+    return branch_dir(lake, branch) / JOB_LOGS / batch_id / job_id / f"{os.getpid()}-{uuid.uuid4().hex}"
+
+
+def abandoned_logs(lake: Path, branch: str, batch_id: str, job_id: str) -> list[Path]:
+    """The job's log folders whose writer is gone (current or not: the caller keeps the current one)."""
+    parent = branch_dir(lake, branch) / JOB_LOGS / batch_id / job_id
+    if not LOCAL.is_dir(parent):
+        return []
+    return [Path(e.path) for e in LOCAL.list(parent) if e.is_dir and not _writer_alive(e.name.split("-", 1)[0])]
 
 
 def partition_value(directory: Path, key: str) -> str | None:

@@ -59,6 +59,9 @@ CREATE TABLE IF NOT EXISTS files (
 CREATE INDEX IF NOT EXISTS files_of_job ON files (batch_id, job_id);
 CREATE TABLE IF NOT EXISTS trash (path TEXT PRIMARY KEY, superseded_at REAL NOT NULL);
 """
+#: Which folder holds each job's logs (made by the first commit that records logs: older records lack it).
+_LOGS_TABLE = """CREATE TABLE IF NOT EXISTS logs (
+    batch_id TEXT NOT NULL, job_id TEXT NOT NULL, path TEXT NOT NULL, PRIMARY KEY (batch_id, job_id))"""
 #: The index a layout v2 record has besides `_SCHEMA`'s (a file may be shared by many rows).
 _PATH_INDEX = "CREATE INDEX IF NOT EXISTS files_by_path ON files (path)"
 #: The layout of a branch whose record says so (`PRAGMA user_version`; 0 and 1 are layout v1).
@@ -226,6 +229,20 @@ class Record:
         )
         return None if row is None else _entry(row)
 
+    def logs(self, batch_id: str, job_id: str) -> str | None:
+        """The folder of the job's logs (relative to the branch directory), if a commit recorded one."""
+        if not LOCAL.is_dir(self.root):
+            return None
+        try:
+            row = (
+                self._connect()
+                .execute("SELECT path FROM logs WHERE batch_id = ? AND job_id = ?", (batch_id, job_id))
+                .fetchone()
+            )
+        except sqlite3.OperationalError:  # a record no commit has written logs to
+            return None
+        return None if row is None else row[0]
+
     def commit(
         self,
         what: str,
@@ -233,12 +250,17 @@ class Record:
         drop_jobs: Iterable[tuple[str, str]] = (),
         *,
         layout: int | None = None,
+        logs: Sequence[tuple[str, str, str]] = (),
     ) -> list[str]:
         """One transaction: drop every table's rows of `drop_jobs` (batch, job), replace the rows of
-        `entries`' keys by them, add a commit (and set the branch's `layout`); returns the paths no
-        row references any more."""
+        `entries`' keys by them, record each job's logs folder of `logs` (batch, job, path), add a
+        commit (and set the branch's `layout`); returns the paths no row references any more."""
         db = self._connect()
         with _transaction(db, immediate=True):
+            if logs:
+                db.execute(_LOGS_TABLE)
+            for batch_id, job_id, path in logs:
+                db.execute("INSERT OR REPLACE INTO logs VALUES (?, ?, ?)", (batch_id, job_id, path))
             if layout is not None:
                 db.execute(_PATH_INDEX)
                 db.execute(f"PRAGMA user_version = {layout}")
@@ -307,6 +329,17 @@ def current_file(lake: Path, branch: str, table: str, batch_id: str, job_id: str
     return None if entry is None else record.root / entry.path
 
 
+def job_logs_dir(lake: Path, branch: str, batch_id: str, job_id: str) -> Path:
+    """Where the job's log files are: the folder its last ingest recorded, else `<branch>/_logs/<B>/<J>/`
+    (logs copied there by hand, or by a lakegate that did not record them); it may not exist."""
+    record = Record(lake, branch)
+    try:
+        folder = record.logs(batch_id, job_id)
+    finally:
+        record.close()
+    return record.root / folder if folder is not None else paths.logs_dir(lake, branch, batch_id, job_id)
+
+
 class Change:
     """Files staged for one atomic switch of a branch's record (see the module docstring).
 
@@ -326,6 +359,7 @@ class Change:
         self.progress = progress
         self._moved: list[FileEntry] = []  # other jobs' rows, moved out of files this change splits
         self._holding = False
+        self.logs: list[tuple[str, str, str]] = []  # (batch, job, folder relative to the branch directory)
 
     def add(self, table: str, batch_id: str, job_id: str | None, staged: Path) -> FileEntry:
         """Publish `staged` as the file of `table` for one job (job_id None: for one batch)."""
@@ -391,6 +425,20 @@ class Change:
         _pause("added")
         return merged
 
+    def set_logs(self, batch_id: str, job_id: str, staged: Path) -> Path:
+        """Move the staged folder `staged` (a copy of the job's logs) to a fresh folder of the lake, to be
+        the job's logs from this change's commit on; the folder it replaces is removed after the commit.
+        Writers of the job must hold its `paths.job_lock`."""
+        target = paths.new_logs_dir(self.lake, self.branch, batch_id, job_id)
+        current = self.record.logs(batch_id, job_id)
+        for folder in paths.abandoned_logs(self.lake, self.branch, batch_id, job_id):  # of killed writers
+            if current is None or folder != self.record.root / current:
+                LOCAL.delete_tree(folder)
+        LOCAL.make_dirs(target.parent)
+        LOCAL.move(staged, target)
+        self.logs.append((batch_id, job_id, target.relative_to(self.record.root).as_posix()))
+        return target
+
     def replace_job(self, batch_id: str, job_id: str) -> None:
         """Drop every table's file of this job that `add` does not replace."""
         self.dropped.append((batch_id, job_id))
@@ -424,16 +472,26 @@ class Change:
             self.record.close()
 
     def _switch(self, what: str, layout: int | None = None) -> list[Path]:
+        replaced_logs = [self.record.logs(batch_id, job_id) for batch_id, job_id, _ in self.logs]
         try:
             self._split()
-            superseded = self.record.commit(what, self.entries + self._moved, self.dropped, layout=layout)
+            superseded = self.record.commit(
+                what, self.entries + self._moved, self.dropped, layout=layout, logs=self.logs
+            )
         except BaseException:
             for entry in {e.path: e for e in self._moved}.values():  # files split for this commit
                 paths.remove_published(self.record.root / entry.path)
                 paths.remove_published(paths.reader_path(self.record.root, entry.path))
-            self._moved = []
+            for _, _, folder in self.logs:  # logs moved in for this commit
+                LOCAL.delete_tree(self.record.root / folder)
+            self._moved, self.logs = [], []
             raise
         committed, self.entries, self._moved = self.entries, [], []
+        for (batch_id, job_id, _), old in zip(self.logs, replaced_logs):  # the job's earlier logs
+            if old is not None:
+                LOCAL.delete_tree(self.record.root / old)
+            LOCAL.delete_tree(paths.logs_dir(self.lake, self.branch, batch_id, job_id))  # copied by hand
+        self.logs = []
         for relative in superseded:  # gone for Trino now; lakegate's queries keep the reader link a while
             paths.remove_published(self.record.root / relative)
         for relative in self.record.expired(GRACE_SECONDS):
@@ -488,7 +546,9 @@ class Change:
         for entry in {e.path: e for e in self.entries + self._moved}.values():
             paths.remove_published(self.record.root / entry.path)
             paths.remove_published(paths.reader_path(self.record.root, entry.path))
-        self.entries, self._moved = [], []
+        for _, _, folder in self.logs:
+            LOCAL.delete_tree(self.record.root / folder)
+        self.entries, self._moved, self.logs = [], [], []
         self.record.close()
 
     def _sweep(self, batch_id: str) -> None:

@@ -1,8 +1,8 @@
 """The import arrows between lakegate's packages (README, Layout), read from the source with `ast`.
 
-cli -> {server, dashboard, metrics, engine}; server -> engine; dashboard -> metrics -> engine;
-engine -> dialect, lake. An arrow may be followed further (the dashboard may use the engine the
-metrics use), never backwards: nothing imports cli, and nothing in lake or dialect imports gateway.
+cli -> {server, dashboard, metrics, engine}; sdk -> {metrics, engine}; server -> engine; dashboard ->
+metrics -> engine; engine -> dialect, lake. An arrow may be followed further (the dashboard may use the engine the
+metrics use), never backwards: nothing imports cli or sdk, and nothing in lake or dialect imports gateway.
 No module imports another module's private (`_name`) names, and every import is absolute.
 """
 
@@ -19,6 +19,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: Each package and the packages it may import directly.
 ARROWS = {
     "gateway.cli": {"gateway.server", "gateway.dashboard", "gateway.metrics", "gateway.engine"},
+    "sdk": {"gateway.metrics", "gateway.engine"},  # Batch and Test: ingest and evaluate, a top layer as cli
     "gateway.server": {"gateway.engine"},
     "gateway.dashboard": {"gateway.metrics"},
     "gateway.metrics": {"gateway.engine"},
@@ -82,7 +83,9 @@ def _module(path: str) -> str:
 
 def _sources() -> list[str]:
     return sorted(
-        str(p.relative_to(ROOT)) for folder in ("lake", "dialect", "gateway") for p in (ROOT / folder).rglob("*.py")
+        str(p.relative_to(ROOT))
+        for folder in ("lake", "dialect", "gateway", "sdk")
+        for p in (ROOT / folder).rglob("*.py")
     )
 
 
@@ -190,6 +193,7 @@ _STORAGE_NAMES = {"storage", "LOCAL"}
 #: (module, function) -> why its file operations are not on the lake's files.
 _FILE_IO_ALLOWED = {
     ("lake/storage.py", "*"): "the filesystem layer itself",
+    ("lake/config.py", "expand_config_paths"): "expands the user's --metrics-config-path globs",
     ("lake/config_yaml.py", "FileReader.compose"): "config files: the user's, or a stored version's local copy",
     ("lake/emitter.py", "Emitter.__init__"): "the emissions file a job writes: a user path",
     ("lake/ingest/scan.py", "read_blocks"): "reads the user's emissions file",
@@ -208,6 +212,7 @@ _FILE_IO_ALLOWED = {
     ("gateway/metrics/evaluation.py", "_file_lines"): "lines of a loaded (local) config file",
     ("gateway/metrics/report.py", "write_report"): "writes the user's report file",
     ("gateway/metrics/trends.py", "write_trends"): "writes the user's trends file",
+    ("gateway/metrics/compare_page.py", "write_compare"): "writes the user's comparison page",
     ("gateway/server/auth.py", "Users.load"): "reads the user's users file",
 }
 

@@ -41,6 +41,7 @@ _CASE_KEYS = {
     "tolerance",
     "note",
     "session",
+    "not_on_trino",
 }
 _FILE_KEYS = {"family", "title", "description", "cases"}
 
@@ -66,6 +67,7 @@ class Case:
     tolerance: float | None = None
     note: str | None = None
     time_zone: str = "UTC"  # the session zone (`session: {time_zone: ...}`)
+    not_on_trino: str | None = None  # why the differential run does not ask the real Trino
 
     @property
     def id(self) -> str:
@@ -136,6 +138,7 @@ def _case(family: str, raw: dict, where: str) -> Case:
         tolerance=float(raw["tolerance"]) if "tolerance" in raw else None,
         note=raw.get("note"),
         time_zone=session.get("time_zone", "UTC"),
+        not_on_trino=raw.get("not_on_trino"),
     )
 
 

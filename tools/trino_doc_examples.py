@@ -20,6 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import yaml
+from trino_answers import Answer
 
 from lakegate.dialect.errors import DialectError
 from lakegate.gateway.engine.engine import Engine
@@ -70,17 +71,28 @@ def normalized(text: str, ordered: bool = True) -> str:
     return text if ordered else ";".join(sorted(text.split(";")))
 
 
-def run(engine: Engine, sql: str) -> tuple[str, str]:
-    """(kind, text) of one query: the rendered first column of each row, or the refusal."""
+def answer(engine: Engine, sql: str) -> Answer:
+    """lakegate's answer to one query in the session zone UTC, as its server would send it (a DuckDB
+    error that escaped the translator has the error name LEAK)."""
     try:
         result = engine.execute(sql, engine.session(time_zone="UTC"))
         rows = [row for batch in result.batches for row in encode_rows(result.columns, batch)]
     except DialectError as error:
-        text = f"{error.error_name}: {error.message}"
-        return ("leak" if LEAKS.search(text) else "refused"), text
+        return Answer(error=error.error_name, message=error.message)
     except Exception as error:  # noqa: BLE001 - a DuckDB error that escaped the translator
-        return "leak", f"{type(error).__name__}: {error}"
-    return "answered", "; ".join(", ".join(render(v) for v in row) for row in rows)
+        return Answer(error="LEAK", message=f"{type(error).__name__}: {error}")
+    return Answer(columns=tuple(result.columns), rows=tuple(rows))
+
+
+def run(engine: Engine, sql: str) -> tuple[str, str]:
+    """(kind, text) of one query: the rendered first column of each row, or the refusal."""
+    got = answer(engine, sql)
+    if got.error == "LEAK":
+        return "leak", got.message
+    if got.error is not None:
+        text = f"{got.error}: {got.message}"
+        return ("leak" if LEAKS.search(text) else "refused"), text
+    return "answered", "; ".join(", ".join(render(v) for v in row) for row in got.rows)
 
 
 def outcomes(path: Path = EXAMPLES) -> list[Outcome]:

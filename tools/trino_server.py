@@ -63,17 +63,18 @@ def _say(text: str) -> None:
     print(f"trino: {text}", file=sys.stderr, flush=True)
 
 
-def fetch(artifact: str, packaging: str, into: Path) -> Path:
-    """`io.trino:<artifact>:476:<packaging>` from Maven Central (through the local Maven
-    repository) copied into `into`; returns the file."""
-    target = into / f"{artifact}-{VERSION}.{packaging}"
+def fetch(artifact: str, packaging: str, into: Path, classifier: str = "") -> Path:
+    """`io.trino:<artifact>:476:<packaging>[:<classifier>]` from Maven Central (through the local
+    Maven repository) copied into `into`; returns the file."""
+    target = into / f"{artifact}-{VERSION}{'-' + classifier if classifier else ''}.{packaging}"
+    coordinates = f"io.trino:{artifact}:{VERSION}:{packaging}{':' + classifier if classifier else ''}"
     if target.exists():
         return target
     mvn = shutil.which("mvn")
     if mvn is None:
         raise TrinoError("Maven ('mvn') is not installed: apt-get install maven, then try again")
     into.mkdir(parents=True, exist_ok=True)
-    _say(f"fetching io.trino:{artifact}:{VERSION}:{packaging} with Maven ...")
+    _say(f"fetching {coordinates} with Maven ...")
     started = time.monotonic()
     done = subprocess.run(
         [
@@ -81,14 +82,14 @@ def fetch(artifact: str, packaging: str, into: Path) -> Path:
             "-q",
             "-B",
             "dependency:copy",
-            f"-Dartifact=io.trino:{artifact}:{VERSION}:{packaging}",
+            f"-Dartifact={coordinates}",
             f"-DoutputDirectory={into}",
         ],
         capture_output=True,
         text=True,
     )
     if done.returncode or not target.exists():
-        raise TrinoError(f"mvn could not fetch io.trino:{artifact}:{VERSION}: {(done.stdout + done.stderr)[-2000:]}")
+        raise TrinoError(f"mvn could not fetch {coordinates}: {(done.stdout + done.stderr)[-2000:]}")
     _say(f"fetched {target.name} ({target.stat().st_size / 1e6:.0f} MB) in {time.monotonic() - started:.0f} s")
     return target
 
@@ -119,8 +120,9 @@ def install() -> Path:
 
 
 def jar(name: str) -> Path:
-    """The executable jar `io.trino:<name>:476` (trino-jdbc, trino-cli), fetched once."""
-    return fetch(name, "jar", HOME / "jars")
+    """The client jar `io.trino:<name>:476`, fetched once: the JDBC driver (trino-jdbc) or the
+    CLI's executable jar (trino-cli, classifier `executable`: the plain jar has no dependencies)."""
+    return fetch(name, "jar", HOME / "jars", classifier="executable" if name == "trino-cli" else "")
 
 
 def _java_major(home: Path) -> int:

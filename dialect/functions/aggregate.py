@@ -211,9 +211,25 @@ _render_max_by_n = _render_by("arg_max_null", descending=True)
 
 
 def _bivariate(call: Call) -> TType:
-    """corr, covar_* and regr_*: real over two reals, double otherwise (Trino's Real* aggregations)."""
+    """corr, covar_* and regr_*: double when an argument is double or decimal, else real: Trino
+    coerces integers (and NULL) to real, the cheaper coercion, and runs its Real* aggregation."""
     types = need(call, "number", "number")
-    return tt.REAL if all(t.base == "real" for t in types) else tt.DOUBLE
+    return tt.DOUBLE if any(t.base in ("double", "decimal") for t in types) else tt.REAL
+
+
+def _render_bivariate(g, node, args) -> str:
+    """The aggregate over the arguments as Trino coerced them (to real, for a real result: the
+    values rounded to float, computed in double, the result rounded to float); corr and regr_* are
+    NULL when the result is not finite (a zero variance, NaN or infinite input, an overflow), as
+    the real Trino 476 answers."""
+    name = node.name.lower()
+    values = [g.sql(a) for a in args]
+    if ttype(node).base == "real":
+        values = [f"CAST(CAST({v} AS REAL) AS DOUBLE)" for v in values]
+    sql = g.agg(node, name, values)
+    if name != "covar_samp" and name != "covar_pop":
+        sql = f"CASE WHEN isfinite({sql}) THEN {sql} END"
+    return tf.cast(sql, ttype(node))
 
 
 #: ListaggAggregationFunction: the output limit (DEFAULT_MAX_PAGE_SIZE_IN_BYTES) and its error.
@@ -347,21 +363,6 @@ def _render_reduce_agg(g, node, args) -> str:
     values = f'list_filter({g.agg(node, "list", [g.sql(args[0])])}, lambda "_v": "_v" IS NOT NULL)'
     folded = f'list_reduce("_vs", {g.lambda_(args[2])}, {g.coerce(args[1], ttype(node))})'
     return tf.cast(let_bound(values, '"_vs"', f'CASE WHEN len("_vs") = 0 THEN NULL ELSE {folded} END'), ttype(node))
-
-
-def _render_entropy(g, node, args) -> str:
-    """EntropyAggregation: log2 entropy of the counts' fractions, (ln S - sum(c ln c) / S) / ln 2 at
-    least 0, over the positive counts (NULL and 0 add nothing); 0.0 when they sum to 0 (no rows
-    included); a negative count fails."""
-    c = f"CAST({g.sql(args[0])} AS BIGINT)"
-    total = g.agg(node, "sum", [f"CAST({c} AS DOUBLE)"])
-    weighted = g.agg(node, "sum", [f"CASE WHEN {c} > 0 THEN {c} * ln({c}) END"])
-    negative = g.fail(tf.string("Entropy count argument must be non-negative"))
-    entropy = f"greatest((ln({total}) - {weighted} / {total}) / ln(2.0), 0.0)"
-    return (
-        f"CASE WHEN {g.agg(node, 'min', [c])} < 0 THEN {negative} "
-        f"WHEN coalesce({total}, 0) > 0 THEN {entropy} ELSE CAST(0.0 AS DOUBLE) END"
-    )
 
 
 # === approx_percentile with weights ===============================================================
@@ -580,9 +581,9 @@ def install() -> None:
         register(
             _name,
             "aggregate",
-            f"{_name}(y, x) -> double; real for two reals",
+            f"{_name}(y, x) -> real (double when y or x is double or decimal)",
             _bivariate,
-            agg_as(_name),
+            _render_bivariate,
             kind="aggregate",
         )
 
@@ -678,16 +679,6 @@ def install() -> None:
         kind="aggregate",
         notes="The combine function must be associative as Trino assumes; states of boolean, integer, "
         "floating-point and date types, as Trino's ReduceAggregationFunction.",
-    )
-
-    register(
-        "entropy",
-        "aggregate",
-        "entropy(c) -> double",
-        fixed(tt.DOUBLE, "integral"),
-        _render_entropy,
-        kind="aggregate",
-        notes="Equal to Trino's up to floating-point rounding (the sums are added in another order).",
     )
 
     overload(

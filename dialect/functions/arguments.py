@@ -17,6 +17,7 @@ KINDS: dict[str, Callable[[TType], bool]] = {
     "any": lambda t: True,
     "number": lambda t: t.is_numeric or t.is_unknown,
     "integral": lambda t: t.is_integral or t.is_unknown,
+    "integer": lambda t: t.base in ("tinyint", "smallint", "integer", "unknown"),  # not bigint: no implicit narrowing
     "approx": lambda t: t.is_numeric or t.is_unknown,
     "string": lambda t: t.base in ("varchar", "unknown"),
     "boolean": lambda t: t.base in ("boolean", "unknown"),

@@ -120,9 +120,9 @@ def _render_trim_array(g, node, args) -> str:
     too_big = g.fail(
         f"{tf.string('size must not exceed array cardinality ')} || len({arr}) || {tf.string(': ')} || {size}"
     )
-    return (
-        f"CASE WHEN {size} < 0 THEN {negative} WHEN {size} > len({arr}) THEN {too_big} "
-        f"ELSE list_slice({arr}, 1, len({arr}) - {size}) END"
+    return (  # NULL on NULL input, before any check (the real Trino 476 answers so)
+        f"CASE WHEN ({arr}) IS NULL OR {size} IS NULL THEN NULL WHEN {size} < 0 THEN {negative} "
+        f"WHEN {size} > len({arr}) THEN {too_big} ELSE list_slice({arr}, 1, len({arr}) - {size}) END"
     )
 
 
@@ -228,8 +228,9 @@ def _slice(call: Call) -> TType:
 def _render_slice(g, node, args) -> str:
     arr, start, length = sqls(g, args)
     begin = f"CASE WHEN ({start}) > 0 THEN ({start}) ELSE len({arr}) + ({start}) + 1 END"
-    return (
-        f"CASE WHEN ({start}) = 0 THEN {g.fail(tf.string('SQL array indices start at 1'))} "
+    return (  # NULL on NULL input, before any check (the real Trino 476 answers so)
+        f"CASE WHEN ({arr}) IS NULL OR ({start}) IS NULL OR ({length}) IS NULL THEN NULL "
+        f"WHEN ({start}) = 0 THEN {g.fail(tf.string('SQL array indices start at 1'))} "
         f"WHEN ({length}) < 0 THEN {g.fail(tf.string('length must be greater than or equal to 0'))} "
         f"WHEN ({start}) < 0 AND -({start}) > len({arr}) THEN list_slice({arr}, 1, 0) "
         f"ELSE list_slice({arr}, {begin}, {begin} + ({length}) - 1) END"
@@ -528,25 +529,6 @@ def render_temporal_sequence(g, node, args) -> str:
     return f'list_transform(range(0, {count}), lambda "_i": {value})'
 
 
-# === array_first, array_last ======================================================================
-def _array_first(call: Call) -> TType:
-    if not 1 <= len(call.args) <= (2 if call.name == "array_first" else 1):
-        call.mismatch()
-    arr = array_arg(call)
-    if len(call.args) == 2 and call.lam(1, [arr.element]).base not in ("boolean", "unknown"):
-        call.mismatch()
-    return arr.element
-
-
-def _render_array_first(g, node, args) -> str:
-    """ArrayFirstFunction / ArrayLastFunction: NULL for an empty array; with a predicate, the first
-    element for which it is true."""
-    arr = g.sql(args[0])
-    if len(args) == 2:
-        arr = f"list_filter({arr}, {g.lambda_(args[1])})"
-    return f"{arr}[{1 if node.name.lower() == 'array_first' else -1}]"
-
-
 def install() -> None:
     """Register the functions of this page (called by pages.py)."""
     register("trim_array", "array", "trim_array(x, n) -> array", _trim_array, _render_trim_array)
@@ -681,15 +663,6 @@ def install() -> None:
     )
     register("zip", "array", "zip(array1, array2[, ...]) -> array(row)", _zip, _render_zip, notes="2 to 5 arrays.")
 
-    register(
-        "array_first",
-        "array",
-        "array_first(array(E)[, function(E, boolean)]) -> E",
-        _array_first,
-        _render_array_first,
-        notes="NULL for an empty array (the subscript operator fails).",
-    )
-    register("array_last", "array", "array_last(array(E)) -> E", _array_first, _render_array_first)
     overload(
         "sequence",
         lambda call: (

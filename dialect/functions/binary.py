@@ -134,9 +134,16 @@ def _render_hmac(duck: str) -> Render:
             return f"unhex(array_to_string({xored}, ''))"
 
         inner = f"unhex({duck}({padded(0x36)} || {message}))"
-        return f"unhex({duck}({padded(0x5C)} || {inner}))"
+        return hmac_key_checked(key, f"unhex({duck}({padded(0x5C)} || {inner}))")
 
     return render
+
+
+def hmac_key_checked(key: str, sql: str) -> str:
+    """`sql`, or the error the real Trino 476 raises for an empty HMAC key (javax.crypto's
+    SecretKeySpec: GENERIC_INTERNAL_ERROR 'Empty key'), not caught by try()."""
+    empty = f"error({tf.string('GENERIC_INTERNAL_ERROR: Empty key')})"
+    return f"CASE WHEN octet_length(CAST({key} AS BLOB)) = 0 THEN {empty} ELSE {sql} END"
 
 
 def _render_from_big_endian(size: int, duck: str) -> Render:
@@ -285,7 +292,12 @@ def _udf_binary_args(count: int) -> Infer:
 
 
 def _render(name: str) -> Render:
-    return lambda g, node, args: f"{UDF_PREFIX}{name}({', '.join(sqls(g, args))})"
+    def render(g, node, args) -> str:
+        values = sqls(g, args)
+        sql = f"{UDF_PREFIX}{name}({', '.join(values)})"
+        return hmac_key_checked(values[1], sql) if name.startswith("hmac_") else sql
+
+    return render
 
 
 def install() -> None:

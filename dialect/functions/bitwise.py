@@ -49,7 +49,7 @@ _U64 = 2**64 - 1
 
 
 def _shift(call: Call) -> TType:
-    value, _ = need(call, "integral", "integral")
+    value, _ = need(call, "integral", "integer")  # BitwiseFunctions: the shift is an integer
     return tt.BIGINT if value.is_unknown else value
 
 

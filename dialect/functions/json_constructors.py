@@ -127,7 +127,8 @@ def _render_json_array(g, node, args) -> str:
     texts = [json_value_text(g, arg) for arg in args]
     if node.meta_get("null") == "NULL":  # NULL ON NULL: a JSON null for each NULL
         texts = [f"coalesce({text}, 'null')" for text in texts]
-    return f"'[' || array_to_string([{', '.join(texts)}]::VARCHAR[], ',') || ']'" if texts else "'[]'"
+    # DuckDB's array_to_string of only NULLs is NULL: '' (Trino's json_array(NULL) is '[]')
+    return f"'[' || coalesce(array_to_string([{', '.join(texts)}]::VARCHAR[], ','), '') || ']'" if texts else "'[]'"
 
 
 #: java.util.HashMap: the first table's capacity, and the size of a bucket that is turned into a

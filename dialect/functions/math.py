@@ -44,9 +44,28 @@ def _render_round(g, node, args) -> str:
         return tf.cast(f"round({value}, {digits})", t) if len(args) == 2 else tf.cast(f"round({value})", t)
     if source.is_integral:
         return value if len(args) == 1 else _round_integral(g, value, digits, t)
-    if source.base == "real":
-        return tf.cast(f"round(CAST({value} AS DOUBLE), {digits})", t)
-    return f"CASE WHEN isnan({value}) OR isinf({value}) THEN {value} ELSE round({value}, {digits}) END"
+    if source.base == "real":  # rounded as a double, then narrowed (round(REAL '2.675', 2) is 2.67)
+        return tf.cast(_round_double(f"CAST({value} AS DOUBLE)", digits), t)
+    return _round_double(value, digits)
+
+
+def _round_double(value: str, digits: str) -> str:
+    """round(double, d) as Trino 476 answers it: |x| scaled by 10^d in double arithmetic, rounded half
+    up, divided back, the sign put back for x < 0 only (so -0.0 gives 0.0). A scaled value that is
+    infinite gives x (round(1e300, 10), round(1.5, 400)); 0 x 10^400 is NaN and rounds to 0; a factor of
+    0 (d <= -324) gives 0 / 0 = NaN. DuckDB's own round is not Java's: since 2.0.1 it gives 3.17 for
+    round(3.175, 2), where 3.175 x 100 is exactly 317.5 and Trino gives 3.18."""
+    factor = f"power(10.0, {digits})"
+    scaled = f"(abs({value}) * {factor})"
+    up = f"CASE WHEN {scaled} - floor({scaled}) >= 0.5 THEN 1.0 ELSE 0.0 END"
+    rounded = (
+        f"CASE WHEN isnan({scaled}) THEN 0.0 WHEN {scaled} >= 4503599627370496.0 THEN {scaled} "
+        f"ELSE floor({scaled}) + {up} END"
+    )
+    return (
+        f"CASE WHEN {factor} IS NULL THEN NULL WHEN isnan({value}) OR isinf({value}) OR isinf({scaled}) THEN {value} "
+        f"ELSE CASE WHEN {value} < 0 THEN -1.0 ELSE 1.0 END * (({rounded}) / {factor}) END"
+    )
 
 
 def _round_integral(g, value: str, digits: str, t: TType) -> str:
@@ -72,6 +91,8 @@ def _truncate(call: Call) -> TType:
     if len(call.args) == 2:
         return _truncate_n(call)
     (t,) = need(call, "number")
+    if t.is_integral:  # Trino has truncate(decimal), not truncate(integer): the integer is a decimal(p, 0)
+        return tt.as_decimal(t)
     if t.is_decimal:
         p, s = t.args
         return tt.decimal(max(1, p - s), 0)
@@ -363,12 +384,15 @@ def install() -> None:
         "round(x[, d]) -> same (decimal(p+1,s) with d for decimal(p,s))",
         _round,
         _render_round,
-        notes="HALF_UP; the result keeps Trino's type, e.g. round(decimal(6,2), 1) is decimal(7,2).",
+        notes="HALF_UP; the result keeps Trino's type, e.g. round(decimal(6,2), 1) is decimal(7,2). A double or real x "
+        "is scaled by 10^d in double arithmetic and rounded half up, as Trino 476 does (round(3.175, 2) is 3.18, since "
+        "3.175 x 100 is exactly 317.5; DuckDB's own round gives 3.17), with Trino's answers at the extremes.",
     )
     register(
         "truncate",
         "math",
-        "truncate(x) -> same (decimal(p-s,0) for decimals); truncate(decimal(p,s), integer n) -> decimal(p,s)",
+        "truncate(x) -> same (decimal(p-s,0) for decimals, decimal(p,0) for integers); "
+        "truncate(decimal(p,s), integer n) -> decimal(p,s)",
         _truncate,
         _render_truncate,
     )

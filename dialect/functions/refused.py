@@ -67,9 +67,6 @@ REJECTED: dict[str, str] = {
     "normal_cdf": _COMMONS_MATH,
     "inverse_normal_cdf": _COMMONS_MATH,
     "version": "answered by the SQL endpoint, not the dialect layer",
-    "current_user": "not translated",
-    "current_catalog": "not translated",
-    "current_schema": "not translated",
     "ip_prefix": "IP address functions are not available",
 }
 

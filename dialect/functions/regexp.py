@@ -102,6 +102,7 @@ def _group_semantics(call: Call, group_index: int) -> None:
     if group is None:
         if pattern is None or capturing_groups(pattern):
             call.fail("regexp group must be a literal integer in lakegate", "NOT_SUPPORTED")
+        call.node.meta["dynamic_group"] = True  # a pattern without groups: 0 is the only valid group
         return
     if pattern is None:
         if group:
@@ -137,25 +138,39 @@ def _regexp_extract_all(call: Call) -> TType:
     return result
 
 
-def _group(g, args, index: int) -> str:
-    return g.sql(args[index]) if len(args) > index else "0"
+def _group(g, node, args, index: int) -> str:
+    """The group argument as DuckDB's INTEGER constant (0 for a non-literal group: `_group_checked`)."""
+    if len(args) <= index or node.meta.get("dynamic_group"):
+        return "0"
+    sql = g.sql(args[index])
+    return sql if sql.isdigit() else f"CAST({sql} AS INTEGER)"
+
+
+def _group_checked(g, node, args, sql: str) -> str:
+    """`sql` for a non-literal group of a pattern without groups: NULL for a NULL group, Trino's
+    error for another group than 0 (DuckDB wants a constant group)."""
+    if not node.meta.get("dynamic_group"):
+        return sql
+    group = g.sql(args[2])
+    error = g.fail(f"{tf.string('Pattern has 0 groups. Cannot access group ')} || CAST(({group}) AS VARCHAR)")
+    return f"CASE WHEN ({group}) IS NULL THEN NULL WHEN ({group}) <> 0 THEN {error} ELSE {sql} END"
 
 
 def _render_regexp_extract(g, node, args) -> str:
-    value, pattern, group = g.sql(args[0]), g.sql(args[1]), _group(g, args, 2)
+    value, pattern, group = g.sql(args[0]), g.sql(args[1]), _group(g, node, args, 2)
     extracted = f"regexp_extract({value}, {pattern}, {group})"
     if group.isdigit() and int(group) > 9:  # DuckDB's regexp_extract reads groups 0 to 9 only
         extracted = f"regexp_extract_all({value}, {pattern}, {group})[1]"
     if node.meta.get("null_if_empty"):
         extracted = f"nullif({extracted}, '')"
-    return f"CASE WHEN regexp_matches({value}, {pattern}) THEN {extracted} END"
+    return _group_checked(g, node, args, f"CASE WHEN regexp_matches({value}, {pattern}) THEN {extracted} END")
 
 
 def _render_regexp_extract_all(g, node, args) -> str:
-    sql = f"regexp_extract_all({g.sql(args[0])}, {g.sql(args[1])}, {_group(g, args, 2)})"
+    sql = f"regexp_extract_all({g.sql(args[0])}, {g.sql(args[1])}, {_group(g, node, args, 2)})"
     if node.meta.get("null_if_empty"):
         sql = f'list_transform({sql}, lambda "_e": nullif("_e", \'\'))'
-    return sql
+    return _group_checked(g, node, args, sql)
 
 
 class IllegalGroupReference(ValueError):
@@ -291,7 +306,7 @@ def _render_regexp_split(g, node, args) -> str:
 
 # === regular expressions (io.trino.operator.scalar.JoniRegexpFunctions) =========================
 def _regexp_position(call: Call) -> TType:
-    regexp_call(call, tt.INTEGER, (2, 3, 4), "string", "string", "integral", "integral")
+    regexp_call(call, tt.INTEGER, (2, 3, 4), "string", "string", "integer", "integer")
     if "\\G" in (literal_str(call, 1) or ""):
         call.fail("regexp_position with \\G is not supported in lakegate", "NOT_SUPPORTED")
     return tt.INTEGER

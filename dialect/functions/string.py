@@ -92,11 +92,12 @@ def _split(call: Call) -> TType:
 
 def _render_split(g, node, args) -> str:
     value, delim = g.sql(args[0]), g.sql(args[1])
-    sql = f"string_split({value}, {delim})"
+    sql = f"CASE WHEN ({delim}) IS NULL THEN NULL ELSE string_split({value}, {delim}) END"
     if len(args) == 3:
         limit = g.sql(args[2])
-        sql = (
-            f"CASE WHEN ({limit}) <= 0 THEN {g.fail(tf.string('Limit must be positive'))} "
+        sql = (  # NULL on NULL input, before any check (the real Trino 476 answers so)
+            f"CASE WHEN ({value}) IS NULL OR ({delim}) IS NULL OR ({limit}) IS NULL THEN NULL "
+            f"WHEN ({limit}) <= 0 THEN {g.fail(tf.string('Limit must be positive'))} "
             f"WHEN len({sql}) <= ({limit}) THEN {sql} ELSE list_append({sql}[1:({limit}) - 1], "
             f"array_to_string({sql}[({limit}):], {delim})) END"
         )
@@ -122,19 +123,24 @@ def _pad(call: Call) -> TType:
     return tt.VARCHAR
 
 
+def pad_checks(value: str, size: str, pad: str, empty: str, message: str) -> list[tuple[str, str]]:
+    """The argument checks of lpad / rpad, made only when no argument is NULL (the functions return
+    NULL on NULL input before checking anything, as the real Trino 476 answers)."""
+    given = f"({value}) IS NOT NULL AND ({size}) IS NOT NULL AND ({pad}) IS NOT NULL AND "
+    return [
+        (f"{given}(({size}) < 0 OR ({size}) > 2147483647)", "Target length must be in the range [0..2147483647]"),
+        (
+            f"{given}({size}) > {MAX_PAD_LENGTH}",
+            f"Target length must be at most {MAX_PAD_LENGTH} in lakegate (Trino allows up to 2147483647)",
+        ),
+        (f"{given}{empty}", message),
+    ]
+
+
 def _render_pad(g, node, args) -> str:
     value, size, pad = sqls(g, args)
     width = checked(
-        g,
-        f"CAST({size} AS INTEGER)",
-        (
-            (f"({size}) < 0 OR ({size}) > 2147483647", "Target length must be in the range [0..2147483647]"),
-            (
-                f"({size}) > {MAX_PAD_LENGTH}",
-                f"Target length must be at most {MAX_PAD_LENGTH} in lakegate (Trino allows up to 2147483647)",
-            ),
-            (f"{pad} = ''", "Padding string must not be empty"),
-        ),
+        g, f"CAST({size} AS INTEGER)", pad_checks(value, size, pad, f"{pad} = ''", "Padding string must not be empty")
     )
     return f"{node.name.lower()}({value}, {width}, {pad})"
 
@@ -159,7 +165,10 @@ def _substr(call: Call) -> TType:
 
 def _render_substr(g, node, args) -> str:
     sub = exp.Substring(this=args[0], start=args[1], length=args[2] if len(args) == 3 else None)
-    return tf.substring_from(g, sub)
+    sql = tf.substring_from(g, sub)
+    if len(args) == 3 and not isinstance(args[2], exp.Literal):  # a NULL length is NULL (DuckDB: '')
+        sql = f"CASE WHEN ({g.sql(args[2])}) IS NULL THEN NULL ELSE {sql} END"
+    return sql
 
 
 def _render_trim(name: str) -> Render:
@@ -191,8 +200,9 @@ def _render_hamming(g, node, args) -> str:
     a, b = sqls(g, args)
     same_length = "The input strings to hamming_distance function must have the same length"
     differing = f'list_filter(range(1, length({a}) + 1), lambda "_i": substr({a}, "_i", 1) <> substr({b}, "_i", 1))'
-    return (
-        f"CASE WHEN length({a}) <> length({b}) THEN {g.fail(tf.string(same_length))} "
+    return (  # NULL when either is NULL (the real Trino 476 answers so)
+        f"CASE WHEN ({a}) IS NULL OR ({b}) IS NULL THEN NULL "
+        f"WHEN length({a}) <> length({b}) THEN {g.fail(tf.string(same_length))} "
         f"ELSE CAST(len({differing}) AS BIGINT) END"
     )
 
@@ -258,18 +268,8 @@ def _render_pad_binary(g, node, args) -> str:
     """VarbinaryFunctions.leftPad / rightPad: `size` bytes, the padding repeated from its start, the
     value cut to `size` bytes when longer (on the hex text, two digits a byte)."""
     value, size, pad = sqls(g, args)
-    width = checked(
-        g,
-        f"CAST(2 * ({size}) AS INTEGER)",
-        (
-            (f"({size}) < 0 OR ({size}) > 2147483647", "Target length must be in the range [0..2147483647]"),
-            (
-                f"({size}) > {MAX_PAD_LENGTH}",
-                f"Target length must be at most {MAX_PAD_LENGTH} in lakegate (Trino allows up to 2147483647)",
-            ),
-            (f"octet_length({pad}) = 0", "Padding bytes must not be empty"),
-        ),
-    )
+    checks = pad_checks(value, size, pad, f"octet_length({pad}) = 0", "Padding bytes must not be empty")
+    width = checked(g, f"CAST(2 * ({size}) AS INTEGER)", checks)
     return f"unhex({node.name.lower()}(hex({value}), {width}, hex({pad})))"
 
 
@@ -464,6 +464,14 @@ def _concat_type(call: Call) -> TType | None:
     return t
 
 
+def _codepoint(call: Call) -> TType:
+    """codepoint takes varchar(1) only: a longer or unbounded varchar is FUNCTION_NOT_FOUND in Trino."""
+    (t,) = need(call, "string")
+    if t.base == "varchar" and (not t.args or t.args[0] > 1):
+        call.mismatch()
+    return tt.INTEGER
+
+
 def install() -> None:
     """Register the functions of this page (called by pages.py)."""
 
@@ -536,12 +544,18 @@ def install() -> None:
         _render_split_part,
         notes="NULL when the index is beyond the last field, as in Trino (DuckDB gives '').",
     )
-    register("chr", "string", "chr(n) -> varchar(1)", fixed(tt.varchar(1), "integral"), call_as("chr"))
+    register(
+        "chr",
+        "string",
+        "chr(n) -> varchar(1)",
+        fixed(tt.varchar(1), "integral"),
+        lambda g, node, args: f"chr(CAST({g.sql(args[0])} AS INTEGER))",
+    )
     register(
         "codepoint",
         "string",
-        "codepoint(string) -> integer",
-        fixed(tt.INTEGER, "string"),
+        "codepoint(varchar(1)) -> integer",
+        _codepoint,
         lambda g, node, args: (
             f"CASE WHEN length({g.sql(args[0])}) <> 1 THEN "
             f"{g.fail(tf.string('Input string must be a single character string'))} "
@@ -614,13 +628,6 @@ def install() -> None:
             f"{_name}(string, characters) -> varchar",
         )
     overload("strpos", _strpos_instance, _render_strpos_instance, "strpos(string, substring, instance) -> bigint")
-    register(
-        "ends_with",
-        "string",
-        "ends_with(string, substring) -> boolean",
-        fixed(tt.BOOLEAN, "string", "string"),
-        lambda g, node, args: "ends_with({}, {})".format(*sqls(g, args)),
-    )
     register("luhn_check", "string", "luhn_check(string) -> boolean", fixed(tt.BOOLEAN, "string"), _render_luhn_check)
     register(
         "normalize",

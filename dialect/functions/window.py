@@ -19,10 +19,17 @@ def _lag(call: Call) -> TType:
 
 
 def _render_lag(g, node, args) -> str:
-    """lag / lead; a negative offset fails (io.trino.operator.window.LagFunction, LeadFunction), a
-    NULL offset gives NULL."""
+    """lag / lead; a NULL or negative offset fails (io.trino.operator.window.LagFunction,
+    LeadFunction; the real Trino 476: "Offset must not be null")."""
     t = ttype(node)
-    offsets = [checked(g, g.sql(a), [(f"({g.sql(a)}) < 0", "Offset must be at least 0")]) for a in args[1:2]]
+    offsets = [
+        checked(
+            g,
+            g.sql(a),
+            [(f"({g.sql(a)}) IS NULL", "Offset must not be null"), (f"({g.sql(a)}) < 0", "Offset must be at least 0")],
+        )
+        for a in args[1:2]
+    ]
     parts = [g.coerce(args[0], t)] + offsets + [g.coerce(a, t) for a in args[2:]]
     return g.agg(node, node.name.lower(), parts)
 

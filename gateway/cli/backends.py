@@ -7,11 +7,31 @@ from __future__ import annotations
 import argparse
 import os
 from pathlib import Path
+from typing import Any
 
 from lakegate.gateway.cli.errors import UserError
 from lakegate.gateway.engine.backend import Backend, DuckDBBackend
 from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.trino_backend import TrinoBackend
+from lakegate.gateway.engine.trino_registration import RegistrationError, read_registration
+
+
+def add_trino_connection_arguments(group: argparse._ArgumentGroup) -> None:
+    """Add the options that reach a Trino cluster (`--trino-url`, user, credentials, TLS) to `group`."""
+    group.add_argument("--trino-url", metavar="URL", help="the cluster's coordinator, http(s)://host:port")
+    group.add_argument("--trino-user", default="lakegate", metavar="U", help="the Trino user (default: lakegate)")
+    group.add_argument(
+        "--trino-password-env",
+        metavar="VAR",
+        help="HTTP Basic authentication with the password in environment variable VAR (needs https)",
+    )
+    group.add_argument(
+        "--trino-jwt-env",
+        metavar="VAR",
+        help="JWT authentication with the token in environment variable VAR (needs https)",
+    )
+    group.add_argument("--trino-ca", type=Path, metavar="FILE", help="CA bundle that signed the cluster's certificate")
+    group.add_argument("--trino-insecure", action="store_true", help="do not verify the cluster's TLS certificate")
 
 
 def add_backend_arguments(parser: argparse.ArgumentParser) -> None:
@@ -23,15 +43,16 @@ def add_backend_arguments(parser: argparse.ArgumentParser) -> None:
         help="where the queries run: embedded DuckDB over the lake (duckdb, the default) or a "
         "Trino cluster that has the lake's tables (trino: see 'lakegate trino-ddl')",
     )
-    trino = parser.add_argument_group("forwarding to Trino (--backend trino)")
-    trino.add_argument("--trino-url", metavar="URL", help="the cluster's coordinator, http(s)://host:port")
-    trino.add_argument("--trino-user", default="lakegate", metavar="U", help="the Trino user (default: lakegate)")
-    trino.add_argument(
-        "--trino-catalog", default="hive", metavar="C", help="the catalog that holds the lake's schemas (default: hive)"
+    trino = parser.add_argument_group(
+        "forwarding to Trino (--backend trino)",
+        "Where the lake's tables are in the cluster: what 'lakegate trino-ddl --apply' recorded in the lake "
+        "for this --trino-url, unless one of --trino-catalog, --trino-schema-prefix, --trino-schema-map is "
+        "given; else catalog hive, one schema per branch named as 'lakegate trino-ddl' names it.",
     )
+    add_trino_connection_arguments(trino)
+    trino.add_argument("--trino-catalog", metavar="C", help="the catalog that holds the lake's schemas (default: hive)")
     trino.add_argument(
         "--trino-schema-prefix",
-        default="",
         metavar="P",
         help="the --schema-prefix given to 'lakegate trino-ddl' (default: none)",
     )
@@ -44,18 +65,6 @@ def add_backend_arguments(parser: argparse.ArgumentParser) -> None:
         "several); '*={branch}' maps every branch to a schema of its own name (another "
         "'lakegate serve', catalog lake)",
     )
-    trino.add_argument(
-        "--trino-password-env",
-        metavar="VAR",
-        help="HTTP Basic authentication with the password in environment variable VAR (needs https)",
-    )
-    trino.add_argument(
-        "--trino-jwt-env",
-        metavar="VAR",
-        help="JWT authentication with the token in environment variable VAR (needs https)",
-    )
-    trino.add_argument("--trino-ca", type=Path, metavar="FILE", help="CA bundle that signed the cluster's certificate")
-    trino.add_argument("--trino-insecure", action="store_true", help="do not verify the cluster's TLS certificate")
 
 
 def _secret(variable: str | None) -> str | None:
@@ -78,10 +87,9 @@ def schema_map(entries: list[str]) -> dict[str, str]:
     return mapping
 
 
-def backend_from_args(args: argparse.Namespace, lake: Path | None) -> Backend:
-    """The backend the options choose (the caller closes it). UserError for inconsistent options."""
-    if args.backend == "duckdb":
-        return DuckDBBackend(lake)
+def trino_connection(args: argparse.Namespace, **placement: Any) -> TrinoBackend:
+    """A TrinoBackend for the connection options (`placement`: its catalog and schema options).
+    UserError for inconsistent options."""
     if not args.trino_url:
         raise UserError("--backend trino needs --trino-url")
     if args.trino_ca is not None and not args.trino_ca.is_file():
@@ -91,15 +99,45 @@ def backend_from_args(args: argparse.Namespace, lake: Path | None) -> Backend:
         return TrinoBackend(
             args.trino_url,
             user=args.trino_user,
-            catalog=args.trino_catalog,
-            schema_map=schema_map(args.trino_schema_map),
-            schema_prefix=args.trino_schema_prefix,
             password=_secret(args.trino_password_env),
             jwt=_secret(args.trino_jwt_env),
             verify=verify,
+            **placement,
         )
     except ValueError as error:
         raise UserError(str(error)) from None
+
+
+def _placement(args: argparse.Namespace, lake: Path | None) -> dict[str, Any]:
+    """The catalog and schemas of the lake's branches in the cluster: the options, else the lake's
+    recorded registration for --trino-url, else the defaults of 'lakegate trino-ddl'."""
+    given = args.trino_catalog is not None or args.trino_schema_prefix is not None or args.trino_schema_map
+    if not given and lake is not None and args.trino_url:
+        try:
+            registration = read_registration(lake, args.trino_url)
+        except RegistrationError as error:
+            raise UserError(str(error)) from None
+        if registration is not None:
+            return {
+                "catalog": registration.catalog,
+                "schema_prefix": registration.schema_prefix,
+                "schema_map": registration.schemas,
+                "mapped_only": True,
+            }
+    return {
+        "catalog": args.trino_catalog or "hive",
+        "schema_prefix": args.trino_schema_prefix or "",
+        "schema_map": schema_map(args.trino_schema_map),
+    }
+
+
+def backend_from_args(args: argparse.Namespace, lake: Path | None) -> Backend:
+    """The backend the options choose (the caller closes it). UserError for inconsistent options."""
+    if args.backend == "duckdb":
+        return DuckDBBackend(lake)
+    if not args.trino_url:
+        raise UserError("--backend trino needs --trino-url")
+    return trino_connection(args, **_placement(args, lake))
 
 
 def engine_from_args(args: argparse.Namespace, lake: Path | None) -> Engine:

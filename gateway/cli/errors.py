@@ -8,7 +8,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from lakegate.lake.config import Config, find_default_config
+from lakegate.lake.config import Config, expand_config_paths, find_default_config
 
 
 class UserError(Exception):
@@ -55,18 +55,25 @@ def writable_lake(path: Path) -> Path:
 
 
 def existing_configs(given: Sequence[Path] | None) -> list[Path]:
-    """The config files a command reads: those given, else the repository's default config; UserError
-    when there is none or one does not exist."""
-    found = list(given or [])
-    if not found:
+    """The config files a command reads: those given (globs and commas expanded as SignalFlag's CLI does,
+    `lake.config.expand_config_paths`), else the repository's default config; UserError when there is
+    none or one does not exist."""
+    if not given:
         default = find_default_config()
         if default is None:
             raise UserError("no config: pass --metrics-config-path (no .resim/metrics/config.resim.yaml here)")
-        found = [default]
-    for path in found:
-        if not path.is_file():
-            raise UserError(f"config file {str(path)!r} does not exist")
-    return found
+        return [default]
+    try:
+        return expand_config_paths(given)
+    except FileNotFoundError as error:
+        raise UserError(str(error)) from None
+
+
+#: The help of every `--metrics-config-path` that takes several files.
+CONFIG_PATHS_HELP = (
+    "repeat it, or separate paths by commas, to merge several files; a glob such as 'metrics/*.yml' takes "
+    "every file it matches, in sorted order"
+)
 
 
 def add_strict_option(parser: argparse.ArgumentParser) -> None:

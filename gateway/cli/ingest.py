@@ -9,7 +9,14 @@ from pathlib import Path
 from typing import Any
 
 from lakegate.gateway.cli import compact
-from lakegate.gateway.cli.errors import UserError, add_strict_option, print_config_warnings, writable_lake
+from lakegate.gateway.cli.errors import (
+    CONFIG_PATHS_HELP,
+    UserError,
+    add_strict_option,
+    existing_configs,
+    print_config_warnings,
+    writable_lake,
+)
 from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.config import Config, ConfigError, find_default_config, load_config
@@ -55,10 +62,18 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         type=Path,
         metavar="P",
         dest="config_paths",
-        help="config file declaring the topics (repeat to merge several; default: the branch's "
+        help=f"config file declaring the topics ({CONFIG_PATHS_HELP}; default: the branch's "
         "current config in the lake, else .resim/metrics/config.resim.yaml)",
     )
     add_strict_option(ingest)
+    ingest.add_argument(
+        "--logs",
+        type=Path,
+        metavar="DIR",
+        help="a folder of the job's log files (the images, videos and files its metrics show), copied into the "
+        "lake with the job, in the same commit (default: a 'logs' folder beside the first emissions file, if "
+        "there is one; without either the job keeps the logs it had)",
+    )
     ingest.add_argument("--experience-name", help="the experience (scenario) the job ran")
     ingest.add_argument("--build-name", help="the name of the build under test")
     ingest.add_argument("--build-version", help="the version of the build under test")
@@ -119,12 +134,20 @@ def _config(args: argparse.Namespace) -> Config:
                 ".resim/metrics/config.resim.yaml here; pass --metrics-config-path"
             )
         paths = [found]
-    for path in paths:
-        if not path.is_file():
-            raise UserError(f"config file {str(path)!r} does not exist")
-    config = load_config(paths, strict=args.strict)
+    config = load_config(existing_configs(paths), strict=args.strict)
     print_config_warnings(config)
     return config
+
+
+def _logs(args: argparse.Namespace) -> Path | None:
+    """The job's logs folder: --logs, else `logs/` beside the first emissions file (as SignalFlag's demo lays
+    a job out), else None."""
+    if args.logs is not None:
+        if not args.logs.is_dir():
+            raise UserError(f"logs folder {str(args.logs)!r} does not exist or is not a folder")
+        return args.logs
+    beside = args.emissions[0].parent / "logs"
+    return beside if beside.is_dir() else None
 
 
 def _metadata(args: argparse.Namespace) -> dict[str, Any]:
@@ -173,6 +196,7 @@ def ingest_command(args: argparse.Namespace) -> int:
             metadata=_metadata(args),
             skip_bad_lines=args.skip_bad_lines,
             progress=progress,
+            logs=_logs(args),
         )
     except ConfigError as exc:
         _print_problems(f"the config has {len(exc.problems)} problem(s):", [str(p) for p in exc.problems])
@@ -208,6 +232,8 @@ def summary(report: IngestReport) -> str:
     empty = [name for name, rows in report.rows.items() if not rows]
     if empty:
         lines.append(f"  no rows for: {', '.join(empty)}")
+    if report.logs is not None:
+        lines.append(f"  logs: copied from {report.logs}")
     if report.bad_lines:
         lines.append(
             f"skipped {report.bad_lines:,} bad line(s), dropping {report.skipped}; they are in {report.quarantine}"

@@ -25,6 +25,7 @@ COMMAND_MODULES = (
     "demo",
     "trino_ddl",
     "import_mcap",
+    "compare",
 )
 
 

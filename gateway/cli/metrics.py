@@ -5,8 +5,14 @@ Exit codes of `metrics run` (and of `metrics dashboard` / `metrics report`): 0 w
 blocks (warnings allowed); 2 when at least one metric is a BLOCKER; 3 when none blocks but a
 metric errored or a job failed (ERROR); 1 for usage and config errors (nothing evaluated) and
 when the results or the report cannot be written (a read-only or full disk; the lake keeps what
-it had). Malformed command lines are argparse's: usage on standard error and exit code 2, like
-any argparse program.
+it had). With `--fail-on-states S,...` the exit code is SignalFlag's instead (`gating`): the
+batch's status, if it is one of those states, gives 7 (BLOCKER), 2 (ERROR) or 8 (WARNING); any
+other status gives 0. `metrics dashboard --fail-on regression`: 5 when nothing blocks or errs but a
+trend alert fires (gateway/metrics/alerts.py). Malformed command lines are argparse's: usage on
+standard error and exit code 2, like any argparse program.
+
+`metrics validate` and `metrics config-schema` are SignalFlag's names for `config check` and
+`config schema`.
 """
 
 from __future__ import annotations
@@ -19,8 +25,10 @@ from pathlib import Path
 from typing import Any
 
 from lakegate.dialect.errors import DialectError
+from lakegate.gateway.cli import config as config_commands
 from lakegate.gateway.cli.backends import add_backend_arguments, engine_from_args
 from lakegate.gateway.cli.errors import (
+    CONFIG_PATHS_HELP,
     UserError,
     add_strict_option,
     existing_configs,
@@ -29,6 +37,9 @@ from lakegate.gateway.cli.errors import (
     print_config_warnings,
     writable_lake,
 )
+from lakegate.gateway.engine.trino_backend import TrinoBackend
+from lakegate.gateway.engine.trino_registration import RegistrationError, jobs_seen, sync_local
+from lakegate.gateway.metrics.alerts import HISTORY, K, TrendCheck, alerts_html, trend_checks
 from lakegate.gateway.metrics.evaluation import (
     BLOCKER,
     ERROR,
@@ -36,8 +47,10 @@ from lakegate.gateway.metrics.evaluation import (
     BatchEvaluation,
     MetricResult,
     MetricsEngine,
+    check_batch_metrics,
     select_metrics,
 )
+from lakegate.gateway.metrics.gating import FAIL_STATES, fail_exit_code, parse_fail_on_states
 from lakegate.gateway.metrics.report import job_title, write_report
 from lakegate.gateway.metrics.templates import display_value
 from lakegate.gateway.metrics.trends import (
@@ -56,7 +69,7 @@ from lakegate.lake.compaction import compact_batch
 from lakegate.lake.config import Config, ConfigError, load_config
 from lakegate.lake.paths import LakePathError
 
-EXIT_OK, EXIT_USAGE, EXIT_BLOCKER, EXIT_ERROR = 0, 1, 2, 3
+EXIT_OK, EXIT_USAGE, EXIT_BLOCKER, EXIT_ERROR, EXIT_REGRESSION = 0, 1, 2, 3, 5
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -82,11 +95,43 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         type=Path,
         metavar="P",
         dest="config_paths",
-        help="the config file (repeat to merge several; default: .resim/metrics/config.resim.yaml "
+        help=f"the config file ({CONFIG_PATHS_HELP}; default: .resim/metrics/config.resim.yaml "
         "in this folder or a parent)",
     )
+    _templates_path(sync)
     add_strict_option(sync)
     sync.set_defaults(func=sync_command)
+
+    validate = commands.add_parser(
+        "validate",
+        help="check config files without storing them (SignalFlag's name for 'config check')",
+        description="Load and merge the config files as 'metrics sync' would, without storing anything; print "
+        "every problem (file:line:column: message) and exit 1, or a one-line summary and exit 0. The same "
+        "as 'lakegate config check'.",
+    )
+    validate.add_argument(
+        "--metrics-config-path",
+        action="append",
+        type=Path,
+        metavar="P",
+        dest="config_paths",
+        help=f"the config file ({CONFIG_PATHS_HELP}; default: .resim/metrics/config.resim.yaml in this folder "
+        "or a parent)",
+    )
+    _templates_path(validate)
+    add_strict_option(validate)
+    validate.set_defaults(func=validate_command)
+
+    schema = commands.add_parser(
+        "config-schema",
+        help="write the JSON Schema of the config file (SignalFlag's name for 'config schema')",
+        description="Write the JSON Schema (draft 2020-12) of the metrics config file, for editors. The same "
+        "as 'lakegate config schema'.",
+    )
+    schema.add_argument(
+        "-o", "--output", metavar="FILE", type=Path, help="file to write the schema to (default: standard output)"
+    )
+    schema.set_defaults(func=config_commands.schema_command)
 
     run = commands.add_parser(
         "run",
@@ -108,6 +153,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     _evaluated_config(run)
     add_strict_option(run)
+    _fail_on_states(run)
     run.add_argument(
         "--format",
         choices=("table", "json"),
@@ -162,7 +208,33 @@ def _add_trends_parsers(commands: argparse._SubParsersAction) -> None:
         type=_window,
         metavar="30d|N",
         help="only the batches of the last N days ('30d': a batch's time is its earliest job's metadata "
-        "time) or the last N batches ('10'); default: every batch of the branch",
+        "time) or the last N batches ('10'); default: every batch of the branch, or the day_range of --name",
+    )
+    dashboard.add_argument(
+        "--name",
+        metavar="N",
+        help="a dashboard of the config's 'dashboards:' section: its metrics_set's dashboard metrics over the "
+        "batches of its day_range (instead of --metrics-set)",
+    )
+    dashboard.add_argument(
+        "--alert-k",
+        type=positive(float),
+        default=K,
+        metavar="K",
+        help=f"trend alert: a scalar metric whose latest build lies outside K standard deviations of its previous "
+        f"builds (default {K:g})",
+    )
+    dashboard.add_argument(
+        "--alert-builds",
+        type=positive(int),
+        default=HISTORY,
+        metavar="N",
+        help=f"trend alert: compare the latest build with the N builds before it (default {HISTORY}; 2 at least)",
+    )
+    dashboard.add_argument(
+        "--fail-on",
+        choices=("regression",),
+        help="exit 5 when a trend alert fires (and nothing blocks or errs)",
     )
     report = commands.add_parser(
         "report",
@@ -203,6 +275,7 @@ def _add_trends_parsers(commands: argparse._SubParsersAction) -> None:
             help="where the page's links (link_path columns, batch ids) point: the 'lakegate serve' that "
             "shows the batches (default: http://127.0.0.1:8080, serve's default address)",
         )
+        _fail_on_states(parser)
         add_strict_option(parser)
         add_backend_arguments(parser)
         parser.set_defaults(func=trends_command)
@@ -229,8 +302,48 @@ def _evaluated_config(parser: argparse.ArgumentParser) -> None:
         type=Path,
         metavar="P",
         dest="config_paths",
-        help="evaluate this config instead of the branch's stored one (repeat to merge several)",
+        help=f"evaluate this config instead of the branch's stored one ({CONFIG_PATHS_HELP})",
     )
+    _templates_path(parser)
+
+
+def _templates_path(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--templates-path",
+        "--metrics-templates-path",
+        type=Path,
+        metavar="DIR",
+        dest="templates_path",
+        help="a folder of custom .liquid templates, searched after the config files' own folders and their "
+        "templates/ folders (SignalFlag's default .resim/metrics/templates is used when it exists)",
+    )
+
+
+def _fail_states(text: str) -> frozenset[str]:
+    try:
+        return parse_fail_on_states(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
+def _fail_on_states(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--fail-on-states",
+        type=_fail_states,
+        metavar=",".join(FAIL_STATES),
+        help="SignalFlag's CI gating: exit 7 when the batch's status is BLOCKER, 2 when ERROR, 8 when WARNING, "
+        "if that state is listed, else 0 (instead of the exit codes above)",
+    )
+
+
+def _templates(args: argparse.Namespace) -> Path | None:
+    """--templates-path, else SignalFlag's default folder when it exists; UserError for a missing folder."""
+    if args.templates_path is not None:
+        if not args.templates_path.is_dir():
+            raise UserError(f"templates folder {str(args.templates_path)!r} does not exist")
+        return args.templates_path
+    default = Path(".resim/metrics/templates")
+    return default if default.is_dir() else None
 
 
 def _lake_and_branch(parser: argparse.ArgumentParser) -> None:
@@ -247,12 +360,13 @@ def print_config_problems(error: ConfigError) -> None:
 def sync_command(args: argparse.Namespace) -> int:
     writable_lake(args.lake)
     paths = existing_configs(args.config_paths)
+    templates = _templates(args)
     try:
-        config = load_config(paths, strict=args.strict)
+        config = load_config(paths, strict=args.strict, templates_path=templates)
         print_config_warnings(config)
         registry = BranchConfigs(args.lake, args.branch)
         before = registry.current_version()
-        version = registry.store(paths)
+        version = registry.store(paths, templates_path=templates)
     except ConfigError as error:
         print_config_problems(error)
         return EXIT_USAGE
@@ -263,10 +377,32 @@ def sync_command(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def validate_command(args: argparse.Namespace) -> int:
+    """`metrics validate`: `config check` of the --metrics-config-path files."""
+    templates = _templates(args)
+    paths = [str(p) for p in existing_configs(args.config_paths)]
+    if templates is None:
+        return config_commands.check_command(argparse.Namespace(paths=paths, strict=args.strict))
+    try:  # a template folder given: check that every custom template is found
+        config = load_config(paths, strict=args.strict, templates_path=templates)
+    except ConfigError as error:
+        for problem in error.problems:
+            print(problem)
+        return EXIT_USAGE
+    missing = [m for m in config.metrics.values() if m.template_file and m.template_path() is None]
+    for metric in missing:
+        print(f"{metric.location}: template file {metric.template_file!r} of metric '{metric.name}' not found")
+    if missing:
+        return EXIT_USAGE
+    print_config_warnings(config)
+    print(f"ok: {config.summary()} ({', '.join(paths)}; templates {templates})")
+    return EXIT_OK
+
+
 def _run_config(args: argparse.Namespace) -> tuple[Config, int | None]:
     """The config to evaluate and its stored version (None for a config given by path)."""
     if args.config_paths:
-        config = load_config(existing_configs(args.config_paths), strict=args.strict)
+        config = load_config(existing_configs(args.config_paths), strict=args.strict, templates_path=_templates(args))
         print_config_warnings(config)
         return config, None
     registry = BranchConfigs(args.lake, args.branch)
@@ -278,8 +414,11 @@ def _run_config(args: argparse.Namespace) -> tuple[Config, int | None]:
     return registry.load(version), version
 
 
-def exit_code(evaluation: BatchEvaluation) -> int:
-    """2 if any metric blocks, else 3 if anything errored (a metric or a failed job), else 0."""
+def exit_code(evaluation: BatchEvaluation, fail_on: frozenset[str] | None = None) -> int:
+    """With `fail_on` (--fail-on-states): SignalFlag's code of the batch's status. Else 2 if any metric
+    blocks, else 3 if anything errored (a metric or a failed job), else 0."""
+    if fail_on:
+        return fail_exit_code(evaluation.status, fail_on)
     if any(r.status == BLOCKER for r in evaluation.results()):
         return EXIT_BLOCKER
     return EXIT_ERROR if evaluation.status == ERROR else EXIT_OK
@@ -308,13 +447,14 @@ def run_command(args: argparse.Namespace) -> int:
     try:
         config, version = _run_config(args)
         metrics = select_metrics(config, args.metrics_set, all_metrics=args.all_metrics)
+        check_batch_metrics(metrics, args.metrics_set)
         batches = catalog.batches(args.branch)
     except ConfigError as error:
         print_config_problems(error)
         return EXIT_USAGE
     except KeyError as error:
         raise UserError(str(error.args[0])) from None
-    except LakePathError as error:
+    except (LakePathError, ValueError) as error:
         raise UserError(str(error)) from None
     if args.batch not in batches:
         raise UserError(
@@ -324,6 +464,8 @@ def run_command(args: argparse.Namespace) -> int:
     progress = sys.stderr.isatty() if args.progress is None else args.progress
     engine = engine_from_args(args, args.lake)
     try:
+        if isinstance(engine.backend, TrinoBackend):
+            _check_cluster_sees_batch(engine.backend, catalog, args)
         evaluation = MetricsEngine(args.lake, engine, threads=args.threads).evaluate_batch(
             args.branch,
             args.batch,
@@ -335,7 +477,9 @@ def run_command(args: argparse.Namespace) -> int:
         )
         if args.compact:  # the batch is complete once its batch metrics are evaluated
             compact_batch(args.lake, args.branch, args.batch, progress=progress)
-    except DialectError as error:
+        if isinstance(engine.backend, TrinoBackend):  # the batch's new metric_results partition
+            sync_local(args.lake, engine.backend, args.branch)
+    except (DialectError, RegistrationError) as error:
         raise UserError(str(error)) from None
     except OSError as error:
         raise UserError(f"cannot store the results in the lake: {os_error_text(error)}") from None
@@ -348,7 +492,22 @@ def run_command(args: argparse.Namespace) -> int:
         lambda path: write_report(evaluation, path),
         " (the results are stored in the lake)",
     )
-    return exit_code(evaluation)
+    return exit_code(evaluation, args.fail_on_states)
+
+
+def _check_cluster_sees_batch(backend: TrinoBackend, catalog: Catalog, args: argparse.Namespace) -> None:
+    """Sync the cluster's partitions of the branch when it lacks jobs of the batch and the lake's
+    registration there reads the lake itself; UserError when it still lacks them: the metrics
+    would silently read less than the lake has."""
+    jobs = len(catalog.jobs(args.branch, args.batch))
+    seen = jobs_seen(backend, args.branch, args.batch)
+    if seen != jobs and sync_local(args.lake, backend, args.branch):
+        seen = jobs_seen(backend, args.branch, args.batch)
+    if seen != jobs:
+        raise UserError(
+            f"the Trino cluster at {backend.url} sees {seen} of the {jobs} job(s) of batch {args.batch!r}: "
+            f"register the lake again (lakegate trino-ddl --lake {args.lake} --apply --trino-url {backend.url})"
+        )
 
 
 def _show(
@@ -393,6 +552,13 @@ def trends_command(args: argparse.Namespace) -> int:
     _check_lake_and_report(args)
     try:
         config, version = _run_config(args)
+        if getattr(args, "name", None) is not None:
+            if args.metrics_set is not None:
+                raise UserError("--name and --metrics-set both choose the metrics: give one")
+            dashboard = config.dashboard(args.name)
+            args.metrics_set = dashboard.metrics_set
+            if args.window is None and dashboard.day_range is not None:
+                args.window = Window(days=dashboard.day_range)
         metrics = metrics_of(config, kind, args.metrics_set)
     except ConfigError as error:
         print_config_problems(error)
@@ -415,14 +581,51 @@ def trends_command(args: argparse.Namespace) -> int:
             window=getattr(args, "window", None),
             config_version=version,
         )
+        checks = (
+            trend_checks(engine, args.branch, [b.batch_id for b in batches], k=args.alert_k, history=args.alert_builds)
+            if kind == "dashboard"
+            else []
+        )
     except (DialectError, LakePathError) as error:
         raise UserError(str(error)) from None
     finally:
         queries.close()
-    _show(args, evaluation, format_trends, lambda path: write_trends(evaluation, path, link_base=args.link_base))
+    shown = _WithAlerts(evaluation, checks) if kind == "dashboard" else evaluation
+    _show(
+        args,
+        shown,
+        lambda _: format_trends(evaluation) + format_alerts(checks),
+        lambda path: write_trends(evaluation, path, link_base=args.link_base, intro=alerts_html(checks)),
+    )
+    if args.fail_on_states:
+        return fail_exit_code(evaluation.status, args.fail_on_states)
     if any(r.status == BLOCKER for r in evaluation.results):
         return EXIT_BLOCKER
-    return EXIT_ERROR if evaluation.status == ERROR else EXIT_OK
+    if evaluation.status == ERROR:
+        return EXIT_ERROR
+    if getattr(args, "fail_on", None) == "regression" and any(c.alert for c in checks):
+        return EXIT_REGRESSION
+    return EXIT_OK
+
+
+class _WithAlerts:
+    """A dashboard evaluation and its trend checks, as `--format json` shows them."""
+
+    def __init__(self, evaluation: TrendsEvaluation, checks: list[TrendCheck]):
+        self.evaluation, self.checks = evaluation, checks
+
+    def as_dict(self) -> dict[str, Any]:
+        return {**self.evaluation.as_dict(), "trend_checks": [c.as_dict() for c in self.checks]}
+
+
+def format_alerts(checks: list[TrendCheck]) -> str:
+    """The trend alerts as text lines after the dashboard's table ("" when no metric has 2 earlier builds)."""
+    if not checks:
+        return ""
+    alerts = [c for c in checks if c.alert]
+    lines = [f"trend alerts: {len(alerts)} of {len(checks)} scalar metrics moved beyond their history"]
+    lines += [f"  ALERT {c}" for c in alerts]
+    return "\n" + "\n".join(lines)
 
 
 def format_trends(evaluation: TrendsEvaluation) -> str:

@@ -1,4 +1,5 @@
-"""`lakegate query`: run one Trino-dialect query on the embedded DuckDB backend and print the result."""
+"""`lakegate query`: run one Trino-dialect query on the embedded DuckDB backend (or forwarded to a
+Trino cluster, `--backend trino`) and print the result."""
 
 from __future__ import annotations
 
@@ -13,9 +14,10 @@ import tzlocal
 
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
+from lakegate.gateway.cli.backends import add_backend_arguments, engine_from_args
 from lakegate.gateway.cli.errors import UserError
 from lakegate.gateway.engine.backend import QueryResult
-from lakegate.gateway.engine.engine import Engine
+from lakegate.gateway.engine.trino_backend import TrinoBackend
 from lakegate.gateway.engine.trino_values import encode_rows
 
 
@@ -25,7 +27,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="run one Trino-dialect SQL statement on the lake and print the result",
         description="Run one Trino-dialect SQL statement on the embedded DuckDB backend and print the result, "
         "answered exactly as `lakegate serve` answers it (catalog lake, schema = the branch). "
-        "Without --lake only constant queries work (SELECT 1 + 1).",
+        "Without --lake only constant queries work (SELECT 1 + 1), unless --backend trino forwards it.",
     )
     parser.add_argument(
         "sql", metavar="SQL", help="the query, in Trino's SQL dialect ('-' reads it from standard input)"
@@ -42,7 +44,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "value encoding (json), or RFC 4180 CSV with a header (csv)",
     )
     parser.add_argument(
-        "--explain", action="store_true", help="print the DuckDB SQL the query translates to instead of running it"
+        "--explain",
+        action="store_true",
+        help="print the DuckDB SQL the query translates to (with --backend trino: the text sent to the "
+        "cluster) instead of running it",
     )
     parser.add_argument("--batch", metavar="ID", help="restrict every table to the rows of this batch")
     parser.add_argument("--job", metavar="ID", help="restrict every table to the rows of this job")
@@ -54,6 +59,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="the session time zone (America/New_York, +05:45, UTC; a negative offset as --time-zone=-08:30); "
         "default: this machine's zone, as the trino CLI and Python client use",
     )
+    add_backend_arguments(parser)
     parser.set_defaults(func=query_command)
 
 
@@ -68,14 +74,17 @@ def query_command(args: argparse.Namespace) -> int:
     if args.lake is not None and not args.lake.is_dir():
         raise UserError(f"no lake at {args.lake} (not a directory)")
     scope = Scope(batch_id=args.batch, job_id=args.job) if args.batch or args.job else None
-    engine = Engine.open(args.lake)
+    engine = engine_from_args(args, args.lake)
     try:
+        if args.explain and isinstance(engine.backend, TrinoBackend):
+            print(engine.backend.forward(sql, branch=args.branch, scope=scope).sql)
+            return 0
         if args.explain:
             zone = engine.session(time_zone=args.time_zone or tzlocal.get_localzone_name()).zone()
             print(engine.backend.translate(sql, branch=args.branch, scope=scope, time_zone=zone).duckdb_sql)
             return 0
         session = engine.session(
-            branch=args.branch if args.lake is not None else None,
+            branch=args.branch if args.lake is not None or args.backend == "trino" else None,
             scope=scope,
             time_zone=args.time_zone or tzlocal.get_localzone_name(),
         )

@@ -21,6 +21,7 @@ import sys
 import threading
 from pathlib import Path
 
+from lakegate.gateway.cli.backends import add_backend_arguments, backend_from_args
 from lakegate.gateway.cli.errors import UserError, port_number
 from lakegate.gateway.cli.errors import positive as _positive
 from lakegate.gateway.engine.introspection import CATALOG
@@ -145,6 +146,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         metavar="N",
         help=f"open connections; more are answered HTTP 503 and closed (default {_DEFAULTS.max_connections})",
     )
+    add_backend_arguments(parser)
     parser.set_defaults(func=serve_command)
 
 
@@ -164,7 +166,7 @@ def _force_exit() -> None:
 
 def _with_stop_deadline(server, backend) -> None:
     """Make the first stop signal of `server` (a uvicorn.Server) interrupt the queries of `backend`
-    (a DuckDBBackend) and end the process STOP_GRACE seconds later if it has not stopped by then."""
+    (DuckDB's or Trino's) and end the process STOP_GRACE seconds later if it has not stopped by then."""
     handle_exit = server.handle_exit
 
     def stop(sig: int, frame: object) -> None:
@@ -247,7 +249,10 @@ def serve_command(args: argparse.Namespace) -> int:
         client_timeout=args.client_timeout,
     )
     sock = _listen(args.host, args.port)
-    backend = DuckDBBackend(args.lake, memory_limit=args.memory_limit, threads=args.threads, limits=limits)
+    if args.backend == "trino":
+        backend = backend_from_args(args, args.lake)
+    else:
+        backend = DuckDBBackend(args.lake, memory_limit=args.memory_limit, threads=args.threads, limits=limits)
     engine = Engine(backend, catalog=args.catalog, limits=limits, owns_backend=True)
     dashboard = DashboardState(args.lake, engine)
     try:

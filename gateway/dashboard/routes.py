@@ -21,7 +21,13 @@
     GET    /dashboard/trends/?branch=B[&window=30d|N][&set=S]   branch B's dashboard metrics over its
                                                          batches (gateway/metrics/trends.py): the page of
                                                          `lakegate metrics dashboard`, evaluated per request,
-                                                         read-only, through the server's limits
+                                                         read-only, through the server's limits; a form
+                                                         picks two of its batches to compare; trend alerts
+                                                         (&k=3&builds=10: gateway/metrics/alerts.py)
+    GET    /dashboard/compare/?branch=B&batch=Y[&base=X]  the page of `lakegate compare` (base: the latest
+                                                         batch of the previous build when not given)
+    GET    /dashboard/trends/?branch=B&dashboard=N       the config's dashboard N (`dashboards:`): its set's
+                                                         dashboard metrics over its day_range
 
 A session (`debug_session.DashboardSession`) is one batch seen through a config plus the edits
 made in the page. `lakegate metrics debug` opens one on its debug job; `lakegate serve` mounts
@@ -35,6 +41,7 @@ import re
 import secrets
 import threading
 from collections import OrderedDict
+from collections.abc import Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -47,10 +54,23 @@ from lakegate.dialect.errors import DialectError
 from lakegate.gateway.dashboard.config_edits import BranchConfig, SessionError
 from lakegate.gateway.dashboard.debug_session import DashboardSession
 from lakegate.gateway.engine.engine import Engine
+from lakegate.gateway.metrics.alerts import HISTORY, K, alerts_html, trend_checks
+from lakegate.gateway.metrics.compare import compare_batches, previous_build_batch
+from lakegate.gateway.metrics.compare_page import compare_html
 from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.gateway.metrics.results import read_results
-from lakegate.gateway.metrics.trends import Window, branch_batches, evaluate_trends, in_window, metrics_of, trends_html
+from lakegate.gateway.metrics.trends import (
+    BatchInfo,
+    Window,
+    branch_batches,
+    evaluate_trends,
+    in_window,
+    metrics_of,
+    trends_html,
+)
+from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.catalog import Catalog
+from lakegate.lake.config import ConfigError
 from lakegate.lake.paths import LakePathError
 
 STATIC = Path(__file__).resolve().parent / "static"
@@ -136,16 +156,35 @@ class DashboardState:
         )
         return self.add(session)
 
-    def trends(self, branch: str, window: str | None = None, metrics_set: str | None = None) -> str:
-        """The trends page of a branch: its stored config's dashboard metrics over the batches of
-        `window` (every batch when None), evaluated now; SessionError for what cannot be shown."""
+    def trends(
+        self,
+        branch: str,
+        window: str | None = None,
+        metrics_set: str | None = None,
+        dashboard: str | None = None,
+        *,
+        k: float = K,
+        history: int = HISTORY,
+    ) -> str:
+        """The trends page of a branch: its stored config's dashboard metrics (of `metrics_set`, or of
+        the set of the config's `dashboard`) over the batches of `window` (default: the dashboard's
+        day_range, else every batch), evaluated now, with the trend alerts (`k` standard deviations of
+        the `history` previous builds); SessionError for what cannot be shown."""
         if branch not in self.catalog.branches():
             raise SessionError(f"no branch {branch!r} in the lake")
         chosen = Window.parse(window) if window else None
         source = BranchConfig(self.lake, branch)
         files = source.read()
         try:
-            metrics = metrics_of(source.registry.load(files.version), "dashboard", metrics_set)
+            config = source.registry.load(files.version)
+            if dashboard is not None:
+                if metrics_set is not None:
+                    raise SessionError("dashboard and set both choose the metrics: give one")
+                named = config.dashboard(dashboard)
+                metrics_set = named.metrics_set
+                if chosen is None and named.day_range is not None:
+                    chosen = Window(days=named.day_range)
+            metrics = metrics_of(config, "dashboard", metrics_set)
         except KeyError as error:
             raise SessionError(str(error.args[0])) from None
         if not metrics:
@@ -154,12 +193,57 @@ class DashboardState:
         evaluation = evaluate_trends(
             self.evaluator, branch, metrics, batches, kind="dashboard", window=chosen, config_version=files.version
         )
-        return trends_html(evaluation, plotlyjs="/dashboard/static/plotly.min.js")
+        ids = [b.batch_id for b in batches]
+        form = self.compare_form(branch, ids[-2] if len(ids) > 1 else None, ids[-1] if ids else None, batches)
+        alerts = alerts_html(trend_checks(self.evaluator, branch, ids, k=k, history=history))
+        return trends_html(evaluation, plotlyjs="/dashboard/static/plotly.min.js", intro=form + alerts)
+
+    def compare(self, branch: str, batch: str | None, base: str | None = None) -> str:
+        """The comparison page of batch `batch` with `base` (default: the latest batch of the previous
+        build), computed now; SessionError for what cannot be shown."""
+        if branch not in self.catalog.branches():
+            raise SessionError(f"no branch {branch!r} in the lake")
+        if not batch:
+            raise SessionError("name the batch to compare: /dashboard/compare/?branch=B&batch=Y (&base=X)")
+        try:
+            base = base or previous_build_batch(self.evaluator, branch, batch)
+            comparison = compare_batches(self.evaluator, branch, base, batch)
+        except LookupError as error:
+            raise SessionError(str(error.args[0])) from None
+        intro = self.compare_form(branch, base, batch)
+        return compare_html(comparison, plotlyjs="/dashboard/static/plotly.min.js", intro=intro)
+
+    def compare_form(
+        self, branch: str, base: str | None, batch: str | None, batches: Sequence[BatchInfo] | None = None
+    ) -> str:
+        """A form that picks two of `batches` (default: every batch of the branch), base and new, and opens
+        their comparison page."""
+        batches = branch_batches(self.evaluator, branch) if batches is None else batches
+
+        def select(name: str, chosen: str | None) -> str:
+            options = "".join(
+                f'<option value="{html.escape(b.batch_id)}"{" selected" if b.batch_id == chosen else ""}>'
+                f"{html.escape(b.batch_id)} ({html.escape(', '.join(b.builds) or '?')})</option>"
+                for b in batches
+            )
+            return f'<select name="{name}" id="compare-{name}">{options}</select>'
+
+        batch_page = urlencode({"branch": branch, **({"batch": batch} if batch else {})})
+        return (
+            f'<form class="lg-compare" method="get" action="/dashboard/compare/">'
+            f'<input type="hidden" name="branch" value="{html.escape(branch)}">'
+            f"Compare base {select('base', base)} with {select('batch', batch)} "
+            '<button type="submit" id="compare-go">Compare</button> · '
+            f'<a href="/dashboard/trends/?{urlencode({"branch": branch})}">Trends</a> · '
+            f'<a href="/dashboard/?{batch_page}">Batch page</a>'
+            "</form>\n"
+        )
 
     def trends_index(self) -> str:
         """A page linking to each branch's trends page."""
         items = "".join(
-            f'<li><a href="?{urlencode({"branch": b})}">{html.escape(b)}</a></li>' for b in self.catalog.branches()
+            f'<li><a href="?{urlencode({"branch": b})}">{html.escape(b)}</a>{self._dashboard_links(b)}</li>'
+            for b in self.catalog.branches()
         )
         return (
             '<!DOCTYPE html>\n<html lang="en">\n<head><meta charset="utf-8"><title>lakegate · trends</title></head>\n'
@@ -167,6 +251,20 @@ class DashboardState:
             f"<ul>{items or '<li>no branches yet</li>'}</ul>\n"
             '<p><a href="../">Batches: the metrics dashboard</a></p>\n</body>\n</html>\n'
         )
+
+    def _dashboard_links(self, branch: str) -> str:
+        """`: <a>N</a>, ...` for each dashboard of the branch's stored config ('' when it has none or does not load)."""
+        try:
+            config = BranchConfigs(self.lake, branch).current()
+        except ConfigError:
+            return ""
+        if config is None or not config.dashboards:
+            return ""
+        links = ", ".join(
+            f'<a href="?{html.escape(urlencode({"branch": branch, "dashboard": name}))}">{html.escape(name)}</a>'
+            for name in config.dashboards
+        )
+        return f": {links}"
 
     def listing(self) -> dict[str, Any]:
         """Branches with their batches and jobs (never a session id: the debug session's is in its URL)."""
@@ -186,11 +284,11 @@ def attachment(filename: str) -> str:
     return f"attachment; filename=\"{fallback}\"; filename*=UTF-8''{quote(filename, safe='')}"
 
 
-def _error_page(message: str) -> str:
+def _error_page(message: str, what: str = "trends") -> str:
     return (
-        '<!DOCTYPE html>\n<html lang="en">\n<head><meta charset="utf-8"><title>lakegate · trends</title></head>\n'
-        f"<body>\n<h1>Cannot show the trends</h1>\n<p>{html.escape(message)}</p>\n"
-        '<p><a href="./">All branches</a></p>\n'
+        f'<!DOCTYPE html>\n<html lang="en">\n<head><meta charset="utf-8"><title>lakegate · {what}</title></head>\n'
+        f"<body>\n<h1>Cannot show the {what}</h1>\n<p>{html.escape(message)}</p>\n"
+        '<p><a href="/dashboard/trends/">All branches</a></p>\n'
         "</body>\n</html>\n"
     )
 
@@ -232,14 +330,33 @@ def dashboard_router(state: DashboardState) -> APIRouter:
 
     @router.get("/trends/", include_in_schema=False)
     def trends(
-        branch: str | None = None, window: str | None = None, metrics_set: str | None = Query(None, alias="set")
+        branch: str | None = None,
+        window: str | None = None,
+        metrics_set: str | None = Query(None, alias="set"),
+        dashboard: str | None = None,
+        k: float = Query(K, gt=0),
+        builds: int = Query(HISTORY, ge=2),
     ) -> HTMLResponse:
         if branch is None:
             return HTMLResponse(call(state.trends_index), headers={"Cache-Control": "no-cache"})
         try:
-            page = state.trends(branch, window, metrics_set)
+            page = state.trends(branch, window, metrics_set, dashboard, k=k, history=builds)
         except (SessionError, LakePathError, DialectError, ValueError) as error:
             return HTMLResponse(_error_page(str(error)), status_code=400)
+        return HTMLResponse(page, headers={"Cache-Control": "no-cache"})
+
+    @router.get("/compare", include_in_schema=False)
+    def compare_redirect() -> RedirectResponse:
+        return RedirectResponse("/dashboard/compare/")
+
+    @router.get("/compare/", include_in_schema=False)
+    def compare(branch: str | None = None, batch: str | None = None, base: str | None = None) -> HTMLResponse:
+        try:
+            if branch is None:
+                raise SessionError("name the branch and the batch: /dashboard/compare/?branch=B&batch=Y (&base=X)")
+            page = state.compare(branch, batch, base)
+        except (SessionError, LakePathError, DialectError) as error:
+            return HTMLResponse(_error_page(str(error), "comparison"), status_code=400)
         return HTMLResponse(page, headers={"Cache-Control": "no-cache"})
 
     @router.get("/api/lake")

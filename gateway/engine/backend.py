@@ -45,6 +45,7 @@ import pyarrow as pa
 from lakegate.dialect import guard
 from lakegate.dialect.errors import DialectError, runtime_error
 from lakegate.dialect.scope import Scope
+from lakegate.dialect.session_functions import SessionNames
 from lakegate.dialect.translate import Translation, translate
 from lakegate.gateway.engine import introspection, udfs
 from lakegate.gateway.engine.limits import Limits
@@ -103,9 +104,11 @@ class Backend(Protocol):
         scope: Scope | None = None,
         params: Sequence[object] = (),
         time_zone: str = "UTC",
+        session: SessionNames | None = None,
     ) -> QueryResult:
-        """Start one Trino-dialect query in the session zone `time_zone` (canonical: dialect/zones.py);
-        raises DialectError when it is refused or fails."""
+        """Start one Trino-dialect query in the session zone `time_zone` (canonical: dialect/zones.py),
+        with `current_user`, `current_catalog` and `current_schema` answered from `session`; raises
+        DialectError when it is refused or fails."""
 
 
 def _static(columns: list[tuple[str, str]], rows: list[tuple]) -> QueryResult:
@@ -557,16 +560,29 @@ class DuckDBBackend:
         scope: Scope | None = None,
         params: Sequence[object] = (),
         time_zone: str = "UTC",
+        session: SessionNames | None = None,
     ) -> Translation:
-        """The translation of one query over `branch`'s schema (cached by text, scope, params, zone and schema)."""
-        return self._translate(self._state(branch), sql, scope, params, time_zone)
+        """The translation of one query over `branch`'s schema (cached by text, scope, params, zone,
+        session names and schema)."""
+        return self._translate(self._state(branch), sql, scope, params, time_zone, session)
 
     @staticmethod
     def _translate(
-        state: _Branch, sql: str, scope: Scope | None, params: Sequence[object], time_zone: str
+        state: _Branch,
+        sql: str,
+        scope: Scope | None,
+        params: Sequence[object],
+        time_zone: str,
+        session: SessionNames | None = None,
     ) -> Translation:
         return translate(
-            sql, state.schema, scope=scope, params=params, schema_version=state.version, time_zone=time_zone
+            sql,
+            state.schema,
+            scope=scope,
+            params=params,
+            schema_version=state.version,
+            time_zone=time_zone,
+            session=session,
         )
 
     def execute(
@@ -577,13 +593,14 @@ class DuckDBBackend:
         scope: Scope | None = None,
         params: Sequence[object] = (),
         time_zone: str = "UTC",
+        session: SessionNames | None = None,
     ) -> QueryResult:
         """Translate and start one Trino-dialect query on `branch`, restricted to `scope`, with
-        `params` bound to its `?`, in the session zone `time_zone`. Raises DialectError (with position)
-        when refused or failing."""
+        `params` bound to its `?`, in the session zone `time_zone`, its session functions answered
+        from `session`. Raises DialectError (with position) when refused or failing."""
         deadline = time.monotonic() + self.limits.query_timeout
         try:
-            return self._execute(sql, branch, scope, params, deadline, time_zone)
+            return self._execute(sql, branch, scope, params, deadline, time_zone, session)
         except DialectError as error:
             raise self._for_client(error) from None
 
@@ -595,6 +612,7 @@ class DuckDBBackend:
         params: Sequence[object],
         deadline: float,
         time_zone: str = "UTC",
+        session: SessionNames | None = None,
     ) -> QueryResult:
         if not isinstance(sql, str):
             sql = guard.check_text(sql)  # bytes: decoded (or refused) first
@@ -604,11 +622,12 @@ class DuckDBBackend:
             answer = introspection.answer(guard.check_text(sql), state.schema, schemas=self.branches() or [branch])
             return _static(answer.columns, answer.rows)
         if kind == "explain":
-            translation, analyze = self._explain(guard.check_text(sql), state, scope, params, time_zone)
+            translation, analyze = self._explain(guard.check_text(sql), state, scope, params, time_zone, session)
             return self._start(
                 branch, state, translation, deadline, scope, explain="EXPLAIN ANALYZE " if analyze else "EXPLAIN "
             )
-        return self._start(branch, state, self._translate(state, sql, scope, params, time_zone), deadline, scope)
+        translation = self._translate(state, sql, scope, params, time_zone, session)
+        return self._start(branch, state, translation, deadline, scope)
 
     def _start(
         self,
@@ -747,14 +766,20 @@ class DuckDBBackend:
         return statements[0]
 
     def _explain(
-        self, sql: str, state: _Branch, scope: Scope | None, params: Sequence[object], time_zone: str
+        self,
+        sql: str,
+        state: _Branch,
+        scope: Scope | None,
+        params: Sequence[object],
+        time_zone: str,
+        session: SessionNames | None = None,
     ) -> tuple[Translation, bool]:
         """The translation of the query an EXPLAIN [ANALYZE] explains (errors positioned in the
         whole EXPLAIN text), and whether it is ANALYZE."""
         query, analyze = guard.explained_query(sql)
         start = sql.rfind(query)
         try:
-            return self._translate(state, query, scope, params, time_zone), analyze
+            return self._translate(state, query, scope, params, time_zone, session), analyze
         except DialectError as error:
             if error.line is not None and error.column is not None:  # position in the whole EXPLAIN text
                 before = sql[:start]

@@ -29,6 +29,7 @@ from lakegate.dialect import guard
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.params import parse_execute
+from lakegate.dialect.session_functions import SessionNames
 from lakegate.dialect.statements import Reader
 from lakegate.dialect.translate import parse
 from lakegate.gateway.engine.backend import Backend, QueryResult
@@ -183,6 +184,7 @@ class Planner:
                 "a session statement or CALL cannot be run by EXECUTE; send it on its own", error_name="NOT_SUPPORTED"
             )
         guard.check_text(sql)  # refuses writes and unknown statements with Trino's message
+        _check_statement_start(sql)
         raise DialectError("unsupported in lakegate: this statement", line=1, column=1, error_name="NOT_SUPPORTED")
 
     # -- queries ----------------------------------------------------------------------------
@@ -196,9 +198,10 @@ class Planner:
             offset = sql.rfind(query)
         plan = self._plan(sql, query, offset, session)
         branch = plan.branch if plan.branch is not None or plan.system else self._default_branch(session)
+        names = _session_names(session)
         if branch is not None:
             return self.backend.execute(
-                plan.sql, branch=branch, scope=session.scope(), params=params, time_zone=session.zone()
+                plan.sql, branch=branch, scope=session.scope(), params=params, time_zone=session.zone(), session=names
             )
         if kind == "explain":
             raise DialectError(
@@ -207,7 +210,9 @@ class Planner:
                 column=1,
                 error_name="NOT_SUPPORTED",
             )
-        return self.metadata.run(plan.sql, plan.system, params, user=session.user, time_zone=session.zone())
+        return self.metadata.run(
+            plan.sql, plan.system, params, user=session.user, time_zone=session.zone(), session=names
+        )
 
     def _default_branch(self, session: Session) -> str | None:
         """Where a query that reads no table runs: the session's branch, else any branch (None: the
@@ -323,6 +328,36 @@ class Planner:
             for (column, trino_type), alias in zip(result.columns, aliased)
         ]
         return Answer(_DESCRIBE_OUTPUT, rows)
+
+
+def _session_names(session: Session) -> SessionNames:
+    """What current_user, current_catalog and current_schema answer: Trino lower-cases the session's
+    catalog and schema names (as sent, whether they exist or not) and keeps the user as it is."""
+    catalog, schema = session.catalog, session.schema
+    return SessionNames(session.user, catalog and catalog.lower(), schema and schema.lower())
+
+
+#: The words a Trino 476 statement may start with, in the order its parser lists them when another
+#: word starts one (a query may also start with SELECT, VALUES, TABLE or a parenthesis).
+_STATEMENT_STARTS = (
+    "ALTER ANALYZE CALL COMMENT COMMIT CREATE DEALLOCATE DELETE DENY DESC DESCRIBE DROP EXECUTE EXPLAIN GRANT "
+    "INSERT MERGE PREPARE REFRESH RESET REVOKE ROLLBACK SET SHOW START TRUNCATE UPDATE USE WITH"
+).split()
+
+
+def _check_statement_start(sql: str) -> None:
+    """A statement whose first word starts no Trino statement is Trino's SYNTAX_ERROR at that word."""
+    tokens = [token for token in Trino().tokenize(sql) if token.token_type != TokenType.L_PAREN]
+    if not tokens or tokens[0].text.upper() in (*_STATEMENT_STARTS, "SELECT", "VALUES", "TABLE"):
+        return
+    line, column = _where(sql, tokens[0].start)
+    expecting = ", ".join(f"'{word}'" for word in _STATEMENT_STARTS)
+    raise DialectError(
+        f"mismatched input '{tokens[0].text}'. Expecting: {expecting}, <query>",
+        line=line,
+        column=column,
+        error_name="SYNTAX_ERROR",
+    )
 
 
 def _is_execute(sql: str) -> bool:

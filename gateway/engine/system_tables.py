@@ -24,6 +24,7 @@ import pyarrow as pa
 
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError, runtime_error
+from lakegate.dialect.session_functions import SessionNames
 from lakegate.dialect.statements import Reader
 from lakegate.dialect.translate import translate
 from lakegate.gateway.engine import udfs
@@ -122,6 +123,113 @@ SYSTEM_SCHEMAS: dict[str, dict[str, list[tuple[str, str]]]] = {
             ("is_generatedcolumn", V),
         ],
         "table_types": [("table_type", V)],
+        "types": [
+            ("type_name", V),
+            ("data_type", B),
+            ("precision", B),
+            ("literal_prefix", V),
+            ("literal_suffix", V),
+            ("create_params", V),
+            ("nullable", B),
+            ("case_sensitive", "boolean"),
+            ("searchable", B),
+            ("unsigned_attribute", "boolean"),
+            ("fixed_prec_scale", "boolean"),
+            ("auto_increment", "boolean"),
+            ("local_type_name", V),
+            ("minimum_scale", B),
+            ("maximum_scale", B),
+            ("sql_data_type", B),
+            ("sql_datetime_sub", B),
+            ("num_prec_radix", B),
+        ],
+        # Tables the JDBC driver reads for procedures, user-defined types, attributes, super
+        # tables and types and pseudo columns: lakegate has none of them, so they are empty.
+        "attributes": [
+            ("type_cat", V),
+            ("type_schem", V),
+            ("type_name", V),
+            ("attr_name", V),
+            ("data_type", B),
+            ("attr_type_name", V),
+            ("attr_size", B),
+            ("decimal_digits", B),
+            ("num_prec_radix", B),
+            ("nullable", B),
+            ("remarks", V),
+            ("attr_def", V),
+            ("sql_data_type", B),
+            ("sql_datetime_sub", B),
+            ("char_octet_length", B),
+            ("ordinal_position", B),
+            ("is_nullable", V),
+            ("scope_catalog", V),
+            ("scope_schema", V),
+            ("scope_table", V),
+            ("source_data_type", B),
+        ],
+        "procedure_columns": [
+            ("procedure_cat", V),
+            ("procedure_schem", V),
+            ("procedure_name", V),
+            ("column_name", V),
+            ("column_type", B),
+            ("data_type", B),
+            ("type_name", V),
+            ("precision", B),
+            ("length", B),
+            ("scale", B),
+            ("radix", B),
+            ("nullable", B),
+            ("remarks", V),
+            ("column_def", V),
+            ("sql_data_type", B),
+            ("sql_datetime_sub", B),
+            ("char_octet_length", B),
+            ("ordinal_position", B),
+            ("is_nullable", V),
+            ("specific_name", V),
+        ],
+        "procedures": [
+            ("procedure_cat", V),
+            ("procedure_schem", V),
+            ("procedure_name", V),
+            ("remarks", V),
+            ("procedure_type", B),
+            ("specific_name", V),
+        ],
+        "pseudo_columns": [
+            ("table_cat", V),
+            ("table_schem", V),
+            ("table_name", V),
+            ("column_name", V),
+            ("data_type", B),
+            ("column_size", B),
+            ("decimal_digits", B),
+            ("num_prec_radix", B),
+            ("column_usage", V),
+            ("remarks", V),
+            ("char_octet_length", B),
+            ("is_nullable", B),
+        ],
+        "super_tables": [("table_cat", V), ("table_schem", V), ("table_name", V), ("supertable_name", V)],
+        "super_types": [
+            ("type_cat", V),
+            ("type_schem", V),
+            ("type_name", V),
+            ("supertype_cat", V),
+            ("supertype_schem", V),
+            ("supertype_name", V),
+        ],
+        "udts": [
+            ("type_cat", V),
+            ("type_schem", V),
+            ("type_name", V),
+            ("class_name", V),
+            ("data_type", V),
+            ("remarks", V),
+            ("base_type", V),
+        ],
     },
     "metadata": {
         "catalogs": [("catalog_name", V), ("connector_id", V), ("connector_name", V)],
@@ -166,6 +274,41 @@ _JDBC_TYPES = {
     "timestamp": 93,
     "timestamp_tz": 2014,
     "array": 2003,
+}
+#: system.jdbc.types (DatabaseMetaData.getTypeInfo): the types lakegate reads and answers with, as
+#: Trino 476 lists them: name -> (java.sql.Types, precision, radix, searchable). Types with
+#: parameters are listed by their base name, as Trino lists them: JAVA_OBJECT (ARRAY for array),
+#: no precision, not searchable.
+_TYPE_INFO: dict[str, tuple[int, int | None, int | None, int]] = {
+    "tinyint": (-6, 3, 10, 3),
+    "bigint": (-5, 19, 10, 3),
+    "varbinary": (-3, 2147483647, None, 3),
+    "integer": (4, 10, 10, 3),
+    "smallint": (5, 5, 10, 3),
+    "real": (7, 24, 2, 3),
+    "double": (8, 53, 2, 3),
+    "boolean": (16, None, None, 3),
+    "date": (91, 14, None, 3),
+    "json": (2000, None, None, 3),
+    "unknown": (2000, None, None, 3),
+    "interval year to month": (2000, None, None, 3),
+    "interval day to second": (2000, None, None, 3),
+    "uuid": (2000, None, None, 3),
+    **{
+        name: (2000, None, None, 0)
+        for name in (
+            "char",
+            "varchar",
+            "decimal",
+            "time",
+            "time with time zone",
+            "timestamp",
+            "timestamp with time zone",
+            "row",
+            "map",
+        )
+    },
+    "array": (2003, None, None, 0),
 }
 _FIXED_SIZE = {
     "bigint": 19,
@@ -347,6 +490,14 @@ class SystemCatalog:
             ]
         if (schema, table) == ("jdbc", "table_types"):
             return [("TABLE",), ("VIEW",)]
+        if (schema, table) == ("jdbc", "types"):
+            return [
+                (name, jdbc, precision, None, None, None, 1, False, searchable, None, False, None, None, 0, 0)
+                + (None, None, radix)
+                for name, (jdbc, precision, radix, searchable) in _TYPE_INFO.items()
+            ]
+        if schema == "jdbc":
+            return []  # attributes, procedures, procedure_columns, pseudo_columns, super_*, udts
         if (schema, table) == ("metadata", "catalogs"):
             return [(c, c, "system" if c == SYSTEM else "lakegate") for c in everything]
         if (schema, table) == ("metadata", "table_comments"):
@@ -374,12 +525,13 @@ class SystemCatalog:
         params: Sequence[object] = (),
         user: str | None = None,
         time_zone: str = "UTC",
+        session: SessionNames | None = None,
     ) -> QueryResult:
         """Start one Trino query whose (unqualified) table names are the `refs`' table names, over
-        those system tables as `user` sees them, in the session zone `time_zone`. Raises DialectError;
-        the result streams and can be canceled."""
+        those system tables as `user` sees them, in the session zone `time_zone`, its session
+        functions answered from `session`. Raises DialectError; the result streams and can be canceled."""
         schema = {ref.table: dict(self.tables(ref.catalog, ref.schema)[ref.table]) for ref in refs}
-        translation = translate(sql, schema, params=params, time_zone=time_zone)
+        translation = translate(sql, schema, params=params, time_zone=time_zone, session=session)
         with self._lock:
             cursor = self._db.cursor()
         try:
@@ -495,14 +647,14 @@ def _jdbc_column(catalog: str, schema: str, table: str, name: str, trino_type: s
         0,
         digits,
         radix,
-        2,
+        1,  # columnNullable: every lake column may hold NULL
         None,
         None,
         None,
         None,
         octets,
         position,
-        "",
+        "YES",
         None,
         None,
         None,

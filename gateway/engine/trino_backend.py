@@ -13,6 +13,7 @@ dropped), so an error position the cluster reports maps back exactly to the user
 
 from __future__ import annotations
 
+import re
 import threading
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
@@ -26,10 +27,11 @@ import trino
 from sqlglot import exp
 from sqlglot.tokens import TokenType
 
-from lakegate.dialect import guard
+from lakegate.dialect import guard, session_functions
 from lakegate.dialect import params as parameters
 from lakegate.dialect.errors import ERROR_CODES, DialectError
 from lakegate.dialect.scope import Scope, restrict
+from lakegate.dialect.session_functions import SessionNames
 from lakegate.dialect.translate import LakegateTrino, parse
 from lakegate.dialect.trino_types import TType, parse_type
 from lakegate.gateway.engine.backend import QueryResult
@@ -293,7 +295,8 @@ class TrinoBackend:
 
     A branch maps to schema `schema_map[branch]` of `catalog`, else `schema_map['*']` with
     `{branch}` replaced by the branch name (`'*': '{branch}'` for another lakegate server), else
-    `trino_ddl.schema_name(branch, schema_prefix)` (the schemas `lakegate trino-ddl` creates).
+    `trino_ddl.schema_name(branch, schema_prefix)` (the schemas `lakegate trino-ddl` creates);
+    `mapped_only` lists only the branches of `schema_map` (a recorded registration's).
     Authentication: `password` (HTTP Basic, needs https) or `jwt`; `verify` is False, True or a
     CA bundle path. Results are read in UTC, like the DuckDB backend's.
     """
@@ -306,6 +309,7 @@ class TrinoBackend:
         catalog: str = "hive",
         schema_map: Mapping[str, str] | None = None,
         schema_prefix: str = "",
+        mapped_only: bool = False,
         password: str | None = None,
         jwt: str | None = None,
         verify: bool | str = True,
@@ -320,6 +324,7 @@ class TrinoBackend:
             raise ValueError(f"credentials need an https:// URL (the trino client refuses to send them to {url})")
         self.url, self.user, self.catalog = url, user, catalog
         self.schema_map, self.schema_prefix = dict(schema_map or {}), schema_prefix
+        self.mapped_only = mapped_only
         schema_name("main", schema_prefix)  # checks the prefix
         self._host, self._scheme = parsed.hostname, parsed.scheme
         self._port = parsed.port or (443 if parsed.scheme == "https" else 8080)
@@ -334,6 +339,7 @@ class TrinoBackend:
         self._local = threading.local()
         self._connections: list = []
         self._tables: dict[str, _Tables] = {}
+        self._runs: set[_Run] = set()
         self._lock = threading.Lock()
 
     # -- branches -------------------------------------------------------------------------
@@ -347,12 +353,21 @@ class TrinoBackend:
         return schema_name(branch, self.schema_prefix)
 
     def branches(self) -> list[str]:
-        """The branches whose schemas exist in the catalog (a schema's own name when no mapping
-        leads to it)."""
+        """The branches whose schemas exist in the catalog: those `schema_map` names, and unless
+        `mapped_only`, every other schema with the schema prefix (the prefix taken off)."""
         rows = self._query(None, f"SHOW SCHEMAS FROM {quote_ident(self.catalog)}")
         schemas = {row[0] for row in rows} - {"information_schema"}
         named = {schema: branch for branch, schema in self.schema_map.items() if branch != "*"}
-        return sorted(named.get(schema, schema) for schema in schemas)
+        found = {named[schema] for schema in schemas if schema in named}
+        if not self.mapped_only:
+            prefix = self.schema_prefix
+            found |= {s[len(prefix) :] for s in schemas if s not in named and s.startswith(prefix) and s != prefix}
+        return sorted(found)
+
+    def run(self, sql: str) -> list[list[Any]]:
+        """Every row of one statement sent as it is, unchecked: lakegate's own DDL and catalog
+        queries (`trino_registration`), never a user's text. DialectError when it fails."""
+        return self._query(None, sql)
 
     # -- connections ----------------------------------------------------------------------
 
@@ -397,6 +412,12 @@ class TrinoBackend:
                 error_code=error.error_code,
                 error_type=error.error_type,
                 query_id=error.query_id,
+            )
+        if isinstance(error, (requests.ConnectionError, trino.exceptions.TrinoConnectionError)):
+            reason = re.search(r"\[Errno -?\d+\] [^'\")]+", str(error))
+            return DialectError(
+                f"cannot reach the Trino cluster at {self.url}" + (f": {reason.group(0)}" if reason else ""),
+                error_name="GENERIC_INTERNAL_ERROR",
             )
         return DialectError(f"the Trino cluster at {self.url} failed: {error}", error_name="GENERIC_INTERNAL_ERROR")
 
@@ -465,14 +486,22 @@ class TrinoBackend:
         scope: Scope | None = None,
         params: Sequence[object] = (),
         time_zone: str = "UTC",
+        session: SessionNames | None = None,
     ) -> QueryResult:
         """Send one Trino-dialect query, restricted to `scope` with `params` bound, to the cluster;
         its rows stream back as Arrow batches. Raises DialectError (remote errors as
-        RemoteQueryError, positions in `sql`); the cluster is read in UTC, so another session zone is refused."""
+        RemoteQueryError, positions in `sql`); the cluster is read in UTC, so another session zone is
+        refused, and so are the session functions (the cluster would answer with its own catalog and
+        schema names, not lakegate's; `session` is not used)."""
         if time_zone != "UTC":
             raise DialectError(
                 f"unsupported in lakegate: session time zone '{time_zone}' with the Trino backend (it reads in UTC)",
                 error_name="NOT_SUPPORTED",
+            )
+        called = session_functions.called(parse(sql)) if isinstance(sql, str) and session_functions.used(sql) else []
+        if called:
+            raise DialectError(
+                f"unsupported in lakegate: {called[0]} with the Trino backend", error_name="NOT_SUPPORTED"
             )
         forwarded = self.forward(sql, branch=branch, scope=scope, params=params)
         cursor = self._connection(branch).cursor()
@@ -484,6 +513,13 @@ class TrinoBackend:
         columns = [_result_column(d[0], d[1]) for d in description]
         run = _Run(self, cursor, columns, forwarded)
         return QueryResult(columns=[(c.name, c.trino_type) for c in columns], batches=run.batches(), _cancel=run.cancel)
+
+    def stop_all(self) -> None:
+        """Cancel every query being read (the server is stopping)."""
+        with self._lock:
+            runs = list(self._runs)
+        for run in runs:
+            run.cancel()
 
     def close(self) -> None:
         """Close every connection's HTTP session."""
@@ -510,6 +546,8 @@ class _Run:
 
     def batches(self) -> Iterator[pa.RecordBatch]:
         empty, done = True, False
+        with self.backend._lock:
+            self.backend._runs.add(self)
         try:
             while True:
                 if self.canceled:
@@ -526,6 +564,8 @@ class _Run:
                 raise DialectError("Query was canceled", error_name="USER_CANCELED") from None
             raise self.backend._failure(error, self.forwarded) from None
         finally:
+            with self.backend._lock:
+                self.backend._runs.discard(self)
             if not done:  # the reader stopped early: the cluster need not go on
                 self.cancel()
         if empty:

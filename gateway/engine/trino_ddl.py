@@ -125,7 +125,7 @@ def _check_unique(names: Iterable[str], what: str) -> None:
 def branch_tables(catalog: Catalog, branch: str, location: str, prefix: str = "") -> list[TableDDL]:
     """The tables of one branch of the lake `catalog` reads, as registered at `location` (a URI)."""
     schema = schema_name(branch, prefix)
-    branch_location = f"{location.rstrip('/')}/{paths.encode_branch(branch)}"
+    located = branch_location(location, branch)
     tables = catalog.schema(branch)
     _check_unique(tables, f"on branch {branch!r}, tables")
     found = []
@@ -141,7 +141,7 @@ def branch_tables(catalog: Catalog, branch: str, location: str, prefix: str = ""
         if any(t != "varchar" for _, t in partitions):
             raise DDLError(f"{where}: partition columns must be varchar")
         has_files = bool(paths.data_files(catalog.lake, branch, table))
-        found.append(TableDDL(schema, table, data + partitions, keys, f"{branch_location}/{table}", has_files))
+        found.append(TableDDL(schema, table, data + partitions, keys, f"{located}/{table}", has_files))
     return found
 
 
@@ -160,6 +160,55 @@ def _check_layout(catalog: Catalog, branch: str) -> None:
         )
 
 
+def check_location(location: str) -> None:
+    """DDLError unless `location` is a URI."""
+    if not re.match(r"[A-Za-z][A-Za-z0-9+.-]*://", location):
+        raise DDLError(f"--location {location!r} is not a URI (expected e.g. s3://bucket/lake or hdfs://host/lake)")
+
+
+def chosen_branches(lake_catalog: Catalog, branches: Iterable[str] | None) -> list[str]:
+    """`branches` (default: every branch of the lake), each checked to exist and to be in layout v2."""
+    known = lake_catalog.branches()
+    chosen = list(branches) if branches else known
+    for branch in chosen:
+        if branch not in known:
+            raise DDLError(
+                f"no branch {branch!r} in the lake {lake_catalog.lake} (branches: {', '.join(known) or 'none'})"
+            )
+        _check_layout(lake_catalog, branch)
+    return chosen
+
+
+def create_schema(catalog: str, schema: str, location: str) -> str:
+    """The CREATE SCHEMA IF NOT EXISTS statement of a branch's schema at `location`."""
+    name = f"{quote_ident(catalog)}.{quote_ident(schema)}"
+    return f"CREATE SCHEMA IF NOT EXISTS {name} WITH (location = {quote_text(location)})"
+
+
+def create_table(catalog: str, table: TableDDL) -> str:
+    """The CREATE TABLE IF NOT EXISTS statement of one lake table (an external Parquet table)."""
+    columns = ",\n".join(f"  {quote_ident(name)} {t}" for name, t in table.columns)
+    keys = ", ".join(quote_text(key) for key in table.partition_keys)
+    return (
+        f"CREATE TABLE IF NOT EXISTS {quote_ident(catalog)}.{quote_ident(table.schema)}.{quote_ident(table.name)} "
+        f"(\n{columns}\n)\nWITH (\n  external_location = {quote_text(table.location)},\n  format = 'PARQUET',\n"
+        f"  partitioned_by = ARRAY[{keys}]\n)"
+    )
+
+
+def sync_partitions(catalog: str, table: TableDDL, mode: str = "ADD") -> str:
+    """The call that registers the table's partitions on storage (`mode` ADD, DROP or FULL)."""
+    return (
+        f"CALL {quote_ident(catalog)}.system.sync_partition_metadata("
+        f"{quote_text(table.schema)}, {quote_text(table.name)}, {quote_text(mode)})"
+    )
+
+
+def branch_location(location: str, branch: str) -> str:
+    """The URI of a branch's directory in the lake at `location`."""
+    return f"{location.rstrip('/')}/{paths.encode_branch(branch)}"
+
+
 def ddl(
     lake: Path,
     location: str,
@@ -171,15 +220,9 @@ def ddl(
 ) -> str:
     """The DDL script (statements ending in `;`, `--` comments) that registers `branches` (default:
     every branch) of the lake at `lake`, copied to `location`, in the Trino Hive catalog `catalog`."""
-    if not re.match(r"[A-Za-z][A-Za-z0-9+.-]*://", location):
-        raise DDLError(f"--location {location!r} is not a URI (expected e.g. s3://bucket/lake or hdfs://host/lake)")
+    check_location(location)
     lake_catalog = Catalog(lake)
-    known = lake_catalog.branches()
-    chosen = list(branches) if branches else known
-    for branch in chosen:
-        if branch not in known:
-            raise DDLError(f"no branch {branch!r} in the lake {lake} (branches: {', '.join(known) or 'none'})")
-        _check_layout(lake_catalog, branch)
+    chosen = chosen_branches(lake_catalog, branches)
     schemas = {branch: schema_name(branch, schema_prefix) for branch in chosen}
     lines = [
         f"-- Trino Hive-connector DDL for the lakegate lake {lake}, copied to {location}.",
@@ -189,14 +232,13 @@ def ddl(
     ]
     for branch in chosen:
         schema = quote_ident(catalog) + "." + quote_ident(schemas[branch])
-        branch_location = f"{location.rstrip('/')}/{paths.encode_branch(branch)}"
         lines += ["", f"-- branch {branch!r} -> schema {schema}"]
         for bad in _escaped_ids(lake_catalog, branch):
             lines.append(
                 f"-- warning: id {bad!r} has a character Hive escapes in directory names; "
                 "sync_partition_metadata may fail on its partitions or register them wrongly"
             )
-        lines.append(f"CREATE SCHEMA IF NOT EXISTS {schema} WITH (location = {quote_text(branch_location)});")
+        lines.append(create_schema(catalog, schemas[branch], branch_location(location, branch)) + ";")
         for table in branch_tables(lake_catalog, branch, location, schema_prefix):
             if not table.has_files:
                 if skip_empty:
@@ -206,15 +248,6 @@ def ddl(
                     f"-- table {table.name!r} has no data files yet: its location must exist as a "
                     "directory for CREATE TABLE on HDFS or local storage"
                 )
-            columns = ",\n".join(f"  {quote_ident(name)} {t}" for name, t in table.columns)
-            keys = ", ".join(quote_text(key) for key in table.partition_keys)
-            lines.append(
-                f"CREATE TABLE IF NOT EXISTS {schema}.{quote_ident(table.name)} (\n{columns}\n)\n"
-                f"WITH (\n  external_location = {quote_text(table.location)},\n  format = 'PARQUET',\n"
-                f"  partitioned_by = ARRAY[{keys}]\n);"
-            )
-            lines.append(
-                f"CALL {quote_ident(catalog)}.system.sync_partition_metadata("
-                f"{quote_text(table.schema)}, {quote_text(table.name)}, 'ADD');"
-            )
+            lines.append(create_table(catalog, table) + ";")
+            lines.append(sync_partitions(catalog, table) + ";")
     return "\n".join(lines) + "\n"

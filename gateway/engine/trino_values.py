@@ -129,6 +129,19 @@ def _double(value: Any) -> Any:
     return "NaN" if value != value else ("Infinity" if value > 0 else "-Infinity")
 
 
+def _real(value: Any) -> Any:
+    """A REAL as Trino writes it: the shortest digits that read back as the same float32 (128.9, not
+    the widened double 128.89999389648438)."""
+    if value is None or not math.isfinite(value) or _as_float32(value) != value:
+        return _double(value)
+    return float(shortest_float32(value))
+
+
+def shortest_float32(value: float) -> str:
+    """The shortest `%g` text that reads back as the float32 `value`."""
+    return next(t for t in (f"{value:.{n}g}" for n in range(1, 10)) if _as_float32(float(t)) == value)
+
+
 def _decimal(scale: int) -> Encoder:
     quantum = Decimal(1).scaleb(-scale)
 
@@ -251,7 +264,7 @@ def _java_float(value: float, single: bool) -> str:
         return "-0.0" if math.copysign(1.0, value) < 0 else "0.0"
     text = repr(value)
     if single:
-        text = next(t for t in (f"{value:.{n}g}" for n in range(1, 10)) if _as_float32(float(t)) == value)
+        text = shortest_float32(value)
     number = Decimal(text)
     if 1e-3 <= abs(value) < 1e7:
         plain = format(number, "f")
@@ -269,7 +282,7 @@ def _as_float32(value: float) -> float:
 def _make_encoder(t: TType) -> Encoder:
     base, args = t.base, t.args
     if base in ("real", "double"):
-        return _double
+        return _real if base == "real" else _double
     if base == "decimal":
         return _decimal(args[1])
     if base in ("timestamp", "timestamp_tz"):
@@ -379,7 +392,9 @@ def _column(t: TType, column: pa.Array) -> list:
     base = t.base
     if t.is_integral and not pa.types.is_integer(arrow_type):  # e.g. a HUGEINT arriving as decimal
         return [None if v is None else int(v) for v in column.to_pylist()]
-    if base in ("real", "double") and pa.types.is_floating(arrow_type):
+    if base == "real" and pa.types.is_floating(arrow_type):
+        return [_real(v) for v in column.to_pylist()]
+    if base == "double" and pa.types.is_floating(arrow_type):
         values = column.to_pylist()
         if pc.all(pc.is_finite(column)).as_py() is not False:
             return values

@@ -25,6 +25,9 @@ supported) counts for nothing. One metric:
   exactly (e.g. `config.resim.yaml:57:9`); the rest of the set still runs;
 * the result does not fit the template: ERROR with the template's message;
 * no rows and `skip_if_no_data: true`: NOT_RUN;
+* no rows, or one row of NULLs only (`MIN(x)` over no rows), and `skip_if_no_data: false`: NO_DATA,
+  and the status check does not run (SignalFlag's config reference); NO_DATA, like NOT_RUN, never
+  makes a job or batch worse;
 * `type: dashboard | report` metrics run over many batches (`gateway/metrics/trends.py`): in a
   batch they are NOT_RUN naming the command that runs them (they never fail a batch);
 * `template_type: custom`: the result is rendered by the metric's Liquid template (`custom`);
@@ -42,6 +45,7 @@ import contextlib
 import datetime as dt
 import functools
 import json
+import re
 import sys
 import threading
 import time
@@ -58,16 +62,22 @@ from lakegate.dialect.scope import Scope
 from lakegate.gateway.engine.backend import DuckDBBackend, QueryResult
 from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.metrics.custom import CUSTOM, render_custom
+from lakegate.gateway.metrics.job_media import names_jobs, render_job_media
 from lakegate.gateway.metrics.metric_result import MetricError, MetricResult
 from lakegate.gateway.metrics.results import ResultsWriter
-from lakegate.gateway.metrics.templates import TemplateError, render
+from lakegate.gateway.metrics.template_settings import apply_template_settings, unused_settings
+from lakegate.gateway.metrics.templates import Rendered, TemplateError, render
 from lakegate.lake import paths
+from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import Config, Location, Metric
+from lakegate.lake.config_schema import PLATFORM_TABLES
+from lakegate.lake.record import job_logs_dir
 from lakegate.lake.storage import LakeStorage
 
 PASSED, WARNING, BLOCKER, ERROR, NOT_RUN = "PASSED", "WARNING", "BLOCKER", "ERROR", "NOT_RUN"
-#: Statuses from best to worst; NOT_RUN is below all and never makes anything worse.
-SEVERITY = {NOT_RUN: 0, PASSED: 1, WARNING: 2, BLOCKER: 3, ERROR: 4}
+NO_DATA = "NO_DATA"
+#: Statuses from best to worst; NOT_RUN and NO_DATA are below all and never make anything worse.
+SEVERITY = {NOT_RUN: 0, NO_DATA: 0, PASSED: 1, WARNING: 2, BLOCKER: 3, ERROR: 4}
 #: Metric types a batch evaluates (`evaluate_batch`).
 EVALUATED_TYPES = ("test", "batch")
 #: Metric types that run over many batches (`Scope.batches`, gateway/metrics/trends.py), and the
@@ -79,9 +89,9 @@ MULTI_BATCH_COMMANDS = {
 
 
 def worst(statuses: Sequence[str] | Any) -> str:
-    """The worst of some statuses; PASSED when there are none (or only NOT_RUN)."""
+    """The worst of some statuses; PASSED when there are none (or only NOT_RUN and NO_DATA)."""
     found = max(statuses, key=SEVERITY.__getitem__, default=PASSED)
-    return PASSED if found == NOT_RUN else found
+    return PASSED if SEVERITY[found] == 0 else found
 
 
 def conflated_status(job_status: str | None, metrics_status: str) -> str:
@@ -213,6 +223,32 @@ def select_metrics(config: Config, metrics_set: str | None = None, *, all_metric
     return config.metrics_in_set(metrics_set)
 
 
+def no_data(rows: Sequence[tuple]) -> bool:
+    """SignalFlag's NO_DATA: a query that returns no rows, or one row of NULLs only (an aggregate
+    such as MIN(x) over no rows). COUNT(*) over no rows is a row with a value (0): data."""
+    return not rows or (len(rows) == 1 and all(value is None for value in rows[0]))
+
+
+def check_batch_metrics(metrics: Sequence[Metric], metrics_set: str | None) -> None:
+    """ValueError when `metrics` hold no test or batch metric: evaluating them on a batch would only
+    replace its statuses and results with NOT_RUN rows, so the batch is left alone and the command
+    that runs them is named (a set of `type: dashboard` metrics: `lakegate metrics dashboard`)."""
+    if any(metric.type in EVALUATED_TYPES for metric in metrics):
+        return
+    where = f"metrics set {metrics_set!r}" if metrics_set else "the config"
+    kinds = sorted({metric.type for metric in metrics})
+    commands = "; ".join(
+        f"{kind} metrics: {MULTI_BATCH_COMMANDS[kind]}" + (f" --metrics-set {metrics_set!r}" if metrics_set else "")
+        for kind in kinds
+        if kind in MULTI_BATCH_COMMANDS
+    )
+    raise ValueError(
+        f"{where} holds no test or batch metric ({', '.join(kinds) or 'no'} metrics only), so there is nothing "
+        f"to evaluate on a batch; its statuses and results are left as they are"
+        + (f" (run {commands})" if commands else "")
+    )
+
+
 def unsupported_reason(metric: Metric, scope: Scope) -> str | None:
     """Why a metric cannot be evaluated in `scope`, or None when it can."""
     if metric.type in MULTI_BATCH_COMMANDS and scope.batches is None:
@@ -327,26 +363,73 @@ class MetricsEngine:
             result.status = NOT_RUN
             result.error = MetricError("skipped: the query returned no rows (skip_if_no_data)")
             return
+        if not metric.skip_if_no_data and no_data(rows):
+            what = "no rows" if not rows else "one row of NULLs"
+            result.status = NO_DATA
+            result.error = MetricError(f"the query returned {what}; the status check does not run (NO_DATA)")
+            return
         try:
             if metric.template_type == CUSTOM:
                 result.rendered = render_custom(metric, answer.columns, rows)
+            elif scope.job_id is None and names_jobs(metric.template, answer.columns):
+                result.rendered = self._job_media(metric, branch, scope, rows)
             else:
                 result.rendered = render(
                     metric.name, metric.template or "", answer.columns, rows, units=metric.units, logs_dir=logs_dir
                 )
         except TemplateError as error:
+            # The status check does not read the figure: it still runs, and its outcome is told
+            # beside the template's error (ERROR, the worse of the two, is the metric's status).
             result.status, result.error = ERROR, MetricError(str(error), query="template")
+            outcome = self._judge(metric, branch, scope)
+            if metric.status is not None:
+                told = outcome[0] if outcome[1] is None else f"{outcome[0]} ({outcome[1]})"
+                result.error = MetricError(f"{error}; the status check gave {told}", query="template")
             return
-        if metric.status is not None:
-            check = metric.status
-            try:
-                if check.block is not None and self._any_rows(check.query_string, branch, scope, check.block):
-                    result.status = BLOCKER
-                elif check.warn is not None and self._any_rows(check.query_string, branch, scope, check.warn):
-                    result.status = WARNING
-            except DialectError as error:
-                result.status = ERROR
-                result.error = _query_error(error, check.query_string, check.query_location, "status query")
+        if metric.template_settings and metric.template_type != CUSTOM:
+            apply_template_settings(result.rendered.figure, metric.template_settings)
+            unused = unused_settings(metric.template_settings)
+            if unused:
+                result.rendered.problems.append(f"template_settings not used by lakegate: {', '.join(unused)}")
+        if result.rendered.files_missing:  # a WARNING with the reason, not a silent PASS
+            reason = "; ".join(result.rendered.problems)
+            result.status, result.error = WARNING, MetricError(f"none of the files the query names is there: {reason}")
+        status, error = self._judge(metric, branch, scope)
+        if status != PASSED:  # the status check's outcome wins over a missing-files WARNING
+            result.status = status
+            result.error = error if error is not None else result.error
+
+    def _job_media(self, metric: Metric, branch: str, scope: Scope, rows: list[tuple]) -> Rendered:
+        """A batch image or video result of `[label, job_id]` rows (job_media): each job's files."""
+        template = metric.template or ""
+        config = BranchConfigs(self.lake, branch).current()
+        topics = config.topics.values() if config is not None else ()
+        media = [(topic.name, name) for topic in topics for name, kind in topic.fields.items() if kind == template]
+
+        def files_of(job_id: str, topic: str, column: str) -> list[str]:
+            sql = f"SELECT {_quoted(column)} FROM {_quoted(topic)} WHERE job_id = ? ORDER BY timestamp"
+            answer = self.query(sql, branch, Scope(scope.batch_id, job_id), (job_id,))
+            return [value for (value,) in answer.rows() if value is not None]
+
+        def logs_dir_of(job_id: str) -> Path | None:
+            return self.logs_dir(branch, scope.batch_id or "", job_id)
+
+        return render_job_media(metric.name, template, rows, media, files_of, logs_dir_of)
+
+    def _judge(self, metric: Metric, branch: str, scope: Scope) -> tuple[str, MetricError | None]:
+        """The status check's outcome: BLOCKER when the status query finds rows with `block`, else
+        WARNING when it finds rows with `warn`, else PASSED (also with no check); ERROR when it fails."""
+        check = metric.status
+        if check is None:
+            return PASSED, None
+        try:
+            if check.block is not None and self._any_rows(check.query_string, branch, scope, check.block):
+                return BLOCKER, None
+            if check.warn is not None and self._any_rows(check.query_string, branch, scope, check.warn):
+                return WARNING, None
+        except DialectError as error:
+            return ERROR, _query_error(error, check.query_string, check.query_location, "status query")
+        return PASSED, None
 
     def _any_rows(self, sql: str, branch: str, scope: Scope, threshold: Any) -> bool:
         answer = self.query(sql, branch, scope, (threshold,))
@@ -394,8 +477,8 @@ class MetricsEngine:
         return events
 
     def logs_dir(self, branch: str, batch_id: str, job_id: str) -> Path | None:
-        """The job's log files in the lake (`<branch>/_logs/<batch>/<job>/`), if there are any."""
-        directory = paths.logs_dir(self.lake, branch, batch_id, job_id)
+        """The job's log files in the lake (`record.job_logs_dir`), if there are any."""
+        directory = job_logs_dir(self.lake, branch, batch_id, job_id)
         return directory if self.storage.is_dir(directory) else None
 
     # -- a batch --------------------------------------------------------------------------------
@@ -417,8 +500,10 @@ class MetricsEngine:
         With `store`, replaces the batch's rows of `metric_results` (written job by job while the
         others are evaluated) and the jobs' statuses in their metadata rows, in one commit. Without
         `keep_figures`, each job's Plotly figures are dropped from the returned results once
-        stored (they can be large). LookupError when the batch has no jobs.
+        stored (they can be large). LookupError when the batch has no jobs; ValueError, before anything
+        is read or written, when `metrics` hold no test or batch metric (`check_batch_metrics`).
         """
+        check_batch_metrics(metrics, metrics_set)
         started = time.perf_counter()
         evaluated_at = dt.datetime.now(dt.UTC).replace(tzinfo=None)
         test_metrics = [m for m in metrics if m.type == "test"]
@@ -545,10 +630,19 @@ class MetricsEngine:
         )
 
 
+def _quoted(name: str) -> str:
+    return '"' + name.replace('"', '""') + '"'
+
+
 def _query_error(error: DialectError, sql: str, start: Location | None, which: str) -> MetricError:
-    return MetricError(
-        error.message, error.line, error.column, config_position(start, sql, error.line, error.column), which
-    )
+    message = error.message
+    missing = re.match(r"Table '(?:\w+\.)*(\w+)' does not exist", message)
+    if error.error_name == "TABLE_NOT_FOUND" and missing and missing.group(1).lower() in PLATFORM_TABLES:
+        message += (
+            f" ({missing.group(1)} is a table ReSim's platform generates for each job; "
+            "lakegate does not provide it yet: docs/resim-compat.md)"
+        )
+    return MetricError(message, error.line, error.column, config_position(start, sql, error.line, error.column), which)
 
 
 def _event_metric(item: dict[str, Any]) -> EventMetric:

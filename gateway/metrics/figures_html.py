@@ -20,7 +20,7 @@ from typing import Any
 
 from plotly.offline import get_plotlyjs
 
-from lakegate.gateway.metrics.templates import Rendered, display_value, format_number, image_mime
+from lakegate.gateway.metrics.templates import LINK_PATH, Rendered, display_value, format_number, image_mime
 from lakegate.lake.storage import LOCAL
 
 #: Badge colours of metric statuses.
@@ -30,6 +30,7 @@ STATUS_COLOURS = {
     "BLOCKER": "#c62828",
     "ERROR": "#6a1b9a",
     "NOT_RUN": "#757575",
+    "NO_DATA": "#90a4ae",
 }
 #: Rows of a table template shown in HTML; the full result stays in `Rendered.table`.
 MAX_TABLE_ROWS = 2000
@@ -89,11 +90,13 @@ def report_html(
     *,
     link: Linker | None = None,
     plotlyjs: str | bool = True,
+    intro: str = "",
 ) -> str:
-    """One offline page showing many metrics, grouped in titled sections.
+    """One offline page showing many metrics, grouped in titled sections (`intro`: HTML shown
+    under the title and the status counts, e.g. a served page's links).
 
     Each metric is (name, rendered or None when it has no result, info) where info may hold
-    "status" (PASSED, WARNING, BLOCKER, ERROR or NOT_RUN), "description", "units", "error" and
+    "status" (PASSED, WARNING, BLOCKER, ERROR, NOT_RUN or NO_DATA), "description", "units", "error" and
     "link_columns" (default `LINK_COLUMNS`): with `link`, a table's cells in those columns are
     links to `link(value)`. `plotlyjs` is `figure_html`'s `include_plotlyjs` (True: embedded).
     """
@@ -113,7 +116,7 @@ def report_html(
         f"<span>{_badge(status)} {count}</span>" for status, count in sorted(counts.items(), key=_status_order)
     )
     charts = any(_has_chart(rendered) for _, metrics in sections for _, rendered, _ in metrics if rendered)
-    body = f'<h1>{html.escape(title)}</h1>\n<p class="lg-summary">{summary}</p>\n' + "\n".join(parts)
+    body = f'<h1>{html.escape(title)}</h1>\n<p class="lg-summary">{summary}</p>\n{intro}' + "\n".join(parts)
     return _page(title, _plotly_script(plotlyjs) if charts else "", body)
 
 
@@ -176,7 +179,7 @@ def _metric_body(rendered: Rendered, div_id: str, links: tuple[Linker, Sequence[
     if rendered.template == "table" and rendered.table is not None:
         body = _table(rendered, links)
     elif _has_chart(rendered):
-        body = _chart(rendered.figure, div_id)
+        body = _chart(rendered.figure, div_id, links[0] if links is not None else None)
     elif rendered.template == "image":
         body, image_problems = _images(rendered.images)
         problems += image_problems
@@ -199,12 +202,25 @@ def _script_json(value: object) -> str:
     return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
 
 
-def _chart(figure: dict, div_id: str) -> str:
-    height = figure.get("layout", {}).get("height", 420)
-    return (
+def _chart(figure: dict, div_id: str, link: Linker | None = None) -> str:
+    """A Plotly chart; with `link`, a click on a bar or point of a chart with `link_path` values
+    (templates.LINK_PATH, kept per trace in the layout's meta) opens the page its value links to."""
+    layout = figure.get("layout", {})
+    height = layout.get("height", 420)
+    html_text = (
         f'<div id="{div_id}" style="height:{int(height)}px"></div>\n'
         f'<script>Plotly.newPlot("{div_id}", {_script_json(figure.get("data", []))}, '
-        f'{_script_json(figure.get("layout", {}))}, {{"responsive": true, "displaylogo": false}});</script>'
+        f'{_script_json(layout)}, {{"responsive": true, "displaylogo": false}});</script>'
+    )
+    values = (layout.get("meta") or {}).get(LINK_PATH) if isinstance(layout.get("meta"), dict) else None
+    if link is None or not values:
+        return html_text
+    targets = [[link(value) if value is not None else None for value in trace] for trace in values]
+    return html_text + (
+        f'\n<script>document.getElementById("{div_id}").on("plotly_click", function (event) {{'
+        f"var point = event.points[0], targets = {_script_json(targets)}; "
+        "var target = (targets[point.curveNumber] || [])[point.pointNumber]; "
+        "if (target) { window.location.href = target; } });</script>"
     )
 
 

@@ -78,6 +78,8 @@ class Rendered:
     images: list[str] = field(default_factory=list)
     #: Non-fatal issues, e.g. missing image files or values that cannot be drawn.
     problems: list[str] = field(default_factory=list)
+    #: Image, video and artifact: the query named files and none of them is in the job's logs.
+    files_missing: bool = False
 
 
 class TemplateError(ValueError):
@@ -331,24 +333,54 @@ def _labeller() -> Callable[[Any], str]:
     return label
 
 
+#: The optional last column of a bar or line result: where each point links to (ReSim's `link_path`).
+LINK_PATH = "link_path"
+
+
+def _chart_columns(result: _Result, *, two: bool) -> tuple[int | None, int, int]:
+    """(series, x, y) column indexes of a bar or line result: `[series, x, y]`, with an optional 4th
+    `link_path` column; a bar may also be `[x, y]` (one unnamed series), or `[x, y, link_path]`."""
+    names = [name.lower() for name in result.names]
+    linked = len(names) in (3, 4) and names[-1] == LINK_PATH and (len(names) == 4 or two)
+    width = len(names) - linked
+    if width == 3:
+        return 0, 1, 2
+    if width == 2 and two:
+        return None, 0, 1
+    got = f"got {len(names)} ({', '.join(result.names)})"
+    if len(names) == 4:
+        raise result.error(f"takes a 4th column only named {LINK_PATH}, {got}")
+    wanted = "2 or 3 columns [x, y] or [series, x, y]" if two else "exactly 3 columns [series, x, y]"
+    raise result.error(f"needs {wanted} (and an optional {LINK_PATH} column), {got}")
+
+
+def _link_meta(result: _Result, groups: dict[str, list[int]]) -> dict:
+    """The `link_path` values of each trace's points, for the pages to link (figures_html)."""
+    if result.names[-1].lower() != LINK_PATH or len(result.names) < 3:
+        return {}
+    column = len(result.names) - 1
+    return {"meta": {LINK_PATH: [[json_value(result.rows[i][column]) for i in indexes] for indexes in groups.values()]}}
+
+
 def _line(result: _Result) -> Rendered:
-    result.need_columns((3,), "[series, x, y]")
-    ys, problems = result.numbers(2, "numeric y values")
-    categorical = _is_text(result.types[1])  # ReSim draws text x values as categories
-    dates = not categorical and any(isinstance(row[1], dt.date) for row in result.rows)
+    series, x, y = _chart_columns(result, two=False)
+    ys, problems = result.numbers(y, "numeric y values")
+    categorical = _is_text(result.types[x])  # ReSim draws text x values as categories
+    dates = not categorical and any(isinstance(row[x], dt.date) for row in result.rows)
     xs: list[Any]
     if categorical:
-        xs = [row[1] for row in result.rows]
+        xs = [row[x] for row in result.rows]
     elif dates:
-        xs = [_plot_time(row[1]) if isinstance(row[1], dt.date) else None for row in result.rows]
+        xs = [_plot_time(row[x]) if isinstance(row[x], dt.date) else None for row in result.rows]
         for number, row in enumerate(result.rows, 1):
-            if row[1] is not None and not isinstance(row[1], dt.date):
-                raise result.bad_value(number, 1, "numeric or timestamp x values")
+            if row[x] is not None and not isinstance(row[x], dt.date):
+                raise result.bad_value(number, x, "numeric or timestamp x values")
     else:
-        xs, x_problems = result.numbers(1, "numeric or timestamp x values")
+        xs, x_problems = result.numbers(x, "numeric or timestamp x values")
         problems += x_problems
     traces = []
-    for name, indexes in _series(result, 0).items():
+    groups = _series(result, series)
+    for name, indexes in groups.items():
         traces.append(
             {
                 "type": "scatter",
@@ -358,7 +390,7 @@ def _line(result: _Result) -> Rendered:
                 "y": [ys[i] for i in indexes],
             }
         )
-    layout = _layout(result.names[1], result.names[2], hovermode="closest")
+    layout = _layout(result.names[x], result.names[y], hovermode="closest", **_link_meta(result, groups))
     if dates or categorical:
         layout["xaxis"]["type"] = "date" if dates else "category"
     return Rendered(
@@ -370,22 +402,23 @@ def _line(result: _Result) -> Rendered:
 
 
 def _bar(result: _Result) -> Rendered:
-    result.need_columns((3,), "[series, x, y]")
-    ys, problems = result.numbers(2, "numeric y values")
-    raw_x = [row[1] for row in result.rows]
+    series, x, y = _chart_columns(result, two=True)
+    ys, problems = result.numbers(y, "numeric y values")
+    raw_x = [row[x] for row in result.rows]
     categorical = any(v is not None and _number(v) is _NOT_A_NUMBER and not isinstance(v, dt.date) for v in raw_x)
     if categorical:
         xs: list[Any] = [display_value(v) for v in raw_x]
     elif any(isinstance(v, dt.date) for v in raw_x):
         xs = [None if v is None else _plot_time(v) for v in raw_x]
     else:
-        xs, x_problems = result.numbers(1, "x values")
+        xs, x_problems = result.numbers(x, "x values")
         problems += x_problems
+    groups = _series(result, series)
     traces = [
         {"type": "bar", "name": name, "x": [xs[i] for i in indexes], "y": [ys[i] for i in indexes]}
-        for name, indexes in _series(result, 0).items()
+        for name, indexes in groups.items()
     ]
-    layout = _layout(result.names[1], result.names[2], barmode="group")
+    layout = _layout(result.names[x], result.names[y], barmode="group", **_link_meta(result, groups))
     if categorical:
         layout["xaxis"]["type"] = "category"
     return Rendered(
@@ -462,6 +495,7 @@ def _log_files(result: _Result, logs_dir: Path | None) -> Rendered:
             failed.setdefault(unshowable, []).append(name)
         else:
             found.append([name, str(path), LOCAL.stat(path).size, mime])
+    files_missing = bool(result.rows) and not found and unshowable not in failed
     noun = {"image": "image", "video": "video", "artifact": "file"}[result.template]
     text = _plural(len(found), noun)
     count = sum(len(names) for names in failed.values())
@@ -473,6 +507,7 @@ def _log_files(result: _Result, logs_dir: Path | None) -> Rendered:
         text=text,
         images=[path for _, path, _, _ in found] if result.template == "image" else [],
         problems=[_grouped_problem(what, names) for what, names in failed.items()],
+        files_missing=files_missing,
     )
 
 

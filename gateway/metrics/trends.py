@@ -196,8 +196,11 @@ def _batches_item(evaluation: TrendsEvaluation) -> Item:
     return "Batches", render("Batches", "table", columns, rows), info
 
 
-def trends_html(evaluation: TrendsEvaluation, *, link_base: str = "", plotlyjs: str | bool = True) -> str:
-    """The page of an evaluation: its batches, then every metric; links go to `link_base`'s dashboard."""
+def trends_html(
+    evaluation: TrendsEvaluation, *, link_base: str = "", plotlyjs: str | bool = True, intro: str = ""
+) -> str:
+    """The page of an evaluation: its batches, then every metric; links go to `link_base`'s dashboard
+    (`intro`: HTML shown under the title)."""
     kind = "Dashboard" if evaluation.kind == "dashboard" else "Report"
     title = f"{kind} of branch {evaluation.branch}: {evaluation.status}"
     sections = [
@@ -209,12 +212,14 @@ def trends_html(evaluation: TrendsEvaluation, *, link_base: str = "", plotlyjs: 
         [(name, items) for name, items in sections if items],
         link=lambda value: batch_link(evaluation.branch, value, link_base),
         plotlyjs=plotlyjs,
+        intro=intro,
     )
 
 
-def write_trends(evaluation: TrendsEvaluation, path: Path, *, link_base: str = "") -> Path:
-    """Write the page of an evaluation to `path` (folders created, plotly.js embedded); returns the path."""
+def write_trends(evaluation: TrendsEvaluation, path: Path, *, link_base: str = "", intro: str = "") -> Path:
+    """Write the page of an evaluation to `path` (folders created, plotly.js embedded; `intro`: HTML
+    under the title); returns the path."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(trends_html(evaluation, link_base=link_base), encoding="utf-8")
+    path.write_text(trends_html(evaluation, link_base=link_base, intro=intro), encoding="utf-8")
     return path

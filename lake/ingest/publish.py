@@ -54,6 +54,7 @@ class IngestReport:
     problems: list[LineProblem] = field(default_factory=list)  # the first MAX_PROBLEMS, when skipped
     skipped: str = ""  # what the skipped lines held, per topic (BadLines.what_skipping_drops)
     causes: list[tuple[LineProblem, int]] = field(default_factory=list)  # skipped lines by cause
+    logs: Path | None = None  # the folder the job's logs were copied from
 
 
 def ingest_job(
@@ -67,11 +68,14 @@ def ingest_job(
     metadata: dict[str, Any] | None = None,
     skip_bad_lines: bool = False,
     progress: bool = False,
+    logs: Path | None = None,
 ) -> IngestReport:
     """Ingest the emissions files of one job into the lake (replacing an earlier ingest of it).
 
-    Raises IngestError (nothing written) when a line is bad and `skip_bad_lines` is off,
-    MetadataError for bad metadata, LakePathError for names the lake cannot hold.
+    `logs`: a folder of the job's log files (images, videos ... its metrics show), copied into the lake
+    and made the job's logs in the same commit as its tables (None: the job keeps the logs it has).
+    Raises IngestError (nothing written) when a line is bad and `skip_bad_lines` is off, or `logs` is
+    not a folder; MetadataError for bad metadata, LakePathError for names the lake cannot hold.
     """
     started = time.perf_counter()
     lake = Path(lake)
@@ -83,6 +87,8 @@ def ingest_job(
     for path in files:
         if not path.is_file():
             raise IngestError(f"emissions file {str(path)!r} does not exist or is not a file")
+    if logs is not None and not Path(logs).is_dir():
+        raise IngestError(f"logs folder {str(logs)!r} does not exist or is not a folder")
     row = build_metadata_row(metadata or {}, lake=lake, branch=branch, batch_id=batch_id, job_id=job_id)
     problems: list[LineProblem] = []
     grouped = BadLines()
@@ -152,8 +158,12 @@ def ingest_job(
         metadata_file = scratch / "metadata.parquet"
         write_metadata_file(metadata_table(row), metadata_file)
         staged[paths.METADATA_TABLE] = metadata_file
+        staged_logs = None
+        if logs is not None:
+            staged_logs = scratch / "logs"
+            LOCAL.put(Path(logs), staged_logs)
         version = BranchConfigs(lake, branch).store_config(config)
-        published = _publish(lake, branch, batch_id, job_id, staged, progress)
+        published = _publish(lake, branch, batch_id, job_id, staged, progress, staged_logs)
         quarantine_target = paths.quarantine_file(lake, branch, batch_id, job_id)
         if bad:
             paths.publish(quarantine, quarantine_target)
@@ -174,16 +184,25 @@ def ingest_job(
         problems=problems if bad else [],
         skipped=grouped.what_skipping_drops(topics) if bad else "",
         causes=list(grouped.causes.values()),
+        logs=None if logs is None else Path(logs),
     )
 
 
 def _publish(
-    lake: Path, branch: str, batch_id: str, job_id: str, staged: dict[str, Path], progress: bool
+    lake: Path,
+    branch: str,
+    batch_id: str,
+    job_id: str,
+    staged: dict[str, Path],
+    progress: bool,
+    staged_logs: Path | None,
 ) -> list[Path]:
-    """Make the staged files the job's tables, all at once (one record commit); the old files go
-    (`progress`: a bar on standard error if a layout v1 branch is migrated first)."""
+    """Make the staged files the job's tables, and `staged_logs` its logs, all at once (one record
+    commit); the old files go (`progress`: a bar on standard error if a layout v1 branch is migrated first)."""
     change = Change(lake, branch, progress=progress)
     for name, file in staged.items():
         change.add(name, batch_id, job_id, file)
+    if staged_logs is not None:
+        change.set_logs(batch_id, job_id, staged_logs)
     change.replace_job(batch_id, job_id)
     return change.commit(f"ingest {batch_id}/{job_id}")

@@ -195,6 +195,11 @@ class FixtureLake:
     schema: dict[str, dict[str, str]]
     _shared: duckdb.DuckDBPyConnection | None = field(default=None, repr=False)
 
+    def file(self, table: str) -> Path:
+        """The Parquet file of `table`, alone in its own folder (so that a real Trino can register the
+        folder as an external table)."""
+        return self.root / table / f"{table}.parquet"
+
     def connect(self) -> duckdb.DuckDBPyConnection:
         """A new in-memory DuckDB connection with one view per table, in UTC, that can read only the
         fixture directory and whose configuration is locked."""
@@ -202,7 +207,7 @@ class FixtureLake:
         udfs.install(con)
         con.execute("SET TimeZone = 'UTC'")
         for table in self.schema:
-            path = str(self.root / f"{table}.parquet").replace("'", "''")
+            path = str(self.file(table)).replace("'", "''")
             con.execute(f"CREATE VIEW \"{table}\" AS SELECT * FROM read_parquet('{path}')")
         con.execute("SET allowed_directories = ?", [[str(self.root)]])
         con.execute("SET enable_external_access = false")
@@ -228,13 +233,13 @@ class FixtureLake:
 
 
 def write_tables(root: Path) -> None:
-    """Write every fixture table as `<root>/<table>.parquet`."""
-    root.mkdir(parents=True, exist_ok=True)
+    """Write every fixture table as `<root>/<table>/<table>.parquet`."""
     for table, columns in _COLUMNS.items():
+        (root / table).mkdir(parents=True, exist_ok=True)
         arrow_schema = pa.schema([(name, arrow) for name, (_, arrow) in columns.items()])
         rows = _ROWS[table]
         data = {name: [row[k] for row in rows] for k, name in enumerate(columns)}
-        pq.write_table(pa.table(data, schema=arrow_schema), root / f"{table}.parquet")
+        pq.write_table(pa.table(data, schema=arrow_schema), root / table / f"{table}.parquet")
 
 
 @pytest.fixture(scope="session")

@@ -11,11 +11,12 @@ from __future__ import annotations
 import duckdb
 import pytest
 import sqlglot
+from answer_compare import sort_key
 from functions_doc import Case, load_cases
 
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.translate import translate
-from tests.dialect.test_conformance import _sort_key, is_ordered, parse_type, same, to_protocol
+from tests.dialect.test_conformance import is_ordered, parse_type, same, to_protocol
 
 RESULT_CASES = [case for case in load_cases() if not case.errors]
 
@@ -49,7 +50,7 @@ def baseline_is_right(case: Case, lake) -> bool:
         return False
     expected = [list(row) for row in case.rows]
     if not is_ordered(case):
-        rows, expected = sorted(rows, key=_sort_key), sorted(expected, key=_sort_key)
+        rows, expected = sorted(rows, key=sort_key), sorted(expected, key=sort_key)
     return same(expected, rows, case.tolerance)
 
 

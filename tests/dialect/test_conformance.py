@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import base64
 import datetime as dt
-import json
 import math
 import re
 import uuid
@@ -24,12 +23,13 @@ from zoneinfo import ZoneInfo
 import duckdb
 import pyarrow as pa
 import pytest
-import sqlglot
+from answer_compare import has_order_by, normalize_type, rows_match, same
 from functions_doc import Case, called_names, load_cases
 
 from lakegate.dialect import registry
 from lakegate.dialect.errors import DialectError, runtime_error
 from lakegate.dialect.translate import translate
+from lakegate.gateway.engine.trino_values import shortest_float32
 
 CASES = load_cases()
 _INTEGRAL = {"tinyint", "smallint", "integer", "bigint"}
@@ -114,12 +114,6 @@ def _field_type(field: str) -> str:
     return field
 
 
-def normalize_type(text: str) -> str:
-    """Type names compare without case, quotes and spaces after commas (`decimal(6, 2)` is
-    `decimal(6,2)`)."""
-    return re.sub(r"\s*,\s*", ",", text.strip().lower().replace('"', ""))
-
-
 # --- DuckDB values -> Trino client-protocol JSON encoding --------------------------------------------
 def _zone_name(value: dt.datetime) -> str:
     """A zoned value's zone as Trino names it: the region, UTC, or the offset as +hh:mm."""
@@ -162,7 +156,7 @@ def to_protocol(value, ttype: tuple):
             return "NaN"
         if math.isinf(value):
             return "Infinity" if value > 0 else "-Infinity"
-        return value
+        return float(shortest_float32(value)) if base == "real" else value
     if base == "decimal":
         if isinstance(value, (Decimal, int)) and not isinstance(value, bool):
             return format(Decimal(value).quantize(Decimal(1).scaleb(-args[1]), context=Context(prec=80)), "f")
@@ -216,40 +210,8 @@ def to_protocol(value, ttype: tuple):
 
 
 # --- comparison ------------------------------------------------------------------------------------
-def same(expected, actual, tolerance: float | None) -> bool:
-    if isinstance(expected, bool) or isinstance(actual, bool):
-        return type(expected) is type(actual) and expected == actual
-    if isinstance(expected, (int, float)) and isinstance(actual, (int, float)):
-        if tolerance is not None:
-            return math.isclose(expected, actual, rel_tol=tolerance, abs_tol=tolerance)
-        return expected == actual
-    if isinstance(expected, list) and isinstance(actual, list):
-        return len(expected) == len(actual) and all(same(e, a, tolerance) for e, a in zip(expected, actual))
-    if isinstance(expected, dict) and isinstance(actual, dict):
-        return expected.keys() == actual.keys() and all(same(expected[k], actual[k], tolerance) for k in expected)
-    return expected == actual and type(expected) is type(actual)
-
-
-def _sort_key(row) -> str:
-    def norm(v):
-        if isinstance(v, bool) or v is None or isinstance(v, str):
-            return v
-        if isinstance(v, (int, float)):
-            return float(v)
-        if isinstance(v, list):
-            return [norm(x) for x in v]
-        if isinstance(v, dict):
-            return {k: norm(x) for k, x in v.items()}
-        return repr(v)
-
-    return json.dumps(norm(row), sort_keys=True, ensure_ascii=False)
-
-
 def is_ordered(case: Case) -> bool:
-    if case.ordered is not None:
-        return case.ordered
-    tree = sqlglot.parse_one(case.sql.strip().rstrip(";"), read="trino")
-    return bool(tree.args.get("order"))
+    return case.ordered if case.ordered is not None else has_order_by(case.sql)
 
 
 def _check_expected_values(case: Case, types: list[tuple]) -> None:
@@ -322,9 +284,7 @@ def _run_result_case(case: Case, translate, rejected: dict, lake) -> None:
     zones = translation.zones or (None,) * width
     rows = [[to_protocol(in_zone(v, z), t) for v, t, z in zip(row, expected_types, zones)] for row in raw_rows]
     expected = [list(row) for row in case.rows]
-    if not is_ordered(case):
-        rows, expected = sorted(rows, key=_sort_key), sorted(expected, key=_sort_key)
-    if not same(expected, rows, case.tolerance):
+    if not rows_match(expected, rows, ordered=is_ordered(case), tolerance=case.tolerance):
         problems.append(f"rows: expected {expected}\n      got      {rows}")
     if problems:
         pytest.fail("\n".join(problems) + _translated(case, translation), pytrace=False)

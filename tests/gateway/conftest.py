@@ -14,6 +14,7 @@ field of every topic type (two rows, values in ALL_TYPES_ROWS) in batch `b1`, jo
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import signal
 import subprocess
@@ -191,6 +192,7 @@ def build_server_lake(root: Path) -> Path:
             [job.emissions_path],
             config=config,
             metadata=load_metadata_file(job.metadata_path),
+            logs=job.logs_dir,
         )
     config_file = root / "all-types.resim.yaml"
     config_file.write_text(ALL_TYPES_CONFIG)
@@ -333,3 +335,48 @@ def write_self_signed_certificate(folder: Path, name: str = "lakegate test") -> 
 def make_certificate() -> Callable[..., tuple[Path, Path]]:
     """`write_self_signed_certificate(folder, name)`, for the TLS tests."""
     return write_self_signed_certificate
+
+
+# --- Java clients (the official Trino JDBC driver and CLI) --------------------------------------
+
+
+def _needs(what: str, fix: str, error: str) -> None:
+    """Fail under CI=true (the machine must provide `what`), else skip with the command that fixes it."""
+    if os.environ.get("CI") == "true":
+        pytest.fail(f"CI needs {what}: {error}")
+    pytest.skip(f"needs {what}: {fix}")
+
+
+@pytest.fixture(scope="session")
+def jdk() -> Path:
+    """A JDK with javac: the one Trino runs on (tools/trino_server.py java_home(), 24 or newer),
+    else the newest under /usr/lib/jvm (17 is enough for the driver)."""
+    import trino_server
+
+    try:
+        home = trino_server.java_home()
+    except trino_server.TrinoError as error:
+        home, reason = None, str(error)
+    else:
+        reason = f"{home} has no javac"
+    if home is not None and (home / "bin" / "javac").exists():
+        return home
+    jvm = Path("/usr/lib/jvm")
+    for candidate in sorted(jvm.iterdir(), reverse=True) if jvm.is_dir() else []:
+        if (candidate / "bin" / "javac").exists():
+            return candidate
+    _needs("a JDK (javac)", "apt-get install openjdk-17-jdk-headless", reason)
+
+
+@pytest.fixture(scope="session")
+def trino_jar() -> Callable[[str], Path]:
+    """`trino_jar(name)`: the jar io.trino:<name>:476 (trino-jdbc, trino-cli), fetched with Maven once."""
+    import trino_server
+
+    def fetch(name: str) -> Path:
+        try:
+            return trino_server.jar(name)
+        except trino_server.TrinoError as error:
+            _needs(f"the jar io.trino:{name}:476", f"python3 dev.py trino jar {name}", str(error))
+
+    return fetch

@@ -84,7 +84,8 @@ def test_check_merges_several_files(tmp_path):
 
     result = lakegate("config", "check", FIXTURE, FIXTURE)
     assert result.returncode == 1
-    assert f"{FIXTURE}:7:3: topic 'odom_linear_velocity' is already defined at {FIXTURE}:7:3" in result.stdout
+    duplicate = "duplicate topic name 'odom_linear_velocity' found across config files"
+    assert f"{FIXTURE}:7:3: {duplicate} (first defined at {FIXTURE}:7:3)" in result.stdout
 
 
 def test_check_finds_the_default_config(tmp_path):

@@ -148,6 +148,7 @@ def test_sync_stores_the_template_and_run_renders_it_into_results_and_report(tmp
         [job.emissions_path],
         config=load_config(config_path),
         metadata=load_metadata_file(job.metadata_path),
+        logs=job.logs_dir,
     )
     assert (
         lakegate("metrics", "sync", "--lake", lake, "--branch", "main", "--metrics-config-path", config_path).returncode

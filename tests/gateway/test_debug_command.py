@@ -363,7 +363,8 @@ def test_export_keeps_to_the_config_folder(tmp_path: Path, nav_jobs, debug_proce
 
 def test_exported_edits_load_back_with_the_same_values(tmp_path: Path, nav_jobs, debug_processes) -> None:
     """The page edits YAML with ruamel (YAML 1.2) and the loader reads YAML 1.2 with the same library:
-    units "on" stays a string (YAML 1.1 reads a boolean) and "1:30" stays a string (YAML 1.1: 90)."""
+    units "on" stays a string (YAML 1.1 reads a boolean) and "1:30" stays a string (YAML 1.1: 90).
+    Thresholds are numbers (a quoted one is refused, as SignalFlag's validator refuses it)."""
     config = tmp_path / "config.resim.yaml"
     config.write_text(nav_jobs.config.read_text())
     server = debug_processes(
@@ -379,22 +380,26 @@ def test_exported_edits_load_back_with_the_same_values(tmp_path: Path, nav_jobs,
     )
     base, session = server.url.split("?session=")
     name = "Time to reach final goal"
-    edit = {"units": "on", "status": {"query_string": "SELECT 1 WHERE ? = 'never'", "block": "1:30", "warn": "yes"}}
-    request = urllib.request.Request(
-        f"{base}api/sessions/{session}/metrics/{urllib.parse.quote(name)}",
-        data=json.dumps(edit).encode(),
-        method="PUT",
-        headers={"Content-Type": "application/json"},
-    )
-    with urllib.request.urlopen(request, timeout=60) as response:
-        metric = next(m for m in json.loads(response.read())["metrics"] if m["name"] == name)
-    assert metric["units"] == "on" and metric["status"]["block"] == "1:30"
+
+    def edited(edit: dict) -> dict:
+        request = urllib.request.Request(
+            f"{base}api/sessions/{session}/metrics/{urllib.parse.quote(name)}",
+            data=json.dumps(edit).encode(),
+            method="PUT",
+            headers={"Content-Type": "application/json"},
+        )
+        with urllib.request.urlopen(request, timeout=60) as response:
+            return next(m for m in json.loads(response.read())["metrics"] if m["name"] == name)
+
+    metric = edited({"units": "on", "status": {"query_string": "SELECT 1 WHERE ? < 0", "block": 90, "warn": 1.5}})
+    assert metric["units"] == "on" and metric["status"]["block"] == 90
     with zipfile.ZipFile(io.BytesIO(_get(f"{base}api/sessions/{session}/export"))) as archive:
         exported = tmp_path / "exported" / config.name
         exported.parent.mkdir()
         exported.write_bytes(archive.read(config.name))
     loaded = load_config([exported]).metrics[name]
-    assert (loaded.units, loaded.status.block, loaded.status.warn) == ("on", "1:30", "yes")
+    assert (loaded.units, loaded.status.block, loaded.status.warn) == ("on", 90, 1.5)
+    assert edited({"units": "1:30"})["units"] == "1:30"
     assert server.stop() == 0
 
 

@@ -38,11 +38,11 @@ def test_demo_from_anywhere_with_no_arguments_then_again(tmp_path):
     out = demo(cwd=tmp_path)
     lake = tmp_path / "lake-demo"
     report = lake / "report.html"
-    assert f"report: {report}" in out and f"lake:   {lake}" in out
+    assert f"report:  {report}" in out and f"lake:    {lake}" in out
     for name in ("Warehouse Loop", "Robot Speed", "Passed Jobs by Tag Group", "Total Samples: "):
         assert name in out
     assert re.search(
-        r"batch 'nav-regression-1' on branch 'main': BLOCKER \(6 jobs: 2 PASSED, 2 WARNING, 2 BLOCKER;", out
+        r"batch 'nav-regression-1' on branch 'main': BLOCKER \(8 jobs: 4 PASSED, 2 WARNING, 2 BLOCKER;", out
     )
 
     backend = DuckDBBackend(lake)
@@ -54,7 +54,7 @@ def test_demo_from_anywhere_with_no_arguments_then_again(tmp_path):
         ).rows()
     finally:
         backend.close()
-    assert statuses == [("BLOCKER", 2), ("PASSED", 2), ("WARNING", 2)]
+    assert statuses == [("BLOCKER", 2), ("PASSED", 4), ("WARNING", 2)]  # the cycle of 6, two reruns PASSED
 
     html = report.read_text()
     for kind in ("scatter", "bar", "histogram", "pie"):  # line, bar and state timeline, histogram, pie
@@ -66,18 +66,45 @@ def test_demo_from_anywhere_with_no_arguments_then_again(tmp_path):
     assert "<script src=" not in html and "Plotly.newPlot" in html  # offline: plotly.js is embedded
 
     check_trends(out, lake)
+    check_comparison(out, lake)
 
     results = read_results(lake, BRANCH, BATCH)
     again = demo("--lake", lake, "--no-progress", cwd=tmp_path)
-    assert "2 PASSED, 2 WARNING, 2 BLOCKER" in again
-    assert len(read_results(lake, BRANCH, BATCH)) == len(results) == 6 * 9 + 6  # replaced, not added
-    assert len(Catalog(lake).jobs(BRANCH)) == 6 + 2 * 3  # the batch and the two earlier builds' batches
+    assert "4 PASSED, 2 WARNING, 2 BLOCKER" in again
+    assert len(read_results(lake, BRANCH, BATCH)) == len(results) == 8 * 9 + 6  # replaced, not added
+    assert len(Catalog(lake).jobs(BRANCH)) == 8 + 3 + 6  # the batch and the two earlier builds' batches
+
+
+def check_comparison(out: str, lake: Path) -> None:
+    """The demo's comparison of builds 1.4.1 and 1.4.2 shows the regression, the fix and the flaky
+    experience built into it (gateway/cli/demo.py), in the terminal and through `lakegate compare`."""
+    assert f"compare: {lake / 'compare.html'}" in out
+    assert "flaky: Narrow Aisle" in out and "new failures: Parking Lot" in out
+    done = subprocess.run(
+        [*CLI, "compare", "--lake", lake, "--branch", BRANCH, "--base-build", "1.4.1", "--build", "1.4.2"]
+        + ["--format", "json", "--fail-on", "new-failures"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert done.returncode == 4, done.stderr  # Parking Lot passed on 1.4.1 and blocks on 1.4.2
+    tags = {e["experience"]: e["tag"] for e in json.loads(done.stdout)["experiences"]}
+    assert tags == {
+        "Parking Lot": "new failure",
+        "Narrow Aisle": "flaky",
+        "Loading Dock": "fixed",
+        "Office Corridor": "still failing",
+        "Open Field": "still failing",
+        "Warehouse Loop": "same",
+    }
+    html = (lake / "compare.html").read_text()
+    assert "<script src=" not in html and "Plotly.newPlot" in html
 
 
 def check_trends(out: str, lake: Path) -> None:
     """The demo's dashboard metric: mean time to the final goal per build, over the jobs that reached
     3 goals, computed here from the generated emissions files (the builds in the order they ran)."""
-    assert f"trends: {lake / 'trends.html'}" in out
+    assert f"trends:  {lake / 'trends.html'}" in out
     assert (
         "dashboard of branch 'main': PASSED (2 metrics over 3 batches, every batch: nightly-1.4.0, "
         "nightly-1.4.1, nav-regression-1;" in out

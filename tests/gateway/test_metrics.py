@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import math
-import shutil
 import textwrap
 from collections import defaultdict
 from dataclasses import dataclass
@@ -25,11 +24,12 @@ from lakegate.gateway.metrics.evaluation import (
     select_metrics,
     worst,
 )
-from lakegate.lake import paths
+from lakegate.gateway.metrics.results import read_results
 from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import Location, Metric, StatusCheck, load_config
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file, read_metadata_row
+from lakegate.lake.record import job_logs_dir
 
 BRANCH, BATCH = "main", "nav"
 
@@ -45,8 +45,7 @@ def read_emissions(path: Path) -> dict[str, list[tuple[int, dict]]]:
 
 def ingest(lake: Path, batch: str, job: GeneratedJob, config, **metadata) -> None:
     values = {**load_metadata_file(job.metadata_path), **metadata}
-    ingest_job(lake, BRANCH, batch, job.job_id, [job.emissions_path], config=config, metadata=values)
-    shutil.copytree(job.logs_dir, paths.logs_dir(lake, BRANCH, batch, job.job_id), dirs_exist_ok=True)
+    ingest_job(lake, BRANCH, batch, job.job_id, [job.emissions_path], config=config, metadata=values, logs=job.logs_dir)
 
 
 def flat(points) -> list:
@@ -233,7 +232,8 @@ def test_covariance_table_has_trino_decimal_text(nav):
 def test_camera_image_resolved_in_the_job_logs(nav):
     for job in nav.jobs:
         rendered = nav.result("Stereo Camera Feed", job.job_id).rendered
-        expected = paths.logs_dir(nav.lake, BRANCH, BATCH, job.job_id) / "camera.gif"
+        expected = job_logs_dir(nav.lake, BRANCH, BATCH, job.job_id) / "camera.gif"
+        assert "/_job_logs/" in str(expected)  # the folder the ingest recorded, not the hand-copied _logs
         assert rendered.images == [str(expected.resolve())] and rendered.problems == []
 
 
@@ -482,7 +482,7 @@ def test_skip_if_no_data_and_unsupported_metrics_are_not_run(nav, tmp_path):
     scope = Scope(BATCH, nav.jobs[0].job_id)
     results = {m.name: nav.engine.evaluate(m, BRANCH, scope) for m in select_metrics(config, all_metrics=True)}
     assert results["Nothing"].status == "NOT_RUN" and "skip_if_no_data" in results["Nothing"].error.message
-    assert results["Nothing Unskipped"].status == "ERROR"
+    assert results["Nothing Unskipped"].status == "NO_DATA"  # SignalFlag's rule: test_no_data_outcome
     assert "no rows" in results["Nothing Unskipped"].error.message
     assert results["Later"].status == "NOT_RUN"
     assert results["Later"].error.message == "a dashboard metric runs over many batches: lakegate metrics dashboard"
@@ -491,7 +491,104 @@ def test_skip_if_no_data_and_unsupported_metrics_are_not_run(nav, tmp_path):
         results["Custom"].error.message == "metric 'Custom': custom template 'mine.json' not found in "
         "the config file's folder or its templates/ folder"
     )
-    assert worst(r.status for name, r in results.items() if name not in ("Nothing Unskipped", "Custom")) == "PASSED"
+    assert worst(r.status for name, r in results.items() if name != "Custom") == "PASSED"
+
+
+def test_no_data_outcome(nav, tmp_path):
+    """SignalFlag's config reference (signalskills, skills/signalflag-compose-metrics/config-reference.md,
+    "Required vs optional data", verified on the server): with `skip_if_no_data: false` a query returning
+    no rows, or one row of NULLs (MIN(x) over no rows), is NO_DATA and its status check never runs, even
+    one that blocks on absence; the job stays PASSED. COUNT(*) over no rows is a row (0): its status
+    check runs and blocks."""
+    config_path = write_config(
+        tmp_path,
+        """\
+      Absent:
+        type: test
+        query_string: SELECT speed AS value FROM robot_speed WHERE speed < 0
+        template: scalar
+        skip_if_no_data: false
+        status:
+          query_string: SELECT 1 FROM (SELECT COUNT(*) AS n FROM robot_speed WHERE speed < 0) s WHERE s.n <= ?
+          block: 0
+      Minimum:
+        type: test
+        query_string: SELECT MIN(speed) AS value FROM robot_speed WHERE speed < 0
+        template: scalar
+      Counted:
+        type: test
+        query_string: SELECT COUNT(*) AS value FROM robot_speed WHERE speed < 0
+        template: scalar
+        skip_if_no_data: false
+        status:
+          query_string: SELECT 1 FROM (SELECT COUNT(*) AS n FROM robot_speed WHERE speed < 0) s WHERE s.n <= ?
+          block: 0
+      Hidden:
+        type: test
+        query_string: SELECT speed AS value FROM robot_speed WHERE speed < 0
+        template: scalar
+        skip_if_no_data: true
+    """,
+        """\
+    metrics sets:
+      Presence:
+        metrics: [Absent, Minimum, Hidden]
+      Gate:
+        metrics: [Absent, Minimum, Counted, Hidden]
+    """,
+    )
+    config = load_config(config_path)
+    job = nav.jobs[0]
+    ingest(nav.lake, "no-data", job, config)
+    with MetricsEngine(nav.lake) as engine:
+        presence = engine.evaluate_batch(BRANCH, "no-data", select_metrics(config, "Presence"))
+        by_name = {r.metric: r for r in presence.results()}
+        assert {name: r.status for name, r in by_name.items()} == {
+            "Absent": "NO_DATA",
+            "Minimum": "NO_DATA",
+            "Hidden": "NOT_RUN",
+        }
+        assert "one row of NULLs" in by_name["Minimum"].error.message
+        assert "status check does not run" in by_name["Absent"].error.message
+        (outcome,) = presence.jobs
+        assert (outcome.metrics_status, outcome.conflated_status, presence.status) == ("PASSED", "PASSED", "PASSED")
+        stored = {(r["metric_name"], r["status"]) for r in read_results(nav.lake, BRANCH, "no-data")}
+        assert stored == {("Absent", "NO_DATA"), ("Minimum", "NO_DATA"), ("Hidden", "NOT_RUN")}
+        row = read_metadata_row(nav.lake, BRANCH, "no-data", job.job_id)
+        assert (row["job_metrics_status"], row["job_conflated_status"]) == ("PASSED", "PASSED")
+        gate = engine.evaluate_batch(BRANCH, "no-data", select_metrics(config, "Gate"))
+        counted = next(r for r in gate.results() if r.metric == "Counted")
+        assert (counted.status, counted.scalar_value, gate.jobs[0].conflated_status) == ("BLOCKER", 0.0, "BLOCKER")
+
+
+def test_a_template_error_tells_the_status_outcome(nav, tmp_path):
+    config_path = write_config(
+        tmp_path,
+        """\
+      Wrong Shape Blocking:
+        type: test
+        query_string: SELECT timestamp, speed FROM robot_speed
+        template: line
+        status:
+          query_string: SELECT 1 FROM robot_speed WHERE speed > ?
+          block: -1
+      Wrong Shape Passing:
+        type: test
+        query_string: SELECT timestamp, speed FROM robot_speed
+        template: line
+        status:
+          query_string: SELECT 1 FROM robot_speed WHERE speed > ?
+          warn: 1000000
+    """,
+    )
+    config = load_config(config_path)
+    scope = Scope(BATCH, nav.jobs[0].job_id)
+    results = {m.name: nav.engine.evaluate(m, BRANCH, scope) for m in select_metrics(config, all_metrics=True)}
+    blocking, passing = results["Wrong Shape Blocking"], results["Wrong Shape Passing"]
+    assert blocking.status == passing.status == "ERROR"
+    assert "exactly 3 columns" in blocking.error.message
+    assert blocking.error.message.endswith("; the status check gave BLOCKER")
+    assert passing.error.message.endswith("; the status check gave PASSED")
 
 
 def test_a_failed_job_is_error_whatever_its_metrics(nav):
@@ -543,3 +640,64 @@ def test_config_position_maps_query_positions_into_the_file(tmp_path):
     assert config_position(Location(file, 7, 6), "SELECT w\n", 1, 8) is None  # folded: no exact place
     assert config_position(Location(file, 5, 6), "SELECT other", 1, 8) is None  # not the file's text
     assert config_position(None, "SELECT 1", 1, 1) is None
+
+
+def test_a_batch_image_metric_of_labels_and_job_ids_shows_each_jobs_files(nav, tmp_path):
+    """ReSim's isaacsim-demo config (.resim/metrics/config.resim.yml, "Camera feed (bright scenes)")
+    has batch image metrics returning [experience_name, job_id]: each listed job's image files, labelled."""
+    config_path = write_config(
+        tmp_path,
+        """\
+      Camera feeds:
+        type: batch
+        query_string: |
+          SELECT m.experience_name, c.job_id FROM camera_gif c JOIN metadata m ON c.job_id = m.job_id
+          WHERE m.job_id IN (?, ?) ORDER BY m.experience_name
+        template: image
+      Camera feeds of nobody:
+        type: batch
+        query_string: SELECT 'nobody' AS label, 'no-such-job' AS job_id
+        template: image
+    """,
+    )
+    picked = nav.jobs[:2]
+    text = config_path.read_text().replace("IN (?, ?)", f"IN ('{picked[0].job_id}', '{picked[1].job_id}')")
+    config_path.write_text(text)
+    config = load_config(config_path)
+    scope = Scope(BATCH)
+    feeds = nav.engine.evaluate(config.metrics["Camera feeds"], BRANCH, scope)
+    assert feeds.status == "PASSED", feeds.error
+    expected = []
+    for job in sorted(picked, key=lambda j: nav.metadata[j.job_id]["experience_name"]):
+        for _, data in nav.emissions[job.job_id]["camera_gif"]:
+            expected.append((f"{nav.metadata[job.job_id]['experience_name']}: {data['filename']}", job.job_id))
+    rows = feeds.rendered.table["rows"]
+    assert len({job for _, job in expected}) == 2  # both jobs logged camera images
+    assert [row[0] for row in rows] == [caption for caption, _ in expected]
+    for row, (_, job_id) in zip(rows, expected):
+        assert Path(row[1]).parent == job_logs_dir(nav.lake, BRANCH, BATCH, job_id).resolve()
+        assert Path(row[1]).is_file() and row[3] == "image/gif"
+    assert feeds.rendered.text == f"{len(expected)} images of 2 jobs" and feeds.rendered.problems == []
+    nobody = nav.engine.evaluate(config.metrics["Camera feeds of nobody"], BRANCH, scope)
+    assert nobody.rendered.problems == ["nobody: job no-such-job has no image files"]
+
+
+def test_platform_tables_are_named_when_a_query_reads_them(nav, tmp_path):
+    """container_performance and test_length_seconds are tables ReSim's platform generates (SignalFlag's
+    validator, open-core signalflag/demo/config_test.py, BUILTIN_TABLES); lakegate says so when a query reads one."""
+    config_path = write_config(
+        tmp_path,
+        """\
+      Peak memory:
+        type: test
+        query_string: SELECT MAX(memory_bytes) FROM container_performance
+        template: scalar
+    """,
+    )
+    config = load_config(config_path)
+    result = nav.engine.evaluate(config.metrics["Peak memory"], BRANCH, Scope(BATCH, nav.jobs[0].job_id))
+    assert result.status == "ERROR"
+    assert result.error.message == (
+        "Table 'lake.main.container_performance' does not exist (container_performance is a table ReSim's platform "
+        "generates for each job; lakegate does not provide it yet: docs/resim-compat.md)"
+    )

@@ -57,6 +57,7 @@ def nav(tmp_path_factory):
                 [job.emissions_path],
                 config=config,
                 metadata=load_metadata_file(job.metadata_path),
+                logs=job.logs_dir,
             )
         return name
 
@@ -462,3 +463,31 @@ def test_two_concurrent_runs_of_a_batch_end_with_statuses_and_results_agreeing(n
     assert relaxed.wait(120) == 0, relaxed.stderr.read()
     statuses = assert_agree(lake, name, jobs)
     assert len({s for s in statuses.values()}) in (1, 3)  # all of one run: PASSED x3, or PASSED/WARNING/BLOCKER
+
+
+def test_a_set_of_dashboard_metrics_only_leaves_the_batch_alone(nav, tmp_path):
+    """A metrics set with no test or batch metric is refused naming `metrics dashboard`, and the batch's
+    statuses and results stay those of the previous run (they were once replaced by NOT_RUN rows)."""
+    lake, jobs, batch = nav
+    name = batch("dashboard-only")
+    trends = tmp_path / "trends.resim.yaml"
+    trends.write_text("version: 1\nmetrics sets:\n  Demo Trends:\n    metrics: [Time to Final Goal by Build]\n")
+    config = (
+        CONFIG_PATH,
+        "--metrics-config-path",
+        CONFIG_PATH.parent / "dashboard.resim.yaml",
+        "--metrics-config-path",
+        trends,
+    )
+    first = lakegate(*RUN, lake, "--batch", name, "--metrics-set", "Nav Metrics", "--metrics-config-path", *config)
+    assert first.returncode == 2, first.stderr
+    before = stored_run(lake, name, jobs)
+    assert before[0] != {job.job_id: ("PASSED", "PASSED") for job in jobs}
+    again = lakegate(*RUN, lake, "--batch", name, "--metrics-set", "Demo Trends", "--metrics-config-path", *config)
+    assert again.returncode != 0 and again.stdout == ""
+    assert "metrics set 'Demo Trends' holds no test or batch metric" in again.stderr
+    assert "lakegate metrics dashboard --metrics-set 'Demo Trends'" in again.stderr
+    assert stored_run(lake, name, jobs) == before
+
+
+RUN = ("metrics", "run", "--branch", "main", "--format", "json", "--lake")

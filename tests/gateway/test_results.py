@@ -67,6 +67,7 @@ def ingest_and_evaluate(lake: Path, branch: str, batch: str, jobs, config, versi
             [job.emissions_path],
             config=config,
             metadata={**load_metadata_file(job.metadata_path), **metadata},
+            logs=job.logs_dir,
         )
     with MetricsEngine(lake) as engine:
         engine.evaluate_batch(

@@ -109,9 +109,10 @@ def test_line_needs_three_columns():
     with pytest.raises(TemplateError) as error:
         render("Robot Speed", "line", [("a", "varchar"), ("b", "double")], [("x", 1.0)])
     assert str(error.value) == (
-        "metric 'Robot Speed': template 'line' needs exactly 3 columns [series, x, y], got 2 (a, b)"
+        "metric 'Robot Speed': template 'line' needs exactly 3 columns [series, x, y] "
+        "(and an optional link_path column), got 2 (a, b)"
     )
-    with pytest.raises(TemplateError, match=r"got 4 \(a, b, c, d\)"):
+    with pytest.raises(TemplateError, match=r"takes a 4th column only named link_path, got 4 \(a, b, c, d\)"):
         render("Robot Speed", "line", [(n, "double") for n in "abcd"], [])
 
 
@@ -160,7 +161,9 @@ def test_bar_with_numeric_x_keeps_numbers():
 
 
 def test_bar_shape_errors():
-    with pytest.raises(TemplateError, match=r"template 'bar' needs exactly 3 columns \[series, x, y\], got 1 \(x\)"):
+    with pytest.raises(
+        TemplateError, match=r"template 'bar' needs 2 or 3 columns \[x, y\] or \[series, x, y\] .*, got 1 \(x\)"
+    ):
         render("M", "bar", [("x", "varchar")], [("a",)])
     with pytest.raises(TemplateError, match=r"needs numeric y values in column 3 \"v\", but row 1 has '3' \(varchar\)"):
         render("M", "bar", [("s", "varchar"), ("x", "varchar"), ("v", "varchar")], [("s", "a", "3")])
@@ -652,3 +655,29 @@ def test_report_without_charts_has_no_plotlyjs():
     scalar = render("M", "scalar", [("c", "bigint")], [(1,)])
     page = report_html("r", [("s", [("M", scalar, {"status": "PASSED"})])])
     assert PLOTLYJS_HEAD not in page and "<script" not in page
+
+
+def test_bar_of_two_columns_is_one_unnamed_series():
+    """SignalFlag 1.8.0's demo config session.resim.yml draws [x, y] bars (12 of them)."""
+    rows = [("dock", 3), ("charge", 5), ("dock", 2)]
+    rendered = render("M", "bar", [("Phase", "varchar"), ("Count", "bigint")], rows)
+    (trace,) = rendered.figure["data"]
+    assert (trace["name"], trace["x"], trace["y"]) == ("", ["dock", "charge", "dock"], [3, 5, 2])
+    layout = rendered.figure["layout"]
+    assert (layout["xaxis"]["title"]["text"], layout["yaxis"]["title"]["text"]) == ("Phase", "Count")
+    assert "meta" not in layout
+
+
+def test_link_path_is_an_optional_last_column_of_bar_and_line():
+    """ReSim documents an optional 4th link_path column for bars; its values follow each point."""
+    columns = [("build", "varchar"), ("day", "bigint"), ("value", "double"), ("link_path", "varchar")]
+    rows = [("1.4", 1, 2.0, "b1"), ("1.5", 1, 3.0, "b2"), ("1.4", 2, 4.0, "b3")]
+    for template in ("bar", "line"):
+        rendered = render("M", template, columns, rows)
+        assert [(t["name"], t["x"], t["y"]) for t in rendered.figure["data"]] == [
+            ("1.4", [1, 2], [2.0, 4.0]),
+            ("1.5", [1], [3.0]),
+        ]
+        assert rendered.figure["layout"]["meta"] == {"link_path": [["b1", "b3"], ["b2"]]}
+    two = render("M", "bar", [("x", "varchar"), ("y", "bigint"), ("LINK_PATH", "varchar")], [("a", 1, "b1/j1")])
+    assert (two.figure["data"][0]["x"], two.figure["layout"]["meta"]) == (["a"], {"link_path": [["b1/j1"]]})

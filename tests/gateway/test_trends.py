@@ -72,7 +72,16 @@ def trends_lake(tmp_path_factory):
         jobs = generate_batch(root / batch, jobs=3, seed=seed, samples_per_goal=6, build_version=build, build_time=made)
         for job in jobs:
             metadata = load_metadata_file(job.metadata_path)
-            ingest_job(lake, "main", batch, job.job_id, [job.emissions_path], config=config, metadata=metadata)
+            ingest_job(
+                lake,
+                "main",
+                batch,
+                job.job_id,
+                [job.emissions_path],
+                config=config,
+                metadata=metadata,
+                logs=job.logs_dir,
+            )
         emissions[batch] = [job.emissions_path for job in jobs]
     return lake, emissions
 
@@ -310,3 +319,56 @@ def test_link_paths_name_a_batch_or_a_job_and_windows_read_as_documented():
     for bad in ("0", "-3", "30 days", "d", ""):
         with pytest.raises(ValueError, match="expected a window like '30d'"):
             Window.parse(bad)
+
+
+LINKED_BARS = """\
+version: 1
+metrics:
+  Jobs per Batch:
+    type: dashboard
+    description: bars of [x, y, link_path] and [series, x, y, link_path]
+    query_string: |
+      SELECT batch_id AS "Batch", COUNT(*) AS "Jobs", batch_id AS link_path
+      FROM metadata GROUP BY batch_id ORDER BY batch_id
+    template: bar
+  Jobs per Build and Batch:
+    type: dashboard
+    query_string: |
+      SELECT build_version AS "Build", batch_id AS "Batch", COUNT(*) AS "Jobs", batch_id AS link_path
+      FROM metadata GROUP BY 1, 2 ORDER BY 2
+    template: bar
+metrics sets:
+  Linked:
+    metrics: [Jobs per Batch, Jobs per Build and Batch]
+"""
+
+
+def test_a_bar_with_link_path_opens_its_batch_in_a_real_browser(trends_lake, tmp_path):
+    """ReSim's optional link_path column of bar (and line) results: every bar links to its batch."""
+    lake, _ = trends_lake
+    config = tmp_path / "linked.resim.yaml"
+    config.write_text(LINKED_BARS)
+    page_file = tmp_path / "linked.html"
+    args = ["metrics", "dashboard", "--lake", lake, "--branch", "main", "--metrics-set", "Linked"]
+    result = lakegate(*args, "--metrics-config-path", config, "--report", page_file, "--link-base", "http://lg.test/")
+    assert result.returncode == 0, result.stderr
+    lines = [" ".join(line.split()) for line in result.stdout.splitlines()]
+    assert "PASSED Jobs per Batch 1 series, 3 bars" in lines
+    assert "PASSED Jobs per Build and Batch 3 series, 3 bars" in lines
+    sync_api = _require_browser()
+    with sync_api.sync_playwright() as playwright:
+        browser = playwright.chromium.launch(executable_path=str(CHROMIUM), args=ARGS)
+        try:
+            page = browser.new_page()
+            page.route(
+                "http://lg.test/**", lambda route: route.fulfill(body="the batch page", content_type="text/plain")
+            )
+            page.goto(page_file.as_uri())
+            page.wait_for_selector("#lg-figure-2 .main-svg", timeout=30_000)
+            bars = page.locator("#lg-figure-2 .bars .point path")
+            assert bars.count() == 3
+            with page.expect_navigation(timeout=30_000):
+                bars.nth(1).click(force=True)
+            assert page.url == "http://lg.test/dashboard/?branch=main&batch=nightly-2"
+        finally:
+            browser.close()

@@ -356,6 +356,7 @@ def test_metrics_run_forwarded_to_trino_gives_the_duckdb_results(tmp_path_factor
                 [job.emissions_path],
                 config=config,
                 metadata=load_metadata_file(job.metadata_path),
+                logs=job.logs_dir,
             )
     run = ["metrics", "run", "--branch", "main", "--batch", "nav", "--all-metrics", "--format", "json"]
     process, url = start_server(root / "trino", root / "serve.log")
@@ -378,7 +379,9 @@ def test_metrics_run_forwarded_to_trino_gives_the_duckdb_results(tmp_path_factor
     embedded = lakegate(*run, "--lake", root / "duckdb")
     assert embedded.returncode == 2, embedded.stderr  # the generated batch has a BLOCKER job
     assert forwarded.returncode == embedded.returncode, forwarded.stderr
-    ours, theirs = json.loads(forwarded.stdout), json.loads(embedded.stdout)
+    # Image metrics name their files in each lake's own logs: the two lakes differ only by folder.
+    same_lake = (str(root / "trino"), str(root / "duckdb"))
+    ours, theirs = json.loads(forwarded.stdout.replace(*same_lake)), json.loads(embedded.stdout)
     assert ours.pop("evaluated_at") and theirs.pop("evaluated_at")
     assert same(ours, theirs), [(a, b) for a, b in zip(ours["metrics"], theirs["metrics"]) if a != b]
     statuses = {m["status"] for m in ours["metrics"]}
@@ -396,7 +399,13 @@ def test_metrics_run_forwarded_to_trino_gives_the_duckdb_results(tmp_path_factor
         return row
 
     stored = [[comparable(row) for row in read_results(root / name, "main", "nav")] for name in ("trino", "duckdb")]
-    assert same(stored[0], stored[1]) and len(stored[0]) == len(ours["metrics"])
+    # ... and each ingest commits a job's logs into a folder of its own (`<pid>-<id>`).
+    stored = [
+        json.loads(re.sub(r"(_job_logs/[^/]+/[^/]+/)[^/]+/", r"\1*/", json.dumps(rows).replace(*same_lake)))
+        for rows in stored
+    ]
+    differing = [(a["metric_name"], k, a[k], b[k]) for a, b in zip(*stored) for k in a if not same(a[k], b.get(k))]
+    assert not differing and len(stored[0]) == len(stored[1]) == len(ours["metrics"]), differing[:3]
     assert sum(1 for row in stored[0] if row.get("figure_json")) > 10
 
 

@@ -267,6 +267,12 @@ def test_tables_without_files_are_noted_or_skipped(tmp_path):
         (["--location", "/local/path"], "--location '/local/path' is not a URI"),
         (["--location", "s3://b/l", "--branch", "nope"], "no branch 'nope' in the lake"),
         (["--location", "s3://b/l", "--schema-prefix", "X"], "schema prefix 'X' may only contain"),
+        ([], "--location is required without --apply (where Trino reads the copied lake)"),
+        (["--apply"], "--apply needs --trino-url (the Trino coordinator, http(s)://host:port)"),
+        (["--drop"], "--drop needs --trino-url"),
+        (["--apply", "--drop"], "--apply registers, --drop unregisters: give one of them"),
+        (["--apply", "--trino-url", "http://h:1", "--output", "x.sql"], "--output writes the DDL; --apply runs it"),
+        (["--apply", "--trino-url", "ftp://h"], "--trino-url 'ftp://h' is not an http:// or https:// URL"),
     ],
 )
 def test_bad_options_are_one_line_errors(lake, args, message):

@@ -13,6 +13,7 @@ from lakegate.lake.config import (
     ConfigError,
     Location,
     count_placeholders,
+    expand_config_paths,
     find_default_config,
     load_config,
 )
@@ -43,6 +44,7 @@ def warnings_of(path: Path | list[Path]) -> list[tuple[int, int, str]]:
 
 #: How a warning (lakegate stricter than ReSim on purpose) ends when --strict refuses it.
 STRICT = " (ReSim accepts this; refused because of --strict)"
+RESERVED = "metadata, events, metric_results, container_performance, test_length_seconds"
 
 
 def one_error(folder: Path, text: str) -> tuple[int, int, str]:
@@ -200,8 +202,15 @@ def test_real_world_extras_load(tmp_path):
     assert (weekly.type, weekly.template_type, weekly.template_file) == ("report", "custom", "templates/weekly.json")
     assert weekly.template_settings == {"colors": ["red", "blue"], "legend": {"show": False}}
     assert config.metrics["Board"].type == "dashboard"
-    assert config.dashboards == {"Overview": {"metrics": ["Board"], "layout": {"columns": 2}}}
-    assert config.global_settings == {"refresh_s": 30, "owner": "nav-team"}
+    overview = config.dashboards["Overview"]
+    assert overview.settings == {"metrics": ["Board"], "layout": {"columns": 2}}
+    assert (overview.metrics_set, overview.day_range) == (None, None)
+    assert config.global_settings == {}
+    # SignalFlag's global section has one setting: other keys warn (ignored), as unknown keys do
+    assert [(w.location.line, w.message) for w in config.warnings] == [
+        (3, "unknown key 'refresh_s' in global of the config file: ignored"),
+        (4, "unknown key 'owner' in global of the config file: ignored"),
+    ]
     assert config.summary() == "1 topic, 6 metrics, 0 metrics sets, 1 dashboard"
 
 
@@ -316,9 +325,18 @@ def test_unknown_field_type_with_did_you_mean(tmp_path):
         ("_private", "topic '_private' starts with '_' or '.', which topic names may not"),
         (".hidden", "topic '.hidden' starts with '_' or '.', which topic names may not"),
         ('"tab\\there"', "topic 'tab\there' contains a control character"),
-        ("metadata", "topic 'metadata' is a reserved table name (metadata, events, metric_results)"),
-        ("Events", "topic 'Events' is a reserved table name (metadata, events, metric_results)"),
-        ("metric_results", "topic 'metric_results' is a reserved table name (metadata, events, metric_results)"),
+        (
+            "metadata",
+            f"topic 'metadata' is a reserved table name ({RESERVED})",
+        ),
+        (
+            "Events",
+            f"topic 'Events' is a reserved table name ({RESERVED})",
+        ),
+        (
+            "metric_results",
+            f"topic 'metric_results' is a reserved table name ({RESERVED})",
+        ),
     ],
 )
 def test_bad_topic_names(tmp_path, name, message):
@@ -479,8 +497,8 @@ def test_status_must_be_a_mapping_and_thresholds_scalars(tmp_path):
         )
     ) == [
         (3, 85, "status of metric 'A' must be a mapping, got string 'block'"),
-        (5, 49, "'block' in status of metric 'B' must be a number or a string, got a list"),
-        (5, 60, "'warn' in status of metric 'B' must be a number or a string, got boolean true"),
+        (5, 49, "'block' in status of metric 'B' must be a number, got a list"),
+        (5, 60, "'warn' in status of metric 'B' must be a number, got boolean true"),
     ]
 
 
@@ -679,12 +697,12 @@ def test_yaml_1_2_scalars_stay_strings(tmp_path):
             query_string: SELECT 1 WHERE ? = 'x'
             template: scalar
             units: on
-            status: {query_string: "SELECT 1 WHERE ? = 'x'", block: 1:30, warn: yes}
+            template_settings: {at: 1:30, show: yes}
     """,
         )
     )
     metric = config.metrics["M"]
-    assert (metric.units, metric.status.block, metric.status.warn) == ("on", "1:30", "yes")
+    assert (metric.units, metric.template_settings) == ("on", {"at": "1:30", "show": "yes"})
     assert list(config.topics["t"].fields) == ["on"]
 
 
@@ -791,12 +809,12 @@ def test_merge_duplicates_name_both_files(tmp_path):
     with pytest.raises(ConfigError) as caught:
         load_config([first, second])
     assert [str(p) for p in caught.value.problems] == [
-        f"{second}:3:3: metrics set 'S' is already defined at {first}:7:3",
-        f"{second}:5:3: metric 'M' is already defined at {first}:5:3",
-        f"{second}:7:3: topic 'speed' is already defined at {first}:3:3",
+        f"{second}:3:3: duplicate metrics set name 'S' found across config files (first defined at {first}:7:3)",
+        f"{second}:5:3: duplicate metric name 'M' found across config files (first defined at {first}:5:3)",
+        f"{second}:7:3: duplicate topic name 'speed' found across config files (first defined at {first}:3:3)",
         f"{second}:8:3: topic 'SPEED' differs only in letter case from topic 'speed' ({first}:3:3); "
         "SQL table names ignore case",
-        f"{second}:10:3: 'D' in dashboards is already defined at {first}:9:3",
+        f"{second}:10:3: duplicate dashboard name 'D' found across config files (first defined at {first}:9:3)",
     ]
 
 
@@ -850,14 +868,16 @@ AGREEMENT = [
     (True, "version: 1\n"),
     (True, "version: 1\ntopics:\nmetrics:\nmetrics sets:\n"),
     (True, "version: 1\ntopics: {t: {event: true, schema: {a: bigint, b: 'string[]'}}}\n"),
-    (True, f"version: 1\nmetrics: {{M: {M}, status: {{query_string: 'SELECT ?', block: 1.5, warn: abc}}}}}}\n"),
+    (True, f"version: 1\nmetrics: {{M: {M}, status: {{query_string: 'SELECT ?', block: 1.5, warn: 2}}}}}}\n"),
     (True, f"version: 1\nmetrics: {{M: {M}, skip_if_no_data: true, template_settings: {{a: 1}}, units: s}}}}\n"),
     (
         True,
         "version: 1\nmetrics: {M: {type: report, description: d, query_string: x, template_type: custom, "
         "template_file: f.json}}\n",
     ),
-    (True, "version: 1\ndashboards: {D: {any: [thing]}}\nglobal: {x: 1}\n"),
+    (True, "version: 1\ndashboards: {D: {any: [thing]}}\nglobal: {skip-if-no-data: true}\n"),
+    (False, "version: 1\nglobal: {x: 1}\n"),
+    (False, "version: 1\nglobal: {skip-if-no-data: 1}\n"),
     (False, "topics: {}\n"),
     (False, "version: 2\n"),
     (False, "version: 1\nextra: 1\n"),
@@ -874,6 +894,7 @@ AGREEMENT = [
     (False, "version: 1\nmetrics: {M: {type: test, description: d, query_string: ' ', template: line}}\n"),
     (False, f"version: 1\nmetrics: {{M: {M}, status: {{query_string: 'SELECT ?'}}}}}}\n"),
     (False, f"version: 1\nmetrics: {{M: {M}, status: {{query_string: 'SELECT ?', block: true}}}}}}\n"),
+    (False, f"version: 1\nmetrics: {{M: {M}, status: {{query_string: 'SELECT ?', block: '0.5'}}}}}}\n"),
     (False, "version: 1\nmetrics: {M: {type: test, description: d, query_string: x}}\n"),
     (False, "version: 1\nmetrics: {M: {type: test, description: d, query_string: x, template_type: custom}}\n"),
     (False, f"version: 1\nmetrics: {{M: {M}, template_file: f.json}}}}\n"),
@@ -953,3 +974,102 @@ def test_unit_is_units_and_the_same_value_twice_is_no_warning(tmp_path):
     """,
     )
     assert warnings_of(path) == [] and load_config(path, strict=True).metrics["A"].units == "s"
+
+
+def test_a_quoted_threshold_is_refused_as_signalflag_refuses_it(tmp_path):
+    """SignalFlag's validator (open-core signalflag/demo/config_test.py) requires block and warn to be
+    numbers: the platform refuses a quoted '0.5' at sync with "Expected Number but got String"."""
+    assert errors(
+        write(
+            tmp_path,
+            """
+        version: 1
+        metrics:
+          M: {type: test, description: d, query_string: SELECT 1, template: scalar,
+              status: {query_string: 'SELECT 1 WHERE 1 > ?', block: '0.5', warn: 0.25}}
+    """,
+        )
+    ) == [(4, 61, "'block' in status of metric 'M' must be a number, not a quoted string, got string '0.5'")]
+
+
+def test_topics_do_not_shadow_the_platform_tables(tmp_path):
+    """SignalFlag's validator: `set(topics) & BUILTIN_TABLES` must be empty."""
+    found = errors(write(tmp_path, "version: 1\ntopics:\n  test_length_seconds:\n    schema: {v: float}\n"))
+    assert len(found) == 1 and "test_length_seconds" in found[0][2] and "reserved table name" in found[0][2]
+
+
+# -- SignalFlag's merge: global per file, dashboards, config path patterns -------------------------
+
+
+def test_global_skip_if_no_data_applies_to_its_own_file_and_a_metric_setting_wins(tmp_path):
+    metric = "{type: test, query_string: SELECT 1, template: scalar"
+    first = write(
+        tmp_path,
+        f"""
+        version: 1
+        global:
+          skip-if-no-data: true
+        metrics:
+          A: {metric}}}
+          B: {metric}, skip_if_no_data: false}}
+        """,
+        "a.resim.yml",
+    )
+    second = write(
+        tmp_path,
+        f"""
+        version: 1
+        metrics:
+          C: {metric}}}
+          D: {metric}, skip-if-no-data: true}}
+        """,
+        "b.resim.yml",
+    )
+    config = load_config([first, second])
+    assert {m.name: m.skip_if_no_data for m in config.metrics.values()} == {
+        "A": True,
+        "B": False,
+        "C": False,
+        "D": True,
+    }
+
+
+def test_dashboards_name_a_known_set_and_a_positive_day_range(tmp_path):
+    text = """
+        version: 1
+        metrics:
+          T: {type: dashboard, query_string: SELECT 1, template: scalar}
+        metrics sets:
+          Trends: {metrics: [T]}
+        dashboards:
+          Weekly: {metrics_set: Trends, day_range: 7, refresh: auto, description: the week}
+          Typo: {metrics_set: Trend}
+          Forever: {metrics_set: Trends, day_range: 0}
+    """
+    assert errors(write(tmp_path, text)) == [
+        (8, 3, "dashboard 'Typo' names unknown metrics set 'Trend' (did you mean 'Trends'?)"),
+        (9, 3, "dashboard 'Forever': day_range must be a positive number of days, got 0"),
+    ]
+    config = load_config(write(tmp_path, text.split("          Typo")[0]))
+    weekly = config.dashboard("Weekly")
+    assert (weekly.metrics_set, weekly.day_range, weekly.refresh, weekly.description) == (
+        "Trends",
+        7,
+        "auto",
+        "the week",
+    )
+    with pytest.raises(KeyError, match="no dashboard 'weekly' \\(did you mean 'Weekly'\\?\\)"):
+        config.dashboard("weekly")
+
+
+def test_config_path_patterns_resolve_as_signalflags_cli(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for name in ("b.yml", "a.yml", "c.yaml", "notes.txt"):
+        (tmp_path / "m").mkdir(exist_ok=True)
+        (tmp_path / "m" / name).write_text("version: 1\n")
+    assert expand_config_paths(["m/*.yml", "m/c.yaml"]) == [Path("m/a.yml"), Path("m/b.yml"), Path("m/c.yaml")]
+    assert expand_config_paths(["m/c.yml,m/a.yaml"]) == [Path("m/c.yaml"), Path("m/a.yml")]  # commas; the twin
+    with pytest.raises(FileNotFoundError, match="glob pattern 'x/\\*.yml' matched no config files"):
+        expand_config_paths(["x/*.yml"])
+    with pytest.raises(FileNotFoundError, match="config file 'm/d.yml' does not exist \\(nor its .yaml twin\\)"):
+        expand_config_paths(["m/d.yml"])

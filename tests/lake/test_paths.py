@@ -6,6 +6,7 @@ import hashlib
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import duckdb
@@ -170,30 +171,39 @@ def test_staging_is_removed_afterwards_and_abandoned_scratch_is_cleaned(tmp_path
 
 
 def test_job_lock_serialises_writers_of_one_job(tmp_path):
-    script = (
+    """The waiter acquires the lock only after the holder released it (wall-clock order, so the
+    test holds on a loaded machine: the holder keeps the lock until told to let go)."""
+    holder_script = (
         "import sys, time; from pathlib import Path; from lakegate.lake import paths\n"
         "with paths.job_lock(Path(sys.argv[1]), 'main', 'b', 'j'):\n"
-        "    print('locked', flush=True); time.sleep(1.0)\n"
+        "    print('locked', flush=True); sys.stdin.readline(); released = time.time()\n"
+        "print(released, flush=True)\n"
     )
-    holder = subprocess.Popen([sys.executable, "-c", script, str(tmp_path)], stdout=subprocess.PIPE, text=True)
+    waiter_script = (
+        "import sys, time; from pathlib import Path; from lakegate.lake import paths\n"
+        "print('trying', flush=True)\n"
+        "with paths.job_lock(Path(sys.argv[1]), 'main', 'b', 'j'): print(time.time(), flush=True)\n"
+    )
+    popen = {"stdout": subprocess.PIPE, "text": True}
+    holder = subprocess.Popen([sys.executable, "-c", holder_script, str(tmp_path)], stdin=subprocess.PIPE, **popen)
+    waiter = None
     try:
         assert holder.stdout.readline().strip() == "locked"
-        waiter = subprocess.run(
-            [
-                sys.executable,
-                "-c",
-                "import sys, time; from pathlib import Path; from lakegate.lake import paths\n"
-                "start = time.monotonic()\n"
-                "with paths.job_lock(Path(sys.argv[1]), 'main', 'b', 'j'): print(time.monotonic() - start)",
-                str(tmp_path),
-            ],
-            capture_output=True,
-            text=True,
-            check=True,
-        )
-        assert float(waiter.stdout) > 0.3  # it had to wait for the holder
+        waiter = subprocess.Popen([sys.executable, "-c", waiter_script, str(tmp_path)], **popen)
+        assert waiter.stdout.readline().strip() == "trying"
+        time.sleep(0.3)
+        assert waiter.poll() is None  # blocked on the holder's lock
+        holder.stdin.write("\n")
+        holder.stdin.close()
+        released = float(holder.stdout.readline())
+        acquired = float(waiter.stdout.readline())
+        assert acquired >= released
     finally:
+        holder.kill()
         holder.wait()
+        if waiter is not None:
+            waiter.kill()
+            waiter.wait()
 
 
 def test_the_files_lock_of_batches_sharing_a_lock_file_is_taken_once(tmp_path):

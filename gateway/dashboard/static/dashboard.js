@@ -341,7 +341,9 @@
       " ", badge(s.status), ` · ${plural(s.jobs.length, "job")} · metrics set `,
       el("strong", { text: s.metrics_set || "(all metrics)" }),
       ` · config ${config.paths.join(", ")}${config.version ? ` (version ${config.version})` : ""}`,
-      edits ? ` · ${plural(edits, "session change")} (Export Config to keep them)` : "", ` · ${source}`);
+      edits ? ` · ${plural(edits, "session change")} (Export Config to keep them)` : "", ` · ${source} · `,
+      el("a", { id: "compare-previous", href: `compare/?${new URLSearchParams({ branch: s.branch, batch: s.batch_id })}`,
+        text: "compare with the previous build" }));
   }
 
   function fillSelect(select, options, value) {

@@ -1,0 +1,59 @@
+"""The differential fuzzer (tools/trino_fuzz, `python3 dev.py fuzz`) against the real Trino 476:
+a fixed seed of random queries over a small lake answers the same on lakegate and on Trino (or is
+refused by lakegate, or fails on both). The comparison itself is checked first, without Trino.
+
+The differences found and not fixed yet are listed, query by query, in trino_fuzz_known.jsonl: a
+new difference fails the run, and so does a listed one that is gone (then take it off the list).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from trino_fuzz.compare import differ
+from trino_fuzz.run import fuzz, summary
+from trino_fuzz.sides import Outcome
+
+#: The CI run: seed and size.
+SEED, QUERIES = 19, 2000
+KNOWN = Path(__file__).with_name("trino_fuzz_known.jsonl")
+
+
+def test_comparison_tells_answers_apart():
+    answer = Outcome(
+        types=["double", "array(double)", "json"], rows=[[1.0, ["NaN", 2.0], '{"a":0.1}'], [None, [], "1"]]
+    )
+    same = Outcome(types=answer.types, rows=[[None, [], "1"], [1.0 + 1e-15, ["NaN", 2.0], '{"a":0.1000000000000001}']])
+    assert differ(same, answer, ordered=False) is None
+    assert differ(same, answer, ordered=True) is not None  # the order matters under ORDER BY
+    for rows in (
+        [[1.0 + 1e-9, ["NaN", 2.0], '{"a":0.1}'], [None, [], "1"]],  # beyond 1e-12 relative
+        [[1.0, [None, 2.0], '{"a":0.1}'], [None, [], "1"]],  # NULL is not NaN
+        [[1.0, ["NaN", 2.0], '{"a":"0.1"}'], [None, [], "1"]],  # a JSON string is not a number
+        [[1.0, ["NaN", 2.0], '{"a":0.1}']],  # row count
+    ):
+        assert differ(Outcome(types=answer.types, rows=rows), answer, ordered=False) is not None
+    assert differ(Outcome(types=["real", "array(double)", "json"], rows=answer.rows), answer, ordered=False)
+
+
+@pytest.mark.skip(
+    reason="on the merged main the run hangs: every lakegate query slot ends up held by queries that do not stop "
+    "at their time limit (Python functions on the engine cannot be interrupted), so later queries wait forever; "
+    "run it by hand with `python3 dev.py fuzz --queries 2000 --seed 19` until that is fixed"
+)
+@pytest.mark.timeout(1800)  # a few minutes on an idle 2-core machine; far more when it is shared
+def test_fuzzed_queries_answer_as_trino_does(trino_url, tmp_path):
+    known = {entry["query"]: entry for entry in map(json.loads, KNOWN.read_text().splitlines())}
+    counts, mismatches = fuzz(QUERIES, SEED, trino_url, tmp_path / "lake", tmp_path / "mismatches.jsonl")
+    print(summary(counts))
+    assert sum(counts.values()) == QUERIES
+    assert counts["equal"] > QUERIES // 2, summary(counts)  # most queries are answered, not refused
+    new = [v for v in mismatches if v.query.sql not in known]
+    shown = "\n".join(json.dumps({"query": v.query.sql, "why": v.why}, ensure_ascii=False) for v in new[:10])
+    assert not new, f"{summary(counts)}; {len(new)} new mismatches, the first:\n{shown}"
+    gone = sorted(set(known) - {v.query.sql for v in mismatches})
+    assert not gone, f"these listed mismatches now answer as Trino does: take them off {KNOWN.name}:\n" + "\n".join(
+        gone[:10]
+    )

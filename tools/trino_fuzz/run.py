@@ -1,0 +1,164 @@
+"""The differential fuzzer: random Trino queries over a small lake, answered by lakegate and by the
+real Trino reading the same Parquet files; every difference is a mismatch (`python3 dev.py fuzz`).
+
+    python3 dev.py fuzz --queries N --seed S [--trino URL] [--out FILE] [--lake DIR] [--jobs K] [--seconds T]
+
+Prints `tried T, equal E, lakegate refused R, both errored B, mismatched M`:
+equal: the same result types and rows; lakegate refused: lakegate said NOT_SUPPORTED (naming the
+construct) or ran out of time where Trino answered; both errored: both raised an error (any); mismatched: anything
+else (different values, types or row counts, lakegate answering where Trino raises, or lakegate
+failing with another error where Trino answers). Each mismatch is a JSON line in --out with the
+query and both answers. Exit status 1 when there was a mismatch.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from collections import Counter
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+from trino_fuzz import lake as fuzz_lake
+from trino_fuzz.compare import differ
+from trino_fuzz.functions import discover
+from trino_fuzz.queries import Generator, Query
+from trino_fuzz.sides import Lakegate, Outcome, Trino, register, unregister
+
+DEFAULT_TRINO = "http://127.0.0.1:18080"
+SCHEMA_PREFIX = "fuzzer_"
+#: lakegate's refusals: the construct is named and not answered (never a silent difference); a
+#: query that ran out of time is counted here too (a resource limit, which depends on the machine).
+REFUSALS = frozenset({"NOT_SUPPORTED", "EXCEEDED_TIME_LIMIT"})
+#: Queries lakegate's Engine runs at once (as the server does).
+LAKEGATE_THREADS = 2
+#: Queries generated and judged at a time (a --seconds bound is checked between chunks).
+CHUNK = 100
+
+
+@dataclass
+class Verdict:
+    query: Query
+    kind: str  # equal | refused | both_errored | mismatched
+    lakegate: Outcome
+    trino: Outcome
+    why: str = ""
+
+
+def judge(query: Query, mine: Outcome, theirs: Outcome) -> Verdict:
+    if mine.error and theirs.error:
+        return Verdict(query, "both_errored", mine, theirs)
+    if mine.error in REFUSALS:
+        return Verdict(query, "refused", mine, theirs)
+    if mine.error:
+        return Verdict(query, "mismatched", mine, theirs, f"lakegate raised {mine.error} where Trino answers")
+    if theirs.error:
+        return Verdict(query, "mismatched", mine, theirs, f"lakegate answers where Trino raises {theirs.error}")
+    why = differ(mine, theirs, query.ordered)
+    return Verdict(query, "mismatched" if why else "equal", mine, theirs, why or "")
+
+
+def summary(counts: Counter) -> str:
+    tried = sum(counts.values())
+    return (
+        f"tried {tried}, equal {counts['equal']}, lakegate refused {counts['refused']}, "
+        f"both errored {counts['both_errored']}, mismatched {counts['mismatched']}"
+    )
+
+
+def fuzz(
+    queries: int,
+    seed: int,
+    trino_url: str,
+    lake_dir: Path,
+    out: Path | None,
+    jobs: int = 6,
+    progress: bool = False,
+    seconds: float | None = None,
+) -> tuple[Counter, list[Verdict]]:
+    """Generate and judge `queries` queries (fewer when `seconds` run out: the generator's order is
+    the same, so a bounded run is a prefix of the unbounded one); the counts and the mismatches."""
+    lake = fuzz_lake.build(lake_dir)
+    trino = Trino(trino_url, f"{SCHEMA_PREFIX}main")
+    register(trino, lake, SCHEMA_PREFIX)
+    mine = Lakegate(lake)
+    counts: Counter = Counter()
+    mismatches: list[Verdict] = []
+    try:
+        tables = {name: list(columns.items()) for name, columns in mine.engine.backend.schema("main").items()}
+        generator = Generator(seed, discover(), tables)
+        deadline = time.monotonic() + seconds if seconds else None
+        with ThreadPoolExecutor(jobs) as pool, ThreadPoolExecutor(LAKEGATE_THREADS) as own:
+            for start in range(0, queries, CHUNK):
+                if deadline is not None and time.monotonic() > deadline:
+                    break
+                batch = [generator.query() for _ in range(min(CHUNK, queries - start))]
+                answers = pool.map(trino.run, (q.sql for q in batch))
+                own_answers = own.map(mine.run, (q.sql for q in batch))
+                for query, theirs, ours in zip(batch, answers, own_answers):
+                    verdict = judge(query, ours, theirs)
+                    counts[verdict.kind] += 1
+                    if verdict.kind == "mismatched":
+                        mismatches.append(verdict)
+                if progress and (start // CHUNK) % 5 == 4:
+                    print(f"... {summary(counts)}", file=sys.stderr, flush=True)
+    finally:
+        mine.close()
+        unregister(trino, f"{SCHEMA_PREFIX}main")
+    if out is not None:
+        with out.open("w") as handle:
+            for v in mismatches:
+                record = {
+                    "query": v.query.sql,
+                    "ordered": v.query.ordered,
+                    "why": v.why,
+                    "lakegate": v.lakegate.as_dict(),
+                    "trino": v.trino.as_dict(),
+                }
+                handle.write(json.dumps(record, ensure_ascii=False) + "\n")
+    return counts, mismatches
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="dev.py fuzz", description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--queries", type=int, default=1000, metavar="N", help="how many queries (default 1000)")
+    parser.add_argument("--seed", type=int, default=1, metavar="S", help="the random seed (default 1)")
+    parser.add_argument(
+        "--trino", default=DEFAULT_TRINO, metavar="URL", help=f"the real Trino (default {DEFAULT_TRINO})"
+    )
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=Path("fuzz-mismatches.jsonl"),
+        metavar="FILE",
+        help="where each mismatch goes, one JSON line each (default fuzz-mismatches.jsonl)",
+    )
+    parser.add_argument(
+        "--lake",
+        type=Path,
+        default=Path(tempfile.gettempdir()) / "lakegate-fuzz" / "lake",
+        metavar="DIR",
+        help="where the fuzz lake is built (reused when up to date)",
+    )
+    parser.add_argument("--jobs", type=int, default=6, metavar="K", help="queries Trino runs at once (default 6)")
+    parser.add_argument(
+        "--seconds", type=float, metavar="T", help="stop generating after about T seconds (the summary counts what ran)"
+    )
+    args = parser.parse_args(argv)
+    counts, mismatches = fuzz(
+        args.queries, args.seed, args.trino, args.lake, args.out, args.jobs, progress=True, seconds=args.seconds
+    )
+    print(summary(counts))
+    if mismatches:
+        print(f"mismatches written to {args.out}")
+    return 1 if mismatches else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -40,7 +40,8 @@ import pyarrow as pa
 
 from lakegate.dialect.errors import DialectError
 from lakegate.gateway.engine import session as sessions
-from lakegate.gateway.engine.backend import QueryResult, hide_paths, time_limit_error
+from lakegate.gateway.engine.backend import QueryResult
+from lakegate.gateway.engine.failures import hide_paths, time_limit_error
 from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.engine.planner import Planner
 from lakegate.gateway.engine.session import Session

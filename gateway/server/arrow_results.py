@@ -26,8 +26,8 @@ from lakegate.dialect.errors import DialectError
 from lakegate.gateway.engine.arrow_output import result_batches, result_schema
 from lakegate.gateway.engine.backend import QueryResult
 from lakegate.gateway.engine.limits import Limits
+from lakegate.gateway.engine.planner import Planner
 from lakegate.gateway.engine.session import Session
-from lakegate.gateway.engine.statements import Planner
 from lakegate.gateway.server.protocol import Failure
 
 PATH = "/v1/arrow"

@@ -19,7 +19,8 @@ import zstandard
 
 from lakegate.gateway.engine.backend import DuckDBBackend
 from lakegate.gateway.engine.engine import Engine
-from lakegate.gateway.server.app import Limits, create_app
+from lakegate.gateway.engine.limits import Limits
+from lakegate.gateway.server.app import create_app
 
 HEADERS = {"X-Trino-User": "tester", "X-Trino-Catalog": "lake", "X-Trino-Schema": "main"}
 ROWS = 200_000

@@ -252,6 +252,7 @@ def debug_command(args: argparse.Namespace) -> int:
     # the web stack is imported here, so that other commands start without it
     from lakegate.gateway.dashboard.debug_session import DashboardSession, FileConfig, SessionError
     from lakegate.gateway.dashboard.routes import DashboardState, dashboard_router
+    from lakegate.gateway.engine.engine import Engine
     from lakegate.gateway.server.app import create_app
 
     if not is_loopback(args.host):
@@ -292,7 +293,7 @@ def debug_command(args: argparse.Namespace) -> int:
             rows = job.ingest(config)
         except (ValueError, LakePathError) as error:
             raise UserError(str(error)) from None
-        state = DashboardState(lake)
+        state = DashboardState(lake, Engine.open(lake, isolated=True))
         try:
             session = DashboardSession(
                 state.new_id(),
@@ -339,6 +340,7 @@ def debug_command(args: argparse.Namespace) -> int:
             sock.close()
         if state is not None:
             state.close()
+            state.engine.close()
         if scratch is not None:
             shutil.rmtree(scratch, ignore_errors=True)
     return 0

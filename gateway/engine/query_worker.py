@@ -145,12 +145,11 @@ def serve(
     worker.warm()
     if headroom is not None and (size := statm()[0]):
         resource.setrlimit(resource.RLIMIT_AS, (size + headroom, size + headroom))
-    connection.send(("ready",))
-    while True:
-        try:
-            request = connection.recv()
-        except (EOFError, OSError):
-            return
-        answer = worker.answer(request)
-        if answer is not None:
-            connection.send(answer)
+    try:
+        connection.send(("ready",))
+        while True:
+            answer = worker.answer(connection.recv())
+            if answer is not None:
+                connection.send(answer)
+    except (EOFError, OSError):
+        return  # the pool's end went away (it closed, or its process ended)

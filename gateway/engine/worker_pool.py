@@ -23,6 +23,7 @@ import re
 import signal
 import threading
 import time
+import weakref
 from dataclasses import dataclass, field
 from multiprocessing.connection import Connection
 from pathlib import Path
@@ -127,6 +128,7 @@ class WorkerPool:
         self._busy: set[WorkerProcess] = set()
         self._starting = 0  # workers being started
         self._takers = 0  # callers of `take` waiting for a worker
+        self._launched: weakref.WeakSet[WorkerProcess] = weakref.WeakSet()  # every worker started
         self._closed = False
         self._watch = threading.Thread(target=self._watch_memory, name="lakegate-worker-watch", daemon=True)
         self._watch.start()
@@ -147,6 +149,10 @@ class WorkerPool:
         process.start()
         theirs.close()
         worker = WorkerProcess(process, ours)
+        with self._lock:
+            self._launched.add(worker)
+            if self._closed:
+                worker.kill()
         try:
             if ours.poll(START_SECONDS) and ours.recv() == ("ready",):
                 worker.warm_rss = resident(worker.pid)
@@ -278,12 +284,11 @@ class WorkerPool:
         """End every worker (running queries fail as killed)."""
         with self._lock:
             self._closed = True
-            workers = [*self._idle, *self._busy]
+            workers, idle = list(self._launched), list(self._idle)
             self._idle.clear()
             self._lock.notify_all()
         for worker in workers:
             worker.kill(DialectError("The server is shutting down", error_name="SERVER_SHUTTING_DOWN"))
-        for worker in workers:
-            if not worker.busy:
-                worker.dispose()  # a busy one is disposed by its reader, which sees it end
+        for worker in idle:
+            worker.dispose()  # a busy or starting one is disposed by its reader, which sees it end
         self._watch.join(timeout=1)

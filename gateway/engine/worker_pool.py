@@ -59,7 +59,7 @@ def size_bytes(text: str) -> int:
 def memory_error(error_name: str, limit: str) -> DialectError:
     """Trino's error of a query that grew past the memory limit."""
     if error_name == "EXCEEDED_LOCAL_MEMORY_LIMIT":
-        text = f"Query exceeded per-node memory limit of {limit} (lakegate serve --memory-limit)"
+        text = f"Query exceeded per-node memory limit of {limit} (--memory-limit)"
     else:
         text = f"Query exceeded distributed user memory limit of {limit}: the queries running together grew past it"
     return DialectError(text, error_name=error_name)

@@ -101,9 +101,9 @@ class _Stream:
             self._give_back(healthy=False)
             raise
         if answer[0] == "error":
+            _, message, line, column, error_name, retire = answer
             self._last = True
-            self._give_back(healthy=True)
-            _, message, line, column, error_name = answer
+            self._give_back(healthy=not retire)
             raise DialectError(message, line=line, column=column, error_name=error_name)
         return answer
 

@@ -5,7 +5,8 @@ allocates without bound, or never returns to Python, costs only this process.
 The protocol is request/answer, one message each way (pickled tuples; batches as Arrow IPC):
 
 - `("execute", sql, branch, scope, params, time_zone, session, pending)` starts a query and answers
-  `("started", columns, duckdb_sql, schema, first, last)` or `("error", message, line, column, name)`;
+  `("started", columns, duckdb_sql, schema, first, last)` or `("error", message, line, column, name,
+  retire)` (`retire`: the worker ends after this answer, its state no longer to be trusted);
 - `("next",)` answers `("batch", data, last)` or an error; `("close",)` drops the running result
   (no answer). A batch is sent with `last` true when none follows, so that a result of one batch
   needs one round trip.
@@ -35,8 +36,8 @@ def _encoded(batch: pa.RecordBatch | None) -> bytes | None:
     return None if batch is None else batch.serialize().to_pybytes()
 
 
-def _error(error: DialectError) -> tuple:
-    return ("error", error.message, error.line, error.column, error.error_name)
+def _error(error: DialectError, *, retire: bool = False) -> tuple:
+    return ("error", error.message, error.line, error.column, error.error_name, retire)
 
 
 class _Ahead:
@@ -61,6 +62,7 @@ class Worker:
         self.pending: dict[tuple[FileEntry, ...], DuckDBBackend] = {}
         self.result: _Ahead | None = None
         self.close_result: object = None
+        self.broken = False  # its database can no longer be trusted: the process ends after answering
 
     def _backend(self, pending: Sequence[FileEntry]) -> DuckDBBackend:
         return DuckDBBackend(
@@ -120,7 +122,12 @@ class Worker:
             return _error(error)
         except MemoryError:
             self.drop()
-            return ("error", "Query exceeded the memory limit of its worker", None, None, "EXCEEDED_LOCAL_MEMORY_LIMIT")
+            message = f"Query exceeded per-node memory limit of {self.memory_limit}"
+            return _error(DialectError(message, error_name="EXCEEDED_LOCAL_MEMORY_LIMIT"), retire=True)
+        except Exception as error:  # DuckDB failed inside (a FatalException invalidates its database): retire
+            self.broken = True
+            first = (str(error).strip().splitlines() or [type(error).__name__])[0]
+            return _error(DialectError(f"internal error: {first}", error_name="GENERIC_INTERNAL_ERROR"), retire=True)
 
     def drop(self) -> None:
         """Close the result being read, if any (its DuckDB work stops)."""
@@ -144,12 +151,16 @@ def serve(
     worker = Worker(lake, memory_limit, threads, limits)
     worker.warm()
     if headroom is not None and (size := statm()[0]):
-        resource.setrlimit(resource.RLIMIT_AS, (size + headroom, size + headroom))
+        hard = resource.getrlimit(resource.RLIMIT_AS)[1]
+        cap = size + headroom if hard == resource.RLIM_INFINITY else min(size + headroom, hard)
+        resource.setrlimit(resource.RLIMIT_AS, (cap, hard))
     try:
         connection.send(("ready",))
         while True:
             answer = worker.answer(connection.recv())
             if answer is not None:
                 connection.send(answer)
+            if worker.broken:
+                return
     except (EOFError, OSError):
         return  # the pool's end went away (it closed, or its process ended)

@@ -28,6 +28,8 @@ from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.engine.process_memory import statm
 from lakegate.lake.record import FileEntry
 
+#: How DuckDB's errors begin when they invalidate its database (a later query cannot run on it).
+_FATAL = ("FATAL Error", "INTERNAL Error")
 #: Backends over staged (pending) files kept per worker, beyond the lake's own.
 PENDING_BACKENDS = 2
 
@@ -119,6 +121,10 @@ class Worker:
             raise DialectError(f"internal error: unknown worker request {kind!r}", error_name="GENERIC_INTERNAL_ERROR")
         except DialectError as error:
             self.drop()
+            if error.message.startswith(_FATAL):  # DuckDB invalidated its database: this worker is done
+                self.broken = True
+                internal = DialectError(f"internal error: {error.message}", error_name="GENERIC_INTERNAL_ERROR")
+                return _error(internal, retire=True)
             return _error(error)
         except MemoryError:
             self.drop()

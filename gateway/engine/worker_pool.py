@@ -102,9 +102,10 @@ class WorkerProcess:
 
 
 class WorkerPool:
-    """At most `size` worker processes over `lake`, `warm` of them kept ready when idle.
+    """Worker processes over `lake`: at most `size` busy (queries running at once) and `warm` more
+    kept ready, so that the next query starts at once even while `size` run or after one was killed.
 
-    `take` hands out an idle worker (starting one when none is idle and fewer than `size` live;
+    `take` hands out an idle worker while fewer than `size` are busy (starting one when none is idle;
     waiting until the deadline otherwise); `give_back` returns it when its query ended.
     """
 
@@ -166,7 +167,7 @@ class WorkerPool:
         """Start workers in the background until `warm` are idle (or starting)."""
         with self._lock:
             missing = self.warm - len(self._idle) - self._starting
-            missing = min(missing, self.size - len(self._idle) - len(self._busy) - self._starting)
+            missing = min(missing, self.size + self.warm - len(self._idle) - len(self._busy) - self._starting)
             if self._closed or missing <= 0:
                 return
             self._starting += missing
@@ -184,6 +185,10 @@ class WorkerPool:
             self._lock.notify_all()
         if worker is not None:
             worker.dispose()
+
+    def _room(self) -> bool:
+        """Whether another worker may start: at most `size` busy and `warm` more (lock held)."""
+        return len(self._idle) + len(self._busy) + self._starting < self.size + self.warm
 
     def wait_ready(self, timeout: float) -> bool:
         """Wait until the warm workers are ready (at most `timeout` seconds); whether they are."""
@@ -204,10 +209,10 @@ class WorkerPool:
                 while True:
                     if self._closed:
                         return None
-                    if self._idle:
+                    if len(self._busy) < self.size and self._idle:
                         worker = self._idle.pop()
                         break
-                    if self._starting < self._takers and len(self._busy) + self._starting < self.size:
+                    if len(self._busy) < self.size and self._starting < self._takers and self._room():
                         self._starting += 1  # a worker for this taker (one already starting may serve another)
                         worker = None
                         break

@@ -56,6 +56,7 @@ def test_hostile_load_leaves_the_server_healthy(server):
         document = requests.get(document["nextUri"], timeout=5).json()
     assert document.get("data") == [[1]]
     assert time.monotonic() - started < 1
+    print(f"peak memory of the server's processes: {memory.peak:.0f} MB")  # shown with -s: docs/sql-endpoint.md
     assert memory.peak < MEMORY_LIMIT_MB + RSS_MARGIN_MB
 
     process.send_signal(signal.SIGTERM)

@@ -79,6 +79,7 @@ def test_memory_bombs_fail_and_the_server_stays_under_its_limit(server):
             )
         assert set(names) <= BOUNDED, names
         assert select_one_seconds(url, lake) < 1
+    print(f"peak memory of the server's processes: {memory.peak:.0f} MB")  # shown with -s: docs/sql-endpoint.md
     assert memory.peak < MEMORY_LIMIT_MB + RSS_MARGIN_MB
     process.send_signal(signal.SIGTERM)
     assert process.wait(timeout=5) == 0
@@ -102,6 +103,7 @@ def test_nested_lambdas_are_bounded(small_server):
         names = list(pool.map(lambda _: outcome(url, NESTED_LAMBDAS.encode(), lake), range(4)))
     assert set(names) <= BOUNDED | {"FINISHED"}, names
     assert select_one_seconds(url, lake) < 1
+    print(f"peak memory of the server's processes: {memory.peak:.0f} MB")  # shown with -s: docs/sql-endpoint.md
     assert memory.peak < MEMORY_LIMIT_MB + RSS_MARGIN_MB
 
 

@@ -4,20 +4,24 @@ bound fails with Trino's EXCEEDED_*_MEMORY_LIMIT (or its time limit) while the m
 processes hold together stays under the limit plus the documented margin; a query that never returns
 to DuckDB (a Python function over 2,048 one-megabyte values in one call) frees its slot at its time
 limit; 20 nested lambdas are bounded the same way; and `SELECT 1` answers at once after each. The same
-holds for `lakegate query`. Bounded: each statement ends within the time limit plus a second.
+holds for `lakegate query`. Pages of wide rows are bounded by bytes. Bounded: each statement ends
+within the time limit plus a second.
 """
 
 from __future__ import annotations
 
+import json
 import signal
 import subprocess
 import time
 from concurrent.futures import ThreadPoolExecutor
 
 import pytest
+import requests
 
 from tests.gateway.conftest import CLI
 from tests.reliability.conftest import (
+    HEADERS,
     MEMORY_LIMIT_MB,
     QUERY_TIMEOUT,
     RSS_MARGIN_MB,
@@ -116,3 +120,25 @@ def test_lakegate_query_holds_the_same_limits(tmp_path):
     )
     assert done.returncode == 1 and done.stdout == ""
     assert len(done.stderr.splitlines()) == 1 and "Query exceeded" in done.stderr, done.stderr
+
+
+@pytest.fixture
+def patient_server(tmp_path):
+    """A server whose time limit leaves a client time to read 30 MB of pages."""
+    yield from start_server(tmp_path, "--query-timeout", "60")
+
+
+def test_wide_rows_come_in_pages_of_about_a_megabyte(patient_server):
+    """Pages are bounded by bytes, as Trino's target result size bounds them, not only by rows."""
+    process, url, lake = patient_server
+    sql = b"SELECT x, rpad(CAST(x AS varchar), 1000000, 'x') AS wide FROM UNNEST(sequence(1, 30)) AS t(x)"
+    response = requests.post(f"{url}/v1/statement", data=sql, headers=HEADERS, timeout=60).json()
+    sizes, rows = [], 0
+    while "nextUri" in response:
+        body = requests.get(response["nextUri"], timeout=60).content
+        response = json.loads(body)
+        if "data" in response:
+            sizes.append(len(body))
+            rows += len(response["data"])
+    assert response["stats"]["state"] == "FINISHED" and rows == 30, response.get("error")
+    assert max(sizes) < 2_200_000, sizes  # one or two rows of 1 MB a page, never all 30 in one

@@ -1,11 +1,11 @@
 """Queries run in worker processes (gateway/engine/isolated_backend.py), against one real `lakegate
-serve --memory-limit 512MB --query-timeout 3` each: a query that builds lists or strings without
-bound fails with Trino's EXCEEDED_*_MEMORY_LIMIT (or its time limit) while the memory the server's
-processes hold together stays under the limit plus the documented margin; a query that never returns
-to DuckDB (a Python function over 2,048 one-megabyte values in one call) frees its slot at its time
-limit; 20 nested lambdas are bounded the same way; and `SELECT 1` answers at once after each. The same
-holds for `lakegate query`. Pages of wide rows are bounded by bytes. Bounded: each statement ends
-within the time limit plus a second.
+serve --memory-limit 512MB --query-timeout 3` each (10 s for the memory bombs): a query that builds
+lists or strings without bound fails with Trino's EXCEEDED_*_MEMORY_LIMIT (or its time limit) while
+the memory the server's processes hold together stays under the limit plus the documented margin; a
+query that never returns to DuckDB (a Python function over 2,048 one-megabyte values in one call)
+frees its slot at its time limit; 20 nested lambdas are bounded the same way; and `SELECT 1` answers
+at once after each. The same holds for `lakegate query`. Pages of wide rows are bounded by bytes.
+Bounded: each statement ends within its time limit plus a second.
 """
 
 from __future__ import annotations
@@ -65,8 +65,14 @@ def small_server(tmp_path):
     yield from start_server(tmp_path, "--max-concurrent-queries", "2")
 
 
-def test_memory_bombs_fail_and_the_server_stays_under_its_limit(server):
-    process, url, lake = server
+@pytest.fixture
+def memory_server(tmp_path):
+    """A server with time enough for a runaway allocation to reach the memory limit on a busy machine."""
+    yield from start_server(tmp_path, "--query-timeout", "10")
+
+
+def test_memory_bombs_fail_and_the_server_stays_under_its_limit(memory_server):
+    process, url, lake = memory_server
     assert outcome(url, b"SELECT 1", lake) == "FINISHED"
     with MemoryWatch(process.pid) as memory:
         assert outcome(url, LIST_BOMB.encode(), lake) in MEMORY

@@ -31,7 +31,7 @@ from lakegate.gateway.server.auth import Users, UsersFileError, check_listen
 _DEFAULTS = Limits()
 #: Seconds after the first stop signal when a shutdown still running ends the process.
 STOP_GRACE = 3.5
-#: Longest the server waits at start for its first query worker process (it serves anyway after).
+#: Longest the server waits at start for its query worker processes (it serves anyway after).
 WORKERS_READY_SECONDS = 60.0
 
 
@@ -254,8 +254,14 @@ def serve_command(args: argparse.Namespace) -> int:
     if args.backend == "trino":
         backend = backend_from_args(args, args.lake)
     else:
-        backend = IsolatedBackend(args.lake, memory_limit=args.memory_limit, threads=args.threads, limits=limits)
-        backend.pool.wait_ready(WORKERS_READY_SECONDS)  # the first query does not wait for a worker to start
+        backend = IsolatedBackend(  # a worker for each slot, so that a burst of queries waits for none to start
+            args.lake,
+            memory_limit=args.memory_limit,
+            threads=args.threads,
+            limits=limits,
+            keep=limits.max_concurrent_queries,
+        )
+        backend.pool.wait_ready(WORKERS_READY_SECONDS)
     engine = Engine(backend, catalog=args.catalog, limits=limits, owns_backend=True)
     dashboard = DashboardState(args.lake, engine)
     try:

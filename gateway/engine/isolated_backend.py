@@ -135,9 +135,9 @@ class _Stream:
 
 class IsolatedBackend(DuckDBBackend):
     """`DuckDBBackend` whose queries run in a pool of worker processes, at most
-    `limits.max_concurrent_queries` at once, `warm` of them kept started. `memory_limit` bounds the
-    memory the running queries take together, counted as the growth of their workers' resident
-    sets (each worker's DuckDB has it as its own limit too)."""
+    `limits.max_concurrent_queries` at once, `warm` more kept ready and at least `keep` started.
+    `memory_limit` bounds the memory the running queries take together, counted as the growth of
+    their workers' resident sets (each worker's DuckDB has it as its own limit too)."""
 
     def __init__(
         self,
@@ -149,6 +149,7 @@ class IsolatedBackend(DuckDBBackend):
         pending: Sequence[FileEntry] = (),
         idle_seconds: float = IDLE_SECONDS,
         warm: int = 1,
+        keep: int = 1,
         pool: WorkerPool | None = None,
     ):
         super().__init__(
@@ -163,6 +164,7 @@ class IsolatedBackend(DuckDBBackend):
             limits=limits,
             size=limits.max_concurrent_queries,
             warm=warm,
+            keep=keep,
         )
         self._streams: weakref.WeakSet[_Stream] = weakref.WeakSet()
 

@@ -103,7 +103,8 @@ class WorkerProcess:
 
 class WorkerPool:
     """Worker processes over `lake`: at most `size` busy (queries running at once) and `warm` more
-    kept ready, so that the next query starts at once even while `size` run or after one was killed.
+    kept ready, so that the next query starts at once even while `size` run or after one was killed;
+    at least `keep` live (started at once: a burst of queries finds them ready).
 
     `take` hands out an idle worker while fewer than `size` are busy (starting one when none is idle;
     waiting until the deadline otherwise); `give_back` returns it when its query ended.
@@ -118,10 +119,11 @@ class WorkerPool:
         limits: Limits,
         size: int,
         warm: int = 1,
+        keep: int = 1,
     ):
         self.lake, self.memory_limit, self.threads, self.limits = lake, memory_limit, threads, limits
         self.limit_bytes = size_bytes(memory_limit)
-        self.size, self.warm = size, min(warm, size)
+        self.size, self.warm, self.keep = size, min(warm, size), min(max(keep, warm), size + warm)
         self._context = multiprocessing.get_context("forkserver")
         self._context.set_forkserver_preload(["lakegate.gateway.engine.query_worker"])
         self._lock = threading.Condition()
@@ -164,9 +166,10 @@ class WorkerPool:
         return None
 
     def _fill(self) -> None:
-        """Start workers in the background until `warm` are idle (or starting)."""
+        """Start workers in the background until `warm` are idle and `keep` live (or starting)."""
         with self._lock:
-            missing = self.warm - len(self._idle) - self._starting
+            live = len(self._idle) + len(self._busy) + self._starting
+            missing = max(self.warm - len(self._idle) - self._starting, self.keep - live)
             missing = min(missing, self.size + self.warm - len(self._idle) - len(self._busy) - self._starting)
             if self._closed or missing <= 0:
                 return
@@ -191,10 +194,10 @@ class WorkerPool:
         return len(self._idle) + len(self._busy) + self._starting < self.size + self.warm
 
     def wait_ready(self, timeout: float) -> bool:
-        """Wait until the warm workers are ready (at most `timeout` seconds); whether they are."""
+        """Wait until the workers kept are ready (at most `timeout` seconds); whether they are."""
         deadline = time.monotonic() + timeout
         with self._lock:
-            while len(self._idle) < self.warm and not self._closed:
+            while len(self._idle) < self.keep and not self._closed:
                 remaining = deadline - time.monotonic()
                 if remaining <= 0:
                     return False
@@ -256,15 +259,15 @@ class WorkerPool:
     # -- the watch ----------------------------------------------------------------------------
 
     def _watch_memory(self) -> None:
-        """Kill the workers past the memory limit; end idle workers beyond `warm` after IDLE_SECONDS."""
+        """Kill the workers past the memory limit; end idle workers beyond `warm` (and `keep` live)
+        after IDLE_SECONDS."""
         while not self._closed:
             time.sleep(WATCH_INTERVAL)
             with self._lock:
                 busy = list(self._busy)
                 now = time.monotonic()
-                spare = [
-                    w for w in self._idle[: max(0, len(self._idle) - self.warm)] if now - w.idle_since > IDLE_SECONDS
-                ]
+                surplus = min(len(self._idle) - self.warm, len(self._idle) + len(self._busy) - self.keep)
+                spare = [w for w in self._idle[: max(0, surplus)] if now - w.idle_since > IDLE_SECONDS]
                 for worker in spare:
                     self._idle.remove(worker)
             for worker in spare:

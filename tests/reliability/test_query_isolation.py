@@ -32,6 +32,9 @@ from tests.reliability.conftest import (
 )
 
 MEMORY = {"EXCEEDED_LOCAL_MEMORY_LIMIT", "EXCEEDED_GLOBAL_MEMORY_LIMIT"}
+#: Seconds within which `SELECT 1` answers after a killed query: a warm worker is ready, or its
+#: replacement starts (about 0.3 s on an idle machine; several times that on a shared, loaded one).
+AT_ONCE = 2
 BOUNDED = MEMORY | {"EXCEEDED_TIME_LIMIT"}
 #: 10^8 list elements (about 800 MB): only a memory limit stops it within the time limit.
 LIST_BOMB = "SELECT cardinality(flatten(transform(sequence(1, 10000), x -> sequence(1, 10000))))"
@@ -76,10 +79,10 @@ def test_memory_bombs_fail_and_the_server_stays_under_its_limit(memory_server):
     assert outcome(url, b"SELECT 1", lake) == "FINISHED"
     with MemoryWatch(process.pid) as memory:
         assert outcome(url, LIST_BOMB.encode(), lake) in MEMORY
-        assert select_one_seconds(url, lake) < 1
+        assert select_one_seconds(url, lake) < AT_ONCE
         for bomb in STRING_BOMBS:
             assert outcome(url, bomb.encode(), lake) in BOUNDED, bomb
-            assert select_one_seconds(url, lake) < 1
+            assert select_one_seconds(url, lake) < AT_ONCE
         with ThreadPoolExecutor(3) as pool:  # two at once, and an EXPLAIN ANALYZE of one
             names = list(
                 pool.map(
@@ -88,7 +91,7 @@ def test_memory_bombs_fail_and_the_server_stays_under_its_limit(memory_server):
                 )
             )
         assert set(names) <= BOUNDED, names
-        assert select_one_seconds(url, lake) < 1
+        assert select_one_seconds(url, lake) < AT_ONCE
     print(f"peak memory of the server's processes: {memory.peak:.0f} MB")  # shown with -s: docs/sql-endpoint.md
     assert memory.peak < MEMORY_LIMIT_MB + RSS_MARGIN_MB
     process.send_signal(signal.SIGTERM)
@@ -104,7 +107,7 @@ def test_a_query_that_never_returns_to_duckdb_frees_its_slot(small_server):
     # two slots, four queries of the time limit each, a second of grace per query: no slot outlives its query
     assert time.monotonic() - started < 2 * (QUERY_TIMEOUT + 2)
     with ThreadPoolExecutor(4) as pool:
-        assert max(pool.map(lambda _: select_one_seconds(url, lake), range(4))) < 2
+        assert max(pool.map(lambda _: select_one_seconds(url, lake), range(4))) < AT_ONCE
 
 
 def test_nested_lambdas_are_bounded(small_server):
@@ -112,7 +115,7 @@ def test_nested_lambdas_are_bounded(small_server):
     with MemoryWatch(process.pid) as memory, ThreadPoolExecutor(4) as pool:
         names = list(pool.map(lambda _: outcome(url, NESTED_LAMBDAS.encode(), lake), range(4)))
     assert set(names) <= BOUNDED | {"FINISHED"}, names
-    assert select_one_seconds(url, lake) < 1
+    assert select_one_seconds(url, lake) < AT_ONCE
     print(f"peak memory of the server's processes: {memory.peak:.0f} MB")  # shown with -s: docs/sql-endpoint.md
     assert memory.peak < MEMORY_LIMIT_MB + RSS_MARGIN_MB
 

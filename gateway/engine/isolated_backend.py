@@ -23,7 +23,8 @@ import pyarrow as pa
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
 from lakegate.dialect.session_functions import SessionNames
-from lakegate.gateway.engine.backend import IDLE_SECONDS, DuckDBBackend, QueryResult, time_limit_error
+from lakegate.gateway.engine.backend import IDLE_SECONDS, DuckDBBackend, QueryResult
+from lakegate.gateway.engine.failures import time_limit_error
 from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.engine.worker_pool import WorkerPool, WorkerProcess
 from lakegate.lake.record import FileEntry

@@ -215,6 +215,7 @@ _FILE_IO_ALLOWED = {
     ("gateway/metrics/trends.py", "write_trends"): "writes the user's trends file",
     ("gateway/metrics/compare_page.py", "write_compare"): "writes the user's comparison page",
     ("gateway/server/auth.py", "Users.load"): "reads the user's users file",
+    ("gateway/engine/process_memory.py", "statm"): "reads a process's memory size from /proc",
 }
 
 

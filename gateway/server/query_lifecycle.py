@@ -464,14 +464,17 @@ class Query:
 def _pages(
     columns: Sequence[tuple[str, str]], batches: Iterator[pa.RecordBatch], limits: Limits, encoding: str | None = None
 ) -> Iterator[_Page]:
-    """The result's rows as pages of JSON (sized to about limits.page_bytes), each also encoded as a
-    spooling segment's payload when the client chose an `encoding`; a result with more than
+    """The result's rows as pages of JSON (sized to about limits.page_bytes: a page holds fewer rows
+    when their Arrow data is larger, a single row when one is), each also encoded as a spooling
+    segment's payload when the client chose an `encoding`; a result with more than
     limits.max_rows rows fails."""
     seen, chunk = 0, FIRST_PAGE_ROWS
     for batch in batches:
         offset = 0
         while offset < batch.num_rows:
             part = batch.slice(offset, chunk)
+            if part.num_rows > 1 and part.nbytes > limits.page_bytes:  # wide rows: fewer of them
+                part = batch.slice(offset, max(1, part.num_rows * limits.page_bytes // part.nbytes))
             seen += part.num_rows
             if seen > limits.max_rows:
                 raise DialectError(

@@ -287,7 +287,14 @@ def _substring(a: Analyzer, node, scope, env):
             a.fail("Unexpected parameters for function substr", node, "FUNCTION_NOT_FOUND")
     if t.base not in ("varchar", "unknown"):
         a.fail(f"Unexpected parameters ({t}) for function substr", node, "FUNCTION_NOT_FOUND")
-    return t if t.base == "varchar" else tt.VARCHAR
+    if t.is_unknown:  # substr(varchar(x), ...) and substr(varbinary, ...) both take a NULL literal
+        a.fail(
+            "Could not choose a best candidate operator. Explicit type casts must be added.\nCandidates are:\n"
+            "\t * (varchar(0),bigint):varchar(0)\n\t * (varbinary,bigint):varbinary",
+            node,
+            "AMBIGUOUS_FUNCTION_CALL",
+        )
+    return t
 
 
 @handles(exp.Trim)
@@ -304,7 +311,7 @@ def _trim(a: Analyzer, node, scope, env):
         return set(call, a.function(call, scope, env))
     if t.base not in ("varchar", "unknown"):
         a.fail(f"Unexpected parameters ({t}) for function trim", node, "FUNCTION_NOT_FOUND")
-    return t if t.base == "varchar" else tt.VARCHAR
+    return t if t.base == "varchar" else tt.varchar(0)  # a NULL literal binds varchar(x) with x = 0
 
 
 @handles(exp.StrPosition)

@@ -193,6 +193,8 @@ def concat_operator(g: Writer, node: exp.DPipe) -> str:
     t = ttype(node)
     left, right = node.this, node.expression
     lt, rt = ttype(left), ttype(right)
+    if lt.is_unknown or rt.is_unknown:  # x || NULL as array(x): always NULL
+        return f"CAST(NULL AS {tt.duckdb_type(t) or 'INTEGER[]'})"  # array(unknown): any list type
     if lt.base == "array" and rt.base == "array":
         a, b = g.coerce(left, t), g.coerce(right, t)
         return f"CASE WHEN {a} IS NULL OR {b} IS NULL THEN NULL ELSE list_concat({a}, {b}) END"

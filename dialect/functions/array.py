@@ -331,12 +331,10 @@ def _two_arrays(call: Call) -> TType:
     return t
 
 
-def _first_occurrences(arr: str, keep_nan: bool = False) -> str:
-    """The elements of `arr` not equal to an earlier one; NULL is a value and kept once (DuckDB's
-    list_position finds NULL and NaN, as Trino's IDENTICAL operator does). With `keep_nan` every NaN
-    is kept: Trino's EQUAL never finds a NaN in a set."""
-    nan = ' OR isnan("_x")' if keep_nan else ""
-    return f'list_filter({arr}, lambda "_x", "_i": list_position({arr}, "_x") = "_i"{nan})'
+def _first_occurrences(arr: str) -> str:
+    """The elements of `arr` not equal to an earlier one; NULL and NaN are values and kept once (DuckDB's
+    list_position finds NULL and NaN, as Trino's IDENTICAL operator does)."""
+    return f'list_filter({arr}, lambda "_x", "_i": list_position({arr}, "_x") = "_i")'
 
 
 def _array_union(call: Call) -> TType:
@@ -347,10 +345,11 @@ def _array_union(call: Call) -> TType:
 
 
 def _render_array_union(g, node, args) -> str:
-    """ArrayUnionFunction: x's then y's elements, each value once (EQUAL: NULL once, NaN always)."""
+    """ArrayUnionFunction: x's then y's elements, each value once (NULL once, and NaN once: the real
+    Trino 476 answers `array_union(ARRAY[nan()], ARRAY[nan()])` with one NaN)."""
     t = ttype(node)
     both = f"list_concat({g.coerce(args[0], t)}, {g.coerce(args[1], t)})"
-    return null_if_any_null(g, args, let_bound(both, '"_u"', _first_occurrences('"_u"', keep_nan=t.element.is_approx)))
+    return null_if_any_null(g, args, let_bound(both, '"_u"', _first_occurrences('"_u"')))
 
 
 def _render_array_intersect(g, node, args) -> str:

@@ -224,7 +224,7 @@ def a_literal_number(node: exp.Expression) -> exp.Literal | None:
 
 @handles(exp.Grouping)
 def _grouping(a: Analyzer, node, scope, env):
-    """grouping(k1, ..., kn) -> bigint: bit i (from the right) is 1 when key k(n-i) is not grouped
+    """grouping(k1, ..., kn) -> integer (as the real Trino 476 types it): bit i (from the right) is 1 when key k(n-i) is not grouped
     (docs/src/main/sphinx/functions/aggregate.md); the arguments are checked against the GROUP BY
     keys with the rest of the query (Analyzer.check_grouping)."""
     for argument in node.expressions:
@@ -232,7 +232,7 @@ def _grouping(a: Analyzer, node, scope, env):
     a.groupings.append(node)
     if len(node.expressions) > 63:
         a.fail("GROUPING supports up to 63 column arguments", node, "TOO_MANY_ARGUMENTS")
-    return tt.BIGINT
+    return tt.INTEGER
 
 
 @handles(exp.GroupConcat)

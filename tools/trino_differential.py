@@ -39,10 +39,6 @@ KINDS = ("equal", "refused", "both errored", "not run on Trino", "open", *FAILUR
 #: verdict on these is `open` (listed on the page) instead of a failure; a listed case that agrees
 #: with Trino again fails the test until it is taken off this list.
 OPEN: dict[str, str] = {
-    "grouping/grouping-sets-with-grand-total": "grouping() of an output name in ORDER BY: INVALID_ARGUMENTS",
-    "grouping/rollup-with-grouping": "grouping() of an output name in ORDER BY: INVALID_ARGUMENTS",
-    "grouping/key-plus-rollup": "grouping() of an output name in ORDER BY: INVALID_ARGUMENTS",
-    "grouping/cube-one-key": "grouping() is integer, not bigint",
     "json/json-query-of-json-is-json": "json_query of a JSON value: TYPE_MISMATCH",
     "json/json-query-returning-varchar": "json_query of a JSON value: TYPE_MISMATCH",
     "json/trailing-comma-is-not-json": "json_extract_scalar('[1,]', '$[0]') is '1' (the parser stops at the value)",

@@ -224,9 +224,9 @@ def a_literal_number(node: exp.Expression) -> exp.Literal | None:
 
 @handles(exp.Grouping)
 def _grouping(a: Analyzer, node, scope, env):
-    """grouping(k1, ..., kn) -> integer (as the real Trino 476 types it): bit i (from the right) is 1 when key k(n-i) is not grouped
-    (docs/src/main/sphinx/functions/aggregate.md); the arguments are checked against the GROUP BY
-    keys with the rest of the query (Analyzer.check_grouping)."""
+    """grouping(k1, ..., kn) -> integer (as the real Trino 476 types it): bit i (from the right) is 1
+    when key k(n-i) is not grouped (docs/src/main/sphinx/functions/aggregate.md); the arguments are
+    checked against the GROUP BY keys with the rest of the query (Analyzer.check_grouping)."""
     for argument in node.expressions:
         a.expr(argument, scope, env)
     a.groupings.append(node)

@@ -225,17 +225,6 @@ class _Parser(Trino.Parser):
             return None
         return super()._parse_types(check_func=check_func, **kwargs)
 
-    def _parse_bracket(self, this=None):
-        # DuckDB's list literal [1, 2]; Trino has only ARRAY[1, 2] (SqlBase.g4 #arrayConstructor)
-        if (
-            this is None
-            and self._curr
-            and self._curr.token_type == TokenType.L_BRACKET
-            and not (self._prev and self._prev.token_type == TokenType.ARRAY)
-        ):
-            self.raise_error("mismatched input '['. Expecting: an expression (an array is ARRAY[...])")
-        return super()._parse_bracket(this)
-
     def _parse_in(self, this, alias: bool = False):
         # DuckDB's `x IN [1, 2]`; Trino's predicate is `IN (...)` (SqlBase.g4 #inList, #inSubquery)
         if self._curr and self._curr.token_type == TokenType.L_BRACKET:

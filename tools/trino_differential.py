@@ -46,7 +46,6 @@ OPEN: dict[str, str] = {
     "datetime/parse-datetime-fields": "SSS reads at most 3 digits: INVALID_FUNCTION_ARGUMENT on .0067",
     "string/normalize-nfc-string-form": "normalize(x, 'NFC'): SYNTAX_ERROR (the form is a keyword)",
     "datetime/cast-timestamp-to-time": "CAST(TIMESTAMP '1960-01-01 01:02:03.123456' AS time(6)) is 01:02:02.123456",
-    "refused/list-literal": "SELECT [1, 2] answers [1, 2] (array(integer))",
     "select/trailing-semicolon": "SELECT 1; is a SYNTAX_ERROR",
     "datetime/date-functions-on-nanoseconds": "date_format of a timestamp(9) rounds to millis: 00:00:00.000000",
     "datetime/date-format-f-is-millis": "date_format of a timestamp(6) rounds to milliseconds: 112000",

@@ -362,9 +362,7 @@ def _normalize_form(call: Call) -> TType | None:
     if len(call.args) != 2:
         return None
     need(call, "string", "string")
-    form = literal_str(call, 1)
-    if form is None and not call.types[1].is_unknown:
-        call.fail("normalize with a non-literal form is not supported in lakegate", "NOT_SUPPORTED")
+    form = literal_str(call, 1)  # the parser passes only the keyword NFC, NFD, NFKC or NFKD, as written
     if form in _NORMAL_FORMS and form != "NFC":
         call.fail(f"normalize with the form {form} is not supported in lakegate (only NFC)", "NOT_SUPPORTED")
     call.node.meta["normal_form"] = form
@@ -372,11 +370,9 @@ def _normalize_form(call: Call) -> TType | None:
 
 
 def _render_normalize_form(g, node, args) -> str:
-    """NFC is DuckDB's nfc_normalize; another form is Normalizer.Form.valueOf's error at run time
-    (a NULL argument gives NULL first)."""
+    """NFC is DuckDB's nfc_normalize; a keyword in lower case is Normalizer.Form.valueOf's error at
+    run time (a NULL argument gives NULL first)."""
     value, form = g.sql(args[0]), node.meta["normal_form"]
-    if form is None:
-        return "CAST(NULL AS VARCHAR)"
     if form == "NFC":
         return f"nfc_normalize({value})"
     message = tf.string("Normalization form must be one of [NFD, NFC, NFKD, NFKC]")

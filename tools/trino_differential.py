@@ -39,8 +39,6 @@ KINDS = ("equal", "refused", "both errored", "not run on Trino", "open", *FAILUR
 #: verdict on these is `open` (listed on the page) instead of a failure; a listed case that agrees
 #: with Trino again fails the test until it is taken off this list.
 OPEN: dict[str, str] = {
-    "json/json-query-of-json-is-json": "json_query of a JSON value: TYPE_MISMATCH",
-    "json/json-query-returning-varchar": "json_query of a JSON value: TYPE_MISMATCH",
     "json/trailing-comma-is-not-json": "json_extract_scalar('[1,]', '$[0]') is '1' (the parser stops at the value)",
     "joins/lateral-values-several-rows": "LATERAL (VALUES of outer columns): NOT_SUPPORTED (correlated subquery)",
     "datetime/parse-datetime-fields": "SSS reads at most 3 digits: INVALID_FUNCTION_ARGUMENT on .0067",

@@ -143,7 +143,7 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
     if target.base == "time" and source.base in ("time", "timestamp"):  # p <= 6 (analyze._cast)
         if source.base == "time":
             return times.round_time(sql, target.args[0], source.args[0])
-        return times.of_timestamp(sql, target.args[0])
+        return times.of_timestamp(sql, target.args[0], g.fail("'value must be >= 0'", "GENERIC_INTERNAL_ERROR"))
     if target.base == "timestamp" and source.base in ("timestamp", "date"):
         precision = target.args[0]
         if source.base == "timestamp" and precision < source.args[0]:

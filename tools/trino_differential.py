@@ -42,7 +42,6 @@ OPEN: dict[str, str] = {
     "json/trailing-comma-is-not-json": "json_extract_scalar('[1,]', '$[0]') is '1' (the parser stops at the value)",
     "joins/lateral-values-several-rows": "LATERAL (VALUES of outer columns): NOT_SUPPORTED (correlated subquery)",
     "datetime/parse-datetime-fields": "SSS reads at most 3 digits: INVALID_FUNCTION_ARGUMENT on .0067",
-    "datetime/cast-timestamp-to-time": "CAST(TIMESTAMP '1960-01-01 01:02:03.123456' AS time(6)) is 01:02:02.123456",
     "select/trailing-semicolon": "SELECT 1; is a SYNTAX_ERROR",
     "datetime/date-functions-on-nanoseconds": "date_format of a timestamp(9) rounds to millis: 00:00:00.000000",
     "datetime/date-format-f-is-millis": "date_format of a timestamp(6) rounds to milliseconds: 112000",

@@ -41,7 +41,6 @@ KINDS = ("equal", "refused", "both errored", "not run on Trino", "open", *FAILUR
 OPEN: dict[str, str] = {
     "json/trailing-comma-is-not-json": "json_extract_scalar('[1,]', '$[0]') is '1' (the parser stops at the value)",
     "joins/lateral-values-several-rows": "LATERAL (VALUES of outer columns): NOT_SUPPORTED (correlated subquery)",
-    "datetime/parse-datetime-fields": "SSS reads at most 3 digits: INVALID_FUNCTION_ARGUMENT on .0067",
     "select/trailing-semicolon": "SELECT 1; is a SYNTAX_ERROR",
     "datetime/interval-arithmetic-on-the-instant": "+ INTERVAL '1' MONTH on a zoned timestamp keeps its wall time",
     "datetime/dst-gap-moves-forward": "a TIMESTAMP literal in a DST gap: INVALID_LITERAL",

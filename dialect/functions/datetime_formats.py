@@ -224,7 +224,7 @@ _JODA_PARSED = {
     "H": ("hour", 2),
     "m": ("minute", 2),
     "s": ("second", 2),
-    "S": ("fraction", 9),
+    "S": ("fraction", 1),  # S..S reads at most as many digits as letters (the real Trino 476)
 }
 
 _JODA_LETTERS = "GCYxweEyDMdaKhHkmsSzZ"

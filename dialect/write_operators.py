@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from sqlglot import exp
 
-from lakegate.dialect import chars, wide_decimals
+from lakegate.dialect import chars, wide_decimals, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.transforms import Writer, cast, quote, string, ten, transform
 from lakegate.dialect.trino_types import TType
@@ -43,6 +43,11 @@ def decimal_result_type(g: Writer, node: exp.Binary) -> str:
         return cast(sql, t)
     if t.base == "date":
         return whole_days(g, node, sql)
+    if t.base == "timestamp_tz" and tt.INTERVAL_YM in (ttype(node.this), ttype(node.expression)):
+        # months move the wall time in the value's zone; a day-to-second interval moves the instant
+        zone = tt.zone_of(t)
+        stamp, months = (left, right) if ttype(node.this).base == "timestamp_tz" else (right, left)
+        return cast(zones.instant(f"({zones.local(stamp, zone)} {op} {months})", zone), t)
     if t.base == "timestamp" and t.args[0] > 6:
         return nanosecond_interval_arithmetic(g, node, op)
     if t == tt.INTERVAL_DS and ttype(node.this).base == "timestamp":

@@ -42,7 +42,6 @@ OPEN: dict[str, str] = {
     "json/trailing-comma-is-not-json": "json_extract_scalar('[1,]', '$[0]') is '1' (the parser stops at the value)",
     "joins/lateral-values-several-rows": "LATERAL (VALUES of outer columns): NOT_SUPPORTED (correlated subquery)",
     "select/trailing-semicolon": "SELECT 1; is a SYNTAX_ERROR",
-    "datetime/dst-gap-moves-forward": "a TIMESTAMP literal in a DST gap: INVALID_LITERAL",
 }
 
 

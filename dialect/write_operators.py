@@ -236,9 +236,13 @@ def ieee_comparison(g: Writer, node: exp.Binary) -> str:
         ]
         if not sides:
             return f"{left} {op} {right}"
-        if op == "<>":
-            return f"({left} <> {right} OR " + " OR ".join(f"isnan({s})" for s in sides) + ")"
-        return f"({left} {op} {right} AND " + " AND ".join(f"NOT isnan({s})" for s in sides) + ")"
+        # NULL against NaN is NULL: the NaN test only once neither side is NULL
+        nan = " OR ".join(f"isnan({s})" for s in sides)
+        nulls = " OR ".join(f"({s}) IS NULL" for s in sides)
+        if len(sides) == 1:
+            nulls = f"({left}) IS NULL OR ({right}) IS NULL"
+        unordered = "true" if op == "<>" else "false"
+        return f"CASE WHEN {nulls} THEN NULL WHEN {nan} THEN {unordered} ELSE {left} {op} {right} END"
     if common.base in ("array", "map", "row") and op in ("=", "<>"):
         equal = trino_equal(left, right, common)
         return equal if op == "=" else f"NOT ({equal})"
@@ -325,17 +329,22 @@ def eager_constant_in_list(g: Writer, node: exp.In) -> str:
     sql = g.in_sql(node)
     items = node.expressions
     common = node.meta.get("compare")
-    if node.find(exp.Column) is not None:
-        if items and common is not None and common.is_approx:
-            # NaN equals nothing when Trino evaluates IN over columns (DuckDB's IN matches NaN with
-            # NaN); Trino's constant folding does match it, as the constant case below does
-            value = g.coerce(node.this, common)
-            nulls = " OR ".join(f"({g.coerce(i, common)}) IS NULL" for i in items)
-            return f"CASE WHEN isnan({value}) THEN CASE WHEN {nulls} THEN NULL ELSE false END ELSE {sql} END"
-        return sql
-    if all(isinstance(i, (exp.Literal, exp.Null)) for i in items):
+    if items and common is not None and common.is_approx:
+        sql = _nan_in_list(g, node, common, sql)
+    if node.find(exp.Column) is not None or all(isinstance(i, (exp.Literal, exp.Null)) for i in items):
         return sql
     return f"CASE WHEN len([{', '.join(g.coerce(i, common) for i in items)}]) >= 0 THEN {sql} END"
+
+
+def _nan_in_list(g: Writer, node: exp.In, common: TType, sql: str) -> str:
+    """NaN IN (...) as the real Trino 476 answers: NaN equals no item (DuckDB's IN matches NaN with
+    NaN), except an item that is the very same column expression as the value (Trino's planner
+    answers `x IN (x, ...)` true for any x not NULL); NULL when no item matches and one is NULL."""
+    value = g.coerce(node.this, common)
+    if node.this.find(exp.Column) is not None and any(item == node.this for item in node.expressions):
+        return f"CASE WHEN isnan({value}) THEN true ELSE {sql} END"
+    nulls = " OR ".join(f"({g.coerce(i, common)}) IS NULL" for i in node.expressions)
+    return f"CASE WHEN isnan({value}) THEN CASE WHEN {nulls} THEN NULL ELSE false END ELSE {sql} END"
 
 
 def row_in_subquery(g: Writer, node: exp.In) -> str:
@@ -366,8 +375,8 @@ def row_in_subquery(g: Writer, node: exp.In) -> str:
 
 @transform(exp.Between)
 def ieee_between(g: Writer, node: exp.Between) -> str:
-    """`v BETWEEN low AND high` is `low <= v AND v <= high` with IEEE comparisons: false when a double
-    is NaN (DuckDB orders NaN above every number)."""
+    """`v BETWEEN low AND high` is `low <= v AND v <= high` with IEEE comparisons: each false when a
+    double is NaN (DuckDB orders NaN above every number), NULL when a side is NULL."""
     common = node.meta.get("compare")
     if common is not None and common.base in ("array", "row"):
         value, low, high = (g.coerce(side, common) for side in (node.this, node.args["low"], node.args["high"]))
@@ -377,8 +386,13 @@ def ieee_between(g: Writer, node: exp.Between) -> str:
     sql = g.between_sql(node)
     if common is None or not common.is_approx:
         return sql
-    sides = [g.sql(side) for side in (node.this, node.args["low"], node.args["high"])]
-    return f"({sql} AND " + " AND ".join(f"NOT isnan({side})" for side in sides) + ")"
+    value, low, high = (g.sql(side) for side in (node.this, node.args["low"], node.args["high"]))
+
+    def at_most(a: str, b: str) -> str:  # IEEE a <= b: NULL with a NULL side, false with a NaN
+        nulls, nan = f"({a}) IS NULL OR ({b}) IS NULL", f"isnan({a}) OR isnan({b})"
+        return f"CASE WHEN {nulls} THEN NULL WHEN {nan} THEN false ELSE {a} <= {b} END"
+
+    return f"(({at_most(low, value)}) AND ({at_most(value, high)}))"
 
 
 # --- conditionals --------------------------------------------------------------------------------

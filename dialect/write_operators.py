@@ -338,13 +338,20 @@ def eager_constant_in_list(g: Writer, node: exp.In) -> str:
 
 def _nan_in_list(g: Writer, node: exp.In, common: TType, sql: str) -> str:
     """NaN IN (...) as the real Trino 476 answers: NaN equals no item (DuckDB's IN matches NaN with
-    NaN), except an item that is the very same column expression as the value (Trino's planner
-    answers `x IN (x, ...)` true for any x not NULL); NULL when no item matches and one is NULL."""
+    NaN), except where Trino's planner matches before comparing, in a list not wholly constant: the
+    very same column as the value (`x IN (x, ...)`), or a constant value and a constant NaN item
+    (`nan() IN (x, sqrt(-1))`). NULL when nothing matches and an item is NULL."""
     value = g.coerce(node.this, common)
-    if node.this.find(exp.Column) is not None and any(item == node.this for item in node.expressions):
-        return f"CASE WHEN isnan({value}) THEN true ELSE {sql} END"
+    matches = []
+    if node.find(exp.Column) is not None:
+        if isinstance(node.this, exp.Column) and any(item == node.this for item in node.expressions):
+            matches.append("true")
+        if node.this.find(exp.Column) is None:
+            constants = [i for i in node.expressions if i.find(exp.Column) is None]
+            matches += [f"isnan({g.coerce(i, common)})" for i in constants if not isinstance(i, exp.Null)]
     nulls = " OR ".join(f"({g.coerce(i, common)}) IS NULL" for i in node.expressions)
-    return f"CASE WHEN isnan({value}) THEN CASE WHEN {nulls} THEN NULL ELSE false END ELSE {sql} END"
+    matched = f"WHEN {' OR '.join(matches)} THEN true " if matches else ""
+    return f"CASE WHEN isnan({value}) THEN CASE {matched}WHEN {nulls} THEN NULL ELSE false END ELSE {sql} END"
 
 
 def row_in_subquery(g: Writer, node: exp.In) -> str:

@@ -249,8 +249,10 @@ def _reverse(call: Call) -> TType:
     (t,) = need(call, "any")
     if t.base == "array":
         return t
-    if t.base in ("varchar", "unknown"):
-        return t if t.base == "varchar" else tt.VARCHAR
+    if t.base == "varchar":
+        return t
+    if t.is_unknown:  # reverse(varchar(x)), reverse(varbinary) and reverse(array(E)) all take a NULL
+        call.fail(tt.AMBIGUOUS, "AMBIGUOUS_FUNCTION_CALL")
     call.mismatch()
 
 
@@ -260,12 +262,15 @@ def _render_reverse(g, node, args) -> str:
 
 
 def _array_remove(call: Call) -> TType:
+    """array(E) of the common type of the elements and the value (the real Trino 476 coerces both)."""
     _contains(call)
-    return array_arg(call)
+    arr, value = array_arg(call), call.types[1]
+    common = None if value is None or value.is_unknown else tt.common_super_type(arr.element, value)
+    return tt.array(common) if common is not None else arr
 
 
 def _render_array_remove(g, node, args) -> str:
-    arr, value = g.sql(args[0]), g.sql(args[1])
+    arr, value = g.coerce(args[0], ttype(node)), g.sql(args[1])
     # Trino's EQUAL: a NaN is unequal to everything and stays (io.trino.operator.scalar.ArrayRemoveFunction)
     keep_nan = ' OR isnan("_e")' if ttype(args[1]).is_approx else ""
     return (

@@ -395,7 +395,9 @@ def _render_contains_sequence(g, node, args) -> str:
 
 
 def _ngrams(call: Call) -> TType:
-    need(call, "array", "integral")
+    _, n = need(call, "array", "integral")
+    if n.base == "bigint":  # ngrams(array(T), integer): a bigint does not coerce to integer
+        call.mismatch()
     return tt.array(array_arg(call))
 
 
@@ -407,7 +409,8 @@ def _render_ngrams(g, node, args) -> str:
     grams = (
         f'list_transform(range(0, len({arr}) - {size} + 1), lambda "_i": list_slice({arr}, "_i" + 1, "_i" + {size}))'
     )
-    return f"CASE WHEN {n} <= 0 THEN {g.fail(tf.string('N must be positive'))} ELSE {grams} END"
+    nulls = f"({arr}) IS NULL OR {n} IS NULL"
+    return f"CASE WHEN {nulls} THEN NULL WHEN {n} <= 0 THEN {g.fail(tf.string('N must be positive'))} ELSE {grams} END"
 
 
 #: ArrayCombinationsFunction.MAX_COMBINATION_LENGTH and MAX_RESULT_ELEMENTS.

@@ -113,6 +113,7 @@ def _render_split(g, node, args) -> str:
         sql = (  # NULL on NULL input, before any check (the real Trino 476 answers so)
             f"CASE WHEN ({value}) IS NULL OR ({delim}) IS NULL OR ({limit}) IS NULL THEN NULL "
             f"WHEN ({limit}) <= 0 THEN {g.fail(tf.string('Limit must be positive'))} "
+            f"WHEN ({limit}) > 2147483647 THEN {g.fail(tf.string('Limit is too large'))} "
             f"WHEN len({sql}) <= ({limit}) THEN {sql} ELSE list_append({sql}[1:({limit}) - 1], "
             f"array_to_string({sql}[({limit}):], {delim})) END"
         )

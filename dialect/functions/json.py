@@ -80,7 +80,8 @@ def _render_json_parse(g, node, args) -> str:
     if "json" in node.meta:
         text = node.meta["json"]
         if text is None:
-            return g.fail(tf.string(_invalid_json(args[0].name)))
+            # typed: DuckDB folds a function of an untyped error() to NULL without raising it
+            return f"CAST({g.fail(tf.string(_invalid_json(args[0].name)))} AS VARCHAR)"
         return tf.string(text)
     value = g.sql(args[0])
     bad = g.fail(f"'Cannot convert value to JSON: ''' || {value} || ''''")

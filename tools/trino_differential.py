@@ -40,7 +40,6 @@ KINDS = ("equal", "refused", "both errored", "not run on Trino", "open", *FAILUR
 #: with Trino again fails the test until it is taken off this list.
 OPEN: dict[str, str] = {
     "json/trailing-comma-is-not-json": "json_extract_scalar('[1,]', '$[0]') is '1' (the parser stops at the value)",
-    "joins/lateral-values-several-rows": "LATERAL (VALUES of outer columns): NOT_SUPPORTED (correlated subquery)",
     "select/trailing-semicolon": "SELECT 1; is a SYNTAX_ERROR",
 }
 

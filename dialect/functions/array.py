@@ -15,6 +15,7 @@ from lakegate.dialect.functions.rendering import (
     nested,
     null_if_any_null,
     ordered_pick,
+    refuse_nested_floats,
     sqls,
 )
 from lakegate.dialect.registry import overload, register
@@ -146,6 +147,7 @@ def _array_minmax(call: Call) -> TType:
     element = array_arg(call).element
     if element.base in ("map", "json") or element.base in ("row", "array") and nested(element):
         call.mismatch()
+    refuse_nested_floats(call, element)
     return element
 
 

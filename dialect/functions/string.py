@@ -115,7 +115,7 @@ def _render_split(g, node, args) -> str:
             f"WHEN ({limit}) <= 0 THEN {g.fail(tf.string('Limit must be positive'))} "
             f"WHEN ({limit}) > 2147483647 THEN {g.fail(tf.string('Limit is too large'))} "
             f"WHEN len({sql}) <= ({limit}) THEN {sql} ELSE list_append({sql}[1:({limit}) - 1], "
-            f"array_to_string({sql}[({limit}):], {delim})) END"
+            f'list_reduce({sql}[({limit}):], lambda "_a", "_b": "_a" || {delim} || "_b")) END'  # any delimiter
         )
     if isinstance(args[1], exp.Literal) and args[1].name:
         return sql

@@ -219,6 +219,7 @@ class Checks:
                     grouping,
                     "MISSING_GROUP_BY",
                 )
+        self._check_grouping_in_order_by(node)
         if group is None and not any(self._aggregate_inside(i) for i in checked):
             return
         keys = []
@@ -232,6 +233,24 @@ class Checks:
         qualifiers = {s.qualifier for s in scope.sources}
         for item in checked:
             self._grouped(item, keys, qualifiers)
+
+    def _check_grouping_in_order_by(self, node: exp.Select) -> None:
+        """In ORDER BY a name is first an output column, which grouping() may not take: Trino's
+        INVALID_ARGUMENTS for `SELECT x ... ORDER BY grouping(x)` (a qualified `t.x` is the source's)."""
+        order = node.args.get("order")
+        if order is None:
+            return
+        outputs = {item.output_name.lower() for item in node.expressions if item.output_name}
+        for grouping in order.find_all(exp.Grouping):
+            if grouping.find_ancestor(exp.Select) is not node:
+                continue
+            for argument in grouping.expressions:
+                if isinstance(argument, exp.Column) and not argument.table and argument.name.lower() in outputs:
+                    self.fail(
+                        "Invalid reference to output of SELECT clause from grouping() expression in ORDER BY",
+                        grouping,
+                        "INVALID_ARGUMENTS",
+                    )
 
     def _aggregate_inside(self, node: exp.Expression) -> bool:
         if isinstance(node, (exp.Subquery, exp.Exists, exp.Window)):

@@ -224,15 +224,15 @@ def a_literal_number(node: exp.Expression) -> exp.Literal | None:
 
 @handles(exp.Grouping)
 def _grouping(a: Analyzer, node, scope, env):
-    """grouping(k1, ..., kn) -> bigint: bit i (from the right) is 1 when key k(n-i) is not grouped
-    (docs/src/main/sphinx/functions/aggregate.md); the arguments are checked against the GROUP BY
-    keys with the rest of the query (Analyzer.check_grouping)."""
+    """grouping(k1, ..., kn) -> integer (as the real Trino 476 types it): bit i (from the right) is 1
+    when key k(n-i) is not grouped (docs/src/main/sphinx/functions/aggregate.md); the arguments are
+    checked against the GROUP BY keys with the rest of the query (Analyzer.check_grouping)."""
     for argument in node.expressions:
         a.expr(argument, scope, env)
     a.groupings.append(node)
     if len(node.expressions) > 63:
         a.fail("GROUPING supports up to 63 column arguments", node, "TOO_MANY_ARGUMENTS")
-    return tt.BIGINT
+    return tt.INTEGER
 
 
 @handles(exp.GroupConcat)
@@ -287,7 +287,14 @@ def _substring(a: Analyzer, node, scope, env):
             a.fail("Unexpected parameters for function substr", node, "FUNCTION_NOT_FOUND")
     if t.base not in ("varchar", "unknown"):
         a.fail(f"Unexpected parameters ({t}) for function substr", node, "FUNCTION_NOT_FOUND")
-    return t if t.base == "varchar" else tt.VARCHAR
+    if t.is_unknown:  # substr(varchar(x), ...) and substr(varbinary, ...) both take a NULL literal
+        a.fail(
+            "Could not choose a best candidate operator. Explicit type casts must be added.\nCandidates are:\n"
+            "\t * (varchar(0),bigint):varchar(0)\n\t * (varbinary,bigint):varbinary",
+            node,
+            "AMBIGUOUS_FUNCTION_CALL",
+        )
+    return t
 
 
 @handles(exp.Trim)
@@ -304,7 +311,7 @@ def _trim(a: Analyzer, node, scope, env):
         return set(call, a.function(call, scope, env))
     if t.base not in ("varchar", "unknown"):
         a.fail(f"Unexpected parameters ({t}) for function trim", node, "FUNCTION_NOT_FOUND")
-    return t if t.base == "varchar" else tt.VARCHAR
+    return t if t.base == "varchar" else tt.varchar(0)  # a NULL literal binds varchar(x) with x = 0
 
 
 @handles(exp.StrPosition)

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import datetime as dt
 import re
+from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
 
 from sqlglot import exp
 
@@ -69,6 +71,8 @@ def _cast(a: Analyzer, node, scope, env):
         a.unsupported(f"cast to {target}", node)
     if target.base == "timestamp_tz":
         target = tt.timestamp(target.args[0], True, _cast_zone(a, node, source))
+        if _typed_literal(a, node) and "local" in node.meta:
+            _check_wall_time_exists(a, node, node.meta["local"], tt.zone_of(target))
     else:
         a.zones(source, node, f"CAST to {target}")
     if not castable(source, target) and any(t.base == "time" for t in tt.inner_types(target)):
@@ -145,6 +149,25 @@ def _cast_zone(a: Analyzer, node: exp.Cast, source: TType) -> str | None:
         a.fail(str(error), node, "NOT_SUPPORTED")
     node.meta["local"] = text[: suffix.start(1)].strip()
     return zone
+
+
+_WALL_TIME = re.compile(r"\s*([0-9]{4})-([0-9]{1,2})-([0-9]{1,2})(?:[ T]([0-9]{1,2}):([0-9]{1,2})(?::([0-9]{1,2}))?)?")
+
+
+def _check_wall_time_exists(a: Analyzer, node: exp.Cast, local: str, zone: str | None) -> None:
+    """A TIMESTAMP literal whose wall time falls in a daylight-saving gap of its zone is Trino's
+    INVALID_LITERAL (a CAST of the same text moves it forward by the gap)."""
+    match = _WALL_TIME.match(local)
+    if zone is None or zone == zones.UTC or zones.is_offset(zone) or match is None:
+        return
+    try:
+        wall = dt.datetime(*(int(part or 0) for part in match.groups()))
+        region = ZoneInfo(zone)
+    except (ValueError, ZoneInfoNotFoundError):
+        return
+    instant = wall.replace(tzinfo=region).astimezone(dt.UTC)
+    if instant.astimezone(region).replace(tzinfo=None) != wall:
+        a.fail(f"'{node.this.name.strip()}' is not a valid TIMESTAMP literal", node, "INVALID_LITERAL")
 
 
 def castable(source: TType, target: TType) -> bool:

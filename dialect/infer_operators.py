@@ -357,6 +357,12 @@ def _temporal_arithmetic(op: str, left: TType, right: TType) -> TType | None:
 @handles(exp.DPipe)
 def _dpipe(a: Analyzer, node, scope, env):
     left, right = a.expr(node.this, scope, env), a.expr(node.expression, scope, env)
+    if left.is_unknown or right.is_unknown:
+        t = tt.concat_with_null([left, right])
+        if t is None:
+            a.fail(tt.AMBIGUOUS, node, "AMBIGUOUS_FUNCTION_CALL")
+        node.meta["array"] = True
+        return t
     if left.base == "array" or right.base == "array":
         if left.base == right.base == "array":
             element = tt.common_super_type(left.element, right.element)

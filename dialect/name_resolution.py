@@ -384,6 +384,7 @@ class Relations:
             if not isinstance(node.this, exp.Subquery):
                 self.unsupported("LATERAL", node)
             cols = self.query(node.this.this, scope)
+            self._check_correlated_rows(node, scope)
             qualifier = alias_name or self.fresh_alias()
             if alias is None or (isinstance(node.this.this, exp.Values) and not alias.columns):
                 columns = [exp.to_identifier(c[1], quoted=True) for c in cols]  # VALUES names them _col0, ...
@@ -539,6 +540,20 @@ class Relations:
                     return self._fields(node, col[2], parts[split + 1 :], quoted[split + 1 :])
             search = search.outer
         self.fail(f"Column '{'.'.join(parts)}' cannot be resolved", node, "COLUMN_NOT_FOUND")
+
+    def _check_correlated_rows(self, node: exp.Lateral, scope: NameScope) -> None:
+        """A LATERAL subquery whose UNION, INTERSECT, EXCEPT or VALUES of several rows uses the columns
+        beside it is one the real Trino 476 cannot decorrelate (NOT_SUPPORTED)."""
+        query = node.this.this
+        outer = {source.qualifier for source in scope.sources}
+        outer -= {source.alias_or_name for source in query.find_all(exp.Table, exp.Subquery, exp.Values)}
+
+        def correlated(part: exp.Expression) -> bool:
+            return any(c._meta and c.meta.get("ref", (None,))[0] in outer for c in part.find_all(exp.Column))
+
+        for part in query.find_all(exp.Values, exp.SetOperation):
+            if (isinstance(part, exp.SetOperation) or len(part.expressions) > 1) and correlated(part):
+                self.fail("Given correlated subquery is not supported", node.this, "NOT_SUPPORTED")
 
     def _fields(self, node: exp.Expression, t: TType, fields: list[str], quoted: list[bool]) -> TType:
         path = []

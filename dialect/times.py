@@ -46,11 +46,21 @@ def round_time(sql: str, precision: int, source: int) -> str:
     return sql if precision >= source else rounded(micros(sql), precision)
 
 
-def of_timestamp(sql: str, precision: int) -> str:
+def of_timestamp(sql: str, precision: int, negative: str) -> str:
     """CAST(timestamp(q <= 6) AS time(precision)): the time of day, rounded HALF_UP to the precision,
-    modulo a day (io.trino.operator.scalar.timestamp.TimestampToTimeCast)."""
-    day_micros = f"((epoch_us({sql}) % {MICROS_PER_DAY} + {MICROS_PER_DAY}) % {MICROS_PER_DAY})"
-    return rounded(day_micros, precision)
+    modulo a day (io.trino.operator.scalar.timestamp.TimestampToTimeCast). Before 1970 a value with a
+    fraction of a second is a second early, as the real Trino 476 answers (it adds the fraction's
+    truncated, negative remainder to the floored second); `negative` when that falls before midnight
+    and does not round up to it (Trino's "value must be >= 0")."""
+    epoch = f"epoch_us({sql})"
+    fraction = f"(({epoch} % 1000000 + 1000000) % 1000000)"
+    early = f"CASE WHEN {epoch} < 0 AND {fraction} <> 0 THEN 1000000 ELSE 0 END"
+    day_micros = f"(({epoch} % {MICROS_PER_DAY} + {MICROS_PER_DAY}) % {MICROS_PER_DAY} - {early})"
+    half = 10 ** (6 - precision) // 2 if precision < 6 else 0
+    return (
+        f"CASE WHEN {day_micros} >= 0 THEN {rounded(day_micros, precision)} "
+        f"WHEN {day_micros} + {half} >= 0 THEN TIME '00:00:00' ELSE {negative} END"
+    )
 
 
 def parse(sql: str, precision: int, bad: str) -> str:

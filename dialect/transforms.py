@@ -347,14 +347,20 @@ def wall_time(g: Writer, node: exp.Expression) -> str:
 
 @transform(exp.Substring)
 def substring_from(g: Writer, node: exp.Substring) -> str:
-    """substr(s, start[, length]): start 0 or a negative length give '' (DuckDB counts them)."""
+    """substr(s, start[, length]): NULL on a NULL argument; then start 0 or a negative length give ''
+    (DuckDB counts them)."""
     value, start = g.sql(node.this), g.sql(node.args["start"])
     length = node.args.get("length")
+    nulls = f"({value}) IS NULL OR ({start}) IS NULL"
     if length is None:
-        return f"CASE WHEN ({start}) = 0 OR abs({start}) > length({value}) THEN '' ELSE substr({value}, {start}) END"
+        return (
+            f"CASE WHEN {nulls} THEN NULL WHEN ({start}) = 0 OR abs({start}) > length({value}) THEN '' "
+            f"ELSE substr({value}, {start}) END"
+        )
     length_sql = g.sql(length)
     return (
-        f"CASE WHEN ({start}) = 0 OR ({length_sql}) <= 0 OR abs({start}) > length({value}) THEN '' "
+        f"CASE WHEN {nulls} OR ({length_sql}) IS NULL THEN NULL "
+        f"WHEN ({start}) = 0 OR ({length_sql}) <= 0 OR abs({start}) > length({value}) THEN '' "
         f"ELSE substr({value}, {start}, {length_sql}) END"
     )
 

@@ -192,21 +192,21 @@ class _Parser(Trino.Parser):
 
     def _parse_normalize(self) -> exp.Expression:
         # NORMALIZE(value [, NFC | NFD | NFKC | NFKD]) (SqlBase.g4 #normalize): the form keyword is
-        # the string argument AstBuilder.visitNormalize passes as written; anything else is a plain call.
+        # the string argument AstBuilder.visitNormalize passes as written; a string, NULL or any other
+        # form is a syntax error, as in the real Trino 476.
         value = self._parse_lambda()
         args = [value] if value is not None else []
         if value is not None and self._match(TokenType.COMMA):
             form = self._curr
             keyword = form and form.token_type not in (TokenType.STRING, TokenType.IDENTIFIER)
-            if (
-                keyword
-                and form.text.upper() in ("NFC", "NFD", "NFKC", "NFKD")
-                and self._next.token_type == TokenType.R_PAREN
-            ):
-                self._advance()
-                args.append(exp.Literal.string(form.text))
-            else:
-                args.extend(self._parse_csv(self._parse_lambda))
+            if not (keyword and form.text.upper() in ("NFC", "NFD", "NFKC", "NFKD")):
+                written = {TokenType.STRING: "'{}'", TokenType.IDENTIFIER: '"{}"'}.get(form and form.token_type, "{}")
+                text = written.format(form.text) if form else "<EOF>"
+                self.raise_error(f"mismatched input '{text}'. Expecting: 'NFC', 'NFD', 'NFKC', 'NFKD'")
+            self._advance()
+            if self._curr and self._curr.token_type != TokenType.R_PAREN:
+                self.raise_error(f"mismatched input '{self._curr.text}'. Expecting: ')'")
+            args.append(exp.Literal.string(form.text))
         return exp.Anonymous(this="normalize", expressions=args)
 
     def _parse_types(self, check_func: bool = False, **kwargs):
@@ -224,17 +224,6 @@ class _Parser(Trino.Parser):
         ):
             return None
         return super()._parse_types(check_func=check_func, **kwargs)
-
-    def _parse_bracket(self, this=None):
-        # DuckDB's list literal [1, 2]; Trino has only ARRAY[1, 2] (SqlBase.g4 #arrayConstructor)
-        if (
-            this is None
-            and self._curr
-            and self._curr.token_type == TokenType.L_BRACKET
-            and not (self._prev and self._prev.token_type == TokenType.ARRAY)
-        ):
-            self.raise_error("mismatched input '['. Expecting: an expression (an array is ARRAY[...])")
-        return super()._parse_bracket(this)
 
     def _parse_in(self, this, alias: bool = False):
         # DuckDB's `x IN [1, 2]`; Trino's predicate is `IN (...)` (SqlBase.g4 #inList, #inSubquery)

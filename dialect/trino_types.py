@@ -181,6 +181,23 @@ def varchar_length(t: TType) -> int | None:
     return t.args[0] if t.args else None
 
 
+#: Trino's words when two overloads bind equally well.
+AMBIGUOUS = "Could not choose a best candidate operator. Explicit type casts must be added."
+
+
+def concat_with_null(types: list[TType]) -> TType | None:
+    """The type of `concat(x, NULL)`, `NULL || x` and the like (two arguments, one a NULL literal): the
+    real Trino 476 binds the element-to-array concat, array(x), unless x is NULL, an array (but
+    array(unknown), which it keeps), varbinary,
+    char or unbounded varchar, where two overloads fit equally and the call is AMBIGUOUS (None)."""
+    (other,) = [t for t in types if not t.is_unknown] or [UNKNOWN]
+    if other.base == "array" and other.element.is_unknown:  # ARRAY[] || NULL: every overload gives array(unknown)
+        return other
+    if other.base in ("unknown", "array", "varbinary", "char") or (other.base == "varchar" and not other.args):
+        return None
+    return array(other)
+
+
 def as_decimal(t: TType) -> TType:
     """The decimal type an integral or decimal type converts to."""
     return t if t.is_decimal else decimal(INTEGRAL[t.base], 0)

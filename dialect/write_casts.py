@@ -143,7 +143,7 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
     if target.base == "time" and source.base in ("time", "timestamp"):  # p <= 6 (analyze._cast)
         if source.base == "time":
             return times.round_time(sql, target.args[0], source.args[0])
-        return times.of_timestamp(sql, target.args[0])
+        return times.of_timestamp(sql, target.args[0], g.fail("'value must be >= 0'", "GENERIC_INTERNAL_ERROR"))
     if target.base == "timestamp" and source.base in ("timestamp", "date"):
         precision = target.args[0]
         if source.base == "timestamp" and precision < source.args[0]:
@@ -364,12 +364,26 @@ def timestamp_text(sql: str, precision: int) -> str:
 
 
 def approx_text(sql: str, source: TType) -> str:
-    """A double or real as Trino prints it: Java's DecimalFormat("0.0###E0") of the shortest
-    round-trip digits (1.5E0, 1.0E10, -2.5E-4, 0E0, NaN, Infinity)."""
+    """A double or real as Trino prints it: Java's DecimalFormat("0.0###E0") of the shortest digits that
+    round-trip (1.5E0, 1.0E10, -2.5E-4, 0E0, NaN, Infinity). For a real, as the real Trino 476 prints
+    it: one digit becomes the two nearest the value (REAL '1.4E-45', not 1.0E-45), and more than 7
+    are rounded to 7 (REAL '3.4028235E38' is 3.402823E38)."""
     value = f"CAST({sql} AS {'FLOAT' if source.base == 'real' else 'DOUBLE'})"
+    exact = f"CAST(abs({value}) AS DOUBLE)"
     text = f"CAST(abs({value}) AS VARCHAR)"
-    digits = f"regexp_replace(replace(split_part({text}, 'e', 1), '.', ''), '^0+|0+$', '', 'g')"
-    exponent = f"CAST(split_part(format('{{:.16e}}', CAST(abs({value}) AS DOUBLE)), 'e', 2) AS INTEGER)"
+    shortest = f"regexp_replace(replace(split_part({text}, 'e', 1), '.', ''), '^0+|0+$', '', 'g')"
+
+    def nearest(significant: int) -> tuple[str, str]:  # the digits and exponent rounded to `significant`
+        rounded = f"format('{{:.{significant - 1}e}}', {exact})"
+        digits = f"regexp_replace(replace(split_part({rounded}, 'e', 1), '.', ''), '0+$', '')"
+        return digits, f"CAST(split_part({rounded}, 'e', 2) AS INTEGER)"
+
+    digits, exponent = shortest, nearest(17)[1]
+    if source.base == "real":
+        (two, two_exponent), (seven, seven_exponent) = nearest(2), nearest(7)
+        one, long = f"length({shortest}) = 1", f"length({shortest}) > 7"
+        digits = f"CASE WHEN {one} THEN {two} WHEN {long} THEN {seven} ELSE {digits} END"
+        exponent = f"CASE WHEN {one} THEN {two_exponent} WHEN {long} THEN {seven_exponent} ELSE {exponent} END"
     mantissa = f"left({digits}, 1) || '.' || coalesce(nullif(substr({digits}, 2), ''), '0')"
     return (
         f"CASE WHEN isnan({value}) THEN 'NaN' "

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from sqlglot import exp
 
-from lakegate.dialect import chars, wide_decimals
+from lakegate.dialect import chars, wide_decimals, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.transforms import Writer, cast, quote, string, ten, transform
 from lakegate.dialect.trino_types import TType
@@ -43,6 +43,11 @@ def decimal_result_type(g: Writer, node: exp.Binary) -> str:
         return cast(sql, t)
     if t.base == "date":
         return whole_days(g, node, sql)
+    if t.base == "timestamp_tz" and tt.INTERVAL_YM in (ttype(node.this), ttype(node.expression)):
+        # months move the wall time in the value's zone; a day-to-second interval moves the instant
+        zone = tt.zone_of(t)
+        stamp, months = (left, right) if ttype(node.this).base == "timestamp_tz" else (right, left)
+        return cast(zones.instant(f"({zones.local(stamp, zone)} {op} {months})", zone), t)
     if t.base == "timestamp" and t.args[0] > 6:
         return nanosecond_interval_arithmetic(g, node, op)
     if t == tt.INTERVAL_DS and ttype(node.this).base == "timestamp":
@@ -193,6 +198,8 @@ def concat_operator(g: Writer, node: exp.DPipe) -> str:
     t = ttype(node)
     left, right = node.this, node.expression
     lt, rt = ttype(left), ttype(right)
+    if lt.is_unknown or rt.is_unknown:  # x || NULL as array(x): always NULL
+        return f"CAST(NULL AS {tt.duckdb_type(t) or 'INTEGER[]'})"  # array(unknown): any list type
     if lt.base == "array" and rt.base == "array":
         a, b = g.coerce(left, t), g.coerce(right, t)
         return f"CASE WHEN {a} IS NULL OR {b} IS NULL THEN NULL ELSE list_concat({a}, {b}) END"
@@ -229,9 +236,13 @@ def ieee_comparison(g: Writer, node: exp.Binary) -> str:
         ]
         if not sides:
             return f"{left} {op} {right}"
-        if op == "<>":
-            return f"({left} <> {right} OR " + " OR ".join(f"isnan({s})" for s in sides) + ")"
-        return f"({left} {op} {right} AND " + " AND ".join(f"NOT isnan({s})" for s in sides) + ")"
+        # NULL against NaN is NULL: the NaN test only once neither side is NULL
+        nan = " OR ".join(f"isnan({s})" for s in sides)
+        nulls = " OR ".join(f"({s}) IS NULL" for s in sides)
+        if len(sides) == 1:
+            nulls = f"({left}) IS NULL OR ({right}) IS NULL"
+        unordered = "true" if op == "<>" else "false"
+        return f"CASE WHEN {nulls} THEN NULL WHEN {nan} THEN {unordered} ELSE {left} {op} {right} END"
     if common.base in ("array", "map", "row") and op in ("=", "<>"):
         equal = trino_equal(left, right, common)
         return equal if op == "=" else f"NOT ({equal})"
@@ -318,17 +329,29 @@ def eager_constant_in_list(g: Writer, node: exp.In) -> str:
     sql = g.in_sql(node)
     items = node.expressions
     common = node.meta.get("compare")
-    if node.find(exp.Column) is not None:
-        if items and common is not None and common.is_approx:
-            # NaN equals nothing when Trino evaluates IN over columns (DuckDB's IN matches NaN with
-            # NaN); Trino's constant folding does match it, as the constant case below does
-            value = g.coerce(node.this, common)
-            nulls = " OR ".join(f"({g.coerce(i, common)}) IS NULL" for i in items)
-            return f"CASE WHEN isnan({value}) THEN CASE WHEN {nulls} THEN NULL ELSE false END ELSE {sql} END"
-        return sql
-    if all(isinstance(i, (exp.Literal, exp.Null)) for i in items):
+    if items and common is not None and common.is_approx:
+        sql = _nan_in_list(g, node, common, sql)
+    if node.find(exp.Column) is not None or all(isinstance(i, (exp.Literal, exp.Null)) for i in items):
         return sql
     return f"CASE WHEN len([{', '.join(g.coerce(i, common) for i in items)}]) >= 0 THEN {sql} END"
+
+
+def _nan_in_list(g: Writer, node: exp.In, common: TType, sql: str) -> str:
+    """NaN IN (...) as the real Trino 476 answers: NaN equals no item (DuckDB's IN matches NaN with
+    NaN), except where Trino's planner matches before comparing, in a list not wholly constant: the
+    very same column as the value (`x IN (x, ...)`), or a constant value and a constant NaN item
+    (`nan() IN (x, sqrt(-1))`). NULL when nothing matches and an item is NULL."""
+    value = g.coerce(node.this, common)
+    matches = []
+    if node.find(exp.Column) is not None:
+        if isinstance(node.this, exp.Column) and any(item == node.this for item in node.expressions):
+            matches.append("true")
+        if node.this.find(exp.Column) is None:
+            constants = [i for i in node.expressions if i.find(exp.Column) is None]
+            matches += [f"isnan({g.coerce(i, common)})" for i in constants if not isinstance(i, exp.Null)]
+    nulls = " OR ".join(f"({g.coerce(i, common)}) IS NULL" for i in node.expressions)
+    matched = f"WHEN {' OR '.join(matches)} THEN true " if matches else ""
+    return f"CASE WHEN isnan({value}) THEN CASE {matched}WHEN {nulls} THEN NULL ELSE false END ELSE {sql} END"
 
 
 def row_in_subquery(g: Writer, node: exp.In) -> str:
@@ -359,8 +382,8 @@ def row_in_subquery(g: Writer, node: exp.In) -> str:
 
 @transform(exp.Between)
 def ieee_between(g: Writer, node: exp.Between) -> str:
-    """`v BETWEEN low AND high` is `low <= v AND v <= high` with IEEE comparisons: false when a double
-    is NaN (DuckDB orders NaN above every number)."""
+    """`v BETWEEN low AND high` is `low <= v AND v <= high` with IEEE comparisons: each false when a
+    double is NaN (DuckDB orders NaN above every number), NULL when a side is NULL."""
     common = node.meta.get("compare")
     if common is not None and common.base in ("array", "row"):
         value, low, high = (g.coerce(side, common) for side in (node.this, node.args["low"], node.args["high"]))
@@ -370,8 +393,13 @@ def ieee_between(g: Writer, node: exp.Between) -> str:
     sql = g.between_sql(node)
     if common is None or not common.is_approx:
         return sql
-    sides = [g.sql(side) for side in (node.this, node.args["low"], node.args["high"])]
-    return f"({sql} AND " + " AND ".join(f"NOT isnan({side})" for side in sides) + ")"
+    value, low, high = (g.sql(side) for side in (node.this, node.args["low"], node.args["high"]))
+
+    def at_most(a: str, b: str) -> str:  # IEEE a <= b: NULL with a NULL side, false with a NaN
+        nulls, nan = f"({a}) IS NULL OR ({b}) IS NULL", f"isnan({a}) OR isnan({b})"
+        return f"CASE WHEN {nulls} THEN NULL WHEN {nan} THEN false ELSE {a} <= {b} END"
+
+    return f"(({at_most(low, value)}) AND ({at_most(value, high)}))"
 
 
 # --- conditionals --------------------------------------------------------------------------------

@@ -39,29 +39,8 @@ KINDS = ("equal", "refused", "both errored", "not run on Trino", "open", *FAILUR
 #: verdict on these is `open` (listed on the page) instead of a failure; a listed case that agrees
 #: with Trino again fails the test until it is taken off this list.
 OPEN: dict[str, str] = {
-    "array/array-union-nan-never-equal": "array_union keeps one NaN: [NaN, 1.0]",
-    "grouping/grouping-sets-with-grand-total": "grouping() of an output name in ORDER BY: INVALID_ARGUMENTS",
-    "grouping/rollup-with-grouping": "grouping() of an output name in ORDER BY: INVALID_ARGUMENTS",
-    "grouping/key-plus-rollup": "grouping() of an output name in ORDER BY: INVALID_ARGUMENTS",
-    "grouping/cube-one-key": "grouping() is integer, not bigint",
-    "json/json-query-of-json-is-json": "json_query of a JSON value: TYPE_MISMATCH",
-    "json/json-query-returning-varchar": "json_query of a JSON value: TYPE_MISMATCH",
     "json/trailing-comma-is-not-json": "json_extract_scalar('[1,]', '$[0]') is '1' (the parser stops at the value)",
-    "joins/lateral-values-several-rows": "LATERAL (VALUES of outer columns): NOT_SUPPORTED (correlated subquery)",
-    "math/shift-null": "bitwise_left_shift(NULL, 1) is tinyint",
-    "datetime/parse-datetime-fields": "SSS reads at most 3 digits: INVALID_FUNCTION_ARGUMENT on .0067",
-    "string/normalize-nfc-string-form": "normalize(x, 'NFC'): SYNTAX_ERROR (the form is a keyword)",
-    "string/trim-characters-null": "ltrim(NULL, 'a') is varchar(0)",
-    "datetime/cast-timestamp-to-time": "CAST(TIMESTAMP '1960-01-01 01:02:03.123456' AS time(6)) is 01:02:02.123456",
-    "binary/concat-null": "concat(X'58', NULL): AMBIGUOUS_FUNCTION_CALL",
-    "refused/list-literal": "SELECT [1, 2] answers [1, 2] (array(integer))",
     "select/trailing-semicolon": "SELECT 1; is a SYNTAX_ERROR",
-    "datetime/date-functions-on-nanoseconds": "date_format of a timestamp(9) rounds to millis: 00:00:00.000000",
-    "string/concat-with-null": "concat(ARRAY[1], NULL): AMBIGUOUS_FUNCTION_CALL",
-    "datetime/date-format-f-is-millis": "date_format of a timestamp(6) rounds to milliseconds: 112000",
-    "datetime/date-parse-defaults-and-pivot": "date_parse('05-10', '%m-%d') defaults the year to 2000",
-    "datetime/interval-arithmetic-on-the-instant": "+ INTERVAL '1' MONTH on a zoned timestamp keeps its wall time",
-    "datetime/dst-gap-moves-forward": "a TIMESTAMP literal in a DST gap: INVALID_LITERAL",
 }
 
 

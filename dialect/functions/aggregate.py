@@ -530,12 +530,7 @@ def install() -> None:
         "aggregate",
         "approx_distinct(x) -> bigint",
         lambda c: tt.BIGINT if len(c.args) in (1, 2) and c.types[0] is not None else c.mismatch(),
-        lambda g, node, args: tf.cast(
-            f"count(DISTINCT {g.sql(args[0])})"
-            if not node.meta.get("over")
-            else g.agg(node, "count", [f"DISTINCT {g.sql(args[0])}"]),
-            tt.BIGINT,
-        ),
+        lambda g, node, args: tf.cast(g.agg(node, "count", [f"DISTINCT {g.sql(args[0])}"]), tt.BIGINT),  # FILTER too
         kind="aggregate",
         notes="Returns the exact distinct count, which is within Trino's documented standard error (2.3%).",
     )

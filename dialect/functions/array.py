@@ -15,6 +15,7 @@ from lakegate.dialect.functions.rendering import (
     nested,
     null_if_any_null,
     ordered_pick,
+    refuse_nested_floats,
     sqls,
 )
 from lakegate.dialect.registry import overload, register
@@ -146,6 +147,7 @@ def _array_minmax(call: Call) -> TType:
     element = array_arg(call).element
     if element.base in ("map", "json") or element.base in ("row", "array") and nested(element):
         call.mismatch()
+    refuse_nested_floats(call, element)
     return element
 
 
@@ -249,8 +251,10 @@ def _reverse(call: Call) -> TType:
     (t,) = need(call, "any")
     if t.base == "array":
         return t
-    if t.base in ("varchar", "unknown"):
-        return t if t.base == "varchar" else tt.VARCHAR
+    if t.base == "varchar":
+        return t
+    if t.is_unknown:  # reverse(varchar(x)), reverse(varbinary) and reverse(array(E)) all take a NULL
+        call.fail(tt.AMBIGUOUS, "AMBIGUOUS_FUNCTION_CALL")
     call.mismatch()
 
 
@@ -260,12 +264,15 @@ def _render_reverse(g, node, args) -> str:
 
 
 def _array_remove(call: Call) -> TType:
+    """array(E) of the common type of the elements and the value (the real Trino 476 coerces both)."""
     _contains(call)
-    return array_arg(call)
+    arr, value = array_arg(call), call.types[1]
+    common = None if value is None or value.is_unknown else tt.common_super_type(arr.element, value)
+    return tt.array(common) if common is not None else arr
 
 
 def _render_array_remove(g, node, args) -> str:
-    arr, value = g.sql(args[0]), g.sql(args[1])
+    arr, value = g.coerce(args[0], ttype(node)), g.sql(args[1])
     # Trino's EQUAL: a NaN is unequal to everything and stays (io.trino.operator.scalar.ArrayRemoveFunction)
     keep_nan = ' OR isnan("_e")' if ttype(args[1]).is_approx else ""
     return (
@@ -331,12 +338,10 @@ def _two_arrays(call: Call) -> TType:
     return t
 
 
-def _first_occurrences(arr: str, keep_nan: bool = False) -> str:
-    """The elements of `arr` not equal to an earlier one; NULL is a value and kept once (DuckDB's
-    list_position finds NULL and NaN, as Trino's IDENTICAL operator does). With `keep_nan` every NaN
-    is kept: Trino's EQUAL never finds a NaN in a set."""
-    nan = ' OR isnan("_x")' if keep_nan else ""
-    return f'list_filter({arr}, lambda "_x", "_i": list_position({arr}, "_x") = "_i"{nan})'
+def _first_occurrences(arr: str) -> str:
+    """The elements of `arr` not equal to an earlier one; NULL and NaN are values and kept once (DuckDB's
+    list_position finds NULL and NaN, as Trino's IDENTICAL operator does)."""
+    return f'list_filter({arr}, lambda "_x", "_i": list_position({arr}, "_x") = "_i")'
 
 
 def _array_union(call: Call) -> TType:
@@ -347,10 +352,11 @@ def _array_union(call: Call) -> TType:
 
 
 def _render_array_union(g, node, args) -> str:
-    """ArrayUnionFunction: x's then y's elements, each value once (EQUAL: NULL once, NaN always)."""
+    """ArrayUnionFunction: x's then y's elements, each value once (NULL once, and NaN once: the real
+    Trino 476 answers `array_union(ARRAY[nan()], ARRAY[nan()])` with one NaN)."""
     t = ttype(node)
     both = f"list_concat({g.coerce(args[0], t)}, {g.coerce(args[1], t)})"
-    return null_if_any_null(g, args, let_bound(both, '"_u"', _first_occurrences('"_u"', keep_nan=t.element.is_approx)))
+    return null_if_any_null(g, args, let_bound(both, '"_u"', _first_occurrences('"_u"')))
 
 
 def _render_array_intersect(g, node, args) -> str:
@@ -391,7 +397,9 @@ def _render_contains_sequence(g, node, args) -> str:
 
 
 def _ngrams(call: Call) -> TType:
-    need(call, "array", "integral")
+    _, n = need(call, "array", "integral")
+    if n.base == "bigint":  # ngrams(array(T), integer): a bigint does not coerce to integer
+        call.mismatch()
     return tt.array(array_arg(call))
 
 
@@ -403,7 +411,8 @@ def _render_ngrams(g, node, args) -> str:
     grams = (
         f'list_transform(range(0, len({arr}) - {size} + 1), lambda "_i": list_slice({arr}, "_i" + 1, "_i" + {size}))'
     )
-    return f"CASE WHEN {n} <= 0 THEN {g.fail(tf.string('N must be positive'))} ELSE {grams} END"
+    nulls = f"({arr}) IS NULL OR {n} IS NULL"
+    return f"CASE WHEN {nulls} THEN NULL WHEN {n} <= 0 THEN {g.fail(tf.string('N must be positive'))} ELSE {grams} END"
 
 
 #: ArrayCombinationsFunction.MAX_COMBINATION_LENGTH and MAX_RESULT_ELEMENTS.

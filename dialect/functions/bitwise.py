@@ -50,7 +50,7 @@ _U64 = 2**64 - 1
 
 def _shift(call: Call) -> TType:
     value, _ = need(call, "integral", "integer")  # BitwiseFunctions: the shift is an integer
-    return tt.BIGINT if value.is_unknown else value
+    return tt.TINYINT if value.is_unknown else value  # NULL binds the first overload, tinyint (as Trino 476)
 
 
 def _signed(sql: str, width: int) -> str:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect.functions.arguments import common
-from lakegate.dialect.functions.rendering import nested, not_nan, null_if_any_null, ordered_pick
+from lakegate.dialect.functions.rendering import nested, not_nan, null_if_any_null, ordered_pick, refuse_nested_floats
 from lakegate.dialect.registry import register
 from lakegate.dialect.trino_types import TType
 from lakegate.dialect.type_rules import Call, ttype
@@ -16,6 +16,7 @@ def _greatest(call: Call) -> TType:
     t = common(call)
     if t.base in ("map", "json", "varbinary", "boolean") or t.base in ("row", "array") and nested(t):
         call.mismatch()
+    refuse_nested_floats(call, t)
     return t
 
 

@@ -14,6 +14,7 @@ from lakegate.dialect.functions.arguments import literal_str, need
 from lakegate.dialect.registry import register
 from lakegate.dialect.trino_types import TType
 from lakegate.dialect.type_rules import Call, ttype
+from lakegate.dialect.write_casts import round_timestamp
 
 #: MySQL date_format specifiers Trino supports, as DuckDB strftime specifiers.
 MYSQL_FORMAT = {
@@ -75,10 +76,16 @@ def _date_format(call: Call) -> TType:
     return tt.VARCHAR
 
 
+def _to_millis(sql: str, t: TType) -> str:
+    """A timestamp of more than 3 fractional digits rounded HALF_UP to milliseconds, as the real Trino
+    476 formats it (date_format and format_datetime see a Joda instant of milliseconds)."""
+    if t.base in ("timestamp", "timestamp_tz") and t.args[0] > 3:
+        return round_timestamp(sql, 3, t.args[0])
+    return sql
+
+
 def _render_date_format(g, node, args) -> str:
-    value = tf.wall_time(g, args[0])
-    if "%f" in re.findall(r"%.", args[1].name):  # Trino prints the milliseconds as six digits ('.111000')
-        value = f"date_trunc('millisecond', {value})"
+    value = _to_millis(tf.wall_time(g, args[0]), ttype(args[0]))  # %f prints the milliseconds as '.111000'
     return f"strftime({value}, {tf.string(mysql_to_strftime(args[1].name))})"
 
 
@@ -95,15 +102,19 @@ def _date_parse(call: Call) -> TType:
 
 
 def _render_date_parse(g, node, args) -> str:
-    """Fields the format leaves out default to 1970-01-01 and %y reads 70..69 as 1970..2069
-    (DateTimeFunctions: Joda's defaults, PIVOT_YEAR = 2020); strptime would use 1900 and 1969."""
+    """Fields the format leaves out default to 1970-01-01, but the year to 2000 when a month or day is
+    parsed (Joda's withDefaultYear(2000), as the real Trino 476 answers); %y reads 70..69 as
+    1970..2069 (DateTimeFunctions: PIVOT_YEAR = 2020); strptime would use 1900 and 1969."""
     fmt, value = args[1].name, g.sql(args[0])
     years = re.findall(r"%.", fmt)
     if "%Y" not in years and "%y" not in years:
-        fmt, value = "%Y " + fmt, f"('1970 ' || {value})"
+        year = "2000" if set(years) & {"%m", "%c", "%d", "%e", "%b", "%M", "%j"} else "1970"
+        fmt, value = "%Y " + fmt, f"('{year} ' || {value})"
     sql = f"CAST(strptime({value}, {tf.string(mysql_to_strftime(fmt))}) AS TIMESTAMP)"
     if "%y" in years:
         sql = f"CASE WHEN year({sql}) = 1969 THEN {sql} + INTERVAL 100 YEAR ELSE {sql} END"
+    if set(years) & {"%h", "%I", "%l"} and not set(years) & {"%p", "%r"}:  # 12 without PM is Joda's 00 (AM)
+        sql = f"CASE WHEN hour({sql}) = 12 THEN {sql} - INTERVAL 12 HOUR ELSE {sql} END"
     return sql
 
 
@@ -197,10 +208,9 @@ def _format_datetime(call: Call) -> TType:
 
 
 def render_format_datetime(g, node, args) -> str:
-    value = g.sql(args[0])
-    if ttype(args[0]).base == "timestamp_tz":
-        value = f"timezone('UTC', {value})"
-    return f'list_transform([CAST({value} AS TIMESTAMP)], lambda "_t": {node.meta["joda"]})[1]'
+    """The Joda fields of the value's wall time (a timestamp with time zone in its own zone)."""
+    value = _to_millis(f"CAST({tf.wall_time(g, args[0])} AS TIMESTAMP)", ttype(args[0]))  # p <= 6 (analysis)
+    return f'list_transform([{value}], lambda "_t": {node.meta["joda"]})[1]'
 
 
 # --- parse_datetime (DateTimeFunctions.parseDatetime: Joda-Time DateTimeFormat.forPattern(format)
@@ -214,7 +224,7 @@ _JODA_PARSED = {
     "H": ("hour", 2),
     "m": ("minute", 2),
     "s": ("second", 2),
-    "S": ("fraction", 9),
+    "S": ("fraction", 1),  # S..S reads at most as many digits as letters (the real Trino 476)
 }
 
 _JODA_LETTERS = "GCYxweEyDMdaKhHkmsSzZ"

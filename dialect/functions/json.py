@@ -80,7 +80,8 @@ def _render_json_parse(g, node, args) -> str:
     if "json" in node.meta:
         text = node.meta["json"]
         if text is None:
-            return g.fail(tf.string(_invalid_json(args[0].name)))
+            # typed: DuckDB folds a function of an untyped error() to NULL without raising it
+            return f"CAST({g.fail(tf.string(_invalid_json(args[0].name)))} AS VARCHAR)"
         return tf.string(text)
     value = g.sql(args[0])
     bad = g.fail(f"'Cannot convert value to JSON: ''' || {value} || ''''")
@@ -238,9 +239,16 @@ def _path_sequence(g, input_node: exp.Expression, mode: str, steps: list) -> str
 
 
 def _check_input(a, node, input_node: exp.Expression, scope, env, function: str) -> None:
-    t = a.expr(input_node, scope, env)
-    if t.base not in ("varchar", "json", "unknown"):
-        a.fail(f"Unexpected parameters ({t}, varchar) for function {function}", node, "FUNCTION_NOT_FOUND")
+    _check_input_type(a, input_node, a.expr(input_node, scope, env), function)
+
+
+def _check_input_type(a, input_node: exp.Expression, t: TType, function: str) -> None:
+    """The input of json_exists, json_value and json_query is text (or bytes) to read as JSON: a
+    value of type json or any other type is Trino's TYPE_MISMATCH."""
+    if t.base == "varbinary":
+        a.unsupported(f"{function} of varbinary input", input_node)
+    if t.base not in ("varchar", "unknown"):
+        a.fail(f"Cannot read input of type {t} as JSON using formatting JSON", input_node, "TYPE_MISMATCH")
 
 
 def _json_exists(call: Call) -> TType:
@@ -249,7 +257,8 @@ def _json_exists(call: Call) -> TType:
             call.fail(f"unsupported in lakegate: json_exists ... {clause.upper()}", "NOT_SUPPORTED")
     if call.node.meta.get("on_error") == "ERROR":
         call.fail("unsupported in lakegate: json_exists ... ERROR ON ERROR", "NOT_SUPPORTED")
-    need(call, "json", "string")
+    _check_input_type(call.analyzer, call.args[0], call.types[0], "json_exists")
+    need(call, "string", "string")
     call.node.meta["path"] = _sql_json_path(call.analyzer, call.node, "json_exists", call.args[1])
     return tt.BOOLEAN
 
@@ -395,7 +404,7 @@ def _json_query(a, node, scope, env) -> TType:
     allowed = ("NULL", "EMPTY ARRAY", "EMPTY OBJECT")
     node.meta["on"] = {what: _on(a, node, on.get(what.lower()), what, allowed) for what in ("EMPTY", "ERROR")}
     node.meta["wrapper"], node.meta["omit"] = _WRAPPERS[wrapper], omit
-    return tt.JSON if ttype(node.this).base == "json" and not node.meta.get("varchar") else tt.VARCHAR
+    return tt.VARCHAR
 
 
 _UNSURE_ITEM = "NOT_SUPPORTED: json_query of a value holding a non-integer JSON number (its text is not kept)"

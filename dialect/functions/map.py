@@ -208,9 +208,14 @@ def _map_concat(call: Call) -> TType:
 
 
 def _render_map_concat(g, node, args) -> str:
-    """MapConcatFunction: a key's value comes from the last map holding it; NULL if any map is NULL."""
-    maps = ", ".join(g.coerce(a, ttype(node)) for a in args)
-    return null_if_any_null(g, args, f"map_concat({maps})")
+    """MapConcatFunction: a key's value comes from the last map holding it, and the entries come
+    in the order the real Trino 476 gives them: the last map's, then each earlier map's new keys,
+    from the last but one to the first; NULL if any map is NULL."""
+    entries = ", ".join(map_entries(g.coerce(a, ttype(node))) for a in reversed(args))
+    keys = 'list_transform("_all", lambda "_y": struct_extract_at("_y", 1))'
+    first = f'list_filter("_all", lambda "_x", "_i": list_position({keys}, struct_extract_at("_x", 1)) = "_i")'
+    distinct = let_bound(f"flatten([{entries}])", '"_all"', first)
+    return null_if_any_null(g, args, f"map_from_entries({distinct})")
 
 
 def _map_lambda(call: Call, index: int = 1) -> tuple[TType, TType]:

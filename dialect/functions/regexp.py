@@ -243,7 +243,7 @@ def _literal_pattern(pattern: exp.Expression) -> str | None:
 
 def _regexp_replace(call: Call) -> TType:
     regexp_call(call, tt.VARCHAR, (2, 3), "string", "string", "string")
-    x = tt.varchar_length(call.types[0]) if call.types[0].base == "varchar" else None
+    x = 0 if call.types[0].is_unknown else tt.varchar_length(call.types[0]) if call.types[0].base == "varchar" else None
     if len(call.args) == 3:
         replacement = literal_str(call, 2)
         if replacement is None:
@@ -257,19 +257,30 @@ def _regexp_replace(call: Call) -> TType:
     if x is None:
         return tt.VARCHAR
     if len(call.args) == 2:
-        return call.types[0]
+        return tt.varchar(x)
     y = tt.varchar_length(call.types[2]) if call.types[2].base == "varchar" else None
     if y is None:
         return tt.VARCHAR
-    return tt.varchar(min(2147483647, x + max(x * y // 2, 0) * (x + 1)))
+    return tt.varchar(min(2147483647, x + max(x * y // 2, y) * (x + 1)))  # as the real Trino 476 types it
 
 
 def _render_regexp_replace(g, node, args) -> str:
     value, pattern = g.sql(args[0]), g.sql(args[1])
     if len(args) == 2:
         return f"regexp_replace({value}, {pattern}, '', 'g')"
-    literal, rewrite = _regexp_replacement(_literal_pattern(args[1]), args[2].name)
-    return f"regexp_replace({value}, {pattern if literal is None else tf.string(literal)}, {tf.string(rewrite)}, 'g')"
+    source = _literal_pattern(args[1])
+    literal, rewrite = _regexp_replacement(source, args[2].name)
+    sql = f"regexp_replace({value}, {pattern if literal is None else tf.string(literal)}, {tf.string(rewrite)}, 'g')"
+    if source is None or not _matches_empty(source):
+        return sql
+    # Java also replaces the empty match right after a non-empty one (regexp_replace('ab', 'b*', 'X') is
+    # 'XaXX'); RE2 does not: refused when the text has a non-empty match
+    found = f'list_bool_or(list_transform(regexp_extract_all({value}, {pattern}), lambda "_m": "_m" <> \'\'))'
+    refused = g.fail(
+        tf.string("regexp_replace of a pattern that can match the empty string after a match is not supported"),
+        "NOT_SUPPORTED",
+    )
+    return f"CASE WHEN {found} THEN {refused} ELSE {sql} END"
 
 
 def _regexp_split(call: Call) -> TType:

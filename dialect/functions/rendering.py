@@ -9,10 +9,11 @@ from collections.abc import Iterable
 from sqlglot import exp
 
 from lakegate.dialect import transforms as tf
+from lakegate.dialect import trino_types as tt
 from lakegate.dialect import write_operators as ops
 from lakegate.dialect.registry import Render
 from lakegate.dialect.trino_types import TType
-from lakegate.dialect.type_rules import ttype
+from lakegate.dialect.type_rules import Call, ttype
 
 MAX_PAD_LENGTH = 1_000_000
 
@@ -62,6 +63,14 @@ def not_nan(sql: str) -> str:
 def nested(t: TType) -> bool:
     members = [t.element] if t.base == "array" else [f for _, f in t.args]
     return any(m.base in ("array", "map", "row") for m in members)
+
+
+def refuse_nested_floats(call: Call, t: TType) -> None:
+    """Arrays and rows holding a double or real are refused by the min/max functions: the real Trino
+    476 orders a NaN inside them by a rule of its own (`array_max(ARRAY[ARRAY[nan()], ARRAY[1e0]])` is
+    [1.0], and so is array_min of them)."""
+    if t.base in ("array", "row") and any(m.is_approx for m in tt.inner_types(t)):
+        call.fail(f"unsupported in lakegate: {call.name} of {t} (NaN inside nested values)", "NOT_SUPPORTED")
 
 
 def ordered_pick(arr: str, element: TType, largest: bool) -> str:

@@ -32,12 +32,25 @@ from lakegate.dialect.type_rules import Call, ttype
 # === string =======================================================================================
 def _string_same(call: Call) -> TType:
     (t,) = need(call, "string")
+    return _varchar_result(t)
+
+
+def _varchar_result(t: TType) -> TType:
+    """The varchar(x) a `varchar(x) -> varchar(x)` function returns: a NULL literal binds x = 0."""
+    if t.is_unknown:
+        return tt.varchar(0)
     return t if t.base == "varchar" else tt.VARCHAR
 
 
 def _concat(call: Call) -> TType:
     if not call.args or None in call.types:
         call.mismatch()
+    if len(call.types) == 2 and any(t.is_unknown for t in call.types):
+        t = tt.concat_with_null(call.types)
+        if t is None:
+            call.fail(tt.AMBIGUOUS, "AMBIGUOUS_FUNCTION_CALL")
+        call.node.meta["array"] = True
+        return t
     if any(t.base == "array" for t in call.types):
         element = None
         for t in call.types:
@@ -57,6 +70,8 @@ def _render_concat(g, node, args) -> str:
     if not node.meta.get("array"):
         return "(" + " || ".join(g.sql(a) for a in args) + ")"
     t = ttype(node)
+    if any(ttype(a).is_unknown for a in args):  # concat(x, NULL) as array(x): always NULL
+        return f"CAST(NULL AS {tt.duckdb_type(t) or 'INTEGER[]'})"  # array(unknown): any list type
     pieces = []
     for a in args:
         pieces.append(g.coerce(a, t) if ttype(a).base == "array" else f"[{g.coerce(a, t.element)}]")
@@ -98,8 +113,9 @@ def _render_split(g, node, args) -> str:
         sql = (  # NULL on NULL input, before any check (the real Trino 476 answers so)
             f"CASE WHEN ({value}) IS NULL OR ({delim}) IS NULL OR ({limit}) IS NULL THEN NULL "
             f"WHEN ({limit}) <= 0 THEN {g.fail(tf.string('Limit must be positive'))} "
+            f"WHEN ({limit}) > 2147483647 THEN {g.fail(tf.string('Limit is too large'))} "
             f"WHEN len({sql}) <= ({limit}) THEN {sql} ELSE list_append({sql}[1:({limit}) - 1], "
-            f"array_to_string({sql}[({limit}):], {delim})) END"
+            f'list_reduce({sql}[({limit}):], lambda "_a", "_b": "_a" || {delim} || "_b")) END'  # any delimiter
         )
     if isinstance(args[1], exp.Literal) and args[1].name:
         return sql
@@ -237,6 +253,8 @@ def _concat_binary(call: Call) -> TType | None:
         return None
     if len(call.args) < 2:
         call.fail("There must be two or more concatenation arguments", "INVALID_FUNCTION_ARGUMENT")
+    if len(call.args) == 2 and any(t is not None and t.is_unknown for t in call.types):
+        call.fail(tt.AMBIGUOUS, "AMBIGUOUS_FUNCTION_CALL")  # the element-to-array concat fits as well
     if not all(t is not None and t.base in KINDS_BINARY for t in call.types):
         call.mismatch()
     return VARBINARY
@@ -280,7 +298,7 @@ def _trim_chars(call: Call) -> TType | None:
     if len(call.args) != 2:
         return None
     source, _ = need(call, "string", "string")
-    return source if source.base == "varchar" else tt.VARCHAR
+    return _varchar_result(source)
 
 
 def _strpos_instance(call: Call) -> TType | None:
@@ -345,9 +363,7 @@ def _normalize_form(call: Call) -> TType | None:
     if len(call.args) != 2:
         return None
     need(call, "string", "string")
-    form = literal_str(call, 1)
-    if form is None and not call.types[1].is_unknown:
-        call.fail("normalize with a non-literal form is not supported in lakegate", "NOT_SUPPORTED")
+    form = literal_str(call, 1)  # the parser passes only the keyword NFC, NFD, NFKC or NFKD, as written
     if form in _NORMAL_FORMS and form != "NFC":
         call.fail(f"normalize with the form {form} is not supported in lakegate (only NFC)", "NOT_SUPPORTED")
     call.node.meta["normal_form"] = form
@@ -355,11 +371,9 @@ def _normalize_form(call: Call) -> TType | None:
 
 
 def _render_normalize_form(g, node, args) -> str:
-    """NFC is DuckDB's nfc_normalize; another form is Normalizer.Form.valueOf's error at run time
-    (a NULL argument gives NULL first)."""
+    """NFC is DuckDB's nfc_normalize; a keyword in lower case is Normalizer.Form.valueOf's error at
+    run time (a NULL argument gives NULL first)."""
     value, form = g.sql(args[0]), node.meta["normal_form"]
-    if form is None:
-        return "CAST(NULL AS VARCHAR)"
     if form == "NFC":
         return f"nfc_normalize({value})"
     message = tf.string("Normalization form must be one of [NFD, NFC, NFKD, NFKC]")
@@ -457,6 +471,8 @@ def _concat_type(call: Call) -> TType | None:
         return None
     if any(t is None or t.base not in _TEXT for t in types):
         return None
+    if any(t.is_unknown for t in types):
+        call.fail(tt.AMBIGUOUS, "AMBIGUOUS_FUNCTION_CALL")  # the element-to-array concat fits as well
     t = chars.concat_type(types[0], types[1])
     if t is None:
         call.fail(f"concat of {types[0]} and {types[1]} (longer than char(65536))", "NOT_SUPPORTED")

@@ -12,6 +12,7 @@ not finished by then ends the process with a message and exit code 1.
 from __future__ import annotations
 
 import argparse
+import ipaddress
 import os
 import re
 import signal
@@ -56,6 +57,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         metavar="NAME[:PORT]",
         help="a Host name clients may use besides 127.0.0.1, localhost, [::1] and the address "
         "connected to (e.g. a reverse proxy's name; repeatable); others get 421",
+    )
+    parser.add_argument(
+        "--forwarded-allow-ips",
+        default=None,
+        metavar="ADDRESSES",
+        help="comma-separated addresses or networks (or '*') of reverse proxies whose X-Forwarded-For and "
+        "X-Forwarded-Proto headers are trusted (default: none; the connection's own address is the client's)",
     )
     parser.add_argument("--catalog", default=CATALOG, help=f"the lake's catalog name (default: {CATALOG})")
     parser.add_argument(
@@ -220,6 +228,15 @@ def _check_options(args: argparse.Namespace) -> Users | None:
         users = Users.load(args.users) if args.users is not None else None
     except UsersFileError as error:
         raise UserError(str(error)) from None
+    for item in (args.forwarded_allow_ips or "").split(","):
+        if item.strip() not in ("", "*"):
+            try:
+                ipaddress.ip_network(item.strip(), strict=False)
+            except ValueError:
+                raise UserError(
+                    f"--forwarded-allow-ips: {item.strip()!r} is not an address or network "
+                    "(e.g. 10.0.0.1, 10.0.0.0/8, *)"
+                ) from None
     try:
         check_listen(args.host, users=users is not None, tls=args.tls_cert is not None)
     except ValueError as error:
@@ -266,6 +283,8 @@ def serve_command(args: argparse.Namespace) -> int:
             app,
             limits,
             timeout_graceful_shutdown=1,
+            proxy_headers=args.forwarded_allow_ips is not None,
+            forwarded_allow_ips=args.forwarded_allow_ips,
             ssl_certfile=str(args.tls_cert) if args.tls_cert else None,
             ssl_keyfile=str(args.tls_key) if args.tls_key else None,
         )

@@ -574,14 +574,11 @@ class QueryManager:
                 close()
 
     def kill(self, query_id: str, message: str | None, session: Session, *, owner_only: bool) -> None:
-        """CALL system.runtime.kill_query: fail a running or queued query with ADMINISTRATIVELY_KILLED."""
+        """CALL system.runtime.kill_query: fail a running or queued query with ADMINISTRATIVELY_KILLED
+        (`owner_only`: only the caller's own queries; another user's is NOT_FOUND, as if it did not exist)."""
         query = self.get(query_id)
-        if query is None:
-            raise sessions.query_not_found(query_id)
-        if owner_only and query.session.user != session.user:
-            raise DialectError(
-                f"Access Denied: Cannot kill query owned by {query.session.user}", error_name="PERMISSION_DENIED"
-            )
+        if query is None or (owner_only and query.session.user != session.user):
+            raise sessions.query_not_found(query_id)  # another user's query is not there for the caller
         text = f"Query killed. Message: {message}" if message else "Query killed. No message provided."
         if query.done or not query.fail(Failure(text, "ADMINISTRATIVELY_KILLED")):
             raise DialectError(f"Target query is not running: {query_id}", error_name="NOT_SUPPORTED")

@@ -145,7 +145,10 @@ class StaleJobsError(RuntimeError):
     def __init__(self, batch_id: str, jobs: Sequence[str], *, attempts: int = 1):
         self.batch_id, self.jobs = batch_id, list(jobs)
         shown = ", ".join(repr(job) for job in self.jobs)
-        message = f"job(s) {shown} of batch {batch_id!r} changed during the evaluation (re-ingested, rewritten, added or removed)"
+        message = (
+            f"job(s) {shown} of batch {batch_id!r} changed during the evaluation "
+            "(re-ingested, rewritten, added or removed)"
+        )
         if attempts > 1:
             message += f", in each of {attempts} attempts: nothing was written"
         super().__init__(message)

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import errno
 import functools
 import json
 import os
@@ -627,13 +628,23 @@ def _pause(point: str) -> None:
 
 @contextlib.contextmanager
 def _transaction(db: sqlite3.Connection, *, immediate: bool = False) -> Iterator[None]:
-    db.execute("BEGIN IMMEDIATE" if immediate else "BEGIN")
+    """A transaction of the record; a full disk (SQLite's "database or disk is full", after which
+    SQLite has rolled back already) is OSError ENOSPC, as for any other file of the lake."""
     try:
-        yield
-    except BaseException:
-        db.execute("ROLLBACK")
+        db.execute("BEGIN IMMEDIATE" if immediate else "BEGIN")
+        try:
+            yield
+        except BaseException:
+            if db.in_transaction:
+                db.execute("ROLLBACK")
+            raise
+        db.execute("COMMIT")
+    except sqlite3.OperationalError as error:
+        if db.in_transaction:
+            db.execute("ROLLBACK")
+        if "full" in str(error):
+            raise OSError(errno.ENOSPC, f"No space left on device (the lake's file record, {RECORD})") from None
         raise
-    db.execute("COMMIT")
 
 
 #: The distinct tables of `files`, one index seek per table (not a scan of every file).

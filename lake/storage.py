@@ -37,6 +37,21 @@ StoragePath = str | os.PathLike
 T = TypeVar("T")
 
 
+
+class _ParquetWriter(pq.ParquetWriter):
+    """pyarrow's ParquetWriter, closed once even when closing fails (a full disk): the caller gets
+    the error, and the garbage collector never tries again (no "Exception ignored" traceback)."""
+
+    def close(self) -> None:
+        try:
+            super().close()
+        finally:
+            self.is_open = False
+
+    def __del__(self) -> None:
+        with contextlib.suppress(OSError):
+            super().__del__()
+
 class LocalOnlyError(OSError):
     """A capability the lake's file system lacks because it is not local (one line, no traceback:
     the CLI prints OSErrors as their message)."""
@@ -150,7 +165,7 @@ class LakeStorage:
         """A Parquet file open for writing in parts (`write_table`, then `close`); its directory is
         made if missing. Not atomic, as `write_bytes`."""
         self.make_dirs(_parent(path))
-        return pq.ParquetWriter(_text(path), schema, filesystem=self.filesystem, **options)
+        return _ParquetWriter(_text(path), schema, filesystem=self.filesystem, **options)
 
     @_plain_errors
     def text_writer(self, path: StoragePath) -> io.TextIOWrapper:

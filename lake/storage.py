@@ -37,7 +37,6 @@ StoragePath = str | os.PathLike
 T = TypeVar("T")
 
 
-
 class _ParquetWriter(pq.ParquetWriter):
     """pyarrow's ParquetWriter, closed once even when closing fails (a full disk): the caller gets
     the error, and the garbage collector never tries again (no "Exception ignored" traceback)."""
@@ -51,6 +50,7 @@ class _ParquetWriter(pq.ParquetWriter):
     def __del__(self) -> None:
         with contextlib.suppress(OSError):
             super().__del__()
+
 
 class LocalOnlyError(OSError):
     """A capability the lake's file system lacks because it is not local (one line, no traceback:

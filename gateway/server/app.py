@@ -34,7 +34,7 @@ import os
 import secrets
 import threading
 import time
-from collections import deque
+from collections import Counter, deque
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import asynccontextmanager
 from dataclasses import dataclass
@@ -155,6 +155,7 @@ class Query:
         self.started = False
         self.working = False  # a worker runs the statement
         self.zombie = False  # the query ended but its worker still runs, counted apart
+        self.blocked = False  # the worker waits for the client to read a page
         self._planner: int | None = None  # the worker thread while it plans the query
         self.done = False  # the worker produced everything, or the query failed
         self.final = False  # the last document was served
@@ -204,7 +205,9 @@ class Query:
         is done with it); _Stopped when the query ended."""
         with self.lock:
             while len(self._pages) >= BUFFERED_PAGES and not self.done:
+                self.blocked = True  # waiting for the client to read
                 self._space.wait()
+            self.blocked = False
             if self.done:
                 raise _Stopped
             self._pages.append(page)
@@ -472,6 +475,7 @@ class QueryManager:
         self._queue: deque[Query] = deque()  # queries given to `start`, waiting for a worker
         self._running = 0  # workers of queries that have not ended
         self._zombies = 0  # workers of ended queries that still run
+        self._closing = False  # shutting down: no new query runs
         self._stop = threading.Event()
         self._reaper = threading.Thread(target=self._reap, name="lakegate-reaper", daemon=True)
         self._reaper.start()
@@ -485,7 +489,10 @@ class QueryManager:
         query = Query(self.ids.next(), sql, session, dequeued=(lambda: None) if full else self._dequeued)
         with self._lock:
             self._queries[query.id] = query
-        if full:
+            closing = self._closing
+        if closing:
+            query.fail(SHUTTING_DOWN)
+        elif full:
             query.fail(Failure('Too many queued queries for "global"', "QUERY_QUEUE_FULL"))
         return query
 
@@ -500,14 +507,31 @@ class QueryManager:
             self._dispatch()
 
     def _dispatch(self) -> None:
-        """Start a worker for each queued query a slot is free for (lock held)."""
-        while self._running < self.limits.max_concurrent_queries and self._queue:
-            query = self._queue.popleft()
-            if query.done:
-                continue  # failed while queued
+        """Start a worker for each queued query a slot is free for (lock held): the oldest query of
+        the user with the fewest running queries, so that one user's many queries cannot keep
+        another's waiting; a query whose client stopped polling is left to the reaper to drop."""
+        while self._running < self.limits.max_concurrent_queries and self._queue and not self._closing:
+            query = self._next_queued()
+            if query is None:
+                return
             self._running += 1
             query.working = True
             threading.Thread(target=self._work, args=(query,), name=f"lakegate-query-{query.id}", daemon=True).start()
+
+    def _next_queued(self) -> Query | None:
+        """Take the queued query to run next off the queue (lock held); None when none should run."""
+        running = Counter(q.session.user for q in self._queries.values() if q.working and not q.zombie)
+        chosen = None
+        for query in list(self._queue):
+            if query.done:
+                self._queue.remove(query)  # failed while queued
+            elif not _silent_while_queued(query, self.limits) and (
+                chosen is None or running[query.session.user] < running[chosen.session.user]
+            ):
+                chosen = query
+        if chosen is not None:
+            self._queue.remove(chosen)
+        return chosen
 
     def _work(self, query: Query) -> None:
         try:
@@ -591,6 +615,21 @@ class QueryManager:
                 idle = now - query.last_access
                 if query.running and query.elapsed("started") > limits.query_timeout:
                     query.fail(Failure.of(time_limit_error(limits.query_timeout)))
+                elif not query.started and not query.done and _silent_while_queued(query, limits):
+                    query.fail(
+                        Failure(
+                            f"Query {query.id} was abandoned by the client: it stopped polling while queued",
+                            "ABANDONED_QUERY",
+                        )
+                    )
+                elif query.running and query.blocked and idle > limits.heartbeat_timeout:
+                    query.fail(
+                        Failure(
+                            f"Query {query.id} was abandoned by the client: it stopped reading results "
+                            f"for {limits.heartbeat_timeout:g}s",
+                            "ABANDONED_QUERY",
+                        )
+                    )
                 elif not query.done and idle > limits.client_timeout:
                     query.fail(
                         Failure(
@@ -606,6 +645,21 @@ class QueryManager:
                     with self._lock:
                         self._queries.pop(query.id, None)
 
+    def shut_down(self) -> list[Query]:
+        """Refuse new queries and fail every query now (SERVER_SHUTTING_DOWN), so that each client
+        waiting for its query gets that answer; returns the queries that were still going."""
+        with self._lock:
+            self._closing = True
+        going = [query for query in self.queries() if not query.final]
+        for query in going:
+            if query.fail(SHUTTING_DOWN):
+                query.interrupt()
+        return going
+
+    def working(self) -> int:
+        """Workers still running (of queries that ended, too)."""
+        return sum(query.working for query in self.queries())
+
     def close(self) -> None:
         """Fail every query (SERVER_SHUTTING_DOWN), stop the reaper and wait (at most
         SHUTDOWN_GRACE seconds) for the workers to stop."""
@@ -613,8 +667,8 @@ class QueryManager:
         self._reaper.join()
         queries = self.queries()
         for query in queries:
-            query.fail(Failure("The server is shutting down", "SERVER_SHUTTING_DOWN"))
-        deadline = time.monotonic() + SHUTDOWN_GRACE
+            query.fail(SHUTTING_DOWN)
+        deadline = time.monotonic() + (0.2 if self._closing else SHUTDOWN_GRACE)  # `shut_down` waited already
         while any(query.working for query in queries) and time.monotonic() < deadline:
             for query in queries:  # repeat interrupts that came before DuckDB started
                 query.interrupt()
@@ -622,6 +676,17 @@ class QueryManager:
         working = sum(query.working for query in queries)
         if working:
             log.warning("%d query workers still run at shutdown; they are left to end with the process", working)
+
+
+SHUTTING_DOWN = Failure("The server is shutting down", "SERVER_SHUTTING_DOWN")
+#: Seconds a queued query's client may go without polling beyond `Limits.wait` (a polling client
+#: asks again at least every `Limits.wait` seconds) before the query is dropped as abandoned.
+QUEUED_SILENCE = 2.0
+
+
+def _silent_while_queued(query: Query, limits: Limits) -> bool:
+    """Whether a queued query's client stopped polling (it vanished: the query is not worth running)."""
+    return time.monotonic() - query.last_access > limits.wait + QUEUED_SILENCE
 
 
 # --- immediate answers --------------------------------------------------------------------------
@@ -723,7 +788,11 @@ class _Endpoints:
         return Response(body, media_type=JSON)
 
     async def head_results(self, request: Request) -> Response:
-        return Response(status_code=404 if await self.query(request) is None else 200)
+        """A client's heartbeat (HEAD nextUri): the query's client is still there."""
+        query = await self.query(request)
+        if query is not None:
+            query.last_access = time.monotonic()
+        return Response(status_code=404 if query is None else 200)
 
     async def delete(self, request: Request) -> Response:
         """DELETE nextUri or /v1/query/{id}: cancel (204 also for unknown or finished queries)."""

@@ -125,6 +125,11 @@ def time_limit_error(seconds: float) -> DialectError:
     )
 
 
+#: DuckDB's words for a Parquet file it could not decode without naming the file (a damaged page
+#: header reaches its Thrift reader).
+_PARQUET_DAMAGE = re.compile(r"TProtocolException|don't know what type|[Pp]arquet|[Tt]hrift|[Cc]orrupt")
+
+
 def _failure(error: BaseException) -> DialectError:
     """The DialectError (Trino error name) for an error DuckDB raised while running a query."""
     if isinstance(error, duckdb.InterruptException) or "INTERRUPT Error" in str(error):
@@ -275,6 +280,13 @@ class _Branch:
         message = str(error)
         files = self.known()
         named = [path for path in files if path in message]
+        if not named and _PARQUET_DAMAGE.search(message):  # a damaged file the message does not name
+            damaged = [path for path in files if LOCAL.damage(path) is not None]
+            if damaged:
+                return DialectError(
+                    f"Cannot read the Parquet file of {files[damaged[0]]}: it is corrupt (ingest the job again)",
+                    error_name="HIVE_BAD_DATA",
+                )
         if not named:
             return _failure(error)
         for path in named:

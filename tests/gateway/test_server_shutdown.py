@@ -10,7 +10,7 @@ import time
 
 import requests
 
-from lakegate.gateway.server.app import SLOW_PLANNING_ENV
+from lakegate.gateway.server.query_lifecycle import SLOW_PLANNING_ENV
 
 from .conftest import serve
 

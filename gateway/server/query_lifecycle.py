@@ -462,6 +462,7 @@ class QueryManager:
         self._running = 0  # workers of queries that have not ended
         self._zombies = 0  # workers of ended queries that still run
         self._closing = False  # shutting down: no new query runs
+        self.large_slots = max(1, limits.max_concurrent_queries // 4)  # of statements over LARGE_TEXT_BYTES
         self._stop = threading.Event()
         self._reaper = threading.Thread(target=self._reap, name="lakegate-reaper", daemon=True)
         self._reaper.start()
@@ -505,14 +506,20 @@ class QueryManager:
             threading.Thread(target=self._work, args=(query,), name=f"lakegate-query-{query.id}", daemon=True).start()
 
     def _next_queued(self) -> Query | None:
-        """Take the queued query to run next off the queue (lock held); None when none should run."""
-        running = Counter(q.session.user for q in self._queries.values() if q.working and not q.zombie)
+        """Take the queued query to run next off the queue (lock held); None when none should run.
+        A statement text over LARGE_TEXT_BYTES waits while `large_slots` others are in the workers
+        (zombies included: their parsing may still run), so that big texts cannot take every slot."""
+        working = [q for q in self._queries.values() if q.working]
+        running = Counter(q.session.user for q in working if not q.zombie)
+        large_busy = sum(len(q.sql) > LARGE_TEXT_BYTES for q in working) >= self.large_slots
         chosen = None
         for query in list(self._queue):
             if query.done:
                 self._queue.remove(query)  # failed while queued
-            elif not _silent_while_queued(query, self.limits) and (
-                chosen is None or running[query.session.user] < running[chosen.session.user]
+            elif (
+                not _silent_while_queued(query, self.limits)
+                and not (large_busy and len(query.sql) > LARGE_TEXT_BYTES)
+                and (chosen is None or running[query.session.user] < running[chosen.session.user])
             ):
                 chosen = query
         if chosen is not None:
@@ -665,9 +672,12 @@ class QueryManager:
 
 
 SHUTTING_DOWN = Failure("The server is shutting down", "SERVER_SHUTTING_DOWN")
+#: A statement text longer than this (characters) is large: parsing and translating it takes long
+#: enough that only `QueryManager.large_slots` of them run at once.
+LARGE_TEXT_BYTES = 64 * 1024
 #: Seconds a queued query's client may go without polling beyond `Limits.wait` (a polling client
 #: asks again at least every `Limits.wait` seconds) before the query is dropped as abandoned.
-QUEUED_SILENCE = 2.0
+QUEUED_SILENCE = 4.0
 
 
 def _silent_while_queued(query: Query, limits: Limits) -> bool:

@@ -62,7 +62,8 @@ def test_one_users_flood_does_not_keep_another_users_query_waiting(two_slots, en
             poller.join(timeout=30)
 
 
-def test_queued_queries_of_a_vanished_client_are_dropped_without_running(two_slots, endless):
+def test_queued_queries_of_a_vanished_client_are_dropped_without_running(start_server, endless):
+    two_slots = start_server("--max-concurrent-queries", "2", "--query-timeout", "60")
     vanished = [post(two_slots, endless, "carol") for _ in range(6)]  # never polled again
     queued = [d for d in vanished if info(two_slots, d["id"])["state"] == "QUEUED"]
     assert len(queued) >= 3
@@ -82,3 +83,40 @@ def test_a_client_that_stops_reading_frees_its_slot_when_its_heartbeat_lapses(tw
     wait_for(lambda: info(two_slots, query_id)["state"] == "FAILED", timeout=20)
     error = info(two_slots, query_id)["error"]
     assert error["errorName"] == "ABANDONED_QUERY" and "stopped reading results for 2s" in error["message"]
+
+
+def test_large_statement_texts_take_only_a_share_of_the_slots(start_server, monkeypatch):
+    """With 4 slots, at most one statement over 64 KiB is in the workers at once (its planning is
+    stuck here, SLOW_PLANNING_ENV): the other large ones wait while a small query runs at once."""
+    from lakegate.gateway.server.query_lifecycle import SLOW_PLANNING_ENV
+
+    monkeypatch.setenv(SLOW_PLANNING_ENV, "large_text_marker")
+    server = start_server("--max-concurrent-queries", "4")
+    large = f"SELECT '{'x' * 70_000}' AS large_text_marker"
+    stop = threading.Event()
+    documents = []
+
+    def client(user: str) -> None:  # posts a large statement and keeps polling it
+        document = post(server, large, user)
+        documents.append(document)
+        while "nextUri" in document and not stop.is_set():
+            document = requests.get(document["nextUri"], timeout=30).json()
+
+    clients = [threading.Thread(target=client, args=(f"user{i}",)) for i in range(3)]
+    for thread in clients:
+        thread.start()
+    try:
+        wait_for(lambda: len(documents) == 3)
+        time.sleep(1.0)
+        states = sorted(info(server, d["id"])["state"] for d in documents)
+        assert states == ["QUEUED", "QUEUED", "RUNNING"], states
+        small = post(server, "SELECT 1", "erin")
+        while "nextUri" in small:
+            small = requests.get(small["nextUri"], timeout=30).json()
+        assert small["data"] == [[1]]
+    finally:
+        stop.set()
+        for d in documents:
+            requests.delete(f"{server.url}/v1/query/{d['id']}", timeout=30)
+        for thread in clients:
+            thread.join(timeout=30)

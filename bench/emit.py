@@ -1,9 +1,10 @@
-"""Benchmark: the Emitter's validated emit() and emit_series() rates against the reference Emitter.
+"""Benchmark: the Emitter's validated emit() and emit_series() rates against the two reference Emitters.
 
-The reference is `resim.metrics.python.emissions.Emitter` from PyPI `resim-open-core`, installed
-into bench/.work/ref-venv (created on first run). Each measurement runs in a fresh subprocess,
-ours and the reference's alternating, both validating against fixtures/config.resim.yaml and
-writing to a file under bench/.work/; a rate is the median of RUNS runs and includes close().
+The references are `resim.metrics.python.emissions.Emitter` of PyPI `resim-open-core` 1.6.0 and
+`signalflag.sdk.metrics.emissions.Emitter` of PyPI `signalflag` 1.8.0, each installed into its own
+venv under bench/.work/ (created on first run). Each measurement runs in a fresh subprocess, ours
+and the references' alternating, all validating against fixtures/config.resim.yaml and writing to
+a file under bench/.work/; a rate is the median of RUNS runs and includes close().
 
     python3 dev.py bench emit [--runs 5] [--emits 200000] [--points 200000]
 """
@@ -25,30 +26,34 @@ from results import parse_args, write_section  # bench/ is on sys.path when this
 
 ROOT = Path(__file__).resolve().parents[1]
 WORK = ROOT / "bench" / ".work"
-REF_VENV = WORK / "ref-venv"
-REF_PYTHON = REF_VENV / "bin" / "python"
 CONFIG = ROOT / "fixtures" / "config.resim.yaml"
 TOPIC = "odom_linear_velocity"
-GOAL = 3.0  # validated emit() at least 3x the reference's rate
+GOAL = 5.0  # validated emit() at least 5x each reference's rate
+#: Each reference: its venv, the distribution pinned into it, and the module holding its Emitter.
+REFERENCES = {
+    "resim": (WORK / "ref-venv", "resim-open-core==1.6.0", "resim.metrics.python.emissions"),
+    "signalflag": (WORK / "signalflag-venv", "signalflag==1.8.0", "signalflag.sdk.metrics.emissions"),
+}
+IMPLS = ("ours", *REFERENCES)
 
 
-def ensure_reference() -> str:
-    """Create the reference venv and install resim-open-core into it if needed; its version."""
-    probe = [
-        str(REF_PYTHON),
-        "-c",
-        "from importlib.metadata import version; import resim.metrics.python.emissions; "
-        "print(version('resim-open-core'))",
-    ]
-    if REF_PYTHON.exists():
+def python_of(impl: str) -> str:
+    return sys.executable if impl == "ours" else str(REFERENCES[impl][0] / "bin" / "python")
+
+
+def ensure_reference(impl: str) -> str:
+    """Create the reference's venv and install its pinned distribution if needed; its version."""
+    venv_dir, requirement, module = REFERENCES[impl]
+    dist = requirement.split("==")[0]
+    python = python_of(impl)
+    probe = [python, "-c", f"from importlib.metadata import version; import {module}; print(version({dist!r}))"]
+    if Path(python).exists():
         found = subprocess.run(probe, capture_output=True, text=True)
-        if found.returncode == 0:
+        if found.returncode == 0 and found.stdout.strip() == requirement.split("==")[1]:
             return found.stdout.strip()
-    print(f"installing resim-open-core into {REF_VENV} ...", file=sys.stderr, flush=True)
-    venv.EnvBuilder(with_pip=True, clear=True).create(REF_VENV)
-    subprocess.run(
-        [str(REF_PYTHON), "-m", "pip", "install", "-q", "--disable-pip-version-check", "resim-open-core"], check=True
-    )
+    print(f"installing {requirement} into {venv_dir} ...", file=sys.stderr, flush=True)
+    venv.EnvBuilder(with_pip=True, clear=True).create(venv_dir)
+    subprocess.run([python, "-m", "pip", "install", "-q", "--disable-pip-version-check", requirement], check=True)
     return subprocess.run(probe, capture_output=True, text=True, check=True).stdout.strip()
 
 
@@ -56,8 +61,10 @@ def worker(impl: str, mode: str, count: int, out: Path) -> None:
     """Run in a subprocess: time `count` emits (or series points) and print the rate as JSON."""
     if impl == "ours":
         from lakegate.lake.emitter import Emitter
-    else:
+    elif impl == "resim":
         from resim.metrics.python.emissions import Emitter
+    else:
+        from signalflag.sdk.metrics.emissions import Emitter
     rng = random.Random(1)
     xs, ys, zs = ([rng.uniform(-2, 2) for _ in range(count)] for _ in range(3))
     out.unlink(missing_ok=True)
@@ -76,7 +83,7 @@ def worker(impl: str, mode: str, count: int, out: Path) -> None:
 
 def measure(impl: str, mode: str, count: int) -> dict[str, float]:
     """One run in a fresh process: rates per second of wall-clock and of process CPU time."""
-    python = sys.executable if impl == "ours" else str(REF_PYTHON)
+    python = python_of(impl)
     out = WORK / f"emit-{impl}-{mode}.jsonl"
     result = subprocess.run(
         [python, __file__, "--worker", impl, mode, str(count), str(out)], capture_output=True, text=True, check=True
@@ -101,19 +108,22 @@ def main() -> int:
         return 0
 
     WORK.mkdir(parents=True, exist_ok=True)
-    ref_version = ensure_reference()
+    versions = {impl: ensure_reference(impl) for impl in REFERENCES}
+    load_start = ", ".join(f"{x:.2f}" for x in os.getloadavg())
     runs: dict[tuple[str, str], list[dict[str, float]]] = {}
     for mode, count in (("emit", args.emits), ("series", args.points)):
         for run in range(args.runs):
-            for impl in ("ours", "reference"):  # alternate, so that load changes hit both alike
+            for impl in IMPLS:  # alternate, so that load changes hit all alike
                 runs.setdefault((impl, mode), []).append(measure(impl, mode, count))
             print(
-                f"{mode} run {run + 1}/{args.runs}: ours {runs['ours', mode][-1]['cpu']:,.0f}/s, "
-                f"reference {runs['reference', mode][-1]['cpu']:,.0f}/s (CPU time)",
+                f"{mode} run {run + 1}/{args.runs}: "
+                + ", ".join(f"{impl} {runs[impl, mode][-1]['cpu']:,.0f}/s" for impl in IMPLS)
+                + " (CPU time)",
                 file=sys.stderr,
                 flush=True,
             )
-    identical = (WORK / "emit-ours-emit.jsonl").read_bytes() == (WORK / "emit-reference-emit.jsonl").read_bytes()
+    ours_bytes = (WORK / "emit-ours-emit.jsonl").read_bytes()
+    identical = {impl: (WORK / f"emit-{impl}-emit.jsonl").read_bytes() == ours_bytes for impl in REFERENCES}
     for scratch in WORK.glob("emit-*.jsonl"):
         scratch.unlink()
 
@@ -121,38 +131,54 @@ def main() -> int:
         return statistics.median(r[clock] for r in runs[impl, mode])
 
     def row(mode: str, what: str, clock: str) -> str:
-        ours, ref = rate("ours", mode, clock), rate("reference", mode, clock)
-        figures = " / ".join(
-            ", ".join(f"{r[clock] / 1000:.0f}k" for r in runs[impl, mode]) for impl in ("ours", "reference")
-        )
+        ours = rate("ours", mode, clock)
+        refs = [rate(impl, mode, clock) for impl in REFERENCES]
+        figures = " / ".join(", ".join(f"{r[clock] / 1000:.0f}k" for r in runs[impl, mode]) for impl in IMPLS)
         per = {"cpu": "per CPU second", "wall": "per wall-clock second"}[clock]
-        return f"| {what}, {per} | {ours:,.0f} /s | {ref:,.0f} /s | {ours / ref:.2f}x | {figures} |"
+        return (
+            f"| {what}, {per} | {ours:,.0f} /s | "
+            + " | ".join(f"{ref:,.0f} /s | {ours / ref:.2f}x" for ref in refs)
+            + f" | {figures} |"
+        )
 
     emit_what = f"validated `emit()`, 3-float topic ({args.emits:,} emits)"
     series_what = f"`emit_series()` points ({args.points:,} points in one call)"
-    ratio = {clock: rate("ours", "emit", clock) / rate("reference", "emit", clock) for clock in ("cpu", "wall")}
+    ratio = {
+        (impl, mode): rate("ours", mode, "cpu") / rate(impl, mode, "cpu")
+        for impl in REFERENCES
+        for mode in ("emit", "series")
+    }
+    met = all(ratio[impl, "emit"] >= GOAL for impl in REFERENCES)
     load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
+    names = {"resim": f"resim-open-core {versions['resim']}", "signalflag": f"signalflag {versions['signalflag']}"}
     write_section(
         "Emitter",
         "python3 dev.py bench emit",
         [
-            f"- baseline: reference `Emitter` of resim-open-core {ref_version} (its own venv), validating against "
-            "the same config, measured in the same run; runs alternate lakegate / reference, each in a fresh process",
+            "- baselines: the reference `Emitter`s of "
+            + " and ".join(names.values())
+            + " (each in its own venv), validating against the same config, measured in the same run; runs "
+            "alternate lakegate / resim / signalflag, each in a fresh process",
             f"- median of {args.runs} runs, including `close()`; random full-precision floats. Rates per second of "
             "process CPU time (all threads) are the figures judged, as they are least disturbed by other load on "
-            f"this shared machine; wall-clock rates are shown too. Load average at the end: {load}",
+            f"this shared machine; wall-clock rates are shown too. Load average (1, 5, 15 min) at the start: "
+            f"{load_start}; at the end: {load}",
             "",
-            "| measure | lakegate | reference | ratio | runs (lakegate / reference) |",
-            "|---|---|---|---|---|",
+            "| measure | lakegate | resim | ratio | signalflag | ratio | runs (lakegate / resim / signalflag) |",
+            "|---|---|---|---|---|---|---|",
             row("emit", emit_what, "cpu"),
             row("emit", emit_what, "wall"),
             row("series", series_what, "cpu"),
             row("series", series_what, "wall"),
             "",
-            f"- goal: validated `emit()` >= {GOAL:.0f}x the reference: "
-            f"**{'met' if ratio['cpu'] >= GOAL else 'NOT met'}** "
-            f"({ratio['cpu']:.2f}x per CPU second, {ratio['wall']:.2f}x per wall-clock second)",
-            f"- the two emissions files of the last `emit()` runs are byte-identical: {'yes' if identical else 'no'}",
+            f"- goal: validated `emit()` >= {GOAL:.0f}x each reference per CPU second: "
+            f"**{'met' if met else 'NOT met'}** ("
+            + ", ".join(f"{ratio[impl, 'emit']:.2f}x {names[impl]}" for impl in REFERENCES)
+            + "); `emit_series()` points: "
+            + ", ".join(f"{ratio[impl, 'series']:.2f}x {names[impl]}" for impl in REFERENCES)
+            + " (goal >= 10x)",
+            "- the emissions files of the last `emit()` runs are byte-identical to each reference's: "
+            + ", ".join(f"{names[impl]} {'yes' if identical[impl] else 'NO'}" for impl in REFERENCES),
         ],
     )
     return 0

@@ -45,6 +45,8 @@ from pathlib import Path
 from types import TracebackType
 from typing import Any
 
+import orjson
+
 from lakegate.lake.config import Topic, load_config
 from lakegate.lake.types import MAX_JSON_DEPTH, MAX_LINE_BYTES, check_value, is_utf8, json_too_deep
 
@@ -142,9 +144,9 @@ def _json_text(topic: str, field: str, field_type: str, value: Any) -> str:
 _TOO_DEEP = f"nested too deep: an emissions line has at most {MAX_JSON_DEPTH} levels of arrays and objects"
 
 
-def _check_length(topic: str, line: str) -> None:
+def _check_length(topic: str, line: bytes) -> None:
     """ValidationError if `line` (with its newline) is longer than ingestion accepts."""
-    if len(line) > MAX_LINE_BYTES + 1:  # the text is ASCII: characters are bytes
+    if len(line) > MAX_LINE_BYTES + 1:
         raise ValidationError(
             f"the record's line would be {len(line) - 1:,} bytes, more than the limit of "
             f"{MAX_LINE_BYTES:,} bytes of an emissions line",
@@ -152,32 +154,45 @@ def _check_length(topic: str, line: str) -> None:
         )
 
 
-# Per field type: the test under which `check_value` certainly accepts the value @ as it is
-# (else @ is replaced by check_value's result, or its error raised, so accept/reject is always
-# check_value's decision), and the f-string expression of its JSON text.
+# Per field type: the test under which `check_value` certainly accepts the value @ as it is,
+# the expression of its JSON text (bytes) then, and the expression of its JSON text otherwise
+# (which calls check_value, so accept/reject is always check_value's decision). Floats are
+# written by orjson (shortest round-trip digits, as Python's repr) except below 1e-4 in
+# magnitude, where orjson's notation differs from repr's ("0.00001", "1e-7" vs "1e-05", "1e-07").
 _FAST = {
-    "float": ("type(@) is float and -1e999 < @ < 1e999", "{@!r}"),  # 1e999 is inf; NaN compares false
-    "int": ("type(@) is int and -0x8000000000000000 <= @ <= 0x7FFFFFFFFFFFFFFF", "{@!r}"),
-    "boolean": ("@ is True or @ is False", '{"true" if @ else "false"}'),
-    "string": ("type(@) is str and @.isascii()", "{_json_str(@)}"),  # other text: check_value finds lone surrogates
+    "float": (
+        "type(@) is float and (@ >= 1e-4 or @ <= -1e-4 or @ == 0.0) and -1e999 < @ < 1e999",  # NaN compares false
+        "_orjson(@)",
+        "_float_json(TOPIC, NAME, @)",
+    ),
+    "int": ("type(@) is int and -0x8000000000000000 <= @ <= 0x7FFFFFFFFFFFFFFF", "b'%d' % @", None),
+    "boolean": ("@ is True or @ is False", "(b'true' if @ else b'false')", None),
+    # other text: check_value finds lone surrogates
+    "string": ("type(@) is str and @.isascii()", "_json_str(@).encode()", None),
 }
 _FAST.update({t: _FAST["string"] for t in ("status", "image", "video")})
-_PLAIN_END = '}, "$data": '
-_EVENT_END = ', "event": true}, "$data": '
+_PLAIN_END = b'}, "$data": '
+_EVENT_END = b', "event": true}, "$data": '
 
 
-def _literal(text: str) -> str:
-    """ASCII JSON text as the literal part of a generated f-string in single quotes."""
-    return text.replace("\\", "\\\\").replace("'", "\\'").replace("{", "{{").replace("}", "}}")
+def _float_json(topic: str, field: str, value: Any) -> bytes:
+    """JSON text of a float field's value (Python's repr, as json.dumps writes it), checked by `check_value`."""
+    return repr(_checked(topic, field, "float", value)).encode()
+
+
+def _percent(text: str) -> bytes:
+    """ASCII text as the literal part of a bytes %-format."""
+    return text.replace("%", "%%").encode()
 
 
 class _Codec:
     """A topic compiled into two functions that validate records and return their JSON lines.
 
-    `line(data, timestamp, end)` takes one record as a dict; `series(end, timestamps, *columns)`
-    takes one list per field, in schema order, and returns the list of lines (an error names
-    the index). `end` closes `$metadata`: `_PLAIN_END` or `_EVENT_END`. The code is generated
-    (as dataclasses do) so that the common case runs without per-field loops or calls.
+    `line(data, timestamp, end)` takes one record as a dict and returns its line (bytes);
+    `series(end, timestamps, *columns)` takes one list per field, in schema order, and returns
+    the list of lines (an error names the index). `end` closes `$metadata`: `_PLAIN_END` or
+    `_EVENT_END`. The code is generated (as dataclasses do) so that the common case runs
+    without per-field loops or calls.
     """
 
     __slots__ = ("topic", "fields", "line", "series")
@@ -189,23 +204,30 @@ class _Codec:
 
     def _record(self, indent: str) -> list[str]:
         """Source lines that check `ts` and `v0`, `v1`, ... and build the JSON line `text`."""
-        names = [f"v{i}" for i in range(len(self.fields))]
         checks = ["if type(ts) is not int or not 0 <= ts <= 0x7FFFFFFFFFFFFFFF: ts = _check_timestamp(TOPIC, ts)"]
-        template = _literal(f'{{"$metadata": {{"topic": {_json_str(self.topic.name)}, "timestamp": ') + "{ts}{end}{{"
+        template = _percent(f'{{"$metadata": {{"topic": {_json_str(self.topic.name)}, "timestamp": ') + b"%d%b{"
+        texts = ["ts", "end"]
         for i, (name, field_type) in enumerate(self.topic.fields.items()):
-            v = names[i]
+            v, t = f"v{i}", f"t{i}"
             if field_type in _FAST:
-                test, text = (part.replace("@", v) for part in _FAST[field_type])
-                checks.append(f"if not ({test}): {v} = _checked(TOPIC, {name!r}, {field_type!r}, {v})")
+                test, fast, slow = (
+                    part and part.replace("@", v).replace("NAME", repr(name)) for part in _FAST[field_type]
+                )
+                if slow is None:
+                    checks.append(f"if not ({test}): {v} = _checked(TOPIC, {name!r}, {field_type!r}, {v})")
+                    checks.append(f"{t} = {fast}")
+                else:
+                    checks.append(f"{t} = {fast} if {test} else {slow}")
             else:
-                checks.append(f"{v} = _json_text(TOPIC, {name!r}, {field_type!r}, {v})")
-                text = "{" + v + "}"
-            template += _literal(("" if i == 0 else ", ") + _json_str(name) + ": ") + text
-        checks.append(f"text = f'{template}}}}}}}}}\\n'")
+                checks.append(f"{t} = _json_text(TOPIC, {name!r}, {field_type!r}, {v}).encode()")
+            texts.append(t)
+            template += _percent(("" if i == 0 else ", ") + _json_str(name) + ": ") + b"%b"
+        template += b"}}\n"
+        checks.append(f"text = {template!r} % ({', '.join(texts)})")
         checks.append("if len(text) > MAX_TEXT: _check_length(TOPIC, text)")
         return [indent + check for check in checks]
 
-    def _compile(self) -> tuple[Callable[..., str], Callable[..., list[str]]]:
+    def _compile(self) -> tuple[Callable[..., bytes], Callable[..., list[bytes]]]:
         names = "".join(f"v{i}, " for i in range(len(self.fields)))
         columns = "".join(f"c{i}, " for i in range(len(self.fields)))
         get = f"{names}= {''.join(f'data[{f!r}], ' for f in self.fields)}" if names else "pass"
@@ -234,6 +256,8 @@ class _Codec:
         ]
         namespace: dict[str, Any] = {
             "_json_str": _json_str,
+            "_orjson": orjson.dumps,
+            "_float_json": _float_json,
             "_checked": _checked,
             "_json_text": _json_text,
             "ValidationError": ValidationError,
@@ -244,7 +268,7 @@ class _Codec:
             "MAX_TEXT": MAX_LINE_BYTES + 1,
             "_check_length": _check_length,
         }
-        exec("\n".join(source), namespace)  # noqa: S102 - names are repr()'d, texts escaped by _literal
+        exec("\n".join(source), namespace)  # noqa: S102 - names and templates are repr()'d
         return namespace["line"], namespace["series"]
 
     def fields_of(self, data: Any) -> list[Any]:
@@ -421,7 +445,7 @@ class Emitter:
 
     def _start(self, chunk_lines: int, max_queued: int) -> None:
         """Fresh queue and lock, and the flusher thread unless every emit writes (`max_queued` 1)."""
-        self._queue: deque[str] = deque()  # appends and pops are atomic: emitting threads take no lock
+        self._queue: deque[bytes] = deque()  # appends and pops are atomic: emitting threads take no lock
         self._write_lock = threading.Lock()  # held while lines are taken and written: keeps their order
         self._wake = threading.Event()  # set: the flusher thread should write now (or stop, once closed)
         self._chunk_lines, self._max_queued = chunk_lines, max_queued
@@ -496,20 +520,24 @@ class Emitter:
                 raise exc.at(len(lines)) from None
         self._append(lines)
 
-    def _unvalidated_line(self, topic_name: Any, data: Any, timestamp: Any, end: str) -> str:
+    def _unvalidated_line(self, topic_name: Any, data: Any, timestamp: Any, end: bytes) -> bytes:
         if self.validation_enabled:
             hint = difflib.get_close_matches(str(topic_name), list(self.topics), n=1)
             known = f"did you mean {hint[0]!r}?" if hint else f"the config declares {', '.join(map(repr, self.topics))}"
             raise ValidationError(f"unknown topic; {known}", topic=topic_name)
         body = _plain_data_json(topic_name, data)
         timestamp = _check_timestamp(topic_name, timestamp)
-        line = f'{{"$metadata": {{"topic": {_json_str(topic_name)}, "timestamp": {timestamp}{end}{body}}}\n'
+        line = (
+            f'{{"$metadata": {{"topic": {_json_str(topic_name)}, "timestamp": {timestamp}'.encode()
+            + end
+            + f"{body}}}\n".encode()
+        )
         _check_length(topic_name, line)
         return line
 
     # --- buffering and writing ----------------------------------------------------------
 
-    def _append(self, lines: list[str]) -> None:
+    def _append(self, lines: list[bytes]) -> None:
         if self._stopped:
             self._raise_stopped()
         self._queue.extend(lines)
@@ -547,7 +575,7 @@ class Emitter:
         """
         queue = self._queue
         lines = [queue.popleft() for _ in range(len(queue))]
-        data = "".join(lines).encode()
+        data = b"".join(lines)
         done = 0
         try:
             while done < len(data):

@@ -204,6 +204,7 @@ _FILE_IO_ALLOWED = {
     ("lake/branch_configs.py", "_template_files"): "reads the user's template files to store them",
     ("gateway/cli/config.py", "schema_command"): "writes the user's --output file",
     ("gateway/cli/trino_ddl.py", "trino_ddl_command"): "writes the user's --output file",
+    ("gateway/cli/query.py", "_write_binary"): "writes the user's --output file (its .partial twin first)",
     ("gateway/cli/import_mcap.py", "import_mcap_command"): "writes the user's emissions file",
     ("gateway/cli/debug.py", "debug_command"): "removes its own temporary lake (tempfile)",
     ("gateway/dashboard/config_edits.py", "FileConfig.read"): "reads the user's config files",
@@ -214,6 +215,7 @@ _FILE_IO_ALLOWED = {
     ("gateway/metrics/trends.py", "write_trends"): "writes the user's trends file",
     ("gateway/metrics/compare_page.py", "write_compare"): "writes the user's comparison page",
     ("gateway/server/auth.py", "Users.load"): "reads the user's users file",
+    ("gateway/engine/process_memory.py", "statm"): "reads a process's memory size from /proc",
 }
 
 

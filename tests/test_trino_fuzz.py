@@ -39,9 +39,9 @@ def test_comparison_tells_answers_apart():
 
 
 @pytest.mark.skip(
-    reason="on the merged main the run hangs: every lakegate query slot ends up held by queries that do not stop "
-    "at their time limit (Python functions on the engine cannot be interrupted), so later queries wait forever; "
-    "run it by hand with `python3 dev.py fuzz --queries 2000 --seed 19` until that is fixed"
+    reason="the run no longer hangs (queries run in worker processes; one that outlives its time limit is "
+    "killed), and ends in about 13 minutes, but finds 39 differences that trino_fuzz_known.jsonl does not list "
+    "(the in-process engine gives the same answers to them): triage them, then remove this skip"
 )
 @pytest.mark.timeout(1800)  # a few minutes on an idle 2-core machine; far more when it is shared
 def test_fuzzed_queries_answer_as_trino_does(trino_url, tmp_path):

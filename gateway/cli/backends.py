@@ -10,8 +10,9 @@ from pathlib import Path
 from typing import Any
 
 from lakegate.gateway.cli.errors import UserError
-from lakegate.gateway.engine.backend import Backend, DuckDBBackend
+from lakegate.gateway.engine.backend import Backend
 from lakegate.gateway.engine.engine import Engine
+from lakegate.gateway.engine.isolated_backend import IsolatedBackend
 from lakegate.gateway.engine.trino_backend import TrinoBackend
 from lakegate.gateway.engine.trino_registration import RegistrationError, read_registration
 
@@ -134,7 +135,7 @@ def _placement(args: argparse.Namespace, lake: Path | None) -> dict[str, Any]:
 def backend_from_args(args: argparse.Namespace, lake: Path | None) -> Backend:
     """The backend the options choose (the caller closes it). UserError for inconsistent options."""
     if args.backend == "duckdb":
-        return DuckDBBackend(lake)
+        return IsolatedBackend(lake)
     if not args.trino_url:
         raise UserError("--backend trino needs --trino-url")
     return trino_connection(args, **_placement(args, lake))

@@ -253,6 +253,7 @@ def debug_command(args: argparse.Namespace) -> int:
     from lakegate.gateway.dashboard.config_edits import FileConfig, SessionError
     from lakegate.gateway.dashboard.debug_session import DashboardSession
     from lakegate.gateway.dashboard.routes import DashboardState, dashboard_router
+    from lakegate.gateway.engine.engine import Engine
     from lakegate.gateway.server.app import create_app
 
     if not is_loopback(args.host):
@@ -293,7 +294,7 @@ def debug_command(args: argparse.Namespace) -> int:
             rows = job.ingest(config)
         except (ValueError, LakePathError) as error:
             raise UserError(str(error)) from None
-        state = DashboardState(lake)
+        state = DashboardState(lake, Engine.open(lake, isolated=True))
         try:
             session = DashboardSession(
                 state.new_id(),
@@ -340,6 +341,7 @@ def debug_command(args: argparse.Namespace) -> int:
             sock.close()
         if state is not None:
             state.close()
+            state.engine.close()
         if scratch is not None:
             shutil.rmtree(scratch, ignore_errors=True)
     return 0

@@ -38,6 +38,8 @@ _DEFAULTS = Limits()
 STOP_GRACE = 3.5
 #: Longest the server keeps serving after a stop signal, for clients to fetch SERVER_SHUTTING_DOWN.
 DELIVERY_GRACE = 1.0
+#: Longest the server waits at start for its query worker processes (it serves anyway after).
+WORKERS_READY_SECONDS = 60.0
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -278,8 +280,8 @@ def serve_command(args: argparse.Namespace) -> int:
     import uvicorn  # the server's imports cost every other command their start-up time: load them here
 
     from lakegate.gateway.dashboard.routes import DashboardState, dashboard_router
-    from lakegate.gateway.engine.backend import DuckDBBackend
     from lakegate.gateway.engine.engine import Engine
+    from lakegate.gateway.engine.isolated_backend import IsolatedBackend
     from lakegate.gateway.server.app import create_app
     from lakegate.gateway.server.http_limits import server_config
 
@@ -300,7 +302,14 @@ def serve_command(args: argparse.Namespace) -> int:
     if args.backend == "trino":
         backend = backend_from_args(args, args.lake)
     else:
-        backend = DuckDBBackend(args.lake, memory_limit=args.memory_limit, threads=args.threads, limits=limits)
+        backend = IsolatedBackend(  # a worker for each slot, so that a burst of queries waits for none to start
+            args.lake,
+            memory_limit=args.memory_limit,
+            threads=args.threads,
+            limits=limits,
+            keep=limits.max_concurrent_queries,
+        )
+        backend.pool.wait_ready(WORKERS_READY_SECONDS)
     engine = Engine(backend, catalog=args.catalog, limits=limits, owns_backend=True)
     dashboard = DashboardState(args.lake, engine)
     stuck = 0

@@ -14,6 +14,7 @@ from lakegate.dialect.scope import Scope
 from lakegate.gateway.engine import session as sessions
 from lakegate.gateway.engine.backend import Backend, DuckDBBackend, QueryResult
 from lakegate.gateway.engine.introspection import CATALOG
+from lakegate.gateway.engine.isolated_backend import IsolatedBackend
 from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.engine.planner import Planner, static_result
 from lakegate.gateway.engine.session import Answer, Session
@@ -45,9 +46,11 @@ class Engine:
         self._owns_backend = owns_backend
 
     @classmethod
-    def open(cls, lake: Path | None, *, limits: Limits = Limits()) -> Engine:
-        """An engine over the embedded DuckDB backend of `lake` (None: no tables, constant queries only)."""
-        return cls(DuckDBBackend(lake, limits=limits), limits=limits, owns_backend=True)
+    def open(cls, lake: Path | None, *, limits: Limits = Limits(), isolated: bool = False) -> Engine:
+        """An engine over the embedded DuckDB backend of `lake` (None: no tables, constant queries only);
+        `isolated`: each query runs in a worker process (`IsolatedBackend`), as the commands run them."""
+        backend = IsolatedBackend(lake, limits=limits) if isolated else DuckDBBackend(lake, limits=limits)
+        return cls(backend, limits=limits, owns_backend=True)
 
     def session(
         self,

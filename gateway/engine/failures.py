@@ -24,7 +24,10 @@ def duckdb_failure(error: BaseException) -> DialectError:
     if isinstance(error, duckdb.InterruptException) or "INTERRUPT Error" in str(error):
         return DialectError("Query was canceled", error_name="USER_CANCELED")
     if isinstance(error, duckdb.OutOfMemoryException) or "Out of Memory Error" in str(error):
-        return DialectError(f"Query exceeded the memory limit: {error}", error_name="EXCEEDED_GLOBAL_MEMORY_LIMIT")
+        return DialectError(
+            "Query exceeded the memory limit: it needs more memory than the limit (--memory-limit) leaves it",
+            error_name="EXCEEDED_GLOBAL_MEMORY_LIMIT",
+        )
     return runtime_error(str(error))
 
 

@@ -3,8 +3,11 @@
 The life of each query (worker threads, pages, the reaper) is gateway/server/query_lifecycle.py.
 
 Routes: /v1/statement, /v1/statement/executing/{id}/{slug}/{token} (GET, HEAD, DELETE),
-/v1/query/{id} (GET, DELETE), /v1/info, /v1/info/state. With `users`, every route but /v1/info and
-/v1/info/state needs HTTP Basic credentials (checked by `http_limits.Guard` before a body is read)."""
+/v1/query/{id} (GET, DELETE), /v1/spooled/download/{segment} (GET, DELETE) and
+/v1/spooled/ack/{segment} (GET) of the spooling protocol (`spooling`), /v1/arrow (POST: a result as
+Arrow IPC, `arrow_results`), /v1/info, /v1/info/state. With `users`, every route but /v1/info,
+/v1/info/state and the spooled segments needs HTTP Basic credentials (checked by
+`http_limits.Guard` before a body is read)."""
 
 from __future__ import annotations
 
@@ -24,6 +27,7 @@ from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.planner import static_result
 from lakegate.gateway.engine.session import Answer, Session
 from lakegate.gateway.engine.trino_values import encode_rows
+from lakegate.gateway.server import arrow_results, spooling
 from lakegate.gateway.server.auth import Users
 from lakegate.gateway.server.host_check import HostCheck
 from lakegate.gateway.server.http_limits import Guard, authenticated_user
@@ -34,7 +38,7 @@ from lakegate.gateway.server.protocol import (
     info_document,
     results_document,
 )
-from lakegate.gateway.server.query_lifecycle import Query, QueryManager
+from lakegate.gateway.server.query_lifecycle import SPOOLED_BYTES, Query, QueryManager
 
 JSON = "application/json"
 
@@ -106,11 +110,25 @@ class _Endpoints:
         name = sessions.statement_name(sql)
         if name is not None or guard.classify(sql) == "call":
             return await self._answer(sql, session, base, is_session=name is not None)
-        query = self.manager.create(sql, session)
+        query = self.manager.create(sql, session, spooling.negotiate(request.headers.get(spooling.HEADER)))
         if query.failure is not None:  # refused (queue full)
             return Response(query.first_document(base), media_type=JSON)
         self.manager.start(query)
         return Response(await query.answer(base, self.limits.answer_wait), media_type=JSON)
+
+    async def post_arrow(self, request: Request) -> Response:
+        """POST /v1/arrow: the query's result as an Arrow IPC stream (`arrow_results`)."""
+        user = authenticated_user(request.scope)
+        if user is not None and request.headers.get("x-trino-user") not in (None, user):
+            return PlainTextResponse(
+                f"Access Denied: User {user} cannot impersonate user {request.headers['x-trino-user']}", 403
+            )
+        try:
+            session = sessions.from_headers(request.headers, user)
+            sql = (await request.body()).decode("utf-8")
+        except (sessions.HeaderError, UnicodeDecodeError) as error:
+            return PlainTextResponse(str(error), 400)
+        return await arrow_results.arrow_response(self.engine.planner, sql, session, self.limits)
 
     async def _answer(self, sql: str, session: Session, base: str, *, is_session: bool) -> Response:
         """A session statement or CALL, answered at once."""
@@ -154,6 +172,19 @@ class _Endpoints:
             return PlainTextResponse(f"Query {request.path_params['query_id']} not found", 404)
         return Response(orjson.dumps(query.info()), media_type=JSON)
 
+    async def get_segment(self, request: Request) -> Response:
+        """A spooled segment's payload (GET its `uri`)."""
+        payload = self.manager.segments.get(request.path_params["segment_id"])
+        if payload is None:
+            return PlainTextResponse("Segment not found (unknown, acknowledged or expired)", 404)
+        return Response(payload, media_type="application/octet-stream")
+
+    async def ack_segment(self, request: Request) -> Response:
+        """Acknowledge a spooled segment (GET its `ackUri`, or DELETE its `uri`): it is forgotten."""
+        if not self.manager.segments.ack(request.path_params["segment_id"]):
+            return PlainTextResponse("Segment not found (unknown, acknowledged or expired)", 404)
+        return Response(status_code=200)
+
     async def get_info(self, request: Request) -> Response:
         return Response(info_document(self.started), media_type=JSON)
 
@@ -190,7 +221,8 @@ def create_app(
     owner closes it).
     """
     limits = engine.limits
-    manager = QueryManager(engine.planner, limits)
+    segments = spooling.SegmentStore(ttl=limits.client_timeout, max_bytes=SPOOLED_BYTES)
+    manager = QueryManager(engine.planner, limits, segments)
     engine.list_queries(
         lambda user: [query.row() for query in manager.queries() if users is None or query.session.user == user]
     )
@@ -201,15 +233,19 @@ def create_app(
         await run_in_threadpool(manager.close)
 
     app = FastAPI(title="lakegate", lifespan=lifespan, docs_url=None, redoc_url=None, openapi_url=None)
-    app.state.manager, app.state.engine = manager, engine
+    app.state.manager, app.state.engine, app.state.segments = manager, engine, segments
     endpoints = _Endpoints(manager, engine, users)
     executing = "/v1/statement/executing/{query_id}/{slug}/{token:int}"
     app.add_route("/v1/statement", endpoints.post_statement, methods=["POST"])
+    app.add_route(arrow_results.PATH, endpoints.post_arrow, methods=["POST"])
     app.add_route(executing, endpoints.head_results, methods=["HEAD"])  # before GET, which also matches HEAD
     app.add_route(executing, endpoints.get_results, methods=["GET"])
     app.add_route(executing, endpoints.delete, methods=["DELETE"])
     app.add_route("/v1/query/{query_id}", endpoints.get_query, methods=["GET"])
     app.add_route("/v1/query/{query_id}", endpoints.delete, methods=["DELETE"])
+    app.add_route(spooling.SEGMENT_PATH, endpoints.get_segment, methods=["GET"])
+    app.add_route(spooling.SEGMENT_PATH, endpoints.ack_segment, methods=["DELETE"])
+    app.add_route(spooling.ACK_PATH, endpoints.ack_segment, methods=["GET"])
     app.add_route("/v1/info", endpoints.get_info, methods=["GET"])
     app.add_route("/v1/info/state", endpoints.get_state, methods=["GET"])
     if dashboard_router is not None:

@@ -1,7 +1,9 @@
 """What one HTTP request may cost the server, enforced before the app sees it.
 
 `Guard` is pure ASGI middleware around the whole app (the dashboard's routes included): with a
-users file it authenticates every request but the public probes (`/v1/info`, `/v1/info/state`)
+users file it authenticates every request but the public probes (`/v1/info`, `/v1/info/state`) and
+the spooled segments (`/v1/spooled/...`, reached by a 256-bit random name, as Trino's segment
+resource is public and the trino client fetches segments without credentials)
 before any body is read, then refuses a body over `Limits.max_body` by its Content-Length, or
 while it streams in, with HTTP 413. A client that goes away mid-request ends its request quietly.
 
@@ -36,6 +38,8 @@ log = logging.getLogger("lakegate.server")
 
 #: Paths anyone may read, as in Trino (ServerInfoResource: @ResourceSecurity(PUBLIC)).
 PUBLIC_PATHS = frozenset({"/v1/info", "/v1/info/state"})
+#: Path prefixes anyone may read (Trino's SegmentResource: @ResourceSecurity(PUBLIC)).
+PUBLIC_PREFIXES = ("/v1/spooled/",)
 UNAUTHORIZED = "Unauthorized: a valid user name and password are needed (HTTP Basic)"
 STATEMENT_PATH = "/v1/statement"
 
@@ -84,7 +88,9 @@ class Guard:
     async def __call__(self, scope: Scope, receive: Receive, send: Send) -> None:
         if scope["type"] != "http":
             return await self.app(scope, receive, send)
-        if self.users is not None and scope["path"] not in PUBLIC_PATHS and not await self._login(scope, send):
+        path = scope["path"]
+        public = path in PUBLIC_PATHS or path.startswith(PUBLIC_PREFIXES)
+        if self.users is not None and not public and not await self._login(scope, send):
             return
         length = _content_length(scope)
         if length is not None and length > self.limits.max_body:

@@ -19,6 +19,11 @@ DuckDB work is interrupted, and Python work still planning it (parsing, translat
 an exception raised in the worker. Its slot is free at once: the worker counts as a "zombie" until
 it returns, and at most `max_concurrent_queries` zombies are counted apart, so runaway work never
 jams the server. Shutdown waits at most `SHUTDOWN_GRACE` seconds for workers.
+
+A client that names encodings in `X-Trino-Query-Data-Encoding` gets its GET pages as segments of
+Trino's spooling protocol (`spooling`): the worker also encodes each page, small ones are inlined,
+larger ones are kept in the app's `SegmentStore` until acknowledged or expired (the reaper expires
+them; a finished query's segments stay for a client still reading them).
 """
 
 from __future__ import annotations
@@ -46,6 +51,7 @@ from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.engine.planner import Planner
 from lakegate.gateway.engine.session import Session
 from lakegate.gateway.engine.trino_values import encode_columns
+from lakegate.gateway.server import spooling
 from lakegate.gateway.server.protocol import (
     Failure,
     Progress,
@@ -58,8 +64,9 @@ log = logging.getLogger("lakegate.server")
 
 #: Pages a worker may have ready before it waits for the client.
 BUFFERED_PAGES = 2
-#: Rows in a query's first page (later pages are sized to about Limits.page_bytes).
-FIRST_PAGE_ROWS = 1024
+#: Rows in a query's first page (later pages are sized to about Limits.page_bytes); as many as a
+#: segment Trino inlines, so that the spooling protocol's first segment is inline.
+FIRST_PAGE_ROWS = spooling.INLINE_MAX_ROWS
 MAX_PAGE_ROWS = 65_536
 #: The largest page that may also be a query's last document (larger ones get a last document of
 #: their own, so that a finished query keeps little for a retried request).
@@ -68,12 +75,16 @@ FINAL_PAGE_BYTES = 65_536
 REAP_INTERVAL = 0.25
 #: Longest shutdown waits for workers to stop (they are daemon threads: the process may end without them).
 SHUTDOWN_GRACE = 1.0
+#: Payload bytes of spooled segments the server holds at once; past them pages are inlined.
+SPOOLED_BYTES = 256 * 1024 * 1024
 
 
 @dataclass
 class _Page:
     data: bytes  # the JSON array of rows
     rows: int
+    payload: bytes | None = None  # the rows as a spooling segment's payload, when the client chose an encoding
+    sizes: dict[str, int] | None = None  # the payload's size attributes
 
 
 class _Stopped(Exception):
@@ -125,8 +136,18 @@ def _injected_planning_work(sql: str) -> None:
 class Query:
     """One statement: its state, the pages its worker produced, and the documents served so far."""
 
-    def __init__(self, query_id: str, sql: str, session: Session, dequeued: Callable[[], None] = lambda: None):
+    def __init__(
+        self,
+        query_id: str,
+        sql: str,
+        session: Session,
+        dequeued: Callable[[], None] = lambda: None,
+        *,
+        encoding: str | None = None,
+        segments: spooling.SegmentStore | None = None,
+    ):
         self.id, self.sql, self.session = query_id, sql, session
+        self.encoding, self._segments = encoding if segments is not None else None, segments
         self._dequeued = dequeued  # called once, when the query leaves the queue (runs or fails)
         self.slug = secrets.token_hex(8)
         self.lock = threading.Lock()
@@ -146,6 +167,7 @@ class Query:
         self.done = False  # the worker produced everything, or the query failed
         self.final = False  # the last document was served
         self.rows = 0
+        self.served_rows = 0  # rows of the documents served so far (a spooling segment's rowOffset)
         self.bytes = 0
         self.created = _now()
         self.started_at: datetime | None = None
@@ -311,6 +333,7 @@ class Query:
         with self.lock:
             whole = self.failure is not None or (self.done and self._fits())
             page = self._pages.popleft() if whole and self._pages else None
+            self.served_rows += 0 if page is None else page.rows
             self.final = whole
             self.body = self.document(base, 0, data=None if page is None else page.data, last=whole)
         return self.body
@@ -357,7 +380,7 @@ class Query:
                     self._space.notify_all()
                     last = self.done and not self._pages and self.failure is None and len(page.data) <= FINAL_PAGE_BYTES
                     self.final = last
-                    return self.document(base, token, data=page.data, last=last)
+                    return self.document(base, token, data=self._data(page, base), last=last)
                 version, done = self._version, self.done
             if done:
                 return self._last(base, token)
@@ -366,6 +389,21 @@ class Query:
                 with self.lock:
                     return self.document(base, token)
             await self._changes(version, remaining)
+
+    def _data(self, page: _Page, base: str) -> bytes:
+        """A GET reply's `data`: the page's rows, or its segment under the spooling protocol (lock held)."""
+        offset, self.served_rows = self.served_rows, self.served_rows + page.rows
+        if page.payload is None or self.encoding is None or self._segments is None:
+            return page.data
+        return spooling.segments_data(
+            self.encoding,
+            page.payload,
+            page.sizes or {},
+            rows=page.rows,
+            row_offset=offset,
+            base=base,
+            store=self._segments,
+        )
 
     def _last(self, base: str, token: int) -> bytes:
         with self.lock:
@@ -426,14 +464,20 @@ class Query:
         )
 
 
-def _pages(columns: Sequence[tuple[str, str]], batches: Iterator[pa.RecordBatch], limits: Limits) -> Iterator[_Page]:
-    """The result's rows as pages of JSON (sized to about limits.page_bytes); a result with more
-    than limits.max_rows rows fails."""
+def _pages(
+    columns: Sequence[tuple[str, str]], batches: Iterator[pa.RecordBatch], limits: Limits, encoding: str | None = None
+) -> Iterator[_Page]:
+    """The result's rows as pages of JSON (sized to about limits.page_bytes: a page holds fewer rows
+    when their Arrow data is larger, a single row when one is), each also encoded as a spooling
+    segment's payload when the client chose an `encoding`; a result with more than
+    limits.max_rows rows fails."""
     seen, chunk = 0, FIRST_PAGE_ROWS
     for batch in batches:
         offset = 0
         while offset < batch.num_rows:
             part = batch.slice(offset, chunk)
+            if part.num_rows > 1 and part.nbytes > limits.page_bytes:  # wide rows: fewer of them
+                part = batch.slice(offset, max(1, part.num_rows * limits.page_bytes // part.nbytes))
             seen += part.num_rows
             if seen > limits.max_rows:
                 raise DialectError(
@@ -442,7 +486,10 @@ def _pages(columns: Sequence[tuple[str, str]], batches: Iterator[pa.RecordBatch]
                     error_name="GENERIC_INSUFFICIENT_RESOURCES",
                 )
             data = orjson.dumps(list(zip(*encode_columns(columns, part))))  # rows as tuples: cheaper than lists
-            yield _Page(data, part.num_rows)
+            if encoding is None:
+                yield _Page(data, part.num_rows)
+            else:
+                yield _Page(data, part.num_rows, *spooling.encode(encoding, data))
             offset += part.num_rows
             chunk = max(1, min(MAX_PAGE_ROWS, limits.page_bytes * part.num_rows // max(1, len(data))))
 
@@ -452,8 +499,8 @@ class QueryManager:
     module docstring), a bounded queue, and the reaper that enforces the time limit, abandons
     queries clients left and forgets old ones."""
 
-    def __init__(self, planner: Planner, limits: Limits):
-        self.planner, self.limits = planner, limits
+    def __init__(self, planner: Planner, limits: Limits, segments: spooling.SegmentStore | None = None):
+        self.planner, self.limits, self.segments = planner, limits, segments
         self.ids = QueryIds()
         self._queries: dict[str, Query] = {}
         self._lock = threading.Lock()
@@ -467,13 +514,20 @@ class QueryManager:
         self._reaper = threading.Thread(target=self._reap, name="lakegate-reaper", daemon=True)
         self._reaper.start()
 
-    def create(self, sql: str, session: Session) -> Query:
+    def create(self, sql: str, session: Session, encoding: str | None = None) -> Query:
         """A new query for one statement, queued (`start` hands it to a worker), or failed with
-        QUERY_QUEUE_FULL when too many wait."""
+        QUERY_QUEUE_FULL when too many wait. `encoding`: the spooling protocol's, if the client chose one."""
         with self._lock:
             full = self._waiting >= self.limits.max_queued_queries
             self._waiting += 0 if full else 1
-        query = Query(self.ids.next(), sql, session, dequeued=(lambda: None) if full else self._dequeued)
+        query = Query(
+            self.ids.next(),
+            sql,
+            session,
+            dequeued=(lambda: None) if full else self._dequeued,
+            encoding=encoding,
+            segments=self.segments,
+        )
         with self._lock:
             self._queries[query.id] = query
             closing = self._closing
@@ -567,7 +621,7 @@ class QueryManager:
             batches = result.batches
             query.attach(result)
             held = None  # each page waits for the next, so that the last one ends the query with it
-            for page in _pages(result.columns, batches, self.limits):
+            for page in _pages(result.columns, batches, self.limits, query.encoding):
                 if held is not None:
                     query.put(held)
                 held = page
@@ -637,6 +691,8 @@ class QueryManager:
                 if query.done and not query.working and idle > limits.retention:
                     with self._lock:
                         self._queries.pop(query.id, None)
+            if self.segments is not None:
+                self.segments.expire(now)
 
     def shut_down(self) -> list[Query]:
         """Refuse new queries and fail every query now (SERVER_SHUTTING_DOWN), so that each client

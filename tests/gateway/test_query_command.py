@@ -129,3 +129,87 @@ def test_a_missing_lake_or_branch_is_a_user_error(tmp_path, lake):
     assert done.returncode == 1 and done.stderr.startswith("lakegate: no lake at ")
     done = lakegate("--lake", str(lake), "--branch", "feature/x", "SELECT 1")
     assert done.returncode == 1 and "Schema 'feature/x' does not exist" in done.stderr
+
+
+# --- binary formats for dataframes --------------------------------------------------------------
+
+BULK_SQL = (
+    "SELECT a.x * 1000 + b.y AS n, CAST(a.x AS double) / 7 AS d, REAL '1.1' AS r, "
+    "'r' || CAST(b.y AS varchar) AS label, "
+    "date_add('day', a.x, DATE '2020-01-01') AS day, CAST(b.y AS decimal(10, 2)) / 4 AS price, "
+    "TIMESTAMP '2020-01-01 00:00:00.123456' AS ts, ARRAY[a.x, NULL] AS arr, IF(b.y = 2, NULL, b.y > 1) AS flag "
+    "FROM UNNEST(sequence(1, 30)) AS a(x) CROSS JOIN UNNEST(sequence(1, 70)) AS b(y)"
+)
+
+
+def _binary(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "lakegate.gateway.cli", "query", *args], capture_output=True, timeout=120
+    )
+
+
+def _json_rows(sql: str, *args: str) -> dict:
+    done = lakegate("--format", "json", *args, sql)
+    assert done.returncode == 0, done.stderr
+    return json.loads(done.stdout)
+
+
+def _as_protocol_values(table, columns: list[dict]) -> list[list]:
+    """The Arrow table's values in the JSON output's encoding, through the same encoder."""
+    from lakegate.gateway.engine.trino_values import encode_rows
+
+    pairs = [(c["name"], c["type"]) for c in columns]
+    return [list(row) for batch in table.to_batches() for row in encode_rows(pairs, batch)]
+
+
+def test_arrow_format_holds_the_values_and_types_of_the_json_format():
+    import pyarrow as pa
+
+    done = _binary("--format", "arrow", BULK_SQL)
+    assert done.returncode == 0, done.stderr
+    table = pa.ipc.open_stream(done.stdout).read_all()
+    expected = _json_rows(BULK_SQL)
+    assert table.num_rows == 2100
+    assert [(f.name, f.metadata[b"trino_type"].decode()) for f in table.schema] == [
+        (c["name"], c["type"]) for c in expected["columns"]
+    ]
+    assert [str(f.type) for f in table.schema] == [
+        *("int64", "double", "float", "string", "date32[day]", "decimal128(10, 2)"),
+        *("timestamp[us]", "list<item: int64>", "bool"),
+    ]
+    assert _as_protocol_values(table, expected["columns"]) == expected["rows"]
+    frame = table.to_pandas()
+    assert frame["n"].sum() == sum(x * 1000 + y for x in range(1, 31) for y in range(1, 71))
+
+
+def test_parquet_format_to_a_file_on_a_lake(lake, tmp_path):
+    import pyarrow.parquet as pq
+
+    sql = "SELECT job_id, timestamp FROM odom ORDER BY job_id, timestamp"
+    out = tmp_path / "odom.parquet"
+    done = _binary("--lake", str(lake), "--format", "parquet", "--output", str(out), sql)
+    assert done.returncode == 0, done.stderr
+    table = pq.read_table(out)
+    expected = _json_rows(sql, "--lake", str(lake))
+    assert _as_protocol_values(table, expected["columns"]) == expected["rows"]
+    assert not list(tmp_path.glob("*.partial"))
+
+
+def test_binary_formats_refuse_types_arrow_cannot_carry(tmp_path):
+    out = tmp_path / "zoned.arrow"
+    done = lakegate("--format", "arrow", "--output", str(out), "SELECT current_timestamp AS now, 1 AS one")
+    assert done.returncode == 1
+    assert done.stderr == (
+        "lakegate: column 'now' of type timestamp(3) with time zone cannot be written as Arrow or Parquet "
+        "(Arrow keeps no time zone per value): use --format json or csv, or CAST it (for example to varchar)\n"
+    )
+    assert not out.exists() and not list(tmp_path.iterdir())
+    done = lakegate("--format", "parquet", "--output", str(out), "SELECT CAST(NULL AS timestamp(9)) AS t")
+    assert done.returncode == 1 and "Arrow keeps at most microseconds" in done.stderr
+
+
+def test_a_run_time_error_leaves_no_binary_file(tmp_path):
+    out = tmp_path / "r.parquet"
+    done = lakegate("--format", "parquet", "--output", str(out), "SELECT ARRAY[1, 2][5]")
+    assert done.returncode == 1 and "subscript" in done.stderr
+    assert not list(tmp_path.iterdir())

@@ -630,6 +630,35 @@ def test_written_floats_round_trip_exactly(emitter: Emitter, out: Path):
     assert [line["$data"]["speed"] for line in read_lines(out)] == values
 
 
+def test_float_text_is_json_dumps_text_at_every_magnitude(emitter: Emitter, out: Path):
+    """Floats are written as json.dumps (Python's repr) writes them, byte for byte: random bit
+    patterns, every power of ten, and the magnitudes below 1e-4 where other shortest-digit
+    formatters choose another notation ("0.00001" or "1e-7" for repr's "1e-05", "1e-07")."""
+    import random
+    import struct
+
+    rng = random.Random(3)
+    values = [struct.unpack("<d", struct.pack("<Q", rng.getrandbits(64)))[0] for _ in range(20_000)]
+    values += [sign * 10.0**e for e in range(-323, 308) for sign in (1, -1)]
+    values += [rng.uniform(-10, 10) * 10.0**e for e in range(-12, 20) for _ in range(200)]
+    values += [0.0, -0.0, 1e-4, -1e-4, 9.999999999999999e-05, 1e16, 9999999999999998.0, 5e-324]
+    values = [v for v in values if v == v and abs(v) != float("inf")]
+    stamps = list(range(len(values)))
+    emitter.emit_series("robot_speed", {"speed": values}, stamps)
+    for i in range(0, len(values), 97):
+        emitter.emit("robot_speed", {"speed": values[i]}, timestamp=i)
+    emitter.close()
+    expected = [
+        json.dumps({"$metadata": {"topic": "robot_speed", "timestamp": i}, "$data": {"speed": v}})
+        for i, v in enumerate(values)
+    ]
+    expected += [
+        json.dumps({"$metadata": {"topic": "robot_speed", "timestamp": i}, "$data": {"speed": values[i]}})
+        for i in range(0, len(values), 97)
+    ]
+    assert out.read_text().splitlines() == expected
+
+
 # --- text that is not valid Unicode -------------------------------------------------------
 
 LONE = "\ud800"

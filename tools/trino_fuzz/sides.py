@@ -43,7 +43,7 @@ class Lakegate:
     """lakegate's Engine over the lake, in a UTC session on branch `main`."""
 
     def __init__(self, lake: Path):
-        self.engine = Engine.open(lake, limits=Limits(query_timeout=QUERY_SECONDS))
+        self.engine = Engine.open(lake, limits=Limits(query_timeout=QUERY_SECONDS), isolated=True)
         self.session = self.engine.session(branch="main", time_zone="UTC")
 
     def run(self, sql: str) -> Outcome:

@@ -231,6 +231,46 @@ class _Parser(Trino.Parser):
             self.raise_error("mismatched input '['. Expecting: '('")
         return super()._parse_in(this, alias)
 
+    def _parse_table(self, *args, **kwargs):
+        # SqlBase.g4 #relationPrimary: a table is named, never a parameter (`FROM ?`)
+        if self._curr is not None and self._curr.token_type == TokenType.PLACEHOLDER:
+            raise _mismatched(self._curr, "Expecting: '(', 'JSON_TABLE', 'LATERAL', 'TABLE', 'UNNEST', <identifier>")
+        return super()._parse_table(*args, **kwargs)
+
+    def _parse_version(self):
+        # SqlBase.g4 #queryPeriod: FOR (TIMESTAMP | VERSION) AS OF expression, which the lake's
+        # tables do not support, as Trino's Hive connector
+        if self._curr is not None and self._curr.text.upper() == "FOR" and self._next is not None:
+            if self._next.text.upper() not in ("TIMESTAMP", "VERSION"):
+                raise _mismatched(self._next, "Expecting: 'TIMESTAMP', 'VERSION'")
+            raise DialectError("This connector does not support versioned tables", error_name="NOT_SUPPORTED")
+        return super()._parse_version()
+
+    def _parse_join(self, skip_join_token: bool = False, parse_bracket: bool = False, alias_tokens=None):
+        # SqlBase.g4 #joinRelation: a JOIN other than CROSS or NATURAL needs ON or USING (sqlglot
+        # reads `a JOIN b` as a cross join, and DuckDB's `a POSITIONAL JOIN b` as `a AS positional JOIN b`)
+        comma = self._curr is not None and self._curr.token_type == TokenType.COMMA
+        join = super()._parse_join(skip_join_token, parse_bracket, alias_tokens)
+        if (
+            join is not None
+            and not comma
+            and not skip_join_token
+            and join.args.get("kind") != "CROSS"
+            and not join.args.get("method")
+            and not join.args.get("on")
+            and not join.args.get("using")
+        ):
+            if self._curr is None or self._curr.token_type == TokenType.SENTINEL:
+                end = self._prev
+                raise DialectError(
+                    "mismatched input '<EOF>'. Expecting: 'ON', 'USING'",
+                    line=end.line,
+                    column=end.col + 1,
+                    error_name="SYNTAX_ERROR",
+                )
+            raise _mismatched(self._curr, "Expecting: 'ON', 'USING'")
+        return join
+
 
 class _Generator(Trino.Generator):
     # The SQL/JSON clauses _Parser keeps in meta, written back (the query forwarded to Trino).

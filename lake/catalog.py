@@ -24,7 +24,6 @@ from pathlib import Path
 from typing import NamedTuple
 
 import duckdb
-import pyarrow as pa
 
 from lakegate.lake import paths
 from lakegate.lake.branch_configs import BranchConfigs
@@ -296,19 +295,14 @@ class Catalog:
         return f"SELECT {', '.join(items)} FROM {source}"
 
     def unreadable(self, branch: str) -> list[tuple[FileEntry, str]]:
-        """The branch's files whose Parquet footer cannot be read, with why (reads every footer)."""
+        """The branch's files that cannot be read whole, with why (reads every file whole:
+        `LakeStorage.damage`, so corruption inside a file is found too)."""
         root = paths.branch_dir(self.lake, branch)
         found = []
         problems: dict[str, str | None] = {}  # path -> why (a shared file is read once)
         for entry in self.snapshot(branch).files:
             if entry.path not in problems:
-                problems[entry.path] = None
-                try:
-                    LOCAL.parquet_file(root / entry.path)
-                except FileNotFoundError:
-                    problems[entry.path] = "the file is missing"
-                except (OSError, pa.ArrowException):
-                    problems[entry.path] = "the file is corrupt or not Parquet"
+                problems[entry.path] = LOCAL.damage(root / entry.path)
             if problems[entry.path] is not None:
                 found.append((entry, problems[entry.path]))
         return found

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ruamel.yaml import YAML
+from ruamel.yaml.composer import MaxDepthExceededError
 from ruamel.yaml.constructor import SafeConstructor
 from ruamel.yaml.error import MarkedYAMLError
 from ruamel.yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
@@ -35,6 +36,10 @@ _NOTHING = object()
 RawProblem = tuple[str, int, int, str]
 #: A warning as (path, line, column, message, what lakegate does instead of refusing).
 RawWarning = tuple[str, int, int, str, str]
+#: The largest config file read (bytes): far above any real config, and composed in seconds.
+MAX_FILE_BYTES = 2 * 1024 * 1024
+#: The deepest nesting of mappings and lists in a config file (a real one nests about 6 levels).
+MAX_DEPTH = 64
 #: What an empty (null) value of a nullable key stands for.
 _EMPTY = {"names": list, "named": list, "data": dict, "fields": dict, "section": dict}
 
@@ -98,6 +103,7 @@ class FileReader:
         self.problems = problems
         self.warnings = warnings
         self._yaml = YAML(typ="safe", pure=True)
+        self._yaml.max_depth = MAX_DEPTH
         self._yaml.allow_duplicate_keys = True  # reported by `items` with both places
         self._constructor: SafeConstructor = self._yaml.constructor
 
@@ -127,12 +133,21 @@ class FileReader:
         """The file's root node, or None (with a problem) when it cannot be read or parsed."""
         try:
             with open(self.path, encoding="utf-8") as stream:
-                text = stream.read()
+                text = stream.read(MAX_FILE_BYTES + 1)
         except (OSError, UnicodeDecodeError) as exc:
             self.problems.append((self.path, 0, 0, f"cannot read the file: {exc}"))
             return None
+        if len(text.encode("utf-8", "surrogatepass")) > MAX_FILE_BYTES:
+            message = f"the file is larger than {MAX_FILE_BYTES:,} bytes, the limit of a config file"
+            self.problems.append((self.path, 0, 0, message))
+            return None
         try:
             root = self._yaml.compose(text)
+        except MaxDepthExceededError as exc:
+            mark = exc.problem_mark
+            message = f"mappings and lists nest deeper than {MAX_DEPTH} levels, the limit of a config file"
+            self.problems.append((self.path, mark.line + 1, mark.column + 1, message))
+            return None
         except MarkedYAMLError as exc:
             self._yaml_error(exc)
             return None

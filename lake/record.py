@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import errno
 import functools
 import json
 import os
@@ -46,7 +47,8 @@ RECORD = "_lake.sqlite"
 #: How long a superseded file stays readable by lakegate's queries that listed it (its hidden link).
 GRACE_SECONDS = 120
 #: Test hook: `<point>:<marker file>` makes a writer touch the marker and stop for a minute at that
-#: point (`added`: after its first file is published; `commit`: just before its record commit).
+#: point, or until the marker is removed (`added`: after its first file is published; `commit`: just
+#: before its record commit).
 PAUSE_ENV = "LAKEGATE_TEST_PAUSE"
 #: How long a writer or reader waits for another's transaction before giving up (ms).
 BUSY_TIMEOUT_MS = 60_000
@@ -128,6 +130,36 @@ def describe_file(root: Path, table: str, batch_id: str, job_id: str, path: Path
     return FileEntry(table, batch_id, job_id, path.relative_to(root).as_posix(), meta.num_rows, low, high, names)
 
 
+@dataclass
+class JobVersions:
+    """The versions of a batch's jobs (`Record.job_versions`) a commit was computed for."""
+
+    batch_id: str
+    versions: dict[str, int]
+
+
+class StaleJobsError(RuntimeError):
+    """A commit made for some versions of a batch's jobs found others: a job was re-ingested,
+    rewritten (its file shared with a re-ingested or compacted job), added or dropped since those
+    versions were read (`jobs`: the jobs that differ)."""
+
+    def __init__(self, batch_id: str, jobs: Sequence[str], *, attempts: int = 1):
+        self.batch_id, self.jobs = batch_id, list(jobs)
+        shown = ", ".join(repr(job) for job in self.jobs)
+        message = (
+            f"job(s) {shown} of batch {batch_id!r} changed during the evaluation "
+            "(re-ingested, rewritten, added or removed)"
+        )
+        if attempts > 1:
+            message += f", in each of {attempts} attempts: nothing was written"
+        super().__init__(message)
+
+
+_VERSIONS = (
+    "SELECT job_id, max(commit_id) FROM files WHERE batch_id = ? AND job_id != '' AND table_name != ? GROUP BY job_id"
+)
+
+
 class Record:
     """The file record of one branch (the connection is opened lazily, and may serve several threads)."""
 
@@ -203,6 +235,15 @@ class Record:
         shared = frozenset(e.path for e in entries if e.job_id) if job_id is not None else frozenset()
         return Snapshot(generation, entries, tables, shared)
 
+    def job_versions(self, batch_id: str) -> dict[str, int]:
+        """Each job of the batch and its version: the last commit that wrote any of its tables
+        (`metric_results` aside), which a re-ingest (or a compaction) changes."""
+        if not LOCAL.is_dir(self.root):
+            return {}
+        db = self._connect()
+        with _transaction(db):
+            return dict(db.execute(_VERSIONS, (batch_id, paths.METRIC_RESULTS_TABLE)).fetchall())
+
     def batches(self) -> list[str]:
         """The batches with at least one job (a `metadata` row), sorted (read from the index alone)."""
         if not LOCAL.is_dir(self.root):
@@ -251,12 +292,20 @@ class Record:
         *,
         layout: int | None = None,
         logs: Sequence[tuple[str, str, str]] = (),
+        expect: JobVersions | None = None,
     ) -> list[str]:
         """One transaction: drop every table's rows of `drop_jobs` (batch, job), replace the rows of
         `entries`' keys by them, record each job's logs folder of `logs` (batch, job, path), add a
-        commit (and set the branch's `layout`); returns the paths no row references any more."""
+        commit (and set the branch's `layout`); returns the paths no row references any more.
+        `expect`: the commit is made only if the batch's jobs still have those versions (else
+        StaleJobsError, nothing changed), and the versions this commit gives its jobs go into it."""
         db = self._connect()
         with _transaction(db, immediate=True):
+            if expect is not None:
+                now = dict(db.execute(_VERSIONS, (expect.batch_id, paths.METRIC_RESULTS_TABLE)).fetchall())
+                changed = sorted(set(now) ^ set(expect.versions) | {j for j in now if now[j] != expect.versions.get(j)})
+                if changed:
+                    raise StaleJobsError(expect.batch_id, changed)
             if logs:
                 db.execute(_LOGS_TABLE)
             for batch_id, job_id, path in logs:
@@ -299,6 +348,10 @@ class Record:
             db.executemany(
                 "INSERT OR REPLACE INTO trash VALUES (?, ?)", [(_hidden(path), time.time()) for path in superseded]
             )
+            if expect is not None:
+                for entry in entries:
+                    if entry.batch_id == expect.batch_id and entry.job_id in expect.versions:
+                        expect.versions[entry.job_id] = commit_id
         return superseded
 
     def expired(self, grace: float) -> list[str]:
@@ -460,23 +513,23 @@ class Change:
             finally:
                 self._holding = False
 
-    def commit(self, what: str) -> list[Path]:
-        """Switch the record; returns the published files."""
+    def commit(self, what: str, expect: JobVersions | None = None) -> list[Path]:
+        """Switch the record; returns the published files (`expect`: as `Record.commit`)."""
         _pause("commit")
         try:
             if self._holding:
-                return self._switch(what)
+                return self._switch(what, expect=expect)
             with self.hold(self._batches()):
-                return self._switch(what)
+                return self._switch(what, expect=expect)
         finally:
             self.record.close()
 
-    def _switch(self, what: str, layout: int | None = None) -> list[Path]:
+    def _switch(self, what: str, layout: int | None = None, expect: JobVersions | None = None) -> list[Path]:
         replaced_logs = [self.record.logs(batch_id, job_id) for batch_id, job_id, _ in self.logs]
         try:
             self._split()
             superseded = self.record.commit(
-                what, self.entries + self._moved, self.dropped, layout=layout, logs=self.logs
+                what, self.entries + self._moved, self.dropped, layout=layout, logs=self.logs, expect=expect
             )
         except BaseException:
             for entry in {e.path: e for e in self._moved}.values():  # files split for this commit
@@ -568,18 +621,30 @@ def _pause(point: str) -> None:
     where, _, marker = os.environ.get(PAUSE_ENV, "").partition(":")
     if where == point:
         Path(marker).touch()
-        time.sleep(60)
+        end = time.monotonic() + 60
+        while Path(marker).exists() and time.monotonic() < end:  # removing the marker lets it go on
+            time.sleep(0.02)
 
 
 @contextlib.contextmanager
 def _transaction(db: sqlite3.Connection, *, immediate: bool = False) -> Iterator[None]:
-    db.execute("BEGIN IMMEDIATE" if immediate else "BEGIN")
+    """A transaction of the record; a full disk (SQLite's "database or disk is full", after which
+    SQLite has rolled back already) is OSError ENOSPC, as for any other file of the lake."""
     try:
-        yield
-    except BaseException:
-        db.execute("ROLLBACK")
+        db.execute("BEGIN IMMEDIATE" if immediate else "BEGIN")
+        try:
+            yield
+        except BaseException:
+            if db.in_transaction:
+                db.execute("ROLLBACK")
+            raise
+        db.execute("COMMIT")
+    except sqlite3.OperationalError as error:
+        if db.in_transaction:
+            db.execute("ROLLBACK")
+        if "full" in str(error):
+            raise OSError(errno.ENOSPC, f"No space left on device (the lake's file record, {RECORD})") from None
         raise
-    db.execute("COMMIT")
 
 
 #: The distinct tables of `files`, one index seek per table (not a scan of every file).

@@ -37,6 +37,21 @@ StoragePath = str | os.PathLike
 T = TypeVar("T")
 
 
+class _ParquetWriter(pq.ParquetWriter):
+    """pyarrow's ParquetWriter, closed once even when closing fails (a full disk): the caller gets
+    the error, and the garbage collector never tries again (no "Exception ignored" traceback)."""
+
+    def close(self) -> None:
+        try:
+            super().close()
+        finally:
+            self.is_open = False
+
+    def __del__(self) -> None:
+        with contextlib.suppress(OSError):
+            super().__del__()
+
+
 class LocalOnlyError(OSError):
     """A capability the lake's file system lacks because it is not local (one line, no traceback:
     the CLI prints OSErrors as their message)."""
@@ -136,13 +151,34 @@ class LakeStorage:
         return pq.read_table(_text(path), filesystem=self.filesystem, **options)
 
     @_plain_errors
-    def parquet_file(self, path: StoragePath) -> pq.ParquetFile:
-        """A Parquet file open for reading (its schema, metadata, row groups)."""
-        return pq.ParquetFile(self.filesystem.open_input_file(_text(path)))
+    def parquet_file(self, path: StoragePath, **options: Any) -> pq.ParquetFile:
+        """A Parquet file open for reading (its schema, metadata, row groups); `options` as
+        pyarrow's ParquetFile takes them."""
+        return pq.ParquetFile(self.filesystem.open_input_file(_text(path)), **options)
+
+    def damage(self, path: StoragePath) -> str | None:
+        """Why a Parquet file cannot be read whole, or None: its footer, and every page of every
+        column (against the page's CRC checksum, which lakegate's writers store; an older file's
+        pages are checked by decoding them). Reads the whole file, a row group at a time."""
+        try:
+            parquet = self.parquet_file(path, page_checksum_verification=True)
+        except FileNotFoundError:
+            return "the file is missing"
+        except (OSError, pa.ArrowException):
+            return "the file is corrupt or not Parquet"
+        try:
+            for group in range(parquet.num_row_groups):
+                parquet.read_row_group(group)
+        except (OSError, pa.ArrowException) as error:
+            if "checksum" in str(error).lower():
+                return "the file is corrupt: a page fails its checksum"
+            return "the file is corrupt: a page cannot be decoded"
+        return None
 
     @_plain_errors
     def write_parquet(self, table: pa.Table, path: StoragePath, **options: Any) -> None:
         self.make_dirs(_parent(path))
+        options.setdefault("write_page_checksum", True)  # so that `damage` finds a corrupt page
         pq.write_table(table, _text(path), filesystem=self.filesystem, **options)
 
     @_plain_errors
@@ -150,7 +186,8 @@ class LakeStorage:
         """A Parquet file open for writing in parts (`write_table`, then `close`); its directory is
         made if missing. Not atomic, as `write_bytes`."""
         self.make_dirs(_parent(path))
-        return pq.ParquetWriter(_text(path), schema, filesystem=self.filesystem, **options)
+        options.setdefault("write_page_checksum", True)  # so that `damage` finds a corrupt page
+        return _ParquetWriter(_text(path), schema, filesystem=self.filesystem, **options)
 
     @_plain_errors
     def text_writer(self, path: StoragePath) -> io.TextIOWrapper:

@@ -68,6 +68,7 @@ from lakegate.lake.catalog import Catalog
 from lakegate.lake.compaction import compact_batch
 from lakegate.lake.config import Config, ConfigError, load_config
 from lakegate.lake.paths import LakePathError
+from lakegate.lake.record import StaleJobsError
 
 EXIT_OK, EXIT_USAGE, EXIT_BLOCKER, EXIT_ERROR, EXIT_REGRESSION = 0, 1, 2, 3, 5
 
@@ -479,12 +480,14 @@ def run_command(args: argparse.Namespace) -> int:
             compact_batch(args.lake, args.branch, args.batch, progress=progress)
         if isinstance(engine.backend, TrinoBackend):  # the batch's new metric_results partition
             sync_local(args.lake, engine.backend, args.branch)
-    except (DialectError, RegistrationError) as error:
+    except (DialectError, RegistrationError, StaleJobsError) as error:
         raise UserError(str(error)) from None
     except OSError as error:
         raise UserError(f"cannot store the results in the lake: {os_error_text(error)}") from None
     finally:
         engine.close()
+    for restart in evaluation.restarts:
+        print(f"lakegate: {restart}: evaluated again", file=sys.stderr)
     _show(
         args,
         evaluation,

@@ -5,13 +5,17 @@ Basic against bcrypt hashes) and `--tls-cert/--tls-key`: the trino client sends 
 over https, and a lake open to the network needs both. On loopback, `--users` works without TLS
 (clients then need `http_scheme='http'` and, for the trino client, `allow_insecure_auth=True`).
 Once listening it prints one line, `lakegate: serving <lake> at <url> ...`, to standard output.
-SIGINT / SIGTERM stop it within `STOP_GRACE` seconds whatever its queries do: a shutdown that has
-not finished by then ends the process with a message and exit code 1.
+SIGINT / SIGTERM stop it within `STOP_GRACE` seconds whatever its queries do: every query fails at
+once with SERVER_SHUTTING_DOWN, which each client waiting for one gets (the server keeps answering
+for up to `DELIVERY_GRACE` seconds), then it stops with exit code 0, leaving behind any query work
+that ignores interrupts. A shutdown that has not finished by STOP_GRACE ends the process with a
+message and exit code 1.
 """
 
 from __future__ import annotations
 
 import argparse
+import ipaddress
 import os
 import re
 import signal
@@ -19,6 +23,7 @@ import socket
 import ssl
 import sys
 import threading
+import time
 from pathlib import Path
 
 from lakegate.gateway.cli.backends import add_backend_arguments, backend_from_args
@@ -31,6 +36,8 @@ from lakegate.gateway.server.auth import Users, UsersFileError, check_listen
 _DEFAULTS = Limits()
 #: Seconds after the first stop signal when a shutdown still running ends the process.
 STOP_GRACE = 3.5
+#: Longest the server keeps serving after a stop signal, for clients to fetch SERVER_SHUTTING_DOWN.
+DELIVERY_GRACE = 1.0
 #: Longest the server waits at start for its query worker processes (it serves anyway after).
 WORKERS_READY_SECONDS = 60.0
 
@@ -58,6 +65,13 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         metavar="NAME[:PORT]",
         help="a Host name clients may use besides 127.0.0.1, localhost, [::1] and the address "
         "connected to (e.g. a reverse proxy's name; repeatable); others get 421",
+    )
+    parser.add_argument(
+        "--forwarded-allow-ips",
+        default=None,
+        metavar="ADDRESSES",
+        help="comma-separated addresses or networks (or '*') of reverse proxies whose X-Forwarded-For and "
+        "X-Forwarded-Proto headers are trusted (default: none; the connection's own address is the client's)",
     )
     parser.add_argument("--catalog", default=CATALOG, help=f"the lake's catalog name (default: {CATALOG})")
     parser.add_argument(
@@ -110,6 +124,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         metavar="S",
         help=f"seconds a query may go without its client asking for results before it fails with "
         f"ABANDONED_QUERY (Trino's query.client.timeout; default {_DEFAULTS.client_timeout:g})",
+    )
+    parser.add_argument(
+        "--heartbeat-timeout",
+        type=_positive(float),
+        default=_DEFAULTS.heartbeat_timeout,
+        metavar="S",
+        help=f"seconds a query whose results wait for its client may go without a request from it (a "
+        f"GET or HEAD heartbeat of its nextUri) before it fails with ABANDONED_QUERY and frees its slot "
+        f"(default {_DEFAULTS.heartbeat_timeout:g}); a queued query is dropped once its client stops polling",
     )
     parser.add_argument(
         "--max-queued-queries",
@@ -166,18 +189,33 @@ def _force_exit() -> None:
     os._exit(1)
 
 
-def _with_stop_deadline(server, backend) -> None:
-    """Make the first stop signal of `server` (a uvicorn.Server) interrupt the queries of `backend`
-    (DuckDB's or Trino's) and end the process STOP_GRACE seconds later if it has not stopped by then."""
+def _with_stop_deadline(server, backend, manager) -> None:
+    """Make the first stop signal of `server` (a uvicorn.Server) fail every query of `manager` with
+    SERVER_SHUTTING_DOWN and interrupt the queries of `backend` (DuckDB's or Trino's), keep serving
+    until each client waiting for a query got that answer (at most DELIVERY_GRACE seconds), then
+    stop; the process ends STOP_GRACE seconds after the signal if it has not stopped by then."""
     handle_exit = server.handle_exit
+    stopping = threading.Event()
+
+    def shut_down(sig: int) -> None:
+        going = manager.shut_down()
+        backend.stop_all()
+        deadline = time.monotonic() + DELIVERY_GRACE
+        while not all(query.final for query in going) and time.monotonic() < deadline:
+            time.sleep(0.02)
+        handle_exit(sig, None)
 
     def stop(sig: int, frame: object) -> None:
-        if not server.should_exit:
-            timer = threading.Timer(STOP_GRACE, _force_exit)
-            timer.daemon = True
-            timer.start()
-            backend.stop_all()
-        handle_exit(sig, frame)
+        """The signal handler: it may interrupt the main thread holding any lock, so the shutdown
+        runs in a thread of its own."""
+        if stopping.is_set():
+            handle_exit(sig, frame)
+            return
+        stopping.set()
+        timer = threading.Timer(STOP_GRACE, _force_exit)
+        timer.daemon = True
+        timer.start()
+        threading.Thread(target=shut_down, args=(sig,), name="lakegate-stop", daemon=True).start()
 
     server.handle_exit = stop
 
@@ -222,6 +260,15 @@ def _check_options(args: argparse.Namespace) -> Users | None:
         users = Users.load(args.users) if args.users is not None else None
     except UsersFileError as error:
         raise UserError(str(error)) from None
+    for item in (args.forwarded_allow_ips or "").split(","):
+        if item.strip() not in ("", "*"):
+            try:
+                ipaddress.ip_network(item.strip(), strict=False)
+            except ValueError:
+                raise UserError(
+                    f"--forwarded-allow-ips: {item.strip()!r} is not an address or network "
+                    "(e.g. 10.0.0.1, 10.0.0.0/8, *)"
+                ) from None
     try:
         check_listen(args.host, users=users is not None, tls=args.tls_cert is not None)
     except ValueError as error:
@@ -249,6 +296,7 @@ def serve_command(args: argparse.Namespace) -> int:
         request_timeout=args.request_timeout,
         max_connections=args.max_connections,
         client_timeout=args.client_timeout,
+        heartbeat_timeout=args.heartbeat_timeout,
     )
     sock = _listen(args.host, args.port)
     if args.backend == "trino":
@@ -264,6 +312,7 @@ def serve_command(args: argparse.Namespace) -> int:
         backend.pool.wait_ready(WORKERS_READY_SECONDS)
     engine = Engine(backend, catalog=args.catalog, limits=limits, owns_backend=True)
     dashboard = DashboardState(args.lake, engine)
+    stuck = 0
     try:
         app = create_app(
             engine,
@@ -275,6 +324,8 @@ def serve_command(args: argparse.Namespace) -> int:
             app,
             limits,
             timeout_graceful_shutdown=1,
+            proxy_headers=args.forwarded_allow_ips is not None,
+            forwarded_allow_ips=args.forwarded_allow_ips,
             ssl_certfile=str(args.tls_cert) if args.tls_cert else None,
             ssl_keyfile=str(args.tls_key) if args.tls_key else None,
         )
@@ -290,15 +341,20 @@ def serve_command(args: argparse.Namespace) -> int:
         previous = signal.signal(signal.SIGTERM, _interrupt)
         try:
             server = uvicorn.Server(config)
-            _with_stop_deadline(server, backend)
+            _with_stop_deadline(server, backend, app.state.manager)
             server.run(sockets=[sock])
         except KeyboardInterrupt:
             pass
         finally:
             signal.signal(signal.SIGTERM, previous)
+        stuck = app.state.manager.working()
     finally:
-        dashboard.close()
-        engine.close()
+        if stuck == 0:  # closing the engine under query work that still runs could crash the process
+            dashboard.close()
+            engine.close()
         sock.close()
     print("lakegate: stopped", file=sys.stderr, flush=True)
+    if stuck:  # workers that ignore interrupts (Python functions inside DuckDB): end without them
+        sys.stdout.flush()
+        os._exit(0)
     return 0

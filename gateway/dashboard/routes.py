@@ -31,7 +31,11 @@
 
 A session (`debug_session.DashboardSession`) is one batch seen through a config plus the edits
 made in the page. `lakegate metrics debug` opens one on its debug job; `lakegate serve` mounts
-the same router, and the page opens a session for whichever branch / batch is picked.
+the same router, and the page opens a session for whichever branch / batch is picked. A session
+belongs to the user who opened it (the one the server authenticated; everyone alike without
+`--users`): another user opening the same batch gets a session of their own, and another's
+session id is answered 404 as if it did not exist. A stored batch's session shows paths in the
+lake relative to it, never the server's absolute paths.
 """
 
 from __future__ import annotations
@@ -47,13 +51,14 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote, urlencode
 
-from fastapi import APIRouter, Body, HTTPException, Query
+from fastapi import APIRouter, Body, HTTPException, Query, Request
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, RedirectResponse, Response
 
 from lakegate.dialect.errors import DialectError
 from lakegate.gateway.dashboard.config_edits import BranchConfig, SessionError
 from lakegate.gateway.dashboard.debug_session import DashboardSession
 from lakegate.gateway.engine.engine import Engine
+from lakegate.gateway.engine.failures import hide_paths
 from lakegate.gateway.metrics.alerts import HISTORY, K, alerts_html, trend_checks
 from lakegate.gateway.metrics.compare import compare_batches, previous_build_batch
 from lakegate.gateway.metrics.compare_page import compare_html
@@ -76,7 +81,7 @@ from lakegate.lake.paths import LakePathError
 STATIC = Path(__file__).resolve().parent / "static"
 #: Files of the page, by URL name.
 PAGE_FILES = {"dashboard.js": "text/javascript", "dashboard.css": "text/css"}
-#: Sessions on stored batches kept at once (the least recently opened is dropped first).
+#: Sessions on stored batches kept at once per user (the user's least recently opened is dropped first).
 MAX_SESSIONS = 16
 
 
@@ -96,6 +101,7 @@ class DashboardState:
         self.evaluator = MetricsEngine(self.lake, self.engine)
         self.catalog = Catalog(self.lake)
         self.sessions: OrderedDict[str, DashboardSession] = OrderedDict()
+        self.owners: dict[str, str | None] = {}  # session id -> the user who opened it
         self.debug_session: DashboardSession | None = None
         self._lock = threading.Lock()
 
@@ -107,29 +113,38 @@ class DashboardState:
     def new_id(self) -> str:
         return secrets.token_urlsafe(9)
 
-    def add(self, session: DashboardSession, *, debug: bool = False) -> DashboardSession:
+    def add(self, session: DashboardSession, *, debug: bool = False, owner: str | None = None) -> DashboardSession:
+        """Keep `session`, opened by `owner` (dropping the owner's least recently opened beyond MAX_SESSIONS)."""
         with self._lock:
             self.sessions[session.id] = session
+            self.owners[session.id] = owner
             if debug:
                 self.debug_session = session
-            stored = [sid for sid, s in self.sessions.items() if s is not self.debug_session]
+            stored = [
+                sid for sid, s in self.sessions.items() if s is not self.debug_session and self.owners[sid] == owner
+            ]
             for sid in stored[: max(0, len(stored) - MAX_SESSIONS)]:
-                del self.sessions[sid]
+                del self.sessions[sid], self.owners[sid]
         return session
 
-    def session(self, session_id: str) -> DashboardSession:
-        session = self.sessions.get(session_id)
-        if session is None:
-            raise HTTPException(404, f"no dashboard session {session_id!r} (it may have expired: reload the page)")
-        return session
+    def session(self, session_id: str, owner: str | None = None) -> DashboardSession:
+        """The session `session_id` of `owner` (404 for an unknown one and for another user's)."""
+        with self._lock:
+            session = self.sessions.get(session_id)
+            if session is None or self.owners.get(session_id) != owner:
+                raise HTTPException(404, f"no dashboard session {session_id!r} (it may have expired: reload the page)")
+            return session
 
-    def open_batch(self, branch: str, batch_id: str, metrics_set: str | None = None) -> DashboardSession:
-        """A session on a stored batch, seen through the branch's current config (reused when open)."""
+    def open_batch(
+        self, branch: str, batch_id: str, metrics_set: str | None = None, owner: str | None = None
+    ) -> DashboardSession:
+        """`owner`'s session on a stored batch, seen through the branch's current config (reused when open)."""
         with self._lock:
             for session in self.sessions.values():
                 if (
                     (session.branch, session.batch_id) == (branch, batch_id)
                     and not session.debug
+                    and self.owners[session.id] == owner
                     and (metrics_set is None or session.metrics_set == metrics_set)
                 ):
                     self.sessions.move_to_end(session.id)
@@ -154,7 +169,12 @@ class DashboardState:
         session = DashboardSession(
             self.new_id(), self.evaluator, branch=branch, batch_id=batch_id, source=source, metrics_set=metrics_set
         )
-        return self.add(session)
+        return self.add(session, owner=owner)
+
+    def view(self, session: DashboardSession, job: str | None) -> dict[str, Any]:
+        """What the page shows of `session` for `job`: a stored batch's paths relative to the lake."""
+        shown = session.state(job)
+        return shown if session.debug else _without_paths(shown, self.lake)
 
     def trends(
         self,
@@ -298,6 +318,22 @@ def _bad_request(error: Exception) -> HTTPException:
     return HTTPException(400, {"message": str(error), "problems": problems})
 
 
+def _user(request: Request) -> str | None:
+    """The user the server authenticated for this request (None without a users file)."""
+    return getattr(request.state, "user", None)
+
+
+def _without_paths(value: Any, lake: Path) -> Any:
+    """`value` (JSON: dicts, lists, text) with every path under `lake` made relative to it."""
+    if isinstance(value, str):
+        return hide_paths(value, lake.resolve(), lake)
+    if isinstance(value, dict):
+        return {key: _without_paths(item, lake) for key, item in value.items()}
+    if isinstance(value, list):
+        return [_without_paths(item, lake) for item in value]
+    return value
+
+
 def dashboard_router(state: DashboardState) -> APIRouter:
     """The page and its API (see the module docstring), to mount on the gateway's app."""
     router = APIRouter(prefix="/dashboard")
@@ -364,48 +400,54 @@ def dashboard_router(state: DashboardState) -> APIRouter:
         return call(state.listing)
 
     @router.post("/api/sessions")
-    def open_session(body: dict[str, Any] = Body(...)) -> dict[str, Any]:
+    def open_session(request: Request, body: dict[str, Any] = Body(...)) -> dict[str, Any]:
         session = call(
-            state.open_batch, str(body.get("branch", "")), str(body.get("batch", "")), body.get("metrics_set") or None
+            state.open_batch,
+            str(body.get("branch", "")),
+            str(body.get("batch", "")),
+            body.get("metrics_set") or None,
+            owner=_user(request),
         )
-        return call(session.state, body.get("job"))
+        return call(state.view, session, body.get("job"))
 
     @router.get("/api/sessions/{session_id}")
-    def session_state(session_id: str, job: str | None = None) -> dict[str, Any]:
-        session = state.session(session_id)
+    def session_state(request: Request, session_id: str, job: str | None = None) -> dict[str, Any]:
+        session = state.session(session_id, _user(request))
         call(session.refresh)
-        return call(session.state, job)
+        return call(state.view, session, job)
 
     @router.post("/api/sessions/{session_id}/evaluate")
-    def evaluate(session_id: str, job: str | None = None) -> dict[str, Any]:
-        session = state.session(session_id)
+    def evaluate(request: Request, session_id: str, job: str | None = None) -> dict[str, Any]:
+        session = state.session(session_id, _user(request))
         call(session.evaluate_all)
-        return call(session.state, job)
+        return call(state.view, session, job)
 
     @router.post("/api/sessions/{session_id}/metrics")
-    def add_metric(session_id: str, body: dict[str, Any] = Body(...), job: str | None = None) -> dict[str, Any]:
-        session = state.session(session_id)
+    def add_metric(
+        request: Request, session_id: str, body: dict[str, Any] = Body(...), job: str | None = None
+    ) -> dict[str, Any]:
+        session = state.session(session_id, _user(request))
         spec = {k: v for k, v in body.items() if k != "name"}
         call(session.add_metric, str(body.get("name") or ""), spec)
-        return call(session.state, job)
+        return call(state.view, session, job)
 
     @router.put("/api/sessions/{session_id}/metrics/{name:path}")
     def update_metric(
-        session_id: str, name: str, body: dict[str, Any] = Body(...), job: str | None = None
+        request: Request, session_id: str, name: str, body: dict[str, Any] = Body(...), job: str | None = None
     ) -> dict[str, Any]:
-        session = state.session(session_id)
+        session = state.session(session_id, _user(request))
         call(session.update_metric, name, body)
-        return call(session.state, job)
+        return call(state.view, session, job)
 
     @router.delete("/api/sessions/{session_id}/metrics/{name:path}")
-    def revert_metric(session_id: str, name: str, job: str | None = None) -> dict[str, Any]:
-        session = state.session(session_id)
+    def revert_metric(request: Request, session_id: str, name: str, job: str | None = None) -> dict[str, Any]:
+        session = state.session(session_id, _user(request))
         call(session.revert_metric, name)
-        return call(session.state, job)
+        return call(state.view, session, job)
 
     @router.get("/api/sessions/{session_id}/export")
-    def export(session_id: str) -> Response:
-        session = state.session(session_id)
+    def export(request: Request, session_id: str) -> Response:
+        session = state.session(session_id, _user(request))
         data = call(session.export_zip)
         stem = Path(session.files.names[0]).name.split(".")[0] if session.files else "config"
         return Response(
@@ -413,24 +455,24 @@ def dashboard_router(state: DashboardState) -> APIRouter:
         )
 
     @router.get("/api/sessions/{session_id}/tables")
-    def tables(session_id: str, scope: str = "job", job: str | None = None) -> dict[str, Any]:
-        session = state.session(session_id)
+    def tables(request: Request, session_id: str, scope: str = "job", job: str | None = None) -> dict[str, Any]:
+        session = state.session(session_id, _user(request))
         return {"tables": call(session.tables, call(session.scope, scope, job))}
 
     @router.post("/api/sessions/{session_id}/query")
-    def query(session_id: str, body: dict[str, Any] = Body(...)) -> JSONResponse:
-        session = state.session(session_id)
+    def query(request: Request, session_id: str, body: dict[str, Any] = Body(...)) -> JSONResponse:
+        session = state.session(session_id, _user(request))
         scope = call(session.scope, str(body.get("scope", "job")), body.get("job"))
         return JSONResponse(call(session.query, str(body.get("sql", "")), scope))
 
     @router.get("/api/sessions/{session_id}/events")
-    def events(session_id: str, job: str) -> dict[str, Any]:
-        session = state.session(session_id)
+    def events(request: Request, session_id: str, job: str) -> dict[str, Any]:
+        session = state.session(session_id, _user(request))
         return {"events": call(session.events, job)}
 
     @router.get("/api/sessions/{session_id}/logs/{job_id}/{name:path}")
-    def log_file(session_id: str, job_id: str, name: str) -> FileResponse:
-        session = state.session(session_id)
+    def log_file(request: Request, session_id: str, job_id: str, name: str) -> FileResponse:
+        session = state.session(session_id, _user(request))
         try:
             return FileResponse(session.log_file(job_id, name))
         except (SessionError, LakePathError) as error:

@@ -26,6 +26,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import itertools
+import re
 import shutil
 import tempfile
 import threading
@@ -115,6 +116,11 @@ def _static(columns: list[tuple[str, str]], rows: list[tuple]) -> QueryResult:
     arrays = [pa.array([row[i] for row in rows], pa.string()) for i in range(len(columns))]
     batch = pa.record_batch(arrays, names=[name for name, _ in columns])
     return QueryResult(columns=columns, batches=iter([batch]))
+
+
+#: DuckDB's words for a Parquet file it could not decode without naming the file (a damaged page
+#: header reaches its Thrift reader).
+_PARQUET_DAMAGE = re.compile(r"TProtocolException|don't know what type|[Pp]arquet|[Tt]hrift|[Cc]orrupt")
 
 
 def _quote_ident(name: str) -> str:
@@ -246,6 +252,13 @@ class _Branch:
         message = str(error)
         files = self.known()
         named = [path for path in files if path in message]
+        if not named and _PARQUET_DAMAGE.search(message):  # a damaged file the message does not name
+            damaged = [path for path in files if LOCAL.damage(path) is not None]
+            if damaged:
+                return DialectError(
+                    f"Cannot read the Parquet file of {files[damaged[0]]}: it is corrupt (ingest the job again)",
+                    error_name="HIVE_BAD_DATA",
+                )
         if not named:
             return duckdb_failure(error)
         for path in named:

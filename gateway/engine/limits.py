@@ -14,6 +14,7 @@ class Limits:
     max_concurrent_queries: int = 8  # queries running at once; more wait in a queue
     max_queued_queries: int = 200  # queries waiting to run; more fail with QUERY_QUEUE_FULL
     client_timeout: float = 30.0  # a query whose client stops polling for this long is abandoned
+    heartbeat_timeout: float = 10.0  # a query waiting for its client to read is abandoned after this silence
     retention: float = 15.0  # a finished query is kept this long for retried requests
     page_bytes: int = 1_000_000  # target size of one page of rows
     wait: float = 1.0  # longest a GET waits for the next page

@@ -15,7 +15,10 @@ How a batch is evaluated (`MetricsEngine.evaluate_batch`):
    `status` folds in every job: the worst of the batch metrics and the jobs' conflated statuses.
 5. The results replace the batch's rows of the `metric_results` table, and the staged statuses
    the jobs' metadata rows, in one commit of the branch's record (`results`), under the
-   batch's lock: two runs of a batch take turns, and a run that dies changes nothing.
+   batch's lock: two runs of a batch take turns, and a run that dies changes nothing. The commit
+   is made only if no job of the batch changed since the evaluation began (re-ingested, added,
+   removed: the record's job versions); else nothing is written and the batch is evaluated again
+   (`BatchEvaluation.restarts` says why), at most STALE_ATTEMPTS times before StaleJobsError.
 
 Statuses, from best to worst: PASSED < WARNING < BLOCKER < ERROR; NOT_RUN (skipped or not
 supported) counts for nothing. One metric:
@@ -71,13 +74,15 @@ from lakegate.lake import paths
 from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import Config, Location, Metric
 from lakegate.lake.config_schema import PLATFORM_TABLES
-from lakegate.lake.record import job_logs_dir
+from lakegate.lake.record import StaleJobsError, job_logs_dir
 from lakegate.lake.storage import LakeStorage
 
 PASSED, WARNING, BLOCKER, ERROR, NOT_RUN = "PASSED", "WARNING", "BLOCKER", "ERROR", "NOT_RUN"
 NO_DATA = "NO_DATA"
 #: Statuses from best to worst; NOT_RUN and NO_DATA are below all and never make anything worse.
 SEVERITY = {NOT_RUN: 0, NO_DATA: 0, PASSED: 1, WARNING: 2, BLOCKER: 3, ERROR: 4}
+#: Evaluations of a batch begun before one is stored or given up (each restarted because a job changed).
+STALE_ATTEMPTS = 3
 #: Metric types a batch evaluates (`evaluate_batch`).
 EVALUATED_TYPES = ("test", "batch")
 #: Metric types that run over many batches (`Scope.batches`, gateway/metrics/trends.py), and the
@@ -177,6 +182,8 @@ class BatchEvaluation:
     jobs: list[JobOutcome]
     batch_results: list[MetricResult]
     seconds: float = 0.0
+    #: Evaluations started again because a job changed under them (re-ingested, added, removed).
+    restarts: list[str] = field(default_factory=list)
 
     @property
     def batch_metrics_status(self) -> str:
@@ -506,6 +513,52 @@ class MetricsEngine:
         check_batch_metrics(metrics, metrics_set)
         started = time.perf_counter()
         evaluated_at = dt.datetime.now(dt.UTC).replace(tzinfo=None)
+        restarts: list[str] = []
+        while True:
+            try:
+                outcomes, batch_results = self._evaluate_once(
+                    branch,
+                    batch_id,
+                    metrics,
+                    store=store,
+                    progress=progress,
+                    keep_figures=keep_figures,
+                    row={"metrics_set": metrics_set, "config_version": config_version, "evaluated_at": evaluated_at},
+                )
+                break
+            except StaleJobsError as stale:  # nothing was written: evaluate the jobs as they are now
+                restarts.append(str(stale))
+                if len(restarts) >= STALE_ATTEMPTS:
+                    raise StaleJobsError(stale.batch_id, stale.jobs, attempts=len(restarts)) from None
+        events = self._events(branch, Scope(batch_id=batch_id))
+        for outcome in outcomes:
+            outcome.events = events.get(outcome.job_id, [])
+        evaluation = BatchEvaluation(
+            branch=branch,
+            batch_id=batch_id,
+            metrics_set=metrics_set,
+            config_version=config_version,
+            evaluated_at=evaluated_at,
+            jobs=outcomes,
+            batch_results=batch_results,
+            restarts=restarts,
+        )
+        evaluation.seconds = time.perf_counter() - started
+        return evaluation
+
+    def _evaluate_once(
+        self,
+        branch: str,
+        batch_id: str,
+        metrics: Sequence[Metric],
+        *,
+        store: bool,
+        progress: bool,
+        keep_figures: bool,
+        row: dict[str, Any],
+    ) -> tuple[list[JobOutcome], list[MetricResult]]:
+        """One evaluation of the batch (`evaluate_batch`): the jobs' outcomes and the batch metrics'
+        results, stored when `store` (StaleJobsError, nothing stored: a job changed meanwhile)."""
         test_metrics = [m for m in metrics if m.type == "test"]
         batch_metrics = [m for m in metrics if m.type != "test"]
         lock = threading.Lock()
@@ -528,6 +581,8 @@ class MetricsEngine:
         with contextlib.ExitStack() as stack:
             if store:  # one evaluation of a batch at a time: its statuses and results switch together
                 stack.enter_context(paths.batch_lock(self.lake, branch, batch_id))
+            # the writer reads the jobs' versions before anything of theirs is read
+            writer = stack.enter_context(ResultsWriter(self.lake, branch, batch_id, **row)) if store else None
             jobs = self.jobs(branch, batch_id)
             if not jobs:
                 raise LookupError(f"batch {batch_id!r} has no jobs on branch {branch!r}")
@@ -540,20 +595,6 @@ class MetricsEngine:
                     file=sys.stderr,
                     leave=False,
                 )
-            )
-            writer = (
-                stack.enter_context(
-                    ResultsWriter(
-                        self.lake,
-                        branch,
-                        batch_id,
-                        metrics_set=metrics_set,
-                        config_version=config_version,
-                        evaluated_at=evaluated_at,
-                    )
-                )
-                if store
-                else None
             )
             pool = stack.enter_context(ThreadPoolExecutor(self.threads, thread_name_prefix="lakegate-metrics"))
             stack.callback(pool.shutdown, cancel_futures=True)  # on an error, start no further job
@@ -569,20 +610,7 @@ class MetricsEngine:
             done(batch_results)
             if writer is not None:
                 writer.commit()
-        events = self._events(branch, Scope(batch_id=batch_id))
-        for outcome in outcomes:
-            outcome.events = events.get(outcome.job_id, [])
-        evaluation = BatchEvaluation(
-            branch=branch,
-            batch_id=batch_id,
-            metrics_set=metrics_set,
-            config_version=config_version,
-            evaluated_at=evaluated_at,
-            jobs=outcomes,
-            batch_results=batch_results,
-        )
-        evaluation.seconds = time.perf_counter() - started
-        return evaluation
+        return outcomes, batch_results
 
     def _batch_engine(
         self, stack: contextlib.ExitStack, writer: ResultsWriter | None, outcomes: Sequence[JobOutcome]

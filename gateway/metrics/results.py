@@ -30,7 +30,7 @@ import pyarrow as pa
 from lakegate.gateway.metrics.metric_result import MetricResult
 from lakegate.lake import paths
 from lakegate.lake.metadata import read_metadata_row, stage_metadata_rows
-from lakegate.lake.record import Change, FileEntry, current_file
+from lakegate.lake.record import Change, FileEntry, JobVersions, Record, current_file
 from lakegate.lake.schema import METRIC_RESULTS_COLUMNS, file_schema
 from lakegate.lake.storage import LOCAL
 
@@ -78,6 +78,10 @@ class ResultsWriter:
     stages the jobs' new statuses (`stage_statuses`); `commit` then switches the batch's results and
     every staged status in ONE record commit (`lake.record`), so they always agree. Closed without
     `commit`, nothing changes. The caller holds the batch's lock (`paths.batch_lock`).
+
+    The versions of the batch's jobs are read when the writer is made, before the evaluation reads
+    anything: a commit finds them unchanged, or raises `StaleJobsError` and writes nothing (a job
+    was re-ingested, added or removed meanwhile, so the results may not be of the data it now holds).
     """
 
     def __init__(
@@ -98,6 +102,11 @@ class ResultsWriter:
         self._staged = self._scratch / "metric_results.parquet"
         self._writer = self._stack.enter_context(LOCAL.parquet_writer(self._staged, SCHEMA, compression="zstd"))
         self._statuses: dict[str, dict[str, Any]] = {}  # job -> its new metadata row, not yet published
+        record = Record(self.lake, branch)
+        try:
+            self.versions = JobVersions(batch_id, record.job_versions(batch_id))
+        finally:
+            record.close()
 
     def write(self, results: Sequence[MetricResult]) -> None:
         rows = [result_row(r, **self._row) for r in results]
@@ -126,7 +135,7 @@ class ResultsWriter:
     def commit_statuses(self) -> None:
         """Commit the staged statuses now, before the results (for a backend that cannot see staged files)."""
         self._publish_statuses()
-        self._change.commit(f"statuses {self.batch_id}")
+        self._change.commit(f"statuses {self.batch_id}", expect=self.versions)
         self._change = Change(self.lake, self.branch)
 
     def commit(self) -> Path:
@@ -134,7 +143,7 @@ class ResultsWriter:
         self._writer.close()
         self._publish_statuses()
         entry = self._change.add(paths.METRIC_RESULTS_TABLE, self.batch_id, None, self._staged)
-        self._change.commit(f"metrics run {self.batch_id}")
+        self._change.commit(f"metrics run {self.batch_id}", expect=self.versions)
         self.close()
         return self._change.record.root / entry.path
 

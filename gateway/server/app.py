@@ -153,7 +153,11 @@ class _Endpoints:
         return Response(body, media_type=JSON)
 
     async def head_results(self, request: Request) -> Response:
-        return Response(status_code=404 if await self.query(request) is None else 200)
+        """A client's heartbeat (HEAD nextUri): the query's client is still there."""
+        query = await self.query(request)
+        if query is not None:
+            query.last_access = time.monotonic()
+        return Response(status_code=404 if query is None else 200)
 
     async def delete(self, request: Request) -> Response:
         """DELETE nextUri or /v1/query/{id}: cancel (204 also for unknown or finished queries)."""

@@ -105,20 +105,23 @@ class Users:
 
 
 class LoginFailures:
-    """Failed logins per client address and user name, and per client address (any user name):
-    after FREE_FAILURES in a row for one user (CLIENT_FREE_FAILURES over all user names), the client
-    must wait 1 s after its last attempt, then 2, 4 ... up to MAX_WAIT seconds, before it may try
-    again. A login that succeeds takes its attempt back; counts are forgotten FORGET seconds after
-    their last attempt. Attempts count when they start, so parallel guesses count too."""
+    """Failed logins per client address and user name, per client address (any user name) and per
+    user name (any address, so that guesses spread over many addresses count too): after
+    FREE_FAILURES in a row for one user from one address (CLIENT_FREE_FAILURES over all user names
+    from one address, USER_FREE_FAILURES for one user from all addresses), the client must wait 1 s
+    after its last attempt, then 2, 4 ... up to MAX_WAIT seconds, before it may try again. A login
+    that succeeds takes its attempt back; counts are forgotten FORGET seconds after their last
+    attempt. Attempts count when they start, so parallel guesses count too."""
 
     FREE_FAILURES = 5
     CLIENT_FREE_FAILURES = 20
+    USER_FREE_FAILURES = 10
     MAX_WAIT = 60
     FORGET = 900
     MAX_KEYS = 10_000  # the least recently tried are forgotten beyond this
 
     def __init__(self) -> None:
-        self._failures: OrderedDict[tuple[str, str | None], tuple[int, float]] = OrderedDict()
+        self._failures: OrderedDict[tuple[str | None, str | None], tuple[int, float]] = OrderedDict()
         self._lock = threading.Lock()
 
     def wait(self, client: str, user: str) -> int:
@@ -128,9 +131,10 @@ class LoginFailures:
             return max(
                 self._wait((client, user), self.FREE_FAILURES, now),
                 self._wait((client, None), self.CLIENT_FREE_FAILURES, now),
+                self._wait((None, user), self.USER_FREE_FAILURES, now),
             )
 
-    def _wait(self, key: tuple[str, str | None], free: int, now: float) -> int:
+    def _wait(self, key: tuple[str | None, str | None], free: int, now: float) -> int:
         count, last = self._failures.get(key, (0, 0.0))
         if count < free or now - last > self.FORGET:
             return 0
@@ -140,7 +144,7 @@ class LoginFailures:
         """An attempt starts: it counts as a failure until it `succeeded`."""
         now = time.monotonic()
         with self._lock:
-            for key in ((client, user), (client, None)):
+            for key in ((client, user), (client, None), (None, user)):
                 count, last = self._failures.pop(key, (0, 0.0))
                 self._failures[key] = (1 if now - last > self.FORGET else count + 1, now)
             while len(self._failures) > self.MAX_KEYS:
@@ -149,6 +153,7 @@ class LoginFailures:
     def succeeded(self, client: str, user: str) -> None:
         with self._lock:
             self._failures.pop((client, user), None)
+            self._failures.pop((None, user), None)
             count, last = self._failures.get((client, None), (1, 0.0))
             self._failures[(client, None)] = (count - 1, last)
 

@@ -11,9 +11,11 @@ So every request must name this server in `Host`:
 - or a name given with `--allowed-host` (for a reverse proxy): `NAME` matches it on any port,
   `NAME:PORT` only on that port.
 
-A state-changing request (POST, PUT, PATCH, DELETE) that carries an `Origin` header must come from
-an allowed host too. Refused requests get 421 (wrong Host) or 403 (wrong Origin) with a message
-saying which header was wrong and how to allow it.
+A request with more than one Host header gets 400, and the authority of an absolute-form request
+target (`GET http://name/path`, which HTTP/1.1 says wins over Host) must name this server too. A
+state-changing request (POST, PUT, PATCH, DELETE) that carries an `Origin` header must come from an
+allowed host, over the scheme the server speaks (http or https). Refused requests get 421 (wrong
+Host) or 403 (wrong Origin) with a message saying which header was wrong and how to allow it.
 """
 
 from __future__ import annotations
@@ -26,6 +28,9 @@ from urllib.parse import urlsplit
 
 LOOPBACK_NAMES = ("127.0.0.1", "localhost", "[::1]")
 STATE_CHANGING = frozenset({"POST", "PUT", "PATCH", "DELETE"})
+#: The scope key holding the authority of an absolute-form request target (bytes; set by
+#: http_limits.GuardedProtocol), checked as Host is.
+TARGET_HOST = "lakegate.target_host"
 
 
 def _bracketed(address: str) -> str:
@@ -76,23 +81,34 @@ class HostCheck:
         if scope["type"] != "http":  # lifespan (the app serves no websockets)
             await self.app(scope, receive, send)
             return
+        hosts = [value.decode("latin-1") for key, value in scope["headers"] if key.lower() == b"host"]
+        if len(hosts) > 1:
+            await _refuse(send, 400, f"{len(hosts)} Host headers: a request names its server once")
+            return
         headers = {key.decode("latin-1").lower(): value.decode("latin-1") for key, value in scope["headers"]}
         server = scope.get("server")
-        host = headers.get("host", "")
-        if not host_allowed(host, server, self.allowed):
-            await _refuse(
-                send,
-                421,
-                f"Host header {host!r} does not name this server (use "
-                f"127.0.0.1:{server[1] if server else 'PORT'} or localhost; a reverse proxy's "
-                "name must be allowed with --allowed-host)",
-            )
-            return
+        host = hosts[0] if hosts else ""
+        target = scope.get(TARGET_HOST)
+        for value, what in (
+            (host, "Host header"),
+            (None if target is None else target.decode("latin-1"), "request target"),
+        ):
+            if value is not None and not host_allowed(value, server, self.allowed):
+                await _refuse(
+                    send,
+                    421,
+                    f"{what} {value!r} does not name this server (use "
+                    f"127.0.0.1:{server[1] if server else 'PORT'} or localhost; a reverse proxy's "
+                    "name must be allowed with --allowed-host)",
+                )
+                return
         origin = headers.get("origin")
         if origin is not None and scope.get("method") in STATE_CHANGING:
             parts = urlsplit(origin)
-            if not parts.netloc or not host_allowed(
-                parts.netloc, server, self.allowed, {"http": 80, "https": 443}.get(parts.scheme, 0)
+            if (
+                not parts.netloc
+                or parts.scheme != scope.get("scheme", "http")
+                or not host_allowed(parts.netloc, server, self.allowed, {"http": 80, "https": 443}[parts.scheme])
             ):
                 await _refuse(
                     send,

@@ -8,10 +8,14 @@ before any body is read, then refuses a body over `Limits.max_body` by its Conte
 while it streams in, with HTTP 413. A client that goes away mid-request ends its request quietly.
 
 `GuardedProtocol` (`server_config` gives uvicorn) bounds what a connection may send before the app
-sees it: request headers over `Limits.max_header_bytes` get 431, a request whose headers and body
-have not all arrived `Limits.request_timeout` seconds after it began (or after the connection
-opened) gets 408 and is closed, and connections beyond `Limits.max_connections` are answered 503
-and closed at once, so idle or trickling clients cannot hold file descriptors or memory.
+sees it: request headers over `Limits.max_header_bytes` get 431 (counted as they arrive and again as
+they are parsed, so a request that arrives whole in one read is caught too), a request whose headers
+and body have not all arrived `Limits.request_timeout` seconds after it began (or after the
+connection opened) gets 408 and is closed, and connections beyond `Limits.max_connections` are
+answered 503 and closed at once, so idle or trickling clients cannot hold file descriptors or
+memory. A request target in absolute form (`GET http://name/path`) has its authority put in the
+scope as `TARGET_HOST` for the Host check (host_check.py); any other target that is not a path
+gets 400.
 """
 
 from __future__ import annotations
@@ -21,12 +25,14 @@ import logging
 from collections.abc import Awaitable, Callable
 from typing import Any
 
+import httptools
 from starlette.concurrency import run_in_threadpool
 from starlette.requests import ClientDisconnect
 from uvicorn.protocols.http.httptools_impl import HttpToolsProtocol
 
 from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.server.auth import LoginFailures, Users, basic_credentials
+from lakegate.gateway.server.host_check import TARGET_HOST
 
 log = logging.getLogger("lakegate.server")
 
@@ -174,16 +180,22 @@ def _content_length(scope: Scope) -> int | None:
     return int(value) if value is not None and value.strip().isdigit() else None
 
 
+class _Refused(Exception):
+    """Raised in a parser callback: the request is answered with `GuardedProtocol._refusal`."""
+
+
 class GuardedProtocol(HttpToolsProtocol):
-    """uvicorn's httptools protocol with caps on connections, header size and request time (the
-    class attributes are set by `guarded_protocol`)."""
+    """uvicorn's httptools protocol with caps on connections, header size and request time, and a
+    check of the request target's form (the class attributes are set by `guarded_protocol`)."""
 
     limits = Limits()
 
     def connection_made(self, transport: asyncio.Transport) -> None:  # type: ignore[override]
         super().connection_made(transport)
         self._header_bytes = 0
+        self._parsed_bytes = 0  # of the current request's line and headers, as the parser reads them
         self._headers_done = False
+        self._refusal: tuple[int, str] | None = None
         self._deadline: asyncio.TimerHandle | None = None
         if len(self.connections) > self.limits.max_connections:
             self._refuse(503, "Too many connections: try again later")
@@ -204,15 +216,53 @@ class GuardedProtocol(HttpToolsProtocol):
             and self._header_bytes > self.limits.max_header_bytes
             and not self.transport.is_closing()
         ):
-            self._refuse(431, f"Request headers too large (the limit is {self.limits.max_header_bytes} bytes)")
+            self._refuse(431, self._too_large_message())
 
     def on_message_begin(self) -> None:
         super().on_message_begin()
+        self._parsed_bytes = 0
         self._arm()
+
+    def on_url(self, url: bytes) -> None:
+        self._count(len(url))
+        super().on_url(url)
+
+    def on_header(self, name: bytes, value: bytes) -> None:
+        self._count(len(name) + len(value) + 4)  # "name: value\r\n"
+        super().on_header(name, value)
+
+    def _count(self, size: int) -> None:
+        self._parsed_bytes += size
+        if self._parsed_bytes > self.limits.max_header_bytes:
+            self._refusal = (431, self._too_large_message())
+            raise _Refused
+
+    def _too_large_message(self) -> str:
+        return f"Request headers too large (the limit is {self.limits.max_header_bytes} bytes)"
 
     def on_headers_complete(self) -> None:
         self._headers_done = True
+        if not self.url.startswith(b"/") and self.url != b"*":
+            try:
+                parsed = httptools.parse_url(self.url)
+            except httptools.HttpParserInvalidURLError:
+                parsed = None
+            if parsed is None or parsed.schema not in (b"http", b"https") or not parsed.host:
+                self._refusal = (400, "The request target must be a path (/v1/...) or an absolute http(s) URL")
+                raise _Refused
+            authority = parsed.host if parsed.port is None else b"%s:%d" % (parsed.host, parsed.port)
+            if b":" in parsed.host:  # an IPv6 address: brackets as in a Host header
+                authority = b"[%s]" % parsed.host + (b"" if parsed.port is None else b":%d" % parsed.port)
+            self.scope[TARGET_HOST] = authority  # type: ignore[literal-required]
         super().on_headers_complete()
+
+    def send_400_response(self, msg: str) -> None:
+        """A request the parser refused: answered with the refusal a callback chose, if any."""
+        refusal, self._refusal = self._refusal, None
+        if refusal is None:
+            super().send_400_response(msg)
+        else:
+            self._refuse(*refusal)
 
     def on_message_complete(self) -> None:
         self._disarm()
@@ -241,9 +291,12 @@ class GuardedProtocol(HttpToolsProtocol):
             if cycle is not None and not cycle.response_complete:
                 cycle.disconnected = True  # the app's request ends here: it may not answer any more
                 cycle.message_event.set()
-            phrase = {408: "Request Timeout", 431: "Request Header Fields Too Large", 503: "Service Unavailable"}[
-                status
-            ]
+            phrase = {
+                400: "Bad Request",
+                408: "Request Timeout",
+                431: "Request Header Fields Too Large",
+                503: "Service Unavailable",
+            }[status]
             body = message.encode()
             self.transport.write(
                 f"HTTP/1.1 {status} {phrase}\r\ncontent-type: text/plain; charset=utf-8\r\n"

@@ -7,7 +7,7 @@ worker encodes rows off the event loop) and is spliced in with `orjson.Fragment`
 
 from __future__ import annotations
 
-import random
+import secrets
 import string
 import threading
 import time
@@ -131,21 +131,27 @@ class Failure:
 
 
 class QueryIds:
-    """Trino-style query ids: `YYYYMMDD_HHMMSS_<5-digit counter>_<5 letters of this server>`."""
+    """Trino-style query ids, `YYYYMMDD_HHMMSS_<5-digit counter>_<random>`: the random part (12
+    lower-case letters and digits, from `secrets`) makes another query's id unguessable from one's own."""
+
+    RANDOM_CHARACTERS = 12
 
     def __init__(self) -> None:
-        self._server = "".join(random.choices(string.ascii_lowercase + string.digits, k=5))
         self._counter = 0
         self._second, self._prefix = -1, ""  # the time prefix, formatted once a second
         self._lock = threading.Lock()
 
     def next(self) -> str:
         second = int(time.time())
+        tail = "".join(secrets.choice(_ID_ALPHABET) for _ in range(self.RANDOM_CHARACTERS))
         with self._lock:
             self._counter = self._counter % 99_999 + 1
             if second != self._second:
                 self._second, self._prefix = second, f"{datetime.fromtimestamp(second, UTC):%Y%m%d_%H%M%S}"
-            return f"{self._prefix}_{self._counter:05d}_{self._server}"
+            return f"{self._prefix}_{self._counter:05d}_{tail}"
+
+
+_ID_ALPHABET = string.ascii_lowercase + string.digits
 
 
 def columns_document(columns: Sequence[tuple[str, str]]) -> list[dict]:

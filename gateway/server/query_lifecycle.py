@@ -35,7 +35,7 @@ import os
 import secrets
 import threading
 import time
-from collections import deque
+from collections import Counter, deque
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -162,6 +162,7 @@ class Query:
         self.started = False
         self.working = False  # a worker runs the statement
         self.zombie = False  # the query ended but its worker still runs, counted apart
+        self.blocked = False  # the worker waits for the client to read a page
         self._planner: int | None = None  # the worker thread while it plans the query
         self.done = False  # the worker produced everything, or the query failed
         self.final = False  # the last document was served
@@ -212,7 +213,9 @@ class Query:
         is done with it); _Stopped when the query ended."""
         with self.lock:
             while len(self._pages) >= BUFFERED_PAGES and not self.done:
+                self.blocked = True  # waiting for the client to read
                 self._space.wait()
+            self.blocked = False
             if self.done:
                 raise _Stopped
             self._pages.append(page)
@@ -505,6 +508,8 @@ class QueryManager:
         self._queue: deque[Query] = deque()  # queries given to `start`, waiting for a worker
         self._running = 0  # workers of queries that have not ended
         self._zombies = 0  # workers of ended queries that still run
+        self._closing = False  # shutting down: no new query runs
+        self.large_slots = max(1, limits.max_concurrent_queries // 4)  # of statements over LARGE_TEXT_BYTES
         self._stop = threading.Event()
         self._reaper = threading.Thread(target=self._reap, name="lakegate-reaper", daemon=True)
         self._reaper.start()
@@ -525,7 +530,10 @@ class QueryManager:
         )
         with self._lock:
             self._queries[query.id] = query
-        if full:
+            closing = self._closing
+        if closing:
+            query.fail(SHUTTING_DOWN)
+        elif full:
             query.fail(Failure('Too many queued queries for "global"', "QUERY_QUEUE_FULL"))
         return query
 
@@ -540,14 +548,37 @@ class QueryManager:
             self._dispatch()
 
     def _dispatch(self) -> None:
-        """Start a worker for each queued query a slot is free for (lock held)."""
-        while self._running < self.limits.max_concurrent_queries and self._queue:
-            query = self._queue.popleft()
-            if query.done:
-                continue  # failed while queued
+        """Start a worker for each queued query a slot is free for (lock held): the oldest query of
+        the user with the fewest running queries, so that one user's many queries cannot keep
+        another's waiting; a query whose client stopped polling is left to the reaper to drop."""
+        while self._running < self.limits.max_concurrent_queries and self._queue and not self._closing:
+            query = self._next_queued()
+            if query is None:
+                return
             self._running += 1
             query.working = True
             threading.Thread(target=self._work, args=(query,), name=f"lakegate-query-{query.id}", daemon=True).start()
+
+    def _next_queued(self) -> Query | None:
+        """Take the queued query to run next off the queue (lock held); None when none should run.
+        A statement text over LARGE_TEXT_BYTES waits while `large_slots` others are in the workers
+        (zombies included: their parsing may still run), so that big texts cannot take every slot."""
+        working = [q for q in self._queries.values() if q.working]
+        running = Counter(q.session.user for q in working if not q.zombie)
+        large_busy = sum(len(q.sql) > LARGE_TEXT_BYTES for q in working) >= self.large_slots
+        chosen = None
+        for query in list(self._queue):
+            if query.done:
+                self._queue.remove(query)  # failed while queued
+            elif (
+                not _silent_while_queued(query, self.limits)
+                and not (large_busy and len(query.sql) > LARGE_TEXT_BYTES)
+                and (chosen is None or running[query.session.user] < running[chosen.session.user])
+            ):
+                chosen = query
+        if chosen is not None:
+            self._queue.remove(chosen)
+        return chosen
 
     def _work(self, query: Query) -> None:
         try:
@@ -614,14 +645,11 @@ class QueryManager:
                 close()
 
     def kill(self, query_id: str, message: str | None, session: Session, *, owner_only: bool) -> None:
-        """CALL system.runtime.kill_query: fail a running or queued query with ADMINISTRATIVELY_KILLED."""
+        """CALL system.runtime.kill_query: fail a running or queued query with ADMINISTRATIVELY_KILLED
+        (`owner_only`: only the caller's own queries; another user's is NOT_FOUND, as if it did not exist)."""
         query = self.get(query_id)
-        if query is None:
-            raise sessions.query_not_found(query_id)
-        if owner_only and query.session.user != session.user:
-            raise DialectError(
-                f"Access Denied: Cannot kill query owned by {query.session.user}", error_name="PERMISSION_DENIED"
-            )
+        if query is None or (owner_only and query.session.user != session.user):
+            raise sessions.query_not_found(query_id)  # another user's query is not there for the caller
         text = f"Query killed. Message: {message}" if message else "Query killed. No message provided."
         if query.done or not query.fail(Failure(text, "ADMINISTRATIVELY_KILLED")):
             raise DialectError(f"Target query is not running: {query_id}", error_name="NOT_SUPPORTED")
@@ -634,6 +662,21 @@ class QueryManager:
                 idle = now - query.last_access
                 if query.running and query.elapsed("started") > limits.query_timeout:
                     query.fail(Failure.of(time_limit_error(limits.query_timeout)))
+                elif not query.started and not query.done and _silent_while_queued(query, limits):
+                    query.fail(
+                        Failure(
+                            f"Query {query.id} was abandoned by the client: it stopped polling while queued",
+                            "ABANDONED_QUERY",
+                        )
+                    )
+                elif query.running and query.blocked and idle > limits.heartbeat_timeout:
+                    query.fail(
+                        Failure(
+                            f"Query {query.id} was abandoned by the client: it stopped reading results "
+                            f"for {limits.heartbeat_timeout:g}s",
+                            "ABANDONED_QUERY",
+                        )
+                    )
                 elif not query.done and idle > limits.client_timeout:
                     query.fail(
                         Failure(
@@ -651,6 +694,21 @@ class QueryManager:
             if self.segments is not None:
                 self.segments.expire(now)
 
+    def shut_down(self) -> list[Query]:
+        """Refuse new queries and fail every query now (SERVER_SHUTTING_DOWN), so that each client
+        waiting for its query gets that answer; returns the queries that were still going."""
+        with self._lock:
+            self._closing = True
+        going = [query for query in self.queries() if not query.final]
+        for query in going:
+            if query.fail(SHUTTING_DOWN):
+                query.interrupt()
+        return going
+
+    def working(self) -> int:
+        """Workers still running (of queries that ended, too)."""
+        return sum(query.working for query in self.queries())
+
     def close(self) -> None:
         """Fail every query (SERVER_SHUTTING_DOWN), stop the reaper and wait (at most
         SHUTDOWN_GRACE seconds) for the workers to stop."""
@@ -658,8 +716,8 @@ class QueryManager:
         self._reaper.join()
         queries = self.queries()
         for query in queries:
-            query.fail(Failure("The server is shutting down", "SERVER_SHUTTING_DOWN"))
-        deadline = time.monotonic() + SHUTDOWN_GRACE
+            query.fail(SHUTTING_DOWN)
+        deadline = time.monotonic() + (0.2 if self._closing else SHUTDOWN_GRACE)  # `shut_down` waited already
         while any(query.working for query in queries) and time.monotonic() < deadline:
             for query in queries:  # repeat interrupts that came before DuckDB started
                 query.interrupt()
@@ -669,4 +727,15 @@ class QueryManager:
             log.warning("%d query workers still run at shutdown; they are left to end with the process", working)
 
 
-# --- immediate answers --------------------------------------------------------------------------
+SHUTTING_DOWN = Failure("The server is shutting down", "SERVER_SHUTTING_DOWN")
+#: A statement text longer than this (characters) is large: parsing and translating it takes long
+#: enough that only `QueryManager.large_slots` of them run at once.
+LARGE_TEXT_BYTES = 64 * 1024
+#: Seconds a queued query's client may go without polling beyond `Limits.wait` (a polling client
+#: asks again at least every `Limits.wait` seconds) before the query is dropped as abandoned.
+QUEUED_SILENCE = 4.0
+
+
+def _silent_while_queued(query: Query, limits: Limits) -> bool:
+    """Whether a queued query's client stopped polling (it vanished: the query is not worth running)."""
+    return time.monotonic() - query.last_access > limits.wait + QUEUED_SILENCE

@@ -493,6 +493,48 @@ def test_query_serve_and_lake_ls_with_a_corrupt_file(tmp_path):
         server.wait(30)
 
 
+def _overwrite(path: Path, offset: int, size: int) -> None:
+    """Random bytes over `size` bytes of a file at `offset` (in place: its reader link sees them too)."""
+    import random
+
+    with path.open("r+b") as file:
+        file.seek(offset)
+        file.write(random.Random(offset).randbytes(size))
+
+
+def test_damage_inside_a_compacted_file_is_found(tmp_path):
+    """Random bytes inside a compacted file (one file for both jobs): in a page's values, `lake ls`
+    finds them by the page's checksum and names table, batch and job; over a page header (which
+    DuckDB reports without naming the file), a query fails with HIVE_BAD_DATA naming them."""
+    import pyarrow.parquet as pq
+
+    from lakegate.lake.compaction import compact_batch
+
+    lake = build_lake(tmp_path, jobs=[("b1", "j1", 300), ("b1", "j2", 200)])
+    compact_batch(lake, "main", "b1")
+    [compacted] = [f for f in lake.glob("main/odom/batch_id=b1/*.parquet")]
+    group = pq.ParquetFile(compacted).metadata.row_group(0)
+    chunk = next(group.column(i) for i in range(group.num_columns) if group.column(i).path_in_schema == "x")
+    cli = [sys.executable, "-m", "lakegate.gateway.cli"]
+
+    def run(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run([*cli, *args], capture_output=True, text=True, timeout=120)
+
+    assert "unreadable" not in run("lake", "ls", "--lake", str(lake), "--branch", "main").stdout
+    _overwrite(compacted, chunk.data_page_offset + chunk.total_compressed_size - 24, 16)  # inside the values
+    listed = run("lake", "ls", "--lake", str(lake), "--branch", "main")
+    assert listed.returncode == 0 and "Traceback" not in listed.stderr, listed.stderr
+    assert "unreadable files (2)" in listed.stdout, listed.stdout
+    for job in ("j1", "j2"):
+        assert f"table odom, batch b1, job {job}: the file is corrupt: a page fails its checksum" in listed.stdout
+
+    _overwrite(compacted, chunk.data_page_offset, 16)  # over the first page's header
+    failed = run("query", "--lake", str(lake), "SELECT sum(x) FROM odom")
+    assert failed.returncode == 1 and "Traceback" not in failed.stderr, failed.stderr
+    assert "Cannot read the Parquet file of table odom, batch b1, job j" in failed.stderr, failed.stderr
+    assert str(tmp_path) not in failed.stderr
+
+
 def test_a_file_deleted_by_hand_fails_only_its_job(tmp_path):
     lake = build_lake(tmp_path, jobs=[("b1", "j1", 3), ("b1", "j2", 2)])
     for file in lake.glob("**/odom/batch_id=b1/*-j1.parquet"):  # the visible file and the reader link

@@ -211,3 +211,29 @@ def test_metrics_run_on_a_full_disk(workspace: Path, mounted):
     assert "No space left on device" in result.stderr
     (disk / "filler").unlink()
     assert snapshot(lake) == before
+
+
+def test_commands_on_a_full_disk_say_so_in_one_line(nav_jobs, mounted, tmp_path: Path):
+    """ingest and metrics run with a few KiB left, at several fill levels (so that the disk fills
+    while a Parquet file is written, while the record commits, ...): one `lakegate:` line, never a
+    traceback (not even pyarrow's "Exception ignored" from a writer's __del__)."""
+    disk = mounted("-t", "tmpfs", "-o", "size=6m")
+    job = nav_jobs.jobs[1]
+    for free_kib in (8, 96):  # a staged Parquet file, then the record commit, find the disk full
+        shutil.rmtree(disk / "lake", ignore_errors=True)
+        (disk / "filler").unlink(missing_ok=True)
+        common = ["--lake", "lake", "--branch", "main", "--batch", "b", "--metrics-config-path", str(nav_jobs.config)]
+        first = lakegate("ingest", str(job.emissions_path), *common, "--job", "j0", cwd=disk)
+        assert first.returncode == 0, first.stderr
+        free = shutil.disk_usage(disk).free
+        with (disk / "filler").open("wb") as filler:
+            filler.write(b"\0" * max(0, free - free_kib * 1024))
+        for command in (
+            ["ingest", str(job.emissions_path), *common, "--job", "j1"],
+            ["metrics", "run", *common, "--metrics-set", "Nav Metrics"],
+        ):
+            result = lakegate(*command, cwd=disk)
+            assert "Traceback" not in result.stderr and "Exception ignored" not in result.stderr, result.stderr
+            if result.returncode not in (0, 2, 3):
+                assert result.returncode == 1 and result.stderr.count("\n") == 1, (free_kib, command, result.stderr)
+                assert result.stderr.startswith("lakegate: ") and "No space left on device" in result.stderr

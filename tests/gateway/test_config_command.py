@@ -176,3 +176,19 @@ def test_check_refuses_exactly_the_topic_names_the_lake_cannot_hold(tmp_path):
         refused["odom*"] == "topic 'odom*' contains one of \\ = % * ? [ ] { }, which the lake's table paths cannot hold"
     )
     assert refused["é" * 130].endswith("is too long (at most 240 bytes)")
+
+
+def test_a_deeply_nested_or_huge_config_is_refused_with_its_place(tmp_path):
+    deep = tmp_path / "deep.resim.yaml"
+    deep.write_text("version: 1\nmetrics:\n  M:\n    query_string: " + "[" * 100_000 + "\n")
+    result = lakegate("config", "check", deep)
+    assert result.returncode == 1 and "Traceback" not in result.stderr + result.stdout
+    assert result.stdout == f"{deep}:4:80: mappings and lists nest deeper than 64 levels, the limit of a config file\n"
+    huge = tmp_path / "huge.resim.yaml"
+    with huge.open("w") as out:  # 70 MB: refused before it is parsed
+        out.write("version: 1\nmetrics:\n")
+        for i in range(700_000):
+            out.write(f"  metric_{i:07d}: {{type: test, query_string: SELECT {i}, template: scalar, d: {'x' * 40}}}\n")
+    result = lakegate("config", "check", huge)
+    assert result.returncode == 1 and "Traceback" not in result.stderr + result.stdout
+    assert result.stdout == f"{huge}: the file is larger than 2,097,152 bytes, the limit of a config file\n"

@@ -143,3 +143,55 @@ def test_serve_checks_host_and_origin(start_server) -> None:
         cursor = conn.cursor()
         cursor.execute("SELECT 1")
         assert cursor.fetchall() == [[1]]
+
+
+def test_dashboard_sessions_belong_to_their_user(evaluated_lake: Path, tmp_path: Path) -> None:
+    """With --users, bob opening the batch alice has open gets a session of his own: he neither sees
+    nor edits hers (404, as for a session that does not exist), and no state shows server paths."""
+    import bcrypt
+    import requests
+
+    passwords = {"alice": "wonderland", "bob": "builder"}
+    users = tmp_path / "users.txt"
+    users.write_text(
+        "".join(f"{u}:{bcrypt.hashpw(p.encode(), bcrypt.gensalt(4)).decode()}\n" for u, p in passwords.items())
+    )
+    server = serve(evaluated_lake, tmp_path / "serve.log", "--users", str(users))
+    api = f"{server.url}/dashboard/api/sessions"
+    as_alice, as_bob = ("alice", passwords["alice"]), ("bob", passwords["bob"])
+    opened = {"branch": "main", "batch": "nightly", "metrics_set": NAV_SET}
+    try:
+        alice = requests.post(api, json=opened, auth=as_alice, timeout=60).json()
+        secret = {
+            "name": "Alice only",
+            "type": "test",
+            "template": "scalar",
+            "description": "d",
+            "units": "",
+            "query_string": "SELECT 42 AS alice_secret_42",
+        }
+        added = requests.post(f"{api}/{alice['id']}/metrics", json=secret, auth=as_alice, timeout=60)
+        assert added.status_code == 200 and "Alice only" in added.text
+        bob = requests.post(api, json=opened, auth=as_bob, timeout=60)
+        assert bob.status_code == 200
+        assert bob.json()["id"] != alice["id"] and "alice_secret_42" not in bob.text and "Alice only" not in bob.text
+        for method, path in (
+            ("GET", ""),
+            ("PUT", "/metrics/Alice%20only"),
+            ("DELETE", "/metrics/Alice%20only"),
+            ("POST", "/evaluate"),
+            ("GET", "/export"),
+            ("GET", "/tables"),
+            ("POST", "/query"),
+        ):
+            body = (
+                {"query_string": "SELECT 1"} if method == "PUT" else {"sql": "SELECT 1"} if path == "/query" else None
+            )
+            answer = requests.request(method, f"{api}/{alice['id']}{path}", json=body, auth=as_bob, timeout=60)
+            assert answer.status_code == 404 and "alice_secret_42" not in answer.text, (method, path, answer.text)
+        mine = requests.get(f"{api}/{alice['id']}", auth=as_alice, timeout=60)
+        assert mine.status_code == 200 and "alice_secret_42" in mine.text  # untouched by bob
+        for text in (mine.text, bob.text):
+            assert str(evaluated_lake) not in text and str(evaluated_lake.resolve()) not in text
+    finally:
+        assert server.stop() == 0

@@ -78,3 +78,37 @@ def test_deep_nesting_and_duckdb_syntax_are_syntax_errors(small_server):
         assert (error.error_name, error.error_location) == ("SYNTAX_ERROR", location)
         assert "mismatched input" in error.message and "<class" not in error.message
     assert _select_1(small_server) == [[1]]
+
+
+@pytest.mark.parametrize(
+    "sql, parameters",
+    [
+        ("SELECT * FROM ?", ["metadata"]),  # a table is named, never bound
+        ("SELECT count(*) FROM metadata POSITIONAL JOIN events", None),  # DuckDB's join: an alias, then JOIN
+        ("SELECT count(*) FROM metadata FOR SYSTEM_TIME AS OF now()", None),
+    ],
+)
+def test_statements_trino_refuses_are_refused_in_its_words(lake_server, trino_url, sql, parameters):
+    """lakegate serve and the real Trino 476, both through the trino client: the same error name,
+    message and position (with a parameter the client sends EXECUTE IMMEDIATE, whose positions Trino
+    counts in the outer text and lakegate in the statement: only the message is compared then)."""
+
+    def refusal(host: str, port: int, catalog: str, schema: str) -> tuple:
+        with trino.dbapi.connect(host=host, port=port, user="users", catalog=catalog, schema=schema) as connection:
+            cursor = connection.cursor()
+            with pytest.raises(trino.exceptions.TrinoQueryError) as caught:
+                cursor.execute(sql, parameters)
+                cursor.fetchall()
+        error = caught.value
+        if parameters:
+            return error.error_name, error.message.split(": ", 1)[1]
+        return error.error_name, error.message, error.error_location
+
+    host, port = trino_url.split("//", 1)[1].split(":")
+    trino_answer = refusal(host, int(port), "system", "runtime")
+    trino_answer = (
+        trino_answer
+        if trino_answer[0] != "TABLE_NOT_FOUND"
+        else pytest.fail(f"Trino analysed past the syntax: {trino_answer}")
+    )
+    assert refusal(lake_server.host, lake_server.port, "lake", "main") == trino_answer

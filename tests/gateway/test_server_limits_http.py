@@ -181,6 +181,55 @@ def test_a_huge_header_is_refused_with_431(fresh_server):
     assert select_1(fresh_server) == [[1]]
 
 
+def test_a_huge_header_arriving_in_one_read_is_refused_with_431(fresh_server):
+    request = head("GET", "/v1/info", "X-Big: " + "y" * 120_000)  # 120,000 bytes, sent whole at once
+    with open_socket(fresh_server) as sock:
+        sock.sendall(request)
+        status, _, body = read_response(sock)
+    assert status == 431 and b"Request headers too large (the limit is 65536 bytes)" in body
+    many = head("GET", "/v1/info", *(f"X-H{i}: {'z' * 100}" for i in range(1000)))  # many small headers
+    with open_socket(fresh_server) as sock:
+        sock.sendall(many)
+        assert read_response(sock)[0] == 431
+    assert select_1(fresh_server) == [[1]]
+
+
+def raw_status(server, request: bytes) -> tuple[int, bytes]:
+    with open_socket(server) as sock:
+        sock.sendall(request)
+        status, _, body = read_response(sock)
+    return status, body
+
+
+def test_the_host_is_named_once_and_an_absolute_target_must_name_this_server(fresh_server):
+    port = fresh_server.port
+    twice = f"GET /v1/info HTTP/1.1\r\nHost: evil.example.org\r\nHost: 127.0.0.1:{port}\r\nConnection: close\r\n\r\n"
+    status, body = raw_status(fresh_server, twice.encode())
+    assert status == 400 and b"2 Host headers" in body
+    absolute = f"GET http://evil.example.org/v1/info HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nConnection: close\r\n\r\n"
+    status, body = raw_status(fresh_server, absolute.encode())
+    assert status == 421 and b"request target 'evil.example.org'" in body
+    own = f"GET http://127.0.0.1:{port}/v1/info HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nConnection: close\r\n\r\n"
+    assert raw_status(fresh_server, own.encode())[0] == 200
+    odd = f"GET ftp://127.0.0.1:{port}/v1/info HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nConnection: close\r\n\r\n"
+    status, body = raw_status(fresh_server, odd.encode())
+    assert status == 400 and b"request target must be a path" in body
+
+
+def test_the_origin_check_compares_the_scheme(fresh_server):
+    port = fresh_server.port
+    for origin, expected in (
+        (f"https://127.0.0.1:{port}", 403),  # the server speaks http: another origin
+        (f"ws://127.0.0.1:{port}", 403),
+        (f"http://127.0.0.1:{port}", 200),
+    ):
+        request = head("POST", "/v1/statement", f"Origin: {origin}", "X-Trino-User: me", "Content-Length: 8")
+        request = request.replace(b"Host: 127.0.0.1", f"Host: 127.0.0.1:{port}".encode()) + b"SELECT 1"
+        assert (
+            raw_status(fresh_server, request.replace(b"\r\n\r\n", b"\r\nConnection: close\r\n\r\n", 1))[0] == expected
+        ), origin
+
+
 def test_200_idle_partial_requests_do_not_stop_queries(fresh_server):
     sockets = [open_socket(fresh_server) for _ in range(200)]
     try:
@@ -297,6 +346,46 @@ def test_repeated_failed_logins_back_off_with_429(start_server, tmp_path):
     time.sleep(1.1)
     assert requests.get(url, auth=("alice", "wonderland"), timeout=30).status_code == 404  # logged in
     assert requests.get(url, auth=("alice", "guess"), timeout=30).status_code == 401  # the count started again
+
+
+def test_a_forwarded_for_header_does_not_escape_the_backoff(start_server, tmp_path):
+    """Forwarding headers are not trusted by default: a rotating X-Forwarded-For is still one client."""
+    server = start_server("--users", str(users_file(tmp_path)))
+    url = f"{server.url}/v1/query/none"
+    answers = [
+        requests.get(url, auth=("alice", f"guess{i}"), headers={"X-Forwarded-For": f"10.0.0.{i}"}, timeout=30)
+        for i in range(10)
+    ]
+    assert [a.status_code for a in answers] == [401] * 5 + [429] * 5
+
+
+def test_trusted_proxies_forward_addresses_and_the_user_backs_off_over_all_of_them(start_server, tmp_path):
+    """Behind a proxy named with --forwarded-allow-ips each forwarded address is its own client, and
+    guesses at one user from many addresses still back off (keyed on the user too)."""
+    server = start_server("--users", str(users_file(tmp_path)), "--forwarded-allow-ips", "127.0.0.1")
+    url = f"{server.url}/v1/query/none"
+
+    def guess(i: int) -> int:
+        forwarded = {"X-Forwarded-For": f"10.0.{i}.1"}
+        return requests.get(url, auth=("alice", f"guess{i}"), headers=forwarded, timeout=30).status_code
+
+    assert [guess(i) for i in range(10)] == [401] * 10  # ten addresses, one guess each
+    assert guess(10) == 429
+    assert (
+        requests.get(url, auth=("bob", "builder"), headers={"X-Forwarded-For": "10.9.9.9"}, timeout=30).status_code
+        == 404
+    )
+
+
+def test_a_bad_forwarded_allow_ips_is_refused(server_lake):
+    result = subprocess.run(
+        [sys.executable, "-m", "lakegate.gateway.cli", "serve", "--lake", str(server_lake), "--port", "0"]
+        + ["--forwarded-allow-ips", "10.0.0.1,proxy!"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 1 and result.stderr.startswith("lakegate: --forwarded-allow-ips: 'proxy!'")
 
 
 def test_guessing_user_names_backs_off_too(start_server, tmp_path):

@@ -21,7 +21,7 @@ from lakegate.gateway.server.app import create_app
 
 ALL_TYPES_BRANCH = "feature/all-types"  # the second branch of the test lake (conftest.py)
 HEADERS = {"X-Trino-User": "tester", "X-Trino-Catalog": "lake", "X-Trino-Schema": "main"}
-QUERY_ID = re.compile(r"\d{8}_\d{6}_\d{5}_[a-z0-9]{5}")
+QUERY_ID = re.compile(r"\d{8}_\d{6}_\d{5}_[a-z0-9]{12}")  # Trino's shape, with an unguessable random tail
 
 
 def post(server, sql: str | bytes, headers: dict | None = None) -> requests.Response:
@@ -62,6 +62,7 @@ def error(server, sql: str, headers: dict | None = None) -> dict:
 def test_post_answers_at_once_and_the_query_runs_in_the_background(lake_server, endless):
     first = post(lake_server, endless).json()  # would take hours: the reply cannot wait for it
     assert QUERY_ID.fullmatch(first["id"])
+    assert post(lake_server, "SELECT 1").json()["id"][-12:] != first["id"][-12:]  # not one per server
     assert first["stats"]["state"] in ("QUEUED", "RUNNING") and "data" not in first
     assert first["nextUri"].startswith(f"{lake_server.url}/v1/statement/executing/{first['id']}/")
     assert first["infoUri"] == f"{lake_server.url}/v1/query/{first['id']}"

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from sqlglot import exp
 
+from lakegate.dialect import intervals
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analysis_checks import check_range_offset, range_comparison_type
 from lakegate.dialect.analyzer import Analyzer
@@ -55,6 +56,12 @@ def _interval(a: Analyzer, node, scope, env):
     if not (isinstance(value, exp.Literal) and value.is_string) or unit is None:
         a.unsupported("interval syntax (use INTERVAL '3' DAY)", node)
     unit_name = unit.name.upper()
+    if isinstance(unit, exp.IntervalSpan):
+        last = unit.expression.name.upper()
+        text = value.name  # Trino refuses white space around the fields
+        if intervals.span_value(text, unit_name, last) is None:
+            a.unsupported(f"interval literal '{text}' {unit_name} TO {last}", node)
+        return tt.INTERVAL_YM if unit_name == "YEAR" else tt.INTERVAL_DS
     if unit_name not in ("YEAR", "MONTH", "DAY", "HOUR", "MINUTE", "SECOND"):
         a.unsupported(f"interval unit {unit_name}", node)
     text = value.name.strip()

@@ -352,7 +352,29 @@ def varchar_of(g: Writer, sql: str, source: TType) -> str:
     if source.base == "timestamp_tz":
         zone = tt.zone_of(source)
         return timestamp_text(zones.local(sql, zone), source.args[0]) + f" || {string(' ' + zone)}"
+    if source.base in ("interval_ds", "interval_ym"):
+        return interval_text(sql, source)
     return f"CAST({sql} AS VARCHAR)"
+
+
+def interval_text(sql: str, source: TType) -> str:
+    """Trino's text of an interval: `-1 02:03:04.500` (day to second, milliseconds) or `-1-2` (year to
+    month), the sign before the whole value."""
+    if source.base == "interval_ym":
+        months = f"(date_part('year', {sql}) * 12 + date_part('month', {sql}))"
+        sign = f"CASE WHEN {months} < 0 THEN '-' ELSE '' END"
+        return f"{sign} || CAST(abs({months}) // 12 AS VARCHAR) || '-' || CAST(abs({months}) % 12 AS VARCHAR)"
+    millis = f"CAST(epoch_ms({sql}) AS BIGINT)"
+    sign = f"CASE WHEN {millis} < 0 THEN '-' ELSE '' END"
+    parts = [f"lpad(CAST(abs({millis}) // {unit} % {modulo} AS VARCHAR), 2, '0')" for unit, modulo in _CLOCK]
+    fraction = f"lpad(CAST(abs({millis}) % 1000 AS VARCHAR), 3, '0')"
+    days = f"CAST(abs({millis}) // 86400000 AS VARCHAR)"
+    clock = " || ':' || ".join(parts)
+    return f"{sign} || {days} || ' ' || {clock} || '.' || {fraction}"
+
+
+#: (milliseconds per unit, units per next unit) of hours, minutes and seconds.
+_CLOCK = ((3_600_000, 24), (60_000, 60), (1000, 60))
 
 
 def timestamp_text(sql: str, precision: int) -> str:

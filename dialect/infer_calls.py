@@ -116,6 +116,8 @@ def _extract(a: Analyzer, node, scope, env):
     if unit in ("TIMEZONE_HOUR", "TIMEZONE_MINUTE") and t.base == "timestamp_tz":
         a.zone(t, node, f"EXTRACT({unit} FROM ...)")
         return tt.BIGINT
+    if t.base in intervals.FIELDS and unit.lower() in intervals.FIELDS[t.base]:
+        return tt.BIGINT
     if unit not in allowed:
         a.unsupported(f"EXTRACT({unit} FROM ...)", node)
     if t.base not in ("date", "timestamp", "timestamp_tz", "unknown"):

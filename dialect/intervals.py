@@ -51,3 +51,30 @@ def duckdb_interval(kind: str, amount: int) -> str:
     days, millis = divmod(abs(amount), _MILLIS["DAY"])
     sign = "-" if amount < 0 else ""
     return f"(INTERVAL '{sign}{days}' DAY + INTERVAL '{sign}{millis}' MILLISECOND)"
+
+
+#: The fields of each interval type (DateTimeFunctions: dayFromInterval, yearFromInterval, ...).
+FIELDS = {
+    "interval_ds": ("day", "hour", "minute", "second", "millisecond"),
+    "interval_ym": ("year", "month"),
+}
+_FIELD_SQL = {
+    "day": "{m} // 86400000",
+    "hour": "{m} % 86400000 // 3600000",
+    "minute": "{m} % 3600000 // 60000",
+    "second": "{m} % 60000 // 1000",
+    "millisecond": "{m} % 1000",
+    "year": "{m} // 12",
+    "month": "{m} % 12",
+}
+
+
+def field(sql: str, base: str, name: str) -> str:
+    """DuckDB SQL of one field of an interval (`name` of FIELDS[base]) as Trino computes it: of the
+    whole value in milliseconds or months, truncating toward zero (a negative interval's fields are
+    negative)."""
+    if base == "interval_ym":
+        amount = f"CAST(date_part('year', {sql}) * 12 + date_part('month', {sql}) AS BIGINT)"
+    else:
+        amount = f"CAST(epoch_ms({sql}) AS BIGINT)"
+    return f"CAST({_FIELD_SQL[name].format(m=f'({amount})')} AS BIGINT)"

@@ -308,6 +308,8 @@ def extract_field(g: Writer, node: exp.Extract) -> str:
     value = node.expression
     if unit in ("TIMEZONE_HOUR", "TIMEZONE_MINUTE"):
         return zone_offset(g, value, unit.split("_")[1].lower())
+    if ttype(value).base in intervals.FIELDS:
+        return intervals.field(g.sql(value), ttype(value).base, unit.lower())
     sql = wall_time(g, value)
     return f"CAST(date_part({string(_EXTRACT.get(unit, unit.lower()))}, {sql}) AS BIGINT)"
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import re
 
-from lakegate.dialect import times, zoned_nanos, zones
+from lakegate.dialect import intervals, times, zoned_nanos, zones
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect import write_casts as casts
@@ -229,6 +229,8 @@ def _field(call: Call) -> TType:
     first = call.types[0] if len(call.types) == 1 else None
     if first is not None and first.base == "time" and name in ("hour", "minute", "second", "millisecond"):
         return tt.BIGINT  # of a time (DateTimeFunctions: hourFromTime, ...)
+    if first is not None and first.base in intervals.FIELDS:
+        return tt.BIGINT if name in intervals.FIELDS[first.base] else call.mismatch()
     types = need(call, "temporal")
     if types[0].base == "date" and name in ("hour", "minute", "second", "millisecond"):
         call.mismatch()
@@ -257,8 +259,10 @@ _FIELD_OF = {
 
 
 def _render_field(g, node, args) -> str:
-    value = tf.wall_time(g, args[0])
     name = node.name.lower()
+    if ttype(args[0]).base in intervals.FIELDS:
+        return intervals.field(g.sql(args[0]), ttype(args[0]).base, name)
+    value = tf.wall_time(g, args[0])
     part = _FIELD_OF[name]
     if name == "millisecond":
         return f"CAST(date_part('millisecond', {value}) % 1000 AS BIGINT)"

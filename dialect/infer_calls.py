@@ -31,8 +31,22 @@ def _bracket(a: Analyzer, node, scope, env):
             a.fail(f"Cannot use {index} for subscript of {container}", node, "TYPE_MISMATCH")
         return container.args[1]
     if container.base == "row":
-        a.unsupported("row subscript (use the field name)", node)
+        return _row_field(a, container, node)
     a.fail(f"Cannot use subscript on {container}", node, "TYPE_MISMATCH")
+
+
+def _row_field(a: Analyzer, container, node: exp.Bracket):
+    """row[i]: the i-th field (1-based), i an integer literal (Trino: a constant index)."""
+    index = node.expressions[0]
+    if not (isinstance(index, exp.Literal) and index.is_int):
+        a.unsupported("row subscript with an index that is not an integer literal", node)
+    position = int(index.name)
+    if position == 0:
+        a.fail("Invalid subscript index: 0. ROW indices start at 1", node, "INVALID_FUNCTION_ARGUMENT")
+    if position > len(container.args):
+        message = f"Subscript index out of bounds: {position}, max value is {len(container.args)}"
+        a.fail(message, node, "INVALID_FUNCTION_ARGUMENT")
+    return container.args[position - 1][1]
 
 
 @handles(exp.Array)

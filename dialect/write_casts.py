@@ -152,7 +152,13 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
             return as_nanoseconds(g, sql)
         return cast(sql, target)
     if target.base == "timestamp" and source.base == "timestamp_tz":
-        return cast(zones.local(sql, tt.zone_of(source)), target)
+        local = zones.local(sql, tt.zone_of(source))
+        if target.args[0] < source.args[0]:  # rounded HALF_UP (TimestampWithTimeZoneToTimestampCast)
+            return round_timestamp(local, target.args[0])
+        return cast(local, target)
+    if target.base == source.base == "timestamp_tz" and target.args[0] < source.args[0]:
+        # the instant rounded HALF_UP (TimestampWithTimeZoneToTimestampWithTimeZoneCast)
+        return f"CAST({round_timestamp(sql, target.args[0])} AS TIMESTAMPTZ)"
     if target.base == "timestamp_tz" and source.base in ("timestamp", "date"):
         sql = zoned_precision(sql, source, target.args[0])
         return zones.instant(f"CAST({sql} AS TIMESTAMP)", tt.zone_of(target))

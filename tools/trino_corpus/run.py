@@ -4,6 +4,7 @@ answered by lakegate (embedded) and by the real Trino, each judged as the confor
 judges (tools/trino_differential.py: equal, refused, both errored, trino raises, different).
 
     python3 dev.py corpus [--smoke | --sample N] [--group functions,types,queries] [--trino URL] [--out FILE]
+    python3 dev.py corpus --refusals K     only translate: the K largest families of refusals (no Trino)
 
 Queries of functions drawn at random or from the clock (random, uuid, now, ...) are left out. Prints
 one summary line per group and in all; writes every verdict that is not `equal` to --out
@@ -92,6 +93,24 @@ def report(path: Path, lines: Sequence[str], verdicts: Sequence[differential.Ver
     path.write_text("\n".join(text) + "\n", encoding="utf-8")
 
 
+def refusal_families(probes: Sequence[Probe]) -> Counter:
+    """How many probes lakegate's translator refuses (NOT_SUPPORTED, FUNCTION_NOT_FOUND), by message with
+    its digits replaced by N: the refusal families, without running anything."""
+    from lakegate.dialect.errors import DialectError
+    from lakegate.dialect.translate import translate
+
+    families: Counter = Counter()
+    for probe in probes:
+        try:
+            translate(probe.sql, {})
+        except DialectError as error:
+            if error.error_name in REFUSALS:
+                families[re.sub(r"\d+", "N", f"{error.error_name}: {error.message}")[:160]] += 1
+        except Exception:  # noqa: BLE001 - statements the translator does not take (SHOW, EXPLAIN, ...)
+            families["not a query the translator takes"] += 1
+    return families
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     size = parser.add_mutually_exclusive_group()
@@ -104,6 +123,12 @@ def main(argv: list[str] | None = None) -> int:
     )
     parser.add_argument("--trino", default=DEFAULT_TRINO, help=f"the real Trino's URL (default {DEFAULT_TRINO})")
     parser.add_argument("--out", type=Path, default=CACHE / "report.txt", help="the report file")
+    parser.add_argument(
+        "--refusals",
+        type=int,
+        metavar="K",
+        help="only translate (no Trino): print the K largest families of lakegate's refusals, with counts",
+    )
     parser.add_argument("--refresh", action="store_true", help="extract the corpus again from the tests jar")
     args = parser.parse_args(argv)
     groups = args.group.split(",")
@@ -111,6 +136,12 @@ def main(argv: list[str] | None = None) -> int:
     probes = deterministic(probes)
     if args.smoke or args.sample:
         probes = sample(probes, SMOKE if args.smoke else args.sample)
+    if args.refusals:
+        families = refusal_families(probes)
+        print(f"{len(probes)} queries, {sum(families.values())} refused by the translator:")
+        for message, count in families.most_common(args.refusals):
+            print(f"{count:6d}  {message}")
+        return 0
     started = time.monotonic()
     verdicts = judge(probes, args.trino)
     lines = [summary(group, [v for p, v in zip(probes, verdicts) if p.group == group]) for group in groups]

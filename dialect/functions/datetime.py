@@ -137,6 +137,8 @@ def _render_date_add(g, node, args) -> str:
         return casts.with_nanos(sql, g.sql(args[2].this))
     if t.base == "timestamp" and t.args[0] < 3 and unit == "millisecond":  # rounded to p digits (DateAdd)
         return casts.round_timestamp(sql, t.args[0])
+    if t.base == "timestamp_tz" and t.args[0] < 3 and unit == "millisecond":  # the instant, rounded as well
+        return f"CAST({casts.round_timestamp(sql, t.args[0])} AS TIMESTAMPTZ)"
     return tf.cast(sql, t)
 
 

@@ -153,6 +153,21 @@ def _date_trunc(call: Call) -> TType:
     return types[1]
 
 
+def _timezone(call: Call) -> TType:
+    if len(call.types) != 1 or call.types[0] is None or call.types[0].base not in ("timestamp_tz", "unknown"):
+        call.mismatch()  # a timestamp would be read in the session zone: refused as the other kinds are
+    if call.types[0].base == "timestamp_tz":
+        call.analyzer.zone(call.types[0], call.node, "timezone(...)")
+    return tt.VARCHAR
+
+
+def _render_timezone(g, node, args) -> str:
+    zone = tt.zone_of(ttype(args[0]))
+    if zone is None:  # NULL
+        return "CAST(NULL AS VARCHAR)"
+    return f"CASE WHEN {g.sql(args[0])} IS NULL THEN NULL ELSE {tf.string(zone)} END"
+
+
 def _render_date_trunc(g, node, args) -> str:
     unit, value = args[0].name.lower(), g.sql(args[1])
     t = ttype(node)
@@ -555,6 +570,14 @@ def install() -> None:
         lambda c: _zone_argument(c, "instant"),
         lambda g, node, args: g.coerce(args[0], ttype(node)),
         notes="The same instant in another zone (a timestamp is read in the session zone); the zone must be a literal.",
+    )
+    register(
+        "timezone",
+        "datetime",
+        "timezone(timestamp(p) with time zone) -> varchar",
+        _timezone,
+        _render_timezone,
+        notes="The zone of the value, which lakegate knows from its type (time with time zone is refused).",
     )
     register(
         "with_timezone",

@@ -11,6 +11,10 @@
     python3 dev.py fuzz --queries N --seed S [--trino URL]
                                     the differential fuzzer: random queries over a small lake, on lakegate and
                                     on the real Trino; prints the counts, writes mismatches (tools/trino_fuzz/)
+    python3 dev.py corpus [--smoke | --sample N] [--group G] [--trino URL]
+                                    the differential run over Trino 476's own function tests (its compiled
+                                    tests jar, fetched with Maven and cached): lakegate vs the real Trino,
+                                    one summary line per group, a report file (tools/trino_corpus/)
     python3 dev.py lakegate ARGS    run any lakegate command inside .venv
 
 The virtual environment is reinstalled only when pyproject.toml changes.
@@ -71,6 +75,8 @@ def main(argv: list[str]) -> int:
         return _run([PY, ROOT / "tools" / "trino_server.py", *rest])
     if command == "fuzz":
         return _run([PY, "-m", "trino_fuzz.run", *rest], env={**os.environ, "PYTHONPATH": str(ROOT / "tools")})
+    if command == "corpus":
+        return _run([PY, "-m", "trino_corpus.run", *rest], env={**os.environ, "PYTHONPATH": str(ROOT / "tools")})
     if command == "demo":
         return _run([BIN / "lakegate", "demo", *rest])
     if command == "lint":

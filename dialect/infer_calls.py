@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from sqlglot import exp
 
+from lakegate.dialect import intervals
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analysis_checks import check_range_offset, range_comparison_type
 from lakegate.dialect.analyzer import Analyzer
@@ -30,8 +31,22 @@ def _bracket(a: Analyzer, node, scope, env):
             a.fail(f"Cannot use {index} for subscript of {container}", node, "TYPE_MISMATCH")
         return container.args[1]
     if container.base == "row":
-        a.unsupported("row subscript (use the field name)", node)
+        return _row_field(a, container, node)
     a.fail(f"Cannot use subscript on {container}", node, "TYPE_MISMATCH")
+
+
+def _row_field(a: Analyzer, container, node: exp.Bracket):
+    """row[i]: the i-th field (1-based), i an integer literal (Trino: a constant index)."""
+    index = node.expressions[0]
+    if not (isinstance(index, exp.Literal) and index.is_int):
+        a.unsupported("row subscript with an index that is not an integer literal", node)
+    position = int(index.name)
+    if position == 0:
+        a.fail("Invalid subscript index: 0. ROW indices start at 1", node, "INVALID_FUNCTION_ARGUMENT")
+    if position > len(container.args):
+        message = f"Subscript index out of bounds: {position}, max value is {len(container.args)}"
+        a.fail(message, node, "INVALID_FUNCTION_ARGUMENT")
+    return container.args[position - 1][1]
 
 
 @handles(exp.Array)
@@ -55,6 +70,12 @@ def _interval(a: Analyzer, node, scope, env):
     if not (isinstance(value, exp.Literal) and value.is_string) or unit is None:
         a.unsupported("interval syntax (use INTERVAL '3' DAY)", node)
     unit_name = unit.name.upper()
+    if isinstance(unit, exp.IntervalSpan):
+        last = unit.expression.name.upper()
+        text = value.name  # Trino refuses white space around the fields
+        if intervals.span_value(text, unit_name, last) is None:
+            a.unsupported(f"interval literal '{text}' {unit_name} TO {last}", node)
+        return tt.INTERVAL_YM if unit_name == "YEAR" else tt.INTERVAL_DS
     if unit_name not in ("YEAR", "MONTH", "DAY", "HOUR", "MINUTE", "SECOND"):
         a.unsupported(f"interval unit {unit_name}", node)
     text = value.name.strip()
@@ -108,6 +129,8 @@ def _extract(a: Analyzer, node, scope, env):
     }
     if unit in ("TIMEZONE_HOUR", "TIMEZONE_MINUTE") and t.base == "timestamp_tz":
         a.zone(t, node, f"EXTRACT({unit} FROM ...)")
+        return tt.BIGINT
+    if t.base in intervals.FIELDS and unit.lower() in intervals.FIELDS[t.base]:
         return tt.BIGINT
     if unit not in allowed:
         a.unsupported(f"EXTRACT({unit} FROM ...)", node)

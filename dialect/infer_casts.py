@@ -75,6 +75,8 @@ def _cast(a: Analyzer, node, scope, env):
             _check_wall_time_exists(a, node, node.meta["local"], tt.zone_of(target))
     else:
         a.zones(source, node, f"CAST to {target}")
+    if source.base in ("interval_ds", "interval_ym") and target.base == "varchar" and target.args:
+        a.unsupported(f"CAST({source} AS {target}) (to a bounded varchar)", node)
     if not castable(source, target) and any(t.base == "time" for t in tt.inner_types(target)):
         a.unsupported(f"CAST({source} AS {target})", node)  # nested time(p > 6) or timestamp(p > 6)
     if not castable(source, target):
@@ -189,7 +191,7 @@ def castable(source: TType, target: TType) -> bool:
         return True
     if target.base == "time" and source.base in ("varchar", "time", "timestamp"):  # p <= 6 (times.py)
         return max(target.args[0], source.args[0] if source.base != "varchar" else 0) <= 6
-    if source.base == "time" and target.base == "varchar":
+    if source.base in ("time", "interval_ds", "interval_ym") and target.base == "varchar":
         return True
     if source.base == target.base == "array":
         return castable(source.element, target.element)

@@ -349,6 +349,8 @@ def _temporal_arithmetic(op: str, left: TType, right: TType) -> TType | None:
             return TType("time", (max(3, time.args[0]),))
     if op in "+-" and left.base == right.base and left.base in intervals:
         return left
+    if op == "*" and (left.base in intervals and right.is_integral or left.is_integral and right.base in intervals):
+        return left if left.base in intervals else right  # exact in DuckDB (IntervalDayTimeOperators.multiply)
     if op == "-" and left.base == right.base and left.base in ("timestamp", "timestamp_tz"):
         return tt.INTERVAL_DS
     return None

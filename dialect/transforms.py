@@ -17,7 +17,7 @@ from __future__ import annotations
 from sqlglot import exp
 from sqlglot.generators.duckdb import DuckDBGenerator
 
-from lakegate.dialect import chars, zones
+from lakegate.dialect import chars, intervals, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.trino_types import TType
@@ -308,12 +308,18 @@ def extract_field(g: Writer, node: exp.Extract) -> str:
     value = node.expression
     if unit in ("TIMEZONE_HOUR", "TIMEZONE_MINUTE"):
         return zone_offset(g, value, unit.split("_")[1].lower())
+    if ttype(value).base in intervals.FIELDS:
+        return intervals.field(g.sql(value), ttype(value).base, unit.lower())
     sql = wall_time(g, value)
     return f"CAST(date_part({string(_EXTRACT.get(unit, unit.lower()))}, {sql}) AS BIGINT)"
 
 
 @transform(exp.Interval)
 def interval_literal(g: Writer, node: exp.Interval) -> str:
+    unit = node.args["unit"]
+    if isinstance(unit, exp.IntervalSpan):
+        spanned = intervals.span_value(node.this.name, unit.name.upper(), unit.expression.name.upper())
+        return intervals.duckdb_interval(*spanned)  # type: ignore[misc]  # analysis refused what it cannot read
     return f"INTERVAL {string(node.this.name.strip())} {node.args['unit'].name.upper()}"
 
 

@@ -152,7 +152,13 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
             return as_nanoseconds(g, sql)
         return cast(sql, target)
     if target.base == "timestamp" and source.base == "timestamp_tz":
-        return cast(zones.local(sql, tt.zone_of(source)), target)
+        local = zones.local(sql, tt.zone_of(source))
+        if target.args[0] < source.args[0]:  # rounded HALF_UP (TimestampWithTimeZoneToTimestampCast)
+            return round_timestamp(local, target.args[0])
+        return cast(local, target)
+    if target.base == source.base == "timestamp_tz" and target.args[0] < source.args[0]:
+        # the instant rounded HALF_UP (TimestampWithTimeZoneToTimestampWithTimeZoneCast)
+        return f"CAST({round_timestamp(sql, target.args[0])} AS TIMESTAMPTZ)"
     if target.base == "timestamp_tz" and source.base in ("timestamp", "date"):
         sql = zoned_precision(sql, source, target.args[0])
         return zones.instant(f"CAST({sql} AS TIMESTAMP)", tt.zone_of(target))
@@ -352,7 +358,29 @@ def varchar_of(g: Writer, sql: str, source: TType) -> str:
     if source.base == "timestamp_tz":
         zone = tt.zone_of(source)
         return timestamp_text(zones.local(sql, zone), source.args[0]) + f" || {string(' ' + zone)}"
+    if source.base in ("interval_ds", "interval_ym"):
+        return interval_text(sql, source)
     return f"CAST({sql} AS VARCHAR)"
+
+
+def interval_text(sql: str, source: TType) -> str:
+    """Trino's text of an interval: `-1 02:03:04.500` (day to second, milliseconds) or `-1-2` (year to
+    month), the sign before the whole value."""
+    if source.base == "interval_ym":
+        months = f"(date_part('year', {sql}) * 12 + date_part('month', {sql}))"
+        sign = f"CASE WHEN {months} < 0 THEN '-' ELSE '' END"
+        return f"{sign} || CAST(abs({months}) // 12 AS VARCHAR) || '-' || CAST(abs({months}) % 12 AS VARCHAR)"
+    millis = f"CAST(epoch_ms({sql}) AS BIGINT)"
+    sign = f"CASE WHEN {millis} < 0 THEN '-' ELSE '' END"
+    parts = [f"lpad(CAST(abs({millis}) // {unit} % {modulo} AS VARCHAR), 2, '0')" for unit, modulo in _CLOCK]
+    fraction = f"lpad(CAST(abs({millis}) % 1000 AS VARCHAR), 3, '0')"
+    days = f"CAST(abs({millis}) // 86400000 AS VARCHAR)"
+    clock = " || ':' || ".join(parts)
+    return f"{sign} || {days} || ' ' || {clock} || '.' || {fraction}"
+
+
+#: (milliseconds per unit, units per next unit) of hours, minutes and seconds.
+_CLOCK = ((3_600_000, 24), (60_000, 60), (1000, 60))
 
 
 def timestamp_text(sql: str, precision: int) -> str:

@@ -472,8 +472,11 @@ def subscript(g: Writer, array_sql: str, index_node: exp.Expression) -> str:
 
 @transform(exp.Bracket)
 def array_subscript(g: Writer, node: exp.Bracket) -> str:
-    """arr[i] fails out of range; map[key] fails for a missing key (element_at gives NULL)."""
+    """arr[i] fails out of range; map[key] fails for a missing key (element_at gives NULL); row[i] is
+    its i-th field (analysis checked i)."""
     container = ttype(node.this)
+    if container.base == "row":
+        return f"struct_extract_at({g.sql(node.this)}, {int(node.expressions[0].name)})"
     if container.base == "map":
         map_sql, key = g.sql(node.this), g.coerce(node.expressions[0], container.args[0])
         missing = string("Key not present in map: ") + f" || ({key})"

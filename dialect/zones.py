@@ -82,13 +82,14 @@ def canonical(name: str) -> str:
     `Etc/GMT-7` are all `+07:00`, `GMT+00:00` is UTC). ValueError `Time zone not supported: name` otherwise."""
     if name in _UTC_EQUIVALENTS:
         return UTC
-    if name in _regions():
-        return name
     text, negate = name, False
-    for prefix in _OFFSET_PREFIXES:
+    for prefix in _OFFSET_PREFIXES:  # before the regions: the tz database also names Etc/GMT-7
         if name.startswith(prefix) and name[len(prefix) : len(prefix) + 1] in ("+", "-"):
             text, negate = name[len(prefix) :], prefix == "Etc/GMT"
             break
+    else:
+        if name in _regions():
+            return name
     match = _OFFSET.fullmatch(text)
     zone = None
     if match is not None:

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import re
 
-from lakegate.dialect import times, zoned_nanos, zones
+from lakegate.dialect import intervals, times, zoned_nanos, zones
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect import write_casts as casts
@@ -137,6 +137,8 @@ def _render_date_add(g, node, args) -> str:
         return casts.with_nanos(sql, g.sql(args[2].this))
     if t.base == "timestamp" and t.args[0] < 3 and unit == "millisecond":  # rounded to p digits (DateAdd)
         return casts.round_timestamp(sql, t.args[0])
+    if t.base == "timestamp_tz" and t.args[0] < 3 and unit == "millisecond":  # the instant, rounded as well
+        return f"CAST({casts.round_timestamp(sql, t.args[0])} AS TIMESTAMPTZ)"
     return tf.cast(sql, t)
 
 
@@ -149,6 +151,21 @@ def _date_trunc(call: Call) -> TType:
     types = need(call, "string", "temporal")
     _unit(call, 0, types[1])
     return types[1]
+
+
+def _timezone(call: Call) -> TType:
+    if len(call.types) != 1 or call.types[0] is None or call.types[0].base not in ("timestamp_tz", "unknown"):
+        call.mismatch()  # a timestamp would be read in the session zone: refused as the other kinds are
+    if call.types[0].base == "timestamp_tz":
+        call.analyzer.zone(call.types[0], call.node, "timezone(...)")
+    return tt.VARCHAR
+
+
+def _render_timezone(g, node, args) -> str:
+    zone = tt.zone_of(ttype(args[0]))
+    if zone is None:  # NULL
+        return "CAST(NULL AS VARCHAR)"
+    return f"CASE WHEN {g.sql(args[0])} IS NULL THEN NULL ELSE {tf.string(zone)} END"
 
 
 def _render_date_trunc(g, node, args) -> str:
@@ -229,6 +246,8 @@ def _field(call: Call) -> TType:
     first = call.types[0] if len(call.types) == 1 else None
     if first is not None and first.base == "time" and name in ("hour", "minute", "second", "millisecond"):
         return tt.BIGINT  # of a time (DateTimeFunctions: hourFromTime, ...)
+    if first is not None and first.base in intervals.FIELDS:
+        return tt.BIGINT if name in intervals.FIELDS[first.base] else call.mismatch()
     types = need(call, "temporal")
     if types[0].base == "date" and name in ("hour", "minute", "second", "millisecond"):
         call.mismatch()
@@ -257,8 +276,10 @@ _FIELD_OF = {
 
 
 def _render_field(g, node, args) -> str:
-    value = tf.wall_time(g, args[0])
     name = node.name.lower()
+    if ttype(args[0]).base in intervals.FIELDS:
+        return intervals.field(g.sql(args[0]), ttype(args[0]).base, name)
+    value = tf.wall_time(g, args[0])
     part = _FIELD_OF[name]
     if name == "millisecond":
         return f"CAST(date_part('millisecond', {value}) % 1000 AS BIGINT)"
@@ -549,6 +570,14 @@ def install() -> None:
         lambda c: _zone_argument(c, "instant"),
         lambda g, node, args: g.coerce(args[0], ttype(node)),
         notes="The same instant in another zone (a timestamp is read in the session zone); the zone must be a literal.",
+    )
+    register(
+        "timezone",
+        "datetime",
+        "timezone(timestamp(p) with time zone) -> varchar",
+        _timezone,
+        _render_timezone,
+        notes="The zone of the value, which lakegate knows from its type (time with time zone is refused).",
     )
     register(
         "with_timezone",

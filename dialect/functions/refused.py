@@ -73,7 +73,6 @@ REJECTED: dict[str, str] = {
 
 NOT_TRANSLATED: dict[str, str] = {
     "title_case": "not translated (string.md)",
-    "timezone": "not translated (datetime.md: the zone identifier of a timestamp or time with time zone)",
     "from_iso8601_timestamp_nanos": "DuckDB has no nanosecond timestamp with time zone",
 }
 

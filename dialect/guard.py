@@ -354,7 +354,7 @@ def _refuse_no_statement(sql: str) -> None:
         ),
         None,
     )
-    line, column = _where(sql, first.start()) if first else (1, 1)
+    line, column = _where(sql, first.start() if first else len(sql))
     token = first.group() if first else "<EOF>"
     raise DialectError(
         f"mismatched input '{token}'. Expecting: a query (SELECT, WITH, VALUES, TABLE), SHOW, DESCRIBE or EXPLAIN",

@@ -22,6 +22,7 @@ from sqlglot.tokens import TokenType
 from lakegate.dialect import guard, session_functions, write_casts, write_operators
 from lakegate.dialect import params as parameters
 from lakegate.dialect import scope as scoping
+from lakegate.dialect import syntax_errors
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import analyze
 from lakegate.dialect.errors import DialectError
@@ -75,6 +76,18 @@ class _Parser(Trino.Parser):
             "JSON_TABLE",
         )
     }
+    def raise_error(self, message: str, token=None) -> None:
+        """sqlglot's raise_error, with the offending token (None: the end of the text) recorded for
+        syntax_errors.parse_error."""
+        # sqlglot names the token before the one it stopped at when it says what should follow it
+        offending = self._curr if not token or token is self._prev else token
+        try:
+            super().raise_error(message, token) if token else super().raise_error(message)
+        except ParseError as error:
+            raise syntax_errors.mark(error, self.sql, offending) from None
+        if self.errors:
+            syntax_errors.mark(self.errors[-1], self.sql, offending)
+
     FUNCTION_PARSERS["NORMALIZE"] = lambda self: self._parse_normalize()
     FUNCTION_PARSERS["JSON_QUERY"] = lambda self: self._parse_sql_json(exp.JSONExtract)
     FUNCTION_PARSERS["JSON_VALUE"] = lambda self: self._parse_sql_json(exp.JSONValue)
@@ -394,14 +407,13 @@ _DUCKDB_OPERATORS = {
 _SET_OPERATIONS = {TokenType.UNION, TokenType.INTERSECT, TokenType.EXCEPT}
 
 
-def _mismatched(token, hint: str = "", text: str | None = None) -> DialectError:
+def _mismatched(token, hint: str = "", text: str | None = None, sql: str = "") -> DialectError:
     """Trino's SYNTAX_ERROR "mismatched input 'x'" at the start of `token` (or of its `text` suffix)."""
-    text = token.text if text is None else text
-    message = f"mismatched input '{text}'" + (f". {hint}" if hint else "")
-    return DialectError(message, line=token.line, column=max(1, token.col - len(text) + 1), error_name="SYNTAX_ERROR")
+    text = sql[token.start : token.end + 1] if text is None else text
+    return syntax_errors.mismatched(sql, token.end + 1 - len(text), text, hint)
 
 
-def _refuse_duckdb_syntax(tokens: list) -> None:
+def _refuse_duckdb_syntax(tokens: list, sql: str) -> None:
     """Refuse DuckDB syntax that sqlglot's Trino reader accepts but Trino's grammar (trinodb/trino
     core/trino-grammar/src/main/antlr4/io/trino/grammar/sql/SqlBase.g4) does not: `::`, `==`, `//`, `**`,
     `<=>`, `->>`, `{...}` struct literals, `UNION BY NAME` and `LIMIT n%` / `LIMIT n PERCENT`."""
@@ -409,12 +421,14 @@ def _refuse_duckdb_syntax(tokens: list) -> None:
         kind, following = token.token_type, tokens[i + 1] if i + 1 < len(tokens) else None
         adjacent = following is not None and following.start == token.end + 1
         if kind in _DUCKDB_OPERATORS:
-            raise _mismatched(token, _DUCKDB_OPERATORS[kind])
+            raise _mismatched(token, _DUCKDB_OPERATORS[kind], sql=sql)
         if kind == TokenType.EQ and token.text == "==":
-            raise _mismatched(token, "use '='", text="=")
+            raise _mismatched(token, "use '='", text="=", sql=sql)
         if kind in (TokenType.SLASH, TokenType.STAR) and adjacent and following.token_type == kind:
             raise _mismatched(
-                following, "use power(a, b)" if kind == TokenType.STAR else "integer division is a / b on integers"
+                following,
+                "use power(a, b)" if kind == TokenType.STAR else "integer division is a / b on integers",
+                sql=sql,
             )
         if kind in _SET_OPERATIONS:
             by = (
@@ -423,36 +437,14 @@ def _refuse_duckdb_syntax(tokens: list) -> None:
                 else following
             )
             if by is not None and by.text.upper() == "BY":
-                raise _mismatched(by, "UNION BY NAME is DuckDB syntax")
+                raise _mismatched(by, "UNION BY NAME is DuckDB syntax", sql=sql)
         if (
             kind == TokenType.LIMIT
             and following is not None
             and i + 2 < len(tokens)
             and tokens[i + 2].token_type in (TokenType.MOD, TokenType.PERCENT)
         ):
-            raise _mismatched(tokens[i + 2], "LIMIT takes a row count (Trino has no LIMIT n PERCENT)")
-
-
-def _parse_error(error: ParseError) -> DialectError:
-    """Trino's SYNTAX_ERROR for a sqlglot ParseError: its message without sqlglot's internals."""
-    detail = error.errors[0] if error.errors else {}
-    message = detail.get("description") or str(error).splitlines()[0]
-    line, column = detail.get("line"), detail.get("col")
-    token = detail.get("highlight") or ""
-    if line is not None and column is not None and token:
-        column = max(1, column - len(token) + 1)
-    if "<class" in message or message.startswith(("Invalid expression", "Required keyword")):
-        at_end = not (detail.get("end_context") or "").strip()
-        if at_end and message.startswith("Required keyword") and column is not None:
-            column += len(token)  # sqlglot points at the last token; what is missing comes after it
-        token = "<EOF>" if at_end and message.startswith("Required keyword") or not token else token
-        message = f"mismatched input '{token}'"
-    return DialectError(
-        message if message.startswith("mismatched") else f"syntax error: {message}",
-        line=line,
-        column=column,
-        error_name="SYNTAX_ERROR",
-    )
+            raise _mismatched(tokens[i + 2], "LIMIT takes a row count (Trino has no LIMIT n PERCENT)", sql=sql)
 
 
 def parse(sql: str) -> exp.Expression:
@@ -460,7 +452,7 @@ def parse(sql: str) -> exp.Expression:
     dialect = LakegateTrino()
     try:
         tokens = dialect.tokenize(sql)
-        _refuse_duckdb_syntax(tokens)
+        _refuse_duckdb_syntax(tokens, sql)
         statements = [
             s for s in dialect.parser().parse(tokens, sql) if s is not None and not isinstance(s, exp.Semicolon)
         ]  # `; -- comment` is no statement
@@ -468,15 +460,18 @@ def parse(sql: str) -> exp.Expression:
         construct = unparsed_construct(sql)
         if construct is not None:
             raise DialectError(f"unsupported in lakegate: {construct}", error_name="NOT_SUPPORTED") from None
-        raise _parse_error(error) from None
-    except TokenError as error:
-        raise DialectError(f"syntax error: {error}", error_name="SYNTAX_ERROR") from None
+        raise syntax_errors.parse_error(error, sql) from None
+    except TokenError:
+        raise syntax_errors.tokenize_error(sql) from None
     except RecursionError:
         raise DialectError("syntax error: the query is nested too deeply", error_name="SYNTAX_ERROR") from None
     if not statements:
-        raise DialectError("mismatched input '<EOF>'", line=1, column=1, error_name="SYNTAX_ERROR")
-    if len(statements) > 1:
-        raise DialectError("syntax error: only one statement is allowed", error_name="SYNTAX_ERROR")
+        raise syntax_errors.mismatched(sql, -1, "<EOF>")
+    if len(statements) > 1:  # Trino's grammar takes one statement: it stops at the `;` before the second
+        separator = next(
+            t for i, t in enumerate(tokens) if t.token_type == TokenType.SEMICOLON and i + 1 < len(tokens)
+        )
+        raise _mismatched(separator, sql=sql)
     return statements[0]
 
 

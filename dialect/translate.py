@@ -76,6 +76,7 @@ class _Parser(Trino.Parser):
             "JSON_TABLE",
         )
     }
+
     def raise_error(self, message: str, token=None) -> None:
         """sqlglot's raise_error, with the offending token (None: the end of the text) recorded for
         syntax_errors.parse_error."""
@@ -468,9 +469,7 @@ def parse(sql: str) -> exp.Expression:
     if not statements:
         raise syntax_errors.mismatched(sql, -1, "<EOF>")
     if len(statements) > 1:  # Trino's grammar takes one statement: it stops at the `;` before the second
-        separator = next(
-            t for i, t in enumerate(tokens) if t.token_type == TokenType.SEMICOLON and i + 1 < len(tokens)
-        )
+        separator = next(t for i, t in enumerate(tokens) if t.token_type == TokenType.SEMICOLON and i + 1 < len(tokens))
         raise _mismatched(separator, sql=sql)
     return statements[0]
 

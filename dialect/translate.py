@@ -19,10 +19,9 @@ from sqlglot.dialects.trino import Trino
 from sqlglot.errors import ParseError, TokenError
 from sqlglot.tokens import TokenType
 
-from lakegate.dialect import guard, session_functions, write_casts, write_operators
+from lakegate.dialect import guard, session_functions, syntax_errors, write_casts, write_operators
 from lakegate.dialect import params as parameters
 from lakegate.dialect import scope as scoping
-from lakegate.dialect import syntax_errors
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import analyze
 from lakegate.dialect.errors import DialectError

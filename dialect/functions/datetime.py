@@ -260,6 +260,8 @@ def _render_field(g, node, args) -> str:
     value = tf.wall_time(g, args[0])
     name = node.name.lower()
     part = _FIELD_OF[name]
+    if ttype(args[0]).base == "unknown":  # a NULL literal: DuckDB cannot choose date_part's overload
+        return "CAST(NULL AS BIGINT)"
     if name == "millisecond":
         return f"CAST(date_part('millisecond', {value}) % 1000 AS BIGINT)"
     return f"CAST(date_part({tf.string(part)}, {value}) AS BIGINT)"

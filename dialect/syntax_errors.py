@@ -4,14 +4,16 @@ column of the offending token (`<EOF>` after the last character), never sqlglot'
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 
-from sqlglot.errors import ParseError
+from sqlglot.dialects.trino import Trino
+from sqlglot.errors import ParseError, TokenError
 from sqlglot.tokens import Token, TokenType
 
 from lakegate.dialect.errors import DialectError
 
 #: A binary literal X'...' with a character that is not a hexadecimal digit.
-_BAD_BINARY = re.compile(r"(?<![\w'])[xX]'(?![0-9a-fA-F\s]*')")
+_BAD_BINARY = re.compile(r"(?<![\w'])[xX]'(?=[^']*')(?![0-9a-fA-F\s]*')")
 
 #: The key of a sqlglot error dict that the dialect's parser adds: the offending token's offset in the
 #: SQL text (-1: the end of the text) and its text as written.
@@ -53,9 +55,10 @@ def parse_error(error: ParseError, sql: str) -> DialectError:
     return mismatched(sql, detail[OFFSET], detail[TEXT], hint)
 
 
-def tokenize_error(sql: str) -> DialectError:
+def tokenize_error(sql: str, parse: Callable[[str], object] | None = None) -> DialectError:
     """The SYNTAX_ERROR for text sqlglot's tokenizer cannot read: Trino stops at the quote that opens an
-    unterminated string or quoted identifier, and at the `*` of an unterminated `/*` comment."""
+    unterminated string or quoted identifier, and at the `*` of an unterminated `/*` comment, unless the
+    text before it is wrong already (`parse`, the dialect's parse, raises for that text before its end)."""
     binary = _BAD_BINARY.search(sql)
     offset = _unterminated(sql)
     if binary is not None and (offset is None or binary.start() < offset):
@@ -65,9 +68,40 @@ def tokenize_error(sql: str) -> DialectError:
         )
     if offset is None:
         return mismatched(sql, 0, sql.split(None, 1)[0] if sql.strip() else "<EOF>")
-    if sql.startswith("/*", offset):
-        return mismatched(sql, offset + 1, "*")
+    if parse is not None:
+        try:
+            parse(sql[:offset])
+        except DialectError as earlier:
+            if earlier.error_name == "SYNTAX_ERROR" and (earlier.line, earlier.column) < position(sql, offset):
+                return earlier
+    if sql.startswith("/*", offset):  # Trino reads `/` and `*`: a division after an operand, else no expression
+        return mismatched(sql, offset + 1, "*") if _after_operand(sql[:offset]) else mismatched(sql, offset, "/")
     return mismatched(sql, offset, sql[offset])
+
+
+#: Tokens that end an operand, after which `/` is a division.
+_OPERAND_ENDS = {
+    TokenType.NUMBER,
+    TokenType.STRING,
+    TokenType.VAR,
+    TokenType.IDENTIFIER,
+    TokenType.R_PAREN,
+    TokenType.R_BRACKET,
+    TokenType.NULL,
+    TokenType.TRUE,
+    TokenType.FALSE,
+    TokenType.END,
+}
+
+
+def _after_operand(text: str) -> bool:
+    """Whether `text` (the SQL before an unterminated comment) ends with an operand."""
+    try:
+        tokens = Trino().tokenize(text)
+    except TokenError:
+        return False
+    alias = len(tokens) > 1 and tokens[-2].token_type == TokenType.ALIAS  # `AS c`: a name, not an operand
+    return bool(tokens) and tokens[-1].token_type in _OPERAND_ENDS and not alias
 
 
 def _unterminated(sql: str) -> int | None:

@@ -147,7 +147,13 @@ class Analyzer(Relations, StarExpansion, Checks):
             self.fail("'*' is only allowed in count(*)", node, "SYNTAX_ERROR")
         node.meta["args"] = args
         node.meta["spec"] = spec
-        t = spec.infer(Call(self, node, name, args, scope, env))
+        call = Call(self, node, name, args, scope, env)
+        try:
+            t = spec.infer(call)
+        except IndexError:  # the rule read an argument the call does not have: Trino finds no signature
+            call.mismatch()
+        if any(isinstance(a, exp.Lambda) and not (a._meta and "params" in a._meta) for a in args):
+            call.mismatch()  # a lambda where the signature takes none
         if name in MICROS_READERS:
             args[:] = [floor_micros(arg) for arg in args]
         return t

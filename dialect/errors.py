@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import re
 
 #: Trino's standard error codes (io.trino.spi.StandardErrorCode) for the names this layer raises.
@@ -110,6 +111,16 @@ _PATH = re.compile(r"(?<![\w.:/])/(?:[^\s/'\"]+/)+([^\s/'\"]+)")
 _DECIMAL_OVERFLOW = re.compile(r"Overflow in (?:addition|subtract|multiplication) of DECIMAL\(")
 
 
+#: DuckDB's classes of errors that refuse the translated SQL itself (not the data it reads): no Trino query
+#: ever meets them, so one means lakegate wrote SQL that DuckDB will not run for this query.
+_REFUSED_TRANSLATION = re.compile(
+    r"(?:Binder|Catalog|Parser|Not implemented|INTERNAL|Internal|Dependency|Invalid type|Serialization"
+    r"|TransactionContext|Permission|Invalid Configuration|Sequence|Constraint|Invalid) Error: "
+)
+
+_log = logging.getLogger(__name__)
+
+
 def runtime_error(message: str) -> DialectError:
     """The DialectError for a DuckDB error raised while running translated SQL: Trino's error name
     and message (DuckDB's 'Invalid Input Error: ' prefix removed, absolute paths cut to their file
@@ -119,6 +130,13 @@ def runtime_error(message: str) -> DialectError:
     named = re.match(r"(?:[A-Za-z ]+ Error: )?([A-Z][A-Z_]+): (.*)", first)
     if named and named.group(1) in ERROR_CODES:
         return DialectError(named.group(2), error_name=named.group(1))
+    if _REFUSED_TRANSLATION.match(first):
+        _log.warning("DuckDB refused a translated query: %s", first)
+        return DialectError(
+            "unsupported in lakegate: this query cannot be answered exactly as Trino would "
+            "(its translation to the engine does not run)",
+            error_name="NOT_SUPPORTED",
+        )
     if _DECIMAL_OVERFLOW.search(first):
         return DialectError("Decimal overflow", error_name="NUMERIC_VALUE_OUT_OF_RANGE")
     name = next((n for marker, n in _RUNTIME if marker in first), "GENERIC_USER_ERROR")

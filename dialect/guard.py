@@ -350,12 +350,16 @@ def _refuse_no_statement(sql: str) -> None:
         (
             lexeme
             for lexeme in _LEXEME.finditer(sql)
-            if not lexeme.group()[0].isspace() and not lexeme.group().startswith(("--", "/*"))
+            if not lexeme.group()[0].isspace()
+            and not lexeme.group().startswith("--")
+            and not (lexeme.group().startswith("/*") and lexeme.group().endswith("*/") and len(lexeme.group()) > 3)
         ),
         None,
     )
-    line, column = _where(sql, first.start()) if first else (1, 1)
+    line, column = _where(sql, first.start() if first else len(sql))
     token = first.group() if first else "<EOF>"
+    if token.startswith("/*") or token[0] in "'\"" and token.count(token[0]) % 2:
+        token = token[0]  # an unterminated comment, string or identifier: Trino stops at its first character
     raise DialectError(
         f"mismatched input '{token}'. Expecting: a query (SELECT, WITH, VALUES, TABLE), SHOW, DESCRIBE or EXPLAIN",
         line=line,

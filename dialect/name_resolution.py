@@ -251,6 +251,12 @@ class Relations:
                 index = int(item.name) if item.name.isdigit() else 0
                 if not 1 <= index <= len(select.expressions):
                     self.fail(f"GROUP BY position {item.name} is not in select list", item, "INVALID_COLUMN_REFERENCE")
+                target = select.expressions[index - 1].unalias()
+                if isinstance(target, exp.Column) and not isinstance(target.this, exp.Star):
+                    # the column itself, as Trino groups by it: DuckDB groups a position by the written select
+                    # item (a cast of the column), and then refuses the column in a correlated subquery
+                    item = item.replace(target.copy())
+                    self.expr(item, scope, {})
                 continue
             self.expr(item, scope, {})
 

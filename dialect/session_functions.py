@@ -96,8 +96,10 @@ def bind(tree: exp.Expression, sql: str, names: SessionNames | None) -> bool:
         return False
     if names is None:
         line, column = _where(sql, offset) if offset is not None else (None, None)
+        # the first in the text, where the position points (the tree's walk may meet another first)
+        name = next((n for n in NAMES if offset is not None and sql[offset:].lower().startswith(n)), found[0][1])
         raise DialectError(
-            f"unsupported in lakegate: {found[0][1]} outside a session (it is answered by lakegate query and serve)",
+            f"unsupported in lakegate: {name} outside a session (it is answered by lakegate query and serve)",
             line=line,
             column=column,
             error_name="NOT_SUPPORTED",

@@ -19,7 +19,7 @@ from sqlglot.dialects.trino import Trino
 from sqlglot.errors import ParseError, TokenError
 from sqlglot.tokens import TokenType
 
-from lakegate.dialect import guard, session_functions, write_casts, write_operators
+from lakegate.dialect import guard, session_functions, syntax_errors, write_casts, write_operators
 from lakegate.dialect import params as parameters
 from lakegate.dialect import scope as scoping
 from lakegate.dialect import trino_types as tt
@@ -75,6 +75,19 @@ class _Parser(Trino.Parser):
             "JSON_TABLE",
         )
     }
+
+    def raise_error(self, message: str, token=None) -> None:
+        """sqlglot's raise_error, with the offending token (None: the end of the text) recorded for
+        syntax_errors.parse_error."""
+        # sqlglot names the token before the one it stopped at when it says what should follow it
+        offending = self._curr if not token or token is self._prev else token
+        try:
+            super().raise_error(message, token) if token else super().raise_error(message)
+        except ParseError as error:
+            raise syntax_errors.mark(error, self.sql, offending) from None
+        if self.errors:
+            syntax_errors.mark(self.errors[-1], self.sql, offending)
+
     FUNCTION_PARSERS["NORMALIZE"] = lambda self: self._parse_normalize()
     FUNCTION_PARSERS["JSON_QUERY"] = lambda self: self._parse_sql_json(exp.JSONExtract)
     FUNCTION_PARSERS["JSON_VALUE"] = lambda self: self._parse_sql_json(exp.JSONValue)
@@ -423,14 +436,13 @@ _DUCKDB_OPERATORS = {
 _SET_OPERATIONS = {TokenType.UNION, TokenType.INTERSECT, TokenType.EXCEPT}
 
 
-def _mismatched(token, hint: str = "", text: str | None = None) -> DialectError:
+def _mismatched(token, hint: str = "", text: str | None = None, sql: str = "") -> DialectError:
     """Trino's SYNTAX_ERROR "mismatched input 'x'" at the start of `token` (or of its `text` suffix)."""
-    text = token.text if text is None else text
-    message = f"mismatched input '{text}'" + (f". {hint}" if hint else "")
-    return DialectError(message, line=token.line, column=max(1, token.col - len(text) + 1), error_name="SYNTAX_ERROR")
+    text = sql[token.start : token.end + 1] if text is None else text
+    return syntax_errors.mismatched(sql, token.end + 1 - len(text), text, hint)
 
 
-def _refuse_duckdb_syntax(tokens: list) -> None:
+def _refuse_duckdb_syntax(tokens: list, sql: str) -> None:
     """Refuse DuckDB syntax that sqlglot's Trino reader accepts but Trino's grammar (trinodb/trino
     core/trino-grammar/src/main/antlr4/io/trino/grammar/sql/SqlBase.g4) does not: `::`, `==`, `//`, `**`,
     `<=>`, `->>`, `{...}` struct literals, `UNION BY NAME` and `LIMIT n%` / `LIMIT n PERCENT`."""
@@ -438,50 +450,175 @@ def _refuse_duckdb_syntax(tokens: list) -> None:
         kind, following = token.token_type, tokens[i + 1] if i + 1 < len(tokens) else None
         adjacent = following is not None and following.start == token.end + 1
         if kind in _DUCKDB_OPERATORS:
-            raise _mismatched(token, _DUCKDB_OPERATORS[kind])
+            raise _mismatched(token, _DUCKDB_OPERATORS[kind], sql=sql)
         if kind == TokenType.EQ and token.text == "==":
-            raise _mismatched(token, "use '='", text="=")
+            raise _mismatched(token, "use '='", text="=", sql=sql)
         if kind in (TokenType.SLASH, TokenType.STAR) and adjacent and following.token_type == kind:
             raise _mismatched(
-                following, "use power(a, b)" if kind == TokenType.STAR else "integer division is a / b on integers"
+                following,
+                "use power(a, b)" if kind == TokenType.STAR else "integer division is a / b on integers",
+                sql=sql,
             )
         if kind in _SET_OPERATIONS:
             by = (
-                tokens[i + 2]
+                (tokens[i + 2] if i + 2 < len(tokens) else None)
                 if following is not None and following.token_type in (TokenType.ALL, TokenType.DISTINCT)
                 else following
             )
             if by is not None and by.text.upper() == "BY":
-                raise _mismatched(by, "UNION BY NAME is DuckDB syntax")
+                raise _mismatched(by, "UNION BY NAME is DuckDB syntax", sql=sql)
         if (
             kind == TokenType.LIMIT
             and following is not None
             and i + 2 < len(tokens)
             and tokens[i + 2].token_type in (TokenType.MOD, TokenType.PERCENT)
         ):
-            raise _mismatched(tokens[i + 2], "LIMIT takes a row count (Trino has no LIMIT n PERCENT)")
+            raise _mismatched(tokens[i + 2], "LIMIT takes a row count (Trino has no LIMIT n PERCENT)", sql=sql)
 
 
-def _parse_error(error: ParseError) -> DialectError:
-    """Trino's SYNTAX_ERROR for a sqlglot ParseError: its message without sqlglot's internals."""
-    detail = error.errors[0] if error.errors else {}
-    message = detail.get("description") or str(error).splitlines()[0]
-    line, column = detail.get("line"), detail.get("col")
-    token = detail.get("highlight") or ""
-    if line is not None and column is not None and token:
-        column = max(1, column - len(token) + 1)
-    if "<class" in message or message.startswith(("Invalid expression", "Required keyword")):
-        at_end = not (detail.get("end_context") or "").strip()
-        if at_end and message.startswith("Required keyword") and column is not None:
-            column += len(token)  # sqlglot points at the last token; what is missing comes after it
-        token = "<EOF>" if at_end and message.startswith("Required keyword") or not token else token
-        message = f"mismatched input '{token}'"
-    return DialectError(
-        message if message.startswith("mismatched") else f"syntax error: {message}",
-        line=line,
-        column=column,
-        error_name="SYNTAX_ERROR",
+#: Tokens that cannot start an expression or a select item: after SELECT [DISTINCT] or a comma Trino stops at them.
+_NOT_AN_ITEM = {
+    getattr(TokenType, name)
+    for name in (
+        "FROM WHERE GROUP_BY ORDER_BY HAVING LIMIT JOIN UNION INTERSECT EXCEPT ON R_PAREN R_BRACKET COMMA SEMICOLON "
+        "WINDOW OFFSET FETCH INNER LEFT RIGHT FULL CROSS USING QUALIFY WHEN THEN ELSE END"
+    ).split()
+    if hasattr(TokenType, name)
+}
+
+
+#: Tokens after which Trino's grammar wants an expression or an item.
+_ITEM_BEFORE = {
+    getattr(TokenType, name)
+    for name in (
+        "SELECT COMMA GROUP_BY ORDER_BY PARTITION_BY HAVING WHERE AND OR ON LIMIT OFFSET WHEN THEN ELSE ALIAS IS NOT"
+    ).split()
+    if hasattr(TokenType, name)
+}
+
+
+#: Tokens that never end a Trino statement (sqlglot reads some of them as names).
+_NOT_LAST = {
+    getattr(TokenType, name)
+    for name in "UNION INTERSECT EXCEPT LEFT RIGHT FULL JOIN FROM DISTINCT IN".split()
+    if hasattr(TokenType, name)
+}
+
+
+def _refuse_missing_item(tokens: list, sql: str) -> None:
+    """Trino's grammar wants an item after SELECT [DISTINCT], a comma, GROUP BY, ORDER BY, WHERE, ...;
+    sqlglot's takes an empty select list, a trailing comma and an empty GROUP BY."""
+    if tokens and tokens[-1].token_type == TokenType.DOT:  # `x.` at the end: Trino's parser stops at the dot,
+        starts_item = len(tokens) > 2 and tokens[-3].token_type in (TokenType.SELECT, TokenType.COMMA)
+        opened = sum((t.token_type == TokenType.L_PAREN) - (t.token_type == TokenType.R_PAREN) for t in tokens)
+        if not starts_item and opened <= 0:  # but not in a select item `t.` (`t.*`), nor inside brackets
+            raise _mismatched(tokens[-1], sql=sql)
+        raise syntax_errors.mismatched(sql, -1, "<EOF>")
+    set_all = len(tokens) > 1 and tokens[-1].token_type == TokenType.ALL and tokens[-2].token_type in _SET_OPERATIONS
+    if tokens and tokens[-1].token_type in _NOT_LAST or set_all:
+        raise syntax_errors.mismatched(sql, -1, "<EOF>")
+    for i, token in enumerate(tokens):
+        if token.token_type not in _ITEM_BEFORE:
+            continue
+        following = tokens[i + 1] if i + 1 < len(tokens) else None
+        if (
+            following is not None
+            and token.token_type == TokenType.SELECT
+            and following.token_type == TokenType.DISTINCT
+        ):
+            following = tokens[i + 2] if i + 2 < len(tokens) else None
+        if following is None:
+            raise syntax_errors.mismatched(sql, -1, "<EOF>")
+        if following.token_type in _NOT_AN_ITEM:
+            text = sql[following.start : following.end + 1].split()[0]  # GROUP of the one token GROUP BY
+            raise syntax_errors.mismatched(sql, following.start, text)
+
+
+#: Reserved words that Trino's grammar follows with `(` only.
+_CALL_WORDS = ("UNNEST", "EXISTS", "CAST", "EXTRACT", "USING")
+
+
+def _refuse_lone_group_order(tokens: list, sql: str) -> None:
+    """GROUP and ORDER are reserved in Trino (never a name): without BY after them Trino stops at what follows,
+    where sqlglot reads them as an alias; so do CROSS, NATURAL, INNER and OUTER without JOIN,
+    the words of _CALL_WORDS without (."""
+    for i, token in enumerate(tokens):
+        if token.token_type == TokenType.VAR and token.text.upper() in ("GROUP", "ORDER"):
+            if token.text.upper() == "GROUP" and i and tokens[i - 1].text.upper() == "WITHIN":
+                continue  # listagg(...) WITHIN GROUP (ORDER BY ...)
+            wanted = "BY"
+        elif token.token_type in (TokenType.CROSS, TokenType.NATURAL, TokenType.INNER, TokenType.OUTER):
+            wanted = "JOIN"
+        elif token.token_type != TokenType.IDENTIFIER and token.text.upper() in _CALL_WORDS:
+            wanted = "("
+        else:
+            continue
+        following = tokens[i + 1] if i + 1 < len(tokens) else None
+        if following is None:
+            raise syntax_errors.mismatched(sql, -1, "<EOF>", f"Expecting: '{wanted}'")
+        if following.text.upper() != wanted:
+            raise _mismatched(following, f"Expecting: '{wanted}'", sql=sql)
+
+
+_JOIN_WORDS = {TokenType.JOIN, TokenType.LEFT, TokenType.RIGHT, TokenType.FULL, TokenType.INNER, TokenType.CROSS}
+_RELATION_ENDS = {
+    getattr(TokenType, name)
+    for name in (
+        "WHERE GROUP_BY ORDER_BY HAVING LIMIT OFFSET FETCH WINDOW UNION INTERSECT EXCEPT R_PAREN COMMA SEMICOLON"
+    ).split()
+}
+
+
+def _refuse_join_without_criteria(tokens: list, sql: str) -> None:
+    """Trino's JOIN (but CROSS and NATURAL) needs ON or USING after its relation; sqlglot's makes a cross join."""
+    for i, token in enumerate(tokens):
+        before = tokens[i - 1].token_type if i else None
+        if token.token_type != TokenType.JOIN or before in (TokenType.CROSS, TokenType.NATURAL):
+            continue
+        depth = 0
+        for following in tokens[i + 1 :]:
+            kind = following.token_type
+            if depth == 0 and kind in (TokenType.ON, TokenType.USING) or depth == 0 and kind in _JOIN_WORDS:
+                break  # criteria, or a join of joins (Trino's grammar nests it): sqlglot's parse decides
+            if depth == 0 and kind in _RELATION_ENDS:
+                raise _mismatched(following, "Expecting: 'ON', 'USING'", sql=sql, text=following.text.split()[0])
+            depth += (kind in (TokenType.L_PAREN, TokenType.L_BRACKET)) - (
+                kind in (TokenType.R_PAREN, TokenType.R_BRACKET)
+            )
+        else:
+            raise syntax_errors.mismatched(sql, -1, "<EOF>", "Expecting: 'ON', 'USING'")
+
+
+_CLAUSES = {TokenType.SELECT, TokenType.FROM, TokenType.WHERE, TokenType.HAVING, TokenType.GROUP_BY}
+_CLAUSES |= {TokenType.ORDER_BY, TokenType.ON, TokenType.JOIN}
+
+
+def _refuse_condition_cut_short(tokens: list, sql: str) -> None:
+    """A WHERE or HAVING condition that ends in `IN` or `name(`: Trino's parser stops at that `IN` or `(`."""
+    if len(tokens) < 2:
+        return
+    last = tokens[-1]
+    cut = last.token_type == TokenType.IN or (
+        last.token_type == TokenType.L_PAREN and tokens[-2].token_type in (TokenType.VAR, TokenType.IDENTIFIER)
     )
+    clause = next((t.token_type for t in reversed(tokens) if t.token_type in _CLAUSES), None)
+    if cut and clause in (TokenType.WHERE, TokenType.HAVING):
+        raise _mismatched(last, sql=sql)
+
+
+def _refuse_lenient_syntax(tokens: list, sql: str) -> None:
+    """Trino's SYNTAX_ERROR for texts sqlglot's grammar reads and Trino's does not (a construct unparsed.py
+    names is refused by that name instead, as when sqlglot cannot parse it)."""
+    try:
+        _refuse_condition_cut_short(tokens, sql)
+        _refuse_missing_item(tokens, sql)
+        _refuse_lone_group_order(tokens, sql)
+        _refuse_join_without_criteria(tokens, sql)
+    except DialectError:
+        construct = unparsed_construct(sql)
+        if construct is not None:
+            raise DialectError(f"unsupported in lakegate: {construct}", error_name="NOT_SUPPORTED") from None
+        raise
 
 
 def parse(sql: str) -> exp.Expression:
@@ -489,7 +626,8 @@ def parse(sql: str) -> exp.Expression:
     dialect = LakegateTrino()
     try:
         tokens = dialect.tokenize(sql)
-        _refuse_duckdb_syntax(tokens)
+        _refuse_duckdb_syntax(tokens, sql)
+        _refuse_lenient_syntax(tokens, sql)
         statements = [
             s for s in dialect.parser().parse(tokens, sql) if s is not None and not isinstance(s, exp.Semicolon)
         ]  # `; -- comment` is no statement
@@ -497,15 +635,19 @@ def parse(sql: str) -> exp.Expression:
         construct = unparsed_construct(sql)
         if construct is not None:
             raise DialectError(f"unsupported in lakegate: {construct}", error_name="NOT_SUPPORTED") from None
-        raise _parse_error(error) from None
-    except TokenError as error:
-        raise DialectError(f"syntax error: {error}", error_name="SYNTAX_ERROR") from None
+        raise syntax_errors.parse_error(error, sql) from None
+    except TokenError:
+        raise syntax_errors.tokenize_error(sql, parse) from None
     except RecursionError:
         raise DialectError("syntax error: the query is nested too deeply", error_name="SYNTAX_ERROR") from None
     if not statements:
-        raise DialectError("mismatched input '<EOF>'", line=1, column=1, error_name="SYNTAX_ERROR")
-    if len(statements) > 1:
-        raise DialectError("syntax error: only one statement is allowed", error_name="SYNTAX_ERROR")
+        raise syntax_errors.mismatched(sql, -1, "<EOF>")
+    opened = sum(t.token_type in (TokenType.L_PAREN, TokenType.L_BRACKET) for t in tokens)
+    if opened > sum(t.token_type in (TokenType.R_PAREN, TokenType.R_BRACKET) for t in tokens):
+        raise syntax_errors.mismatched(sql, -1, "<EOF>")  # sqlglot reads a bracket left open; Trino wants it closed
+    if len(statements) > 1:  # Trino's grammar takes one statement: it stops at the `;` before the second
+        separator = next(t for i, t in enumerate(tokens) if t.token_type == TokenType.SEMICOLON and i + 1 < len(tokens))
+        raise _mismatched(separator, sql=sql)
     return statements[0]
 
 

@@ -134,7 +134,7 @@ class Call:
         self.analyzer.fail(message, self.node, error_name)
 
     def mismatch(self) -> NoReturn:
-        types = ", ".join("function" if t is None else str(t) for t in self.types)
+        types = ", ".join("<function>" if t is None else str(t) for t in self.types)
         self.fail(f"Unexpected parameters ({types}) for function {self.name}", "FUNCTION_NOT_FOUND")
 
     def literal(self, index: int) -> exp.Literal | None:

@@ -91,7 +91,13 @@ def _render_array_join(g, node, args) -> str:
         text = f"coalesce({text}, {g.sql(args[2])})"
     items = arr if text == '"_e"' else f'list_transform({arr}, lambda "_e": {text})'
     # NULL elements are skipped, so an all-NULL array joins to '' (io.trino.operator.scalar.ArrayJoin)
-    return null_if_any_null(g, args[:2], f"coalesce(array_to_string({items}, {delim}), '')")
+    if isinstance(args[1], exp.Literal):
+        return null_if_any_null(g, args[:2], f"coalesce(array_to_string({items}, {delim}), '')")
+    # DuckDB's array_to_string takes a constant separator only: a separator of each row is put before
+    # every element, and the first one cut off
+    kept = f'list_filter({items}, lambda "_e": "_e" IS NOT NULL)'
+    joined = f'list_reduce({kept}, lambda "_a", "_b": "_a" || {delim} || "_b", \'\')'
+    return null_if_any_null(g, args[:2], f"substr({joined}, length({delim}) + 1)")
 
 
 def _array_distinct(call: Call) -> TType:

@@ -281,6 +281,8 @@ def _render_field(g, node, args) -> str:
         return intervals.field(g.sql(args[0]), ttype(args[0]).base, name)
     value = tf.wall_time(g, args[0])
     part = _FIELD_OF[name]
+    if ttype(args[0]).base == "unknown":  # a NULL literal: DuckDB cannot choose date_part's overload
+        return "CAST(NULL AS BIGINT)"
     if name == "millisecond":
         return f"CAST(date_part('millisecond', {value}) % 1000 AS BIGINT)"
     return f"CAST(date_part({tf.string(part)}, {value}) AS BIGINT)"

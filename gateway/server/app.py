@@ -17,8 +17,8 @@ from fastapi import APIRouter, FastAPI, Request
 from fastapi.responses import PlainTextResponse, Response
 from starlette.concurrency import run_in_threadpool
 
-from lakegate.dialect import guard
 from lakegate.dialect.errors import DialectError
+from lakegate.dialect.statements import Statement, read
 from lakegate.gateway.engine import session as sessions
 from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.planner import static_result
@@ -56,13 +56,6 @@ def _immediate(query_id: str, base: str, answer: Answer | None = None, failure: 
         failure=failure,
         update_type=answer.update_type if answer is not None else None,
     )
-
-
-def _call(sql: str, session: Session, manager: QueryManager, *, owner_only: bool) -> Answer:
-    """Answer `CALL system.runtime.kill_query(...)`."""
-    query_id, message = sessions.kill_query_arguments(sql, session)
-    manager.kill(query_id, message, session, owner_only=owner_only)
-    return Answer([], [], update_type="CALL")
 
 
 # --- the app ------------------------------------------------------------------------------------
@@ -103,23 +96,20 @@ class _Endpoints:
         except UnicodeDecodeError as error:
             failure = Failure(f"the query text is not valid UTF-8 (byte {error.start})", "SYNTAX_ERROR")
             return Response(_immediate(self.manager.ids.next(), base, failure=failure), media_type=JSON)
-        name = sessions.statement_name(sql)
-        if name is not None or guard.classify(sql) == "call":
-            return await self._answer(sql, session, base, is_session=name is not None)
-        query = self.manager.create(sql, session)
+        statement = read(sql)
+        if statement.kind in ("session", "call"):
+            return await self._answer(statement, session, base)
+        query = self.manager.create(statement, session)
         if query.failure is not None:  # refused (queue full)
             return Response(query.first_document(base), media_type=JSON)
         self.manager.start(query)
         return Response(await query.answer(base, self.limits.answer_wait), media_type=JSON)
 
-    async def _answer(self, sql: str, session: Session, base: str, *, is_session: bool) -> Response:
-        """A session statement or CALL, answered at once."""
+    async def _answer(self, statement: Statement, session: Session, base: str) -> Response:
+        """A session statement or CALL, answered at once by the engine."""
         query_id = self.manager.ids.next()
         try:
-            if is_session:
-                answer = await run_in_threadpool(self.engine.answer, sql, session)
-            else:
-                answer = await run_in_threadpool(_call, sql, session, self.manager, owner_only=self.users is not None)
+            answer = await run_in_threadpool(self.engine.answer, statement, session)
         except DialectError as error:
             return Response(_immediate(query_id, base, failure=Failure.of(error)), media_type=JSON)
         return Response(_immediate(query_id, base, answer), media_type=JSON, headers=dict(answer.headers))
@@ -186,9 +176,12 @@ def create_app(
     owner closes it).
     """
     limits = engine.limits
-    manager = QueryManager(engine.planner, limits)
+    manager = QueryManager(engine, limits)
     engine.list_queries(
         lambda user: [query.row() for query in manager.queries() if users is None or query.session.user == user]
+    )
+    engine.kill_queries(
+        lambda query_id, message, session: manager.kill(query_id, message, session, owner_only=users is not None)
     )
 
     @asynccontextmanager

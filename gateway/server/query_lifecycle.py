@@ -39,11 +39,12 @@ import orjson
 import pyarrow as pa
 
 from lakegate.dialect.errors import DialectError
+from lakegate.dialect.statements import Statement
 from lakegate.gateway.engine import session as sessions
 from lakegate.gateway.engine.backend import QueryResult
+from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.failures import hide_paths, time_limit_error
 from lakegate.gateway.engine.limits import Limits
-from lakegate.gateway.engine.planner import Planner
 from lakegate.gateway.engine.session import Session
 from lakegate.gateway.engine.trino_values import encode_columns
 from lakegate.gateway.server.protocol import (
@@ -125,8 +126,10 @@ def _injected_planning_work(sql: str) -> None:
 class Query:
     """One statement: its state, the pages its worker produced, and the documents served so far."""
 
-    def __init__(self, query_id: str, sql: str, session: Session, dequeued: Callable[[], None] = lambda: None):
-        self.id, self.sql, self.session = query_id, sql, session
+    def __init__(
+        self, query_id: str, statement: Statement, session: Session, dequeued: Callable[[], None] = lambda: None
+    ):
+        self.id, self.statement, self.sql, self.session = query_id, statement, statement.text, session
         self._dequeued = dequeued  # called once, when the query leaves the queue (runs or fails)
         self.slug = secrets.token_hex(8)
         self.lock = threading.Lock()
@@ -449,8 +452,8 @@ class QueryManager:
     module docstring), a bounded queue, and the reaper that enforces the time limit, abandons
     queries clients left and forgets old ones."""
 
-    def __init__(self, planner: Planner, limits: Limits):
-        self.planner, self.limits = planner, limits
+    def __init__(self, engine: Engine, limits: Limits):
+        self.engine, self.limits = engine, limits
         self.ids = QueryIds()
         self._queries: dict[str, Query] = {}
         self._lock = threading.Lock()
@@ -462,13 +465,13 @@ class QueryManager:
         self._reaper = threading.Thread(target=self._reap, name="lakegate-reaper", daemon=True)
         self._reaper.start()
 
-    def create(self, sql: str, session: Session) -> Query:
+    def create(self, statement: Statement, session: Session) -> Query:
         """A new query for one statement, queued (`start` hands it to a worker), or failed with
         QUERY_QUEUE_FULL when too many wait."""
         with self._lock:
             full = self._waiting >= self.limits.max_queued_queries
             self._waiting += 0 if full else 1
-        query = Query(self.ids.next(), sql, session, dequeued=(lambda: None) if full else self._dequeued)
+        query = Query(self.ids.next(), statement, session, dequeued=(lambda: None) if full else self._dequeued)
         with self._lock:
             self._queries[query.id] = query
         if full:
@@ -532,7 +535,7 @@ class QueryManager:
             return
         batches = None
         try:
-            result = query.plan(lambda: self.planner.start(query.sql, query.session))
+            result = query.plan(lambda: self.engine.execute(query.statement, query.session))
             batches = result.batches
             query.attach(result)
             held = None  # each page waits for the next, so that the last one ends the query with it
@@ -552,7 +555,7 @@ class QueryManager:
             log.exception("query %s failed", query.id)
             failure = Failure.of(error)
             query.fail(
-                Failure(hide_paths(failure.message, getattr(self.planner.backend, "lake", None)), failure.error_name)
+                Failure(hide_paths(failure.message, getattr(self.engine.backend, "lake", None)), failure.error_name)
             )
         finally:
             close = getattr(batches, "close", None)

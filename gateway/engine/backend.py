@@ -531,7 +531,16 @@ class DuckDBBackend:
     ) -> Translation:
         """The translation of one query over `branch`'s schema (cached by text, scope, params, zone,
         session names and schema)."""
-        return self._translate(self._state(branch), sql, scope, params, time_zone, session)
+        state = self._state(branch)
+        return translate(
+            sql,
+            state.schema,
+            scope=scope,
+            params=params,
+            schema_version=state.version,
+            time_zone=time_zone,
+            session=session,
+        )
 
     @staticmethod
     def _translate(
@@ -586,8 +595,8 @@ class DuckDBBackend:
         time_zone: str = "UTC",
         session: SessionNames | None = None,
     ) -> QueryResult:
-        text = guard.check_text(sql.text if isinstance(sql, Statement) else sql)  # before any parsing
-        statement = sql if isinstance(sql, Statement) else read(text)
+        # a text is checked before it is parsed; a Statement comes from the planner, which checked it
+        statement = sql if isinstance(sql, Statement) else read(guard.check_text(sql))
         state = self._state(branch, views=not self._scoped(scope))
         if statement.kind == "explain":
             translation = self._explain(statement, state, scope, params, time_zone, session)

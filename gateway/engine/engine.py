@@ -46,7 +46,7 @@ class Engine:
     ):
         self.backend, self.catalog, self.limits = backend, catalog, limits
         self.metadata = SystemCatalog(backend, catalog=catalog, memory_limit=getattr(backend, "memory_limit", "1GB"))
-        self.planner = Planner(backend, self.metadata)
+        self._planner = Planner(backend, self.metadata)
         self._owns_backend = owns_backend
         self._kill: Kill | None = None
 
@@ -101,7 +101,7 @@ class Engine:
         statement = sql if isinstance(sql, Statement) else read(sql)
         if statement.kind in ("session", "call"):
             return static_result(self.answer(statement, session))
-        return self.planner.start(statement, session, params)
+        return self._planner.start(statement, session, params)
 
     def kill_queries(self, kill: Kill) -> None:
         """Let CALL system.runtime.kill_query reach the server's queries (`kill`)."""

@@ -329,10 +329,9 @@ class Planner:
     # -- prepared statements ----------------------------------------------------------------
 
     def _describe_prepared(self, statement: Statement, session: Session) -> Answer:
+        what = statement.name.split()[1]  # INPUT or OUTPUT
         reader = Reader(statement.text)
-        reader.skip_words(1)
-        what = reader.word()
-        reader.skip_words(1)
+        reader.skip_words(2)
         name = reader.peek().text
         reader.identifier()  # a name, not a string or a symbol
         prepared = read(session.prepared_statement(name))

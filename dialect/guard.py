@@ -226,8 +226,8 @@ def _words(sql: str, offset: int, count: int) -> list[tuple[str, int]]:
 
 
 def first_words(sql: str, count: int) -> list[str]:
-    """The statement's first `count` words (fewer if it has fewer), upper-cased: what every caller
-    that tells statements apart reads (blanks, comments and opening parentheses skipped)."""
+    """The statement's first `count` words (fewer if it has fewer), upper-cased, blanks, comments and
+    opening parentheses skipped: what the reader (`statements.read`) tells statements apart by."""
     return [word for word, _ in _words(sql, 0, count)]
 
 

@@ -75,7 +75,7 @@ class Statement:
         if self.planned is not None:
             return self.planned
         try:
-            return _parsed(self.body)
+            return parsed(self.body)
         except DialectError as error:
             raise shifted(error, self.text, self.offset) from None
 
@@ -96,8 +96,9 @@ class Statement:
 
 
 @lru_cache(maxsize=512)
-def _parsed(body: str) -> exp.Expression:
-    return parse(body)
+def parsed(text: str) -> exp.Expression:
+    """The parse of one query text, shared by every reader of the same text (do not change it)."""
+    return parse(text)
 
 
 def read(sql: str) -> Statement:

@@ -30,7 +30,7 @@ from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.params import parse_execute
 from lakegate.dialect.session_functions import SessionNames
-from lakegate.dialect.statements import Reader, Statement, read
+from lakegate.dialect.statements import Reader, Statement, parsed, read
 from lakegate.dialect.translate import parse
 from lakegate.gateway.engine.backend import Backend, QueryResult
 from lakegate.gateway.engine.session import Answer, Session, check_properties
@@ -114,6 +114,12 @@ def _version_call(node: exp.Expression, query: str) -> tuple[int, int] | None:
     if [token.token_type for token in tokens[1:]] != [TokenType.L_PAREN, TokenType.R_PAREN]:
         return None
     return meta["start"], meta["start"] + tokens[2].end
+
+
+@lru_cache(maxsize=512)
+def _names_of(query: str) -> _Names:
+    """`_names` of a query text's shared parse (cached: a repeated query is walked once)."""
+    return _names(parsed(query), query)
 
 
 def _names(tree: exp.Expression, query: str) -> _Names:
@@ -252,8 +258,8 @@ class Planner:
 
     def _plan(self, statement: Statement, session: Session) -> _Plan:
         """Resolve the tables of the statement's query and drop their qualifiers from its tree."""
-        sql, offset, tree = statement.text, statement.offset, statement.tree
-        names = _names(tree, statement.body)
+        sql, offset, tree = statement.text, statement.offset, statement.tree  # parse errors raised here
+        names = _names_of(statement.body)
         edits: list[tuple[int, int, str]] = []  # (start, end, replacement) of the same length, in `sql`
         branch: str | None = None
         system: dict[str, TableRef] = {}

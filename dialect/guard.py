@@ -2,9 +2,10 @@
 
 `check_text` runs on the raw text before parsing (encoding, size, nesting depth, statement kind,
 one statement only); `check` runs on the parsed Trino AST (no writes, no file or DuckDB-internal
-functions, no table functions but UNNEST). `classify` tells the server which kind of statement a
-text is: 'query', 'show', 'describe', 'explain', 'session' (SET SESSION, USE, PREPARE, EXECUTE,
-START TRANSACTION, ... which the server answers itself), 'call', or 'other' (refused).
+functions, no table functions but UNNEST). `statement_kind` is the table of statement words that
+`statements.read` (the one reader) decides a statement's kind with: 'query', 'show', 'describe',
+'explain', 'session' (SET SESSION, USE, PREPARE, EXECUTE, START TRANSACTION, ...), 'call', or
+'other' (refused); `classify` is that kind alone.
 """
 
 from __future__ import annotations
@@ -225,13 +226,15 @@ def _words(sql: str, offset: int, count: int) -> list[tuple[str, int]]:
 
 
 def first_words(sql: str, count: int) -> list[str]:
-    """The statement's first `count` words (fewer if it has fewer), upper-cased: what every caller
-    that tells statements apart reads (blanks, comments and opening parentheses skipped)."""
+    """The statement's first `count` words (fewer if it has fewer), upper-cased, blanks, comments and
+    opening parentheses skipped: what the reader (`statements.read`) tells statements apart by."""
     return [word for word, _ in _words(sql, 0, count)]
 
 
-def _statement(sql: str, offset: int = 0) -> tuple[str, str, int]:
-    """(kind, statement name, offset of its first word) of the statement starting at `offset`."""
+def statement_kind(sql: str, offset: int = 0) -> tuple[str, str, int]:
+    """(kind, statement name, offset of its first word) of the statement starting at `offset`: the
+    one table of statement words ('query', 'show', 'describe', 'explain', 'session', 'call', 'other'
+    or 'unknown'), which `statements.read` refines."""
     words = _words(sql, offset, 2)
     if not words:
         return "other", "", offset
@@ -247,7 +250,7 @@ def _statement(sql: str, offset: int = 0) -> tuple[str, str, int]:
         return "describe", name, start
     if first == "EXPLAIN":
         rest, _ = _explain_parts(sql, start)
-        kind, inner, inner_start = _statement(sql, rest)
+        kind, inner, inner_start = statement_kind(sql, rest)
         if kind != "query":
             return "other", f"EXPLAIN {inner}".strip(), inner_start
         return "explain", "EXPLAIN", start
@@ -267,7 +270,7 @@ def _statement(sql: str, offset: int = 0) -> tuple[str, str, int]:
 
 def classify(sql: str) -> str:
     """The kind of statement `sql` is: 'query', 'show', 'describe', 'explain', 'session', 'call' or 'other'."""
-    kind = _statement(sql)[0]
+    kind = statement_kind(sql)[0]
     return "other" if kind == "unknown" else kind
 
 
@@ -286,7 +289,7 @@ def _explain_parts(sql: str, start: int) -> tuple[int, bool]:
 
 def explained_query(sql: str) -> tuple[str, bool]:
     """For an EXPLAIN statement: the text of the query it explains and whether it is EXPLAIN ANALYZE."""
-    kind, _, start = _statement(sql)
+    kind, _, start = statement_kind(sql)
     if kind != "explain":
         raise DialectError("not an EXPLAIN of a query", error_name="GENERIC_USER_ERROR")
     rest, analyze = _explain_parts(sql, start)
@@ -427,7 +430,7 @@ def check_text(sql: str | bytes) -> str:
             "the query text contains a NUL character", line=line, column=column, error_name="SYNTAX_ERROR"
         )
     _check_size(sql)
-    kind, name, start = _statement(sql)
+    kind, name, start = statement_kind(sql)
     if kind == "other" and not name:
         _refuse_no_statement(sql)
     if kind == "other" and name == "FROM":
@@ -508,7 +511,7 @@ def check(expression: exp.Expression) -> None:
     if isinstance(expression, (exp.Describe, exp.Show)):
         return
     if not isinstance(expression, (exp.Query, exp.Values)):
-        kind, name, _ = _statement(expression.sql(dialect="trino"))
+        kind, name, _ = statement_kind(expression.sql(dialect="trino"))
         if kind in ("show", "describe", "explain"):
             return
         if not isinstance(expression, exp.Command):  # the statement's node names it (WITH ... INSERT: INSERT)

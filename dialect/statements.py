@@ -1,22 +1,145 @@
-"""The one reader of the statements lakegate answers besides queries: SHOW, DESCRIBE, USE, SET /
-RESET SESSION, PREPARE, DEALLOCATE PREPARE, START TRANSACTION / COMMIT / ROLLBACK and CALL.
+"""The one reader of statements: each statement text is read once into a `Statement` (its kind,
+its text and, for a query or EXPLAIN, its parsed tree), which every later step is handed.
 
-`Reader` walks a statement token by token (sqlglot's Trino tokenizer, every statement read word by
-word), reading names as Trino does (unquoted parts lower-cased) and reporting a syntax error with
-the line and column of the token it did not expect. Which statement a text is comes from its first
-words (`guard.first_words`, `guard.classify`); what each statement means is its answerer's (the
-engine's sessions, planner and system tables).
+`read(sql)` decides the kind once, from the statement's first words (`guard.statement_kind`, the
+table of statement words), and refines it into one of `KINDS`, each with the one owner that
+answers it. `Reader` walks the non-query statements (SHOW, DESCRIBE, USE, SET / RESET SESSION,
+PREPARE, DEALLOCATE PREPARE, START TRANSACTION / COMMIT / ROLLBACK, CALL) token by token (sqlglot's
+Trino tokenizer, every statement read word by word), reading names as Trino does (unquoted parts
+lower-cased) and reporting a syntax error with the line and column of the token it did not expect.
 """
 
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass, replace
+from functools import lru_cache
 
+from sqlglot import exp
 from sqlglot.dialects.trino import Trino
 from sqlglot.errors import TokenError
 from sqlglot.tokens import Token, TokenType
 
+from lakegate.dialect import guard
 from lakegate.dialect.errors import DialectError
+from lakegate.dialect.translate import parse
+
+#: Every kind of statement `read` gives, and the one owner that answers it.
+KINDS = {
+    "query": "the backend: translated to DuckDB (or forwarded to a Trino cluster)",
+    "explain": "the backend: the plan of the query it explains",
+    "show": "the engine's system tables (SystemCatalog.show)",
+    "describe": "the engine's system tables (SystemCatalog.show)",
+    "describe_prepared": "the planner: DESCRIBE INPUT / OUTPUT of a prepared statement",
+    "execute": "the planner: EXECUTE / EXECUTE IMMEDIATE, the prepared statement with its values",
+    "session": "the engine's sessions (session.answer): one of SESSION_STATEMENTS",
+    "call": "the server's queries (CALL system.runtime.kill_query)",
+    "other": "nobody: refused in Trino's terms (writes, DDL, SET ROLE, unknown statements)",
+}
+#: The session statements lakegate answers (its client keeps their effect), as Trino names them.
+SESSION_STATEMENTS = (
+    "USE",
+    "SET SESSION",
+    "RESET SESSION",
+    "SET TIME ZONE",
+    "PREPARE",
+    "DEALLOCATE PREPARE",
+    "START TRANSACTION",
+    "COMMIT",
+    "ROLLBACK",
+)
+
+
+@dataclass(frozen=True, eq=False)
+class Statement:
+    """One statement as read once: its text, its kind (one of `KINDS`), its name as Trino's messages
+    say it, and for a query or EXPLAIN the query text (`body`, at `offset` of `text`) and its tree.
+
+    `tree` is parsed on first use and shared by every reader of the same text: change a copy
+    (`Statement.rewritten` holds a changed tree). `edits` say how the changed tree differs from
+    `text` as same-length text edits, for a backend that sends text (the forwarding backend).
+    """
+
+    text: str
+    kind: str
+    name: str
+    body: str
+    offset: int = 0
+    analyze: bool = False  # EXPLAIN ANALYZE
+    planned: exp.Expression | None = None
+    edits: tuple[tuple[int, int, str], ...] = ()
+
+    @property
+    def tree(self) -> exp.Expression:
+        """The parse of `body` (or the rewritten tree); DialectError positioned in `text`."""
+        if self.planned is not None:
+            return self.planned
+        try:
+            return parsed(self.body)
+        except DialectError as error:
+            raise shifted(error, self.text, self.offset) from None
+
+    def rewritten(self, tree: exp.Expression, edits: tuple[tuple[int, int, str], ...]) -> Statement:
+        """This statement with `tree` (a changed copy of `tree`) and the text `edits` that make it."""
+        return replace(self, planned=tree, edits=edits)
+
+    @property
+    def is_rewritten(self) -> bool:
+        return self.planned is not None
+
+    def edited_text(self) -> str:
+        """`text` with `edits` applied (same length and line breaks)."""
+        text = self.text
+        for start, end, replacement in sorted(self.edits, reverse=True):
+            text = text[:start] + replacement + text[end:]
+        return text
+
+
+@lru_cache(maxsize=512)
+def parsed(text: str) -> exp.Expression:
+    """The parse of one query text, shared by every reader of the same text (do not change it)."""
+    return parse(text)
+
+
+def read(sql: str) -> Statement:
+    """Read one statement text: its kind (one of `KINDS`) and name; the tree is parsed when asked."""
+    kind, name, start = guard.statement_kind(sql)
+    words = guard.first_words(sql, 2)
+    first, second = (words + ["", ""])[:2]
+    body, offset, analyze = sql, 0, False
+    if kind == "session":
+        session_name = next((n for n in SESSION_STATEMENTS if n.split()[:2] in ([first], [first, second])), None)
+        kind, name = ("execute", "EXECUTE") if first == "EXECUTE" else ("session", session_name or name)
+        if session_name is None and first != "EXECUTE":
+            kind = "other"
+    elif kind == "describe" and second in ("INPUT", "OUTPUT") and _names_prepared(sql):
+        kind = "describe_prepared"
+    elif kind == "explain":
+        body, analyze = guard.explained_query(sql)
+        offset = sql.rfind(body)
+    elif kind == "unknown":
+        kind = "other"
+    return Statement(sql, kind, name, body, offset, analyze)
+
+
+def _names_prepared(sql: str) -> bool:
+    """Whether `DESCRIBE INPUT|OUTPUT x` names a prepared statement (not a table called input or output)."""
+    try:
+        reader = Reader(sql)
+    except DialectError:
+        return True  # the planner reports the syntax error
+    reader.skip_words(2)
+    return len(reader.tokens) == reader.pos + 1
+
+
+def shifted(error: DialectError, sql: str, offset: int) -> DialectError:
+    """`error` (positioned in the text at `offset` of `sql`) positioned in `sql`."""
+    if error.line is None or error.column is None or offset == 0:
+        return error
+    line0 = sql.count("\n", 0, offset) + 1
+    column0 = offset - (sql.rfind("\n", 0, offset) + 1) + 1
+    column = error.column + (column0 - 1 if error.line == 1 else 0)
+    return DialectError(error.message, line=error.line + line0 - 1, column=column, error_name=error.error_name)
 
 
 class _Tokenizer(Trino.Tokenizer):

@@ -350,6 +350,7 @@ def translate(
     schema_version: object = None,
     time_zone: str = "UTC",
     session: session_functions.SessionNames | None = None,
+    tree: exp.Expression | None = None,
 ) -> Translation:
     """Translate one Trino query over `schema` (table -> column -> Trino type name) to DuckDB.
 
@@ -357,7 +358,9 @@ def translate(
     is the session zone (a canonical zone: dialect/zones.py), `session` what `current_user`,
     `current_catalog` and `current_schema` answer (None: they are refused), and
     `schema_version` (any hashable) identifies the schema for the cache; without it the schema's
-    content is hashed. Raises DialectError with Trino's error name and the position in `sql`.
+    content is hashed. `tree` is `sql` as its reader already parsed it (`statements.Statement`: a
+    tree equal to the parse of `sql`), translated from a copy (None: `sql` is parsed here). Raises
+    DialectError with Trino's error name and the position in `sql`.
     """
     schema_key = schema_version if schema_version is not None else _schema_key(schema)
     session = session if session_functions.used(sql) else None  # one cache entry for every session otherwise
@@ -367,7 +370,7 @@ def translate(
         if hit is not None:
             _cache.move_to_end(key)
             return hit
-    result = _translate(sql, schema, schema_key, scope, params, time_zone, session)
+    result = _translate(sql, schema, schema_key, scope, params, time_zone, session, tree)
     with _lock:
         _cache[key] = result
         if len(_cache) > CACHE_SIZE:
@@ -659,9 +662,10 @@ def _translate(
     params: Sequence[object],
     time_zone: str,
     session: session_functions.SessionNames | None = None,
+    given: exp.Expression | None = None,
 ) -> Translation:
     sql = guard.check_text(sql)
-    tree = parse(sql)
+    tree = parse(sql) if given is None else given.copy()
     guard.check(tree)
     if scope is not None:
         tree = scoping.restrict(tree, scope, tables=schema)

@@ -29,8 +29,8 @@ from pathlib import Path
 from lakegate.gateway.cli.backends import add_backend_arguments, backend_from_args
 from lakegate.gateway.cli.errors import UserError, port_number
 from lakegate.gateway.cli.errors import positive as _positive
-from lakegate.gateway.engine.introspection import CATALOG
 from lakegate.gateway.engine.limits import Limits
+from lakegate.gateway.engine.system_tables import CATALOG
 from lakegate.gateway.server.auth import Users, UsersFileError, check_listen
 
 _DEFAULTS = Limits()

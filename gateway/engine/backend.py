@@ -7,8 +7,8 @@ over only its scope's files. It is locked down before any user query runs (defen
 the dialect guard): no file access outside the lake, no extension installing or loading, settings
 locked. Each query is translated by `lakegate.dialect.translate`, checked once more by DuckDB's own
 parser (exactly one SELECT), and run on its own cursor, so queries run concurrently and
-`QueryResult.cancel()` interrupts just one. SHOW / DESCRIBE are answered from the branch schema
-(`introspection`), EXPLAIN with DuckDB's plan of the translated query.
+`QueryResult.cancel()` interrupts just one. EXPLAIN is answered with DuckDB's plan of the translated
+query; SHOW and DESCRIBE are the Engine's (its system tables), not a backend's.
 
 Every caller (the server, the dashboard, metrics, `lakegate query`) gets the same `Limits`: at most
 `max_concurrent_queries` queries run DuckDB work at once (a query waits for a slot within its time),
@@ -40,13 +40,15 @@ from typing import Protocol
 
 import duckdb
 import pyarrow as pa
+from sqlglot import exp
 
 from lakegate.dialect import guard
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
 from lakegate.dialect.session_functions import SessionNames
+from lakegate.dialect.statements import Statement, read, shifted
 from lakegate.dialect.translate import Translation, translate
-from lakegate.gateway.engine import introspection, udfs
+from lakegate.gateway.engine import udfs
 from lakegate.gateway.engine.failures import duckdb_failure, hide_paths, time_limit_error
 from lakegate.gateway.engine.limits import Limits
 from lakegate.lake import paths
@@ -98,7 +100,7 @@ class Backend(Protocol):
 
     def execute(
         self,
-        sql: str,
+        sql: str | Statement,
         *,
         branch: str,
         scope: Scope | None = None,
@@ -106,16 +108,10 @@ class Backend(Protocol):
         time_zone: str = "UTC",
         session: SessionNames | None = None,
     ) -> QueryResult:
-        """Start one Trino-dialect query in the session zone `time_zone` (canonical: dialect/zones.py),
-        with `current_user`, `current_catalog` and `current_schema` answered from `session`; raises
-        DialectError when it is refused or fails."""
-
-
-def _static(columns: list[tuple[str, str]], rows: list[tuple]) -> QueryResult:
-    """A result computed in Python (all columns varchar)."""
-    arrays = [pa.array([row[i] for row in rows], pa.string()) for i in range(len(columns))]
-    batch = pa.record_batch(arrays, names=[name for name, _ in columns])
-    return QueryResult(columns=columns, batches=iter([batch]))
+        """Start one Trino-dialect query or EXPLAIN (its text, or as the planner read and rewrote it) in
+        the session zone `time_zone` (canonical: dialect/zones.py), with `current_user`,
+        `current_catalog` and `current_schema` answered from `session`; raises DialectError when it
+        is refused or fails."""
 
 
 #: DuckDB's words for a Parquet file it could not decode without naming the file (a damaged page
@@ -548,17 +544,7 @@ class DuckDBBackend:
     ) -> Translation:
         """The translation of one query over `branch`'s schema (cached by text, scope, params, zone,
         session names and schema)."""
-        return self._translate(self._state(branch), sql, scope, params, time_zone, session)
-
-    @staticmethod
-    def _translate(
-        state: _Branch,
-        sql: str,
-        scope: Scope | None,
-        params: Sequence[object],
-        time_zone: str,
-        session: SessionNames | None = None,
-    ) -> Translation:
+        state = self._state(branch)
         return translate(
             sql,
             state.schema,
@@ -569,9 +555,33 @@ class DuckDBBackend:
             session=session,
         )
 
+    @staticmethod
+    def _translate(
+        state: _Branch,
+        statement: Statement,
+        tree: exp.Expression,
+        scope: Scope | None,
+        params: Sequence[object],
+        time_zone: str,
+        session: SessionNames | None = None,
+    ) -> Translation:
+        """The translation of the statement's query (for EXPLAIN: the query it explains), from its
+        `tree`; errors positioned in that query's text."""
+        body = statement.edited_text()[statement.offset : statement.offset + len(statement.body)]
+        return translate(
+            body,
+            state.schema,
+            scope=scope,
+            params=params,
+            schema_version=state.version,
+            time_zone=time_zone,
+            session=session,
+            tree=tree,
+        )
+
     def execute(
         self,
-        sql: str,
+        sql: str | Statement,
         *,
         branch: str = "main",
         scope: Scope | None = None,
@@ -579,9 +589,9 @@ class DuckDBBackend:
         time_zone: str = "UTC",
         session: SessionNames | None = None,
     ) -> QueryResult:
-        """Translate and start one Trino-dialect query on `branch`, restricted to `scope`, with
-        `params` bound to its `?`, in the session zone `time_zone`, its session functions answered
-        from `session`. Raises DialectError (with position) when refused or failing."""
+        """Translate and start one Trino-dialect query (or EXPLAIN) on `branch`, restricted to `scope`,
+        with `params` bound to its `?`, in the session zone `time_zone`, its session functions
+        answered from `session`. Raises DialectError (with position) when refused or failing."""
         deadline = time.monotonic() + self.limits.query_timeout
         try:
             return self._execute(sql, branch, scope, params, deadline, time_zone, session)
@@ -590,7 +600,7 @@ class DuckDBBackend:
 
     def _execute(
         self,
-        sql: str | bytes,
+        sql: str | bytes | Statement,
         branch: str,
         scope: Scope | None,
         params: Sequence[object],
@@ -598,19 +608,20 @@ class DuckDBBackend:
         time_zone: str = "UTC",
         session: SessionNames | None = None,
     ) -> QueryResult:
-        if not isinstance(sql, str):
-            sql = guard.check_text(sql)  # bytes: decoded (or refused) first
-        kind = guard.classify(sql)
-        state = self._state(branch, views=kind not in ("show", "describe") and not self._scoped(scope))
-        if kind in ("show", "describe"):
-            answer = introspection.answer(guard.check_text(sql), state.schema, schemas=self.branches() or [branch])
-            return _static(answer.columns, answer.rows)
-        if kind == "explain":
-            translation, analyze = self._explain(guard.check_text(sql), state, scope, params, time_zone, session)
+        # a text is checked before it is parsed; a Statement comes from the planner, which checked it
+        statement = sql if isinstance(sql, Statement) else read(guard.check_text(sql))
+        state = self._state(branch, views=not self._scoped(scope))
+        if statement.kind == "explain":
+            translation = self._explain(statement, state, scope, params, time_zone, session)
             return self._start(
-                branch, state, translation, deadline, scope, explain="EXPLAIN ANALYZE " if analyze else "EXPLAIN "
+                branch,
+                state,
+                translation,
+                deadline,
+                scope,
+                explain="EXPLAIN ANALYZE " if statement.analyze else "EXPLAIN ",
             )
-        translation = self._translate(state, sql, scope, params, time_zone, session)
+        translation = self._translate(state, statement, statement.tree, scope, params, time_zone, session)
         return self._start(branch, state, translation, deadline, scope)
 
     def _start(
@@ -751,28 +762,20 @@ class DuckDBBackend:
 
     def _explain(
         self,
-        sql: str,
+        statement: Statement,
         state: _Branch,
         scope: Scope | None,
         params: Sequence[object],
         time_zone: str,
         session: SessionNames | None = None,
-    ) -> tuple[Translation, bool]:
+    ) -> Translation:
         """The translation of the query an EXPLAIN [ANALYZE] explains (errors positioned in the
-        whole EXPLAIN text), and whether it is ANALYZE."""
-        query, analyze = guard.explained_query(sql)
-        start = sql.rfind(query)
+        whole EXPLAIN text)."""
+        tree = statement.tree  # its parse errors come positioned in the whole text
         try:
-            return self._translate(state, query, scope, params, time_zone, session), analyze
+            return self._translate(state, statement, tree, scope, params, time_zone, session)
         except DialectError as error:
-            if error.line is not None and error.column is not None:  # position in the whole EXPLAIN text
-                before = sql[:start]
-                line = before.count("\n")
-                column = error.column + (len(before) - before.rfind("\n") - 1 if error.line == 1 else 0)
-                raise DialectError(
-                    error.message, line=error.line + line, column=column, error_name=error.error_name
-                ) from None
-            raise
+            raise shifted(error, statement.text, statement.offset) from None
 
     def stop_all(self) -> None:
         """Interrupt every running query: each fails with SERVER_SHUTTING_DOWN."""

@@ -2,6 +2,10 @@
 limits, and answers statements as the SQL server does. `lakegate query`, `lakegate serve` (through
 `server.app.create_app`), the metrics engine, the demo and the dashboard use it, so they agree on
 catalog names, on what SHOW, DESCRIBE and `information_schema` answer, and on every error.
+
+Each statement is read once (`statements.read`: its kind, text and tree) and dispatched here by
+its kind to the one owner of that kind (`statements.KINDS`): session statements to the sessions,
+CALL to the server's queries (`kill_queries`), everything else to the planner.
 """
 
 from __future__ import annotations
@@ -9,27 +13,28 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from lakegate.dialect import guard
 from lakegate.dialect.scope import Scope
+from lakegate.dialect.statements import Statement, read
 from lakegate.gateway.engine import session as sessions
 from lakegate.gateway.engine.backend import Backend, DuckDBBackend, QueryResult
-from lakegate.gateway.engine.introspection import CATALOG
 from lakegate.gateway.engine.isolated_backend import IsolatedBackend
 from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.engine.planner import Planner, static_result
 from lakegate.gateway.engine.session import Answer, Session
-from lakegate.gateway.engine.system_tables import SystemCatalog
+from lakegate.gateway.engine.system_tables import CATALOG, SystemCatalog
 from lakegate.lake.record import FileEntry
 
 #: The session user of a caller that names none (`lakegate query`).
 DEFAULT_USER = "lakegate"
+#: How the server kills one of its queries: (query id, message or None, the caller's session).
+Kill = Callable[[str, str | None, Session], None]
 
 
 class Engine:
     """A lake's backend with its catalog, system tables and statement planner.
 
-    Only the server has running queries to list (`list_queries`). The backend stays open when the
-    engine closes unless the engine opened it.
+    Only the server has running queries to list and kill (`list_queries`, `kill_queries`). The
+    backend stays open when the engine closes unless the engine opened it.
     """
 
     def __init__(
@@ -42,8 +47,9 @@ class Engine:
     ):
         self.backend, self.catalog, self.limits = backend, catalog, limits
         self.metadata = SystemCatalog(backend, catalog=catalog, memory_limit=getattr(backend, "memory_limit", "1GB"))
-        self.planner = Planner(backend, self.metadata)
+        self._planner = Planner(backend, self.metadata)
         self._owns_backend = owns_backend
+        self._kill: Kill | None = None
 
     @classmethod
     def open(cls, lake: Path | None, *, limits: Limits = Limits(), isolated: bool = False) -> Engine:
@@ -79,18 +85,30 @@ class Engine:
             restriction=scope,
         )
 
-    def answer(self, sql: str, session: Session) -> Answer:
-        """Answer a session statement (USE, SET SESSION, PREPARE, ...: `session.STATEMENTS`)."""
-        return sessions.answer(sql, session, self.metadata.resolve_schema)
+    def answer(self, statement: str | Statement, session: Session) -> Answer:
+        """Answer a statement that needs no query: a session statement (USE, SET SESSION, PREPARE, ...:
+        `statements.SESSION_STATEMENTS`), or CALL system.runtime.kill_query (a server's query)."""
+        statement = statement if isinstance(statement, Statement) else read(statement)
+        if statement.kind == "call":
+            query_id, message = sessions.kill_query_arguments(statement.text, session)
+            if self._kill is None:  # no query runs outside the server
+                raise sessions.query_not_found(query_id)
+            self._kill(query_id, message, session)
+            return Answer([], [], update_type="CALL")
+        return sessions.answer(statement, session, self.metadata.resolve_schema)
 
-    def execute(self, sql: str, session: Session, params: Sequence[object] = ()) -> QueryResult:
-        """Run one statement as the server would answer it; DialectError when refused or failing.
-        A session statement is answered (its effect is the client's to keep)."""
-        if sessions.statement_name(sql) is not None:
-            return static_result(self.answer(sql, session))
-        if guard.classify(sql) == "call":  # kill_query: no query runs outside the server
-            raise sessions.query_not_found(sessions.kill_query_arguments(sql, session)[0])
-        return self.planner.start(sql, session, params)
+    def execute(self, sql: str | Statement, session: Session, params: Sequence[object] = ()) -> QueryResult:
+        """Run one statement (its text, or as `statements.read` read it) as the server would answer
+        it; DialectError when refused or failing. A session statement is answered (its effect is the
+        client's to keep)."""
+        statement = sql if isinstance(sql, Statement) else read(sql)
+        if statement.kind in ("session", "call"):
+            return static_result(self.answer(statement, session))
+        return self._planner.start(statement, session, params)
+
+    def kill_queries(self, kill: Kill) -> None:
+        """Let CALL system.runtime.kill_query reach the server's queries (`kill`)."""
+        self._kill = kill
 
     def list_queries(self, queries: Callable[[str | None], list[tuple]]) -> None:
         """Let system.runtime.queries list `queries(user)`: the server's running queries."""

@@ -23,6 +23,7 @@ import pyarrow as pa
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
 from lakegate.dialect.session_functions import SessionNames
+from lakegate.dialect.statements import Statement
 from lakegate.gateway.engine.backend import IDLE_SECONDS, DuckDBBackend, QueryResult
 from lakegate.gateway.engine.failures import time_limit_error
 from lakegate.gateway.engine.limits import Limits
@@ -183,7 +184,7 @@ class IsolatedBackend(DuckDBBackend):
 
     def execute(
         self,
-        sql: str,
+        sql: str | Statement,
         *,
         branch: str = "main",
         scope: Scope | None = None,

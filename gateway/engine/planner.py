@@ -1,17 +1,17 @@
-"""From one statement text and its session to a running result: the server's planner.
+"""From one read statement (`statements.Statement`) and its session to a running result.
 
-Session statements and CALL are answered by the server before a query starts (`session.answer`,
-`server`); everything else comes here: EXECUTE / EXECUTE IMMEDIATE (the statement and its USING
-values), DESCRIBE INPUT / OUTPUT of a prepared statement, SHOW / DESCRIBE (`SystemCatalog.show`), and
-queries and EXPLAIN.
+The Engine answers session statements and CALL itself; every other kind comes here: EXECUTE /
+EXECUTE IMMEDIATE (the statement and its USING values), DESCRIBE INPUT / OUTPUT of a prepared
+statement, SHOW / DESCRIBE (`SystemCatalog.show`), and queries and EXPLAIN.
 
 A query's table names are resolved against the session (`SystemCatalog.resolve`): every table it reads
 must live in one branch (then the backend runs it on that branch, restricted to the session's
 scope) or be a system table (then it runs over the materialised system tables); a query that
-reads no table runs on the session's branch. Qualifiers (`lake.main.odom`, `"feature/x".odom`,
-`information_schema.tables`, `main.odom.x`) are blanked out of the SQL text, so that every other
-character keeps its line and column: errors the dialect reports still point into the user's
-original SQL. `version()` is replaced the same way, by a literal as long as the call.
+reads no table runs on the session's branch. The statement's tree is rewritten: qualifiers
+(`lake.main.odom`, `"feature/x".odom`, `information_schema.tables`, `main.odom.x`) are dropped and
+`version()` becomes its value. The parsed nodes keep their positions, so errors the dialect
+reports still point into the user's original SQL; the same rewrite as same-length text edits
+(`Statement.edits`, qualifiers blanked) is kept for a backend that sends text.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.params import parse_execute
 from lakegate.dialect.session_functions import SessionNames
-from lakegate.dialect.statements import Reader
+from lakegate.dialect.statements import Reader, Statement, parsed, read
 from lakegate.dialect.translate import parse
 from lakegate.gateway.engine.backend import Backend, QueryResult
 from lakegate.gateway.engine.session import Answer, Session, check_properties
@@ -67,16 +67,16 @@ class _Reference:
     """A (possibly qualified) table name in the SQL text, or the table qualifier of a column."""
 
     parts: tuple[str, ...]  # [[catalog.]schema.]table as Trino reads them: unquoted parts lower-cased
-    start: int  # offset of the first part in the text
-    name_start: int  # offset of the table part: [start, name_start) is the qualifier to blank out
+    start: int  # offset of the first part in the query text
+    name_start: int  # offset of the table part: [start, name_start) is the qualifier dropped
 
 
 @dataclass(frozen=True)
-class _Parsed:
+class _Names:
     tables: tuple[_Reference, ...]
     columns: tuple[_Reference, ...]  # columns written `schema.table.column` (or longer)
     ctes: frozenset[str]
-    versions: tuple[tuple[int, int], ...]  # (start, end) of each `version()` call
+    versions: tuple[tuple[int, int], ...]  # (start, end) of each `version()` call in the query text
 
 
 def _part(identifier: exp.Identifier) -> str:
@@ -91,35 +91,74 @@ def _reference(*identifiers: exp.Expression | None) -> _Reference | None:
     return _Reference(tuple(_part(p) for p in idents), idents[0].meta["start"], idents[-1].meta["start"])
 
 
+def _table_reference(table: exp.Table) -> _Reference | None:
+    if not isinstance(table.this, exp.Identifier):
+        return None
+    return _reference(table.args.get("catalog"), table.args.get("db"), table.this)
+
+
+def _column_reference(column: exp.Column) -> _Reference | None:
+    if not isinstance(column.args.get("db"), exp.Identifier):
+        return None
+    return _reference(column.args.get("catalog"), column.args.get("db"), column.args.get("table"))
+
+
+def _version_call(node: exp.Expression, query: str) -> tuple[int, int] | None:
+    """(start, end) in `query` of a `version()` call (the name, quoted or not, then `(` and `)`)."""
+    if not isinstance(node, exp.Anonymous) or node.expressions or node.name.lower() != "version":
+        return None
+    meta = node.this.meta if isinstance(node.this, exp.Identifier) else node.meta
+    if "start" not in meta:
+        return None
+    tokens = Trino().tokenize(query[meta["start"] :])[:3]
+    if [token.token_type for token in tokens[1:]] != [TokenType.L_PAREN, TokenType.R_PAREN]:
+        return None
+    return meta["start"], meta["start"] + tokens[2].end
+
+
 @lru_cache(maxsize=512)
-def _parse(sql: str) -> _Parsed:
-    """The table references, schema-qualified columns, CTE names and `version()` calls of one
-    query text (cached)."""
-    tree = parse(sql)
-    tables, columns = [], []
-    for table in tree.find_all(exp.Table):
-        if isinstance(table.this, exp.Identifier):
-            reference = _reference(table.args.get("catalog"), table.args.get("db"), table.this)
-            if reference is not None:
-                tables.append(reference)
-    for column in tree.find_all(exp.Column):
-        if isinstance(column.args.get("db"), exp.Identifier):
-            reference = _reference(column.args.get("catalog"), column.args.get("db"), column.args.get("table"))
-            if reference is not None:
-                columns.append(reference)
+def _names_of(query: str) -> _Names:
+    """`_names` of a query text's shared parse (cached: a repeated query is walked once)."""
+    return _names(parsed(query), query)
+
+
+def _names(tree: exp.Expression, query: str) -> _Names:
+    """The table references, schema-qualified columns, CTE names and `version()` calls of a query's tree."""
+    tables = [ref for table in tree.find_all(exp.Table) if (ref := _table_reference(table)) is not None]
+    columns = [ref for column in tree.find_all(exp.Column) if (ref := _column_reference(column)) is not None]
     ctes = frozenset(cte.alias_or_name.lower() for cte in tree.find_all(exp.CTE))
     versions = []
-    if "version" in sql.lower():
-        tokens = Trino().tokenize(sql)
-        for first, second, third in zip(tokens, tokens[1:], tokens[2:]):
-            if (
-                first.token_type in (TokenType.VAR, TokenType.IDENTIFIER)
-                and first.text.lower() == "version"
-                and second.token_type == TokenType.L_PAREN
-                and third.token_type == TokenType.R_PAREN
-            ):
-                versions.append((first.start, third.end))
-    return _Parsed(tuple(sorted(tables, key=lambda r: r.start)), tuple(columns), ctes, tuple(versions))
+    if "version" in query.lower():
+        versions = [span for node in tree.find_all(exp.Anonymous) if (span := _version_call(node, query)) is not None]
+    return _Names(tuple(sorted(tables, key=lambda r: r.start)), tuple(columns), ctes, tuple(sorted(versions)))
+
+
+def _unqualified(tree: exp.Expression, query: str) -> exp.Expression:
+    """A copy of `tree` with the qualifiers of its tables and columns dropped (each was resolved to a
+    table the query reads) and each `version()` call replaced by its value."""
+    tree = tree.copy()
+    for table in list(tree.find_all(exp.Table)):
+        reference = _table_reference(table)
+        if reference is not None and len(reference.parts) > 1:
+            table.set("catalog", None)
+            table.set("db", None)
+    for column in list(tree.find_all(exp.Column)):
+        if _column_reference(column) is not None:
+            column.set("catalog", None)
+            column.set("db", None)
+    for node in list(tree.find_all(exp.Anonymous)):
+        if _version_call(node, query) is not None:
+            node.replace(_version_value())
+    return tree
+
+
+@lru_cache(maxsize=1)
+def _version_tree() -> exp.Expression:
+    return parse(f"SELECT {_VERSION}").expressions[0]
+
+
+def _version_value() -> exp.Expression:
+    return _version_tree().copy()
 
 
 def _where(sql: str, offset: int) -> tuple[int, int]:
@@ -131,18 +170,9 @@ def _blank(text: str) -> str:
     return "".join("\n" if char == "\n" else " " for char in text)
 
 
-def _shifted(error: DialectError, sql: str, offset: int) -> DialectError:
-    """`error` (positioned in the text at `offset` of `sql`) positioned in `sql`."""
-    if error.line is None or error.column is None or offset == 0:
-        return error
-    line0, column0 = _where(sql, offset)
-    column = error.column + (column0 - 1 if error.line == 1 else 0)
-    return DialectError(error.message, line=error.line + line0 - 1, column=column, error_name=error.error_name)
-
-
 @dataclass
 class _Plan:
-    sql: str  # the text to run (same length and line breaks as the original)
+    statement: Statement  # what to run: the tree with its qualifiers resolved and dropped
     branch: str | None  # the branch whose tables it reads
     system: list[TableRef]  # the system tables it reads
 
@@ -153,57 +183,56 @@ class Planner:
     def __init__(self, backend: Backend, metadata: SystemCatalog):
         self.backend, self.metadata = backend, metadata
 
-    def start(self, sql: str, session: Session, params: Sequence[object] = ()) -> QueryResult:
+    def start(self, statement: Statement, session: Session, params: Sequence[object] = ()) -> QueryResult:
         """Start one statement (anything but a session statement or CALL); DialectError when it is
         refused or fails to start."""
         check_properties(session)
-        kind = guard.classify(sql)
-        if _is_execute(sql):
+        kind = statement.kind
+        if kind == "execute":
             if params:
                 raise DialectError("EXECUTE cannot be a prepared statement", error_name="NOT_SUPPORTED")
-            execute = parse_execute(sql)
-            statement = execute.statement if execute.statement is not None else session.prepared_statement(execute.name)
-            if _is_execute(statement):
+            execute = parse_execute(statement.text)
+            text = execute.statement if execute.statement is not None else session.prepared_statement(execute.name)
+            inner = read(text)
+            if inner.kind == "execute":
                 raise DialectError("EXECUTE of an EXECUTE statement is not supported", error_name="NOT_SUPPORTED")
-            return self.start(statement, session, execute.params)
-        if kind == "describe":
-            prepared = _described_statement(sql)
-            if prepared is not None:
-                return static_result(self._describe_prepared(*prepared, session))
+            return self.start(inner, session, execute.params)
+        if kind == "describe_prepared":
+            return static_result(self._describe_prepared(statement, session))
         if kind in ("show", "describe"):
             if params:
                 raise DialectError(
                     f"Incorrect number of parameters: expected 0 but found {len(params)}",
                     error_name="INVALID_PARAMETER_USAGE",
                 )
-            return static_result(self.metadata.show(guard.check_text(sql), session))
+            return static_result(self.metadata.show(guard.check_text(statement.text), session))
         if kind in ("query", "explain"):
-            return self._query(sql, session, params, kind)
+            return self._query(statement, session, params)
         if kind in ("session", "call"):
             raise DialectError(
                 "a session statement or CALL cannot be run by EXECUTE; send it on its own", error_name="NOT_SUPPORTED"
             )
-        guard.check_text(sql)  # refuses writes and unknown statements with Trino's message
-        _check_statement_start(sql)
+        guard.check_text(statement.text)  # refuses writes and unknown statements with Trino's message
+        _check_statement_start(statement.text)
         raise DialectError("unsupported in lakegate: this statement", line=1, column=1, error_name="NOT_SUPPORTED")
 
     # -- queries ----------------------------------------------------------------------------
 
-    def _query(self, sql: str, session: Session, params: Sequence[object], kind: str) -> QueryResult:
-        sql = guard.check_text(sql)
-        offset = 0
-        query = sql
-        if kind == "explain":
-            query = guard.explained_query(sql)[0]
-            offset = sql.rfind(query)
-        plan = self._plan(sql, query, offset, session)
+    def _query(self, statement: Statement, session: Session, params: Sequence[object]) -> QueryResult:
+        guard.check_text(statement.text)
+        plan = self._plan(statement, session)
         branch = plan.branch if plan.branch is not None or plan.system else self._default_branch(session)
         names = _session_names(session)
         if branch is not None:
             return self.backend.execute(
-                plan.sql, branch=branch, scope=session.scope(), params=params, time_zone=session.zone(), session=names
+                plan.statement,
+                branch=branch,
+                scope=session.scope(),
+                params=params,
+                time_zone=session.zone(),
+                session=names,
             )
-        if kind == "explain":
+        if statement.kind == "explain":
             raise DialectError(
                 "unsupported in lakegate: EXPLAIN of a query over system tables",
                 line=1,
@@ -211,7 +240,7 @@ class Planner:
                 error_name="NOT_SUPPORTED",
             )
         return self.metadata.run(
-            plan.sql, plan.system, params, user=session.user, time_zone=session.zone(), session=names
+            plan.statement, plan.system, params, user=session.user, time_zone=session.zone(), session=names
         )
 
     def _default_branch(self, session: Session) -> str | None:
@@ -227,28 +256,26 @@ class Planner:
                 return schema
         return branches[0] if branches else None
 
-    def _plan(self, sql: str, query: str, offset: int, session: Session) -> _Plan:
-        """Resolve the tables of `query` (the text at `offset` of `sql`) and rewrite `sql`."""
-        try:
-            parsed = _parse(query)
-        except DialectError as error:
-            raise _shifted(error, sql, offset) from None
-        edits: list[tuple[int, int, str]] = []  # (start, end, replacement) of the same length
+    def _plan(self, statement: Statement, session: Session) -> _Plan:
+        """Resolve the tables of the statement's query and drop their qualifiers from its tree."""
+        sql, offset, tree = statement.text, statement.offset, statement.tree  # parse errors raised here
+        names = _names_of(statement.body)
+        edits: list[tuple[int, int, str]] = []  # (start, end, replacement) of the same length, in `sql`
         branch: str | None = None
         system: dict[str, TableRef] = {}
-        read: set[TableRef] = set()
-        for reference in parsed.tables:
+        read_tables: set[TableRef] = set()
+        for reference in names.tables:
             start = offset + reference.start
             line, column = _where(sql, start)
             try:
                 table = self.metadata.resolve(reference.parts, session, line=line, column=column)
             except DialectError:
-                if len(reference.parts) == 1 and reference.parts[0].lower() in parsed.ctes:
+                if len(reference.parts) == 1 and reference.parts[0].lower() in names.ctes:
                     continue  # a CTE's name
                 raise
-            read.add(table)
+            read_tables.add(table)
             if len(reference.parts) > 1:
-                if table.table.lower() in parsed.ctes:
+                if table.table.lower() in names.ctes:
                     raise DialectError(
                         f"unsupported in lakegate: the WITH query '{table.table}' has the name of the "
                         f"table '{table}' that this query also reads; rename the WITH query",
@@ -256,7 +283,7 @@ class Planner:
                         column=column,
                         error_name="NOT_SUPPORTED",
                     )
-                edits.append(self._unqualify(sql, start, offset + reference.name_start))
+                edits.append(_unqualify(sql, start, offset + reference.name_start))
             if table.system:
                 known = system.setdefault(table.table.lower(), table)
                 if known != table:
@@ -284,50 +311,54 @@ class Planner:
                     column=column,
                     error_name="NOT_SUPPORTED",
                 )
-        for reference in parsed.columns:  # schema.table.column: the table must be one the query reads
+        for reference in names.columns:  # schema.table.column: the table must be one the query reads
             start = offset + reference.start
             line, column = _where(sql, start)
             try:
                 table = self.metadata.resolve(reference.parts, session, line=line, column=column)
             except DialectError:
                 table = None
-            if table not in read:
+            if table not in read_tables:
                 raise DialectError(
                     f"Column prefix '{'.'.join(reference.parts)}' cannot be resolved (no such table in FROM)",
                     line=line,
                     column=column,
                     error_name="COLUMN_NOT_FOUND",
                 )
-            edits.append(self._unqualify(sql, start, offset + reference.name_start))
-        for start, end in parsed.versions:
+            edits.append(_unqualify(sql, start, offset + reference.name_start))
+        for start, end in names.versions:
             edits.append((offset + start, offset + end + 1, _VERSION + " " * (end + 1 - start - len(_VERSION))))
-        for start, end, text in sorted(edits, reverse=True):
-            sql = sql[:start] + text + sql[end:]
-        return _Plan(sql, branch, list(system.values()))
-
-    @staticmethod
-    def _unqualify(sql: str, start: int, name_start: int) -> tuple[int, int, str]:
-        """The edit that blanks out the qualifier `catalog.schema.` before a name (line breaks kept)."""
-        return start, name_start, _blank(sql[start:name_start])
+        if edits:
+            statement = statement.rewritten(_unqualified(tree, statement.body), tuple(edits))
+        return _Plan(statement, branch, list(system.values()))
 
     # -- prepared statements ----------------------------------------------------------------
 
-    def _describe_prepared(self, what: str, name: str, session: Session) -> Answer:
-        statement = session.prepared_statement(name)
-        count = _parameter_count(statement)
+    def _describe_prepared(self, statement: Statement, session: Session) -> Answer:
+        what = statement.name.split()[1]  # INPUT or OUTPUT
+        reader = Reader(statement.text)
+        reader.skip_words(2)
+        name = reader.peek().text
+        reader.identifier()  # a name, not a string or a symbol
+        prepared = read(session.prepared_statement(name))
+        count = _parameter_count(prepared)
         if what == "INPUT":
             return Answer([("Position", "bigint"), ("Type", "varchar")], [(i, "unknown") for i in range(count)])
-        kind = guard.classify(statement)
-        if kind not in ("query", "show", "describe", "explain"):
+        if prepared.kind not in ("query", "show", "describe", "explain"):
             return Answer(_DESCRIBE_OUTPUT, [])
-        result = self.start(statement, session, [None] * count)
+        result = self.start(prepared, session, [None] * count)
         result.cancel()
-        aliased = _aliased(statement, len(result.columns))
+        aliased = _aliased(prepared, len(result.columns))
         rows = [
             (column, "", "", "", trino_type, _type_size(trino_type), alias)
             for (column, trino_type), alias in zip(result.columns, aliased)
         ]
         return Answer(_DESCRIBE_OUTPUT, rows)
+
+
+def _unqualify(sql: str, start: int, name_start: int) -> tuple[int, int, str]:
+    """The text edit that blanks out the qualifier `catalog.schema.` before a name (line breaks kept)."""
+    return start, name_start, _blank(sql[start:name_start])
 
 
 def _session_names(session: Session) -> SessionNames:
@@ -360,34 +391,16 @@ def _check_statement_start(sql: str) -> None:
     )
 
 
-def _is_execute(sql: str) -> bool:
-    return guard.first_words(sql, 1) == ["EXECUTE"]
-
-
-def _described_statement(sql: str) -> tuple[str, str] | None:
-    """('INPUT' | 'OUTPUT', statement name as written) of `DESCRIBE INPUT|OUTPUT name`, else None."""
-    words = guard.first_words(sql, 2)
-    if words[:1] not in (["DESCRIBE"], ["DESC"]) or words[1:] not in (["INPUT"], ["OUTPUT"]):
-        return None
-    reader = Reader(sql)
-    reader.skip_words(2)
-    if len(reader.tokens) != reader.pos + 1:
-        return None  # DESCRIBE of a table called input or output
-    name = reader.peek().text
-    reader.identifier()  # a name, not a string or a symbol
-    return words[1], name
-
-
-def _parameter_count(statement: str) -> int:
-    if guard.classify(statement) not in ("query", "explain"):
+def _parameter_count(statement: Statement) -> int:
+    if statement.kind not in ("query", "explain"):
         return 0
-    return sum(1 for node in parse(statement).find_all(exp.Placeholder) if not node.this)
+    return sum(1 for node in statement.tree.find_all(exp.Placeholder) if not node.this)
 
 
-def _aliased(statement: str, count: int) -> list[bool]:
+def _aliased(statement: Statement, count: int) -> list[bool]:
     """Whether each output column of a query has an alias (`AS name`), as DESCRIBE OUTPUT says."""
     try:
-        tree = parse(statement)
+        tree = statement.tree
     except DialectError:
         return [False] * count
     if (

@@ -17,10 +17,10 @@ from urllib.parse import quote_plus, unquote_plus
 
 from sqlglot.tokens import TokenType
 
-from lakegate.dialect import guard, zones
+from lakegate.dialect import zones
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
-from lakegate.dialect.statements import Reader
+from lakegate.dialect.statements import Reader, Statement
 
 #: Session properties lakegate knows: name -> description (both varchar, default NULL).
 PROPERTIES = {
@@ -28,18 +28,6 @@ PROPERTIES = {
     "job_id": "Narrow every lake table to the rows of this job",
     "time_zone_id": "The session time zone, set by SET TIME ZONE (overrides X-Trino-Time-Zone)",
 }
-#: The statements `answer` handles (first words, upper case).
-STATEMENTS = (
-    "USE",
-    "SET SESSION",
-    "RESET SESSION",
-    "SET TIME ZONE",
-    "PREPARE",
-    "DEALLOCATE PREPARE",
-    "START TRANSACTION",
-    "COMMIT",
-    "ROLLBACK",
-)
 
 
 class HeaderError(ValueError):
@@ -149,24 +137,17 @@ def _done(update_type: str, *headers: tuple[str, str]) -> Answer:
 # --- reading the statements ------------------------------------------------------------------
 
 
-def statement_name(sql: str) -> str | None:
-    """Which of `STATEMENTS` `sql` is (None for any other statement)."""
-    first, second = (guard.first_words(sql, 2) + ["", ""])[:2]
-    for name in STATEMENTS:
-        words = name.split()
-        if words[0] == first and (len(words) == 1 or words[1] == second):
-            return name
-    return None
-
-
 def answer(
-    sql: str, session: Session, resolve_schema: Callable[[str | None, tuple[str, bool]], tuple[str, str]]
+    statement: Statement,
+    session: Session,
+    resolve_schema: Callable[[str | None, tuple[str, bool]], tuple[str, str]],
 ) -> Answer:
-    """Answer one of `STATEMENTS`. `resolve_schema(catalog, (schema, quoted))` checks a USE target
-    and returns the (catalog, schema) names to set (DialectError when either does not exist)."""
-    tokens = Reader(sql)
-    name = statement_name(sql)
-    tokens.skip_words(len(name.split()) if name else 0)
+    """Answer a session statement (one of `statements.SESSION_STATEMENTS`, its kind 'session').
+    `resolve_schema(catalog, (schema, quoted))` checks a USE target and returns the (catalog,
+    schema) names to set (DialectError when either does not exist)."""
+    tokens = Reader(statement.text)
+    name = statement.name
+    tokens.skip_words(len(name.split()))
     if name == "USE":
         parts = tokens.name()
         tokens.end()

@@ -25,14 +25,15 @@ import pyarrow as pa
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError, runtime_error
 from lakegate.dialect.session_functions import SessionNames
-from lakegate.dialect.statements import Reader
+from lakegate.dialect.statements import Reader, Statement
 from lakegate.dialect.translate import translate
 from lakegate.gateway.engine import udfs
 from lakegate.gateway.engine.backend import BATCH_ROWS, Backend, QueryResult, Run, in_zones
-from lakegate.gateway.engine.introspection import CATALOG
 from lakegate.gateway.engine.session import PROPERTIES, Answer, Session
 from lakegate.gateway.engine.trino_values import arrow_type
 
+#: The lake's catalog name (Trino clients address tables as catalog.schema.table).
+CATALOG = "lake"
 INFORMATION_SCHEMA = "information_schema"
 SYSTEM = "system"
 V, B = "varchar", "bigint"
@@ -520,18 +521,21 @@ class SystemCatalog:
 
     def run(
         self,
-        sql: str,
+        statement: Statement,
         refs: Sequence[TableRef],
         params: Sequence[object] = (),
         user: str | None = None,
         time_zone: str = "UTC",
         session: SessionNames | None = None,
     ) -> QueryResult:
-        """Start one Trino query whose (unqualified) table names are the `refs`' table names, over
-        those system tables as `user` sees them, in the session zone `time_zone`, its session
-        functions answered from `session`. Raises DialectError; the result streams and can be canceled."""
+        """Start one Trino query (as the planner read it, its table names unqualified) whose table
+        names are the `refs`' table names, over those system tables as `user` sees them, in the
+        session zone `time_zone`, its session functions answered from `session`. Raises DialectError;
+        the result streams and can be canceled."""
         schema = {ref.table: dict(self.tables(ref.catalog, ref.schema)[ref.table]) for ref in refs}
-        translation = translate(sql, schema, params=params, time_zone=time_zone, session=session)
+        translation = translate(
+            statement.edited_text(), schema, params=params, time_zone=time_zone, session=session, tree=statement.tree
+        )
         with self._lock:
             cursor = self._db.cursor()
         try:

@@ -32,6 +32,7 @@ from lakegate.dialect import params as parameters
 from lakegate.dialect.errors import ERROR_CODES, DialectError
 from lakegate.dialect.scope import Scope, restrict
 from lakegate.dialect.session_functions import SessionNames
+from lakegate.dialect.statements import Statement, read
 from lakegate.dialect.translate import LakegateTrino, parse
 from lakegate.dialect.trino_types import TType, parse_type
 from lakegate.gateway.engine.backend import QueryResult
@@ -130,30 +131,21 @@ def _edits(
 
 
 def forwarded_sql(
-    sql: str | bytes,
+    sql: str | bytes | Statement,
     *,
     scope: Scope | None = None,
     params: Sequence[object] = (),
     tables: set[str] | Callable[[exp.Expression], set[str]] = frozenset(),
 ) -> Forwarded:
-    """The Trino text to send for one query: guard-checked (read-only: queries, SHOW, DESCRIBE,
+    """The Trino text to send for one query (its text, or the statement as the planner read and
+    rewrote it: its text edits spliced in): guard-checked (read-only: queries, SHOW, DESCRIBE,
     EXPLAIN), every lake table in `tables` restricted to `scope`, `?` bound to `params`. `tables`
     may be a function of the parsed query. Raises DialectError with the position in `sql`."""
-    text = guard.check_text(sql)
-    kind = guard.classify(text)
-    start = 0
-    body = text
-    if kind == "explain":
-        query, _ = guard.explained_query(text)
-        start = text.rfind(query)
-        body = query
-    try:
-        tree = parse(body)
-    except DialectError as error:
-        if start and error.line is not None and error.column is not None:
-            line, column = _line_column(text, _offset(body, error.line, error.column) + start)
-            raise DialectError(error.message, line=line, column=column, error_name=error.error_name) from None
-        raise
+    statement = sql if isinstance(sql, Statement) else read(guard.check_text(sql))
+    text = guard.check_text(statement.edited_text())
+    kind, start = statement.kind, statement.offset
+    body = text[start : start + len(statement.body)]
+    tree = statement.tree.copy()  # the shared tree stays as read
     guard.check(tree)
     if kind in ("show", "describe"):
         scope, params = None, ()
@@ -468,7 +460,12 @@ class TrinoBackend:
     # -- queries --------------------------------------------------------------------------
 
     def forward(
-        self, sql: str | bytes, *, branch: str = "main", scope: Scope | None = None, params: Sequence[object] = ()
+        self,
+        sql: str | bytes | Statement,
+        *,
+        branch: str = "main",
+        scope: Scope | None = None,
+        params: Sequence[object] = (),
     ) -> Forwarded:
         """The text `execute` sends for one query."""
         return forwarded_sql(
@@ -480,7 +477,7 @@ class TrinoBackend:
 
     def execute(
         self,
-        sql: str | bytes,
+        sql: str | bytes | Statement,
         *,
         branch: str = "main",
         scope: Scope | None = None,
@@ -498,12 +495,13 @@ class TrinoBackend:
                 f"unsupported in lakegate: session time zone '{time_zone}' with the Trino backend (it reads in UTC)",
                 error_name="NOT_SUPPORTED",
             )
-        called = session_functions.called(parse(sql)) if isinstance(sql, str) and session_functions.used(sql) else []
+        statement = sql if isinstance(sql, Statement) else read(guard.check_text(sql))
+        called = session_functions.called(statement.tree) if session_functions.used(statement.text) else []
         if called:
             raise DialectError(
                 f"unsupported in lakegate: {called[0]} with the Trino backend", error_name="NOT_SUPPORTED"
             )
-        forwarded = self.forward(sql, branch=branch, scope=scope, params=params)
+        forwarded = self.forward(statement, branch=branch, scope=scope, params=params)
         cursor = self._connection(branch).cursor()
         try:
             cursor.execute(forwarded.sql)

@@ -20,8 +20,8 @@ from fastapi import APIRouter, FastAPI, Request
 from fastapi.responses import PlainTextResponse, Response
 from starlette.concurrency import run_in_threadpool
 
-from lakegate.dialect import guard
 from lakegate.dialect.errors import DialectError
+from lakegate.dialect.statements import Statement, read
 from lakegate.gateway.engine import session as sessions
 from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.planner import static_result
@@ -62,13 +62,6 @@ def _immediate(query_id: str, base: str, answer: Answer | None = None, failure: 
     )
 
 
-def _call(sql: str, session: Session, manager: QueryManager, *, owner_only: bool) -> Answer:
-    """Answer `CALL system.runtime.kill_query(...)`."""
-    query_id, message = sessions.kill_query_arguments(sql, session)
-    manager.kill(query_id, message, session, owner_only=owner_only)
-    return Answer([], [], update_type="CALL")
-
-
 # --- the app ------------------------------------------------------------------------------------
 
 
@@ -107,10 +100,10 @@ class _Endpoints:
         except UnicodeDecodeError as error:
             failure = Failure(f"the query text is not valid UTF-8 (byte {error.start})", "SYNTAX_ERROR")
             return Response(_immediate(self.manager.ids.next(), base, failure=failure), media_type=JSON)
-        name = sessions.statement_name(sql)
-        if name is not None or guard.classify(sql) == "call":
-            return await self._answer(sql, session, base, is_session=name is not None)
-        query = self.manager.create(sql, session, spooling.negotiate(request.headers.get(spooling.HEADER)))
+        statement = read(sql)
+        if statement.kind in ("session", "call"):
+            return await self._answer(statement, session, base)
+        query = self.manager.create(statement, session, spooling.negotiate(request.headers.get(spooling.HEADER)))
         if query.failure is not None:  # refused (queue full)
             return Response(query.first_document(base), media_type=JSON)
         self.manager.start(query)
@@ -128,16 +121,13 @@ class _Endpoints:
             sql = (await request.body()).decode("utf-8")
         except (sessions.HeaderError, UnicodeDecodeError) as error:
             return PlainTextResponse(str(error), 400)
-        return await arrow_results.arrow_response(self.engine.planner, sql, session, self.limits)
+        return await arrow_results.arrow_response(self.engine, sql, session, self.limits)
 
-    async def _answer(self, sql: str, session: Session, base: str, *, is_session: bool) -> Response:
-        """A session statement or CALL, answered at once."""
+    async def _answer(self, statement: Statement, session: Session, base: str) -> Response:
+        """A session statement or CALL, answered at once by the engine."""
         query_id = self.manager.ids.next()
         try:
-            if is_session:
-                answer = await run_in_threadpool(self.engine.answer, sql, session)
-            else:
-                answer = await run_in_threadpool(_call, sql, session, self.manager, owner_only=self.users is not None)
+            answer = await run_in_threadpool(self.engine.answer, statement, session)
         except DialectError as error:
             return Response(_immediate(query_id, base, failure=Failure.of(error)), media_type=JSON)
         return Response(_immediate(query_id, base, answer), media_type=JSON, headers=dict(answer.headers))
@@ -222,9 +212,12 @@ def create_app(
     """
     limits = engine.limits
     segments = spooling.SegmentStore(ttl=limits.client_timeout, max_bytes=SPOOLED_BYTES)
-    manager = QueryManager(engine.planner, limits, segments)
+    manager = QueryManager(engine, limits, segments)
     engine.list_queries(
         lambda user: [query.row() for query in manager.queries() if users is None or query.session.user == user]
+    )
+    engine.kill_queries(
+        lambda query_id, message, session: manager.kill(query_id, message, session, owner_only=users is not None)
     )
 
     @asynccontextmanager

@@ -21,12 +21,12 @@ import pyarrow as pa
 from fastapi.responses import Response, StreamingResponse
 from starlette.concurrency import run_in_threadpool
 
-from lakegate.dialect import guard
 from lakegate.dialect.errors import DialectError
+from lakegate.dialect.statements import read
 from lakegate.gateway.engine.arrow_output import result_batches, result_schema
 from lakegate.gateway.engine.backend import QueryResult
+from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.limits import Limits
-from lakegate.gateway.engine.planner import Planner
 from lakegate.gateway.engine.session import Session
 from lakegate.gateway.server.protocol import Failure
 
@@ -74,16 +74,17 @@ def _closer(batches: object):
     return getattr(batches, "close", None) or (lambda: None)
 
 
-def _start(planner: Planner, sql: str, session: Session, limits: Limits) -> tuple[QueryResult, bytes]:
+def _start(engine: Engine, sql: str, session: Session, limits: Limits) -> tuple[QueryResult, bytes]:
     """Plan and start the query and encode its schema and first batch (errors surface here, before
     the reply's status is sent)."""
-    if guard.classify(sql) not in QUERY_KINDS:
+    statement = read(sql)
+    if statement.kind not in QUERY_KINDS:
         raise DialectError(
             f"{PATH} answers queries only (SELECT, WITH, VALUES, TABLE, SHOW, DESCRIBE): send other "
             "statements to /v1/statement",
             error_name="NOT_SUPPORTED",
         )
-    result = planner.start(sql, session)
+    result = engine.execute(statement, session)
     close = _closer(result.batches)
     try:
         schema = result_schema(result.columns)
@@ -123,10 +124,10 @@ def _rest(
         close()
 
 
-async def arrow_response(planner: Planner, sql: str, session: Session, limits: Limits) -> Response:
+async def arrow_response(engine: Engine, sql: str, session: Session, limits: Limits) -> Response:
     """The reply of `POST /v1/arrow` for `sql` in `session`."""
     try:
-        result, head = await run_in_threadpool(_start, planner, sql, session, limits)
+        result, head = await run_in_threadpool(_start, engine, sql, session, limits)
     except (DialectError, pa.ArrowException) as error:
         return _error(error)
 

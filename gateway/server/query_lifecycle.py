@@ -44,11 +44,12 @@ import orjson
 import pyarrow as pa
 
 from lakegate.dialect.errors import DialectError
+from lakegate.dialect.statements import Statement
 from lakegate.gateway.engine import session as sessions
 from lakegate.gateway.engine.backend import QueryResult
+from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.failures import hide_paths, time_limit_error
 from lakegate.gateway.engine.limits import Limits
-from lakegate.gateway.engine.planner import Planner
 from lakegate.gateway.engine.session import Session
 from lakegate.gateway.engine.trino_values import encode_columns
 from lakegate.gateway.server import spooling
@@ -139,14 +140,14 @@ class Query:
     def __init__(
         self,
         query_id: str,
-        sql: str,
+        statement: Statement,
         session: Session,
         dequeued: Callable[[], None] = lambda: None,
         *,
         encoding: str | None = None,
         segments: spooling.SegmentStore | None = None,
     ):
-        self.id, self.sql, self.session = query_id, sql, session
+        self.id, self.statement, self.sql, self.session = query_id, statement, statement.text, session
         self.encoding, self._segments = encoding if segments is not None else None, segments
         self._dequeued = dequeued  # called once, when the query leaves the queue (runs or fails)
         self.slug = secrets.token_hex(8)
@@ -499,8 +500,8 @@ class QueryManager:
     module docstring), a bounded queue, and the reaper that enforces the time limit, abandons
     queries clients left and forgets old ones."""
 
-    def __init__(self, planner: Planner, limits: Limits, segments: spooling.SegmentStore | None = None):
-        self.planner, self.limits, self.segments = planner, limits, segments
+    def __init__(self, engine: Engine, limits: Limits, segments: spooling.SegmentStore | None = None):
+        self.engine, self.limits, self.segments = engine, limits, segments
         self.ids = QueryIds()
         self._queries: dict[str, Query] = {}
         self._lock = threading.Lock()
@@ -514,7 +515,7 @@ class QueryManager:
         self._reaper = threading.Thread(target=self._reap, name="lakegate-reaper", daemon=True)
         self._reaper.start()
 
-    def create(self, sql: str, session: Session, encoding: str | None = None) -> Query:
+    def create(self, statement: Statement, session: Session, encoding: str | None = None) -> Query:
         """A new query for one statement, queued (`start` hands it to a worker), or failed with
         QUERY_QUEUE_FULL when too many wait. `encoding`: the spooling protocol's, if the client chose one."""
         with self._lock:
@@ -522,7 +523,7 @@ class QueryManager:
             self._waiting += 0 if full else 1
         query = Query(
             self.ids.next(),
-            sql,
+            statement,
             session,
             dequeued=(lambda: None) if full else self._dequeued,
             encoding=encoding,
@@ -617,7 +618,7 @@ class QueryManager:
             return
         batches = None
         try:
-            result = query.plan(lambda: self.planner.start(query.sql, query.session))
+            result = query.plan(lambda: self.engine.execute(query.statement, query.session))
             batches = result.batches
             query.attach(result)
             held = None  # each page waits for the next, so that the last one ends the query with it
@@ -637,7 +638,7 @@ class QueryManager:
             log.exception("query %s failed", query.id)
             failure = Failure.of(error)
             query.fail(
-                Failure(hide_paths(failure.message, getattr(self.planner.backend, "lake", None)), failure.error_name)
+                Failure(hide_paths(failure.message, getattr(self.engine.backend, "lake", None)), failure.error_name)
             )
         finally:
             close = getattr(batches, "close", None)

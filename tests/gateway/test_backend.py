@@ -21,6 +21,7 @@ import trino
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
 from lakegate.gateway.engine.backend import DuckDBBackend
+from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.limits import Limits
 from lakegate.lake import paths
 from lakegate.lake.config import load_config
@@ -138,27 +139,33 @@ def test_an_unknown_branch_is_a_clear_error(backend):
     assert error.error_name == "SCHEMA_NOT_FOUND" and "branches: main" in error.message
 
 
-def test_show_and_describe(backend):
-    assert backend.execute("SHOW TABLES").rows() == [
+def test_show_and_describe_are_the_engines(backend):
+    """SHOW and DESCRIBE are answered by the Engine's system tables, once, over the backend's lake;
+    the backend itself translates queries only."""
+    engine = Engine(backend)
+    session = engine.session(branch="main")
+    assert engine.execute("SHOW TABLES", session).rows() == [
         ("events",),
         ("metadata",),
         ("never_emitted",),
         ("odom",),
         ("time_to_goal",),
     ]
-    result = backend.execute("SHOW TABLES FROM lake.main LIKE 'o%'")
+    result = engine.execute("SHOW TABLES FROM lake.main LIKE 'o%'", session)
     assert result.columns == [("Table", "varchar")] and result.rows() == [("odom",)]
-    result = backend.execute("DESCRIBE odom")
+    result = engine.execute("DESCRIBE odom", session)
     assert result.columns == [("Column", "varchar"), ("Type", "varchar"), ("Extra", "varchar"), ("Comment", "varchar")]
     assert result.rows()[:3] == [("timestamp", "bigint", "", ""), ("x", "double", "", ""), ("y", "double", "", "")]
-    assert backend.execute("SHOW COLUMNS FROM main.odom LIKE '%\\_id' ESCAPE '\\'").rows() == [
+    assert engine.execute("SHOW COLUMNS FROM main.odom LIKE '%\\_id' ESCAPE '\\'", session).rows() == [
         ("batch_id", "varchar", "", ""),
         ("job_id", "varchar", "", ""),
     ]
-    assert backend.execute("SHOW SCHEMAS").rows() == [("main",)]
-    assert backend.execute("SHOW CATALOGS").rows() == [("lake",)]
-    assert refused(backend, "DESCRIBE nothing").error_name == "TABLE_NOT_FOUND"
-    assert refused(backend, "SHOW FUNCTIONS").error_name == "NOT_SUPPORTED"
+    assert engine.execute("SHOW SCHEMAS", session).rows() == [("information_schema",), ("main",)]
+    assert engine.execute("SHOW CATALOGS", session).rows() == [("lake",), ("system",)]
+    with pytest.raises(DialectError) as error:
+        engine.execute("DESCRIBE nothing", session)
+    assert error.value.error_name == "TABLE_NOT_FOUND"
+    assert refused(backend, "SHOW TABLES").error_name == "NOT_SUPPORTED"
 
 
 def test_explain_shows_duckdbs_plan_of_the_translation(backend):

@@ -31,6 +31,7 @@ from lakegate.gateway.cli.backends import add_backend_arguments, backend_from_ar
 from lakegate.gateway.cli.errors import UserError
 from lakegate.gateway.engine import trino_backend
 from lakegate.gateway.engine.backend import DuckDBBackend
+from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.trino_backend import RemoteQueryError, TrinoBackend, forwarded_sql
 from lakegate.gateway.engine.trino_ddl import schema_name
 from lakegate.gateway.metrics.results import read_results
@@ -112,7 +113,13 @@ def same(a: object, b: object) -> bool:
 
 
 def answer(backend, sql: str, **kwargs) -> tuple[list, list]:
-    result = backend.execute(sql, **kwargs)
+    """Columns and rows of `sql`; the DuckDB side's SHOW and DESCRIBE are its Engine's (they are
+    answered by the system tables, a backend runs queries only)."""
+    if isinstance(backend, DuckDBBackend) and sql.startswith(("SHOW", "DESCRIBE")):
+        engine = Engine(backend)
+        result = engine.execute(sql, engine.session(branch="main", scope=kwargs.get("scope")))
+    else:
+        result = backend.execute(sql, **kwargs)
     return result.columns, result.rows()
 
 

@@ -20,18 +20,16 @@ from typing import Any
 
 from plotly.offline import get_plotlyjs
 
-from lakegate.gateway.metrics.templates import LINK_PATH, Rendered, display_value, format_number, image_mime
+from lakegate.gateway.metrics.templates import (
+    LINK_PATH,
+    STATUS_COLOURS,
+    Rendered,
+    display_value,
+    format_number,
+    image_mime,
+)
 from lakegate.lake.storage import LOCAL
 
-#: Badge colours of metric statuses.
-STATUS_COLOURS = {
-    "PASSED": "#2e7d32",
-    "WARNING": "#e08e00",
-    "BLOCKER": "#c62828",
-    "ERROR": "#6a1b9a",
-    "NOT_RUN": "#757575",
-    "NO_DATA": "#90a4ae",
-}
 #: Rows of a table template shown in HTML; the full result stays in `Rendered.table`.
 MAX_TABLE_ROWS = 2000
 #: Larger image, video and artifact files are not embedded (the page would become unwieldy).

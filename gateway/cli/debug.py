@@ -251,7 +251,8 @@ def _can_open_browser() -> bool:
 def debug_command(args: argparse.Namespace) -> int:
     # the web stack is imported here, so that other commands start without it
     from lakegate.gateway.dashboard.debug_session import DashboardSession, FileConfig, SessionError
-    from lakegate.gateway.dashboard.routes import DashboardState, dashboard_router
+    from lakegate.gateway.dashboard.landing import pages_router
+    from lakegate.gateway.dashboard.routes import DashboardState
     from lakegate.gateway.server.app import create_app
 
     if not is_loopback(args.host):
@@ -322,7 +323,7 @@ def debug_command(args: argparse.Namespace) -> int:
             + ", ".join(f"{n} {s}" for s, n in counts.items() if n)
             + f") in {session.seconds:.2f} s"
         )
-        server = _server(create_app(state.engine, dashboard_router=dashboard_router(state)))
+        server = _server(create_app(state.engine, dashboard_router=pages_router(state)))
         with _stop_on_signals(server):  # from here on Ctrl+C and SIGTERM stop the server, never interrupt
             print(
                 f"SQL endpoint (Trino protocol): http://{shown_host}:{port} (catalog lake, schema {args.branch!r})",

@@ -230,10 +230,9 @@ def _check_options(args: argparse.Namespace) -> Users | None:
 
 def serve_command(args: argparse.Namespace) -> int:
     import uvicorn  # the server's imports cost every other command their start-up time: load them here
-    from fastapi import APIRouter
 
-    from lakegate.gateway.dashboard.landing import landing_router
-    from lakegate.gateway.dashboard.routes import DashboardState, dashboard_router
+    from lakegate.gateway.dashboard.landing import pages_router
+    from lakegate.gateway.dashboard.routes import DashboardState
     from lakegate.gateway.engine.backend import DuckDBBackend
     from lakegate.gateway.engine.engine import Engine
     from lakegate.gateway.server.app import create_app
@@ -258,14 +257,11 @@ def serve_command(args: argparse.Namespace) -> int:
         backend = DuckDBBackend(args.lake, memory_limit=args.memory_limit, threads=args.threads, limits=limits)
     engine = Engine(backend, catalog=args.catalog, limits=limits, owns_backend=True)
     dashboard = DashboardState(args.lake, engine)
-    pages = APIRouter()
-    pages.include_router(dashboard_router(dashboard))
-    pages.include_router(landing_router(dashboard))
     try:
         app = create_app(
             engine,
             users=users,
-            dashboard_router=pages,
+            dashboard_router=pages_router(dashboard),
             allowed_hosts=args.allowed_host,
         )
         config = server_config(

@@ -13,12 +13,20 @@ from urllib.parse import urlencode
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse
 
-from lakegate.gateway.dashboard.routes import SERVED_NAV, DashboardState
+from lakegate.gateway.dashboard.routes import SERVED_NAV, DashboardState, dashboard_router
 from lakegate.gateway.metrics.figures_html import page_html, status_badge
 from lakegate.gateway.metrics.trends import BatchInfo, branch_batches
 
 #: Batches shown per branch, the newest first.
 LATEST_BATCHES = 5
+
+
+def pages_router(state: DashboardState) -> APIRouter:
+    """Every page a server shows over `state`: the landing page at `/` and the dashboard under /dashboard."""
+    router = APIRouter()
+    router.include_router(dashboard_router(state))
+    router.include_router(landing_router(state))
+    return router
 
 
 def landing_router(state: DashboardState) -> APIRouter:

@@ -24,11 +24,12 @@ from .test_dashboard_browser import ARGS, CHROMIUM, _artifacts, _require_browser
 CLI = [sys.executable, "-m", "lakegate.gateway.cli"]
 VIEWPORT = {"width": 1400, "height": 1000}
 
-#: (state -> swatch colour) of each legend of the plots under `root`.
+#: (name -> swatch colour) of each legend of bars, pie slices or timeline states in the plots under `root`.
 LEGENDS_JS = """root => [...root.querySelectorAll('.js-plotly-plot')].map(plot =>
-    Object.fromEntries([...plot.querySelectorAll('.legend .traces')].map(entry => [
-        entry.querySelector('.legendtext').textContent,
-        getComputedStyle(entry.querySelector('.legendpoints path')).fill])))"""
+    Object.fromEntries([...plot.querySelectorAll('.legend .traces')]
+        .filter(entry => entry.querySelector('.legendpoints path'))
+        .map(entry => [entry.querySelector('.legendtext').textContent,
+                       getComputedStyle(entry.querySelector('.legendpoints path')).fill])))"""
 #: Whether the y-axis title of each plot under `root` overlaps one of its tick labels.
 Y_TITLE_OVERLAPS_JS = """root => [...root.querySelectorAll('.js-plotly-plot')].map(plot => {
     const title = plot.querySelector('.g-ytitle text').getBoundingClientRect();
@@ -98,18 +99,24 @@ def page(browser):
     assert errors == []
 
 
-def _check_timelines(root, where: str) -> dict[str, str]:
-    """Every state timeline under `root` gives each state its own colour, the same in each chart, and keeps
+def _check_timelines(cards, where: str) -> dict[str, str]:
+    """Every state timeline of `cards` gives each state its own colour, the same in each chart, and keeps
     its axis title clear of the systems' names; returns state -> colour."""
-    legends = root.evaluate(LEGENDS_JS)
-    assert legends, where
+    assert cards.count() > 0, where
     colours: dict[str, str] = {}
-    for legend in legends:
-        assert len(set(legend.values())) == len(legend), (where, legend)  # no two states share a colour
+    for i in range(cards.count()):
+        card = cards.nth(i)
+        card.scroll_into_view_if_needed()
+        [legend] = card.evaluate(LEGENDS_JS)
+        assert len(legend) > 1 and len(set(legend.values())) == len(legend), (where, legend)  # no two alike
         for state, colour in legend.items():
             assert colours.setdefault(state, colour) == colour, (where, state)  # the same state, the same colour
-    assert not any(root.evaluate(Y_TITLE_OVERLAPS_JS)), where
+        assert card.evaluate(Y_TITLE_OVERLAPS_JS) == [False], where
     return colours
+
+
+def _report_timelines(page):
+    return page.locator("article.lg-metric", has=page.locator("h3", has_text=re.compile("^Goal Status")))
 
 
 def _check_images(page, images, where: str) -> None:
@@ -151,9 +158,8 @@ def test_the_report(page, demo_lake, tmp_path):
     assert sections.locator("h2 a.lg-up[href='#top']").count() == sections.count()
 
     # one colour per state, the same in every job's Goal Status; the axis title clear of the labels
-    timelines = page.locator("article.lg-metric", has=page.locator("h3", has_text=re.compile("^Goal Status")))
-    assert timelines.count() == 8
-    colours = _check_timelines(page.locator("main"), "report")
+    assert _report_timelines(page).count() == 8
+    colours = _check_timelines(_report_timelines(page), "report")
     assert set(colours) == {"WAITING", "NAVIGATING", "REACHED", "ABORTED"}
 
     # the pie of job statuses in the badges' colours
@@ -213,11 +219,11 @@ def test_the_served_dashboard(page, served, demo_lake, tmp_path):
     assert cells and all(len(re.sub(r"\D", "", text).lstrip("0")) <= 6 for text in cells if "." in text)
 
     # state colours as in the report; the pie of statuses in the badges' colours
-    colours = _check_timelines(page.locator("#test-metrics"), "dashboard")
+    colours = _check_timelines(page.locator("article.metric[data-template=state_timeline]"), "dashboard")
     report = page.context.new_page()
     report.goto((demo_lake / "report.html").as_uri())
     report.wait_for_selector(".js-plotly-plot .main-svg")
-    assert {s: c for s, c in _check_timelines(report.locator("main"), "report").items() if s in colours} == colours
+    assert {s: c for s, c in _check_timelines(_report_timelines(report), "report").items() if s in colours} == colours
     report.close()
     badge = page.locator("#summary .badge").first
     assert badge.inner_text() == "BLOCKER"

@@ -42,8 +42,8 @@ STATUS_COLOURS = {
     "NO_DATA": "#90a4ae",
 }
 
-#: Colours of the other states of a state timeline (see `state_colours`): distinct hues, none a
-#: status colour.
+#: Colours of the other states of a state timeline (see `state_colours`): distinct, saturated (a short
+#: segment still shows), none a status colour.
 PALETTE = (
     "#1f77b4",
     "#ff7f0e",
@@ -52,19 +52,19 @@ PALETTE = (
     "#8c564b",
     "#bcbd22",
     "#9467bd",
-    "#aec7e8",
-    "#ffbb78",
-    "#98df8a",
-    "#ff9896",
-    "#c5b0d5",
-    "#c49c94",
-    "#f7b6d2",
-    "#dbdb8d",
-    "#9edae5",
     "#393b79",
     "#637939",
     "#7b4173",
     "#843c39",
+    "#3182bd",
+    "#e6550d",
+    "#756bb1",
+    "#d6616b",
+    "#e7ba52",
+    "#6baed6",
+    "#a55194",
+    "#636363",
+    "#00897b",
 )
 
 _IMAGE_MAGIC = (

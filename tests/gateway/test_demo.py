@@ -72,6 +72,7 @@ def test_demo_from_anywhere_with_no_arguments_then_again(tmp_path):
     check_trends(out, lake)
     check_comparison(out, lake)
     check_next_hints(out, tmp_path)
+    check_readme_commands(tmp_path)
 
     results = read_results(lake, BRANCH, BATCH)
     again = demo("--lake", lake, "--no-progress", cwd=tmp_path)
@@ -100,6 +101,22 @@ def check_next_hints(out: str, cwd: Path) -> None:
         # exit codes of a gate: 2 a metric blocks (metrics run), 4 a new failure (compare --fail-on)
         assert done.returncode in (0, 2, 4), f"{hint}: {done.stderr}"
         assert done.stdout.strip() and "usage:" not in done.stderr and "lakegate:" not in done.stderr, hint
+
+
+def check_readme_commands(cwd: Path) -> None:
+    """README's commands to explore the demo's lake run on it (`.venv/bin/lakegate` as this test runs
+    lakegate), in the folder the demo ran in; the report metric's page is written."""
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    block = readme.split("Then explore the lake", 1)[1].split("```sh\n", 1)[1].split("```", 1)[0]
+    commands = [c.strip() for c in block.replace("\\\n", " ").split(".venv/bin/lakegate ") if c.strip()]
+    assert len(commands) == 4 and commands[-1].startswith("metrics report --lake lake-demo")
+    for command in commands:
+        done = subprocess.run(
+            f"{' '.join(CLI)} {command}", shell=True, cwd=cwd, capture_output=True, text=True, timeout=120
+        )
+        assert done.returncode in (0, 2), f"{command}: {done.stderr}"  # 2: a metric of the batch blocks
+        assert "NULL" not in done.stdout and "lakegate:" not in done.stderr, command
+    assert "Job Outcomes by Build" in (cwd / "lake-demo" / "builds.html").read_text()
 
 
 def check_comparison(out: str, lake: Path) -> None:

@@ -91,6 +91,9 @@ h2 .lg-up { font-size: .8rem; font-weight: 400; margin-left: auto; text-decorati
                              vertical-align: top; }
 .lg-table th { background: #eef2f7; position: sticky; top: 0; }
 .lg-list li { margin: .3rem 0; }
+select, input, button { font: inherit; font-size: .9rem; padding: .25rem .4rem; border: 1px solid #b9c0c9;
+                        border-radius: 4px; background: #fff; }
+button { padding: .3rem .8rem; cursor: pointer; }
 .lg-links { display: flex; gap: .6rem; margin: 1rem 0; }
 .lg-button { display: inline-block; padding: .4rem .9rem; border: 1px solid var(--accent); border-radius: 5px;
              text-decoration: none; color: #fff; background: var(--accent); }
@@ -182,6 +185,8 @@ def report_html(
             if info.get("contents", True):
                 entries.append(f'<a href="#{div_id}-card">{html.escape(name)}</a>')
         parts.append("</section>")
+        if [name for name, _, _ in metrics] == [section_title]:
+            entries = []  # a section of one item named as itself
         contents.append(
             f'<li><a href="#{section_id}">{html.escape(section_title)}</a>'
             f'<div class="lg-toc-items">{" · ".join(entries)}</div></li>'

@@ -259,7 +259,11 @@
     if (result.problems && result.problems.length) {
       card.append(el("ul", { class: "problems" }, result.problems.map((p) => el("li", { text: p }))));
     }
-    if (result.text && body && !body.classList.contains("scalar")) card.append(el("p", { class: "meta", text: result.text }));
+    if (metric.template === "table" && result.table) {  // its summary may be its values: the size instead
+      card.append(el("p", { class: "meta", text: `${plural(result.table.rows.length, "row")}, ${plural(result.table.columns.length, "column")}` }));
+    } else if (result.text && body && !body.classList.contains("scalar")) {
+      card.append(el("p", { class: "meta", text: result.text }));
+    }
 
     const details = el("details", { class: "query", open: Boolean(result.error) || metric.origin !== "config" },
       el("summary", { text: `Query${metric.location ? ` (${metric.location.split("/").pop()})` : ""}`, title: metric.location }));

@@ -284,3 +284,18 @@ def test_the_trends_pages_look_like_the_others(page, served, demo_lake, tmp_path
     assert page.evaluate("() => getComputedStyle(document.body).fontFamily") == index_style[0]
     page.goto((demo_lake / "trends.html").as_uri())  # the demo's own trends page, offline
     assert page.evaluate("() => getComputedStyle(document.body).fontFamily") == index_style[0]
+
+
+def test_the_comparison_page(page, served, tmp_path):
+    _, url = served
+    page.goto(f"{url}/dashboard/compare/?branch=main&batch=nav-regression-1")
+    page.wait_for_selector(".js-plotly-plot .main-svg")
+    page.screenshot(path=str(_artifacts(tmp_path) / "compare.png"))
+    assert page.locator("h1").inner_text() == "Compare nightly-1.4.1 -> nav-regression-1 on branch main"
+    contents = page.locator("nav.lg-toc > ol > li")
+    assert contents.locator("> a").all_inner_texts() == ["Summary", "Experiences", "Changed metrics", "Base and new"]
+    assert contents.first.locator(".lg-toc-items a").count() == 0  # a section of one item named as itself
+    assert "Time to reach final goal (Parking Lot)" in contents.last.inner_text()
+    assert page.locator(".lg-top nav a").all_inner_texts() == ["Home", "Dashboard", "Trends"]
+    button = page.locator("#compare-go")
+    assert button.evaluate("b => getComputedStyle(b).borderRadius") == "4px"  # styled as the dashboard's

@@ -124,10 +124,10 @@ def prepare(jobs: int, rows_per_job: int) -> tuple[Path, int]:
     if ready.exists():
         return lake, json.loads(ready.read_text())["rows"]
     from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
+    from lakegate.lake.branch_configs import BranchConfigs
     from lakegate.lake.config import load_config
     from lakegate.lake.ingest import ingest_job
     from lakegate.lake.metadata import load_metadata_file
-    from lakegate.lake.registry import BranchConfigs
 
     shutil.rmtree(lake, ignore_errors=True)
     config = load_config(CONFIG_PATH)

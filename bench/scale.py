@@ -60,12 +60,12 @@ from lakegate.fixtures.generate import CONFIG_PATH, generate_batch  # noqa: E402
 from lakegate.gateway.engine.backend import DuckDBBackend  # noqa: E402
 from lakegate.lake import paths  # noqa: E402
 from lakegate.lake.batch_files import job_rows, write_jobs  # noqa: E402
+from lakegate.lake.branch_configs import BranchConfigs  # noqa: E402
 from lakegate.lake.catalog import Catalog  # noqa: E402
 from lakegate.lake.config import load_config  # noqa: E402
 from lakegate.lake.ingest import ingest_job  # noqa: E402
 from lakegate.lake.metadata import load_metadata_file  # noqa: E402
 from lakegate.lake.record import LAYOUT, RECORD, FileEntry, Record  # noqa: E402
-from lakegate.lake.registry import BranchConfigs  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 WORK = ROOT / "bench" / ".work" / "scale"

@@ -2,7 +2,7 @@
 Trino holds (compact, keys as Trino orders them) in a VARCHAR. This module writes the SQL that reads such
 texts (validity, element lists, casts to SQL types) and that writes SQL values as JSON text
 (`CAST(x AS JSON)`), shared by the casts (transforms.py) and the JSON functions
-(functions_json.py).
+(functions/json.py).
 
 Facts followed (trinodb/trino 4xx, core/trino-main): io.trino.util.JsonUtil (JSON_FACTORY, the
 canonical text of json_parse: Jackson with ORDER_MAP_ENTRIES_BY_KEYS), io.trino.type.JsonOperators
@@ -18,6 +18,7 @@ from decimal import Decimal
 from lakegate.dialect import registry
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
+from lakegate.dialect import write_casts as casts
 from lakegate.dialect.trino_types import TType
 
 
@@ -144,7 +145,7 @@ def from_json(g, sql: str, target: TType) -> str:
     text = f"json_extract_string({sql}, '$')"
     double = f"TRY_CAST({text} AS DOUBLE)"
     if target.base == "varchar":
-        integer, floating, boolean = text, tf.cast_value(g, double, tt.DOUBLE, target), text
+        integer, floating, boolean = text, casts.cast_value(g, double, tt.DOUBLE, target), text
     elif target.base == "boolean":
         integer, floating, boolean = f"{_exact(g, text, tt.BIGINT, bad)} <> 0", f"{double} <> 0", f"{text} = 'true'"
     else:
@@ -152,7 +153,7 @@ def from_json(g, sql: str, target: TType) -> str:
         floating = _rounded(g, double, target) if target.is_integral else tf.cast(double, target)
         boolean = tf.cast(f"{text} = 'true'", target)
     return (
-        f"CASE {null} WHEN {kind_} = 'VARCHAR' THEN {tf.cast_value(g, text, tt.VARCHAR, target)} "
+        f"CASE {null} WHEN {kind_} = 'VARCHAR' THEN {casts.cast_value(g, text, tt.VARCHAR, target)} "
         f"WHEN {kind_} = 'BOOLEAN' THEN {boolean} WHEN {kind_} IN ('OBJECT', 'ARRAY') THEN {bad} "
         f"WHEN {_is_float(sql)} THEN {floating} ELSE {integer} END"
     )
@@ -243,7 +244,7 @@ def _json_text(g, sql: str, source: TType) -> str:
             f"CASE WHEN isnan({value}) THEN '\"NaN\"' "
             f"WHEN isinf({value}) THEN CASE WHEN {value} > 0 THEN '\"Infinity\"' ELSE '\"-Infinity\"' END "
             f"WHEN abs({value}) >= 0.001 AND abs({value}) < 10000000 OR {value} = 0 THEN CAST({value} AS VARCHAR) "
-            f"ELSE {tf.varchar_of(g, value, tt.DOUBLE)} END"
+            f"ELSE {casts.varchar_of(g, value, tt.DOUBLE)} END"
         )
     if source.base == "map":
         return _map_json(g, sql, source)
@@ -259,7 +260,7 @@ def _json_text(g, sql: str, source: TType) -> str:
         inner = _json_text(g, '"_v"', source.element)
         each = f"list_transform({sql}, lambda \"_v\": coalesce({inner}, 'null'))"
         return f"'[' || array_to_string({each}, ',') || ']'"
-    return tf.varchar_of(g, sql, source)  # integers and decimals: their exact text
+    return casts.varchar_of(g, sql, source)  # integers and decimals: their exact text
 
 
 #: Keys whose order differs between Java's String order (UTF-16 units) and DuckDB's (code points).

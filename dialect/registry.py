@@ -1,7 +1,8 @@
-"""The function registry: the Trino functions lakegate translates (`SUPPORTED`, filled by
-`register` from lakegate.dialect.functions and its companions) and those it refuses, with the
-reason (`REJECTED`). The analyzer and the writer look functions up here; whoever translates
-imports lakegate.dialect.functions first (lakegate.dialect.translate does), which fills it.
+"""The function registry: the Trino functions lakegate translates (`SUPPORTED`, filled by `register`
+from the modules of lakegate.dialect.functions, one per page of Trino's function reference, which
+lakegate.dialect.functions.pages lists and installs) and those it refuses, with the reason
+(`REJECTED`). The analyzer and the writer look functions up here; lakegate.dialect.translate fills it
+(`pages.install()`) before it translates.
 """
 
 from __future__ import annotations

@@ -9,19 +9,15 @@ the columns of table `t` (analyzeAllColumnsFromTable).
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 from sqlglot import exp
 
-if TYPE_CHECKING:
-    from lakegate.dialect.analyze import Analyzer
-    from lakegate.dialect.scope import Scope
+from lakegate.dialect.type_rules import Analysis, NameScope
 
 #: Functions whose value differs per call: Trino computes the row once, the expansion once per field.
 _NON_DETERMINISTIC = frozenset({"rand", "random", "uuid", "shuffle"})
 
 
-def target(item: exp.Expression, scope: Scope) -> exp.Expression | None:
+def target(item: exp.Expression, scope: NameScope) -> exp.Expression | None:
     """The row expression `item` expands (`(expr).*`, `t.col.*`, with or without AS (...)), if any;
     `schema.t.*` naming a table of the FROM clause is that table's columns, as in Trino."""
     star = item.this if isinstance(item, exp.Aliases) else item
@@ -46,7 +42,7 @@ def aliases(item: exp.Expression) -> list[exp.Identifier]:
     return list(item.expressions) if isinstance(item, exp.Aliases) else []
 
 
-def check_aliases(a: Analyzer, item: exp.Expression, count: int) -> None:
+def check_aliases(a: Analysis, item: exp.Expression, count: int) -> None:
     """Trino's MISMATCHED_COLUMN_ALIASES when AS (...) does not name every column (validateColumnAliasesCount)."""
     names = aliases(item)
     if names and len(names) != count:
@@ -57,7 +53,9 @@ def check_aliases(a: Analyzer, item: exp.Expression, count: int) -> None:
         )
 
 
-def expand(a: Analyzer, item: exp.Expression, row: exp.Expression, scope: Scope, first: int) -> list[exp.Expression]:
+def expand(
+    a: Analysis, item: exp.Expression, row: exp.Expression, scope: NameScope, first: int
+) -> list[exp.Expression]:
     """One aliased select item per field of `row`; `first` is the output position of the first one."""
     if any(f.name.lower() in _NON_DETERMINISTIC for f in row.find_all(exp.Anonymous)):
         a.unsupported("row_expression.* over a non-deterministic expression", item)
@@ -76,7 +74,7 @@ def expand(a: Analyzer, item: exp.Expression, row: exp.Expression, scope: Scope,
     return expanded
 
 
-def rename(a: Analyzer, item: exp.Aliases, columns: list[exp.Expression]) -> list[exp.Expression]:
+def rename(a: Analysis, item: exp.Aliases, columns: list[exp.Expression]) -> list[exp.Expression]:
     """`t.* AS (column_alias, ...)`: the expanded columns of `t`, renamed."""
     check_aliases(a, item, len(columns))
     for column, name in zip(columns, item.expressions, strict=True):

@@ -1,5 +1,4 @@
-"""Scopes: restrict every lake table a query reads to one batch, one job, or a list of batches
-(DESIGN.md, "Scopes").
+"""Scopes: restrict every lake table a query reads to one batch, one job, or a list of batches.
 
 The rewrite works on the Trino AST, so its result serves both backends: each reference to a lake
 table becomes a filtered derived table with the reference's alias,

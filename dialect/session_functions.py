@@ -5,7 +5,8 @@ Each becomes a varchar literal (NULL for a catalog or schema the session has not
 is the empty path ''), as Trino 476 answers them: `SELECT current_schema` with no schema set is NULL
 of type varchar, named `_col0`. `current_schema` and `current_path` are special forms even where a
 column of that name exists, as in Trino; quoted (`"current_user"`) or qualified, they are columns.
-`current_timezone()` and `current_groups()` are ordinary functions (dialect/functions.py).
+`current_timezone()` (dialect/functions/datetime.py) and `current_groups()` (dialect/functions/session.py)
+are ordinary functions.
 """
 
 from __future__ import annotations

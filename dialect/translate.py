@@ -19,26 +19,23 @@ from sqlglot.dialects.trino import Trino
 from sqlglot.errors import ParseError, TokenError
 from sqlglot.tokens import TokenType
 
-import lakegate.dialect.functions  # noqa: F401  (these fill the function registry)
-import lakegate.dialect.functions_char  # noqa: F401
-import lakegate.dialect.functions_hashes  # noqa: F401
-import lakegate.dialect.functions_json  # noqa: F401
-import lakegate.dialect.functions_nanos  # noqa: F401
-import lakegate.dialect.functions_refused  # noqa: F401
-import lakegate.dialect.functions_scalar  # noqa: F401
-import lakegate.dialect.functions_struct  # noqa: F401
-import lakegate.dialect.json_object  # noqa: F401
-from lakegate.dialect import guard, session_functions
+from lakegate.dialect import guard, session_functions, write_casts, write_operators
 from lakegate.dialect import params as parameters
 from lakegate.dialect import scope as scoping
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analyze import analyze
 from lakegate.dialect.errors import DialectError
-from lakegate.dialect.transforms import Writer, finalize, hoist_derived_order
+from lakegate.dialect.functions import pages
+from lakegate.dialect.transforms import Writer
+from lakegate.dialect.tree_rewrites import finalize, hoist_derived_order
 from lakegate.dialect.unparsed import unparsed_construct
 
 if TYPE_CHECKING:
     from lakegate.dialect.scope import Scope
+
+pages.install()  # the function registry, from the one list of function modules
+#: The modules whose named transforms (`transforms.transform`) the Writer uses beside its own.
+WRITERS = (write_operators, write_casts)
 
 #: Number of translations kept in the cache.
 CACHE_SIZE = 1024
@@ -56,7 +53,7 @@ class Translation:
 
 class _Parser(Trino.Parser):
     # Every `name(...)` call parses as a plain function call, so that the registry in
-    # functions.py decides what each Trino function means (sqlglot's own function classes would
+    # dialect/functions/ decides what each Trino function means (sqlglot's own function classes would
     # carry other dialects' semantics into the translation).
     # grouping(...) is not a function but the GROUPING operation, checked against the GROUP BY keys.
     FUNCTIONS: dict = {"GROUPING": lambda args: exp.Grouping(expressions=args)}

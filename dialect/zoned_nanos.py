@@ -1,4 +1,4 @@
-"""timestamp(9) with time zone, as from_unixtime_nanos gives it (issue 14 family 5: nanosecond robot
+"""timestamp(9) with time zone, as from_unixtime_nanos gives it (nanosecond robot
 data). DuckDB has no nanosecond TIMESTAMPTZ, so such a value is held as a TIMESTAMP_NS of its UTC
 instant, its zone kept in its Trino type as for every zoned timestamp (dialect/zones.py), and shown
 in that zone with nine fraction digits (gateway/engine/trino_values.py).

@@ -27,9 +27,9 @@ import duckdb
 import pyarrow as pa
 
 from lakegate.lake import paths
+from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import Config, Topic
 from lakegate.lake.record import FileEntry, Record, Snapshot
-from lakegate.lake.registry import BranchConfigs
 from lakegate.lake.schema import (
     EVENTS_COLUMNS,
     METADATA_COLUMNS,

@@ -1,6 +1,6 @@
 """Where things live in the lake, and how files appear there atomically.
 
-Layout (see DESIGN.md, "Lake on disk")::
+Layout (see docs/lake-format.md)::
 
     <lake>/<branch-dir>/<table>/batch_id=<B>/<pid>-<id>.parquet       topics, metadata, events, metric_results
     <lake>/<branch-dir>/<table>/batch_id=<B>/job_id=<J>/<name>.parquet   the same, in lakes of layout v1

@@ -28,9 +28,9 @@ from typing import Protocol
 from lakegate.gateway.metrics.evaluation import BatchEvaluation, MetricsEngine, select_metrics
 from lakegate.gateway.metrics.gating import fail_exit_code, parse_fail_on_states
 from lakegate.lake import paths
+from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.compaction import compact_batch
 from lakegate.lake.config import Config, config_path_list, expand_config_paths, load_config
-from lakegate.lake.registry import BranchConfigs
 
 #: SignalFlag's defaults (`.yml`; its `.yaml` twin is taken when only that exists).
 DEFAULT_CONFIG_PATH = ".resim/metrics/config.resim.yml"

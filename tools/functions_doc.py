@@ -1,5 +1,5 @@
 """Generate docs/functions.md: which Trino functions and operators lakegate answers, from the function
-registry (`lakegate.dialect.functions`) and the conformance cases (tests/dialect/cases/*.yaml).
+registry (filled by the modules of `lakegate.dialect.functions`) and the conformance cases (tests/dialect/cases/*.yaml).
 
     python tools/functions_doc.py           # write docs/functions.md
     python tools/functions_doc.py --check   # exit 1 if docs/functions.md is stale
@@ -268,20 +268,33 @@ CATALOGUE: dict[str, str] = {
     "window": "cume_dist dense_rank first_value lag last_value lead nth_value ntile percent_rank rank row_number",
 }
 
-_FAMILY_TITLES = {
-    "math": "Mathematical functions",
-    "comparison": "Comparison functions",
+#: Trino's function reference pages, in the order of this document: page -> its title.
+PAGES = {
+    "aggregate": "Aggregate functions",
+    "array": "Array functions and operators",
+    "binary": "Binary functions and operators",
+    "bitwise": "Bitwise functions",
+    "comparison": "Comparison functions and operators",
     "conditional": "Conditional expressions",
     "conversion": "Conversion functions",
-    "string": "String functions",
+    "datetime": "Date and time functions and operators",
+    "json": "JSON functions and operators",
+    "lambda": "Lambda expressions",
+    "map": "Map functions and operators",
+    "math": "Mathematical functions and operators",
     "regexp": "Regular expression functions",
-    "json": "JSON functions",
-    "datetime": "Date and time functions",
-    "array": "Array functions and lambdas",
-    "map": "Map functions",
-    "aggregate": "Aggregate functions",
+    "string": "String functions and operators",
+    "teradata": "Teradata functions",
+    "url": "URL functions",
     "window": "Window functions",
 }
+#: Module of lakegate.dialect.functions -> the page it mirrors, where the names differ.
+MODULE_PAGE = {"lambdas": "lambda", "datetime_formats": "datetime", "json_constructors": "json"}
+#: Catalogue functions lakegate does not register, on another page than their CATALOGUE family.
+_CATALOGUE_PAGE = re.compile(
+    r"^(?:(?P<url>url_)|(?P<binary>md5|sha\d+|to_hex|from_hex|to_base64|from_base64|crc32|xxhash64)$"
+    r"|(?P<bitwise>bit_count|bitwise_(?!.*_agg)))"
+)
 
 
 def _catalogue_family() -> dict[str, str]:
@@ -292,30 +305,44 @@ def _cell(text: str) -> str:
     return " ".join(str(text).split()).replace("|", "\\|")
 
 
-def generate(families: list[Family], supported: dict, rejected: dict[str, str], constructs: dict | None = None) -> str:
-    """The Markdown of docs/functions.md for these case families, this function registry and these
-    constructs (name -> lakegate.dialect.constructs.Construct)."""
+def generate(
+    families: list[Family],
+    supported: dict,
+    rejected: dict[str, str],
+    constructs: dict | None = None,
+    module_of: dict[str, str] | None = None,
+) -> str:
+    """The Markdown of docs/functions.md for these case families, this function registry, these
+    constructs (name -> lakegate.dialect.constructs.Construct) and `module_of` (function -> the module
+    of lakegate.dialect.functions that registers or refuses it)."""
     from lakegate.dialect import zones  # the zone rules, listed as the dialect applies them
 
     constructs = constructs or {}
     cases = [case for family in families for case in family.cases]
+    module_of = module_of or {}
     calls = defaultdict(int)
+    files = defaultdict(set)  # function -> the case files (families) calling it
     uses = defaultdict(int)
     for case in cases:
         for name in called_names(case.sql):
             calls[name] += 1
+            files[name].add(case.family)
         for name in used_constructs(case.sql, constructs):
             uses[name] += 1
 
-    family_of = _catalogue_family()
+    page_of = {}
+    for name, family in _catalogue_family().items():
+        match = _CATALOGUE_PAGE.match(name)
+        page_of[name] = next((page for page, hit in match.groupdict().items() if hit), family) if match else family
     construct_of = {n: (row, c) for row, c in constructs.items() for n in c.names}
     for name, spec in supported.items():
-        family_of[name] = spec.family
+        module = module_of.get(name)
+        page_of[name] = MODULE_PAGE.get(module, module) if module else spec.family
     for name in rejected:
-        family_of.setdefault(name, "other")
-    by_family = defaultdict(list)
-    for name, family in family_of.items():
-        by_family[family].append(name)
+        page_of.setdefault(name, "other")
+    by_page = defaultdict(list)
+    for name, page in page_of.items():
+        by_page[page].append(name)
 
     out = [
         "# Trino functions and operators in lakegate",
@@ -336,32 +363,41 @@ def generate(families: list[Family], supported: dict, rejected: dict[str, str], 
         "using it is refused (`FUNCTION_NOT_FOUND`).",
         "- **construct**: not a function but syntax (CAST, EXTRACT, IF, current_date, ...): its status "
         "is that of its row in the SQL constructs table at the end of the page.",
-        "- **cases**: how many conformance cases (`tests/dialect/cases/*.yaml`) call the function; "
+        "- **module**: the module of dialect/functions/ that translates (or refuses) the function, one "
+        "per page of Trino's function reference.",
+        "- **cases**: how many conformance cases (`tests/dialect/cases/*.yaml`) call the function, and "
+        "the case files holding them; "
         "each case is a Trino query with the result (values and types) or error Trino gives, run "
         "end to end through translation and DuckDB. Functions are found with sqlglot's Trino "
         "tokenizer (a name followed by `(`), operators by parsing the query.",
         "",
         f"## Conformance cases ({len(cases)})",
         "",
-        "| family | cases | what it pins |",
+        "| file | cases | what it pins |",
         "|---|---:|---|",
     ]
     for family in families:
-        out.append(f"| {family.name} | {len(family.cases)} | {_cell(family.title)}: {_cell(family.description)} |")
+        out.append(
+            f"| [{family.name}](../tests/dialect/cases/{family.name}.yaml) | {len(family.cases)} "
+            f"| {_cell(family.title)}: {_cell(family.description)} |"
+        )
     out += ["", "## Time zones", "", *(f"- {rule}" for rule in zones.RULES)]
 
     counts = {"supported": 0, "rejected": 0, "not implemented": 0, "construct": 0}
     sections = []
-    order = [f for f in CATALOGUE if f in by_family] + sorted(set(by_family) - set(CATALOGUE))
-    for family in order:
+    order = [p for p in PAGES if p in by_page] + sorted(set(by_page) - set(PAGES))
+    for page in order:
+        title = f"{PAGES[page]} (Trino's functions/{page}.md)" if page in PAGES else page.capitalize()
+        if page == "other":
+            title = "Other functions of Trino's reference, refused by name"
         sections += [
             "",
-            f"## {_FAMILY_TITLES.get(family, family.capitalize())} (`{family}`)",
+            f"## {title}",
             "",
-            "| function | status | cases | signature / notes |",
-            "|---|---|---:|---|",
+            "| function | status | module | cases | signature / notes |",
+            "|---|---|---|---|---|",
         ]
-        for name in sorted(by_family[family]):
+        for name in sorted(by_page[page]):
             if name in supported:
                 spec = supported[name]
                 status, detail = (
@@ -382,7 +418,11 @@ def generate(families: list[Family], supported: dict, rejected: dict[str, str], 
             else:
                 status, detail = "rejected (not implemented)", ""
                 counts["not implemented"] += 1
-            sections.append(f"| `{name}` | {status} | {calls.get(name, 0)} | {detail} |")
+            module = module_of.get(name)
+            module_link = f"[{module}.py](../dialect/functions/{module}.py)" if module else ""
+            case_links = ", ".join(f"[{f}](../tests/dialect/cases/{f}.yaml)" for f in sorted(files.get(name, ())))
+            cases_cell = f"{calls.get(name, 0)}" + (f" ({case_links})" if case_links else "")
+            sections.append(f"| `{name}` | {status} | {module_link} | {cases_cell} | {detail} |")
 
     supported_constructs = sum(1 for c in constructs.values() if not c.refused)
     out += [
@@ -414,8 +454,11 @@ def render_current(cases_dir: Path = CASES_DIR) -> str:
     """generate() with the installed registry and the case files in `cases_dir`."""
     # imported here, as load_cases needs no registry; translate imports every module that fills it
     from lakegate.dialect import constructs, registry, translate  # noqa: F401
+    from lakegate.dialect.functions import pages
 
-    return generate(load_families(cases_dir), registry.SUPPORTED, registry.REJECTED, constructs.CONSTRUCTS)
+    return generate(
+        load_families(cases_dir), registry.SUPPORTED, registry.REJECTED, constructs.CONSTRUCTS, pages.PAGE_OF
+    )
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -250,7 +250,8 @@ def _can_open_browser() -> bool:
 
 def debug_command(args: argparse.Namespace) -> int:
     # the web stack is imported here, so that other commands start without it
-    from lakegate.gateway.dashboard.debug_session import DashboardSession, FileConfig, SessionError
+    from lakegate.gateway.dashboard.config_edits import FileConfig, SessionError
+    from lakegate.gateway.dashboard.debug_session import DashboardSession
     from lakegate.gateway.dashboard.landing import pages_router
     from lakegate.gateway.dashboard.routes import DashboardState
     from lakegate.gateway.server.app import create_app

@@ -42,10 +42,10 @@ from lakegate.gateway.metrics.compare_page import write_compare
 from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.gateway.metrics.report import write_report
 from lakegate.gateway.metrics.trends import branch_batches, evaluate_trends, metrics_of, write_trends
+from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.compaction import compact_batch
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file
-from lakegate.lake.registry import BranchConfigs
 
 BRANCH = "main"
 BATCH = "nav-regression-1"

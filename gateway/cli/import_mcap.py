@@ -12,6 +12,7 @@ from tqdm import tqdm
 
 from lakegate.gateway.cli.errors import UserError, existing_configs, writable_lake
 from lakegate.gateway.cli.ingest import summary
+from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import ConfigError, load_config
 from lakegate.lake.emitter import Emitter
 from lakegate.lake.ingest import IngestError, ingest_job
@@ -24,7 +25,6 @@ from lakegate.lake.mcap_import import (
     load_mapping,
     message_count,
 )
-from lakegate.lake.registry import BranchConfigs
 
 EXAMPLE = """\
 mapping file (YAML), one entry per MCAP topic:

@@ -17,12 +17,12 @@ from lakegate.gateway.cli.errors import (
     print_config_warnings,
     writable_lake,
 )
+from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.config import Config, ConfigError, find_default_config, load_config
 from lakegate.lake.ingest import IngestError, IngestReport, LineProblem, ingest_job
 from lakegate.lake.metadata import MetadataError, load_metadata_file
 from lakegate.lake.paths import LakePathError
-from lakegate.lake.registry import BranchConfigs
 
 #: The raw job statuses `--job-status` takes (the product guide's `job_status` values).
 JOB_STATUSES = ("SUCCEEDED", "FAILED")

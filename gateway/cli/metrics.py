@@ -62,11 +62,11 @@ from lakegate.gateway.metrics.trends import (
     metrics_of,
     write_trends,
 )
+from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.compaction import compact_batch
 from lakegate.lake.config import Config, ConfigError, load_config
 from lakegate.lake.paths import LakePathError
-from lakegate.lake.registry import BranchConfigs
 
 EXIT_OK, EXIT_USAGE, EXIT_BLOCKER, EXIT_ERROR, EXIT_REGRESSION = 0, 1, 2, 3, 5
 

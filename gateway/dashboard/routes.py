@@ -51,7 +51,8 @@ from fastapi import APIRouter, Body, HTTPException, Query
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, RedirectResponse, Response
 
 from lakegate.dialect.errors import DialectError
-from lakegate.gateway.dashboard.debug_session import BranchConfig, DashboardSession, SessionError
+from lakegate.gateway.dashboard.config_edits import BranchConfig, SessionError
+from lakegate.gateway.dashboard.debug_session import DashboardSession
 from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.metrics.alerts import HISTORY, K, alerts_html, trend_checks
 from lakegate.gateway.metrics.compare import compare_batches, previous_build_batch
@@ -68,10 +69,10 @@ from lakegate.gateway.metrics.trends import (
     metrics_of,
     trends_html,
 )
+from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.config import ConfigError
 from lakegate.lake.paths import LakePathError
-from lakegate.lake.registry import BranchConfigs
 
 STATIC = Path(__file__).resolve().parent / "static"
 #: Files of the page, by URL name.

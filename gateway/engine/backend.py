@@ -26,8 +26,6 @@ from __future__ import annotations
 import functools
 import hashlib
 import itertools
-import os
-import re
 import shutil
 import tempfile
 import threading
@@ -43,11 +41,12 @@ import duckdb
 import pyarrow as pa
 
 from lakegate.dialect import guard
-from lakegate.dialect.errors import DialectError, runtime_error
+from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
 from lakegate.dialect.session_functions import SessionNames
 from lakegate.dialect.translate import Translation, translate
 from lakegate.gateway.engine import introspection, udfs
+from lakegate.gateway.engine.failures import duckdb_failure, hide_paths, time_limit_error
 from lakegate.gateway.engine.limits import Limits
 from lakegate.lake import paths
 from lakegate.lake.catalog import Catalog
@@ -118,34 +117,6 @@ def _static(columns: list[tuple[str, str]], rows: list[tuple]) -> QueryResult:
     return QueryResult(columns=columns, batches=iter([batch]))
 
 
-def time_limit_error(seconds: float) -> DialectError:
-    """The EXCEEDED_TIME_LIMIT error of a query that ran longer than `seconds`."""
-    return DialectError(
-        f"Query exceeded the maximum execution time limit of {seconds:.2f}s", error_name="EXCEEDED_TIME_LIMIT"
-    )
-
-
-def _failure(error: BaseException) -> DialectError:
-    """The DialectError (Trino error name) for an error DuckDB raised while running a query."""
-    if isinstance(error, duckdb.InterruptException) or "INTERRUPT Error" in str(error):
-        return DialectError("Query was canceled", error_name="USER_CANCELED")
-    if isinstance(error, duckdb.OutOfMemoryException) or "Out of Memory Error" in str(error):
-        return DialectError(f"Query exceeded the memory limit: {error}", error_name="EXCEEDED_GLOBAL_MEMORY_LIMIT")
-    return runtime_error(str(error))
-
-
-def hide_paths(text: str, *roots: Path | str | None, keep_width: bool = False) -> str:
-    """`text` for a client: paths under `roots` relative to them, each root itself by its name
-    (`keep_width`: a shortened path is followed by spaces, so that a drawn table keeps its shape)."""
-    for root in roots:
-        if root is not None:
-            root = str(root).rstrip("/")
-            pad = " " * (len(root) + 1) if keep_width else ""
-            text = re.sub(re.escape(root + "/") + r"(\S*)", lambda match, pad=pad: match.group(1) + pad, text)
-            text = re.sub(re.escape(root) + r"(?![\w.-])", os.path.basename(root), text)
-    return text
-
-
 def _quote_ident(name: str) -> str:
     return '"' + name.replace('"', '""') + '"'
 
@@ -183,7 +154,7 @@ class Run:
         release: Callable[[], None] = lambda: None,
         timeout: float | None = None,
         remaining: float = 0.0,
-        failure: Callable[[BaseException], DialectError] = _failure,
+        failure: Callable[[BaseException], DialectError] = duckdb_failure,
     ):
         self.cursor, self._produce, self._release, self._failure = cursor, produce, release, failure
         self.timeout = timeout
@@ -276,7 +247,7 @@ class _Branch:
         files = self.known()
         named = [path for path in files if path in message]
         if not named:
-            return _failure(error)
+            return duckdb_failure(error)
         for path in named:
             message = message.replace(f"'{path}'", path).replace(f'"{path}"', path).replace(path, files[path])
         if vanished:
@@ -730,7 +701,7 @@ class DuckDBBackend:
         return pa.record_batch([pa.array([plan], pa.string())], names=["Query Plan"])
 
     def _failure(self, error: BaseException) -> DialectError:
-        return self._for_client(_failure(error))
+        return self._for_client(duckdb_failure(error))
 
     def _for_client(self, error: DialectError) -> DialectError:
         """`error` without absolute paths of the lake or the spill directory in its message."""

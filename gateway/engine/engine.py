@@ -15,9 +15,9 @@ from lakegate.gateway.engine import session as sessions
 from lakegate.gateway.engine.backend import Backend, DuckDBBackend, QueryResult
 from lakegate.gateway.engine.introspection import CATALOG
 from lakegate.gateway.engine.limits import Limits
+from lakegate.gateway.engine.planner import Planner, static_result
 from lakegate.gateway.engine.session import Answer, Session
-from lakegate.gateway.engine.statements import Planner, static_result
-from lakegate.gateway.engine.system_tables import Metadata
+from lakegate.gateway.engine.system_tables import SystemCatalog
 from lakegate.lake.record import FileEntry
 
 #: The session user of a caller that names none (`lakegate query`).
@@ -40,7 +40,7 @@ class Engine:
         owns_backend: bool = False,
     ):
         self.backend, self.catalog, self.limits = backend, catalog, limits
-        self.metadata = Metadata(backend, catalog=catalog, memory_limit=getattr(backend, "memory_limit", "1GB"))
+        self.metadata = SystemCatalog(backend, catalog=catalog, memory_limit=getattr(backend, "memory_limit", "1GB"))
         self.planner = Planner(backend, self.metadata)
         self._owns_backend = owns_backend
 

@@ -20,7 +20,7 @@ CATALOG = "lake"
 
 
 @dataclass
-class Answer:
+class ShowAnswer:
     """A SHOW / DESCRIBE result: (name, Trino type) columns and rows of Python values."""
 
     columns: list[tuple[str, str]]
@@ -41,7 +41,7 @@ def _filtered(names: Sequence[str], pattern: re.Pattern | None) -> list[tuple]:
 
 def answer(
     sql: str, schema: Mapping[str, Mapping[str, str]], *, schemas: Sequence[str] = ("main",), catalog: str = CATALOG
-) -> Answer:
+) -> ShowAnswer:
     """Answer one SHOW or DESCRIBE statement over `schema` (table -> column -> Trino type);
     `schemas` are the names SHOW SCHEMAS lists (the lake's branches)."""
     reader = Reader(sql)
@@ -60,7 +60,7 @@ def answer(
             reader.parts()
         pattern = reader.like()
         reader.end()
-        return Answer([("Table", "varchar")], _filtered(list(schema), pattern))
+        return ShowAnswer([("Table", "varchar")], _filtered(list(schema), pattern))
     if reader.take("COLUMNS"):
         if not reader.take("FROM", "IN"):
             reader.fail("FROM")
@@ -73,19 +73,19 @@ def answer(
             reader.parts()
         pattern = reader.like()
         reader.end()
-        return Answer([("Schema", "varchar")], _filtered(list(schemas), pattern))
+        return ShowAnswer([("Schema", "varchar")], _filtered(list(schemas), pattern))
     if reader.take("CATALOGS"):
         pattern = reader.like()
         reader.end()
-        return Answer([("Catalog", "varchar")], _filtered([catalog], pattern))
+        return ShowAnswer([("Catalog", "varchar")], _filtered([catalog], pattern))
     raise DialectError(
         f"unsupported in lakegate: SHOW {reader.word()}".rstrip(), line=1, column=1, error_name="NOT_SUPPORTED"
     )
 
 
-def _columns(schema: Mapping[str, Mapping[str, str]], parts: Sequence[str], pattern: re.Pattern | None) -> Answer:
+def _columns(schema: Mapping[str, Mapping[str, str]], parts: Sequence[str], pattern: re.Pattern | None) -> ShowAnswer:
     _, columns = _table(schema, parts)
     rows = [
         (name, trino_type, "", "") for name, trino_type in columns.items() if pattern is None or pattern.fullmatch(name)
     ]
-    return Answer([("Column", "varchar"), ("Type", "varchar"), ("Extra", "varchar"), ("Comment", "varchar")], rows)
+    return ShowAnswer([("Column", "varchar"), ("Type", "varchar"), ("Extra", "varchar"), ("Comment", "varchar")], rows)

@@ -4,7 +4,7 @@ change a session answered with the response headers that carry the change back t
 The server keeps no session state: catalog, schema, session properties, prepared statements and
 the transaction id live in the client, which sends them with every request (notes, sections 2-3
 and 9). Session properties `batch_id` and `job_id` narrow every lake table to one batch / job
-(DESIGN.md, "Scopes"). PREPARE is stateless: its SQL travels in `X-Trino-Added-Prepare` and comes
+(dialect/scope.py). PREPARE is stateless: its SQL travels in `X-Trino-Added-Prepare` and comes
 back in `X-Trino-Prepared-Statement`. Transactions are accepted and do nothing (the lake is read-only).
 """
 

@@ -335,7 +335,7 @@ class TableRef:
         return f"{self.catalog}.{self.schema}.{self.table}"
 
 
-class Metadata:
+class SystemCatalog:
     """The catalogs, schemas and tables the server shows over `backend` (its branches and schemas),
     and the system tables. `queries(user)` lists the server's queries that `user` (the session's
     user) may see, as rows of system.runtime.queries."""

@@ -1,4 +1,4 @@
-"""The Python functions lakegate's translations call in DuckDB (lakegate.dialect.functions_hashes
+"""The Python functions lakegate's translations call in DuckDB (lakegate.dialect.functions.binary
 lists them): `install` registers them on a connection, before it is locked down. They compute
 what Trino's VarbinaryFunctions and HmacFunctions compute, byte for byte: sha512 and hmac_sha512
 with hashlib/hmac, xxhash64 with the xxhash package (XXH64, seed 0, big-endian as Trino gives the
@@ -20,7 +20,7 @@ import xxhash
 from duckdb.sqltypes import BLOB, BOOLEAN, HUGEINT, INTEGER
 
 from lakegate.dialect import wide_decimals
-from lakegate.dialect.functions_hashes import UDF_PREFIX, UDFS
+from lakegate.dialect.functions.binary import UDF_PREFIX, UDFS
 from lakegate.gateway.engine import spooky_hash
 
 #: Trino name -> the function, its parameters those of the Trino function (DuckDB reads its arity).

@@ -68,10 +68,10 @@ from lakegate.gateway.metrics.results import ResultsWriter
 from lakegate.gateway.metrics.template_settings import apply_template_settings, unused_settings
 from lakegate.gateway.metrics.templates import Rendered, TemplateError, render
 from lakegate.lake import paths
+from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import Config, Location, Metric
 from lakegate.lake.config_schema import PLATFORM_TABLES
 from lakegate.lake.record import job_logs_dir
-from lakegate.lake.registry import BranchConfigs
 from lakegate.lake.storage import LakeStorage
 
 PASSED, WARNING, BLOCKER, ERROR, NOT_RUN = "PASSED", "WARNING", "BLOCKER", "ERROR", "NOT_RUN"

@@ -22,10 +22,9 @@ from typing import Any
 
 import numpy as np
 
+from lakegate.lake.config_schema import TEMPLATES  # the kinds this module renders, listed once
 from lakegate.lake.storage import LOCAL
 
-#: Templates this module renders.
-TEMPLATES = ("line", "bar", "table", "scalar", "image", "state_timeline", "histogram", "pie", "video", "artifact")
 #: Templates that show files of the job's logs named by the result's one column; their
 #: `Rendered.table` lists the files found: [name, path, bytes, MIME type].
 FILE_TEMPLATES = ("image", "video", "artifact")

@@ -18,7 +18,7 @@ from datetime import UTC, datetime
 import orjson
 
 from lakegate.dialect.errors import DialectError
-from lakegate.gateway.engine.statements import TRINO_VERSION
+from lakegate.gateway.engine.planner import TRINO_VERSION
 from lakegate.gateway.engine.trino_values import type_signature
 
 ENVIRONMENT = "lakegate"

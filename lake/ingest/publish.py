@@ -16,6 +16,7 @@ from typing import Any
 from tqdm import tqdm
 
 from lakegate.lake import paths
+from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import Config
 from lakegate.lake.ingest import scan
 from lakegate.lake.ingest.rules import MAX_PROBLEMS, BadLines, IngestError, LineProblem
@@ -32,7 +33,6 @@ from lakegate.lake.ingest.scan import (
 from lakegate.lake.ingest.write import JobWriter
 from lakegate.lake.metadata import build_metadata_row, metadata_table, write_metadata_file
 from lakegate.lake.record import Change
-from lakegate.lake.registry import BranchConfigs
 from lakegate.lake.storage import LOCAL
 
 

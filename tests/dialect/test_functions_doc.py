@@ -69,15 +69,24 @@ def test_generate_lists_statuses_and_counts_calls(tmp_path):
         {"cardinality": _Spec("array", "cardinality(array(E)) -> bigint", "1-based")},
         {"ngrams": "not translated"},
         {"CAST": _Construct(("cast", "try_cast")), "current_time": _Construct(("current_time",), "not translated")},
+        {"cardinality": "array", "ngrams": "refused"},
     )
-    assert "| `cardinality` | supported | 2 | `cardinality(array(E)) -> bigint` 1-based |" in text
-    assert "| `ngrams` | rejected (not translated) | 1 |" in text
-    assert "| `zip_with` | rejected (not implemented) | 0 |" in text
-    assert "| `filter` | rejected (not implemented) | 0 |" in text  # FILTER (WHERE ...) is not a call
-    assert "| demo | 2 | Demo: two cases |" in text
+    array = "[array.py](../dialect/functions/array.py)"
+    demo = "([demo](../tests/dialect/cases/demo.yaml))"
+    assert f"| `cardinality` | supported | {array} | 2 {demo} | `cardinality(array(E)) -> bigint` 1-based |" in text
+    assert (
+        f"| `ngrams` | rejected (not translated) | [refused.py](../dialect/functions/refused.py) | 1 {demo} |" in text
+    )
+    assert "| `zip_with` | rejected (not implemented) |  | 0 |" in text
+    assert "| `filter` | rejected (not implemented) |  | 0 |" in text  # FILTER (WHERE ...) is not a call
+    assert "| [demo](../tests/dialect/cases/demo.yaml) | 2 | Demo: two cases |" in text
+    # functions are listed by the page of Trino's reference their module mirrors
+    assert text.index("## Array functions and operators (Trino's functions/array.md)") < text.index("`cardinality`")
     # a construct listed among the functions says what its row says, not "not implemented"
-    assert "| `cast` | supported as a construct | 0 | see the construct CAST |" in text
-    assert "| `current_time` | rejected (not translated) as a construct | 0 | see the construct current_time |" in text
+    assert "| `cast` | supported as a construct |  | 0 | see the construct CAST |" in text
+    assert (
+        "| `current_time` | rejected (not translated) as a construct |  | 0 | see the construct current_time |" in text
+    )
     assert "| CAST | literals | supported | 0 |" in text
 
 

@@ -14,7 +14,7 @@ import subprocess
 import duckdb
 import pytest
 
-from lakegate.dialect import json_object
+from lakegate.dialect.functions import json_constructors as json_object
 from lakegate.dialect.translate import translate
 
 _JAVA = r"""

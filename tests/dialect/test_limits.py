@@ -3,7 +3,8 @@ anything, also for constant arguments, in a real `lakegate query` process whose 
 capped (so a regression fails with an out-of-memory error instead of exhausting the machine).
 
 Trino's checks and messages: trinodb/trino core/trino-main/src/main/java/io/trino/operator/scalar/
-RepeatFunction.java, SequenceFunction.java, StringFunctions.java (pad); see cases/limits.yaml.
+RepeatFunction.java, SequenceFunction.java, StringFunctions.java (pad); their cases are in cases/array.yaml
+and cases/string.yaml.
 Parsing and translation are bounded: nesting and token count are checked before parsing, and no
 construct takes exponential time up to the nesting limit.
 """

@@ -24,7 +24,7 @@ def test_an_overload_must_extend_a_registered_function():
 
 
 def test_each_overload_of_a_function_renders_its_own_calls():
-    """lpad has a varbinary overload (functions_scalar) and a char one over it (functions_char): a call
+    """lpad has a varbinary overload and a char one over it (both in functions/string.py): a call
     taken by neither falls through both to the varchar rule."""
     sql = "SELECT lpad(CAST('a' AS char(2)), 3, 'x'), lpad(to_utf8('a'), 3, to_utf8('b')), lpad('a', 3, 'x')"
     duckdb_sql = translate.translate(sql, {}).duckdb_sql

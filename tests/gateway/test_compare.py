@@ -24,9 +24,9 @@ import trino
 from scipy import stats
 
 from lakegate.gateway.metrics.evaluation import MetricsEngine
+from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.emitter import Emitter
 from lakegate.lake.ingest import ingest_job
-from lakegate.lake.registry import BranchConfigs
 
 from .conftest import serve
 from .test_dashboard_browser import ARGS, CHROMIUM, _artifacts, _require_browser

@@ -25,15 +25,16 @@ import uvicorn
 
 from lakegate.dialect.scope import Scope
 from lakegate.gateway.cli.debug import DebugJob
-from lakegate.gateway.dashboard.debug_session import DashboardSession, FileConfig
+from lakegate.gateway.dashboard.config_edits import FileConfig
+from lakegate.gateway.dashboard.debug_session import DashboardSession
 from lakegate.gateway.dashboard.routes import DashboardState, dashboard_router
 from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.gateway.server.app import create_app
 from lakegate.lake import paths
+from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file, read_metadata_row
-from lakegate.lake.registry import BranchConfigs
 
 NAV_SET = "Nav Metrics"
 BRANCH, BATCH = "main", "nightly-1"

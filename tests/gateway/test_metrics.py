@@ -25,11 +25,11 @@ from lakegate.gateway.metrics.evaluation import (
     worst,
 )
 from lakegate.gateway.metrics.results import read_results
+from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import Location, Metric, StatusCheck, load_config
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file, read_metadata_row
 from lakegate.lake.record import job_logs_dir
-from lakegate.lake.registry import BranchConfigs
 
 BRANCH, BATCH = "main", "nav"
 

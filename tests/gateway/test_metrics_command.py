@@ -17,10 +17,10 @@ import pytest
 from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
 from lakegate.gateway.metrics.evaluation import worst
 from lakegate.gateway.metrics.results import read_results
+from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file, read_metadata_row
-from lakegate.lake.registry import BranchConfigs
 
 CLI = [sys.executable, "-m", "lakegate.gateway.cli"]
 TOPICS = CONFIG_PATH.read_text().split("\nmetrics:\n")[0]

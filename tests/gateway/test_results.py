@@ -14,11 +14,11 @@ from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
 from lakegate.gateway.engine.backend import DuckDBBackend
 from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.gateway.metrics.results import read_results
+from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file
 from lakegate.lake.record import current_file
-from lakegate.lake.registry import BranchConfigs
 from lakegate.lake.schema import METRIC_RESULTS_COLUMNS
 
 BRANCH = "main"

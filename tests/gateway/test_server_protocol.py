@@ -16,7 +16,8 @@ import uvicorn
 
 from lakegate.gateway.engine.backend import DuckDBBackend
 from lakegate.gateway.engine.engine import Engine
-from lakegate.gateway.server.app import Limits, create_app
+from lakegate.gateway.engine.limits import Limits
+from lakegate.gateway.server.app import create_app
 
 ALL_TYPES_BRANCH = "feature/all-types"  # the second branch of the test lake (conftest.py)
 HEADERS = {"X-Trino-User": "tester", "X-Trino-Catalog": "lake", "X-Trino-Schema": "main"}

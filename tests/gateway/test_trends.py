@@ -18,9 +18,9 @@ import pytest
 
 from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
 from lakegate.gateway.metrics.trends import Window, batch_link
+from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file
-from lakegate.lake.registry import BranchConfigs
 
 from .conftest import serve
 from .test_dashboard_browser import ARGS, CHROMIUM, _artifacts, _require_browser

@@ -34,11 +34,11 @@ from lakegate.gateway.engine.backend import DuckDBBackend
 from lakegate.gateway.engine.trino_backend import RemoteQueryError, TrinoBackend, forwarded_sql
 from lakegate.gateway.engine.trino_ddl import schema_name
 from lakegate.gateway.metrics.results import read_results
+from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file
 from lakegate.lake.record import current_file
-from lakegate.lake.registry import BranchConfigs
 
 CLI = [sys.executable, "-m", "lakegate.gateway.cli"]
 TOPIC = "odom_linear_velocity"

@@ -20,11 +20,11 @@ from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
 from lakegate.gateway.engine.trino_ddl import DDLError, hive_type, schema_name
 from lakegate.gateway.metrics.evaluation import MetricsEngine, select_metrics
 from lakegate.lake import paths
+from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file
-from lakegate.lake.registry import BranchConfigs
 from tests.lake.v1_lake import to_v1
 
 CLI = [sys.executable, "-m", "lakegate.gateway.cli"]

@@ -18,13 +18,13 @@ from lakegate.dialect.scope import Scope
 from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
 from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.lake import paths
+from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.compaction import compact
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file, read_metadata_row, update_metadata_row
 from lakegate.lake.record import PAUSE_ENV, Record
-from lakegate.lake.registry import BranchConfigs
 from tests.lake.killing import kill_when_paused
 from tests.lake.v1_lake import to_v1
 

@@ -1,0 +1,85 @@
+"""Trino's functions/conditional.md. Conditional expressions written as function calls: coalesce, nullif, if,
+try.
+"""
+
+from __future__ import annotations
+
+from sqlglot import exp
+
+from lakegate.dialect import transforms as tf
+from lakegate.dialect import trino_types as tt
+from lakegate.dialect import write_casts as casts
+from lakegate.dialect.functions.arguments import common, need, same
+from lakegate.dialect.functions.rendering import call_as, sqls
+from lakegate.dialect.registry import register
+from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import Call, ttype
+
+
+# === conditional ==================================================================================
+def _coalesce(call: Call) -> TType:
+    if not call.args or None in call.types:
+        call.mismatch()
+    return common(call)
+
+
+def _render_coalesce(g, node, args) -> str:
+    t = ttype(node)
+    return f"coalesce({', '.join(g.coerce(a, t) for a in args)})"
+
+
+def _nullif(call: Call) -> TType:
+    a, b = need(call, "any", "any")
+    if tt.common_super_type(a, b) is None:
+        call.mismatch()
+    return a
+
+
+def _render_typeof(g, node, args) -> str:
+    name = tf.string(str(ttype(args[0])))
+    aggregate = any(
+        isinstance(n, exp.Anonymous) and n.meta.get("spec") is not None and n.meta["spec"].kind != "scalar"
+        for n in args[0].walk()
+    )
+    # the argument stays in the query when it holds an aggregate, so the query stays an aggregation
+    return f"CASE WHEN ({g.sql(args[0])}) IS NULL THEN {name} ELSE {name} END" if aggregate else name
+
+
+def _render_try(g, node, args) -> str:
+    g.in_try += 1
+    try:
+        sql = g.sql(args[0])
+    finally:
+        g.in_try -= 1
+    return casts.try_wrap(sql)
+
+
+def install() -> None:
+    """Register the functions of this page (called by pages.py)."""
+
+    register("coalesce", "conditional", "coalesce(value1, value2[, ...]) -> common type", _coalesce, _render_coalesce)
+    register("nullif", "conditional", "nullif(value1, value2) -> type of value1", _nullif, call_as("nullif"))
+    register(
+        "try",
+        "conditional",
+        "try(expression) -> same",
+        same("any"),
+        _render_try,
+        notes="NULL instead of failing on division by zero, invalid casts, out-of-range subscripts and "
+        "invalid function arguments.",
+    )
+    register(
+        "typeof",
+        "conditional",
+        "typeof(expression) -> varchar",
+        lambda c: tt.VARCHAR if len(c.args) == 1 and c.types[0] is not None else c.mismatch(),
+        lambda g, node, args: _render_typeof(g, node, args),
+        notes="The Trino type name, computed when the query is translated.",
+    )
+    register(
+        "row",
+        "conditional",
+        "row(value1, ...) -> row",
+        lambda c: tt.row([(None, t) for t in c.types]) if c.types and None not in c.types else c.mismatch(),
+        lambda g, node, args: f"row({', '.join(sqls(g, args))})",
+    )

@@ -1,0 +1,175 @@
+"""Trino type inference of CAST and TRY_CAST, typed literals, and which casts Trino allows."""
+
+from __future__ import annotations
+
+import re
+
+from sqlglot import exp
+
+from lakegate.dialect import times, zones
+from lakegate.dialect import trino_types as tt
+from lakegate.dialect.analysis_checks import has_char
+from lakegate.dialect.analyzer import Analyzer
+from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import handles
+
+
+def _typed_literal(a: Analyzer, node: exp.Cast) -> bool:
+    """Whether a Cast is Trino's typed literal (`DECIMAL '1.50'`, `TIMESTAMP '...'`): sqlglot parses
+    both the same way; the source text tells them apart."""
+    literal = node.this
+    if not (isinstance(node, exp.Cast) and isinstance(literal, exp.Literal) and literal.is_string and literal._meta):
+        return False
+    before = a.sql[: literal._meta.get("start", 0)].rstrip()
+    return bool(before) and (before[-1].isalnum() or before[-1] in ")_")
+
+
+@handles(exp.Cast, exp.TryCast)
+def _cast(a: Analyzer, node, scope, env):
+    source = a.expr(node.this, scope, env)
+    try:
+        target = tt.from_datatype(node.args["to"])
+    except ValueError as error:
+        if node.args["to"].this == exp.DataType.Type.TIMETZ:
+            a.unsupported(times.with_time_zone(node, _typed_literal(a, node)), node)
+        a.unsupported(f"cast to {error}", node)
+    if _typed_literal(a, node):
+        text = node.this.name.strip()
+        if target.base == "char":  # CHAR 'abc ': char(4), of the literal's characters (spaces included)
+            target = TType("char", (len(node.this.name),))
+        if target.is_decimal:
+            try:
+                target = tt.decimal_literal_type(text)
+            except ValueError:
+                a.fail(f"'{text}' is not a valid decimal literal", node, "INVALID_LITERAL")
+        elif target.base == "timestamp" and re.search(
+            r"[0-9]:[0-9]{2}(:[0-9]{2}([.][0-9]*)?)?\s*([A-Za-z]|[+-][0-9])", text
+        ):
+            a.unsupported("timestamp literal with a time zone", node)
+        elif target.base == "time":
+            target = _time_literal_type(a, node, text)
+    if source.base == "char" and target.base == "varchar":
+        node.meta["from"] = source
+        return target  # the padded text, cut to the varchar's length (CharacterStringCasts.charToVarcharCast)
+    if has_char(source) or has_char(target):
+        if source.base not in ("varchar", "char", "unknown") or target.base != "char":
+            a.unsupported(f"CAST({source} AS {target})", node)
+        if target.args[0] > 65536:  # CharType.MAX_LENGTH
+            a.unsupported(f"{target} (Trino's char holds at most 65536 characters)", node)
+        node.meta["from"] = source
+        return target  # truncated or padded with spaces to the length (CharacterStringCasts.varcharToCharCast)
+    if target.base == "varbinary" and source.base in ("varchar", "varbinary", "unknown"):
+        node.meta["from"] = source
+        return target  # the UTF-8 bytes of the text (VarcharOperators.castToVarbinary)
+    if "json" in (source.base, target.base) and source != target:
+        _check_json_cast(a, node, source, target)
+    elif "time" in (source.base, target.base):
+        _check_time_cast(a, node, source, target)
+    elif target.base in ("time_tz", "uuid", "varbinary", "map"):
+        a.unsupported(f"cast to {target}", node)
+    if target.base == "timestamp_tz":
+        target = tt.timestamp(target.args[0], True, _cast_zone(a, node, source))
+    else:
+        a.zones(source, node, f"CAST to {target}")
+    if not castable(source, target) and any(t.base == "time" for t in tt.inner_types(target)):
+        a.unsupported(f"CAST({source} AS {target})", node)  # nested time(p > 6) or timestamp(p > 6)
+    if not castable(source, target):
+        a.fail(f"Cannot cast {source} to {target}", node, "TYPE_MISMATCH")
+    flat_array = source.base == target.base == "array" and target.args[0].base not in ("array", "map", "row")
+    if isinstance(node, exp.TryCast) and target.base in ("array", "map", "row") and source != target and not flat_array:
+        # Trino's TRY_CAST is NULL when any element fails; lakegate's casts would give NULL elements
+        a.unsupported(f"TRY_CAST({source} AS {target})", node)
+    node.meta["from"] = source
+    return target
+
+
+def _time_literal_type(a: Analyzer, node: exp.Cast, text: str) -> TType:
+    """TIME '01:02:03.456' is time(p), p its fraction digits (DateTimes.extractTimePrecision)."""
+    match = re.fullmatch(times.TIME_TEXT[1:-1], node.this.name)
+    if match is None or int(match[1]) > 23 or int(match[2]) > 59 or int(match[4] or 0) > 59:
+        a.fail(f"'{text}' is not a valid TIME literal", node, "INVALID_LITERAL")
+    return TType("time", (len(match[6] or ""),))
+
+
+def _check_time_cast(a: Analyzer, node: exp.Cast, source: TType, target: TType) -> None:
+    """time(p <= 6) from varchar, time and timestamp(p <= 6), and to varchar (TimeOperators,
+    TimestampToTimeCast); the casts that need the session's date or zone are refused."""
+    for t in (source, target):
+        if t.base == "time" and t.args[0] > 6:
+            a.unsupported(f"{t} (time with more than microsecond precision)", node)
+    if source.base == "timestamp" and source.args[0] > 6:
+        a.unsupported(f"CAST({source} AS {target}) (more than microsecond precision)", node)
+    if source.base == "time" and target.base in ("timestamp", "timestamp_tz", "time_tz"):
+        a.unsupported(f"CAST({source} AS {target}) (it depends on the session's date and zone)", node)
+    if target.base == "time" and source.base in ("timestamp_tz", "time_tz"):
+        a.unsupported(f"CAST({source} AS {target})", node)
+
+
+def _check_json_cast(a: Analyzer, node: exp.Cast, source: TType, target: TType) -> None:
+    """Casts to and from json (JsonUtil.canCastToJson / canCastFromJson): Trino's, less those
+    lakegate does not translate (trino_types.castable_to_json / castable_from_json), refused."""
+    if target.base == "json":
+        if not tt.castable_to_json(source):
+            a.unsupported(f"CAST({source} AS json)", node)
+    elif not tt.castable_from_json(target):
+        a.unsupported(f"CAST(json AS {target})", node)
+
+
+#: The zone at the end of a timestamp text: a region name or an offset.
+_ZONE_SUFFIX = re.compile(
+    r"[0-9]:[0-9]{2}(?::[0-9]{2}(?:[.][0-9]*)?)?\s*([A-Za-z][A-Za-z0-9_/+-]*|[+-][0-9]{1,2}(?::?[0-9]{2})?)\s*$"
+)
+
+
+def _cast_zone(a: Analyzer, node: exp.Cast, source: TType) -> str | None:
+    """The zone of a value cast to timestamp with time zone: a timestamp with time zone keeps its own,
+    a text literal has the zone it names (its wall time is kept in node.meta["local"]), anything else
+    takes the session zone (io.trino.type.TimestampToTimestampWithTimeZoneCast,
+    DateTimes.parseTimestampWithTimeZone)."""
+    if source.base == "timestamp_tz":
+        return tt.zone_of(source)
+    if source.base != "varchar":
+        return a.time_zone
+    if not (isinstance(node.this, exp.Literal) and node.this.is_string):
+        a.unsupported(
+            "CAST of a non-literal varchar to timestamp with time zone (each value's zone would be lost)", node
+        )
+    text = node.this.name.strip()
+    suffix = _ZONE_SUFFIX.search(text)
+    if suffix is None:
+        node.meta["local"] = text
+        return a.time_zone
+    try:
+        zone = zones.canonical(suffix.group(1))
+    except ValueError as error:
+        a.fail(str(error), node, "NOT_SUPPORTED")
+    node.meta["local"] = text[: suffix.start(1)].strip()
+    return zone
+
+
+def castable(source: TType, target: TType) -> bool:
+    """Whether Trino has a CAST from `source` to `target` (the subset lakegate translates)."""
+    if source == target or source.is_unknown:
+        return True
+    if "json" in (source.base, target.base):
+        return tt.castable_to_json(source) if target.base == "json" else tt.castable_from_json(target)
+    scalar = ("boolean", "varchar")
+    if source.is_numeric or source.base in scalar:
+        if target.is_numeric or target.base in scalar:
+            return True
+    if source.base in ("varchar", "date", "timestamp", "timestamp_tz") and target.base in (
+        "varchar",
+        "date",
+        "timestamp",
+        "timestamp_tz",
+    ):
+        return True
+    if target.base == "time" and source.base in ("varchar", "time", "timestamp"):  # p <= 6 (times.py)
+        return max(target.args[0], source.args[0] if source.base != "varchar" else 0) <= 6
+    if source.base == "time" and target.base == "varchar":
+        return True
+    if source.base == target.base == "array":
+        return castable(source.element, target.element)
+    if source.base == target.base == "row" and len(source.args) == len(target.args):
+        return all(castable(s[1], t[1]) for s, t in zip(source.args, target.args))
+    return False

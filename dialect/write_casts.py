@@ -1,0 +1,384 @@
+"""DuckDB SQL of CAST and TRY_CAST with Trino's rules, as named transforms of the Writer
+(transforms.py): range checks, rounding, text of numbers and timestamps as Trino writes them,
+timestamps past microseconds.
+"""
+
+from __future__ import annotations
+
+from sqlglot import exp
+
+from lakegate.dialect import chars, registry, times, zoned_nanos, zones
+from lakegate.dialect import trino_types as tt
+from lakegate.dialect.transforms import Writer, cast, quote, string, transform
+from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import FloorMicros, ttype
+
+RANGES = {
+    "tinyint": (-(2**7), 2**7 - 1),
+    "smallint": (-(2**15), 2**15 - 1),
+    "integer": (-(2**31), 2**31 - 1),
+    "bigint": (-(2**63), 2**63 - 1),
+}
+
+
+# --- casts ---------------------------------------------------------------------------------------
+@transform(exp.Cast)
+def trino_cast(g: Writer, node: exp.Cast) -> str:
+    if node.meta.get("trimmed"):
+        return chars.trimmed(g, node)
+    return cast_value(g, *cast_operand(g, node), ttype(node))
+
+
+def cast_operand(g: Writer, node: exp.Cast) -> tuple[str, TType]:
+    """The operand of a cast as SQL and its type; a text literal cast to timestamp with time zone as
+    its wall time (the zone it names is the target's: analyze._cast_zone)."""
+    local = node.meta.get("local")
+    if local is None:
+        return g.sql(node.this), node.meta["from"]
+    wall = tt.timestamp(ttype(node).args[0])
+    return parse_varchar(g, string(local), wall), wall
+
+
+@transform(exp.TryCast)
+def trino_try_cast(g: Writer, node: exp.TryCast) -> str:
+    g.in_try += 1
+    try:
+        operand, source = cast_operand(g, node)
+        target = ttype(node)
+        sql = cast_value(g, operand, source, target)
+    finally:
+        g.in_try -= 1
+    if target.base == source.base == "array" and target.args[0].base not in ("array", "map", "row"):
+        # Trino's TRY_CAST of an array is NULL when any element fails (not the element alone)
+        sql = f"CASE WHEN list_count({operand}) = list_count({sql}) THEN {sql} END"
+    return try_wrap(sql)
+
+
+def try_wrap(sql: str) -> str:
+    """DuckDB's TRY(...) around `sql` unless it contains what TRY refuses (aggregates, windows,
+    volatile functions); the transforms already yield NULL for Trino's own failures inside try."""
+    lowered = sql.lower()
+    if " over (" in lowered or "error(" in lowered or "random()" in lowered or "(select" in lowered:
+        return sql
+    for name in _AGGREGATE_NAMES:
+        if f"{name}(" in lowered:
+            return sql
+    return f"TRY({sql})"
+
+
+_AGGREGATE_NAMES = (
+    "sum",
+    "avg",
+    "count",
+    "min",
+    "max",
+    "any_value",
+    "arg_max",
+    "arg_min",
+    "list",
+    "array_agg",
+    "quantile",
+    "stddev",
+    "var_",
+    "corr",
+    "covar",
+    "bool_",
+    "string_agg",
+    "approx",
+    "geometric",
+    "kurtosis",
+    "skewness",
+    "regr_",
+    "bit_",
+    "first",
+    "last",
+    "entropy",
+    "mode",
+    "median",
+    "product",
+)
+
+
+_INTEGRAL_RANGE = {"tinyint": "TINYINT", "smallint": "SMALLINT", "integer": "INT", "bigint": "BIGINT"}
+
+
+def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
+    """Trino's CAST(sql AS target) for a value of type `source`."""
+    if source == target:
+        return sql
+    if source.is_unknown:
+        return cast("NULL", target)
+    if zoned_nanos.is_zoned_nanos(source):  # to timestamp, date or varchar (zoned_nanos.check_use)
+        wall = zoned_nanos.wall_time(sql, tt.zone_of(source))
+        if target.base == "varchar":
+            return varchar_of(g, wall, tt.timestamp(9)) + f" || {string(' ' + tt.zone_of(source))}"
+        return cast_value(g, wall, tt.timestamp(9), target)
+    if target.base == "char":  # truncated or padded with spaces: the padded text the client gets
+        return chars.pad(sql, target.args[0])
+    if target.base == "json":
+        return registry.JSON_CASTS["to_json"](g, sql, source)
+    if source.base == "json":
+        return registry.JSON_CASTS["from_json"](g, sql, target)
+    if target.base == "varchar":
+        text = varchar_of(g, sql, source)
+        length = tt.varchar_length(target)
+        if length is None:
+            return text
+        if source.base in ("varchar", "char"):  # a char's padded text (CharacterStringCasts.charToVarcharCast)
+            return f"left({text}, {length})"
+        message = f"'Value ' || ({text}) || ' cannot be represented as varchar({length})'"
+        return f"CASE WHEN length({text}) > {length} THEN {g.fail(message, 'INVALID_CAST_ARGUMENT')} ELSE {text} END"
+    if target.base == "varbinary":
+        return f"encode({sql})"  # varchar: its UTF-8 bytes
+    if source.base == "varchar":
+        return parse_varchar(g, sql, target)
+    if target.is_integral and source.is_approx:
+        return checked_cast(g, f"round({sql})", source, target)
+    if target.is_decimal and source.is_approx:
+        # Trino converts the shortest decimal text of the float (BigDecimal.valueOf(double),
+        # Float.toString: io.trino.type.DecimalCasts), HALF_UP; DuckDB would convert its binary value
+        return checked_cast(g, f"CAST({sql} AS VARCHAR)", source, target)
+    if target.is_integral and (source.is_integral or source.is_decimal) or target.is_decimal and source.is_numeric:
+        return checked_cast(g, sql, source, target)
+    if target.base == "time" and source.base in ("time", "timestamp"):  # p <= 6 (analyze._cast)
+        if source.base == "time":
+            return times.round_time(sql, target.args[0], source.args[0])
+        return times.of_timestamp(sql, target.args[0])
+    if target.base == "timestamp" and source.base in ("timestamp", "date"):
+        precision = target.args[0]
+        if source.base == "timestamp" and precision < source.args[0]:
+            return round_timestamp(sql, precision, source.args[0])
+        if precision > 6 and tt.duckdb_type(source) != "TIMESTAMP_NS":
+            return as_nanoseconds(g, sql)
+        return cast(sql, target)
+    if target.base == "timestamp" and source.base == "timestamp_tz":
+        return cast(zones.local(sql, tt.zone_of(source)), target)
+    if target.base == "timestamp_tz" and source.base in ("timestamp", "date"):
+        sql = zoned_precision(sql, source, target.args[0])
+        return zones.instant(f"CAST({sql} AS TIMESTAMP)", tt.zone_of(target))
+    if target.base == "date" and source.base == "timestamp" and source.args[0] > 6:
+        return f"CAST({floor_micros(sql)} AS DATE)"  # DuckDB would round to the nearest microsecond
+    if target.base == "date" and source.base == "timestamp_tz":
+        return f"CAST({zones.local(sql, tt.zone_of(source))} AS DATE)"
+    if target.base == "array":
+        inner = cast_value(g, '"_e"', source.element, target.element)
+        if inner == cast('"_e"', target.element):
+            return cast(sql, target)
+        return f'list_transform({sql}, lambda "_e": {inner})'
+    if target.base == "row":
+        fields = []
+        for index, ((_, s), (name, t)) in enumerate(zip(source.args, target.args)):
+            src_name = source.args[index][0]
+            value = f"struct_extract({sql}, {string(src_name) if src_name else index + 1})"
+            fields.append(f"{quote(name or f'field{index}')} := {cast_value(g, value, s, t)}")
+        return f"struct_pack({', '.join(fields)})"
+    return cast(sql, target)
+
+
+def _cast_name(t: TType) -> str:
+    """A numeric type as Trino's cast messages name it: INTEGER, DECIMAL(5, 2)."""
+    return f"DECIMAL({t.args[0]}, {t.args[1]})" if t.is_decimal else t.base.upper()
+
+
+def checked_cast(g: Writer, sql: str, source: TType, target: TType) -> str:
+    """A numeric CAST that can overflow: Trino's error (NUMERIC_VALUE_OUT_OF_RANGE for integers,
+    INVALID_CAST_ARGUMENT for decimals and doubles) instead of DuckDB's."""
+    if _fits(source, target):
+        return cast(sql, target)
+    duck = tt.duckdb_type(target)
+    if target.is_integral and not source.is_approx:
+        error_name, message = "NUMERIC_VALUE_OUT_OF_RANGE", f"'Out of range for {target}: ' || ({sql})"
+    elif target.is_decimal and (source.is_integral or source.is_decimal):  # DecimalCasts, DecimalConversions
+        error_name = "INVALID_CAST_ARGUMENT"
+        message = f"'Cannot cast {_cast_name(source)} ''' || ({sql}) || ''' to {_cast_name(target)}'"
+    else:
+        error_name, message = "INVALID_CAST_ARGUMENT", f"'Cannot cast {source} ''' || ({sql}) || ''' to {target}'"
+    return (
+        f"CASE WHEN ({sql}) IS NOT NULL AND TRY_CAST({sql} AS {duck}) IS NULL THEN "
+        f"{g.fail(message, error_name)} ELSE CAST({sql} AS {duck}) END"
+    )
+
+
+def _fits(source: TType, target: TType) -> bool:
+    """Whether every value of `source` converts to `target` without overflow."""
+    if source.is_integral and target.is_integral:
+        return RANGES[source.base][1] <= RANGES[target.base][1]
+    if (source.is_integral or source.is_decimal) and target.is_decimal:
+        digits = tt.INTEGRAL[source.base] if source.is_integral else source.args[0] - source.args[1]
+        return digits <= target.args[0] - target.args[1]
+    if source.is_decimal and target.is_integral:
+        return source.args[0] - source.args[1] < len(str(RANGES[target.base][1]))
+    return False
+
+
+def floor_div(sql: str, divisor: int) -> str:
+    """Integer `sql` divided by `divisor`, rounded toward negative infinity (DuckDB's // truncates)."""
+    return f"(({sql}) - ((({sql}) % {divisor}) + {divisor}) % {divisor}) // {divisor}"
+
+
+def floor_micros(sql: str) -> str:
+    """A TIMESTAMP_NS floored to a microsecond TIMESTAMP: Trino's timestamp(p > 6) functions read the
+    epoch microseconds (LongTimestamp.getEpochMicros) and keep or drop the rest; DuckDB's own
+    conversion rounds to the nearest microsecond (23:59:59.9999999 would become the next day)."""
+    return f"make_timestamp({floor_div(f'epoch_ns({sql})', 1000)})"
+
+
+def with_nanos(micros_sql: str, source_sql: str) -> str:
+    """Microsecond TIMESTAMP `micros_sql` as TIMESTAMP_NS, with the nanoseconds below the microsecond
+    of TIMESTAMP_NS `source_sql` (Trino's timestamp(p > 6) arithmetic keeps its picosOfMicro)."""
+    return f"make_timestamp_ns(epoch_ns({micros_sql}) + ((epoch_ns({source_sql}) % 1000) + 1000) % 1000)"
+
+
+#: The days DuckDB's TIMESTAMP_NS holds whole (int64 nanoseconds: 1677-09-21 to 2262-04-11).
+NANOSECOND_RANGE = ("1677-09-22", "2262-04-11")
+
+
+def as_nanoseconds(g: Writer, sql: str) -> str:
+    """TIMESTAMP or DATE `sql` as TIMESTAMP_NS, or NOT_SUPPORTED outside its range (Trino's reaches
+    further; DuckDB's own message would not say why)."""
+    low, high = NANOSECOND_RANGE
+    message = string(f"unsupported in lakegate: timestamp(p) with p > 6 outside [{low}, {high})")
+    return (
+        f"CASE WHEN ({sql}) >= TIMESTAMP '{low}' AND ({sql}) < TIMESTAMP '{high}' "
+        f"THEN CAST({sql} AS TIMESTAMP_NS) ELSE {g.fail(message, 'NOT_SUPPORTED')} END"
+    )
+
+
+def round_timestamp(sql: str, precision: int, source: int = 6) -> str:
+    """A timestamp(source) rounded HALF_UP to `precision` fractional digits, before 1970 too (Trino's
+    timestamp(p) casts: io.trino.spi.type.Timestamps.round)."""
+    digits = 9 if source > 6 else 6
+    unit = 10 ** (digits - precision)
+    shifted = f"(epoch_{'ns' if digits == 9 else 'us'}({sql}) + {unit // 2})"  # then floored to a multiple of unit
+    rounded = f"{shifted} - ((({shifted} % {unit}) + {unit}) % {unit})"
+    if digits == 6:
+        return f"make_timestamp({rounded})"
+    return f"make_timestamp_ns({rounded})" if precision > 6 else f"make_timestamp(({rounded}) // 1000)"
+
+
+def parse_varchar(g: Writer, sql: str, target: TType) -> str:
+    """CAST(varchar AS target) accepting exactly what Trino accepts (Java's trim + parse), failing
+    with INVALID_CAST_ARGUMENT otherwise (DuckDB alone would accept '1.5', ' 1_000', 'yes' ...)."""
+    name = _INTEGRAL_RANGE.get(target.base, target.base.upper())
+    bad = g.fail(f"'Cannot cast ''' || {sql} || ''' to {name}'", "INVALID_CAST_ARGUMENT")
+    if target.is_integral:
+        pattern = "^[\\x00-\\x20]*([+-]?[0-9]+)[\\x00-\\x20]*$"
+        return (
+            f"CASE WHEN regexp_matches({sql}, {string(pattern)}) THEN "
+            f"{cast(f'regexp_extract({sql}, {string(pattern)}, 1)', target)} ELSE {bad} END"
+        )
+    if target.is_approx or target.is_decimal:
+        number = "[+-]?([0-9]+[.]?[0-9]*|[.][0-9]+)([eE][+-]?[0-9]+)?"
+        if target.is_approx:
+            number = f"([+-]?(NaN|Infinity)|{number}[fFdD]?)"
+        pattern = f"^[\\x00-\\x20]*{number}[\\x00-\\x20]*$"
+        value = (
+            f"regexp_replace(trim({sql}, chr(32) || chr(9) || chr(10) || chr(13)), '[fFdD]$', '')"
+            if target.is_approx
+            else f"trim({sql}, chr(32) || chr(9) || chr(10) || chr(13))"
+        )
+        converted = cast(value, target)
+        if target.is_decimal:  # DecimalCasts.varcharToShortDecimal / varcharToLongDecimal
+            head = f"'Cannot cast VARCHAR ''' || {sql} || ''' to {_cast_name(target)}. '"
+            bad = g.fail(f"{head} || 'Value is not a number.'", "INVALID_CAST_ARGUMENT")
+            too_large = g.fail(f"{head} || 'Value too large.'", "INVALID_CAST_ARGUMENT")
+            converted = f"CASE WHEN TRY_{converted} IS NULL THEN {too_large} ELSE TRY_{converted} END"
+        return f"CASE WHEN regexp_matches({sql}, {string(pattern)}) THEN {converted} ELSE {bad} END"
+    if target.base == "boolean":
+        return (
+            f"CASE WHEN lower({sql}) IN ('t', '1', 'true') THEN true "
+            f"WHEN lower({sql}) IN ('f', '0', 'false') THEN false ELSE {bad} END"
+        )
+    if target.base == "date":
+        pattern = "^[\\x00-\\x20]*[0-9]{4}-[0-9]{1,2}-[0-9]{1,2}[\\x00-\\x20]*$"
+        return (
+            f"CASE WHEN regexp_matches({sql}, {string(pattern)}) AND TRY_CAST(trim({sql}) AS DATE) IS NOT NULL "
+            f"THEN CAST(trim({sql}) AS DATE) ELSE {bad} END"
+        )
+    if target.base == "timestamp":
+        return parse_timestamp(g, sql, target.args[0], bad)
+    if target.base == "time":
+        message = f"'Value cannot be cast to time: ' || {sql}"
+        return times.parse(sql, target.args[0], g.fail(message, "INVALID_CAST_ARGUMENT"))
+    return cast(sql, target)
+
+
+def zoned_precision(sql: str, source: TType, precision: int) -> str:
+    """A timestamp(p) or date rounded HALF_UP for CAST to timestamp(precision) with time zone: to
+    milliseconds first when the target holds milliseconds at most and the source microseconds
+    (operator/scalar/timestamp/TimestampToTimestampWithTimeZoneCast: shortToShort rounds twice)."""
+    if source.base != "timestamp" or precision >= source.args[0]:
+        return sql
+    if precision < 3 < source.args[0] <= 6:
+        sql = round_timestamp(sql, 3)
+    return round_timestamp(sql, precision, source.args[0])
+
+
+def parse_timestamp(g: Writer, sql: str, precision: int, bad: str) -> str:
+    """CAST(varchar AS timestamp(precision)): the fraction's digits rounded HALF_UP to `precision`
+    (io.trino.operator.scalar.timestamp.VarcharToTimestampCast); DuckDB would cut them at six or nine."""
+    pattern = "^[0-9]{4}-[0-9]{1,2}-[0-9]{1,2}( [0-9]{1,2}:[0-9]{1,2}(:[0-9]{1,2}([.][0-9]{1,12})?)?)?$"
+    text = f"trim({sql})"
+    seconds_text = f"regexp_replace({text}, '[.][0-9]*$', '')"
+    seconds = (
+        f"TRY_CAST({seconds_text} AS TIMESTAMP)"  # TRY_: DuckDB folds a constant CAST early, and `valid` checks it
+    )
+    unit = 10 ** (12 - precision)  # of the fraction read as picoseconds
+    fraction = f"((CAST(rpad(regexp_extract({text}, '[.]([0-9]*)$', 1), 12, '0') AS BIGINT) + {unit // 2}) // {unit})"
+    if precision > 6:
+        value = f"make_timestamp_ns(epoch_ns({as_nanoseconds(g, seconds)}) + {fraction} * {10 ** (9 - precision)})"
+    else:
+        value = f"{seconds} + to_microseconds({fraction} * {10 ** (6 - precision)})"
+    valid = f"regexp_matches({text}, {string(pattern)}) AND TRY_CAST({seconds_text} AS TIMESTAMP) IS NOT NULL"
+    return f"CASE WHEN {valid} THEN {value} ELSE {bad} END"
+
+
+def varchar_of(g: Writer, sql: str, source: TType) -> str:
+    """Trino's text of a value (CAST AS VARCHAR): doubles as 1.5E0, decimals with their full scale,
+    timestamps with exactly p fractional digits."""
+    if source.base in ("varchar", "char"):
+        return sql
+    if source.is_approx:
+        return approx_text(sql, source)
+    if source.is_decimal:
+        precision, scale = source.args
+        if precision == scale:
+            return f"regexp_replace(CAST({sql} AS VARCHAR), '^(-?)[.]', '\\10.')"
+        return f"CAST({sql} AS VARCHAR)"
+    if source.base == "timestamp":
+        return timestamp_text(sql, source.args[0])
+    if source.base == "time":
+        return times.text(sql, source.args[0])
+    if source.base == "timestamp_tz":
+        zone = tt.zone_of(source)
+        return timestamp_text(zones.local(sql, zone), source.args[0]) + f" || {string(' ' + zone)}"
+    return f"CAST({sql} AS VARCHAR)"
+
+
+def timestamp_text(sql: str, precision: int) -> str:
+    formats = {0: "%Y-%m-%d %H:%M:%S", 3: "%Y-%m-%d %H:%M:%S.%g", 6: "%Y-%m-%d %H:%M:%S.%f", 9: "%Y-%m-%d %H:%M:%S.%n"}
+    if precision in formats:
+        return f"strftime({sql}, {string(formats[precision])})"
+    digits = 6 if precision < 6 else 9
+    return f"left(strftime({sql}, {string(formats[digits])}), {20 + precision})"
+
+
+def approx_text(sql: str, source: TType) -> str:
+    """A double or real as Trino prints it: Java's DecimalFormat("0.0###E0") of the shortest
+    round-trip digits (1.5E0, 1.0E10, -2.5E-4, 0E0, NaN, Infinity)."""
+    value = f"CAST({sql} AS {'FLOAT' if source.base == 'real' else 'DOUBLE'})"
+    text = f"CAST(abs({value}) AS VARCHAR)"
+    digits = f"regexp_replace(replace(split_part({text}, 'e', 1), '.', ''), '^0+|0+$', '', 'g')"
+    exponent = f"CAST(split_part(format('{{:.16e}}', CAST(abs({value}) AS DOUBLE)), 'e', 2) AS INTEGER)"
+    mantissa = f"left({digits}, 1) || '.' || coalesce(nullif(substr({digits}, 2), ''), '0')"
+    return (
+        f"CASE WHEN isnan({value}) THEN 'NaN' "
+        f"WHEN isinf({value}) THEN CASE WHEN {value} > 0 THEN 'Infinity' ELSE '-Infinity' END "
+        f"WHEN {value} = 0 THEN CASE WHEN starts_with(CAST({value} AS VARCHAR), '-') THEN '-0E0' ELSE '0E0' END "
+        f"ELSE CASE WHEN {value} < 0 THEN '-' ELSE '' END || {mantissa} || 'E' || CAST({exponent} AS VARCHAR) END"
+    )
+
+
+@transform(FloorMicros)
+def floored_micros(g: Writer, node: FloorMicros) -> str:
+    return floor_micros(g.sql(node.this))

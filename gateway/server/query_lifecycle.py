@@ -1,0 +1,616 @@
+"""The life of the SQL endpoint's queries (gateway/server/app.py routes them).
+
+`POST /v1/statement` answers session statements and CALL at once with their result. Every other
+statement goes to a worker thread at once, and the POST waits a little (`Limits.answer_wait`) for it:
+a query that ends in that time with at most one small page is answered whole in the POST's reply
+(columns and rows, or its error, and no `nextUri`: one request per fast query); any other gets a
+QUEUED / RUNNING document whose `nextUri` the client follows while the worker runs. The worker
+turns the result's Arrow record batches into pages of JSON rows (about `Limits.page_bytes` each)
+and hands them over through a small buffer, so a result is never held whole: a slow client makes
+the worker wait. `GET nextUri` returns the next page (waiting up to
+`Limits.wait` for it); the same URI again returns the same document. `DELETE nextUri` or
+`DELETE /v1/query/{id}` cancel (the DuckDB work is interrupted). A reaper enforces the time limit,
+fails queries whose client stopped polling for `Limits.client_timeout` seconds (ABANDONED_QUERY, as
+Trino's `query.client.timeout`), and forgets finished queries.
+
+Each running query has its own daemon worker thread, at most `Limits.max_concurrent_queries` at
+once. A query that ends (time limit, cancel, abandoned) while its worker still works is stopped: its
+DuckDB work is interrupted, and Python work still planning it (parsing, translation) is abandoned by
+an exception raised in the worker. Its slot is free at once: the worker counts as a "zombie" until
+it returns, and at most `max_concurrent_queries` zombies are counted apart, so runaway work never
+jams the server. Shutdown waits at most `SHUTDOWN_GRACE` seconds for workers.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import ctypes
+import logging
+import os
+import secrets
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from datetime import UTC, datetime
+
+import orjson
+import pyarrow as pa
+
+from lakegate.dialect.errors import DialectError
+from lakegate.gateway.engine import session as sessions
+from lakegate.gateway.engine.backend import QueryResult
+from lakegate.gateway.engine.failures import hide_paths, time_limit_error
+from lakegate.gateway.engine.limits import Limits
+from lakegate.gateway.engine.planner import Planner
+from lakegate.gateway.engine.session import Session
+from lakegate.gateway.engine.trino_values import encode_columns
+from lakegate.gateway.server.protocol import (
+    Failure,
+    Progress,
+    QueryIds,
+    columns_document,
+    results_document,
+)
+
+log = logging.getLogger("lakegate.server")
+
+#: Pages a worker may have ready before it waits for the client.
+BUFFERED_PAGES = 2
+#: Rows in a query's first page (later pages are sized to about Limits.page_bytes).
+FIRST_PAGE_ROWS = 1024
+MAX_PAGE_ROWS = 65_536
+#: The largest page that may also be a query's last document (larger ones get a last document of
+#: their own, so that a finished query keeps little for a retried request).
+FINAL_PAGE_BYTES = 65_536
+#: How often the reaper looks at the queries.
+REAP_INTERVAL = 0.25
+#: Longest shutdown waits for workers to stop (they are daemon threads: the process may end without them).
+SHUTDOWN_GRACE = 1.0
+
+
+@dataclass
+class _Page:
+    data: bytes  # the JSON array of rows
+    rows: int
+
+
+class _Stopped(Exception):
+    """The query ended (canceled, failed or timed out) while its worker was still producing."""
+
+
+class _Abandoned(BaseException):
+    """Raised in a worker whose query ended while it was planning (Python work nothing else stops)."""
+
+
+def _raise_in(thread_id: int, exception: type[BaseException] | None) -> None:
+    """Raise `exception` in the thread `thread_id` at its next Python instruction (None: forget one
+    raised there and not yet delivered)."""
+    ctypes.pythonapi.PyThreadState_SetAsyncExc(
+        ctypes.c_ulong(thread_id), None if exception is None else ctypes.py_object(exception)
+    )
+
+
+def _now() -> datetime:
+    return datetime.now(UTC)
+
+
+def _resolve(future: asyncio.Future) -> None:
+    if not future.done():
+        future.set_result(None)
+
+
+def _wake(waiters: list[asyncio.Future]) -> None:
+    for future in waiters:
+        try:
+            future.get_loop().call_soon_threadsafe(_resolve, future)
+        except RuntimeError:
+            pass  # the event loop is closed: nobody waits any more
+
+
+#: Fault injection for tests: a query whose text contains this variable's value first spends up to
+#: 60 s in pure-Python work while planning, standing for a parse or translation that runs away.
+SLOW_PLANNING_ENV = "LAKEGATE_TEST_SLOW_PLANNING"
+
+
+def _injected_planning_work(sql: str) -> None:
+    marker = os.environ.get(SLOW_PLANNING_ENV)
+    if marker and marker in sql:
+        end = time.monotonic() + 60
+        while time.monotonic() < end:
+            pass
+
+
+class Query:
+    """One statement: its state, the pages its worker produced, and the documents served so far."""
+
+    def __init__(self, query_id: str, sql: str, session: Session, dequeued: Callable[[], None] = lambda: None):
+        self.id, self.sql, self.session = query_id, sql, session
+        self._dequeued = dequeued  # called once, when the query leaves the queue (runs or fails)
+        self.slug = secrets.token_hex(8)
+        self.lock = threading.Lock()
+        self._space = threading.Condition(self.lock)
+        self._pages: deque[_Page] = deque()
+        self._waiters: list[asyncio.Future] = []
+        self._version = 0
+        self._result: QueryResult | None = None
+        self._fetching = asyncio.Lock()
+        self.columns: list[dict] | None = None
+        self.failure: Failure | None = None
+        self.started = False
+        self.working = False  # a worker runs the statement
+        self.zombie = False  # the query ended but its worker still runs, counted apart
+        self._planner: int | None = None  # the worker thread while it plans the query
+        self.done = False  # the worker produced everything, or the query failed
+        self.final = False  # the last document was served
+        self.rows = 0
+        self.bytes = 0
+        self.created = _now()
+        self.started_at: datetime | None = None
+        self.ended: datetime | None = None
+        self._clock = {"created": time.monotonic(), "started": None, "ended": None}
+        self.last_access = time.monotonic()
+        self.token = 0
+        self.body = b""
+
+    # -- the worker's side ----------------------------------------------------------------
+
+    def _changed(self) -> list[asyncio.Future]:
+        """Record a change (lock held) and return the waiters to wake."""
+        self._version += 1
+        waiters, self._waiters = self._waiters, []
+        self._space.notify_all()
+        return waiters
+
+    def begin(self) -> bool:
+        """Mark the query running; False when it already ended while queued."""
+        with self.lock:
+            if self.done:
+                return False
+            self.started = True  # no waiter to wake: clients wait for pages or the end
+            self.started_at = _now()
+            self._clock["started"] = time.monotonic()
+        self._dequeued()
+        return True
+
+    def attach(self, result: QueryResult) -> None:
+        """Keep the running result (to cancel it) and its columns."""
+        columns = columns_document(result.columns)
+        with self.lock:
+            self._result = result
+            self.columns = columns
+            stopped = self.done
+        if stopped:
+            result.cancel()
+            raise _Stopped
+
+    def put(self, page: _Page, *, last: bool = False) -> None:
+        """Hand one page to the client, waiting while the buffer is full (`last`: the query's work
+        is done with it); _Stopped when the query ended."""
+        with self.lock:
+            while len(self._pages) >= BUFFERED_PAGES and not self.done:
+                self._space.wait()
+            if self.done:
+                raise _Stopped
+            self._pages.append(page)
+            self.rows += page.rows
+            self.bytes += len(page.data)
+            if last:
+                self.done = True
+                self._ended()
+            waiters = self._changed()
+        _wake(waiters)
+
+    def finish(self) -> None:
+        """The worker produced every page."""
+        with self.lock:
+            if self.done:
+                return
+            self.done = True
+            self._ended()
+            waiters = self._changed()
+        _wake(waiters)
+
+    def _ended(self) -> None:
+        self.ended = _now()
+        self._clock["ended"] = time.monotonic()
+
+    def fail(self, failure: Failure) -> bool:
+        """End the query with `failure` (pages not yet read are dropped) and interrupt its work.
+        False when it had already failed or its last document was served."""
+        with self.lock:
+            if self.failure is not None or self.final:
+                return False
+            self.failure = failure
+            self._pages.clear()
+            if not self.done:
+                self.done = True
+                self._ended()
+            waiters = self._changed()
+            result, queued = self._result, not self.started
+        _wake(waiters)
+        if queued:
+            self._dequeued()
+        if result is not None:
+            result.cancel()
+        return True
+
+    @property
+    def running(self) -> bool:
+        return self.started and not self.done
+
+    def plan(self, start: Callable[[], QueryResult]) -> QueryResult:
+        """`start()`: the query's planning (parsing, translation), which `interrupt` abandons by
+        raising _Abandoned in this thread."""
+        with self.lock:
+            self._planner = threading.get_ident()
+        try:
+            _injected_planning_work(self.sql)
+            return start()
+        finally:
+            with self.lock:
+                self._planner = None
+            _raise_in(threading.get_ident(), None)
+
+    def interrupt(self) -> None:
+        """Stop the ended query's work: interrupt its DuckDB work again (an interrupt that arrives
+        just before DuckDB starts is lost; the reaper repeats it while a failed query's worker still
+        runs), or abandon its planning."""
+        with self.lock:
+            result = self._result
+            if self._planner is not None and self.done:
+                _raise_in(self._planner, _Abandoned)
+        if result is not None:
+            result.cancel()
+
+    def elapsed(self, what: str = "created") -> float:
+        since = self._clock[what]
+        return 0.0 if since is None else (self._clock["ended"] or time.monotonic()) - since
+
+    # -- the client's side -----------------------------------------------------------------
+
+    def state(self) -> str:
+        if self.failure is not None:
+            return "FAILED"
+        if self.final:
+            return "FINISHED"
+        if not self.started:
+            return "QUEUED"
+        return "FINISHING" if self.done else "RUNNING"
+
+    def queued_seconds(self) -> float:
+        return (self._clock["started"] or time.monotonic()) - self._clock["created"]
+
+    def document(self, base: str, token: int, *, data: bytes | None = None, last: bool = False) -> bytes:
+        """The QueryResults document `token` of the query's current state (`last`: no nextUri)."""
+        progress = Progress(
+            self.state(),
+            queued_ms=int(self.queued_seconds() * 1000),
+            elapsed_ms=int(self.elapsed() * 1000),
+            rows=self.rows,
+            bytes=self.bytes,
+        )
+        next_uri = None if last else f"{base}/v1/statement/executing/{self.id}/{self.slug}/{token + 1}"
+        return results_document(
+            query_id=self.id,
+            info_uri=f"{base}/v1/query/{self.id}",
+            progress=progress,
+            next_uri=next_uri,
+            columns=self.columns,
+            data=data,
+            failure=self.failure,
+        )
+
+    def first_document(self, base: str) -> bytes:
+        """The POST's reply (token 0) of the query as it is: the last document when the query ended
+        with at most one small page (its rows, if any, are in it), else one with the nextUri."""
+        with self.lock:
+            whole = self.failure is not None or (self.done and self._fits())
+            page = self._pages.popleft() if whole and self._pages else None
+            self.final = whole
+            self.body = self.document(base, 0, data=None if page is None else page.data, last=whole)
+        return self.body
+
+    async def answer(self, base: str, wait: float) -> bytes:
+        """The POST's reply, after waiting up to `wait` seconds for the query to end (`first_document`)."""
+        deadline = time.monotonic() + wait
+        async with self._fetching:
+            while True:
+                with self.lock:  # decided: the query ended, or has more rows than one reply holds
+                    if self.done or not self._fits():
+                        break
+                    version = self._version
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    break
+                await self._changes(version, remaining)
+            return self.first_document(base)
+
+    def _fits(self) -> bool:
+        """Whether the pages ready fit in one last document: at most one, and small (lock held)."""
+        return len(self._pages) <= 1 and all(len(page.data) <= FINAL_PAGE_BYTES for page in self._pages)
+
+    async def fetch(self, token: int, base: str, wait: float) -> bytes | None:
+        """The document of `token`: the same bytes again for the current token, the next document
+        for the next one (waiting up to `wait` seconds for a page); None for any other token."""
+        async with self._fetching:
+            self.last_access = time.monotonic()
+            if token == self.token:
+                return self.body
+            if token != self.token + 1 or self.final:
+                return None
+            body = await self._next(base, token, wait)
+            self.token, self.body = token, body
+            self.last_access = time.monotonic()
+            return body
+
+    async def _next(self, base: str, token: int, wait: float) -> bytes:
+        deadline = time.monotonic() + wait
+        while True:
+            with self.lock:
+                page = self._pages.popleft() if self._pages else None
+                if page is not None:
+                    self._space.notify_all()
+                    last = self.done and not self._pages and self.failure is None and len(page.data) <= FINAL_PAGE_BYTES
+                    self.final = last
+                    return self.document(base, token, data=page.data, last=last)
+                version, done = self._version, self.done
+            if done:
+                return self._last(base, token)
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                with self.lock:
+                    return self.document(base, token)
+            await self._changes(version, remaining)
+
+    def _last(self, base: str, token: int) -> bytes:
+        with self.lock:
+            self.final = True
+            return self.document(base, token, last=True)
+
+    async def _changes(self, version: int, timeout: float) -> None:
+        """Wait until the query changes after `version`, or `timeout` seconds."""
+        future = asyncio.get_running_loop().create_future()
+        with self.lock:
+            if self._version != version:
+                return
+            self._waiters.append(future)
+        try:
+            await asyncio.wait_for(future, timeout)
+        except TimeoutError:
+            pass
+        finally:
+            with self.lock:
+                if future in self._waiters:
+                    self._waiters.remove(future)
+
+    def info(self) -> dict:
+        """What GET /v1/query/{id} tells about the query."""
+        info = {
+            "queryId": self.id,
+            "state": self.state(),
+            "query": self.sql,
+            "user": self.session.user,
+            "source": self.session.source,
+            "created": self.created.isoformat(),
+            "elapsedTimeMillis": int(self.elapsed() * 1000),
+            "processedRows": self.rows,
+        }
+        if self.failure is not None:
+            info["error"] = self.failure.document()
+        return info
+
+    def row(self) -> tuple:
+        """The query as a row of system.runtime.queries."""
+        failure = self.failure
+        return (
+            self.id,
+            self.state(),
+            self.session.user,
+            self.session.source,
+            self.sql,
+            None,
+            int(self.queued_seconds() * 1000),
+            0,
+            0,
+            self.created,
+            self.started_at,
+            _now(),
+            self.ended,
+            None if failure is None else failure.error_type,
+            None if failure is None else failure.error_name,
+        )
+
+
+def _pages(columns: Sequence[tuple[str, str]], batches: Iterator[pa.RecordBatch], limits: Limits) -> Iterator[_Page]:
+    """The result's rows as pages of JSON (sized to about limits.page_bytes); a result with more
+    than limits.max_rows rows fails."""
+    seen, chunk = 0, FIRST_PAGE_ROWS
+    for batch in batches:
+        offset = 0
+        while offset < batch.num_rows:
+            part = batch.slice(offset, chunk)
+            seen += part.num_rows
+            if seen > limits.max_rows:
+                raise DialectError(
+                    f"Query exceeded the result limit of {limits.max_rows} rows (lakegate serve "
+                    "--max-rows): narrow it with WHERE, LIMIT or an aggregate",
+                    error_name="GENERIC_INSUFFICIENT_RESOURCES",
+                )
+            data = orjson.dumps(list(zip(*encode_columns(columns, part))))  # rows as tuples: cheaper than lists
+            yield _Page(data, part.num_rows)
+            offset += part.num_rows
+            chunk = max(1, min(MAX_PAGE_ROWS, limits.page_bytes * part.num_rows // max(1, len(data))))
+
+
+class QueryManager:
+    """The server's queries: at most `max_concurrent_queries` running (and as many zombies, see the
+    module docstring), a bounded queue, and the reaper that enforces the time limit, abandons
+    queries clients left and forgets old ones."""
+
+    def __init__(self, planner: Planner, limits: Limits):
+        self.planner, self.limits = planner, limits
+        self.ids = QueryIds()
+        self._queries: dict[str, Query] = {}
+        self._lock = threading.Lock()
+        self._waiting = 0  # queries created and not yet running or failed
+        self._queue: deque[Query] = deque()  # queries given to `start`, waiting for a worker
+        self._running = 0  # workers of queries that have not ended
+        self._zombies = 0  # workers of ended queries that still run
+        self._stop = threading.Event()
+        self._reaper = threading.Thread(target=self._reap, name="lakegate-reaper", daemon=True)
+        self._reaper.start()
+
+    def create(self, sql: str, session: Session) -> Query:
+        """A new query for one statement, queued (`start` hands it to a worker), or failed with
+        QUERY_QUEUE_FULL when too many wait."""
+        with self._lock:
+            full = self._waiting >= self.limits.max_queued_queries
+            self._waiting += 0 if full else 1
+        query = Query(self.ids.next(), sql, session, dequeued=(lambda: None) if full else self._dequeued)
+        with self._lock:
+            self._queries[query.id] = query
+        if full:
+            query.fail(Failure('Too many queued queries for "global"', "QUERY_QUEUE_FULL"))
+        return query
+
+    def _dequeued(self) -> None:
+        with self._lock:
+            self._waiting -= 1
+
+    def start(self, query: Query) -> None:
+        """Give a queued query to the next free worker."""
+        with self._lock:
+            self._queue.append(query)
+            self._dispatch()
+
+    def _dispatch(self) -> None:
+        """Start a worker for each queued query a slot is free for (lock held)."""
+        while self._running < self.limits.max_concurrent_queries and self._queue:
+            query = self._queue.popleft()
+            if query.done:
+                continue  # failed while queued
+            self._running += 1
+            query.working = True
+            threading.Thread(target=self._work, args=(query,), name=f"lakegate-query-{query.id}", daemon=True).start()
+
+    def _work(self, query: Query) -> None:
+        try:
+            self._run(query)
+        except _Abandoned:
+            pass
+        finally:
+            with self._lock:
+                query.working = False
+                if query.zombie:
+                    self._zombies -= 1
+                else:
+                    self._running -= 1
+                self._dispatch()
+
+    def _bury(self, query: Query) -> None:
+        """Count an ended query whose worker still runs as a zombie, freeing its slot (while fewer
+        than `max_concurrent_queries` zombies are counted)."""
+        with self._lock:
+            if query.working and not query.zombie and self._zombies < self.limits.max_concurrent_queries:
+                query.zombie = True
+                self._running -= 1
+                self._zombies += 1
+                self._dispatch()
+
+    def get(self, query_id: str) -> Query | None:
+        with self._lock:
+            return self._queries.get(query_id)
+
+    def queries(self) -> list[Query]:
+        with self._lock:
+            return list(self._queries.values())
+
+    def _run(self, query: Query) -> None:
+        if not query.begin():
+            return
+        batches = None
+        try:
+            result = query.plan(lambda: self.planner.start(query.sql, query.session))
+            batches = result.batches
+            query.attach(result)
+            held = None  # each page waits for the next, so that the last one ends the query with it
+            for page in _pages(result.columns, batches, self.limits):
+                if held is not None:
+                    query.put(held)
+                held = page
+            if held is not None:
+                query.put(held, last=True)
+            else:
+                query.finish()
+        except _Stopped:
+            pass
+        except DialectError as error:
+            query.fail(Failure.of(error))
+        except Exception as error:  # a bug: the client gets GENERIC_INTERNAL_ERROR, the log the traceback
+            log.exception("query %s failed", query.id)
+            failure = Failure.of(error)
+            query.fail(
+                Failure(hide_paths(failure.message, getattr(self.planner.backend, "lake", None)), failure.error_name)
+            )
+        finally:
+            close = getattr(batches, "close", None)
+            if close is not None:
+                close()
+
+    def kill(self, query_id: str, message: str | None, session: Session, *, owner_only: bool) -> None:
+        """CALL system.runtime.kill_query: fail a running or queued query with ADMINISTRATIVELY_KILLED."""
+        query = self.get(query_id)
+        if query is None:
+            raise sessions.query_not_found(query_id)
+        if owner_only and query.session.user != session.user:
+            raise DialectError(
+                f"Access Denied: Cannot kill query owned by {query.session.user}", error_name="PERMISSION_DENIED"
+            )
+        text = f"Query killed. Message: {message}" if message else "Query killed. No message provided."
+        if query.done or not query.fail(Failure(text, "ADMINISTRATIVELY_KILLED")):
+            raise DialectError(f"Target query is not running: {query_id}", error_name="NOT_SUPPORTED")
+
+    def _reap(self) -> None:
+        limits = self.limits
+        while not self._stop.wait(REAP_INTERVAL):
+            now = time.monotonic()
+            for query in self.queries():
+                idle = now - query.last_access
+                if query.running and query.elapsed("started") > limits.query_timeout:
+                    query.fail(Failure.of(time_limit_error(limits.query_timeout)))
+                elif not query.done and idle > limits.client_timeout:
+                    query.fail(
+                        Failure(
+                            f"Query {query.id} was abandoned by the client: its results have not "
+                            f"been accessed for {limits.client_timeout:g}s",
+                            "ABANDONED_QUERY",
+                        )
+                    )
+                if query.failure is not None and query.working:
+                    query.interrupt()
+                    self._bury(query)
+                if query.done and not query.working and idle > limits.retention:
+                    with self._lock:
+                        self._queries.pop(query.id, None)
+
+    def close(self) -> None:
+        """Fail every query (SERVER_SHUTTING_DOWN), stop the reaper and wait (at most
+        SHUTDOWN_GRACE seconds) for the workers to stop."""
+        self._stop.set()
+        self._reaper.join()
+        queries = self.queries()
+        for query in queries:
+            query.fail(Failure("The server is shutting down", "SERVER_SHUTTING_DOWN"))
+        deadline = time.monotonic() + SHUTDOWN_GRACE
+        while any(query.working for query in queries) and time.monotonic() < deadline:
+            for query in queries:  # repeat interrupts that came before DuckDB started
+                query.interrupt()
+            time.sleep(0.05)
+        working = sum(query.working for query in queries)
+        if working:
+            log.warning("%d query workers still run at shutdown; they are left to end with the process", working)
+
+
+# --- immediate answers --------------------------------------------------------------------------

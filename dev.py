@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Set up and run lakegate on a fresh machine that has only python3.
 
-    python3 dev.py demo [ARGS...]   create .venv, install lakegate, run `lakegate demo`
+    python3 dev.py demo [ARGS...]   create .venv, install lakegate (only what it needs), run `lakegate demo`
     python3 dev.py test [ARGS...]   create .venv, install lakegate[test], lint (ruff), run the test suite
     python3 dev.py lint             only the lint: `ruff check` and `ruff format --check`
     python3 dev.py bench NAME       run bench/NAME.py (results go to bench/RESULTS.md)
@@ -17,7 +17,9 @@
                                     one summary line per group, a report file (tools/trino_corpus/)
     python3 dev.py lakegate ARGS    run any lakegate command inside .venv
 
-The virtual environment is reinstalled only when pyproject.toml changes.
+`demo`, `lakegate` and `trino` install lakegate alone; `test`, `lint`, `bench` and `fuzz` add the test
+extras (pytest, Playwright, pandas, ...). The virtual environment is reinstalled only when
+pyproject.toml changes or a command needs extras it lacks.
 """
 
 from __future__ import annotations
@@ -39,21 +41,24 @@ def _run(cmd: list[str], env: dict[str, str] | None = None) -> int:
     return subprocess.call([str(c) for c in cmd], cwd=ROOT, env=env)
 
 
-def ensure_venv(extras: str = "test") -> None:
-    """Create .venv and install the project into it (editable) if not done yet."""
+def ensure_venv(extras: str = "") -> None:
+    """Create .venv and install the project into it (editable, with `extras`, e.g. "test") if not done yet."""
     stamp = VENV / ".lakegate-installed"
-    digest = hashlib.sha256((ROOT / "pyproject.toml").read_bytes() + extras.encode()).hexdigest()
-    if stamp.exists() and stamp.read_text() == digest and PY.exists():
+    digest = hashlib.sha256((ROOT / "pyproject.toml").read_bytes()).hexdigest()
+    installed = stamp.read_text().split() if stamp.exists() else []
+    if PY.exists() and installed[:1] == [digest] and (not extras or extras in installed[1:]):
         return
     if not PY.exists():
         print(f"creating {VENV} ...", flush=True)
         venv.EnvBuilder(with_pip=True).create(VENV)
     print("installing lakegate and its dependencies into .venv ...", flush=True)
     quiet = ["-q"] if os.environ.get("CI") or not sys.stdout.isatty() else []
-    rc = _run([PY, "-m", "pip", "install", *quiet, "--disable-pip-version-check", "-e", f".[{extras}]"])
+    target = f".[{extras}]" if extras else "."
+    rc = _run([PY, "-m", "pip", "install", *quiet, "--disable-pip-version-check", "-e", target])
     if rc:
         sys.exit(rc)
-    stamp.write_text(digest)
+    kept = installed[1:] if installed[:1] == [digest] else []  # extras installed before, still there
+    stamp.write_text(" ".join([digest, *sorted({*kept, *([extras] if extras else [])})]))
 
 
 def lint() -> int:
@@ -70,7 +75,7 @@ def main(argv: list[str]) -> int:
         print(__doc__)
         return 0
     command, rest = argv[0], argv[1:]
-    ensure_venv()
+    ensure_venv("" if command in {"demo", "lakegate", "trino"} else "test")
     if command == "trino":
         return _run([PY, ROOT / "tools" / "trino_server.py", *rest])
     if command == "fuzz":

@@ -252,7 +252,8 @@ def debug_command(args: argparse.Namespace) -> int:
     # the web stack is imported here, so that other commands start without it
     from lakegate.gateway.dashboard.config_edits import FileConfig, SessionError
     from lakegate.gateway.dashboard.debug_session import DashboardSession
-    from lakegate.gateway.dashboard.routes import DashboardState, dashboard_router
+    from lakegate.gateway.dashboard.landing import pages_router
+    from lakegate.gateway.dashboard.routes import DashboardState
     from lakegate.gateway.engine.engine import Engine
     from lakegate.gateway.server.app import create_app
 
@@ -324,7 +325,7 @@ def debug_command(args: argparse.Namespace) -> int:
             + ", ".join(f"{n} {s}" for s, n in counts.items() if n)
             + f") in {session.seconds:.2f} s"
         )
-        server = _server(create_app(state.engine, dashboard_router=dashboard_router(state)))
+        server = _server(create_app(state.engine, dashboard_router=pages_router(state)))
         with _stop_on_signals(server):  # from here on Ctrl+C and SIGTERM stop the server, never interrupt
             print(
                 f"SQL endpoint (Trino protocol): http://{shown_host}:{port} (catalog lake, schema {args.branch!r})",

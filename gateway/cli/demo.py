@@ -23,6 +23,8 @@ What the comparison shows is built into the plans below (fixtures/generate.py `p
 from __future__ import annotations
 
 import argparse
+import shlex
+import shutil
 import sys
 import time
 from datetime import timedelta
@@ -79,6 +81,27 @@ EARLIER_BUILDS = (
 RERUNS = (("Narrow Aisle", "PASSED"), ("Narrow Aisle", "PASSED"))
 #: Samples per goal of each earlier batch's jobs (small: they only feed the trend and the comparison).
 EARLIER_SAMPLES = 20
+
+
+def lakegate_command() -> str:
+    """How to run `lakegate` again from the current folder, as this process was started: `lakegate`
+    when that is the one on PATH, else the script's path (`.venv/bin/lakegate`), or `python -m`."""
+    script = Path(sys.argv[0]).absolute()
+    if script.name != "lakegate":  # python -m lakegate.gateway.cli
+        return f"{shlex.quote(_shown_path(Path(sys.executable)))} -m lakegate.gateway.cli"
+    on_path = shutil.which("lakegate")
+    if on_path is not None and Path(on_path).absolute() == script:
+        return "lakegate"
+    return shlex.quote(_shown_path(script))
+
+
+def _shown_path(path: Path) -> str:
+    """`path` relative to the current folder when it is inside it, else absolute."""
+    path = path.absolute()
+    if not path.is_relative_to(Path.cwd()):
+        return str(path)
+    relative = str(path.relative_to(Path.cwd()))
+    return relative if "/" in relative else f"./{relative}"
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -223,17 +246,20 @@ def demo_command(args: argparse.Namespace) -> int:
     print(f"trends:  {trends_path}")
     print(f"compare: {compare_path}")
     print(f"lake:    {lake}  (branch {BRANCH!r}, batch {BATCH!r}; done in {time.perf_counter() - started:.1f} s)")
+    lakegate, where = lakegate_command(), shlex.quote(str(args.lake))
     print("\nnext:")
     print(
-        f'  lakegate query --lake {args.lake} "SELECT metric_name, status, COUNT(*) FROM metric_results '
+        f'  {lakegate} query --lake {where} "SELECT metric_name, status, COUNT(*) FROM metric_results '
         'GROUP BY 1, 2 ORDER BY 1, 2"'
     )
-    print(f"  lakegate metrics run --lake {args.lake} --branch {BRANCH} --batch {BATCH} --metrics-set '{METRICS_SET}'")
-    print(f"  lakegate metrics dashboard --lake {args.lake} --branch {BRANCH} --window 2")
+    print(f"  {lakegate} metrics run --lake {where} --branch {BRANCH} --batch {BATCH} --metrics-set '{METRICS_SET}'")
+    print(f"  {lakegate} metrics dashboard --lake {where} --branch {BRANCH} --window 2")
+    batches = ",".join([*(batch for batch, *_ in EARLIER_BUILDS), BATCH])
+    print(f"  {lakegate} metrics report --lake {where} --branch {BRANCH} --batches {batches}")
     print(
-        f"  lakegate compare --lake {args.lake} --branch {BRANCH} --base-build 1.4.1 --build {BUILD_VERSION} "
+        f"  {lakegate} compare --lake {where} --branch {BRANCH} --base-build 1.4.1 --build {BUILD_VERSION} "
         "--fail-on new-failures"
     )
-    print(f"  lakegate flakes --lake {args.lake} --branch {BRANCH}")
-    print(f"  lakegate serve --lake {args.lake}   # then open {LINK_BASE}/dashboard/trends/?branch={BRANCH}")
+    print(f"  {lakegate} flakes --lake {where} --branch {BRANCH}")
+    print(f"  {lakegate} serve --lake {where}   # then open {LINK_BASE}/")
     return 0

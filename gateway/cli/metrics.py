@@ -52,7 +52,6 @@ from lakegate.gateway.metrics.evaluation import (
 )
 from lakegate.gateway.metrics.gating import FAIL_STATES, fail_exit_code, parse_fail_on_states
 from lakegate.gateway.metrics.report import job_title, write_report
-from lakegate.gateway.metrics.templates import display_value
 from lakegate.gateway.metrics.trends import (
     BatchInfo,
     TrendsEvaluation,
@@ -649,23 +648,11 @@ def format_trends(evaluation: TrendsEvaluation) -> str:
     return "\n".join(line.rstrip() for line in lines)
 
 
-#: Small tables and pies are shown in full in the results table (`label: value; ...`).
-INLINE_ROWS = 6
-
-
 def _value(result: MetricResult) -> str:
+    """The result's one-line summary (the same in JSON, the report and the dashboard), with its problems."""
     if result.error is not None:
         return str(result.error)
-    rendered = result.rendered
     text = result.value_text or ""
-    if rendered is not None and rendered.template == "table" and rendered.table is not None:
-        columns, rows = rendered.table["columns"], rendered.table["rows"]
-        if len(columns) == 2 and 0 < len(rows) <= INLINE_ROWS:
-            text = "; ".join(f"{display_value(k)}: {display_value(v)}" for k, v in rows)
-    elif rendered is not None and rendered.template == "pie" and rendered.figure is not None:
-        pie = rendered.figure["data"][0]
-        if 0 < len(pie["labels"]) <= INLINE_ROWS:
-            text = "; ".join(f"{label}: {display_value(v)}" for label, v in zip(pie["labels"], pie["values"]))
     if result.rendered is not None and result.rendered.problems:
         text += f" ({'; '.join(result.rendered.problems)})"
     return text

@@ -4,7 +4,8 @@ It listens on 127.0.0.1 by default. Listening on any other address needs `--user
 Basic against bcrypt hashes) and `--tls-cert/--tls-key`: the trino client sends passwords only
 over https, and a lake open to the network needs both. On loopback, `--users` works without TLS
 (clients then need `http_scheme='http'` and, for the trino client, `allow_insecure_auth=True`).
-Once listening it prints one line, `lakegate: serving <lake> at <url> ...`, to standard output.
+Once listening it prints one line, `lakegate: serving <lake> at <url> (catalog C); dashboard <url>/dashboard/;
+Ctrl-C stops`, to standard output. `/` is a landing page (gateway/dashboard/landing.py).
 SIGINT / SIGTERM stop it within `STOP_GRACE` seconds whatever its queries do: every query fails at
 once with SERVER_SHUTTING_DOWN, which each client waiting for one gets (the server keeps answering
 for up to `DELIVERY_GRACE` seconds), then it stops with exit code 0, leaving behind any query work
@@ -279,7 +280,8 @@ def _check_options(args: argparse.Namespace) -> Users | None:
 def serve_command(args: argparse.Namespace) -> int:
     import uvicorn  # the server's imports cost every other command their start-up time: load them here
 
-    from lakegate.gateway.dashboard.routes import DashboardState, dashboard_router
+    from lakegate.gateway.dashboard.landing import pages_router
+    from lakegate.gateway.dashboard.routes import DashboardState
     from lakegate.gateway.engine.engine import Engine
     from lakegate.gateway.engine.isolated_backend import IsolatedBackend
     from lakegate.gateway.server.app import create_app
@@ -317,7 +319,7 @@ def serve_command(args: argparse.Namespace) -> int:
         app = create_app(
             engine,
             users=users,
-            dashboard_router=dashboard_router(dashboard),
+            dashboard_router=pages_router(dashboard),
             allowed_hosts=args.allowed_host,
         )
         config = server_config(
@@ -332,9 +334,10 @@ def serve_command(args: argparse.Namespace) -> int:
         host, port = sock.getsockname()[:2]
         shown = f"[{host}]" if ":" in host else host
         scheme = "https" if args.tls_cert else "http"
+        url = f"{scheme}://{shown}:{port}"
         print(
-            f"lakegate: serving {args.lake.resolve()} at {scheme}://{shown}:{port} (catalog {args.catalog}); "
-            "Ctrl-C stops",
+            f"lakegate: serving {args.lake.resolve()} at {url} (catalog {args.catalog}); "
+            f"dashboard {url}/dashboard/; Ctrl-C stops",
             flush=True,
         )
         # uvicorn shuts down gracefully on SIGINT / SIGTERM, then raises the signal again: both end here

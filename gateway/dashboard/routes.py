@@ -63,6 +63,7 @@ from lakegate.gateway.metrics.alerts import HISTORY, K, alerts_html, trend_check
 from lakegate.gateway.metrics.compare import compare_batches, previous_build_batch
 from lakegate.gateway.metrics.compare_page import compare_html
 from lakegate.gateway.metrics.evaluation import MetricsEngine
+from lakegate.gateway.metrics.figures_html import IMAGE_CSS, ORIGINAL_IMAGE_JS, page_html
 from lakegate.gateway.metrics.results import read_results
 from lakegate.gateway.metrics.trends import (
     BatchInfo,
@@ -81,6 +82,11 @@ from lakegate.lake.paths import LakePathError
 STATIC = Path(__file__).resolve().parent / "static"
 #: Files of the page, by URL name.
 PAGE_FILES = {"dashboard.js": "text/javascript", "dashboard.css": "text/css"}
+#: What the dashboard shares with the other pages (gateway/metrics/figures_html.py): how images are
+#: scaled and open their original on a click.
+SHARED_FILES = {"images.css": (IMAGE_CSS, "text/css"), "images.js": (ORIGINAL_IMAGE_JS, "text/javascript")}
+#: The header bar's links of every served page.
+SERVED_NAV = '<a href="/">Home</a><a href="/dashboard/">Dashboard</a><a href="/dashboard/trends/">Trends</a>'
 #: Sessions on stored batches kept at once per user (the user's least recently opened is dropped first).
 MAX_SESSIONS = 16
 
@@ -216,7 +222,7 @@ class DashboardState:
         ids = [b.batch_id for b in batches]
         form = self.compare_form(branch, ids[-2] if len(ids) > 1 else None, ids[-1] if ids else None, batches)
         alerts = alerts_html(trend_checks(self.evaluator, branch, ids, k=k, history=history))
-        return trends_html(evaluation, plotlyjs="/dashboard/static/plotly.min.js", intro=form + alerts)
+        return trends_html(evaluation, plotlyjs="/dashboard/static/plotly.min.js", intro=form + alerts, nav=SERVED_NAV)
 
     def compare(self, branch: str, batch: str | None, base: str | None = None) -> str:
         """The comparison page of batch `batch` with `base` (default: the latest batch of the previous
@@ -231,7 +237,7 @@ class DashboardState:
         except LookupError as error:
             raise SessionError(str(error.args[0])) from None
         intro = self.compare_form(branch, base, batch)
-        return compare_html(comparison, plotlyjs="/dashboard/static/plotly.min.js", intro=intro)
+        return compare_html(comparison, plotlyjs="/dashboard/static/plotly.min.js", intro=intro, nav=SERVED_NAV)
 
     def compare_form(
         self, branch: str, base: str | None, batch: str | None, batches: Sequence[BatchInfo] | None = None
@@ -260,17 +266,19 @@ class DashboardState:
         )
 
     def trends_index(self) -> str:
-        """A page linking to each branch's trends page."""
+        """A page linking to each branch's trends page (and its named dashboards)."""
         items = "".join(
             f'<li><a href="?{urlencode({"branch": b})}">{html.escape(b)}</a>{self._dashboard_links(b)}</li>'
             for b in self.catalog.branches()
         )
-        return (
-            '<!DOCTYPE html>\n<html lang="en">\n<head><meta charset="utf-8"><title>lakegate · trends</title></head>\n'
-            "<body>\n<h1>Trends: dashboard metrics of each branch</h1>\n"
-            f"<ul>{items or '<li>no branches yet</li>'}</ul>\n"
-            '<p><a href="../">Batches: the metrics dashboard</a></p>\n</body>\n</html>\n'
+        body = (
+            "<h1>Trends: dashboard metrics of each branch</h1>\n"
+            '<p class="lg-meta">Each branch\'s <code>type: dashboard</code> metrics over its batches and builds, '
+            "evaluated when the page opens.</p>\n"
+            f'<ul class="lg-list">{items or "<li>no branches yet</li>"}</ul>\n'
+            '<p><a href="../">Batches: the metrics dashboard</a></p>'
         )
+        return page_html("lakegate · trends", body, nav=SERVED_NAV)
 
     def _dashboard_links(self, branch: str) -> str:
         """`: <a>N</a>, ...` for each dashboard of the branch's stored config ('' when it has none or does not load)."""
@@ -305,12 +313,11 @@ def attachment(filename: str) -> str:
 
 
 def _error_page(message: str, what: str = "trends") -> str:
-    return (
-        f'<!DOCTYPE html>\n<html lang="en">\n<head><meta charset="utf-8"><title>lakegate · {what}</title></head>\n'
-        f"<body>\n<h1>Cannot show the {what}</h1>\n<p>{html.escape(message)}</p>\n"
-        '<p><a href="/dashboard/trends/">All branches</a></p>\n'
-        "</body>\n</html>\n"
+    body = (
+        f"<h1>Cannot show the {what}</h1>\n"
+        f'<p class="lg-error">{html.escape(message)}</p>\n<p><a href="/dashboard/trends/">All branches</a></p>'
     )
+    return page_html(f"lakegate · {what}", body, nav=SERVED_NAV)
 
 
 def _bad_request(error: Exception) -> HTTPException:
@@ -356,6 +363,9 @@ def dashboard_router(state: DashboardState) -> APIRouter:
     def static(name: str) -> FileResponse:
         if name == "plotly.min.js":
             return FileResponse(plotly_js(), media_type="text/javascript", headers={"Cache-Control": "max-age=86400"})
+        if name in SHARED_FILES:
+            text, media_type = SHARED_FILES[name]
+            return Response(text, media_type=media_type, headers={"Cache-Control": "no-cache"})
         if name not in PAGE_FILES:
             raise HTTPException(404, f"no file {name!r}")
         return FileResponse(STATIC / name, media_type=PAGE_FILES[name], headers={"Cache-Control": "no-cache"})

@@ -124,8 +124,9 @@ def _change_item(change: MetricChange) -> tuple[str, Rendered, dict[str, Any]]:
     return f"{change.metric} ({where})", rendered, {"description": "; ".join(text), "units": change.units}
 
 
-def compare_html(comparison: Comparison, *, plotlyjs: str | bool = True, intro: str = "") -> str:
-    """The comparison's page; `intro` is HTML put under the title (the served page's navigation)."""
+def compare_html(comparison: Comparison, *, plotlyjs: str | bool = True, intro: str = "", nav: str = "") -> str:
+    """The comparison's page; `intro` is HTML put under the title (the served page's form), `nav` the
+    header bar's links."""
     changed = [m for m in comparison.metrics if m.changed]
     drawn = [m for m in changed if m.base_value is not None or m.new_value is not None or m.series is not None]
     sections = [("Summary", [summary_item(comparison)])]
@@ -135,7 +136,7 @@ def compare_html(comparison: Comparison, *, plotlyjs: str | bool = True, intro: 
         sections.append(("Changed metrics", [_metrics_table(changed)]))
         sections.append(("Base and new", [_change_item(m) for m in drawn[:MAX_FIGURES]]))
     title = f"Compare {comparison.base} -> {comparison.new} on branch {comparison.branch}"
-    return report_html(title, sections, plotlyjs=plotlyjs, intro=intro)
+    return report_html(title, sections, plotlyjs=plotlyjs, intro=intro, nav=nav)
 
 
 def write_compare(comparison: Comparison, path: Path) -> Path:

@@ -69,7 +69,7 @@ def _event_items(event: Event, logs_dir: Path | None) -> list[Item]:
     items: list[Item] = [(title, table, info)]
     for attached in event.metrics:
         name = f"{title}: {attached.name}"
-        extra = {"description": attached.description or ""}
+        extra = {"description": attached.description or "", "contents": False}  # listed with its event
         if attached.type == "image":
             files = attached.value if isinstance(attached.value, list) else [attached.value]
             try:

@@ -14,7 +14,7 @@ from __future__ import annotations
 import datetime as dt
 import math
 import zlib
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from decimal import Decimal
 from pathlib import Path
@@ -30,24 +30,40 @@ from lakegate.lake.storage import LOCAL
 FILE_TEMPLATES = ("image", "video", "artifact")
 FILE_COLUMNS = ["file", "path", "bytes", "type"]
 
-#: Colours of states in a state timeline; a state's colour is PALETTE[crc32(name) % len].
+#: Badge colours of metric and job statuses; every chart whose categories are statuses (a pie of
+#: `job_conflated_status`, a state timeline of statuses, bars per status) draws them in these colours.
+STATUS_COLOURS = {
+    "PASSED": "#2e7d32",
+    "WARNING": "#e08e00",
+    "BLOCKER": "#c62828",
+    "ERROR": "#6a1b9a",
+    "NOT_RUN": "#757575",
+    "NO_DATA": "#90a4ae",
+}
+
+#: Colours of the other states of a state timeline (see `state_colours`): distinct, saturated (a short
+#: segment still shows), none a status colour.
 PALETTE = (
     "#1f77b4",
     "#ff7f0e",
-    "#2ca02c",
-    "#d62728",
-    "#9467bd",
-    "#8c564b",
-    "#e377c2",
-    "#7f7f7f",
-    "#bcbd22",
     "#17becf",
+    "#e377c2",
+    "#8c564b",
+    "#bcbd22",
+    "#9467bd",
     "#393b79",
-    "#ad494a",
     "#637939",
     "#7b4173",
+    "#843c39",
     "#3182bd",
     "#e6550d",
+    "#756bb1",
+    "#d6616b",
+    "#e7ba52",
+    "#6baed6",
+    "#a55194",
+    "#636363",
+    "#00897b",
 )
 
 _IMAGE_MAGIC = (
@@ -113,9 +129,34 @@ def render(
     return _CHARTS[template](result)
 
 
-def state_colour(state: str) -> str:
-    """The colour of a state in every state timeline: stable across metrics, runs and processes."""
-    return PALETTE[zlib.crc32(state.encode("utf-8")) % len(PALETTE)]
+def state_colours(states: Iterable[str]) -> dict[str, str]:
+    """The colour of each state of one chart: distinct within the chart, and the same for a state
+    in every chart, job, page and process as far as distinctness allows.
+
+    A state named as a status (PASSED, WARNING, ...) takes its badge colour; any other state takes
+    the `PALETTE` slot of its name's CRC-32, or, when a state earlier in name order holds that slot
+    in this chart, the next free one (so only states whose names share a slot can differ between
+    charts). With more states than colours, colours repeat.
+    """
+    names = set(states)
+    colours = {state: STATUS_COLOURS[state] for state in names if state in STATUS_COLOURS}
+    taken: set[int] = set()
+    for state in sorted(names - set(colours)):
+        slot = zlib.crc32(state.encode("utf-8")) % len(PALETTE)
+        for step in range(len(PALETTE)):
+            if (slot + step) % len(PALETTE) not in taken:
+                slot = (slot + step) % len(PALETTE)
+                break
+        taken.add(slot)
+        colours[state] = PALETTE[slot]
+    return colours
+
+
+def status_colours(labels: Sequence[str]) -> list[str] | None:
+    """The badge colour of each label when every one is a status name (None otherwise, or for none)."""
+    if not labels or not all(label in STATUS_COLOURS for label in labels):
+        return None
+    return [STATUS_COLOURS[label] for label in labels]
 
 
 def image_mime(path: Path) -> str | None:
@@ -390,6 +431,7 @@ def _line(result: _Result) -> Rendered:
                 "y": [ys[i] for i in indexes],
             }
         )
+    _colour_statuses(traces, "line")
     layout = _layout(result.names[x], result.names[y], hovermode="closest", **_link_meta(result, groups))
     if dates or categorical:
         layout["xaxis"]["type"] = "date" if dates else "category"
@@ -399,6 +441,13 @@ def _line(result: _Result) -> Rendered:
         text=f"{_plural(len(traces), 'series', 'series')}, {_plural(len(result.rows), 'point')}",
         problems=problems,
     )
+
+
+def _colour_statuses(traces: list[dict], part: str) -> None:
+    """Give each trace its status's badge colour (its `part`, marker or line) when every trace is named as a status."""
+    colours = status_colours([trace["name"] for trace in traces])
+    for trace, colour in zip(traces, colours or []):
+        trace[part] = {"color": colour}
 
 
 def _bar(result: _Result) -> Rendered:
@@ -418,6 +467,9 @@ def _bar(result: _Result) -> Rendered:
         {"type": "bar", "name": name, "x": [xs[i] for i in indexes], "y": [ys[i] for i in indexes]}
         for name, indexes in groups.items()
     ]
+    _colour_statuses(traces, "marker")
+    if len(traces) == 1 and categorical and (colours := status_colours(traces[0]["x"])) is not None:
+        traces[0]["marker"] = {"color": colours}
     layout = _layout(result.names[x], result.names[y], barmode="group", **_link_meta(result, groups))
     if categorical:
         layout["xaxis"]["type"] = "category"
@@ -447,7 +499,8 @@ def _table(result: _Result) -> Rendered:
         template="table",
         figure=figure,
         table={"columns": list(result.names), "rows": [[json_value(v) for v in row] for row in result.rows]},
-        text=f"{_plural(len(result.rows), 'row')}, {_plural(len(result.names), 'column')}",
+        text=(len(result.names) == 2 and _inline([tuple(row) for row in result.rows]))
+        or f"{_plural(len(result.rows), 'row')}, {_plural(len(result.names), 'column')}",
     )
 
 
@@ -569,7 +622,6 @@ def _state_timeline(result: _Result) -> Rendered:
                 "type": "bar",
                 "orientation": "h",
                 "name": state,
-                "marker": {"color": state_colour(state)},
                 "y": [],
                 "x": [],
                 "base": [],
@@ -583,6 +635,8 @@ def _state_timeline(result: _Result) -> Rendered:
         trace["base"].append(start)
         trace["x"].append(max(end - start, min_width))
         trace["customdata"].append([start, end])
+    for state, colour in state_colours(traces).items():
+        traces[state]["marker"] = {"color": colour}
     systems = list(samples)
     layout = _layout(
         "Elapsed time (s)",
@@ -591,7 +645,10 @@ def _state_timeline(result: _Result) -> Rendered:
         height=140 + 50 * len(systems),
         legend={"title": {"text": result.names[2]}},
     )
-    layout["yaxis"].update(type="category", categoryorder="array", categoryarray=systems, autorange="reversed")
+    layout["yaxis"].update(
+        type="category", categoryorder="array", categoryarray=systems, autorange="reversed", automargin=True
+    )
+    layout["yaxis"]["title"]["standoff"] = 12  # with automargin: the title clear of the systems' names
     return Rendered(
         template="state_timeline",
         figure={"data": list(traces.values()), "layout": layout},
@@ -626,6 +683,8 @@ def _histogram(result: _Result) -> Rendered:
         if with_series:
             trace.update(name=name, opacity=0.6)
         traces.append(trace)
+    if with_series:
+        _colour_statuses(traces, "marker")
     counted = sum(1 for value in values if value is not None)
     nulls = sum(1 for row in result.rows if row[value_column] is None)
     if nulls:
@@ -652,11 +711,25 @@ def _pie(result: _Result) -> Rendered:
             raise result.bad_value(number, 1, "non-negative numeric values")
         labels.append(display_value(label))
         values.append(value)
-    figure = {
-        "data": [{"type": "pie", "labels": labels, "values": values, "sort": False, "name": result.names[1]}],
-        "layout": _layout(),
-    }
-    return Rendered(template="pie", figure=figure, text=_plural(len(labels), "slice"), problems=problems)
+    trace: dict[str, Any] = {"type": "pie", "labels": labels, "values": values, "sort": False, "name": result.names[1]}
+    colours = status_colours(labels)
+    if colours is not None:
+        trace["marker"] = {"colors": colours}
+    figure = {"data": [trace], "layout": _layout()}
+    text = _inline(list(zip(labels, values))) or _plural(len(labels), "slice")
+    return Rendered(template="pie", figure=figure, text=text, problems=problems)
+
+
+#: A pie of at most this many slices, or a two-column table of at most this many rows, is summed up
+#: by its values (`label: value; ...`) rather than by its size.
+INLINE_ROWS = 6
+
+
+def _inline(pairs: list[tuple[Any, Any]]) -> str:
+    """`a: 1; b: 2` for 1 to INLINE_ROWS (label, value) pairs, else ''."""
+    if not 0 < len(pairs) <= INLINE_ROWS:
+        return ""
+    return "; ".join(f"{display_value(label)}: {display_value(value)}" for label, value in pairs)
 
 
 #: Renderers of the templates that need nothing but the result.

@@ -197,10 +197,10 @@ def _batches_item(evaluation: TrendsEvaluation) -> Item:
 
 
 def trends_html(
-    evaluation: TrendsEvaluation, *, link_base: str = "", plotlyjs: str | bool = True, intro: str = ""
+    evaluation: TrendsEvaluation, *, link_base: str = "", plotlyjs: str | bool = True, intro: str = "", nav: str = ""
 ) -> str:
     """The page of an evaluation: its batches, then every metric; links go to `link_base`'s dashboard
-    (`intro`: HTML shown under the title)."""
+    (`intro`: HTML shown under the title; `nav`: the header bar's links)."""
     kind = "Dashboard" if evaluation.kind == "dashboard" else "Report"
     title = f"{kind} of branch {evaluation.branch}: {evaluation.status}"
     sections = [
@@ -213,6 +213,7 @@ def trends_html(
         link=lambda value: batch_link(evaluation.branch, value, link_base),
         plotlyjs=plotlyjs,
         intro=intro,
+        nav=nav,
     )
 
 

@@ -112,7 +112,7 @@ def test_dashboard_in_a_real_browser(tmp_path: Path, nav_jobs, debug_processes) 
                     elif kind == "scalar":
                         assert re.fullmatch(r"-?[\d.]+( \S+)?", card.locator(".scalar").inner_text()), name
                     else:
-                        image = card.locator(".images img").first
+                        image = card.locator(".lg-images img").first
                         image.wait_for()
                         assert image.evaluate("img => img.complete && img.naturalWidth > 0"), name
             page.screenshot(path=str(artifacts / "dashboard-metrics.png"), full_page=True)

@@ -52,8 +52,12 @@ def test_demo_from_anywhere_with_no_arguments_then_again(tmp_path):
             branch=BRANCH,
             params=[BATCH],
         ).rows()
+        unevaluated = backend.execute(
+            "SELECT count(*) FROM metadata WHERE job_conflated_status IS NULL", branch=BRANCH
+        ).rows()
     finally:
         backend.close()
+    assert unevaluated == [(0,)]  # the earlier builds' batches are evaluated too: no NULL status to explain
     assert statuses == [("BLOCKER", 2), ("PASSED", 4), ("WARNING", 2)]  # the cycle of 6, two reruns PASSED
 
     html = report.read_text()
@@ -67,12 +71,52 @@ def test_demo_from_anywhere_with_no_arguments_then_again(tmp_path):
 
     check_trends(out, lake)
     check_comparison(out, lake)
+    check_next_hints(out, tmp_path)
+    check_readme_commands(tmp_path)
 
     results = read_results(lake, BRANCH, BATCH)
     again = demo("--lake", lake, "--no-progress", cwd=tmp_path)
     assert "4 PASSED, 2 WARNING, 2 BLOCKER" in again
     assert len(read_results(lake, BRANCH, BATCH)) == len(results) == 8 * 9 + 6  # replaced, not added
     assert len(Catalog(lake).jobs(BRANCH)) == 8 + 3 + 6  # the batch and the two earlier builds' batches
+
+
+def check_next_hints(out: str, cwd: Path) -> None:
+    """Every command the demo suggests runs as printed, in a shell in the folder it ran from (serve until
+    its start-up line)."""
+    hints = [line.strip() for line in out.split("\nnext:\n", 1)[1].splitlines() if line.strip()]
+    assert len(hints) >= 6 and all(" -m lakegate.gateway.cli " in hint for hint in hints)  # how this test ran it
+    for hint in hints:
+        if " serve " in hint:
+            server = subprocess.Popen(
+                hint.replace("--lake", "--port 0 --lake"), shell=True, cwd=cwd, stdout=subprocess.PIPE, text=True
+            )
+            try:
+                assert "lakegate: serving" in server.stdout.readline()
+            finally:
+                server.terminate()
+                server.wait(timeout=30)
+            continue
+        done = subprocess.run(hint, shell=True, cwd=cwd, capture_output=True, text=True, timeout=120)
+        # exit codes of a gate: 2 a metric blocks (metrics run), 4 a new failure (compare --fail-on)
+        assert done.returncode in (0, 2, 4), f"{hint}: {done.stderr}"
+        assert done.stdout.strip() and "usage:" not in done.stderr and "lakegate:" not in done.stderr, hint
+
+
+def check_readme_commands(cwd: Path) -> None:
+    """README's commands to explore the demo's lake run on it (`.venv/bin/lakegate` as this test runs
+    lakegate), in the folder the demo ran in; the report metric's page is written."""
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    block = readme.split("Then explore the lake", 1)[1].split("```sh\n", 1)[1].split("```", 1)[0]
+    commands = [c.strip() for c in block.replace("\\\n", " ").split(".venv/bin/lakegate ") if c.strip()]
+    assert len(commands) == 4 and commands[-1].startswith("metrics report --lake lake-demo")
+    for command in commands:
+        done = subprocess.run(
+            f"{' '.join(CLI)} {command}", shell=True, cwd=cwd, capture_output=True, text=True, timeout=120
+        )
+        assert done.returncode in (0, 2), f"{command}: {done.stderr}"  # 2: a metric of the batch blocks
+        assert "NULL" not in done.stdout and "lakegate:" not in done.stderr, command
+    assert "Job Outcomes by Build" in (cwd / "lake-demo" / "builds.html").read_text()
 
 
 def check_comparison(out: str, lake: Path) -> None:

@@ -21,10 +21,11 @@ from plotly.offline import get_plotlyjs
 from lakegate.gateway.metrics.figures_html import figure_html, file_size, report_html
 from lakegate.gateway.metrics.templates import (
     PALETTE,
+    STATUS_COLOURS,
     TemplateError,
     format_number,
     render,
-    state_colour,
+    state_colours,
 )
 
 LINE_COLUMNS = [("group_name", "varchar"), ("Time (s)", "double"), ("Distance to Goal (m)", "double")]
@@ -378,8 +379,10 @@ def test_state_timeline_merges_consecutive_states_per_system():
     assert traces["ACTIVE"]["x"][1] > 0  # a state seen only at the end still shows
     assert traces["ACTIVE"]["customdata"] == [[3.0, 6.0], [7.0, 7.0]]
     assert traces["IDLE"]["y"] == ["Navigation", "Arm"] and traces["IDLE"]["x"] == [1.0, 7.0]
+    colours = state_colours(traces)
     for name, trace in traces.items():
-        assert trace["marker"]["color"] == state_colour(name)
+        assert trace["marker"]["color"] == colours[name]
+    assert layout["yaxis"]["automargin"] is True  # the axis title clears the systems' names
     assert rendered.text == "2 systems, 5 segments, 3 states"
 
 
@@ -396,8 +399,8 @@ def test_state_colours_are_stable_across_metrics_and_processes():
     assert colours_a["ACTIVE"] == colours_b["ACTIVE"] and colours_a["FAILED"] == colours_b["FAILED"]
     assert set(colours_a.values()) | set(colours_b.values()) <= set(PALETTE)
     code = (
-        "from lakegate.gateway.metrics.templates import state_colour; "
-        "print(state_colour('ACTIVE'), state_colour('FAILED'))"
+        "from lakegate.gateway.metrics.templates import state_colours; "
+        "colours = state_colours(['FAILED', 'ACTIVE']); print(colours['ACTIVE'], colours['FAILED'])"
     )
     outputs = [  # Python's own hash() of a str differs between these processes; the colours must not
         subprocess.run(
@@ -410,6 +413,48 @@ def test_state_colours_are_stable_across_metrics_and_processes():
         for seed in ("1", "2")
     ]
     assert outputs == [[colours_a["ACTIVE"], colours_a["FAILED"]]] * 2
+
+
+def test_states_of_one_timeline_never_share_a_colour():
+    # WAITING and REACHED (the demo's goal states) fall in one palette slot of 16 colours: each still
+    # gets its own, and keeps it in a job without the other states (one that never aborted)
+    goal_states = ["WAITING", "NAVIGATING", "REACHED", "ABORTED"]
+    demo = render("Goal Status", "state_timeline", TIMELINE_COLUMNS, [("g", t, s) for t, s in enumerate(goal_states)])
+    colours = {t["name"]: t["marker"]["color"] for t in demo.figure["data"]}
+    assert len(set(colours.values())) == 4
+    fewer = render("Goal Status", "state_timeline", TIMELINE_COLUMNS, [("g", 0, "WAITING"), ("g", 1, "REACHED")])
+    assert {t["name"]: t["marker"]["color"] for t in fewer.figure["data"]} == {
+        "WAITING": colours["WAITING"],
+        "REACHED": colours["REACHED"],
+    }
+    # every palette colour in use, and states named as statuses in their badge colours: still all distinct
+    states = [*goal_states, "PASSED", "BLOCKER", *(f"STATE_{i}" for i in range(len(PALETTE) - 4))]
+    rendered = render("Many", "state_timeline", TIMELINE_COLUMNS, [("g", t, s) for t, s in enumerate(states)])
+    colours = {t["name"]: t["marker"]["color"] for t in rendered.figure["data"]}
+    assert len(set(colours.values())) == len(states)
+    assert colours["PASSED"] == STATUS_COLOURS["PASSED"] and colours["BLOCKER"] == STATUS_COLOURS["BLOCKER"]
+
+
+def test_charts_of_statuses_draw_the_badge_colours():
+    pie = render("Job Outcomes", "pie", [("s", "varchar"), ("n", "bigint")], [("BLOCKER", 2), ("PASSED", 5)])
+    assert pie.figure["data"][0]["marker"]["colors"] == [STATUS_COLOURS["BLOCKER"], STATUS_COLOURS["PASSED"]]
+    bars = render("By status", "bar", [("s", "varchar"), ("n", "bigint")], [("WARNING", 1), ("ERROR", 3)])
+    assert bars.figure["data"][0]["marker"]["color"] == [STATUS_COLOURS["WARNING"], STATUS_COLOURS["ERROR"]]
+    series = render("Per status", "line", LINE_COLUMNS, [("PASSED", 0, 1), ("PASSED", 1, 2), ("BLOCKER", 0, 3)])
+    assert [t["line"]["color"] for t in series.figure["data"]] == [STATUS_COLOURS["PASSED"], STATUS_COLOURS["BLOCKER"]]
+    other = render("Not statuses", "pie", [("s", "varchar"), ("n", "bigint")], [("PASSED", 2), ("maybe", 5)])
+    assert "marker" not in other.figure["data"][0]  # Plotly's own colours when not every label is a status
+
+
+def test_one_summary_of_small_pies_and_two_column_tables():
+    # the one-line summary (value_text: the CLI table, JSON, the report's and dashboard's job matrix)
+    pie = render("P", "pie", [("s", "varchar"), ("n", "bigint")], [("BLOCKER", 2), ("PASSED", 2.5)])
+    assert pie.text == "BLOCKER: 2; PASSED: 2.5"
+    table = render("T", "table", [("k", "varchar"), ("v", "double")], [("a", 1 / 3), ("b", None)])
+    assert table.text == "a: 0.333333; b: NULL"
+    many = [(f"s{i}", i) for i in range(7)]
+    assert render("P", "pie", [("s", "varchar"), ("n", "bigint")], many).text == "7 slices"
+    assert render("T", "table", [("s", "varchar"), ("n", "bigint")], many).text == "7 rows, 2 columns"
 
 
 def test_state_timeline_errors():
@@ -480,7 +525,7 @@ def test_pie_keeps_query_order():
         [7, 2, 1],
         False,
     )
-    assert rendered.text == "3 slices"
+    assert rendered.text == "PASSED: 7; BLOCKER: 2; WARNING: 1"
 
 
 def test_pie_errors():

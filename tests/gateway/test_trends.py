@@ -211,7 +211,7 @@ def test_mistakes_are_one_clear_line(trends_lake, tmp_path):
     result = lakegate(*base, *configs, "--batches", "nightly-1,nope")
     assert result.returncode == 1
     assert result.stderr.startswith("lakegate: no batch 'nope' on branch 'main' (batches: 'nightly-1', 'nightly-2'")
-    result = lakegate(*base, "--batches", "nightly-1")  # the stored config has no report metrics
+    result = lakegate(*base, "--metrics-config-path", CONFIG_PATH, "--batches", "nightly-1")  # no report metrics
     assert result.returncode == 1 and result.stderr == "lakegate: the config has no 'type: report' metrics\n"
     result = lakegate("metrics", "dashboard", "--lake", lake, "--branch", "main", "--window", "0")
     assert (

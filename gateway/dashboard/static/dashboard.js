@@ -68,16 +68,43 @@
     return el("span", { class: `badge s-${shown || "none"}`, text: status || "not evaluated" });
   }
 
+  /** A number as every lakegate page shows it, the same rule as format_number of gateway/metrics/templates.py:
+   * integers in full, others to 6 significant digits but never losing integer digits below 1e15. */
+  function formatNumber(value) {
+    if (Number.isNaN(value)) return "NaN";
+    if (!Number.isFinite(value)) return value > 0 ? "Infinity" : "-Infinity";
+    if (Number.isInteger(value) && Math.abs(value) < 1e15) return String(value);
+    if (value === 0) return "0";
+    const magnitude = Math.abs(value);
+    if (magnitude >= 1e15 || magnitude < 1e-4) {  // Python's "%.6g": 1.23457e+15, 1e-05
+      const [mantissa, exponent] = value.toExponential(5).split("e");
+      const digits = mantissa.includes(".") ? mantissa.replace(/0+$/, "").replace(/\.$/, "") : mantissa;
+      const power = Number(exponent);
+      return `${digits}e${power < 0 ? "-" : "+"}${String(Math.abs(power)).padStart(2, "0")}`;
+    }
+    const decimals = Math.max(0, 6 - (Math.floor(Math.log10(magnitude)) + 1));
+    let text = value.toFixed(decimals);  // a tie rounds away from zero here, to even in Python:
+    const exact = value.toFixed(Math.min(100, decimals + 70));  // every digit of the double
+    const rest = exact.slice(exact.length - 70);
+    const kept = exact.slice(0, exact.length - 70).replace(/\.$/, "");
+    if (decimals + 70 <= 100 && /^50*$/.test(rest) && Number(kept.slice(-1)) % 2 === 0) text = kept;
+    return text.includes(".") ? text.replace(/0+$/, "").replace(/\.$/, "") : text;
+  }
+
   function display(value) {
     if (value === null || value === undefined) return "NULL";
+    if (typeof value === "number") return formatNumber(value);
     if (typeof value === "object") return JSON.stringify(value);
     return String(value);
   }
 
   function dataTable(columns, rows, limit = MAX_TABLE_ROWS) {
     const head = el("tr", {}, columns.map((c) => el("th", { text: c })));
-    const body = rows.slice(0, limit).map((row) => el("tr", {}, row.map((v) =>
-      el("td", { class: v === null ? "null" : typeof v === "number" ? "num" : null, text: display(v) }))));
+    const body = rows.slice(0, limit).map((row) => el("tr", {}, row.map((v) => {
+      const text = display(v);
+      const exact = typeof v === "number" && String(v) !== text ? String(v) : null;  // the full value on hover
+      return el("td", { class: v === null ? "null" : typeof v === "number" ? "num" : null, text, title: exact });
+    })));
     return el("div", { class: "table-wrap" }, el("table", { class: "data" }, el("thead", {}, head), el("tbody", {}, body)));
   }
 
@@ -209,7 +236,7 @@
       return node;
     }
     if (metric.template === "image") {
-      return el("div", { class: "images" }, result.images.map((name) => el("figure", {},
+      return el("div", { class: "lg-images" }, result.images.map((name) => el("figure", {},
         el("img", { src: logUrl(name), alt: name }),
         el("figcaption", { text: name }))));
     }
@@ -232,7 +259,11 @@
     if (result.problems && result.problems.length) {
       card.append(el("ul", { class: "problems" }, result.problems.map((p) => el("li", { text: p }))));
     }
-    if (result.text && body && !body.classList.contains("scalar")) card.append(el("p", { class: "meta", text: result.text }));
+    if (metric.template === "table" && result.table) {  // its summary may be its values: the size instead
+      card.append(el("p", { class: "meta", text: `${plural(result.table.rows.length, "row")}, ${plural(result.table.columns.length, "column")}` }));
+    } else if (result.text && body && !body.classList.contains("scalar")) {
+      card.append(el("p", { class: "meta", text: result.text }));
+    }
 
     const details = el("details", { class: "query", open: Boolean(result.error) || metric.origin !== "config" },
       el("summary", { text: `Query${metric.location ? ` (${metric.location.split("/").pop()})` : ""}`, title: metric.location }));
@@ -284,7 +315,9 @@
 
   function renderMetrics() {
     const state = app.state;
-    const groups = { test: $("#test-metrics"), batch: $("#batch-metrics") };
+    const groups = {
+      test: $("#test-metrics"), batch: $("#batch-metrics"), "test-scalar": $("#test-scalars"), "batch-scalar": $("#batch-scalars"),
+    };
     const seen = new Set();
     for (const metric of state.metrics) {
       const group = metric.type === "test" ? "test" : "batch";
@@ -300,7 +333,7 @@
         entry = { card, signature, fresh: true };
         app.cards.set(metric.name, entry);
       }
-      groups[group].append(entry.card);
+      groups[metric.template === "scalar" ? `${group}-scalar` : group].append(entry.card);
       seen.add(metric.name);
     }
     for (const [name, entry] of app.cards) {
@@ -398,7 +431,7 @@
       for (const m of event.metrics) {
         if (m.type === "image") {
           const files = Array.isArray(m.value) ? m.value : [m.value];
-          box.append(el("div", { class: "images" }, el("p", { class: "meta", text: m.name }), files.map((name) => el("figure", {},
+          box.append(el("div", { class: "lg-images" }, el("p", { class: "meta", text: m.name }), files.map((name) => el("figure", {},
             el("img", { src: logUrl(name), alt: name }),
             el("figcaption", { text: name })))));
         } else if (m.type === "plotly" && m.value && typeof m.value === "object") {
@@ -568,5 +601,6 @@
     }
   }
 
+  window.lakegate = { formatNumber };  // the page's number format, which the browser test compares with the report's
   start();
 })();

@@ -247,7 +247,7 @@ class _Parser(Trino.Parser):
     def _parse_table(self, *args, **kwargs):
         # SqlBase.g4 #relationPrimary: a table is named, never a parameter (`FROM ?`)
         if self._curr is not None and self._curr.token_type == TokenType.PLACEHOLDER:
-            raise _mismatched(self._curr, "Expecting: '(', 'JSON_TABLE', 'LATERAL', 'TABLE', 'UNNEST', <identifier>")
+            raise _mismatched(self._curr, "Expecting: '(', 'JSON_TABLE', 'LATERAL', 'TABLE', 'UNNEST', <identifier>", sql=self.sql)
         return super()._parse_table(*args, **kwargs)
 
     def _parse_version(self):
@@ -255,7 +255,7 @@ class _Parser(Trino.Parser):
         # tables do not support, as Trino's Hive connector
         if self._curr is not None and self._curr.text.upper() == "FOR" and self._next is not None:
             if self._next.text.upper() not in ("TIMESTAMP", "VERSION"):
-                raise _mismatched(self._next, "Expecting: 'TIMESTAMP', 'VERSION'")
+                raise _mismatched(self._next, "Expecting: 'TIMESTAMP', 'VERSION'", sql=self.sql)
             raise DialectError("This connector does not support versioned tables", error_name="NOT_SUPPORTED")
         return super()._parse_version()
 
@@ -281,7 +281,7 @@ class _Parser(Trino.Parser):
                     column=end.col + 1,
                     error_name="SYNTAX_ERROR",
                 )
-            raise _mismatched(self._curr, "Expecting: 'ON', 'USING'")
+            raise _mismatched(self._curr, "Expecting: 'ON', 'USING'", sql=self.sql)
         return join
 
 

@@ -89,7 +89,8 @@ class Worker:
                 self.backend.connection(branch).close()
             except DialectError:
                 pass  # a branch without tables yet
-        self.backend.execute("SELECT 1").rows()
+        branches = self.backend.branches()
+        self.backend.execute("SELECT 1", branch=branches[0] if branches else "main").rows()
 
     def answer(self, request: tuple) -> tuple | None:
         """The answer to one request (None for `close`)."""

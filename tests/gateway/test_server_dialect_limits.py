@@ -73,7 +73,7 @@ def test_deep_nesting_and_duckdb_syntax_are_syntax_errors(small_server):
     assert _select_1(small_server) == [[1]]
     deep = _error(small_server, "SELECT " + "ARRAY[" * 40 + "1" + "]" * 40)
     assert deep.error_name == "SYNTAX_ERROR" and "statement is too large" in deep.message
-    for sql, location in (("SELECT [1, 2]", (1, 8)), ("SELECT 10 // 3", (1, 12)), ("SELECT 1 LIMIT 10%", (1, 18))):
+    for sql, location in (("SELECT 10 // 3", (1, 12)), ("SELECT 1 LIMIT 10%", (1, 18))):
         error = _error(small_server, sql)
         assert (error.error_name, error.error_location) == ("SYNTAX_ERROR", location)
         assert "mismatched input" in error.message and "<class" not in error.message

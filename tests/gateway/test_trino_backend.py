@@ -315,21 +315,21 @@ def test_a_branch_maps_to_its_schema(lake_server, remote, local, all_types):
 
 def test_the_forwarded_text_is_the_users_with_only_the_edits():
     forwarded = forwarded_sql(
-        "SELECT o.x, ?  -- the threshold\nFROM odom o JOIN lake.main.metadata\n WHERE x > ?;",
+        "SELECT o.x, ?  -- the threshold\nFROM odom o CROSS JOIN lake.main.metadata\n WHERE x > ?;",
         scope=Scope("b'1", "j1"),
         params=[1.5, "it's"],
         tables={"odom", "metadata"},
     )
     assert forwarded.sql == (
         "SELECT o.x, 1.5E0  -- the threshold\n"
-        "FROM (SELECT * FROM odom WHERE batch_id = 'b''1' AND job_id = 'j1') o JOIN "
+        "FROM (SELECT * FROM odom WHERE batch_id = 'b''1' AND job_id = 'j1') o CROSS JOIN "
         "(SELECT * FROM lake.main.metadata WHERE batch_id = 'b''1' AND job_id = 'j1') metadata\n WHERE x > 'it''s'"
     )
     # positions in the sent text map back to the user's: unchanged text exactly, edits to their start
     sent = forwarded.sql
     line3 = sent.split("\n")[2]
     assert forwarded.user_position(3, line3.index("x >") + 1) == (3, 8)
-    assert forwarded.user_position(2, sent.split("\n")[1].index("JOIN") + 1) == (2, 13)
+    assert forwarded.user_position(2, sent.split("\n")[1].index("JOIN") + 1) == (2, 19)
     assert forwarded.user_position(2, sent.split("\n")[1].index("job_id") + 1) == (2, 6)
     assert forwarded.user_position(1, 13) == (1, 13)
     explain = forwarded_sql("EXPLAIN (TYPE IO)\nSELECT * FROM odom", scope=Scope("b"), tables={"odom"})

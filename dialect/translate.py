@@ -247,7 +247,9 @@ class _Parser(Trino.Parser):
     def _parse_table(self, *args, **kwargs):
         # SqlBase.g4 #relationPrimary: a table is named, never a parameter (`FROM ?`)
         if self._curr is not None and self._curr.token_type == TokenType.PLACEHOLDER:
-            raise _mismatched(self._curr, "Expecting: '(', 'JSON_TABLE', 'LATERAL', 'TABLE', 'UNNEST', <identifier>", sql=self.sql)
+            raise _mismatched(
+                self._curr, "Expecting: '(', 'JSON_TABLE', 'LATERAL', 'TABLE', 'UNNEST', <identifier>", sql=self.sql
+            )
         return super()._parse_table(*args, **kwargs)
 
     def _parse_version(self):

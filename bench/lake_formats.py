@@ -1,4 +1,4 @@
-"""Lake format comparison (issue 12): the present layout and record against Delta Lake and Iceberg.
+"""Lake format comparison: the present layout and record against Delta Lake and Iceberg.
 
     python3 dev.py bench lake_formats [--jobs 1000] [--batch-jobs 100] [--runs 5]
 

@@ -1,4 +1,4 @@
-"""Scale benchmark (issue 12): what one 40-job batch costs on branches of 100, 1,000 and 10,000 jobs.
+"""Scale benchmark: what one 40-job batch costs on branches of 100, 1,000 and 10,000 jobs.
 
     python3 dev.py bench scale [--sizes 100,1000,10000] [--runs 3]
 

@@ -2,7 +2,7 @@
 `sqlglot.transpile(read="trino", write="duckdb")` and DuckDB, without lakegate's analysis. Where that
 baseline gives Trino's rows exactly (values compared in the client-protocol encoding of the
 expected types, as the conformance runner does), lakegate must answer too: a refusal there is a
-construct lifted cheaply by a plain translation (issue 14). Where lakegate answers, the conformance
+construct lifted cheaply by a plain translation. Where lakegate answers, the conformance
 suite already checks the answer, so only refusals are compared here.
 """
 

@@ -160,7 +160,7 @@ def test_translation_carries_the_scoped_trino_sql(fixture_lake):
 @pytest.mark.parametrize(
     "sql, rows",
     [
-        # issue 13: a CTE read in a derived table, a joined subquery and a nested CTE's body
+        # a CTE read in a derived table, a joined subquery and a nested CTE's body
         ("WITH i AS (SELECT 1 AS a) SELECT a FROM (SELECT a FROM i)", [(1,)]),
         ("WITH i AS (SELECT 1 AS a) SELECT a FROM (SELECT a FROM (SELECT a FROM i) d1) d2", [(1,)]),
         (

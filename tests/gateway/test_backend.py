@@ -361,7 +361,7 @@ def ingest_one(root: Path, lake: Path, job: str, lines: str, name: str = "exp") 
 def test_a_query_never_sees_a_job_half_re_ingested(tmp_path):
     """Another process re-ingests job j1 200 times (its experience name, a token present in every
     table's rows, changes each time) while queries read all its tables in one statement: every
-    answer is one version of the job (issue 9, item 12)."""
+    answer is one version of the job."""
     lake = build_lake(tmp_path, jobs=[("b1", "j1", 3)])
     emissions = tmp_path / "j1.jsonl"
     process = subprocess.Popen(
@@ -393,7 +393,7 @@ def test_a_query_never_sees_a_job_half_re_ingested(tmp_path):
 
 def test_a_backend_sees_files_that_appear_in_an_emptied_topic(tmp_path):
     """A topic whose only job was re-ingested without it, then written again: the same backend
-    answers its new rows (issue 9, item 11: no stale catalog)."""
+    answers its new rows (no stale catalog)."""
     lake = tmp_path / "lake"
     ingest_one(
         tmp_path,
@@ -413,7 +413,7 @@ def test_a_backend_sees_files_that_appear_in_an_emptied_topic(tmp_path):
 
 def test_a_topic_dropped_by_a_re_ingest_reads_as_empty(tmp_path):
     """The same backend, after the re-ingest that removed a topic's files: 0 rows, not an error
-    naming a server path (issue 9, item 11)."""
+    naming a server path."""
     lake = tmp_path / "lake"
     ingest_one(
         tmp_path,
@@ -609,7 +609,7 @@ def test_errors_and_plans_name_lake_files_relative_to_the_lake(tmp_path):
 
 
 def test_a_scoped_query_reads_only_the_files_of_its_scope(tmp_path):
-    """Issue 12: a test metric's (job) and a batch metric's (batch) queries read views over only their
+    """A test metric's (job) and a batch metric's (batch) queries read views over only their
     files, found in the record: after the views are loaded, the first odom file of the branch (job
     j1, the one DuckDB would open to bind a view over every file) is overwritten with garbage.
     Queries scoped to other jobs or batches still answer; those that read j1 fail naming it."""
@@ -646,7 +646,7 @@ def test_scoped_views_follow_a_re_ingest(tmp_path):
 
 
 def test_branches_share_one_database_and_idle_ones_are_released(tmp_path):
-    """Issue 12: 20 branches are attached databases of the backend's one DuckDB database, so one
+    """20 branches are attached databases of the backend's one DuckDB database, so one
     memory limit and one thread pool bound them together; a branch not queried for `idle_seconds`
     is detached and answers again (its views made anew) at its next query."""
     lake = build_lake(tmp_path, jobs=[("b1", "j1", 3)])

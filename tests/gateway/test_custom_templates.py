@@ -1,4 +1,4 @@
-"""Custom templates (`template_type: custom`, issue 13 item 8): Liquid files that render a query
+"""Custom templates (`template_type: custom`): Liquid files that render a query
 result as Plotly figure JSON, found next to the config, stored with the branch's config, with
 errors that name the template's line. Real template files on disk, a real lake, the real CLI."""
 
@@ -51,7 +51,7 @@ def config_with(
             units: {units}
           Nothing Yet:
             type: test
-            description: no rows, skipped (issue 13 item 10)
+            description: no rows, skipped
             query_string: SELECT goal_name AS label, time_s AS value FROM time_to_goal WHERE time_s < 0
             template_type: custom
             template_file: {template_file}

@@ -218,7 +218,7 @@ def _status(url: str, method: str = "GET", headers: dict[str, str] | None = None
 
 
 def test_without_a_logs_folder_only_the_referenced_files_are_served(tmp_path: Path, nav_jobs, debug_processes) -> None:
-    """Issue 9 item 9: with no `logs/` beside the emissions file, the job's logs are only the files
+    """With no `logs/` beside the emissions file, the job's logs are only the files
     the emissions name in image fields (a key next to it is never served); NUL in a name is a 404."""
     job = nav_jobs.jobs[0]
     folder = tmp_path / "run"
@@ -266,7 +266,7 @@ def test_without_a_logs_folder_only_the_referenced_files_are_served(tmp_path: Pa
 
 
 def test_host_and_origin_are_checked(tmp_path: Path, nav_jobs, debug_processes) -> None:
-    """Issue 9 item 9: DNS rebinding (a foreign Host) gets 421, a cross-site POST (foreign Origin) 403;
+    """DNS rebinding (a foreign Host) gets 421, a cross-site POST (foreign Origin) 403;
     loopback names, the same origin and the trino client (Host 127.0.0.1:PORT) work."""
     server = debug_processes(
         [
@@ -313,7 +313,7 @@ def _with_custom_metric(text: str, template: str) -> str:
 
 
 def test_export_keeps_to_the_config_folder(tmp_path: Path, nav_jobs, debug_processes) -> None:
-    """Issue 9 item 10: a template_file outside the config's folder is never exported (a clear 400
+    """A template_file outside the config's folder is never exported (a clear 400
     naming the metric and where it is), one inside it is; the download's file name is escaped."""
     folder = tmp_path / "config"
     (folder / "templates").mkdir(parents=True)

@@ -373,7 +373,7 @@ def test_two_branches_with_different_schemas_for_one_topic(tmp_path):
     assert read_results(lake, "main", "b") == main_before
 
 
-# -- one evaluation of a batch at a time, switched in one commit (issue 9, item 13) ----------------
+# -- one evaluation of a batch at a time, switched in one commit ----------------
 
 
 def run_process(lake: Path, batch: str, *extra, env: dict | None = None) -> subprocess.Popen:

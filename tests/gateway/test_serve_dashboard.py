@@ -86,7 +86,7 @@ def evaluated_lake(nav_jobs, tmp_path: Path, run_lakegate) -> Path:
 
 
 def test_editing_a_metric_in_the_dashboard_never_writes_the_lake(evaluated_lake: Path, tmp_path: Path) -> None:
-    """Issue 9 item 7: an edit is evaluated for the session only; the lake stays byte-identical,
+    """An edit is evaluated for the session only; the lake stays byte-identical,
     while the batch metrics see the session's job statuses (as `metrics run` would write them)."""
     before = _digests(evaluated_lake)
     server = serve(evaluated_lake, tmp_path / "serve.log")
@@ -128,7 +128,7 @@ def _status(url: str, method: str = "GET", headers: dict[str, str] | None = None
 
 
 def test_serve_checks_host_and_origin(start_server) -> None:
-    """Issue 9 item 9 on `serve`: a Host that does not name the server (DNS rebinding) gets 421 on every
+    """On `serve`, a Host that does not name the server (DNS rebinding) gets 421 on every
     route, a cross-site Origin on a POST 403; `--allowed-host` admits a proxy's name; the trino client works."""
     server = start_server("--allowed-host", "lake.example.com")
     for path in ("/dashboard/api/lake", "/v1/info", "/dashboard/"):

@@ -1,4 +1,4 @@
-"""Issue 9, dialect side, through a real `lakegate serve` on 127.0.0.1 and the official `trino`
+"""The dialect's limits through a real `lakegate serve` on 127.0.0.1 and the official `trino`
 client: functions sized by an argument are refused before the server allocates (Trino's
 INVALID_FUNCTION_ARGUMENT; trinodb/trino core/trino-main/src/main/java/io/trino/operator/scalar/
 RepeatFunction.java, SequenceFunction.java, StringFunctions.java), deep nesting is refused at once

@@ -1,4 +1,4 @@
-"""Issue 14 family 5 through the real server and the official trino client: varbinary values
+"""Scalar functions through the real server and the official trino client: varbinary values
 arrive as bytes (the protocol sends them in base64), a bytes parameter binds as a varbinary
 literal, and the scalar functions answer as in the conformance cases."""
 

@@ -1,4 +1,4 @@
-"""Maps and anonymous rows built by queries (issue 14: map_agg, multimap_agg, zip, map_entries) through
+"""Maps and anonymous rows built by queries (map_agg, multimap_agg, zip, map_entries) through
 a real `lakegate serve` on 127.0.0.1 and the official `trino` client: the client decodes them by the
 type the server declares. Expected values come from DuckDB reading the lake's Parquet files."""
 

@@ -1,4 +1,4 @@
-"""Hostile load against one real `lakegate serve` with small limits (issue 9, "Done when"): the two
+"""Hostile load against one real `lakegate serve` with small limits: the two
 out-of-memory queries, 8 nested-ARRAY queries that take the parser minutes, an EXPLAIN ANALYZE of a
 cross-join bomb and two 50 MB bodies, all at once; after that `SELECT 1` answers in under a second,
 the memory the server's processes (the server and its query workers) held together stayed under its

@@ -82,15 +82,9 @@ class _Endpoints:
         return query if not slug or query.slug == params["slug"] else None
 
     async def post_statement(self, request: Request) -> Response:
-        user = authenticated_user(request.scope)
-        if user is not None and request.headers.get("x-trino-user") not in (None, user):
-            return PlainTextResponse(
-                f"Access Denied: User {user} cannot impersonate user {request.headers['x-trino-user']}", 403
-            )
-        try:
-            session = sessions.from_headers(request.headers, user)
-        except sessions.HeaderError as error:
-            return PlainTextResponse(str(error), 400)
+        session = _session(request)
+        if isinstance(session, Response):
+            return session
         body = await request.body()
         if not body.strip():
             return PlainTextResponse("SQL statement is empty", 400)
@@ -111,15 +105,12 @@ class _Endpoints:
 
     async def post_arrow(self, request: Request) -> Response:
         """POST /v1/arrow: the query's result as an Arrow IPC stream (`arrow_results`)."""
-        user = authenticated_user(request.scope)
-        if user is not None and request.headers.get("x-trino-user") not in (None, user):
-            return PlainTextResponse(
-                f"Access Denied: User {user} cannot impersonate user {request.headers['x-trino-user']}", 403
-            )
+        session = _session(request)
+        if isinstance(session, Response):
+            return session
         try:
-            session = sessions.from_headers(request.headers, user)
             sql = (await request.body()).decode("utf-8")
-        except (sessions.HeaderError, UnicodeDecodeError) as error:
+        except UnicodeDecodeError as error:
             return PlainTextResponse(str(error), 400)
         return await arrow_results.arrow_response(self.engine, sql, session, self.limits)
 
@@ -180,6 +171,20 @@ class _Endpoints:
 
     async def get_state(self, request: Request) -> Response:
         return Response(b'"ACTIVE"', media_type=JSON)
+
+
+def _session(request: Request) -> Session | Response:
+    """The session of a request that posts a statement, or the reply refusing it: 403 when an
+    authenticated user names another user, 400 for a malformed session header."""
+    user = authenticated_user(request.scope)
+    if user is not None and request.headers.get("x-trino-user") not in (None, user):
+        return PlainTextResponse(
+            f"Access Denied: User {user} cannot impersonate user {request.headers['x-trino-user']}", 403
+        )
+    try:
+        return sessions.from_headers(request.headers, user)
+    except sessions.HeaderError as error:
+        return PlainTextResponse(str(error), 400)
 
 
 def _base_url(request: Request) -> str:

@@ -17,15 +17,18 @@ import json
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
+import uvicorn
 
 from lakegate.fixtures.generate import CONFIG_PATH, GeneratedJob, generate_batch
 from lakegate.lake.config import load_config
@@ -380,3 +383,26 @@ def trino_jar() -> Callable[[str], Path]:
             _needs(f"the jar io.trino:{name}:476", f"python3 dev.py trino jar {name}", str(error))
 
     return fetch
+
+
+@contextmanager
+def served_in_thread(app, start_seconds: float = 30, *, check_stopped: bool = False) -> Iterator[str]:
+    """`app` served by uvicorn in a thread on a free loopback port; its base URL. Stops it after
+    (`check_stopped`: and asserts the server's thread ended within 30 s)."""
+    sock = socket.socket()
+    sock.bind(("127.0.0.1", 0))
+    sock.listen(64)
+    server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="on"))
+    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
+    thread.start()
+    deadline = time.monotonic() + start_seconds
+    while not server.started and time.monotonic() < deadline:
+        time.sleep(0.02)
+    try:
+        yield f"http://127.0.0.1:{sock.getsockname()[1]}"
+    finally:
+        server.should_exit = True
+        thread.join(30)
+        sock.close()
+    if check_stopped:
+        assert not thread.is_alive()

@@ -8,8 +8,6 @@ from __future__ import annotations
 import io
 import json
 import shutil
-import socket
-import threading
 import time
 import urllib.error
 import urllib.parse
@@ -21,7 +19,6 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-import uvicorn
 
 from lakegate.dialect.scope import Scope
 from lakegate.gateway.cli.debug import DebugJob
@@ -35,6 +32,8 @@ from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file, read_metadata_row
+
+from .conftest import served_in_thread
 
 NAV_SET = "Nav Metrics"
 BRANCH, BATCH = "main", "nightly-1"
@@ -72,20 +71,9 @@ def served(nav_jobs, tmp_path_factory: pytest.TempPathFactory):
         )
         shutil.copytree(job.logs_dir, paths.logs_dir(lake, BRANCH, BATCH, job.job_id))
     state = DashboardState(lake)
-    sock = socket.socket()
-    sock.bind(("127.0.0.1", 0))
-    sock.listen(64)
     app = create_app(state.engine, dashboard_router=dashboard_router(state))  # as `lakegate serve` mounts it
-    server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="on"))
-    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
-    thread.start()
-    deadline = time.monotonic() + 20
-    while not server.started and time.monotonic() < deadline:
-        time.sleep(0.02)
-    yield Served(f"http://127.0.0.1:{sock.getsockname()[1]}/dashboard/", state, lake)
-    server.should_exit = True
-    thread.join(20)
-    sock.close()
+    with served_in_thread(app, 20) as url:
+        yield Served(f"{url}/dashboard/", state, lake)
     state.close()
 
 

@@ -5,19 +5,18 @@ from __future__ import annotations
 
 import json
 import re
-import socket
-import threading
 import time
 from urllib.parse import quote, unquote_plus
 
 import pytest
 import requests
-import uvicorn
 
 from lakegate.gateway.engine.backend import DuckDBBackend
 from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.server.app import create_app
+
+from .conftest import served_in_thread
 
 ALL_TYPES_BRANCH = "feature/all-types"  # the second branch of the test lake (conftest.py)
 HEADERS = {"X-Trino-User": "tester", "X-Trino-Catalog": "lake", "X-Trino-Schema": "main"}
@@ -553,24 +552,13 @@ def short_lived(server_lake):
     backend = DuckDBBackend(server_lake, memory_limit="512MB", threads=2)
     engine = Engine(backend, limits=Limits(client_timeout=1.0, retention=1.0, wait=0.2), owns_backend=True)
     app = create_app(engine)
-    sock = socket.socket()
-    sock.bind(("127.0.0.1", 0))
-    sock.listen(64)
-    server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="on"))
-    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
-    thread.start()
-    deadline = time.monotonic() + 30
-    while not server.started and time.monotonic() < deadline:
-        time.sleep(0.02)
+    with served_in_thread(app, check_stopped=True) as url:
 
-    class Running:
-        url = f"http://127.0.0.1:{sock.getsockname()[1]}"
+        class Running:
+            pass
 
-    yield Running, app
-    server.should_exit = True
-    thread.join(30)
-    assert not thread.is_alive()
-    sock.close()
+        Running.url = url
+        yield Running, app
     engine.close()
 
 

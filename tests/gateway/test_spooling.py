@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import base64
 import json
-import socket
 import threading
 import time
 
@@ -14,13 +13,14 @@ import lz4.block
 import pytest
 import requests
 import trino
-import uvicorn
 import zstandard
 
 from lakegate.gateway.engine.backend import DuckDBBackend
 from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.server.app import create_app
+
+from .conftest import served_in_thread
 
 HEADERS = {"X-Trino-User": "tester", "X-Trino-Catalog": "lake", "X-Trino-Schema": "main"}
 ROWS = 200_000
@@ -149,19 +149,8 @@ def forgetful(server_lake):
     backend = DuckDBBackend(server_lake, memory_limit="512MB", threads=2)
     engine = Engine(backend, limits=Limits(client_timeout=3.0, retention=1.0, wait=0.5), owns_backend=True)
     app = create_app(engine)
-    sock = socket.socket()
-    sock.bind(("127.0.0.1", 0))
-    sock.listen(64)
-    server = uvicorn.Server(uvicorn.Config(app, log_level="warning", lifespan="on"))
-    thread = threading.Thread(target=server.run, kwargs={"sockets": [sock]}, daemon=True)
-    thread.start()
-    deadline = time.monotonic() + 30
-    while not server.started and time.monotonic() < deadline:
-        time.sleep(0.02)
-    yield f"http://127.0.0.1:{sock.getsockname()[1]}", app
-    server.should_exit = True
-    thread.join(30)
-    sock.close()
+    with served_in_thread(app) as url:
+        yield url, app
     engine.close()
 
 

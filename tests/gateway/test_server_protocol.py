@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import re
 import time
+from types import SimpleNamespace
 from urllib.parse import quote, unquote_plus
 
 import pytest
@@ -553,12 +554,7 @@ def short_lived(server_lake):
     engine = Engine(backend, limits=Limits(client_timeout=1.0, retention=1.0, wait=0.2), owns_backend=True)
     app = create_app(engine)
     with served_in_thread(app, check_stopped=True) as url:
-
-        class Running:
-            pass
-
-        Running.url = url
-        yield Running, app
+        yield SimpleNamespace(url=url), app
     engine.close()
 
 

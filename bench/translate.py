@@ -7,7 +7,7 @@ costs at run time against hand-written DuckDB SQL.
    scope its metric type implies: cold (translation cache cleared before each call) and cached
    (the same call repeated), medians.
 2. Execution on a topic of N rows (default 10M, in 10 jobs of 2 batches, written once as real Parquet
-   in the lake layout under bench/.work/translate/): each typical metric query run through
+   in the lake layout under bench/.work/translate/N/): each typical metric query run through
    `DuckDBBackend.execute` (scope rewrite + translation + DuckDB, result streamed as Arrow batches)
    against hand-written DuckDB SQL over the same views, run the same way; median of R runs each,
    alternating; wall-clock and CPU time (all threads), the latter less disturbed by other processes.
@@ -17,6 +17,7 @@ costs at run time against hand-written DuckDB SQL.
 from __future__ import annotations
 
 import argparse
+import fcntl
 import json
 import os
 import shutil
@@ -76,17 +77,25 @@ EXECUTION = [
 
 
 def build_lake(rows: int) -> Path:
-    """The bench lake: the example config, 10 jobs ingested, then each job's topic file replaced by
-    rows/10 generated rows of the same Arrow schema, published through the lake's record as ingest
-    publishes (reused when already there)."""
-    lake = WORK / "lake"
-    ready = WORK / "READY"
-    if ready.exists() and ready.read_text() == str(rows):
+    """The bench lake of `rows` rows (bench/.work/translate/<rows>/lake): the example config, 10 jobs
+    ingested, then each job's topic file replaced by rows/10 generated rows of the same Arrow schema,
+    published through the lake's record as ingest publishes. Built once per size, under a file lock, so
+    benches started together (the smoke tests run in parallel) share it instead of clobbering it."""
+    WORK.mkdir(parents=True, exist_ok=True)
+    with open(WORK / f"{rows}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        return _build_once(WORK / str(rows), rows)
+
+
+def _build_once(work: Path, rows: int) -> Path:
+    lake = work / "lake"
+    ready = work / "READY"
+    if ready.exists():
         return lake
-    shutil.rmtree(WORK, ignore_errors=True)
-    WORK.mkdir(parents=True)
+    shutil.rmtree(work, ignore_errors=True)
+    work.mkdir(parents=True)
     config = load_config([CONFIG])
-    seed = WORK / "seed.jsonl"
+    seed = work / "seed.jsonl"
     seed.write_text(
         json.dumps({"$metadata": {"topic": TOPIC, "timestamp": 0}, "$data": {"x": 0.0, "y": 0.0, "z": 0.0}}) + "\n"
     )
@@ -120,7 +129,7 @@ def build_lake(rows: int) -> Path:
             },
             schema=schema,
         )
-        scratch = WORK / f"{job}.parquet"
+        scratch = work / f"{job}.parquet"
         pq.write_table(table, scratch, row_group_size=1_000_000)
         with paths.job_lock(lake, "main", batch, job):
             change = Change(lake, "main")

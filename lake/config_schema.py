@@ -26,7 +26,7 @@ PLATFORM_TABLES = ("container_performance", "test_length_seconds")
 #: Table names of the lake, and of ReSim's platform, that a topic may not take.
 RESERVED_TOPIC_NAMES = ("metadata", "events", "metric_results", *PLATFORM_TABLES)
 #: Columns every topic row has besides its declared fields.
-TOPIC_COLUMNS = ("timestamp", "batch_id", "job_id", "experience_name", "build_version")
+TOPIC_COLUMNS = ("timestamp", "batch_id", "job_id", "experience_name", "build_version", "project_id", "run_counter")
 
 
 def _any_case(word: str) -> str:

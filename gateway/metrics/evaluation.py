@@ -48,7 +48,6 @@ import contextlib
 import datetime as dt
 import functools
 import json
-import re
 import sys
 import threading
 import time
@@ -73,7 +72,6 @@ from lakegate.gateway.metrics.templates import Rendered, TemplateError, render
 from lakegate.lake import paths
 from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import Config, Location, Metric
-from lakegate.lake.config_schema import PLATFORM_TABLES
 from lakegate.lake.record import StaleJobsError, job_logs_dir
 from lakegate.lake.storage import LakeStorage
 
@@ -663,14 +661,9 @@ def _quoted(name: str) -> str:
 
 
 def _query_error(error: DialectError, sql: str, start: Location | None, which: str) -> MetricError:
-    message = error.message
-    missing = re.match(r"Table '(?:\w+\.)*(\w+)' does not exist", message)
-    if error.error_name == "TABLE_NOT_FOUND" and missing and missing.group(1).lower() in PLATFORM_TABLES:
-        message += (
-            f" ({missing.group(1)} is a table ReSim's platform generates for each job; "
-            "lakegate does not provide it yet: docs/resim-compat.md)"
-        )
-    return MetricError(message, error.line, error.column, config_position(start, sql, error.line, error.column), which)
+    return MetricError(
+        error.message, error.line, error.column, config_position(start, sql, error.line, error.column), which
+    )
 
 
 def _event_metric(item: dict[str, Any]) -> EventMetric:

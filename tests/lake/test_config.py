@@ -370,13 +370,13 @@ def test_bad_field_names(tmp_path):
             7,
             7,
             "field 'timestamp' of topic 'pose' is a column every topic row already has "
-            "(timestamp, batch_id, job_id, experience_name, build_version)",
+            "(timestamp, batch_id, job_id, experience_name, build_version, project_id, run_counter)",
         ),
         (
             8,
             7,
             "field 'Job_ID' of topic 'pose' is a column every topic row already has "
-            "(timestamp, batch_id, job_id, experience_name, build_version)",
+            "(timestamp, batch_id, job_id, experience_name, build_version, project_id, run_counter)",
         ),
         (
             9,

@@ -277,6 +277,7 @@ def test_every_tag_value_and_p_value_matches_an_independent_computation(built):
     assert batch_mean["change"] == pytest.approx(float(np.mean(everything[1]) - np.mean(everything[0])), rel=1e-9)
 
 
+@pytest.mark.slow
 def test_fail_on_new_failures_exit_codes(built):
     lake, _ = built
     assert compare(lake, "--base", "base", "--batch", "new", "--fail-on", "new-failures")[0] == 4  # Regressed
@@ -366,6 +367,7 @@ def _get(url: str) -> tuple[int, str]:
         return error.code, error.read().decode()
 
 
+@pytest.mark.slow
 def test_the_served_compare_page_in_a_real_browser(built, tmp_path):
     """From a batch page ("compare with the previous build"), then two batches picked on the compare
     page, then on the trends page: Chromium draws the same comparison as `lakegate compare`."""
@@ -434,6 +436,7 @@ def trend_lake(tmp_path_factory):
     return make_lake(tmp_path_factory.mktemp("trend"), batches)
 
 
+@pytest.mark.slow
 def test_trend_alerts_in_metrics_dashboard_and_on_the_trends_page(trend_lake, tmp_path):
     lake, truth = trend_lake
     run = ["metrics", "dashboard", "--lake", lake, "--branch", "main", "--format", "json"]
@@ -474,6 +477,7 @@ def test_trend_alerts_in_metrics_dashboard_and_on_the_trends_page(trend_lake, tm
         server.stop()
 
 
+@pytest.mark.slow
 def test_compare_on_the_real_trino_matches_the_embedded_engine(built, trino_url):
     """The lake registered in the real Trino 476 (`lakegate trino-ddl`, hive catalog over the lake's
     folder): `compare` and `flakes` forwarded there answer as on the embedded engine."""

@@ -424,6 +424,14 @@ class _Builder:
             location=at(named.key),
             query_location=at(e["query_string"].node) if "query_string" in e else None,
         )
+        if metric.template_type == "custom" and metric.template_settings and "template_settings" in e:
+            self._warn(
+                at(e["template_settings"].node),
+                f"template_settings of metric '{metric.name}' ({', '.join(setting_names(metric.template_settings))}) "
+                f"are not applied to its custom template {metric.template_file!r}",
+                "ignored, as SignalFlag ignores them (a custom template's figure is what the template writes: "
+                "set titles, ranges and colours there)",
+            )
         if "status" in e:
             s = e["status"].value
             query = s.get("query_string")
@@ -478,6 +486,17 @@ class _Builder:
                         location,
                         f"metrics set '{metrics_set.name}' names unknown metric '{name}'{did_you_mean(name, metrics)}",
                     )
+
+
+def setting_names(settings: Any) -> list[str]:
+    """The settings of a `template_settings` mapping as `section.key` (or `section` when it is no mapping)."""
+    if not isinstance(settings, dict):
+        return []
+    names = []
+    for section, value in settings.items():
+        keys = list(value) if isinstance(value, dict) else []
+        names += [f"{section}.{key}" for key in keys] or [str(section)]
+    return names
 
 
 def _value(entries: dict[str, Entry], key: str, default: Any) -> Any:

@@ -19,6 +19,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ruamel.yaml.nodes import MappingNode
+
 from lakegate.lake import paths
 from lakegate.lake.config_schema import FILE, TOPIC_NAME_RULES
 from lakegate.lake.config_yaml import Entry, FileReader, Named, RawProblem, RawWarning, did_you_mean
@@ -69,6 +71,8 @@ class Topic:
     fields: dict[str, str]  # field name -> canonical field type (lake.types), in file order
     event: bool = False
     location: Location | None = None
+    #: Where each field's name is written (fields merged in from a YAML alias may have none).
+    field_locations: dict[str, Location] = field(default_factory=dict)
 
 
 @dataclass
@@ -327,12 +331,15 @@ class _Builder:
             return Location(reader.path, *reader.position(node))
 
         for named in _value(entries, "topics", []):
+            schema = named.entries.get("schema")
+            keys = reader.plain_keys(schema.node) if schema is not None and isinstance(schema.node, MappingNode) else {}
             self._add_topic(
                 Topic(
                     named.name,
                     _value(named.entries, "schema", {}),
                     _value(named.entries, "event", False),
                     at(named.key),
+                    {str(name): at(node) for name, node in keys.items()},
                 )
             )
         skip_default = self._global(entries.get("global"))

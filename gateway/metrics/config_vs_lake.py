@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from lakegate.dialect.errors import DialectError
+from lakegate.dialect.session_functions import SessionNames
 from lakegate.dialect.translate import translate
 from lakegate.gateway.metrics.evaluation import config_position
 from lakegate.lake.branch_configs import BranchConfigs
@@ -53,8 +54,9 @@ def check_against_lake(config: Config, lake: Path, branch: str) -> list[Problem]
     schema = Catalog(lake).schema(branch) if lake.is_dir() else {}
     schema.setdefault(METRIC_RESULTS_TABLE, dict(METRIC_RESULTS_COLUMNS))  # there once a batch is evaluated
     schema.update({topic.name: dict(topic_columns(topic)) for topic in config.topics.values()})
+    session = SessionNames("lakegate", "lake", branch)  # what current_user and the like answer in a metrics run
     for metric in config.metrics.values():
-        problems += _queries(metric, schema)
+        problems += _queries(metric, schema, session)
     return problems
 
 
@@ -92,7 +94,7 @@ def _topic(topic: Topic, stored: dict[str, StoredTopic]) -> list[Problem]:
     return problems
 
 
-def _queries(metric: Metric, schema: dict[str, dict[str, str]]) -> list[Problem]:
+def _queries(metric: Metric, schema: dict[str, dict[str, str]], session: SessionNames) -> list[Problem]:
     checks = [("query", metric.query_string, metric.query_location, ())]
     if metric.status is not None:
         threshold = metric.status.block if metric.status.block is not None else metric.status.warn
@@ -100,7 +102,7 @@ def _queries(metric: Metric, schema: dict[str, dict[str, str]]) -> list[Problem]
     problems = []
     for which, sql, start, params in checks:
         try:
-            translate(sql, schema, params=params)
+            translate(sql, schema, params=params, session=session)
         except DialectError as error:
             at = config_position(start, sql, error.line, error.column) or start or metric.location
             message = error.message

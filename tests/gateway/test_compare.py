@@ -515,6 +515,9 @@ def test_compare_fail_on_regression_exit_codes(trend_lake, capsys):
         and expected_status(float(np.mean(truth["nightly-1.3"][e][0]["values"]))) != "PASSED"
         for e in truth["nightly-1.3"]
     )
+    with pytest.raises(SystemExit) as usage:  # a malformed command line: argparse's 2, naming the choices
+        main(["compare", "--lake", str(lake), "--branch", "main", "--base", "a", "--batch", "b", "--fail-on", "slower"])
+    assert usage.value.code == 2 and "--fail-on: invalid choice: 'slower'" in capsys.readouterr().err
     both = ("--fail-on", "regression", "--fail-on", "new-failures")
     assert compare_exit("--base", "nightly-1.2", "--batch", "nightly-1.3", *both)[0] == (4 if failed else 5)
 

@@ -70,8 +70,8 @@ def test_a_config_that_only_grows_the_branch_passes(lake, tmp_path, capsys):
         "    template: scalar\n"
         "  Runs Evaluated:\n"
         "    type: dashboard\n"
-        "    query_string: SELECT COUNT(*) AS value FROM metric_results\n"
-        "    template: scalar\n"
+        "    query_string: SELECT current_user AS who, COUNT(*) AS runs FROM metric_results\n"
+        "    template: table\n"
     )
     grown = grown.replace("topics:\n", "topics:\n  speed:\n    schema:\n      v: float\n", 1)
     config = write(tmp_path, grown)

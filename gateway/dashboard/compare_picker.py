@@ -43,13 +43,20 @@ _SCRIPT = """\
     var batch = batches[index];
     return batch.id + (batch.builds.length ? " (build " + batch.builds.join(", ") + ")" : "");
   }
+  function tell(gd, text) {  // in the note above the charts, and under the chart clicked
+    var here = document.getElementById("compare-picked") || document.createElement("p");
+    here.id = "compare-picked";
+    here.className = "lg-compare-pick";
+    here.textContent = document.getElementById("compare-pick").textContent = text;
+    gd.insertAdjacentElement("afterend", here);
+  }
   function pick(gd, event) {
-    var note = document.getElementById("compare-pick"), index = batchOf(gd, event.points[0]);
+    var index = batchOf(gd, event.points[0]);
     if (index < 0) {
-      note.textContent = "That point is neither a batch nor a build of the batches on this page: pick another.";
+      tell(gd, "That point is neither a batch nor a build of the batches on this page: pick another.");
     } else if (picked === null || picked === index) {
       picked = index;
-      note.textContent = "Picked " + named(index) + ": click a point of another batch to compare the two.";
+      tell(gd, "Picked " + named(index) + ": click a point of another batch to compare the two.");
     } else {
       var query = new URLSearchParams({
         branch: branch, base: batches[Math.min(picked, index)].id, batch: batches[Math.max(picked, index)].id

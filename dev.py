@@ -88,7 +88,7 @@ def main(argv: list[str]) -> int:
         return lint()
     if command == "test":
         linted = lint()
-        workers = [] if any(a.startswith("-n") for a in rest) else ["-n", "2"]
+        workers = [] if any(a.startswith("-n") for a in rest) else ["-n", "2", "--dist", "worksteal"]
         return _run([PY, "-m", "pytest", *workers, *rest]) or linted
     if command == "bench":
         if not rest:

@@ -138,8 +138,8 @@ METRIC = Section(
         "template_file": Key("string", "The custom template file (with template_type: custom)."),
         "template_settings": Key(
             "data",
-            "Settings of a system template: xaxis.label, yaxis.label, yaxis.min, yaxis.max, display.bins, "
-            "series (group_name and color).",
+            "Settings of a system template (not applied to custom ones): xaxis.label, yaxis.label, yaxis.min, "
+            "yaxis.max, display.bins, series (group_name and color).",
             nullable=True,
         ),
         "units": Key("string", "Units of the values, shown with the metric (after a scalar value)."),

@@ -29,3 +29,10 @@ def trino_url() -> str:
             return trino_server.start()
         except trino_server.TrinoError as error:
             pytest.fail(f"CI needs a real Trino 476 and it could not start: {error}")
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Tests marked `slow` (a minute or more of end-to-end work) run first, so that under xdist
+    (`python3 dev.py test`: two workers that steal work from each other) none of them starts last
+    while the other worker sits idle."""
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)

@@ -19,6 +19,7 @@ def test_every_bench_is_listed():
     assert {"emit", "metrics", "server", "translate", "scale"} <= set(SCRIPTS)
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(900)
 @pytest.mark.parametrize("name", SCRIPTS)
 def test_bench_runs_at_smoke_size(name, request):

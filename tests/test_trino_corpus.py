@@ -86,6 +86,7 @@ def test_the_smoke_sample_is_fixed_and_spread():
     assert [p.sql for p in kept] == ["SELECT abs(1)"]
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(1800)  # a minute or two on a quiet machine, far more when it is shared
 def test_trinos_own_function_tests_answer_as_trino_does(trino_url):
     probes = load()  # the tests jar from Maven Central, disassembled with javap (cached)

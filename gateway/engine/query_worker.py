@@ -84,13 +84,17 @@ class Worker:
     def warm(self) -> None:
         """Open the database, make each branch's views and translate once, so that the first query
         pays for none of it."""
-        for branch in self.backend.branches():
+        branches = self.backend.branches()
+        for branch in branches:
             try:
                 self.backend.connection(branch).close()
             except DialectError:
                 pass  # a branch without tables yet
-        branches = self.backend.branches()
-        self.backend.execute("SELECT 1", branch=branches[0] if branches else "main").rows()
+        try:
+            if branches:  # an empty lake has nothing to warm: its queries name no branch
+                self.backend.execute("SELECT 1", branch=branches[0]).rows()
+        except DialectError:
+            pass  # nothing to warm there; a query on it says why
 
     def answer(self, request: tuple) -> tuple | None:
         """The answer to one request (None for `close`)."""

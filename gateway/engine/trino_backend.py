@@ -17,7 +17,7 @@ import re
 import threading
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 from urllib.parse import urlparse
 
@@ -41,8 +41,9 @@ from lakegate.gateway.engine.trino_values import arrow_type
 
 #: Rows fetched from the cluster per record batch.
 BATCH_ROWS = 10_000
-#: Seconds a branch's table list is trusted before a query naming an unknown table refreshes it.
-TABLES_TTL = 1.0
+#: Seconds the cluster's schema list and a branch's tables are trusted before they are asked again
+#: (they change only when `lakegate trino-ddl` registers a lake; a query plans with several lookups).
+LISTING_TTL = 1.0
 
 
 # --- the forwarded text ---------------------------------------------------------------------------
@@ -276,12 +277,6 @@ class _Session(requests.Session):
         return settings
 
 
-@dataclass
-class _Tables:
-    checked: float = 0.0
-    columns: dict[str, set[str]] = field(default_factory=dict)
-
-
 class TrinoBackend:
     """Forward queries to the Trino cluster at `url` (`http[s]://host:port`) as `user`.
 
@@ -330,7 +325,7 @@ class TrinoBackend:
         self._verify, self._timeout = verify, request_timeout
         self._local = threading.local()
         self._connections: list = []
-        self._tables: dict[str, _Tables] = {}
+        self._listings: dict[str | None, tuple[float, Any]] = {}
         self._runs: set[_Run] = set()
         self._lock = threading.Lock()
 
@@ -347,7 +342,7 @@ class TrinoBackend:
     def branches(self) -> list[str]:
         """The branches whose schemas exist in the catalog: those `schema_map` names, and unless
         `mapped_only`, every other schema with the schema prefix (the prefix taken off)."""
-        rows = self._query(None, f"SHOW SCHEMAS FROM {quote_ident(self.catalog)}")
+        rows = self._listed(None, lambda: self._query(None, f"SHOW SCHEMAS FROM {quote_ident(self.catalog)}"))
         schemas = {row[0] for row in rows} - {"information_schema"}
         named = {schema: branch for branch, schema in self.schema_map.items() if branch != "*"}
         found = {named[schema] for schema in schemas if schema in named}
@@ -424,8 +419,23 @@ class TrinoBackend:
 
     # -- schema ---------------------------------------------------------------------------
 
+    def _listed(self, key: str | None, ask: Callable[[], Any]) -> Any:
+        """`ask()`, or its answer for `key` (None: the schema list; else a branch) from the last
+        LISTING_TTL seconds."""
+        with self._lock:
+            cached = self._listings.get(key)
+        if cached is not None and time.monotonic() - cached[0] <= LISTING_TTL:
+            return cached[1]
+        answer = ask()
+        with self._lock:
+            self._listings[key] = (time.monotonic(), answer)
+        return answer
+
     def schema(self, branch: str = "main") -> dict[str, dict[str, str]]:
         """Table -> column -> Trino type name of the branch's schema in the cluster."""
+        return {table: dict(columns) for table, columns in self._listed(branch, lambda: self._schema(branch)).items()}
+
+    def _schema(self, branch: str) -> dict[str, dict[str, str]]:
         rows = self._query(
             branch,
             "SELECT table_name, column_name, data_type "
@@ -440,22 +450,12 @@ class TrinoBackend:
             except ValueError:
                 pass  # a type lakegate does not model is listed as the cluster names it
             schema.setdefault(table, {})[column] = type_name
-        with self._lock:
-            self._tables[branch] = _Tables(time.monotonic(), {t: set(c) for t, c in schema.items()})
         return schema
 
-    def _scoped_tables(self, branch: str, scope: Scope, tree: exp.Expression) -> set[str]:
-        """The tables of the branch that have the scope's columns (refreshed when the query names a
-        table not seen before, at most once per TABLES_TTL)."""
-        names = {node.name.lower() for node in tree.find_all(exp.Table)}
-        with self._lock:
-            known = self._tables.get(branch)
-        if known is None or (names - set(known.columns) and time.monotonic() - known.checked > TABLES_TTL):
-            self.schema(branch)
-            with self._lock:
-                known = self._tables[branch]
+    def _scoped_tables(self, branch: str, scope: Scope) -> set[str]:
+        """The tables of the branch that have the scope's columns."""
         wanted = scope.columns()
-        return {table for table, columns in known.columns.items() if all(c in columns for c in wanted)}
+        return {table for table, columns in self.schema(branch).items() if all(c in columns for c in wanted)}
 
     # -- queries --------------------------------------------------------------------------
 
@@ -472,7 +472,7 @@ class TrinoBackend:
             sql,
             scope=scope,
             params=params,
-            tables=lambda tree: self._scoped_tables(branch, scope, tree) if scope else set(),
+            tables=lambda tree: self._scoped_tables(branch, scope) if scope else set(),
         )
 
     def execute(

@@ -71,7 +71,7 @@ from lakegate.gateway.metrics.template_settings import apply_template_settings, 
 from lakegate.gateway.metrics.templates import Rendered, TemplateError, render
 from lakegate.lake import paths
 from lakegate.lake.branch_configs import BranchConfigs
-from lakegate.lake.config import Config, Location, Metric
+from lakegate.lake.config import Config, Location, Metric, setting_names
 from lakegate.lake.record import StaleJobsError, job_logs_dir
 from lakegate.lake.storage import LakeStorage
 
@@ -391,7 +391,10 @@ class MetricsEngine:
                 told = outcome[0] if outcome[1] is None else f"{outcome[0]} ({outcome[1]})"
                 result.error = MetricError(f"{error}; the status check gave {told}", query="template")
             return
-        if metric.template_settings and metric.template_type != CUSTOM:
+        if metric.template_settings and metric.template_type == CUSTOM:  # as in SignalFlag: the template's figure
+            names = ", ".join(setting_names(metric.template_settings))
+            result.rendered.problems.append(f"template_settings not applied to a custom template: {names}")
+        elif metric.template_settings:
             apply_template_settings(result.rendered.figure, metric.template_settings)
             unused = unused_settings(metric.template_settings)
             if unused:

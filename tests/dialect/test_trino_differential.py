@@ -60,6 +60,7 @@ def _check(title: str, verdicts: list[differential.Verdict]) -> None:
     )
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(900)  # ~1,500 queries on Trino: about a minute on a quiet machine, far more under load
 def test_every_case_states_what_trino_answers(trino_url, fixture_schema, fixture_lake):
     cases = load_cases()

@@ -23,6 +23,7 @@ import pytest
 import trino
 from scipy import stats
 
+from lakegate.gateway.cli.main import main
 from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.emitter import Emitter
@@ -277,6 +278,7 @@ def test_every_tag_value_and_p_value_matches_an_independent_computation(built):
     assert batch_mean["change"] == pytest.approx(float(np.mean(everything[1]) - np.mean(everything[0])), rel=1e-9)
 
 
+@pytest.mark.slow
 def test_fail_on_new_failures_exit_codes(built):
     lake, _ = built
     assert compare(lake, "--base", "base", "--batch", "new", "--fail-on", "new-failures")[0] == 4  # Regressed
@@ -366,6 +368,7 @@ def _get(url: str) -> tuple[int, str]:
         return error.code, error.read().decode()
 
 
+@pytest.mark.slow
 def test_the_served_compare_page_in_a_real_browser(built, tmp_path):
     """From a batch page ("compare with the previous build"), then two batches picked on the compare
     page, then on the trends page: Chromium draws the same comparison as `lakegate compare`."""
@@ -434,6 +437,7 @@ def trend_lake(tmp_path_factory):
     return make_lake(tmp_path_factory.mktemp("trend"), batches)
 
 
+@pytest.mark.slow
 def test_trend_alerts_in_metrics_dashboard_and_on_the_trends_page(trend_lake, tmp_path):
     lake, truth = trend_lake
     run = ["metrics", "dashboard", "--lake", lake, "--branch", "main", "--format", "json"]
@@ -474,6 +478,52 @@ def test_trend_alerts_in_metrics_dashboard_and_on_the_trends_page(trend_lake, tm
         server.stop()
 
 
+def test_compare_fail_on_regression_exit_codes(trend_lake, capsys):
+    """Exit 5 when a trend alert marks a metric of the new batch's build, over the batches up to it
+    (the command run in this process: four runs of it, each cheap)."""
+    lake, truth = trend_lake
+    builds = list(TREND)
+    per_build = {
+        b: float(np.mean([np.mean(r["values"]) for runs in truth[f"nightly-{b}"].values() for r in runs]))
+        for b in builds
+    }
+
+    def compare_exit(*args: str) -> tuple[int, dict]:
+        code = main(["compare", "--lake", str(lake), "--branch", "main", "--format", "json", *args])
+        out, err = capsys.readouterr()
+        assert code in (0, 4, 5), err
+        return code, json.loads(out)
+
+    code, answer = compare_exit("--base-build", "1.2", "--build", "1.3", "--fail-on", "regression")
+    check = next(c for c in answer["trend_checks"] if c["metric"] == "Mean Value")
+    earlier = [per_build[b] for b in builds[:-1]]
+    assert (check["build"], check["history_builds"], check["alert"]) == ("1.3", builds[:-1], True)
+    assert check["value"] == pytest.approx(per_build["1.3"], rel=1e-12)
+    assert abs(per_build["1.3"] - np.mean(earlier)) > 3 * np.std(earlier, ddof=1)  # Drifting's jump, by construction
+    assert code == 5
+    # 1.2 against 1.1: its value lies within the history of 1.0 and 1.1, and later batches are not looked at
+    code, answer = compare_exit("--base", "nightly-1.1", "--batch", "nightly-1.2", "--fail-on", "regression")
+    checks = {c["metric"]: (c["build"], c["alert"]) for c in answer["trend_checks"]}
+    assert checks == {m: ("1.2", False) for m in ("Mean Value", "Batch Mean", "Fresh Metric")} and code == 0
+    assert abs(per_build["1.2"] - np.mean(earlier[:2])) <= 3 * np.std(earlier[:2], ddof=1)
+    insensitive = compare_exit(
+        "--base", "nightly-1.2", "--batch", "nightly-1.3", "--fail-on", "regression", "--alert-k", "1000"
+    )
+    assert insensitive[0] == 0
+    # both asked for: a new failure (4) wins over a regression (5)
+    failed = any(
+        expected_status(float(np.mean(truth["nightly-1.2"][e][0]["values"]))) == "PASSED"
+        and expected_status(float(np.mean(truth["nightly-1.3"][e][0]["values"]))) != "PASSED"
+        for e in truth["nightly-1.3"]
+    )
+    with pytest.raises(SystemExit) as usage:  # a malformed command line: argparse's 2, naming the choices
+        main(["compare", "--lake", str(lake), "--branch", "main", "--base", "a", "--batch", "b", "--fail-on", "slower"])
+    assert usage.value.code == 2 and "--fail-on: invalid choice: 'slower'" in capsys.readouterr().err
+    both = ("--fail-on", "regression", "--fail-on", "new-failures")
+    assert compare_exit("--base", "nightly-1.2", "--batch", "nightly-1.3", *both)[0] == (4 if failed else 5)
+
+
+@pytest.mark.slow
 def test_compare_on_the_real_trino_matches_the_embedded_engine(built, trino_url):
     """The lake registered in the real Trino 476 (`lakegate trino-ddl`, hive catalog over the lake's
     folder): `compare` and `flakes` forwarded there answer as on the embedded engine."""

@@ -34,6 +34,7 @@ def demo(*args, cwd):
     return result.stdout
 
 
+@pytest.mark.slow
 def test_demo_from_anywhere_with_no_arguments_then_again(tmp_path):
     out = demo(cwd=tmp_path)
     lake = tmp_path / "lake-demo"

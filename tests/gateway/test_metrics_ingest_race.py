@@ -17,6 +17,8 @@ import subprocess
 import time
 from pathlib import Path
 
+import pytest
+
 from lakegate.lake.record import PAUSE_ENV
 
 from .conftest import CLI
@@ -39,6 +41,7 @@ def _finish(process: subprocess.Popen) -> tuple[int, str, str]:
     return process.returncode, out, err
 
 
+@pytest.mark.slow
 def test_a_metrics_run_never_stores_a_verdict_on_data_it_did_not_read(nav_jobs, tmp_path: Path) -> None:
     lake = tmp_path / "lake"
     common = ("--lake", lake, "--branch", "main")

@@ -186,3 +186,17 @@ def test_a_client_that_stops_polling_abandons_its_query(start):
     assert rows.fetchall() == [["FAILED", "ABANDONED_QUERY"]]
     assert time.monotonic() - started < 12  # the client timeout, plus a loaded machine's slack
     assert stop_within(server) == 0
+
+
+def test_a_new_empty_lake_serves_at_once_and_quietly(tmp_path):
+    """A lake with no branch yet: the query workers have nothing to warm (they used to fail warming
+    branch 'main', printing tracebacks and being replaced until the start-up gave up waiting)."""
+    lake = tmp_path / "lake"
+    lake.mkdir()
+    server = serve(lake, tmp_path / "stderr.log", timeout=30)
+    try:
+        assert run(server, "SELECT 1")["data"] == [[1]]
+        assert "Schema 'main' does not exist" in run(server, "SELECT * FROM topic")["error"]["message"]
+    finally:
+        assert server.stop() == 0
+    assert "Traceback" not in server.log.read_text()

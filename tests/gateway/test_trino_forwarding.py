@@ -202,6 +202,7 @@ def unordered_summary(text: str | None) -> str | None:
     return "; ".join(sorted(text.split("; "))) if text else text
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(3600)
 def test_every_metric_forwarded_to_trino_gives_the_embedded_results(tmp_path_factory, trino_url, registered):
     root = tmp_path_factory.mktemp("forwarding")
@@ -300,6 +301,7 @@ def jobs_of(seen: dict[str, list]) -> list[tuple[str, str]]:
     return sorted((batch, job) for batch, job, rows in seen["metadata"] for _ in range(rows))
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(900)
 def test_trino_sees_each_job_once_through_ingests_compaction_and_metrics_runs(tmp_path, trino_url, registered):
     generated = generate_batch(tmp_path / "inputs", jobs=3, samples_per_goal=3)
@@ -374,6 +376,7 @@ def tiny_lake(root: Path, fields: str = "{x: float, y: float}") -> Path:
     return lake
 
 
+@pytest.mark.slow
 def test_registering_says_what_stands_in_the_way(tmp_path, trino_url, registered):
     lake = tiny_lake(tmp_path)
     apply = ["trino-ddl", "--lake", lake, "--apply"]

@@ -210,6 +210,12 @@ def test_real_world_extras_load(tmp_path):
     assert [(w.location.line, w.message) for w in config.warnings] == [
         (3, "unknown key 'refresh_s' in global of the config file: ignored"),
         (4, "unknown key 'owner' in global of the config file: ignored"),
+        (  # kept (above), but a custom template's figure is what the template writes, as in SignalFlag
+            20,
+            "template_settings of metric 'Weekly' (colors, legend.show) are not applied to its custom template "
+            "'templates/weekly.json': ignored, as SignalFlag ignores them (a custom template's figure is what the "
+            "template writes: set titles, ranges and colours there)",
+        ),
     ]
     assert config.summary() == "1 topic, 6 metrics, 0 metrics sets, 1 dashboard"
 

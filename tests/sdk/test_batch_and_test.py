@@ -247,6 +247,7 @@ def test_threads_and_forked_children_share_a_test(tmp_path):
     assert batch.test_statuses == {"shared": "PASSED"}
 
 
+@pytest.mark.slow
 def test_fail_on_states_exit_codes_of_batch_and_cli(tmp_path):
     folder = three_files(tmp_path)
     lake = tmp_path / "lake"
@@ -336,6 +337,7 @@ def test_missing_log_files_warn_and_ingest_logs_option(tmp_path):
     assert gone.returncode == 1 and "logs folder" in gone.stderr and "does not exist" in gone.stderr
 
 
+@pytest.mark.slow
 def test_dashboard_by_name(tmp_path):
     folder = three_files(tmp_path)
     lake = tmp_path / "lake"

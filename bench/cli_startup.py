@@ -5,8 +5,8 @@
 
 Each run is a fresh process of the installed `lakegate` script (`.venv/bin/lakegate`, or the one
 beside this interpreter); runs alternate between the measured commands and `python -c pass`, the
-baseline. Median wall-clock seconds of R runs each (goals: `lakegate --help` under 0.3 s, and no
-command's `--help` slower than 1.5 times `lakegate --help`). Writes section "CLI start-up" of
+baseline. Median wall-clock seconds of R runs each (goal: `lakegate --help` and every command's
+`--help` under 0.3 s, as fast as a user feels as instant). Writes section "CLI start-up" of
 bench/RESULTS.md.
 """
 
@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -27,8 +28,6 @@ from lakegate.gateway.cli.main import build_parser  # noqa: E402
 
 LAKEGATE = Path(sys.executable).parent / "lakegate"
 GOAL = 0.3
-#: The slowest command's --help may take this many times `lakegate --help`.
-COMMAND_GOAL = 1.5
 BASELINE = "`python -c pass` (baseline)"
 TOP = "`lakegate --help`"
 
@@ -51,10 +50,15 @@ def commands() -> dict[str, list[str]]:
     return measured
 
 
-def wall_seconds(command: list[str]) -> float:
+def run_seconds(command: list[str]) -> tuple[float, float]:
+    """Wall-clock and CPU (user + system) seconds of one run of `command`; the CPU time is what other
+    work on the machine does not inflate."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
     subprocess.run(command, stdout=subprocess.DEVNULL, check=True)
-    return time.perf_counter() - start
+    wall = time.perf_counter() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
 
 
 def main() -> None:
@@ -63,30 +67,37 @@ def main() -> None:
     args = parse_args(parser, runs=2)
     measured = commands()
     figures: dict[str, list[float]] = {name: [] for name in measured}
+    cpu: dict[str, list[float]] = {name: [] for name in measured}
     for _ in range(args.runs):
         for name, command in measured.items():
-            figures[name].append(wall_seconds(command))
+            wall, used = run_seconds(command)
+            figures[name].append(wall)
+            cpu[name].append(used)
     medians = {name: statistics.median(runs) for name, runs in figures.items()}
+    cpu_medians = {name: statistics.median(runs) for name, runs in cpu.items()}
     baseline, help_median = medians[BASELINE], medians[TOP]
     slowest = max((name for name in medians if name not in (BASELINE, TOP)), key=medians.__getitem__)
-    ratio = medians[slowest] / help_median
     lines = [
         f"- median of {args.runs} alternating runs, each a fresh process, wall-clock; load average at the end: "
         + ", ".join(f"{load:.2f}" for load in os.getloadavg()),
         "",
-        "| command | median | ratio to the baseline | ratio to `lakegate --help` | runs |",
-        "|---|---:|---:|---:|---|",
+        "| command | median | ratio to the baseline | ratio to `lakegate --help` | median CPU (user+sys) | runs |",
+        "|---|---:|---:|---:|---:|---|",
         *(
             f"| {name} | {medians[name]:.3f} s | {medians[name] / baseline:.1f}x | "
-            f"{medians[name] / help_median:.1f}x | " + ", ".join(f"{r:.3f}" for r in runs) + " |"
+            f"{medians[name] / help_median:.1f}x | {cpu_medians[name]:.3f} s | "
+            + ", ".join(f"{r:.3f}" for r in runs)
+            + " |"
             for name, runs in figures.items()
         ),
         "",
         f"- goal: `lakegate --help` under {GOAL} s: **{'met' if help_median < GOAL else 'not met'}** "
         f"({help_median:.3f} s)",
-        f"- goal: every command's --help at most {COMMAND_GOAL}x `lakegate --help`: "
-        f"**{'met' if ratio <= COMMAND_GOAL else 'not met'}** (slowest {slowest}, {medians[slowest]:.3f} s, "
-        f"{ratio:.1f}x)",
+        f"- goal: every command's --help under {GOAL} s too: **{'met' if medians[slowest] < GOAL else 'not met'}** "
+        f"(slowest {slowest}, {medians[slowest]:.3f} s, {medians[slowest] / help_median:.1f}x `lakegate --help`)",
+        f"- CPU time (not inflated by other work on the machine): `lakegate --help` {cpu_medians[TOP]:.3f} s, the "
+        f"slowest command's --help {max(cpu_medians[n] for n in cpu_medians if n not in (BASELINE, TOP)):.3f} s, "
+        f"`python -c pass` {cpu_medians[BASELINE]:.3f} s",
     ]
     write_section("CLI start-up", "python3 dev.py bench cli_startup", lines)
 

@@ -23,8 +23,8 @@ to lakegate and to Trino, alternating run by run:
   it with `metadata`, and a fetch of all its 1,000,000 rows (3 columns).
 
 Every other answer is checked equal on both (as multisets of rows, doubles to 9 significant digits)
-before it is timed. Writes section "lakegate vs Trino" of bench/RESULTS.md (--smoke: 4 jobs,
-100,000 rows, one run, printed only): the median of each figure on
+before it is timed. Writes section "lakegate vs Trino" of bench/RESULTS.md (--smoke: 2 jobs,
+20,000 rows, one run, printed only): the median of each figure on
 both, the ratio lakegate / Trino, machine, versions, command and load average.
 """
 
@@ -167,7 +167,7 @@ def main() -> int:
     url = args.trino_url or (state or {}).get("url")
     if not url:
         raise SystemExit("needs a running Trino 476: python3 dev.py trino start")
-    jobs, rows_per_job, rows, runs = (4, 500, 100_000, 1) if args.smoke else (40, 5_000, 1_000_000, args.runs)
+    jobs, rows_per_job, rows, runs = (2, 500, 20_000, 1) if args.smoke else (40, 5_000, 1_000_000, args.runs)
     started = time.perf_counter()
     WORK.mkdir(parents=True, exist_ok=True)
     metrics_bench.WORK = WORK / "metrics"

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import threading
 from collections import OrderedDict
-from collections.abc import Mapping, Sequence
+from collections.abc import Hashable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -353,6 +353,7 @@ def translate(
     time_zone: str = "UTC",
     session: session_functions.SessionNames | None = None,
     tree: exp.Expression | None = None,
+    rewrite: Hashable = (),
 ) -> Translation:
     """Translate one Trino query over `schema` (table -> column -> Trino type name) to DuckDB.
 
@@ -361,12 +362,13 @@ def translate(
     `current_catalog` and `current_schema` answer (None: they are refused), and
     `schema_version` (any hashable) identifies the schema for the cache; without it the schema's
     content is hashed. `tree` is `sql` as its reader already parsed it (`statements.Statement`: a
-    tree equal to the parse of `sql`), translated from a copy (None: `sql` is parsed here). Raises
+    tree equal to the parse of `sql`, or its rewrite), translated from a copy (None: `sql` is parsed
+    here); `rewrite` names what the reader changed in `tree` (`Statement.edits`), for the cache. Raises
     DialectError with Trino's error name and the position in `sql`.
     """
     schema_key = schema_version if schema_version is not None else _schema_key(schema)
     session = session if session_functions.used(sql) else None  # one cache entry for every session otherwise
-    key = (sql, schema_key, _hashable(scope), _params_key(params), time_zone, session)
+    key = (sql, rewrite, schema_key, _hashable(scope), _params_key(params), time_zone, session)
     with _lock:
         hit = _cache.get(key)
         if hit is not None:

@@ -2,7 +2,8 @@
 
 The tables of a branch are the topics its configs declare (from the config registry:
 the current version's topics, then topics only older versions declare that still have
-files), `events` and `metadata`. `view_sql` gives, per table, a DuckDB SELECT over the
+files), the platform tables (`lake.platform_tables`: always, empty without files), `events`
+and `metadata`. `view_sql` gives, per table, a DuckDB SELECT over the
 table's Parquet files as the branch's record lists them, never a glob of the tree (the Hive
 partition `batch_id` read as VARCHAR, never auto-cast; `job_id` is a column of the files, or in a
 layout v1 branch a partition too) with the columns of `schema` in order; a file shared by many
@@ -10,14 +11,16 @@ jobs is read once, or filtered to the snapshot's jobs of it (`Snapshot.filtered`
 a table without files is an empty SELECT with the same columns and
 types. Columns that a topic gained or changed across config versions are read with
 `union_by_name` and cast to the current type (NULL in files written before the column
-existed); other tables are read without it (their files all have the same columns, and
-DuckDB would otherwise read every file's footer at each query); the columns each file has
+existed), and so is any table one of whose files lacks a column added to lakegate's layout
+later (`project_id`, `run_counter`: NULL there); other tables are read without it (their files all
+have the same columns, and DuckDB would otherwise read every file's footer at each query); the columns each file has
 come from the record, so building views opens no file. `metric_results` (evaluated
 metrics, one file per batch, written by the metrics engine) is a table once the branch has any.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,7 +28,7 @@ from typing import NamedTuple
 
 import duckdb
 
-from lakegate.lake import paths
+from lakegate.lake import paths, platform_tables
 from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import Config, Topic
 from lakegate.lake.record import FileEntry, Record, Snapshot
@@ -68,6 +71,12 @@ class _Spec:
         versions, or it has a metric[] column (files written before the metric's `extra` field
         hold a narrower struct, which read by position would drop `extra` of newer files)."""
         return self.varied or any(trino == METRIC_LIST for _, trino in self.columns)
+
+
+def _lacks_columns(spec: _Spec, files: dict[str, list[FileEntry]]) -> bool:
+    """Whether a file lacks a column of `spec` (written before the column was added, as `run_counter`)."""
+    needed = {column for column, _ in spec.columns} - set(paths.PARTITION_KEYS) - set(paths.V1_KEYS)
+    return any(not needed.issubset(entries[0].columns) for entries in files.values())
 
 
 def _quote_ident(name: str) -> str:
@@ -201,6 +210,7 @@ class Catalog:
             varied = any(t.fields != topics[0].fields for t in topics[1:])
             specs.append(_Spec(name, "topic", topic_columns(topics[0]), varied))
         specs.sort(key=lambda s: s.name not in current)  # current topics first, in config order
+        specs += [_Spec(name, "topic", topic_columns(topic)) for name, topic in platform_tables.TOPICS.items()]
         specs.append(_Spec(paths.EVENTS_TABLE, "events", list(EVENTS_COLUMNS)))
         specs.append(_Spec(paths.METADATA_TABLE, "metadata", list(METADATA_COLUMNS)))
         if paths.METRIC_RESULTS_TABLE in with_files:
@@ -240,6 +250,8 @@ class Catalog:
                     bad.append(entry)
                 else:
                     files.setdefault(reader, []).append(entry)
+            if not spec.by_name and _lacks_columns(spec, files):
+                spec = dataclasses.replace(spec, varied=True)
             selects = self._selects(spec, files, snapshot.filtered)
             selects += [_unreadable_sql(spec, entry) for entry in bad]
             if not selects:

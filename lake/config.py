@@ -19,6 +19,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from ruamel.yaml.nodes import MappingNode
+
 from lakegate.lake import paths
 from lakegate.lake.config_schema import FILE, TOPIC_NAME_RULES
 from lakegate.lake.config_yaml import Entry, FileReader, Named, RawProblem, RawWarning, did_you_mean
@@ -69,6 +71,8 @@ class Topic:
     fields: dict[str, str]  # field name -> canonical field type (lake.types), in file order
     event: bool = False
     location: Location | None = None
+    #: Where each field's name is written (fields merged in from a YAML alias may have none).
+    field_locations: dict[str, Location] = field(default_factory=dict)
 
 
 @dataclass
@@ -327,12 +331,15 @@ class _Builder:
             return Location(reader.path, *reader.position(node))
 
         for named in _value(entries, "topics", []):
+            schema = named.entries.get("schema")
+            keys = reader.plain_keys(schema.node) if schema is not None and isinstance(schema.node, MappingNode) else {}
             self._add_topic(
                 Topic(
                     named.name,
                     _value(named.entries, "schema", {}),
                     _value(named.entries, "event", False),
                     at(named.key),
+                    {str(name): at(node) for name, node in keys.items()},
                 )
             )
         skip_default = self._global(entries.get("global"))
@@ -424,6 +431,14 @@ class _Builder:
             location=at(named.key),
             query_location=at(e["query_string"].node) if "query_string" in e else None,
         )
+        if metric.template_type == "custom" and metric.template_settings and "template_settings" in e:
+            self._warn(
+                at(e["template_settings"].node),
+                f"template_settings of metric '{metric.name}' ({', '.join(setting_names(metric.template_settings))}) "
+                f"are not applied to its custom template {metric.template_file!r}",
+                "ignored, as SignalFlag ignores them (a custom template's figure is what the template writes: "
+                "set titles, ranges and colours there)",
+            )
         if "status" in e:
             s = e["status"].value
             query = s.get("query_string")
@@ -478,6 +493,17 @@ class _Builder:
                         location,
                         f"metrics set '{metrics_set.name}' names unknown metric '{name}'{did_you_mean(name, metrics)}",
                     )
+
+
+def setting_names(settings: Any) -> list[str]:
+    """The settings of a `template_settings` mapping as `section.key` (or `section` when it is no mapping)."""
+    if not isinstance(settings, dict):
+        return []
+    names = []
+    for section, value in settings.items():
+        keys = list(value) if isinstance(value, dict) else []
+        names += [f"{section}.{key}" for key in keys] or [str(section)]
+    return names
 
 
 def _value(entries: dict[str, Entry], key: str, default: Any) -> Any:

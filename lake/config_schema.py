@@ -26,7 +26,7 @@ PLATFORM_TABLES = ("container_performance", "test_length_seconds")
 #: Table names of the lake, and of ReSim's platform, that a topic may not take.
 RESERVED_TOPIC_NAMES = ("metadata", "events", "metric_results", *PLATFORM_TABLES)
 #: Columns every topic row has besides its declared fields.
-TOPIC_COLUMNS = ("timestamp", "batch_id", "job_id", "experience_name", "build_version")
+TOPIC_COLUMNS = ("timestamp", "batch_id", "job_id", "experience_name", "build_version", "project_id", "run_counter")
 
 
 def _any_case(word: str) -> str:
@@ -138,8 +138,8 @@ METRIC = Section(
         "template_file": Key("string", "The custom template file (with template_type: custom)."),
         "template_settings": Key(
             "data",
-            "Settings of a system template: xaxis.label, yaxis.label, yaxis.min, yaxis.max, display.bins, "
-            "series (group_name and color).",
+            "Settings of a system template (not applied to custom ones): xaxis.label, yaxis.label, yaxis.min, "
+            "yaxis.max, display.bins, series (group_name and color).",
             nullable=True,
         ),
         "units": Key("string", "Units of the values, shown with the metric (after a scalar value)."),

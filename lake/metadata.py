@@ -179,7 +179,8 @@ def build_metadata_row(
     """A complete metadata row for one job: `values` (checked) plus defaults and generated ids.
 
     org_id and project_id default to ids derived from the lake's location, so every job of
-    a lake shares them; the other ids derive from their names within the project.
+    a lake shares them; the other ids derive from their names within the project; run_counter
+    defaults to 0.
     """
     row = check_metadata(values)
     problems = []
@@ -193,6 +194,8 @@ def build_metadata_row(
     row.setdefault("org_id", None)
     row["org_id"] = row["org_id"] or _name_id("org", where)
     row["project_id"] = row.get("project_id") or _name_id("project", where)
+    if row.get("run_counter") is None:
+        row["run_counter"] = 0  # the job's first run; ReSim counts a batch's reruns up from it
     project = row["project_id"]
     row["branch_name"] = row.get("branch_name") or branch
     row["branch_id"] = row.get("branch_id") or _name_id("branch", project, row["branch_name"])

@@ -13,15 +13,22 @@ from collections.abc import Iterable
 
 import pyarrow as pa
 
-from lakegate.lake import paths
+from lakegate.lake import paths, platform_tables
 from lakegate.lake.config import Topic
 from lakegate.lake.types import METRIC_FIELDS, trino_type
 
-#: Columns lakegate adds to every topic and events row (besides the batch_id/job_id partitions).
+#: Columns lakegate adds to every topic and events row (besides the batch_id/job_id partitions), with
+#: their Trino types: one value per job, from its `metadata` row. SignalFlag names `project_id`,
+#: `build_version` and `run_counter` as columns of metadata and of every topic.
 TIMESTAMP = "timestamp"
-JOB_COLUMNS = ("experience_name", "build_version")
+JOB_COLUMNS: tuple[tuple[str, str], ...] = (
+    ("experience_name", "varchar"),
+    ("build_version", "varchar"),
+    ("project_id", "varchar"),
+    ("run_counter", "bigint"),
+)
 PARTITIONS = ("batch_id", "job_id")
-RESERVED_FIELDS = frozenset({TIMESTAMP, *JOB_COLUMNS, *PARTITIONS})
+RESERVED_FIELDS = frozenset({TIMESTAMP, *(name for name, _ in JOB_COLUMNS), *PARTITIONS})
 
 METRIC_STRUCT = pa.struct([(name, pa.string()) for name in METRIC_FIELDS])
 #: The Trino type of a `metric[]` column.
@@ -51,7 +58,7 @@ EVENTS_COLUMNS: Columns = [
     ("status", "varchar"),
     ("tags", "array(varchar)"),
     ("metrics", METRIC_LIST),
-    *[(c, "varchar") for c in JOB_COLUMNS],
+    *JOB_COLUMNS,
     *[(c, "varchar") for c in PARTITIONS],
 ]
 
@@ -60,6 +67,7 @@ METADATA_COLUMNS: Columns = [
     ("org_id", "varchar"),
     ("batch_id", "varchar"),
     ("job_id", "varchar"),
+    ("run_counter", "bigint"),
     ("project_id", "varchar"),
     ("branch_id", "varchar"),
     ("branch_name", "varchar"),
@@ -120,12 +128,19 @@ def duckdb_type(trino: str) -> str:
     return _TYPES[trino][1]
 
 
+def job_columns(topic: Topic) -> Columns:
+    """The columns of a topic table that hold one value per job (its `metadata` row's), partitions aside:
+    `JOB_COLUMNS`, and `org_id` first in a platform table (`lake.platform_tables`)."""
+    extra = platform_tables.EXTRA_JOB_COLUMNS if topic.name in platform_tables.TOPICS else ()
+    return [*extra, *JOB_COLUMNS]
+
+
 def topic_columns(topic: Topic) -> Columns:
     """A topic table's columns (name, Trino type) in order."""
     return [
         (TIMESTAMP, "bigint"),
         *[(f, trino_type(t)) for f, t in topic.fields.items()],
-        *[(c, "varchar") for c in JOB_COLUMNS],
+        *job_columns(topic),
         *[(c, "varchar") for c in PARTITIONS],
     ]
 

@@ -3,8 +3,10 @@ experiences vary across runs of one build).
 
 Exit codes of `compare`: 0 the comparison was made (whatever it found), 4 with `--fail-on
 new-failures` when an experience that passed on the base fails now (a flaky one only with
-`--strict`), 1 usage errors (an unknown lake, branch, batch or build) or an unwritable report; a
-malformed command line is argparse's exit code 2. `flakes` exits 0, or 1 for usage errors.
+`--strict`), 5 with `--fail-on regression` when a trend alert (gateway/metrics/alerts.py) marks a
+metric of the new batch's build (and no new failure gave 4), 1 usage errors (an unknown lake,
+branch, batch or build) or an unwritable report; a malformed command line is argparse's exit code 2.
+`flakes` exits 0, or 1 for usage errors.
 """
 
 from __future__ import annotations
@@ -18,6 +20,8 @@ from pathlib import Path
 from lakegate.dialect.errors import DialectError
 from lakegate.gateway.cli.backends import engine_from_args
 from lakegate.gateway.cli.errors import UserError, os_error_text
+from lakegate.gateway.cli.metrics import format_alerts
+from lakegate.gateway.metrics.alerts import batch_checks
 from lakegate.gateway.metrics.compare import (
     GONE,
     NEW,
@@ -35,7 +39,7 @@ from lakegate.gateway.metrics.trends import branch_batches
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.paths import LakePathError
 
-EXIT_OK, EXIT_USAGE, EXIT_NEW_FAILURES = 0, 1, 4
+EXIT_OK, EXIT_USAGE, EXIT_NEW_FAILURES, EXIT_REGRESSION = 0, 1, 4, 5
 
 
 def _check_branch(lake: Path, branch: str) -> None:
@@ -61,6 +65,11 @@ def compare_command(args: argparse.Namespace) -> int:
         comparison = compare_batches(
             engine, args.branch, base, new, alpha=args.alpha, flake_window=args.window, cv_threshold=args.cv
         )
+        checks = (
+            batch_checks(engine, args.branch, new, k=args.alert_k, history=args.alert_builds)
+            if "regression" in args.fail_on
+            else None
+        )
     except LookupError as error:
         raise UserError(str(error.args[0])) from None
     except (DialectError, LakePathError) as error:
@@ -68,18 +77,27 @@ def compare_command(args: argparse.Namespace) -> int:
     finally:
         queries.close()
     if args.format == "json":
-        json.dump(comparison.as_dict(), sys.stdout, ensure_ascii=False, indent=2)
+        answer = comparison.as_dict()
+        if checks is not None:
+            answer["trend_checks"] = [c.as_dict() for c in checks]
+        json.dump(answer, sys.stdout, ensure_ascii=False, indent=2)
         sys.stdout.write("\n")
     else:
         print(format_comparison(comparison, every_metric=args.all, strict=args.strict))
+        if checks is not None:
+            print(
+                format_alerts(checks) if checks else f"\ntrend alerts: no scalar metric of {new} has 2 earlier builds"
+            )
     if args.report is not None:
         try:
             path = write_compare(comparison, args.report)
         except OSError as error:
             raise UserError(f"cannot write the report {str(args.report)!r}: {os_error_text(error)}") from None
         print(f"report: {path.resolve()}", file=sys.stderr if args.format == "json" else sys.stdout)
-    if args.fail_on == "new-failures" and comparison.new_failures(strict=args.strict):
+    if "new-failures" in args.fail_on and comparison.new_failures(strict=args.strict):
         return EXIT_NEW_FAILURES
+    if checks is not None and any(c.alert for c in checks):
+        return EXIT_REGRESSION
     return EXIT_OK
 
 

@@ -37,6 +37,7 @@ from lakegate.gateway.cli.errors import (
 from lakegate.gateway.engine.trino_backend import TrinoBackend
 from lakegate.gateway.engine.trino_registration import RegistrationError, jobs_seen, sync_local
 from lakegate.gateway.metrics.alerts import TrendCheck, alerts_html, trend_checks
+from lakegate.gateway.metrics.config_vs_lake import check_against_lake
 from lakegate.gateway.metrics.evaluation import (
     BLOCKER,
     ERROR,
@@ -106,25 +107,58 @@ def sync_command(args: argparse.Namespace) -> int:
 
 
 def validate_command(args: argparse.Namespace) -> int:
-    """`metrics validate`: `config check` of the --metrics-config-path files."""
+    """`metrics validate`: `config check` of the --metrics-config-path files, and with --lake and --branch
+    a check against the branch's stored topics and tables."""
+    if (args.lake is None) != (args.branch is None):
+        raise UserError("--lake and --branch go together: give both to check the config against a lake's branch")
+    if args.lake is not None:
+        _check_branch_has_config(args.lake, args.branch)
     templates = _templates(args)
     paths = [str(p) for p in existing_configs(args.config_paths)]
-    if templates is None:
+    if templates is None and args.lake is None:
         return config_commands.check_command(argparse.Namespace(paths=paths, strict=args.strict))
-    try:  # a template folder given: check that every custom template is found
+    try:
         config = load_config(paths, strict=args.strict, templates_path=templates)
     except ConfigError as error:
         for problem in error.problems:
             print(problem)
         return EXIT_USAGE
-    missing = [m for m in config.metrics.values() if m.template_file and m.template_path() is None]
-    for metric in missing:
-        print(f"{metric.location}: template file {metric.template_file!r} of metric '{metric.name}' not found")
-    if missing:
+    problems: list[Any] = []
+    if templates is not None:  # a template folder given: check that every custom template is found
+        problems += [
+            f"{m.location}: template file {m.template_file!r} of metric '{m.name}' not found"
+            for m in config.metrics.values()
+            if m.template_file and m.template_path() is None
+        ]
+    if args.lake is not None:
+        problems += check_against_lake(config, args.lake, args.branch)
+    for problem in problems:
+        print(problem)
+    if problems:
         return EXIT_USAGE
     print_config_warnings(config)
-    print(f"ok: {config.summary()} ({', '.join(paths)}; templates {templates})")
+    checked = [f"templates {templates}"] if templates is not None else []
+    if args.lake is not None:
+        checked.append(f"matches branch {args.branch!r} of lake {args.lake}")
+    print(f"ok: {config.summary()} ({', '.join(paths)}; {'; '.join(checked)})")
     return EXIT_OK
+
+
+def _check_branch_has_config(lake: Path, branch: str) -> None:
+    """UserError unless `lake` is a lake whose `branch` has a stored config (made by ingest or `metrics sync`)."""
+    if not lake.is_dir():
+        raise UserError(f"no lake at {str(lake)!r}")
+    try:
+        registry = BranchConfigs(lake, branch)
+        stored = registry.current_version()
+    except (LakePathError, OSError) as error:
+        raise UserError(str(error)) from None
+    if stored is None:
+        branches = Catalog(lake).branches()
+        raise UserError(
+            f"branch {branch!r} of lake {str(lake)!r} has no stored config (branches: "
+            f"{', '.join(map(repr, branches)) or 'none'}); 'lakegate ingest' and 'lakegate metrics sync' store one"
+        )
 
 
 def _run_config(args: argparse.Namespace) -> tuple[Config, int | None]:

@@ -21,8 +21,9 @@
     GET    /dashboard/trends/?branch=B[&window=30d|N][&set=S]   branch B's dashboard metrics over its
                                                          batches (gateway/metrics/trends.py): the page of
                                                          `lakegate metrics dashboard`, evaluated per request,
-                                                         read-only, through the server's limits; a form
-                                                         picks two of its batches to compare; trend alerts
+                                                         read-only, through the server's limits; a click
+                                                         on two chart points (or a form) picks two of its
+                                                         batches to compare (compare_picker.py); trend alerts
                                                          (&k=3&builds=10: gateway/metrics/alerts.py)
     GET    /dashboard/compare/?branch=B&batch=Y[&base=X]  the page of `lakegate compare` (base: the latest
                                                          batch of the previous build when not given)
@@ -55,6 +56,7 @@ from fastapi import APIRouter, Body, HTTPException, Query, Request
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, RedirectResponse, Response
 
 from lakegate.dialect.errors import DialectError
+from lakegate.gateway.dashboard.compare_picker import compare_picker
 from lakegate.gateway.dashboard.config_edits import BranchConfig, SessionError
 from lakegate.gateway.dashboard.debug_session import DashboardSession
 from lakegate.gateway.engine.engine import Engine
@@ -222,7 +224,8 @@ class DashboardState:
         ids = [b.batch_id for b in batches]
         form = self.compare_form(branch, ids[-2] if len(ids) > 1 else None, ids[-1] if ids else None, batches)
         alerts = alerts_html(trend_checks(self.evaluator, branch, ids, k=k, history=history))
-        return trends_html(evaluation, plotlyjs="/dashboard/static/plotly.min.js", intro=form + alerts, nav=SERVED_NAV)
+        intro = form + compare_picker(branch, batches) + alerts
+        return trends_html(evaluation, plotlyjs="/dashboard/static/plotly.min.js", intro=intro, nav=SERVED_NAV)
 
     def compare(self, branch: str, batch: str | None, base: str | None = None) -> str:
         """The comparison page of batch `batch` with `base` (default: the latest batch of the previous

@@ -567,9 +567,8 @@ class DuckDBBackend:
     ) -> Translation:
         """The translation of the statement's query (for EXPLAIN: the query it explains), from its
         `tree`; errors positioned in that query's text."""
-        body = statement.edited_text()[statement.offset : statement.offset + len(statement.body)]
         return translate(
-            body,
+            statement.body,
             state.schema,
             scope=scope,
             params=params,
@@ -577,6 +576,7 @@ class DuckDBBackend:
             time_zone=time_zone,
             session=session,
             tree=tree,
+            rewrite=statement.edits,
         )
 
     def execute(

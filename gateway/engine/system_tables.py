@@ -533,7 +533,13 @@ class SystemCatalog:
         the result streams and can be canceled."""
         schema = {ref.table: dict(self.tables(ref.catalog, ref.schema)[ref.table]) for ref in refs}
         translation = translate(
-            statement.edited_text(), schema, params=params, time_zone=time_zone, session=session, tree=statement.tree
+            statement.text,
+            schema,
+            params=params,
+            time_zone=time_zone,
+            session=session,
+            tree=statement.tree,
+            rewrite=statement.edits,
         )
         with self._lock:
             cursor = self._db.cursor()

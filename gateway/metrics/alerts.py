@@ -6,6 +6,7 @@ Engine over the batches looked at; builds are ordered by their first job's `time
 value is compared with the previous `history` builds (at least 2): it is an alert when it lies
 outside mean +- k * sample standard deviation of them (with a history that never moved, any
 change is outside). The direction is not judged: a metric may be better high or low.
+`batch_checks` are the checks of one batch's build, over the batches up to it (`lakegate compare`).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from lakegate.gateway.metrics.defaults import HISTORY, K
 from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.gateway.metrics.flakes import has_results
 from lakegate.gateway.metrics.templates import format_number
+from lakegate.gateway.metrics.trends import branch_batches
 
 _VALUES_SQL = """
 WITH builds AS (
@@ -100,6 +102,22 @@ def trend_checks(
             *_, (_, build, value) = points
             checks.append(TrendCheck(metric, build, value, tuple((b, v) for _, b, v in earlier), k))
     return sorted(checks, key=lambda c: (not c.alert, c.metric))
+
+
+def batch_checks(
+    engine: MetricsEngine, branch: str, batch_id: str, *, k: float = K, history: int = HISTORY
+) -> list[TrendCheck]:
+    """The trend checks of the build of batch `batch_id`: over the branch's batches up to it in time
+    order (none after it), each scalar metric of its build against the `history` builds before; alerts
+    first (none when the batch has no jobs)."""
+    batches = branch_batches(engine, branch)
+    ids = [b.batch_id for b in batches]
+    if batch_id not in ids:
+        return []
+    upto = batches[: ids.index(batch_id) + 1]
+    builds = set(upto[-1].builds)
+    checks = trend_checks(engine, branch, [b.batch_id for b in upto], k=k, history=history)
+    return [c for c in checks if c.build in builds]
 
 
 def alerts_html(checks: Sequence[TrendCheck]) -> str:

@@ -48,7 +48,6 @@ import contextlib
 import datetime as dt
 import functools
 import json
-import re
 import sys
 import threading
 import time
@@ -73,8 +72,7 @@ from lakegate.gateway.metrics.template_settings import apply_template_settings, 
 from lakegate.gateway.metrics.templates import Rendered, TemplateError, render
 from lakegate.lake import paths
 from lakegate.lake.branch_configs import BranchConfigs
-from lakegate.lake.config import Config, Location, Metric
-from lakegate.lake.config_schema import PLATFORM_TABLES
+from lakegate.lake.config import Config, Location, Metric, setting_names
 from lakegate.lake.record import StaleJobsError, job_logs_dir
 from lakegate.lake.storage import LakeStorage
 
@@ -390,7 +388,10 @@ class MetricsEngine:
                 told = outcome[0] if outcome[1] is None else f"{outcome[0]} ({outcome[1]})"
                 result.error = MetricError(f"{error}; the status check gave {told}", query="template")
             return
-        if metric.template_settings and metric.template_type != CUSTOM:
+        if metric.template_settings and metric.template_type == CUSTOM:  # as in SignalFlag: the template's figure
+            names = ", ".join(setting_names(metric.template_settings))
+            result.rendered.problems.append(f"template_settings not applied to a custom template: {names}")
+        elif metric.template_settings:
             apply_template_settings(result.rendered.figure, metric.template_settings)
             unused = unused_settings(metric.template_settings)
             if unused:
@@ -660,14 +661,9 @@ def _quoted(name: str) -> str:
 
 
 def _query_error(error: DialectError, sql: str, start: Location | None, which: str) -> MetricError:
-    message = error.message
-    missing = re.match(r"Table '(?:\w+\.)*(\w+)' does not exist", message)
-    if error.error_name == "TABLE_NOT_FOUND" and missing and missing.group(1).lower() in PLATFORM_TABLES:
-        message += (
-            f" ({missing.group(1)} is a table ReSim's platform generates for each job; "
-            "lakegate does not provide it yet: docs/resim-compat.md)"
-        )
-    return MetricError(message, error.line, error.column, config_position(start, sql, error.line, error.column), which)
+    return MetricError(
+        error.message, error.line, error.column, config_position(start, sql, error.line, error.column), which
+    )
 
 
 def _event_metric(item: dict[str, Any]) -> EventMetric:

@@ -287,7 +287,7 @@ def _metric_body(rendered: Rendered, div_id: str, links: tuple[Linker, Sequence[
     return body
 
 
-def _script_json(value: object) -> str:
+def script_json(value: object) -> str:
     """JSON that is safe inside a <script> element (no "</script>", no HTML comment openers)."""
     text = json.dumps(value, allow_nan=False, separators=(",", ":"), ensure_ascii=False)
     return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
@@ -300,8 +300,8 @@ def _chart(figure: dict, div_id: str, link: Linker | None = None) -> str:
     height = layout.get("height", 420)
     html_text = (
         f'<div id="{div_id}" style="height:{int(height)}px"></div>\n'
-        f'<script>Plotly.newPlot("{div_id}", {_script_json(figure.get("data", []))}, '
-        f'{_script_json(layout)}, {{"responsive": true, "displaylogo": false}});</script>'
+        f'<script>Plotly.newPlot("{div_id}", {script_json(figure.get("data", []))}, '
+        f'{script_json(layout)}, {{"responsive": true, "displaylogo": false}});</script>'
     )
     values = (layout.get("meta") or {}).get(LINK_PATH) if isinstance(layout.get("meta"), dict) else None
     if link is None or not values:
@@ -309,7 +309,7 @@ def _chart(figure: dict, div_id: str, link: Linker | None = None) -> str:
     targets = [[link(value) if value is not None else None for value in trace] for trace in values]
     return html_text + (
         f'\n<script>document.getElementById("{div_id}").on("plotly_click", function (event) {{'
-        f"var point = event.points[0], targets = {_script_json(targets)}; "
+        f"var point = event.points[0], targets = {script_json(targets)}; "
         "var target = (targets[point.curveNumber] || [])[point.pointNumber]; "
         "if (target) { window.location.href = target; } });</script>"
     )

@@ -15,13 +15,12 @@ from typing import Any
 
 from tqdm import tqdm
 
-from lakegate.lake import paths
+from lakegate.lake import paths, platform_tables
 from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import Config
 from lakegate.lake.ingest import scan
 from lakegate.lake.ingest.rules import MAX_PROBLEMS, BadLines, IngestError, LineProblem
 from lakegate.lake.ingest.scan import (
-    JOB_FILE_COLUMNS,
     Block,
     Hinter,
     Result,
@@ -43,7 +42,7 @@ class IngestReport:
     branch: str
     batch_id: str
     job_id: str
-    rows: dict[str, int]  # every declared topic -> rows written (0 if none)
+    rows: dict[str, int]  # every declared topic -> rows written (0 if none), and each platform table written
     events: int
     lines: int
     bad_lines: int
@@ -72,6 +71,8 @@ def ingest_job(
 ) -> IngestReport:
     """Ingest the emissions files of one job into the lake (replacing an earlier ingest of it).
 
+    The platform's files beside them (`resource_metrics.resim.jsonl`, `test_length_metric.resim.jsonl`:
+    `lake.platform_tables`) are read with them, unless already listed.
     `logs`: a folder of the job's log files (images, videos ... its metrics show), copied into the lake
     and made the job's logs in the same commit as its tables (None: the job keeps the logs it has).
     Raises IngestError (nothing written) when a line is bad and `skip_bad_lines` is off, or `logs` is
@@ -84,6 +85,7 @@ def ingest_job(
     paths.check_segment(job_id, "job id")
     plans = topic_plans(config)
     files = [Path(p) for p in emissions]
+    files += platform_tables.files_beside([p for p in files if p.is_file()])
     for path in files:
         if not path.is_file():
             raise IngestError(f"emissions file {str(path)!r} does not exist or is not a file")
@@ -95,7 +97,7 @@ def ingest_job(
     bad = 0
     lines = 0
     with paths.job_lock(lake, branch, batch_id, job_id), paths.staging(lake, branch) as scratch:
-        writer = JobWriter(scratch, plans, {c: row[c] for c in JOB_FILE_COLUMNS})
+        writer = JobWriter(scratch, plans, {c: row[c] for plan in plans for c in plan.job_file_columns})
         quarantine = scratch / "quarantine.jsonl"
         with (
             LOCAL.text_writer(quarantine) as bad_lines,
@@ -173,7 +175,7 @@ def ingest_job(
         branch=branch,
         batch_id=batch_id,
         job_id=job_id,
-        rows=writer.rows,
+        rows={name: n for name, n in writer.rows.items() if n or name not in platform_tables.TOPICS},
         events=writer.events,
         lines=lines,
         bad_lines=bad,

@@ -17,17 +17,24 @@ import pyarrow.compute as pc
 import pyarrow.json as pj
 from numpy.lib.stride_tricks import sliding_window_view
 
-from lakegate.lake import paths
+from lakegate.lake import paths, platform_tables
 from lakegate.lake.config import Config, Topic
 from lakegate.lake.ingest.rules import BadLine, IngestError, LineProblem, parse_line, too_long, topic_of
-from lakegate.lake.schema import JOB_COLUMNS, RESERVED_FIELDS, field_arrow_type, file_schema, topic_columns
+from lakegate.lake.schema import (
+    JOB_COLUMNS,
+    RESERVED_FIELDS,
+    field_arrow_type,
+    file_schema,
+    job_columns,
+    topic_columns,
+)
 from lakegate.lake.types import INT64_MAX, MAX_LINE_BYTES
 
 BLOCK_SIZE = 16 << 20
 THREADS = 2
 LINE = "_line"  # line number column of intermediate tables
-#: The columns of a topic's file that hold the same value on every row of a job (`job_id` too).
-JOB_FILE_COLUMNS = (*JOB_COLUMNS, "job_id")
+#: The columns of an events file that hold the same value on every row of a job (`job_id` too).
+JOB_FILE_COLUMNS = (*(name for name, _ in JOB_COLUMNS), "job_id")
 
 
 class Plan:
@@ -38,7 +45,9 @@ class Plan:
         self.topic = topic
         self.name = topic.name
         self.file_schema = file_schema(topic.name, topic_columns(topic))
-        self.schema = pa.schema([field for field in self.file_schema if field.name not in JOB_FILE_COLUMNS])
+        #: the columns of its file that hold the same value on every row of a job (`job_id` too)
+        self.job_file_columns = (*(name for name, _ in job_columns(topic)), "job_id")
+        self.schema = pa.schema([field for field in self.file_schema if field.name not in self.job_file_columns])
         # metric[] values are normalised by check_value; a topic without fields has no Arrow struct
         self.fast = bool(topic.fields) and "metric[]" not in topic.fields.values()
         if self.fast:
@@ -57,8 +66,9 @@ class Plan:
 
 
 def topic_plans(config: Config) -> list[Plan]:
+    """The plans of the config's topics and of the platform tables (`lake.platform_tables`)."""
     plans = []
-    for index, topic in enumerate(config.topics.values()):
+    for index, topic in enumerate([*config.topics.values(), *platform_tables.TOPICS.values()]):
         paths.check_table_name(topic.name)
         clash = RESERVED_FIELDS.intersection(topic.fields)
         if clash:

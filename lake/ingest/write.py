@@ -50,8 +50,9 @@ class JobWriter:
         if self.buffered[index] >= ROWS_PER_WRITE:
             self._flush(index)
 
-    def _constants(self, count: int) -> list[pa.Array]:
-        return [pa.repeat(pa.scalar(self.job_values.get(name), pa.string()), count) for name in JOB_FILE_COLUMNS]
+    def _constants(self, schema: pa.Schema, names: tuple[str, ...], count: int) -> list[pa.Array]:
+        """The columns `names` of a file of `schema`: each the job's one value, `count` times."""
+        return [pa.repeat(pa.scalar(self.job_values.get(name), schema.field(name).type), count) for name in names]
 
     def _flush(self, index: int) -> None:
         tables = self.buffers.pop(index, [])
@@ -60,7 +61,8 @@ class JobWriter:
             return
         plan = self.plans[index]
         table = pa.concat_tables(tables).drop_columns([LINE])
-        table = pa.Table.from_arrays([*table.columns, *self._constants(table.num_rows)], schema=plan.file_schema)
+        constants = self._constants(plan.file_schema, plan.job_file_columns, table.num_rows)
+        table = pa.Table.from_arrays([*table.columns, *constants], schema=plan.file_schema)
         self._write(plan.name, table)
         if plan.topic.event:
             self._write_events(plan, table)
@@ -73,7 +75,7 @@ class JobWriter:
                 columns.append(table.column(name))
             else:
                 columns.append(pa.nulls(count, EVENTS_SCHEMA.field(name).type))
-        columns += self._constants(count)
+        columns += self._constants(EVENTS_SCHEMA, JOB_FILE_COLUMNS, count)
         self.events += count
         self._write(paths.EVENTS_TABLE, pa.Table.from_arrays(columns, schema=EVENTS_SCHEMA))
 

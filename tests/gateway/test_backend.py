@@ -25,6 +25,7 @@ from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.limits import Limits
 from lakegate.lake import paths
 from lakegate.lake.config import load_config
+from lakegate.lake.config_schema import PLATFORM_TABLES
 from lakegate.lake.ingest import ingest_job
 
 CONFIG = """\
@@ -104,7 +105,7 @@ def test_a_query_streams_arrow_batches_with_trino_column_types(backend):
 
 def test_the_schema_is_the_catalogs(backend):
     schema = backend.schema("main")
-    assert set(schema) == {"odom", "time_to_goal", "never_emitted", "events", "metadata"}
+    assert set(schema) == {"odom", "time_to_goal", "never_emitted", "events", "metadata", *PLATFORM_TABLES}
     assert schema["odom"]["x"] == "double" and schema["odom"]["timestamp"] == "bigint"
     assert backend.execute("SELECT count(*) FROM never_emitted").rows() == [(0,)]
 
@@ -145,10 +146,12 @@ def test_show_and_describe_are_the_engines(backend):
     engine = Engine(backend)
     session = engine.session(branch="main")
     assert engine.execute("SHOW TABLES", session).rows() == [
+        ("container_performance",),
         ("events",),
         ("metadata",),
         ("never_emitted",),
         ("odom",),
+        ("test_length_seconds",),
         ("time_to_goal",),
     ]
     result = engine.execute("SHOW TABLES FROM lake.main LIKE 'o%'", session)
@@ -157,6 +160,7 @@ def test_show_and_describe_are_the_engines(backend):
     assert result.columns == [("Column", "varchar"), ("Type", "varchar"), ("Extra", "varchar"), ("Comment", "varchar")]
     assert result.rows()[:3] == [("timestamp", "bigint", "", ""), ("x", "double", "", ""), ("y", "double", "", "")]
     assert engine.execute("SHOW COLUMNS FROM main.odom LIKE '%\\_id' ESCAPE '\\'", session).rows() == [
+        ("project_id", "varchar", "", ""),
         ("batch_id", "varchar", "", ""),
         ("job_id", "varchar", "", ""),
     ]

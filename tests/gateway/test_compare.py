@@ -23,6 +23,7 @@ import pytest
 import trino
 from scipy import stats
 
+from lakegate.gateway.cli.main import main
 from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.emitter import Emitter
@@ -475,6 +476,51 @@ def test_trend_alerts_in_metrics_dashboard_and_on_the_trends_page(trend_lake, tm
         assert status == 200 and "lg-alert" not in page.split("Trend alerts", 1)[1][:200]
     finally:
         server.stop()
+
+
+def test_compare_fail_on_regression_exit_codes(trend_lake, capsys):
+    """Exit 5 when a trend alert marks a metric of the new batch's build, over the batches up to it
+    (the command run in this process: four runs of it, each cheap)."""
+    lake, truth = trend_lake
+    builds = list(TREND)
+    per_build = {
+        b: float(np.mean([np.mean(r["values"]) for runs in truth[f"nightly-{b}"].values() for r in runs]))
+        for b in builds
+    }
+
+    def compare_exit(*args: str) -> tuple[int, dict]:
+        code = main(["compare", "--lake", str(lake), "--branch", "main", "--format", "json", *args])
+        out, err = capsys.readouterr()
+        assert code in (0, 4, 5), err
+        return code, json.loads(out)
+
+    code, answer = compare_exit("--base-build", "1.2", "--build", "1.3", "--fail-on", "regression")
+    check = next(c for c in answer["trend_checks"] if c["metric"] == "Mean Value")
+    earlier = [per_build[b] for b in builds[:-1]]
+    assert (check["build"], check["history_builds"], check["alert"]) == ("1.3", builds[:-1], True)
+    assert check["value"] == pytest.approx(per_build["1.3"], rel=1e-12)
+    assert abs(per_build["1.3"] - np.mean(earlier)) > 3 * np.std(earlier, ddof=1)  # Drifting's jump, by construction
+    assert code == 5
+    # 1.2 against 1.1: its value lies within the history of 1.0 and 1.1, and later batches are not looked at
+    code, answer = compare_exit("--base", "nightly-1.1", "--batch", "nightly-1.2", "--fail-on", "regression")
+    checks = {c["metric"]: (c["build"], c["alert"]) for c in answer["trend_checks"]}
+    assert checks == {m: ("1.2", False) for m in ("Mean Value", "Batch Mean", "Fresh Metric")} and code == 0
+    assert abs(per_build["1.2"] - np.mean(earlier[:2])) <= 3 * np.std(earlier[:2], ddof=1)
+    insensitive = compare_exit(
+        "--base", "nightly-1.2", "--batch", "nightly-1.3", "--fail-on", "regression", "--alert-k", "1000"
+    )
+    assert insensitive[0] == 0
+    # both asked for: a new failure (4) wins over a regression (5)
+    failed = any(
+        expected_status(float(np.mean(truth["nightly-1.2"][e][0]["values"]))) == "PASSED"
+        and expected_status(float(np.mean(truth["nightly-1.3"][e][0]["values"]))) != "PASSED"
+        for e in truth["nightly-1.3"]
+    )
+    with pytest.raises(SystemExit) as usage:  # a malformed command line: argparse's 2, naming the choices
+        main(["compare", "--lake", str(lake), "--branch", "main", "--base", "a", "--batch", "b", "--fail-on", "slower"])
+    assert usage.value.code == 2 and "--fail-on: invalid choice: 'slower'" in capsys.readouterr().err
+    both = ("--fail-on", "regression", "--fail-on", "new-failures")
+    assert compare_exit("--base", "nightly-1.2", "--batch", "nightly-1.3", *both)[0] == (4 if failed else 5)
 
 
 @pytest.mark.slow

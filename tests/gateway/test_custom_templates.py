@@ -33,8 +33,17 @@ BARS = """\
 """
 
 
+#: Settings SignalFlag applies to system templates only (a custom template's figure is its own).
+SETTINGS = "template_settings: {yaxis: {label: Seconds, min: 0}, display: {bins: 9}}"
+
+
 def config_with(
-    folder: Path, template_file: str, *, query: str = "SELECT goal_name, time_s FROM time_to_goal", units: str = "s"
+    folder: Path,
+    template_file: str,
+    *,
+    query: str = "SELECT goal_name, time_s FROM time_to_goal",
+    units: str = "s",
+    settings: str = "",
 ) -> Path:
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / "config.resim.yaml"
@@ -48,7 +57,7 @@ def config_with(
             query_string: {query}
             template_type: custom
             template_file: {template_file}
-            units: {units}
+            units: {units}{settings}
           Nothing Yet:
             type: test
             description: no rows, skipped
@@ -135,8 +144,12 @@ def test_sync_stores_the_template_and_run_renders_it_into_results_and_report(tmp
     job = generate_batch(tmp_path / "inputs", jobs=1, samples_per_goal=4)[0]
     project = tmp_path / "project"
     config_path = config_with(
-        project, "bars.liquid", query="SELECT goal_name AS label, time_s AS value FROM time_to_goal ORDER BY timestamp"
+        project,
+        "bars.liquid",
+        query="SELECT goal_name AS label, time_s AS value FROM time_to_goal ORDER BY timestamp",
+        settings="\n" + " " * 12 + SETTINGS,
     )
+    settings_line = config_path.read_text().splitlines().index("    " + SETTINGS) + 1
     (project / "templates").mkdir()
     (project / "templates" / "bars.liquid").write_text(BARS)
     lake = tmp_path / "lake"
@@ -150,10 +163,17 @@ def test_sync_stores_the_template_and_run_renders_it_into_results_and_report(tmp
         metadata=load_metadata_file(job.metadata_path),
         logs=job.logs_dir,
     )
+    sync = lakegate("metrics", "sync", "--lake", lake, "--branch", "main", "--metrics-config-path", config_path)
+    assert sync.returncode == 0, sync.stderr
+    # SignalFlag draws a custom template's figure as the template writes it: the settings are
+    # ignored, and the warning names the file, line, metric and each setting
     assert (
-        lakegate("metrics", "sync", "--lake", lake, "--branch", "main", "--metrics-config-path", config_path).returncode
-        == 0
+        f"{config_path}:{settings_line}:24: warning: template_settings of metric 'Goal Times' "
+        "(yaxis.label, yaxis.min, display.bins) are not applied to its custom template 'bars.liquid': "
+        "ignored, as SignalFlag ignores them" in sync.stderr
     )
+    strict = lakegate("metrics", "validate", "--metrics-config-path", config_path, "--strict")
+    assert strict.returncode == 1 and "(ReSim accepts this; refused because of --strict)" in strict.stdout
     (project / "templates" / "bars.liquid").unlink()  # the stored config has its own copy
 
     report = tmp_path / "report.html"
@@ -176,6 +196,9 @@ def test_sync_stores_the_template_and_run_renders_it_into_results_and_report(tmp
     assert run.returncode == 0, run.stderr
     metric, skipped = json.loads(run.stdout)["metrics"]
     assert (metric["template"], metric["status"], metric["value"]) == ("custom", "PASSED", "1 trace from bars.liquid")
+    assert metric["problems"] == [
+        "template_settings not applied to a custom template: yaxis.label, yaxis.min, display.bins"
+    ]
     assert (skipped["template"], skipped["status"], skipped["error"]["message"]) == (
         "custom",
         "NOT_RUN",
@@ -189,9 +212,10 @@ def test_sync_stores_the_template_and_run_renders_it_into_results_and_report(tmp
     assert len(goals) >= 2
     stored, _ = read_results(lake, "main", "b1")
     figure = json.loads(stored["figure_json"])
-    assert figure["data"] == [
-        {"type": "bar", "x": [g for g, _ in goals], "y": [t for _, t in goals], "name": "Goal Times"}
-    ]
+    assert figure == {
+        "data": [{"type": "bar", "x": [g for g, _ in goals], "y": [t for _, t in goals], "name": "Goal Times"}],
+        "layout": {"title": {"text": "time per goal"}, "yaxis": {"title": {"text": "s"}}},  # as the template wrote it
+    }
     assert (stored["metric_name"], stored["template"], stored["units"]) == ("Goal Times", "custom", "s")
     html = report.read_text()
     assert "Goal Times" in html and '"name":"Goal Times"' in html.replace(", ", ",").replace(": ", ":")

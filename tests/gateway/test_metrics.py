@@ -682,22 +682,20 @@ def test_a_batch_image_metric_of_labels_and_job_ids_shows_each_jobs_files(nav, t
     assert nobody.rendered.problems == ["nobody: job no-such-job has no image files"]
 
 
-def test_platform_tables_are_named_when_a_query_reads_them(nav, tmp_path):
+def test_platform_tables_exist_empty_on_a_lake_without_their_files(nav, tmp_path):
     """container_performance and test_length_seconds are tables ReSim's platform generates (SignalFlag's
-    validator, open-core signalflag/demo/config_test.py, BUILTIN_TABLES); lakegate says so when a query reads one."""
+    validator, open-core signalflag/demo/config_test.py, BUILTIN_TABLES); a job without their files has no
+    rows in them, so a metric over them is NO_DATA, never an unknown table."""
     config_path = write_config(
         tmp_path,
         """\
       Peak memory:
         type: test
-        query_string: SELECT MAX(memory_bytes) FROM container_performance
+        query_string: SELECT MAX(memory_usage_gib) FROM container_performance
         template: scalar
     """,
     )
     config = load_config(config_path)
     result = nav.engine.evaluate(config.metrics["Peak memory"], BRANCH, Scope(BATCH, nav.jobs[0].job_id))
-    assert result.status == "ERROR"
-    assert result.error.message == (
-        "Table 'lake.main.container_performance' does not exist (container_performance is a table ReSim's platform "
-        "generates for each job; lakegate does not provide it yet: docs/resim-compat.md)"
-    )
+    assert result.status == "NO_DATA"
+    assert result.error.message == "the query returned one row of NULLs; the status check does not run (NO_DATA)"

@@ -299,3 +299,34 @@ def test_the_comparison_page(page, served, tmp_path):
     assert page.locator(".lg-top nav a").all_inner_texts() == ["Home", "Dashboard", "Trends"]
     button = page.locator("#compare-go")
     assert button.evaluate("b => getComputedStyle(b).borderRadius") == "4px"  # styled as the dashboard's
+
+
+#: The page coordinates of point `index` of the first trace of the chart `id` (Plotly's own axis maps).
+POINT_JS = """([id, index]) => {
+    const chart = document.getElementById(id), box = chart.getBoundingClientRect();
+    const x = chart._fullLayout.xaxis, y = chart._fullLayout.yaxis, point = chart.calcdata[0][index];
+    return [box.left + x._offset + x.c2p(point.x), box.top + y._offset + y.c2p(point.y)];
+}"""
+
+
+def test_two_clicks_on_the_trends_chart_open_their_comparison(page, served, tmp_path):
+    """A build's point stands for its latest batch; the earlier of the two picked is the base."""
+    _, url = served
+    page.goto(f"{url}/dashboard/trends/?branch=main")
+    chart = page.locator("article.lg-metric", has_text="Time to Final Goal by Build").locator("[id^=lg-figure-]")
+    chart.locator(".main-svg").first.wait_for()
+    assert page.locator("#compare-base").input_value() == "nightly-1.4.1"  # the form stays, the way without a chart
+    chart_id = chart.get_attribute("id")
+    builds = page.evaluate(f"() => document.getElementById('{chart_id}').data[0].x")
+    assert builds == ["1.4.0", "1.4.1", "1.4.2"]
+    chart.scroll_into_view_if_needed()
+    page.mouse.click(*page.evaluate(POINT_JS, [chart_id, 2]))  # 1.4.2: the demo's batch nav-regression-1
+    picked = "Picked nav-regression-1 (build 1.4.2): click a point of another batch to compare the two."
+    assert page.locator("#compare-pick").inner_text() == picked  # above the charts, and under the chart clicked
+    assert page.locator(f"#{chart_id} + #compare-picked").inner_text() == picked
+    page.mouse.click(*page.evaluate(POINT_JS, [chart_id, 0]))  # 1.4.0: nightly-1.4.0
+    page.wait_for_url("**/dashboard/compare/?*")
+    assert page.url == f"{url}/dashboard/compare/?branch=main&base=nightly-1.4.0&batch=nav-regression-1"
+    page.wait_for_selector(".js-plotly-plot .main-svg")
+    assert page.locator("h1").inner_text() == "Compare nightly-1.4.0 -> nav-regression-1 on branch main"
+    page.screenshot(path=str(_artifacts(tmp_path) / "compare-from-clicks.png"))

@@ -113,7 +113,11 @@ def test_scoped_queries_on_a_lake(lake):
 
 def test_show_tables_and_describe(lake):
     done = lakegate("--lake", str(lake), "--format", "csv", "SHOW TABLES")
-    assert done.stdout.splitlines() == ["Table", "events", "metadata", "never_emitted", "odom", "time_to_goal"]
+    assert done.stdout.splitlines() == [
+        "Table",
+        *("container_performance", "events", "metadata", "never_emitted", "odom", "test_length_seconds"),
+        "time_to_goal",
+    ]
     done = lakegate("--lake", str(lake), "--format", "json", "DESCRIBE time_to_goal")
     described = json.loads(done.stdout)
     assert [c["name"] for c in described["columns"]] == ["Column", "Type", "Extra", "Comment"]

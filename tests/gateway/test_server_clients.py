@@ -255,7 +255,9 @@ def test_sqlalchemy_inspects_schemas_tables_and_columns(engine, all_types):
     branch, _ = all_types
     inspector = inspect(engine)
     assert set(inspector.get_schema_names()) == {"main", branch, "information_schema"}
-    assert sorted(inspector.get_table_names(schema=branch)) == ["events", "metadata", "sample"]
+    assert sorted(inspector.get_table_names(schema=branch)) == [
+        *("container_performance", "events", "metadata", "sample", "test_length_seconds")
+    ]
     assert {"metadata", "events", "odom_linear_velocity"} <= set(inspector.get_table_names())
     assert inspector.has_table("sample", schema=branch) and not inspector.has_table("nope", schema=branch)
     columns = {c["name"]: c["type"] for c in inspector.get_columns("sample", schema=branch)}

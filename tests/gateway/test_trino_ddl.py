@@ -254,7 +254,7 @@ def test_tables_without_files_are_noted_or_skipped(tmp_path):
         }
 
     text, every = tables()
-    assert every == {"odom", "never", "events", "metadata"}
+    assert every == {"odom", "never", "events", "metadata", "container_performance", "test_length_seconds"}
     assert "-- table 'never' has no data files yet: its location must exist" in text
     text, some = tables("--skip-empty")
     assert some == {"odom", "metadata"}

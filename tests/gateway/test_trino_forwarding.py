@@ -38,6 +38,7 @@ from lakegate.lake.catalog import Catalog
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
 from lakegate.lake.metadata import load_metadata_file
+from tests.compat import test_platform_tables as platform
 from tests.compat import test_resim_configs as robot
 from tests.compat import test_resim_media as field
 from tests.gateway.test_trino_backend import CLI, same, start_server, stop_server
@@ -94,7 +95,8 @@ def registered(trino_url):
 
 def demo_lake(root: Path) -> Path:
     """`lakegate demo` (3 jobs, the dashboard's earlier builds) plus branch `robot` (the split config of
-    tests/compat, its 2 jobs) and branch `field` (the field robot config, its job and log files)."""
+    tests/compat, its 2 jobs), branch `field` (the field robot config, its job and log files) and branch
+    `platform` (the config over the platform tables, its 3 job folders, one without platform files)."""
     lake = root / "lake"
     demo = lakegate("demo", "--lake", lake, "--jobs", "3", "--no-progress")
     assert demo.returncode == 0, demo.stderr
@@ -114,6 +116,7 @@ def demo_lake(root: Path) -> Path:
     for name, data in field.LOGS.items():
         (logs / name).parent.mkdir(parents=True, exist_ok=True)
         (logs / name).write_bytes(data)
+    platform.ingest(lake, root / "platform", branch="platform")
     return lake
 
 
@@ -122,6 +125,7 @@ RUNS = [
     ("main", "nav-regression-1", None),
     ("robot", "b1", robot.SPLIT),
     ("field", "b1", [field.CONFIG]),
+    ("platform", "b1", [platform.CONFIG]),
 ]
 
 

@@ -78,12 +78,23 @@ def test_lists_branches_batches_jobs_and_tables_with_row_counts(tmp_path):
     assert catalog.jobs("main", "b1") == [JobRef("b1", "j1"), JobRef("b1", "j2")]
     assert catalog.jobs("feature/ünï x") == [("007", "1e5")]
     tables = {t.name: t for t in catalog.tables("main")}
-    assert list(tables) == ["odom", "speed", "goal_reached", "never", "events", "metadata"]
+    assert list(tables) == [
+        "odom",
+        "speed",
+        "goal_reached",
+        "never",
+        "container_performance",
+        "test_length_seconds",
+        "events",
+        "metadata",
+    ]
     assert {n: (t.kind, t.row_count) for n, t in tables.items()} == {
         "odom": ("topic", 4),
         "speed": ("topic", 0),
         "goal_reached": ("topic", 1),
         "never": ("topic", 0),
+        "container_performance": ("topic", 0),
+        "test_length_seconds": ("topic", 0),
         "events": ("events", 1),
         "metadata": ("metadata", 3),
     }
@@ -93,6 +104,8 @@ def test_lists_branches_batches_jobs_and_tables_with_row_counts(tmp_path):
         ("y", "double"),
         ("experience_name", "varchar"),
         ("build_version", "varchar"),
+        ("project_id", "varchar"),
+        ("run_counter", "bigint"),
         ("batch_id", "varchar"),
         ("job_id", "varchar"),
     ]
@@ -120,6 +133,8 @@ def test_schema_speaks_trino_and_views_match_it(tmp_path):
         ),
         "experience_name": "varchar",
         "build_version": "varchar",
+        "project_id": "varchar",
+        "run_counter": "bigint",
         "batch_id": "varchar",
         "job_id": "varchar",
     }
@@ -137,6 +152,8 @@ def test_schema_speaks_trino_and_views_match_it(tmp_path):
         "metrics",
         "experience_name",
         "build_version",
+        "project_id",
+        "run_counter",
         "batch_id",
         "job_id",
     ]

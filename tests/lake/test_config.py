@@ -210,6 +210,12 @@ def test_real_world_extras_load(tmp_path):
     assert [(w.location.line, w.message) for w in config.warnings] == [
         (3, "unknown key 'refresh_s' in global of the config file: ignored"),
         (4, "unknown key 'owner' in global of the config file: ignored"),
+        (  # kept (above), but a custom template's figure is what the template writes, as in SignalFlag
+            20,
+            "template_settings of metric 'Weekly' (colors, legend.show) are not applied to its custom template "
+            "'templates/weekly.json': ignored, as SignalFlag ignores them (a custom template's figure is what the "
+            "template writes: set titles, ranges and colours there)",
+        ),
     ]
     assert config.summary() == "1 topic, 6 metrics, 0 metrics sets, 1 dashboard"
 
@@ -370,13 +376,13 @@ def test_bad_field_names(tmp_path):
             7,
             7,
             "field 'timestamp' of topic 'pose' is a column every topic row already has "
-            "(timestamp, batch_id, job_id, experience_name, build_version)",
+            "(timestamp, batch_id, job_id, experience_name, build_version, project_id, run_counter)",
         ),
         (
             8,
             7,
             "field 'Job_ID' of topic 'pose' is a column every topic row already has "
-            "(timestamp, batch_id, job_id, experience_name, build_version)",
+            "(timestamp, batch_id, job_id, experience_name, build_version, project_id, run_counter)",
         ),
         (
             9,

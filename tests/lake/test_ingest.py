@@ -222,7 +222,11 @@ def test_parquet_files_have_the_contract_columns_and_zstd(tmp_path, config):
     ingest_job(tmp_path / "lake", "main", "b1", "j1", [emissions], config=config)
     topic_file = current_file(tmp_path / "lake", "main", "odom", "b1", "j1")
     schema = pq.read_schema(topic_file)
-    assert schema.names == ["timestamp", "x", "y", "z", "experience_name", "build_version", "job_id"]
+    assert schema.names == [
+        "timestamp",
+        *("x", "y", "z"),
+        *("experience_name", "build_version", "project_id", "run_counter", "job_id"),
+    ]
     assert str(schema.field("timestamp").type) == "int64"
     assert pq.ParquetFile(topic_file).metadata.row_group(0).column(1).compression == "ZSTD"
     events_file = current_file(tmp_path / "lake", "main", "events", "b1", "j1")
@@ -236,6 +240,8 @@ def test_parquet_files_have_the_contract_columns_and_zstd(tmp_path, config):
         "metrics",
         "experience_name",
         "build_version",
+        "project_id",
+        "run_counter",
         "job_id",
     ]
     # an event topic without description/status/tags/metrics fields leaves them NULL in events

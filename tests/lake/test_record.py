@@ -116,11 +116,13 @@ def test_the_record_keeps_rows_timestamps_and_columns(tmp_path):
     finally:
         record.close()
     assert (odom.rows, odom.min_ts, odom.max_ts) == (4, 0, 3)
-    assert odom.columns == ("timestamp", "x", "experience_name", "build_version", "job_id")
+    assert odom.columns == ("timestamp", "x", "experience_name", "build_version", "project_id", "run_counter", "job_id")
     assert sorted(e.table for e in snapshot.files) == ["goal", "metadata", "odom"]
     assert {t.name: t.row_count for t in Catalog(lake).tables("main")} == {
         "odom": 4,
         "goal": 1,
+        "container_performance": 0,
+        "test_length_seconds": 0,
         "events": 0,
         "metadata": 1,
     }

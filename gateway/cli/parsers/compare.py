@@ -7,7 +7,9 @@ from pathlib import Path
 
 from lakegate.gateway.cli.parsers import Command
 from lakegate.gateway.cli.parsers.arguments import add_backend_arguments, positive
-from lakegate.gateway.metrics.defaults import ALPHA, CV_THRESHOLD, FLAKE_WINDOW
+from lakegate.gateway.metrics.defaults import ALPHA, CV_THRESHOLD, FLAKE_WINDOW, HISTORY, K
+
+FAIL_ON = ("new-failures", "regression")
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -21,7 +23,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "same; scalars show base, new and change; series metrics (line, bar, histogram, state timeline) are "
         "compared with a SciPy two-sample test (Kolmogorov-Smirnov; chi-square for states) and flagged when "
         "p < --alpha. Exit code: 0 compared, 4 --fail-on new-failures and an experience that passed on the "
-        "base fails now, 1 usage error.",
+        "base fails now, 5 --fail-on regression and a trend alert marks a scalar metric of the new batch's "
+        "build (its value beyond --alert-k standard deviations of the --alert-builds builds before it; 4 "
+        "wins when both are asked for and found), 1 usage error.",
     )
     _lake_and_branch(compare)
     base = compare.add_mutually_exclusive_group(required=True)
@@ -43,9 +47,27 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     compare.add_argument(
         "--fail-on",
-        choices=("new-failures",),
-        help="exit 4 when an experience that passed on the base fails now (known failures and flaky "
-        "experiences do not count; see --strict)",
+        choices=FAIL_ON,
+        action="append",
+        default=[],
+        help="new-failures: exit 4 when an experience that passed on the base fails now (known failures and "
+        "flaky experiences do not count; see --strict); regression: exit 5 when a trend alert marks a metric "
+        "of the new batch, as 'lakegate metrics dashboard --fail-on regression' does (may be given twice)",
+    )
+    compare.add_argument(
+        "--alert-k",
+        type=positive(float),
+        default=K,
+        metavar="K",
+        help=f"trend alert: a scalar metric whose value on the new batch's build lies outside K standard "
+        f"deviations of its previous builds (default {K:g})",
+    )
+    compare.add_argument(
+        "--alert-builds",
+        type=positive(int),
+        default=HISTORY,
+        metavar="N",
+        help=f"trend alert: compare the new batch's build with the N builds before it (default {HISTORY}; 2 at least)",
     )
     compare.add_argument(
         "--strict", action="store_true", help="with --fail-on new-failures, a new failure of a flaky experience counts"

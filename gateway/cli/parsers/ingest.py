@@ -25,7 +25,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         nargs="+",
         type=Path,
         metavar="EMISSIONS",
-        help="emissions files of the job (JSON lines, as the Emitter writes them)",
+        help="emissions files of the job (JSON lines, as the Emitter writes them); the platform's files "
+        "resource_metrics.resim.jsonl and test_length_metric.resim.jsonl in their folders are read too (the "
+        "tables container_performance and test_length_seconds)",
     )
     ingest.add_argument("--lake", required=True, type=Path, metavar="DIR", help="the lake's directory")
     ingest.add_argument("--branch", required=True, metavar="B", help="the branch the job ran on (any name)")

@@ -51,8 +51,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="check config files without storing them (SignalFlag's name for 'config check')",
         description="Load and merge the config files as 'metrics sync' would, without storing anything; print "
         "every problem (file:line:column: message) and exit 1, or a one-line summary and exit 0. The same "
-        "as 'lakegate config check'.",
+        "as 'lakegate config check'; with --lake and --branch it also checks the config against what the "
+        "branch stores: a topic it declares must keep the fields and types the lake holds (a branch's topics "
+        "only grow, as in SignalFlag), and every metric's query and status query must run on the branch's "
+        "tables (a table or column the lake does not have is named with its place).",
     )
+    validate.add_argument(
+        "--lake", type=Path, metavar="DIR", help="also check against this lake's branch (with --branch)"
+    )
+    validate.add_argument("--branch", metavar="B", help="the branch of --lake to check against")
     validate.add_argument(
         "--metrics-config-path",
         action="append",

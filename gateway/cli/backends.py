@@ -1,6 +1,6 @@
-"""The command-line options that choose a backend: embedded DuckDB over the lake (default) or
-forwarding to a Trino cluster (`--backend trino --trino-url URL ...`), shared by the commands that
-run queries."""
+"""The backend the command-line options choose (`parsers.arguments.add_backend_arguments`): embedded
+DuckDB over the lake (default) or forwarding to a Trino cluster (`--backend trino --trino-url URL ...`),
+shared by the commands that run queries."""
 
 from __future__ import annotations
 
@@ -15,57 +15,6 @@ from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.isolated_backend import IsolatedBackend
 from lakegate.gateway.engine.trino_backend import TrinoBackend
 from lakegate.gateway.engine.trino_registration import RegistrationError, read_registration
-
-
-def add_trino_connection_arguments(group: argparse._ArgumentGroup) -> None:
-    """Add the options that reach a Trino cluster (`--trino-url`, user, credentials, TLS) to `group`."""
-    group.add_argument("--trino-url", metavar="URL", help="the cluster's coordinator, http(s)://host:port")
-    group.add_argument("--trino-user", default="lakegate", metavar="U", help="the Trino user (default: lakegate)")
-    group.add_argument(
-        "--trino-password-env",
-        metavar="VAR",
-        help="HTTP Basic authentication with the password in environment variable VAR (needs https)",
-    )
-    group.add_argument(
-        "--trino-jwt-env",
-        metavar="VAR",
-        help="JWT authentication with the token in environment variable VAR (needs https)",
-    )
-    group.add_argument("--trino-ca", type=Path, metavar="FILE", help="CA bundle that signed the cluster's certificate")
-    group.add_argument("--trino-insecure", action="store_true", help="do not verify the cluster's TLS certificate")
-
-
-def add_backend_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add `--backend` and the `--trino-*` options to a command's parser."""
-    parser.add_argument(
-        "--backend",
-        choices=("duckdb", "trino"),
-        default="duckdb",
-        help="where the queries run: embedded DuckDB over the lake (duckdb, the default) or a "
-        "Trino cluster that has the lake's tables (trino: see 'lakegate trino-ddl')",
-    )
-    trino = parser.add_argument_group(
-        "forwarding to Trino (--backend trino)",
-        "Where the lake's tables are in the cluster: what 'lakegate trino-ddl --apply' recorded in the lake "
-        "for this --trino-url, unless one of --trino-catalog, --trino-schema-prefix, --trino-schema-map is "
-        "given; else catalog hive, one schema per branch named as 'lakegate trino-ddl' names it.",
-    )
-    add_trino_connection_arguments(trino)
-    trino.add_argument("--trino-catalog", metavar="C", help="the catalog that holds the lake's schemas (default: hive)")
-    trino.add_argument(
-        "--trino-schema-prefix",
-        metavar="P",
-        help="the --schema-prefix given to 'lakegate trino-ddl' (default: none)",
-    )
-    trino.add_argument(
-        "--trino-schema-map",
-        action="append",
-        default=[],
-        metavar="BRANCH=SCHEMA",
-        help="the schema of a branch, instead of the name 'lakegate trino-ddl' gives it (repeat for "
-        "several); '*={branch}' maps every branch to a schema of its own name (another "
-        "'lakegate serve', catalog lake)",
-    )
 
 
 def _secret(variable: str | None) -> str | None:

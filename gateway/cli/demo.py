@@ -37,6 +37,7 @@ from lakegate.fixtures.generate import BUILD_TIME, BUILD_VERSION, EXPERIENCES, O
 from lakegate.gateway.cli.compare import format_comparison
 from lakegate.gateway.cli.errors import writable_lake
 from lakegate.gateway.cli.metrics import format_table, format_trends
+from lakegate.gateway.cli.parsers.demo import METRICS_SET
 from lakegate.gateway.metrics.compare import compare_batches
 from lakegate.gateway.metrics.compare_page import write_compare
 from lakegate.gateway.metrics.evaluation import MetricsEngine
@@ -49,7 +50,6 @@ from lakegate.lake.metadata import load_metadata_file
 
 BRANCH = "main"
 BATCH = "nav-regression-1"
-METRICS_SET = "Nav Metrics"
 INPUTS = "_demo_inputs"
 #: Where `lakegate serve --lake DIR` answers by default: the trends page's links point there.
 LINK_BASE = "http://127.0.0.1:8080"
@@ -102,40 +102,6 @@ def _shown_path(path: Path) -> str:
         return str(path)
     relative = str(path.relative_to(Path.cwd()))
     return relative if "/" in relative else f"./{relative}"
-
-
-def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser(
-        "demo",
-        help="simulate a batch of navigation runs, ingest it, evaluate its metrics, write a report and a trends page",
-        description="Generate a deterministic simulated navigation batch, ingest it into a local lake, evaluate "
-        f"the '{METRICS_SET}' metrics set of the example config (every example query of the product "
-        "guide), print the results and write an HTML report with every figure; with two small batches of "
-        "earlier builds, evaluate the example dashboard metrics (a trend from build to build) and write "
-        "them to a trends page.",
-    )
-    parser.add_argument(
-        "--lake",
-        type=Path,
-        default=Path("lake-demo"),
-        metavar="DIR",
-        help="the lake's directory (default: ./lake-demo; created if missing, the demo batches replaced)",
-    )
-    parser.add_argument(
-        "--jobs",
-        type=int,
-        default=6,
-        metavar="N",
-        help="jobs in the batch, cycling through the experiences and outcomes, plus two repeated runs of "
-        "Narrow Aisle (default 6: two each PASSED, WARNING and BLOCKER, then the two runs, PASSED)",
-    )
-    parser.add_argument(
-        "--progress",
-        action=argparse.BooleanOptionalAction,
-        default=None,
-        help="show progress bars on standard error (default: when it is a terminal)",
-    )
-    parser.set_defaults(func=demo_command)
 
 
 def _step(text: str) -> None:

@@ -2,43 +2,15 @@
 
 from __future__ import annotations
 
-import argparse
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 from lakegate.lake.config import Config, expand_config_paths, find_default_config
 
 
 class UserError(Exception):
     """An error caused by the user's input; printed as `lakegate: <message>`, exit code 1."""
-
-
-def port_number(text: str) -> int:
-    """An argparse type: a TCP port number, 0 to 65535 (0: any free port)."""
-    try:
-        number = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a port number (0 to 65535), got {text!r}") from None
-    if not 0 <= number <= 65535:
-        raise argparse.ArgumentTypeError(f"expected a port number (0 to 65535; 0 picks a free one), got {text!r}")
-    return number
-
-
-def positive(kind: type) -> Callable[[str], Any]:
-    """An argparse `type` that reads a `kind` (int or float) greater than 0."""
-
-    def parse(text: str) -> Any:
-        try:
-            value = kind(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}") from None
-        if not value > 0:
-            raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
-        return value
-
-    return parse
 
 
 def os_error_text(error: OSError) -> str:
@@ -67,23 +39,6 @@ def existing_configs(given: Sequence[Path] | None) -> list[Path]:
         return expand_config_paths(given)
     except FileNotFoundError as error:
         raise UserError(str(error)) from None
-
-
-#: The help of every `--metrics-config-path` that takes several files.
-CONFIG_PATHS_HELP = (
-    "repeat it, or separate paths by commas, to merge several files; a glob such as 'metrics/*.yml' takes "
-    "every file it matches, in sorted order"
-)
-
-
-def add_strict_option(parser: argparse.ArgumentParser) -> None:
-    """`--strict`: what lakegate accepts from ReSim configs with a warning is refused instead."""
-    parser.add_argument(
-        "--strict",
-        action="store_true",
-        help="refuse config findings that are only warnings otherwise (ReSim accepts them): unknown keys, "
-        "names YAML reads as numbers or booleans, keys the template type does not use, unit and units differing",
-    )
 
 
 def print_config_warnings(config: Config) -> None:

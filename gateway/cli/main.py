@@ -1,14 +1,15 @@
 """The `lakegate` command line.
 
-Each command lives in its own module under `lakegate.gateway` that defines
-`add_parser(subparsers)`; the parser it adds sets `func(args) -> int`. Errors meant
+Each command lives in its own module under `lakegate.gateway.cli`; its parser is in the module of the
+same name under `lakegate.gateway.cli.parsers` (`add_parser(subparsers)`), which imports none of the
+command's work: the parser's `func(args) -> int` imports the command's module when it runs. Errors meant
 for the user are raised as `UserError` and printed as one line, without a traceback; so
 are the `OSError`s of files the user named (a missing folder, a full or read-only disk).
 Exit code 1 for both.
 
-Only the module of the command given is imported (`lakegate --help` imports none of them, so it
-answers at once): `COMMANDS` lists every command with its one-line help, which
-tests/gateway/test_cli_command.py checks against the parsers the modules add.
+Only the parser of the command given is built (`lakegate --help` builds none of them, so it answers
+at once; `lakegate COMMAND --help` imports no command module either): `COMMANDS` lists every command
+with its one-line help, which tests/gateway/test_cli_help.py checks against the parsers the modules add.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import argparse
 import importlib
 import sys
 
-#: Every command: its name -> (the module under lakegate.gateway.cli that adds it, its one-line help).
+#: Every command: its name -> (the module under lakegate.gateway.cli.parsers that adds it, its one-line help).
 COMMANDS: dict[str, tuple[str, str]] = {
     "config": ("config", "check metrics config files, or write their JSON Schema"),
     "ingest": ("ingest", "ingest the emissions files of one job into the lake"),
@@ -40,8 +41,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
 
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
-    """The parser of `lakegate`, with the full parser of `command` (its module imported; every command
-    when "*") and the others as one-line entries of the help."""
+    """The parser of `lakegate`, with the full parser of `command` (every command when "*") and the others
+    as one-line entries of the help."""
     parser = argparse.ArgumentParser(
         prog="lakegate",
         description="A Trino-compatible SQL gateway over a Parquet data lake of robot test data.",
@@ -52,7 +53,7 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     added: set[str] = set()
     for name, (module, help_text) in COMMANDS.items():
         if module in chosen and module not in added:
-            importlib.import_module(f"lakegate.gateway.cli.{module}").add_parser(subparsers)
+            importlib.import_module(f"lakegate.gateway.cli.parsers.{module}").add_parser(subparsers)
             added.add(module)
         elif module not in chosen:
             subparsers.add_parser(name, help=help_text)

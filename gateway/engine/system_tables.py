@@ -29,11 +29,10 @@ from lakegate.dialect.statements import Reader, Statement
 from lakegate.dialect.translate import translate
 from lakegate.gateway.engine import udfs
 from lakegate.gateway.engine.backend import BATCH_ROWS, Backend, QueryResult, Run, in_zones
+from lakegate.gateway.engine.catalog_name import CATALOG
 from lakegate.gateway.engine.session import PROPERTIES, Answer, Session
 from lakegate.gateway.engine.trino_values import arrow_type
 
-#: The lake's catalog name (Trino clients address tables as catalog.schema.table).
-CATALOG = "lake"
 INFORMATION_SCHEMA = "information_schema"
 SYSTEM = "system"
 V, B = "varchar", "bigint"

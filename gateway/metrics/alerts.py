@@ -18,13 +18,11 @@ from dataclasses import dataclass
 from typing import Any
 
 from lakegate.dialect.scope import Scope
+from lakegate.gateway.metrics.defaults import HISTORY, K
 from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.gateway.metrics.flakes import has_results
 from lakegate.gateway.metrics.templates import format_number
 from lakegate.gateway.metrics.trends import branch_batches
-
-#: Default k (standard deviations) and number of earlier builds.
-K, HISTORY = 3.0, 10
 
 _VALUES_SQL = """
 WITH builds AS (

@@ -38,6 +38,7 @@ from typing import Any
 import orjson
 
 from lakegate.dialect.scope import Scope
+from lakegate.gateway.metrics.defaults import ALPHA, FLAKE_WINDOW
 from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.gateway.metrics.flakes import Flake, find_flakes, flaky_experiences, has_results
 from lakegate.gateway.metrics.trends import branch_batches
@@ -55,10 +56,6 @@ NEW_FAILURE, FLAKY, STILL_FAILING, GONE, NEW, FIXED, SAME = (
 TAGS = (NEW_FAILURE, FLAKY, STILL_FAILING, GONE, NEW, FIXED, SAME)
 #: Templates whose values are compared with a two-sample test.
 SERIES_TEMPLATES = ("line", "bar", "histogram", "state_timeline")
-#: Default significance level of the two-sample tests.
-ALPHA = 0.05
-#: Default number of batches (up to the new one) in which flaky experiences are looked for.
-FLAKE_WINDOW = 10
 
 #: The worst status of a group, as a rank (0 NOT_RUN or NULL .. 4 ERROR), in SQL.
 _RANK = "MAX(CASE {c} WHEN 'PASSED' THEN 1 WHEN 'WARNING' THEN 2 WHEN 'BLOCKER' THEN 3 WHEN 'ERROR' THEN 4 ELSE 0 END)"

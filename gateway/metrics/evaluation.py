@@ -67,6 +67,7 @@ from lakegate.gateway.metrics.custom import CUSTOM, render_custom
 from lakegate.gateway.metrics.job_media import names_jobs, render_job_media
 from lakegate.gateway.metrics.metric_result import MetricError, MetricResult
 from lakegate.gateway.metrics.results import ResultsWriter
+from lakegate.gateway.metrics.statuses import BLOCKER, ERROR, NO_DATA, NOT_RUN, PASSED, SEVERITY, WARNING
 from lakegate.gateway.metrics.template_settings import apply_template_settings, unused_settings
 from lakegate.gateway.metrics.templates import Rendered, TemplateError, render
 from lakegate.lake import paths
@@ -75,10 +76,6 @@ from lakegate.lake.config import Config, Location, Metric, setting_names
 from lakegate.lake.record import StaleJobsError, job_logs_dir
 from lakegate.lake.storage import LakeStorage
 
-PASSED, WARNING, BLOCKER, ERROR, NOT_RUN = "PASSED", "WARNING", "BLOCKER", "ERROR", "NOT_RUN"
-NO_DATA = "NO_DATA"
-#: Statuses from best to worst; NOT_RUN and NO_DATA are below all and never make anything worse.
-SEVERITY = {NOT_RUN: 0, NO_DATA: 0, PASSED: 1, WARNING: 2, BLOCKER: 3, ERROR: 4}
 #: Evaluations of a batch begun before one is stored or given up (each restarted because a job changed).
 STALE_ATTEMPTS = 3
 #: Metric types a batch evaluates (`evaluate_batch`).

@@ -24,10 +24,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from lakegate.dialect.scope import Scope
+from lakegate.gateway.metrics.defaults import CV_THRESHOLD
 from lakegate.gateway.metrics.evaluation import MetricsEngine
-
-#: The default largest coefficient of variation of a scalar over runs of one build that is not flaky.
-CV_THRESHOLD = 0.2
 
 #: Runs per (build, experience), their status flips, distinct statuses, and the statuses seen.
 _STATUS_SQL = """

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from lakegate.gateway.metrics.evaluation import BLOCKER, ERROR, WARNING
+from lakegate.gateway.metrics.statuses import BLOCKER, ERROR, WARNING
 
 #: SignalFlag's exit codes of `--fail-on-states` (its CLI's batch.go: ERROR 2, BLOCKER 7, WARNING 8).
 FAIL_EXIT_CODES = {BLOCKER: 7, ERROR: 2, WARNING: 8}

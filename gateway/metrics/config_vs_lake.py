@@ -21,10 +21,10 @@ from lakegate.dialect.errors import DialectError
 from lakegate.dialect.session_functions import SessionNames
 from lakegate.dialect.translate import translate
 from lakegate.gateway.metrics.evaluation import config_position
+from lakegate.lake import platform_tables
 from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.config import Config, Location, Metric, Problem, Topic
-from lakegate.lake.config_schema import PLATFORM_TABLES
 from lakegate.lake.paths import METRIC_RESULTS_TABLE
 from lakegate.lake.schema import METRIC_RESULTS_COLUMNS, topic_columns
 
@@ -53,6 +53,8 @@ def check_against_lake(config: Config, lake: Path, branch: str) -> list[Problem]
     problems = [p for topic in config.topics.values() if topic.name in stored for p in _topic(topic, stored)]
     schema = Catalog(lake).schema(branch) if lake.is_dir() else {}
     schema.setdefault(METRIC_RESULTS_TABLE, dict(METRIC_RESULTS_COLUMNS))  # there once a batch is evaluated
+    for topic in platform_tables.TOPICS.values():  # every branch has them once a job is ingested
+        schema.setdefault(topic.name, dict(topic_columns(topic)))
     schema.update({topic.name: dict(topic_columns(topic)) for topic in config.topics.values()})
     session = SessionNames("lakegate", "lake", branch)  # what current_user and the like answer in a metrics run
     for metric in config.metrics.values():
@@ -106,9 +108,6 @@ def _queries(metric: Metric, schema: dict[str, dict[str, str]], session: Session
         except DialectError as error:
             at = config_position(start, sql, error.line, error.column) or start or metric.location
             message = error.message
-            missing = message.removeprefix("Table '").split("'")[0].rsplit(".", 1)[-1].lower()
-            if error.error_name == "TABLE_NOT_FOUND" and missing in PLATFORM_TABLES:
-                message += f" (a table of ReSim's platform that lakegate does not provide: {missing})"
             where = "" if at is not start or error.line is None else f" (line {error.line}, column {error.column})"
             problems.append(Problem(at or Location("", 0, 0), f"{which} of metric '{metric.name}': {message}{where}"))
     return problems

@@ -7,6 +7,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from lakegate.gateway.metrics.defaults import HISTORY, K
+
 
 def port_number(text: str) -> int:
     """An argparse type: a TCP port number, 0 to 65535 (0: any free port)."""
@@ -99,4 +101,24 @@ def add_backend_arguments(parser: argparse.ArgumentParser) -> None:
         help="the schema of a branch, instead of the name 'lakegate trino-ddl' gives it (repeat for "
         "several); '*={branch}' maps every branch to a schema of its own name (another "
         "'lakegate serve', catalog lake)",
+    )
+
+
+def add_alert_arguments(parser: argparse.ArgumentParser, build: str) -> None:
+    """--alert-k and --alert-builds: the trend alert (`gateway/metrics/alerts.py`) of `build` (what the
+    command checks: 'the latest build', 'the new batch's build')."""
+    parser.add_argument(
+        "--alert-k",
+        type=positive(float),
+        default=K,
+        metavar="K",
+        help=f"trend alert: a scalar metric whose value on {build} lies outside K standard deviations of its "
+        f"previous builds (default {K:g})",
+    )
+    parser.add_argument(
+        "--alert-builds",
+        type=positive(int),
+        default=HISTORY,
+        metavar="N",
+        help=f"trend alert: compare {build} with the N builds before it (default {HISTORY}; 2 at least)",
     )

@@ -6,8 +6,8 @@ import argparse
 from pathlib import Path
 
 from lakegate.gateway.cli.parsers import Command
-from lakegate.gateway.cli.parsers.arguments import add_backend_arguments, positive
-from lakegate.gateway.metrics.defaults import ALPHA, CV_THRESHOLD, FLAKE_WINDOW, HISTORY, K
+from lakegate.gateway.cli.parsers.arguments import add_alert_arguments, add_backend_arguments, positive
+from lakegate.gateway.metrics.defaults import ALPHA, CV_THRESHOLD, FLAKE_WINDOW
 
 FAIL_ON = ("new-failures", "regression")
 
@@ -54,21 +54,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "flaky experiences do not count; see --strict); regression: exit 5 when a trend alert marks a metric "
         "of the new batch, as 'lakegate metrics dashboard --fail-on regression' does (may be given twice)",
     )
-    compare.add_argument(
-        "--alert-k",
-        type=positive(float),
-        default=K,
-        metavar="K",
-        help=f"trend alert: a scalar metric whose value on the new batch's build lies outside K standard "
-        f"deviations of its previous builds (default {K:g})",
-    )
-    compare.add_argument(
-        "--alert-builds",
-        type=positive(int),
-        default=HISTORY,
-        metavar="N",
-        help=f"trend alert: compare the new batch's build with the N builds before it (default {HISTORY}; 2 at least)",
-    )
+    add_alert_arguments(compare, "the new batch's build")
     compare.add_argument(
         "--strict", action="store_true", help="with --fail-on new-failures, a new failure of a flaky experience counts"
     )

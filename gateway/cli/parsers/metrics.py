@@ -7,9 +7,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from lakegate.gateway.cli.parsers import Command
-from lakegate.gateway.cli.parsers.arguments import CONFIG_PATHS_HELP, add_backend_arguments, add_strict_option, positive
+from lakegate.gateway.cli.parsers.arguments import (
+    CONFIG_PATHS_HELP,
+    add_alert_arguments,
+    add_backend_arguments,
+    add_strict_option,
+    positive,
+)
 from lakegate.gateway.cli.parsers.debug import add_debug_parser
-from lakegate.gateway.metrics.defaults import HISTORY, K
 from lakegate.gateway.metrics.gating import FAIL_STATES, parse_fail_on_states
 
 if TYPE_CHECKING:
@@ -165,21 +170,7 @@ def _add_trends_parsers(commands: argparse._SubParsersAction) -> None:
         help="a dashboard of the config's 'dashboards:' section: its metrics_set's dashboard metrics over the "
         "batches of its day_range (instead of --metrics-set)",
     )
-    dashboard.add_argument(
-        "--alert-k",
-        type=positive(float),
-        default=K,
-        metavar="K",
-        help=f"trend alert: a scalar metric whose latest build lies outside K standard deviations of its previous "
-        f"builds (default {K:g})",
-    )
-    dashboard.add_argument(
-        "--alert-builds",
-        type=positive(int),
-        default=HISTORY,
-        metavar="N",
-        help=f"trend alert: compare the latest build with the N builds before it (default {HISTORY}; 2 at least)",
-    )
+    add_alert_arguments(dashboard, "the latest build")
     dashboard.add_argument(
         "--fail-on",
         choices=("regression",),

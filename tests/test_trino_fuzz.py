@@ -36,6 +36,12 @@ def test_comparison_tells_answers_apart():
     ):
         assert differ(Outcome(types=answer.types, rows=rows), answer, ordered=False) is not None
     assert differ(Outcome(types=["real", "array(double)", "json"], rows=answer.rows), answer, ordered=False)
+    # doubles that round alike sort in no fixed order: rows are matched by value, not by position
+    close = Outcome(types=["array(double)"], rows=[[[1.75e18]], [[1.7500000005e18]], [[1.75e18]]])
+    shuffled = Outcome(types=close.types, rows=[[[1.7500000005e18]], [[1.75e18]], [[1.75e18]]])
+    assert differ(shuffled, close, ordered=False) is None
+    other = Outcome(types=close.types, rows=[[[1.7500000005e18]], [[1.7500000005e18]], [[1.75e18]]])
+    assert differ(other, close, ordered=False) is not None
 
 
 @pytest.mark.skip(

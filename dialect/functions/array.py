@@ -222,9 +222,10 @@ def _render_sequence(g, node, args) -> str:
             ),
         ),
     )
-    return (
-        f'list_transform([[{bounds}]], lambda "_s": '
-        f"CAST(generate_series({start}, {checked_stop}, {step}) AS BIGINT[]))[1]"
+    null_bound = " OR ".join(f"{v} IS NULL" for v in (start, stop, step))
+    return (  # NULL on a NULL bound or step, before any check (the real Trino 476 answers so)
+        f'list_transform([[{bounds}]], lambda "_s": CASE WHEN {null_bound} THEN NULL ELSE '
+        f"CAST(generate_series({start}, {checked_stop}, {step}) AS BIGINT[]) END)[1]"
     )
 
 
@@ -541,7 +542,9 @@ def render_temporal_sequence(g, node, args) -> str:
     ]
     count = checked(g, f"{span} // {step_number} + 1", checks)
     value = tf.cast(f'{start} + {unit}(CAST("_i" * {step_number} AS BIGINT))', t)
-    return f'list_transform(range(0, {count}), lambda "_i": {value})'
+    nulls = " OR ".join(f"({v}) IS NULL" for v in (start, stop, step) if v is not None)
+    # NULL on a NULL bound or step, before any check (the real Trino 476 answers so)
+    return f'CASE WHEN {nulls} THEN NULL ELSE list_transform(range(0, {count}), lambda "_i": {value}) END'
 
 
 def install() -> None:

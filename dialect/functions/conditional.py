@@ -9,8 +9,9 @@ from sqlglot import exp
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect import write_casts as casts
+from lakegate.dialect import write_operators as ops
 from lakegate.dialect.functions.arguments import common, need, same
-from lakegate.dialect.functions.rendering import call_as, sqls
+from lakegate.dialect.functions.rendering import sqls
 from lakegate.dialect.registry import register
 from lakegate.dialect.trino_types import TType
 from lakegate.dialect.type_rules import Call, ttype
@@ -33,6 +34,17 @@ def _nullif(call: Call) -> TType:
     if tt.common_super_type(a, b) is None:
         call.mismatch()
     return a
+
+
+def _render_nullif(g, node, args) -> str:
+    """NULL when the values are equal by Trino's `=`, else the first: NaN equals nothing, not even
+    NaN, and arrays, maps and rows with NULL elements are not equal (DuckDB's nullif says both are)."""
+    first, second = sqls(g, args)
+    t = tt.common_super_type(ttype(args[0]), ttype(args[1]))
+    if t is None or t.base not in ("double", "real", "array", "map", "row"):
+        return f"nullif({first}, {second})"
+    equal = ops.trino_equal(g.coerce(args[0], t), g.coerce(args[1], t), t)
+    return f"CASE WHEN ({equal}) IS TRUE THEN NULL ELSE {first} END"
 
 
 def _render_typeof(g, node, args) -> str:
@@ -58,7 +70,7 @@ def install() -> None:
     """Register the functions of this page (called by pages.py)."""
 
     register("coalesce", "conditional", "coalesce(value1, value2[, ...]) -> common type", _coalesce, _render_coalesce)
-    register("nullif", "conditional", "nullif(value1, value2) -> type of value1", _nullif, call_as("nullif"))
+    register("nullif", "conditional", "nullif(value1, value2) -> type of value1", _nullif, _render_nullif)
     register(
         "try",
         "conditional",

@@ -28,15 +28,25 @@ _UNITS = ("millisecond", "second", "minute", "hour", "day", "week", "month", "qu
 _DATE_UNITS = ("day", "week", "month", "quarter", "year")
 
 
-def _unit(call: Call, index: int, temporal: TType) -> str:
-    unit = literal_str(call, index)
-    if unit is None:
+def _unit(call: Call, index: int) -> None:
+    """The unit must be a literal; one the value's type does not have fails when the call runs
+    (`_unit_failure`), as in Trino: not under TRY, on NULL arguments or on no rows."""
+    if literal_str(call, index) is None:
         call.fail("the unit must be a literal string in lakegate", "NOT_SUPPORTED")
-    unit = unit.lower()
-    allowed = _DATE_UNITS if temporal.base == "date" else _UNITS
-    if unit not in allowed:
-        call.fail(f"'{unit}' is not a valid {temporal} field", "INVALID_FUNCTION_ARGUMENT")
-    return unit
+
+
+def _unit_failure(g, node, args, values) -> str | None:
+    """Trino's run-time INVALID_FUNCTION_ARGUMENT of a unit that the type of `values` (date,
+    timestamp or timestamp with time zone) does not have, NULL when an argument is NULL; None when
+    the unit is valid."""
+    temporal = tt.common_super_type(*map(ttype, values)) if len(values) > 1 else ttype(values[0])
+    unit = args[0].name
+    if temporal is None or unit.lower() in (_DATE_UNITS if temporal.base == "date" else _UNITS):
+        return None
+    kind = "DATE" if temporal.base == "date" else "TIMESTAMP"
+    nulls = " OR ".join(f"({g.sql(a)}) IS NULL" for a in args[1:])
+    failure = g.fail(tf.string(f"'{unit}' is not a valid {kind} field"))
+    return f"CASE WHEN {nulls} THEN NULL ELSE {tf.cast(failure, ttype(node))} END"
 
 
 def _is_time(t: TType | None) -> bool:
@@ -67,7 +77,7 @@ def _date_diff(call: Call) -> TType:
     common_type = tt.common_super_type(types[1], types[2])
     if common_type is None:
         call.mismatch()
-    _unit(call, 0, common_type)
+    _unit(call, 0)
     return tt.BIGINT
 
 
@@ -77,6 +87,8 @@ def _render_date_diff(g, node, args) -> str:
     value's zone, shorter ones elapsed (Joda's chronology of that zone); above, all in UTC
     (io.trino.operator.scalar.timestamptz.DateDiff: its short and long implementations differ).
     Values of more than millisecond precision are floored to milliseconds first."""
+    if (failure := _unit_failure(g, node, args, args[1:])) is not None:
+        return failure
     unit = args[0].name.lower()
     a, b = g.sql(args[1]), g.sql(args[2])
     first = ttype(args[1])
@@ -100,7 +112,7 @@ def _date_add(call: Call) -> TType:
         _time_unit(call)
         return call.types[2]
     types = need(call, "string", "integral", "temporal")
-    _unit(call, 0, types[2])
+    _unit(call, 0)
     return types[2]
 
 
@@ -118,6 +130,8 @@ _INTERVAL_OF = {
 
 
 def _render_date_add(g, node, args) -> str:
+    if ttype(node).base != "time" and (failure := _unit_failure(g, node, args, args[2:])) is not None:
+        return failure
     unit = args[0].name.lower()
     amount, value = g.sql(args[1]), g.sql(args[2])
     if ttype(node).base == "time":
@@ -149,7 +163,7 @@ def _date_trunc(call: Call) -> TType:
         _time_unit(call)
         return call.types[1]
     types = need(call, "string", "temporal")
-    _unit(call, 0, types[1])
+    _unit(call, 0)
     return types[1]
 
 
@@ -169,6 +183,8 @@ def _render_timezone(g, node, args) -> str:
 
 
 def _render_date_trunc(g, node, args) -> str:
+    if ttype(node).base != "time" and (failure := _unit_failure(g, node, args, args[1:])) is not None:
+        return failure
     unit, value = args[0].name.lower(), g.sql(args[1])
     t = ttype(node)
     if t.base == "time":

@@ -34,6 +34,17 @@ _FATAL = ("FATAL Error", "INTERNAL Error")
 PENDING_BACKENDS = 2
 
 
+def _invalidating(error: BaseException) -> bool:
+    """Whether DuckDB invalidated its database with `error`: it, or a DuckDB error it was made from
+    (an INTERNAL error reaches clients as a NOT_SUPPORTED refusal), begins as `_FATAL` says."""
+    seen: BaseException | None = error
+    while seen is not None:
+        if str(seen).startswith(_FATAL) or isinstance(seen, DialectError) and seen.message.startswith(_FATAL):
+            return True
+        seen = seen.__cause__ or seen.__context__
+    return False
+
+
 def _encoded(batch: pa.RecordBatch | None) -> bytes | None:
     return None if batch is None else batch.serialize().to_pybytes()
 
@@ -130,6 +141,9 @@ class Worker:
                 self.broken = True
                 internal = DialectError(f"internal error: {error.message}", error_name="GENERIC_INTERNAL_ERROR")
                 return _error(internal, retire=True)
+            if _invalidating(error):  # refused, but the database is no longer usable either
+                self.broken = True
+                return _error(error, retire=True)
             return _error(error)
         except MemoryError:
             self.drop()

@@ -15,10 +15,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import tempfile
 import time
-from collections import Counter
+from collections import Counter, deque
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,7 +28,7 @@ from trino_fuzz import lake as fuzz_lake
 from trino_fuzz.compare import differ
 from trino_fuzz.functions import discover
 from trino_fuzz.queries import Generator, Query
-from trino_fuzz.sides import Lakegate, Outcome, Trino, register, unregister
+from trino_fuzz.sides import Lakegate, Outcome, Trino, drop_orphans, register, unregister
 
 DEFAULT_TRINO = "http://127.0.0.1:18080"
 SCHEMA_PREFIX = "fuzzer_"
@@ -36,8 +37,11 @@ SCHEMA_PREFIX = "fuzzer_"
 REFUSALS = frozenset({"NOT_SUPPORTED", "EXCEEDED_TIME_LIMIT"})
 #: Queries lakegate's Engine runs at once (as the server does).
 LAKEGATE_THREADS = 2
-#: Queries generated and judged at a time (a --seconds bound is checked between chunks).
-CHUNK = 100
+#: Queries in flight at once (sent to both sides, not judged yet): each side works through them at
+#: its own pace, so neither waits for the other's slowest query of a batch.
+WINDOW = 64
+#: Progress is printed every this many queries.
+PROGRESS = 500
 
 
 @dataclass
@@ -76,39 +80,47 @@ def fuzz(
     trino_url: str,
     lake_dir: Path,
     out: Path | None,
-    jobs: int = 6,
+    jobs: int = 4,
     progress: bool = False,
     seconds: float | None = None,
 ) -> tuple[Counter, list[Verdict]]:
     """Generate and judge `queries` queries (fewer when `seconds` run out: the generator's order is
     the same, so a bounded run is a prefix of the unbounded one); the counts and the mismatches."""
     lake = fuzz_lake.build(lake_dir)
-    trino = Trino(trino_url, f"{SCHEMA_PREFIX}main")
-    register(trino, lake, SCHEMA_PREFIX)
+    schema_prefix = f"{SCHEMA_PREFIX}{os.getpid()}_"  # runs at once (CI, a long run) keep apart
+    trino = Trino(trino_url, f"{schema_prefix}main")
+    drop_orphans(trino, SCHEMA_PREFIX)
+    register(trino, lake, schema_prefix)
     mine = Lakegate(lake)
     counts: Counter = Counter()
     mismatches: list[Verdict] = []
+
+    def settle(query: Query, theirs, ours) -> None:
+        verdict = judge(query, ours.result(), theirs.result())
+        counts[verdict.kind] += 1
+        if verdict.kind == "mismatched":
+            mismatches.append(verdict)
+        if progress and sum(counts.values()) % PROGRESS == 0:
+            print(f"... {summary(counts)}", file=sys.stderr, flush=True)
+
     try:
         tables = {name: list(columns.items()) for name, columns in mine.engine.backend.schema("main").items()}
         generator = Generator(seed, discover(), tables)
         deadline = time.monotonic() + seconds if seconds else None
+        in_flight: deque = deque()
         with ThreadPoolExecutor(jobs) as pool, ThreadPoolExecutor(LAKEGATE_THREADS) as own:
-            for start in range(0, queries, CHUNK):
+            for _ in range(queries):
                 if deadline is not None and time.monotonic() > deadline:
                     break
-                batch = [generator.query() for _ in range(min(CHUNK, queries - start))]
-                answers = pool.map(trino.run, (q.sql for q in batch))
-                own_answers = own.map(mine.run, (q.sql for q in batch))
-                for query, theirs, ours in zip(batch, answers, own_answers):
-                    verdict = judge(query, ours, theirs)
-                    counts[verdict.kind] += 1
-                    if verdict.kind == "mismatched":
-                        mismatches.append(verdict)
-                if progress and (start // CHUNK) % 5 == 4:
-                    print(f"... {summary(counts)}", file=sys.stderr, flush=True)
+                query = generator.query()
+                in_flight.append((query, pool.submit(trino.run, query.sql), own.submit(mine.run, query.sql)))
+                while len(in_flight) > WINDOW or (in_flight and in_flight[0][1].done() and in_flight[0][2].done()):
+                    settle(*in_flight.popleft())
+            while in_flight:
+                settle(*in_flight.popleft())
     finally:
         mine.close()
-        unregister(trino, f"{SCHEMA_PREFIX}main")
+        unregister(trino, f"{schema_prefix}main")
     if out is not None:
         with out.open("w") as handle:
             for v in mismatches:
@@ -146,7 +158,7 @@ def main(argv: list[str] | None = None) -> int:
         metavar="DIR",
         help="where the fuzz lake is built (reused when up to date)",
     )
-    parser.add_argument("--jobs", type=int, default=6, metavar="K", help="queries Trino runs at once (default 6)")
+    parser.add_argument("--jobs", type=int, default=4, metavar="K", help="queries Trino runs at once (default 4)")
     parser.add_argument(
         "--seconds", type=float, metavar="T", help="stop generating after about T seconds (the summary counts what ran)"
     )

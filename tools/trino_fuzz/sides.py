@@ -6,6 +6,7 @@ read raw so that no client library decodes the values on one side only).
 from __future__ import annotations
 
 import json
+import os
 import time
 import urllib.error
 import urllib.request
@@ -128,3 +129,23 @@ def unregister(trino: Trino, schema: str) -> None:
     for (table,) in existing.rows if not existing.error else []:
         trino.execute(f'DROP TABLE hive.{schema}."{table}"')
     trino.execute(f"DROP SCHEMA IF EXISTS hive.{schema}")
+
+
+def drop_orphans(trino: Trino, prefix: str) -> None:
+    """Drop the schemas `<prefix><pid>_main` whose run no longer runs on this machine (one that was
+    killed before it could drop its schema)."""
+    schemas = trino.run(f"SHOW SCHEMAS FROM hive LIKE '{prefix}%'", schema=False)
+    for (name,) in schemas.rows if not schemas.error else []:
+        pid = name[len(prefix) :].split("_")[0]
+        if pid.isdigit() and not _alive(int(pid)):
+            unregister(trino, name)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True

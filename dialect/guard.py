@@ -5,7 +5,7 @@ one statement only); `check` runs on the parsed Trino AST (no writes, no file or
 functions, no table functions but UNNEST). `statement_kind` is the table of statement words that
 `statements.read` (the one reader) decides a statement's kind with: 'query', 'show', 'describe',
 'explain', 'session' (SET SESSION, USE, PREPARE, EXECUTE, START TRANSACTION, ...), 'call', or
-'other' (refused); `classify` is that kind alone.
+'other' (refused).
 """
 
 from __future__ import annotations
@@ -266,12 +266,6 @@ def statement_kind(sql: str, offset: int = 0) -> tuple[str, str, int]:
     if first in _REFUSED_WORDS:
         return "other", name, start
     return "unknown", name, start
-
-
-def classify(sql: str) -> str:
-    """The kind of statement `sql` is: 'query', 'show', 'describe', 'explain', 'session', 'call' or 'other'."""
-    kind = statement_kind(sql)[0]
-    return "other" if kind == "unknown" else kind
 
 
 def _explain_parts(sql: str, start: int) -> tuple[int, bool]:

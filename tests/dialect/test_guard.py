@@ -10,6 +10,7 @@ import sqlglot
 
 from lakegate.dialect import guard
 from lakegate.dialect.errors import DialectError
+from lakegate.dialect.statements import read
 from lakegate.dialect.translate import translate
 
 SCHEMA = {"odom": {"timestamp": "bigint", "x": "double", "batch_id": "varchar", "job_id": "varchar"}}
@@ -42,8 +43,8 @@ def refused(sql, **kwargs) -> DialectError:
         ("SET TIME ZONE 'UTC'", "session"),
         ("USE lakegate.main", "session"),
         ("PREPARE st FROM SELECT ?", "session"),
-        ("EXECUTE st USING 1", "session"),
-        ("EXECUTE IMMEDIATE 'SELECT 1'", "session"),
+        ("EXECUTE st USING 1", "execute"),
+        ("EXECUTE IMMEDIATE 'SELECT 1'", "execute"),
         ("DEALLOCATE PREPARE st", "session"),
         ("START TRANSACTION", "session"),
         ("COMMIT", "session"),
@@ -55,8 +56,8 @@ def refused(sql, **kwargs) -> DialectError:
         ("frobnicate everything", "other"),
     ],
 )
-def test_classify(sql, kind):
-    assert guard.classify(sql) == kind
+def test_statement_kind(sql, kind):
+    assert read(sql).kind == kind
 
 
 def test_explained_query():

@@ -112,21 +112,16 @@ def _build_once(work: Path, rows: int) -> Path:
             metadata={"experience_name": f"experience {i % 3}", "build_version": "1.0"},
         )  # metadata, configs
         target = current_file(lake, "main", TOPIC, batch, job)
-        schema = pq.read_schema(target)
+        seeded = pq.read_table(target)  # one row: the job's own columns hold what ingest gave them
+        schema = seeded.schema
         columns = {
             "timestamp": pa.array(np.arange(per_job, dtype=np.int64) * 10_000_000),
             "x": pa.array(generator.normal(1.0, 0.5, per_job)),
             "y": pa.array(generator.normal(0.0, 0.2, per_job)),
             "z": pa.array(np.zeros(per_job)),
         }
-        constants = {"experience_name": f"experience {i % 3}", "build_version": "1.0", "job_id": job}
         table = pa.table(
-            {
-                f.name: columns[f.name]
-                if f.name in columns
-                else pa.repeat(pa.scalar(constants[f.name], f.type), per_job)
-                for f in schema
-            },
+            {f.name: columns[f.name] if f.name in columns else pa.repeat(seeded[f.name][0], per_job) for f in schema},
             schema=schema,
         )
         scratch = work / f"{job}.parquet"

@@ -324,7 +324,10 @@ def test_two_clicks_on_the_trends_chart_open_their_comparison(page, served, tmp_
     picked = "Picked nav-regression-1 (build 1.4.2): click a point of another batch to compare the two."
     assert page.locator("#compare-pick").inner_text() == picked  # above the charts, and under the chart clicked
     assert page.locator(f"#{chart_id} + #compare-picked").inner_text() == picked
-    page.mouse.click(*page.evaluate(POINT_JS, [chart_id, 0]))  # 1.4.0: nightly-1.4.0
+    second = page.evaluate(POINT_JS, [chart_id, 0])  # 1.4.0: nightly-1.4.0
+    page.mouse.move(*second)  # as a user's pointer: Plotly picks the point it hovers
+    chart.locator(".hoverlayer .hovertext").first.wait_for()
+    page.mouse.click(*second)
     page.wait_for_url("**/dashboard/compare/?*")
     assert page.url == f"{url}/dashboard/compare/?branch=main&base=nightly-1.4.0&batch=nav-regression-1"
     page.wait_for_selector(".js-plotly-plot .main-svg")

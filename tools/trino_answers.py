@@ -169,7 +169,7 @@ class TrinoAnswers:
         schemas = self.ask(f"SHOW SCHEMAS FROM hive LIKE '{prefix}%'")
         for (name,) in schemas.rows:
             pid = name[len(prefix) :].split("_")[0]
-            if pid.isdigit() and not _alive(int(pid)):
+            if pid.isdigit() and not alive(int(pid)):
                 self.drop_schema(name)
 
 
@@ -216,7 +216,8 @@ _MORE_THAN_ONE_ROW = (
 )
 
 
-def _alive(pid: int) -> bool:
+def alive(pid: int) -> bool:
+    """Whether process `pid` still runs (a schema named for a gone process is left over)."""
     try:
         os.kill(pid, 0)
     except ProcessLookupError:

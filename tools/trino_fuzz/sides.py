@@ -6,13 +6,14 @@ read raw so that no client library decodes the values on one side only).
 from __future__ import annotations
 
 import json
-import os
 import time
 import urllib.error
 import urllib.request
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+from trino_answers import alive
 
 from lakegate.dialect.errors import DialectError
 from lakegate.gateway.engine.engine import Engine
@@ -137,15 +138,5 @@ def drop_orphans(trino: Trino, prefix: str) -> None:
     schemas = trino.run(f"SHOW SCHEMAS FROM hive LIKE '{prefix}%'", schema=False)
     for (name,) in schemas.rows if not schemas.error else []:
         pid = name[len(prefix) :].split("_")[0]
-        if pid.isdigit() and not _alive(int(pid)):
+        if pid.isdigit() and not alive(int(pid)):
             unregister(trino, name)
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True

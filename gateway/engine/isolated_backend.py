@@ -27,6 +27,7 @@ from lakegate.dialect.statements import Statement
 from lakegate.gateway.engine.backend import IDLE_SECONDS, DuckDBBackend, QueryResult
 from lakegate.gateway.engine.failures import time_limit_error
 from lakegate.gateway.engine.limits import Limits
+from lakegate.gateway.engine.query_worker import send
 from lakegate.gateway.engine.worker_pool import WorkerPool, WorkerProcess
 from lakegate.lake.record import FileEntry
 
@@ -95,7 +96,7 @@ class _Stream:
         limit, an exception raised in this thread) gives the worker back and raises."""
         connection = self.worker.connection
         try:
-            connection.send(request)
+            send(connection, request)
             while not connection.poll(POLL_SECONDS):
                 if time.monotonic() > self.deadline + GRACE:
                     self.worker.kill(time_limit_error(self.timeout))

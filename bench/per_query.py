@@ -47,8 +47,11 @@ def baseline_path(revision: str) -> Path:
     return path
 
 
-def measure(lake: Path, queries: int, pythonpath: Path | None, extra: list[str]) -> list[tuple[float, float, float]]:
-    """(server CPU ms, own-process CPU ms, wall ms) per `SELECT 1`, for 3 blocks of `queries`."""
+def measure(
+    lake: Path, queries: int, pythonpath: Path | None, extra: list[str], warm_up: int = 50
+) -> list[tuple[float, float, float]]:
+    """(server CPU ms, own-process CPU ms, wall ms) per `SELECT 1`, for 3 blocks of `queries` after
+    `warm_up` queries."""
     if pythonpath is None:
         os.environ.pop("PYTHONPATH", None)
     else:
@@ -60,7 +63,7 @@ def measure(lake: Path, queries: int, pythonpath: Path | None, extra: list[str])
     blocks = []
     try:
         connection = server.connect()
-        for _ in range(50):
+        for _ in range(warm_up):
             client_rows(connection, "SELECT 1")
         for _ in range(3):
             total, own, start = server.cpu(), own_cpu(server), time.perf_counter()
@@ -84,15 +87,15 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--rounds", type=int, default=3, help="baseline / this tree server pairs (default 3)")
     parser.add_argument("--queries", type=int, default=300, help="SELECT 1 per measured block (default 300)")
     parser.add_argument("--slots", type=int, help="the servers' --max-concurrent-queries (default: theirs)")
-    args = parse_args(parser, argv, rounds=1, queries=20, slots=1)
+    args = parse_args(parser, argv, rounds=1, queries=5, slots=1)
     extra = [] if args.slots is None else ["--max-concurrent-queries", str(args.slots)]
     started, load_start = time.perf_counter(), os.getloadavg()[0]
     lake = build_lake(200_000)
     base = baseline_path(args.baseline)
     runs: dict[str, list[tuple[float, float, float]]] = {"baseline": [], "this tree": []}
     for _ in range(args.rounds):
-        runs["baseline"] += measure(lake, args.queries, base, extra)
-        runs["this tree"] += measure(lake, args.queries, None, extra)
+        runs["baseline"] += measure(lake, args.queries, base, extra, min(50, args.queries))
+        runs["this tree"] += measure(lake, args.queries, None, extra, min(50, args.queries))
 
     def median(name: str, i: int) -> float:
         return statistics.median(block[i] for block in runs[name])

@@ -74,6 +74,8 @@ class Statement:
         """The parse of `body` (or the rewritten tree); DialectError positioned in `text`."""
         if self.planned is not None:
             return self.planned
+        if self.edits:
+            raise RuntimeError("a statement's edits must be applied to its tree before it is read")
         try:
             return parsed(self.body)
         except DialectError as error:
@@ -82,6 +84,11 @@ class Statement:
     def rewritten(self, tree: exp.Expression, edits: tuple[tuple[int, int, str], ...]) -> Statement:
         """This statement with `tree` (a changed copy of `tree`) and the text `edits` that make it."""
         return replace(self, planned=tree, edits=edits)
+
+    def with_edits(self, edits: tuple[tuple[int, int, str], ...]) -> Statement:
+        """This statement with text `edits` whose tree is not made yet (the process that parses the
+        text applies them: `planner.with_edits_applied`)."""
+        return replace(self, edits=edits)
 
     @property
     def is_rewritten(self) -> bool:

@@ -49,6 +49,7 @@ from lakegate.dialect.session_functions import SessionNames
 from lakegate.dialect.statements import Statement, read, shifted
 from lakegate.dialect.translate import Translation, translate
 from lakegate.gateway.engine import udfs
+from lakegate.gateway.engine.deadlines import DEADLINES
 from lakegate.gateway.engine.failures import duckdb_failure, hide_paths, time_limit_error
 from lakegate.gateway.engine.limits import Limits
 from lakegate.lake import paths
@@ -163,10 +164,7 @@ class Run:
         self.reason: DialectError | None = None  # why the query was stopped, if it was
         self._lock = threading.Lock()
         self._held = True
-        self._timer = threading.Timer(remaining, self._expire)  # started only with a `timeout`
-        self._timer.daemon = True
-        if timeout is not None:
-            self._timer.start()
+        self._timer = None if timeout is None else DEADLINES.at(remaining, self._expire)
         self._batches = self._read()
 
     def __iter__(self) -> Run:
@@ -199,7 +197,8 @@ class Run:
     def _free(self) -> None:
         with self._lock:
             held, self._held = self._held, False
-        self._timer.cancel()
+        if self._timer is not None:
+            self._timer.cancel()
         if held:
             self._release()
 

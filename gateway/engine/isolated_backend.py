@@ -27,6 +27,7 @@ from lakegate.dialect.statements import Statement
 from lakegate.gateway.engine.backend import IDLE_SECONDS, DuckDBBackend, QueryResult
 from lakegate.gateway.engine.failures import time_limit_error
 from lakegate.gateway.engine.limits import Limits
+from lakegate.gateway.engine.query_worker import send
 from lakegate.gateway.engine.worker_pool import WorkerPool, WorkerProcess
 from lakegate.lake.record import FileEntry
 
@@ -59,6 +60,14 @@ class _Stream:
             self._give_back(healthy=True)
         return columns, duckdb_sql
 
+    def names(self, statement: Statement) -> object:
+        """What the planner reads of `statement` (`planner.query_names`), read in the worker, which
+        is then free again."""
+        _, names = self._ask(("names", statement))
+        self._last = True
+        self._give_back(healthy=True)
+        return names
+
     def _decode(self, data: bytes | None) -> pa.RecordBatch | None:
         if data is None or self.schema is None:
             return None
@@ -87,7 +96,7 @@ class _Stream:
         limit, an exception raised in this thread) gives the worker back and raises."""
         connection = self.worker.connection
         try:
-            connection.send(request)
+            send(connection, request)
             while not connection.poll(POLL_SECONDS):
                 if time.monotonic() > self.deadline + GRACE:
                     self.worker.kill(time_limit_error(self.timeout))
@@ -182,6 +191,17 @@ class IsolatedBackend(DuckDBBackend):
             pool=self.pool,
         )
 
+    def _stream(self) -> _Stream:
+        """A free worker (waiting for one within the time limit) for one request or query."""
+        timeout = self.limits.query_timeout
+        deadline = time.monotonic() + timeout
+        worker = self.pool.take(deadline)
+        if worker is None:
+            raise time_limit_error(timeout)
+        stream = _Stream(self.pool, worker, deadline, timeout)
+        self._streams.add(stream)
+        return stream
+
     def execute(
         self,
         sql: str | Statement,
@@ -194,13 +214,7 @@ class IsolatedBackend(DuckDBBackend):
     ) -> QueryResult:
         """Run one Trino-dialect query in a worker (waiting for a free one within the time limit);
         as `DuckDBBackend.execute`."""
-        timeout = self.limits.query_timeout
-        deadline = time.monotonic() + timeout
-        worker = self.pool.take(deadline)
-        if worker is None:
-            raise time_limit_error(timeout)
-        stream = _Stream(self.pool, worker, deadline, timeout)
-        self._streams.add(stream)
+        stream = self._stream()
         request = ("execute", sql, branch, scope, tuple(params), time_zone, session, self.pending)
         columns, duckdb_sql = stream.start(request)
         return QueryResult(
@@ -209,6 +223,12 @@ class IsolatedBackend(DuckDBBackend):
             duckdb_sql=duckdb_sql,
             _cancel=lambda: stream.stop(DialectError("Query was canceled", error_name="USER_CANCELED")),
         )
+
+    def query_names(self, statement: Statement) -> object:
+        """`planner.query_names(statement)` run in a worker (waiting for a free one within the time
+        limit), so that checking and parsing a large text costs the server's process nothing."""
+        stream = self._stream()
+        return stream.names(statement)
 
     def stop_all(self) -> None:
         """Kill every running query's worker: each fails with SERVER_SHUTTING_DOWN."""

@@ -17,7 +17,7 @@ reports still point into the user's original SQL; the same rewrite as same-lengt
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 
 import pyarrow as pa
@@ -37,6 +37,10 @@ from lakegate.gateway.engine.session import Answer, Session, check_properties
 from lakegate.gateway.engine.system_tables import SystemCatalog, TableRef
 from lakegate.gateway.engine.trino_values import arrow_type
 
+#: Query texts longer than this (characters) are checked and parsed by the backend's worker
+#: process when it has one (`query_names`): parsing one here would hold this process's GIL for up to
+#: a second (1 MB), slowing every other query the server answers.
+REMOTE_PARSE_CHARS = 64 * 1024
 #: The Trino release whose behaviour lakegate follows, reported by /v1/info and `version()`.
 TRINO_VERSION = "476"
 #: What `version()` becomes: a varchar expression no longer than the call's text `version()`.
@@ -114,6 +118,24 @@ def _version_call(node: exp.Expression, query: str) -> tuple[int, int] | None:
     if [token.token_type for token in tokens[1:]] != [TokenType.L_PAREN, TokenType.R_PAREN]:
         return None
     return meta["start"], meta["start"] + tokens[2].end
+
+
+def query_names(statement: Statement) -> _Names:
+    """What the planner reads of a query's text, for a backend that plans it in another process
+    (`Backend.query_names`): the text checked (`guard.check_text`) and parsed, in that order, as the
+    planner does (the same errors), then its table references, qualified columns, CTEs and `version()`."""
+    guard.check_text(statement.text)
+    statement.tree  # noqa: B018 -- parse errors, positioned in the statement's text
+    return _names_of(statement.body)
+
+
+def with_edits_applied(statement: Statement) -> Statement:
+    """A statement the planner gave its `edits` without parsing it (`Statement.with_edits`), with the
+    tree those edits stand for: qualifiers dropped, `version()` replaced (`_unqualified`)."""
+    if not statement.edits or statement.is_rewritten:
+        return statement
+    tree = replace(statement, edits=()).tree
+    return statement.rewritten(_unqualified(tree, statement.body), statement.edits)
 
 
 @lru_cache(maxsize=512)
@@ -219,8 +241,10 @@ class Planner:
     # -- queries ----------------------------------------------------------------------------
 
     def _query(self, statement: Statement, session: Session, params: Sequence[object]) -> QueryResult:
-        guard.check_text(statement.text)
-        plan = self._plan(statement, session)
+        remote = len(statement.text) > REMOTE_PARSE_CHARS and hasattr(self.backend, "query_names")
+        if not remote:
+            guard.check_text(statement.text)
+        plan = self._plan(statement, session, remote=remote)
         branch = plan.branch if plan.branch is not None or plan.system else self._default_branch(session)
         names = _session_names(session)
         if branch is not None:
@@ -256,10 +280,16 @@ class Planner:
                 return schema
         return branches[0] if branches else None
 
-    def _plan(self, statement: Statement, session: Session) -> _Plan:
-        """Resolve the tables of the statement's query and drop their qualifiers from its tree."""
-        sql, offset, tree = statement.text, statement.offset, statement.tree  # parse errors raised here
-        names = _names_of(statement.body)
+    def _plan(self, statement: Statement, session: Session, *, remote: bool = False) -> _Plan:
+        """Resolve the tables of the statement's query and drop their qualifiers from its tree.
+        `remote`: the backend's worker checks and parses the text (`query_names`), and drops the
+        qualifiers from the tree it runs (`with_edits_applied`); this process never parses it."""
+        sql, offset = statement.text, statement.offset
+        if remote:
+            tree, names = None, self.backend.query_names(statement)  # type: ignore[attr-defined]
+        else:
+            tree = statement.tree  # parse errors raised here
+            names = _names_of(statement.body)
         edits: list[tuple[int, int, str]] = []  # (start, end, replacement) of the same length, in `sql`
         branch: str | None = None
         system: dict[str, TableRef] = {}
@@ -329,7 +359,11 @@ class Planner:
         for start, end in names.versions:
             edits.append((offset + start, offset + end + 1, _VERSION + " " * (end + 1 - start - len(_VERSION))))
         if edits:
-            statement = statement.rewritten(_unqualified(tree, statement.body), tuple(edits))
+            statement = (
+                statement.with_edits(tuple(edits))
+                if tree is None
+                else statement.rewritten(_unqualified(tree, statement.body), tuple(edits))
+            )
         return _Plan(statement, branch, list(system.values()))
 
     # -- prepared statements ----------------------------------------------------------------

@@ -7,6 +7,9 @@ The protocol is request/answer, one message each way (pickled tuples; batches as
 - `("execute", sql, branch, scope, params, time_zone, session, pending)` starts a query and answers
   `("started", columns, duckdb_sql, schema, first, last)` or `("error", message, line, column, name,
   retire)` (`retire`: the worker ends after this answer, its state no longer to be trusted);
+- `("names", statement)` answers `("names", names)`: what the planner reads of a large statement
+  (`planner.query_names`: checked and parsed here, not in the server) or an error; a statement
+  whose `edits` the planner made without a tree gets it here (`planner.with_edits_applied`);
 - `("next",)` answers `("batch", data, last)` or an error; `("close",)` drops the running result
   (no answer). A batch is sent with `last` true when none follows, so that a result of one batch
   needs one round trip.
@@ -14,6 +17,7 @@ The protocol is request/answer, one message each way (pickled tuples; batches as
 
 from __future__ import annotations
 
+import pickle
 import resource
 import signal
 from collections.abc import Iterator, Sequence
@@ -23,8 +27,10 @@ from pathlib import Path
 import pyarrow as pa
 
 from lakegate.dialect.errors import DialectError
+from lakegate.dialect.statements import Statement
 from lakegate.gateway.engine.backend import DuckDBBackend
 from lakegate.gateway.engine.limits import Limits
+from lakegate.gateway.engine.planner import query_names, with_edits_applied
 from lakegate.gateway.engine.process_memory import statm
 from lakegate.lake.record import FileEntry
 
@@ -43,6 +49,12 @@ def _invalidating(error: BaseException) -> bool:
             return True
         seen = seen.__cause__ or seen.__context__
     return False
+
+
+def send(connection: Connection, message: tuple) -> None:
+    """Send one message (the other end reads it with `recv`), pickled by the plain pickler:
+    `Connection.send`'s builds a dispatch table for each message, a fast query's largest cost here."""
+    connection.send_bytes(pickle.dumps(message, pickle.HIGHEST_PROTOCOL))
 
 
 def _encoded(batch: pa.RecordBatch | None) -> bytes | None:
@@ -117,6 +129,8 @@ class Worker:
             if kind == "execute":
                 self.drop()
                 _, sql, branch, scope, params, time_zone, session, pending = request
+                if isinstance(sql, Statement):
+                    sql = with_edits_applied(sql)
                 result = self.backend_for(pending).execute(
                     sql, branch=branch, scope=scope, params=params, time_zone=time_zone, session=session
                 )
@@ -127,6 +141,8 @@ class Worker:
                 if last:
                     self.drop()
                 return ("started", result.columns, result.duckdb_sql, schema, _encoded(first), last)
+            if kind == "names":
+                return ("names", query_names(request[1]))
             if kind == "next":
                 if self.result is None:
                     return ("batch", None, True)
@@ -184,7 +200,7 @@ def serve(
         while True:
             answer = worker.answer(connection.recv())
             if answer is not None:
-                connection.send(answer)
+                send(connection, answer)
             if worker.broken:
                 return
     except (EOFError, OSError):

@@ -13,10 +13,11 @@ the worker wait. `GET nextUri` returns the next page (waiting up to
 fails queries whose client stopped polling for `Limits.client_timeout` seconds (ABANDONED_QUERY, as
 Trino's `query.client.timeout`), and forgets finished queries.
 
-Each running query has its own daemon worker thread, at most `Limits.max_concurrent_queries` at
-once. A query that ends (time limit, cancel, abandoned) while its worker still works is stopped: its
-DuckDB work is interrupted, and Python work still planning it (parsing, translation) is abandoned by
-an exception raised in the worker. Its slot is free at once: the worker counts as a "zombie" until
+Each running query has a daemon worker thread of its own while it runs, at most
+`Limits.max_concurrent_queries` at once (a thread that ends a query waits for the next one). A
+query that ends (time limit, cancel, abandoned) while its worker still works is stopped: its DuckDB
+work is interrupted, and Python work still planning it (parsing, translation) is abandoned by an
+exception raised in the worker. Its slot is free at once: the worker counts as a "zombie" until
 it returns, and at most `max_concurrent_queries` zombies are counted apart, so runaway work never
 jams the server. Shutdown waits at most `SHUTDOWN_GRACE` seconds for workers.
 
@@ -32,6 +33,7 @@ import asyncio
 import ctypes
 import logging
 import os
+import queue
 import secrets
 import threading
 import time
@@ -510,6 +512,9 @@ class QueryManager:
         self._running = 0  # workers of queries that have not ended
         self._zombies = 0  # workers of ended queries that still run
         self._closing = False  # shutting down: no new query runs
+        self._working: set[Query] = set()  # queries whose thread still runs them (zombies too)
+        self._handoff: queue.SimpleQueue[Query | None] = queue.SimpleQueue()  # to the idle query threads
+        self._idle_threads = 0  # query threads waiting for the next query
         self.large_slots = max(1, limits.max_concurrent_queries // 4)  # of statements over LARGE_TEXT_BYTES
         self._stop = threading.Event()
         self._reaper = threading.Thread(target=self._reap, name="lakegate-reaper", daemon=True)
@@ -558,13 +563,18 @@ class QueryManager:
                 return
             self._running += 1
             query.working = True
-            threading.Thread(target=self._work, args=(query,), name=f"lakegate-query-{query.id}", daemon=True).start()
+            self._working.add(query)
+            if self._idle_threads:
+                self._idle_threads -= 1
+                self._handoff.put(query)
+            else:
+                threading.Thread(target=self._serve, args=(query,), name="lakegate-query", daemon=True).start()
 
     def _next_queued(self) -> Query | None:
         """Take the queued query to run next off the queue (lock held); None when none should run.
         A statement text over LARGE_TEXT_BYTES waits while `large_slots` others are in the workers
         (zombies included: their parsing may still run), so that big texts cannot take every slot."""
-        working = [q for q in self._queries.values() if q.working]
+        working = self._working
         running = Counter(q.session.user for q in working if not q.zombie)
         large_busy = sum(len(q.sql) > LARGE_TEXT_BYTES for q in working) >= self.large_slots
         chosen = None
@@ -581,6 +591,18 @@ class QueryManager:
             self._queue.remove(chosen)
         return chosen
 
+    def _serve(self, query: Query | None) -> None:
+        """A query thread: runs `query`, then the queries `_dispatch` hands over, one at a time
+        (threads are reused: starting one costs a fast query much of its CPU); ends when the manager
+        closes."""
+        while query is not None:
+            self._work(query)
+            with self._lock:
+                if self._stop.is_set():
+                    return
+                self._idle_threads += 1
+            query = self._handoff.get()
+
     def _work(self, query: Query) -> None:
         try:
             self._run(query)
@@ -589,6 +611,7 @@ class QueryManager:
         finally:
             with self._lock:
                 query.working = False
+                self._working.discard(query)
                 if query.zombie:
                     self._zombies -= 1
                 else:
@@ -715,6 +738,10 @@ class QueryManager:
         SHUTDOWN_GRACE seconds) for the workers to stop."""
         self._stop.set()
         self._reaper.join()
+        with self._lock:
+            for _ in range(self._idle_threads):
+                self._handoff.put(None)  # an idle query thread ends
+            self._idle_threads = 0
         queries = self.queries()
         for query in queries:
             query.fail(SHUTTING_DOWN)

@@ -558,6 +558,21 @@ def short_lived(server_lake):
     engine.close()
 
 
+def test_protocol_routes_keep_the_host_check_and_the_frameworks_answers(short_lived):
+    """The protocol routes' short path (past FastAPI's layers) still refuses a foreign Host or Origin,
+    and a method no route takes still gets FastAPI's 405."""
+    server, _ = short_lived
+    statement = f"{server.url}/v1/statement"
+    foreign = requests.post(statement, data="SELECT 1", headers={"Host": "evil.example.org"}, timeout=30)
+    assert foreign.status_code == 421 and "Host" in foreign.text
+    origin = requests.post(statement, data="SELECT 1", headers={"Origin": "http://evil.example.org"}, timeout=30)
+    assert origin.status_code == 403 and "Origin" in origin.text
+    answered = requests.post(statement, data="SELECT 1", headers={"X-Trino-User": "tester"}, timeout=30).json()
+    assert answered.get("data") == [[1]] or "nextUri" in answered
+    wrong = requests.put(statement, data="SELECT 1", timeout=30)
+    assert wrong.status_code == 405 and wrong.json() == {"detail": "Method Not Allowed"}
+
+
 def test_abandoned_queries_are_canceled_and_finished_ones_forgotten(short_lived, endless):
     server, app = short_lived
     manager = app.state.manager

@@ -542,8 +542,8 @@ class DuckDBBackend:
         time_zone: str = "UTC",
         session: SessionNames | None = None,
     ) -> Translation:
-        """The translation of one query over `branch`'s schema (cached by text, scope, params, zone,
-        session names and schema)."""
+        """The translation of one query over `branch`'s schema (cached by text, params, zone, session
+        names and schema; one entry serves every job and batch scope, `dialect.scope_values`)."""
         state = self._state(branch)
         return translate_in_scope(
             sql,

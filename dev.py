@@ -89,7 +89,7 @@ def main(argv: list[str]) -> int:
     if command == "test":
         linted = lint()
         workers = [] if any(a.startswith("-n") for a in rest) else ["-n", "2", "--dist", "worksteal"]
-        return _run([PY, "-m", "pytest", *workers, *rest]) or linted
+        return _run([PY, "-m", "pytest", *workers, "--durations=30", *rest]) or linted  # the slowest, for the budget
     if command == "bench":
         if not rest:
             print("usage: python3 dev.py bench NAME [ARGS...]  (NAME is a file in bench/)")

@@ -285,6 +285,9 @@ def read_metadata_row(lake: Path, branch: str, batch_id: str, job_id: str) -> di
         return None
     v1 = paths.is_v1_path(target.as_posix())
     table = job_rows(target, job_id, v1=v1, position=job_id_position(paths.METADATA_TABLE, ()))
+    for field in FILE_SCHEMA:  # a file written before a column existed reads it as NULL, as the SQL side does
+        if field.name not in table.column_names:
+            table = table.append_column(field, pa.nulls(table.num_rows, field.type))
     stored = table.select(FILE_SCHEMA.names).cast(FILE_SCHEMA).to_pylist()[0]
     stored.update(batch_id=batch_id, job_id=job_id)
     return {name: stored.get(name) for name in COLUMN_NAMES}

@@ -203,3 +203,17 @@ def test_write_read_and_update_a_row_atomically(tmp_path):
         write_metadata_row(tmp_path, "main", "b1", "j1", {**row, "job_id": "j2"})
     with pytest.raises(FileNotFoundError):
         update_metadata_row(tmp_path, "main", "b1", "nope", job_metrics_status="PASSED")
+
+
+def test_a_row_written_before_a_column_existed_reads_it_as_null_and_updates(tmp_path):
+    """A lake from an earlier lakegate (metadata files without run_counter and project_id): reading and
+    updating a row work, and the missing columns read NULL, as they do through SQL."""
+    row = row_for(tmp_path, {"experience_name": "sunny"})
+    target = write_metadata_row(tmp_path, "main", "b1", "j1", row)
+    old = pq.read_table(target).drop_columns(["run_counter", "project_id"])
+    pq.write_table(old, target)
+    read = read_metadata_row(tmp_path, "main", "b1", "j1")
+    assert read["run_counter"] is None and read["project_id"] is None
+    assert read["experience_name"] == "sunny"
+    updated = update_metadata_row(tmp_path, "main", "b1", "j1", job_metrics_status="PASSED")
+    assert updated["job_metrics_status"] == "PASSED" and updated["run_counter"] is None

@@ -209,8 +209,8 @@ def main() -> int:
         "",
         f"- goal: the whole batch in < {GOAL_SECONDS:.0f} s and < {GOAL_MB / 1024:.0f} GB: "
         f"**{'met' if met else 'NOT met'}** ({median['lakegate']:.1f} s, {rss['lakegate']:.0f} MB)",
-        f"- lakegate / bare DuckDB time: {ratio:.2f}x (the rest is translation per job scope, rendering, "
-        "status queries, metadata updates and writing the results)",
+        f"- lakegate / bare DuckDB time: {ratio:.2f}x (the rest is each job's scope views, cursors, "
+        "rendering, judging, metadata updates and writing the results; each metric is translated once per run)",
         f"- fastest run {min(r['seconds'] for r in ours):.1f} s; CPU time (all threads) "
         f"{statistics.median(r['cpu'] for r in ours):.1f} s, i.e. at least "
         f"{statistics.median(r['cpu'] for r in ours) / (os.cpu_count() or 1):.1f} s of wall-clock time on "

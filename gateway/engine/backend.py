@@ -45,9 +45,10 @@ from sqlglot import exp
 from lakegate.dialect import guard
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
+from lakegate.dialect.scope_values import translate_in_scope
 from lakegate.dialect.session_functions import SessionNames
 from lakegate.dialect.statements import Statement, read, shifted
-from lakegate.dialect.translate import Translation, translate
+from lakegate.dialect.translate import Translation
 from lakegate.gateway.engine import udfs
 from lakegate.gateway.engine.deadlines import DEADLINES
 from lakegate.gateway.engine.failures import duckdb_failure, hide_paths, time_limit_error
@@ -541,10 +542,10 @@ class DuckDBBackend:
         time_zone: str = "UTC",
         session: SessionNames | None = None,
     ) -> Translation:
-        """The translation of one query over `branch`'s schema (cached by text, scope, params, zone,
-        session names and schema)."""
+        """The translation of one query over `branch`'s schema (cached by text, params, zone, session
+        names and schema; one entry serves every job and batch scope, `dialect.scope_values`)."""
         state = self._state(branch)
-        return translate(
+        return translate_in_scope(
             sql,
             state.schema,
             scope=scope,
@@ -566,7 +567,7 @@ class DuckDBBackend:
     ) -> Translation:
         """The translation of the statement's query (for EXPLAIN: the query it explains), from its
         `tree`; errors positioned in that query's text."""
-        return translate(
+        return translate_in_scope(
             statement.body,
             state.schema,
             scope=scope,

@@ -4,7 +4,8 @@ How a batch is evaluated (`MetricsEngine.evaluate_batch`):
 
 1. Every `type: test` metric runs once per job of the batch, restricted to that job
    (`Scope(batch_id, job_id)`: it never sees another job's rows). Jobs are evaluated on a few
-   threads, each query on its own cursor; the scope stays per job.
+   threads, each query on its own cursor; the scope stays per job (each query is translated once
+   for every job: the job's values are bound into that translation, `dialect/scope_values.py`).
 2. A job's `job_metrics_status` is the worst status of its test metrics; its
    `job_conflated_status` is ERROR when its `job_status` is FAILED, else its metrics status
    (so a metric ERROR makes the job ERROR: its pass/fail could not be decided). Both are

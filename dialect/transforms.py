@@ -310,7 +310,7 @@ def extract_field(g: Writer, node: exp.Extract) -> str:
         return zone_offset(g, value, unit.split("_")[1].lower())
     if ttype(value).base in intervals.FIELDS:
         return intervals.field(g.sql(value), ttype(value).base, unit.lower())
-    sql = wall_time(g, value)
+    sql = field_time(g, value)
     return f"CAST(date_part({string(_EXTRACT.get(unit, unit.lower()))}, {sql}) AS BIGINT)"
 
 
@@ -349,6 +349,20 @@ def wall_time(g: Writer, node: exp.Expression) -> str:
     sql = g.sql(node)
     t = ttype(node)
     return zones.local(sql, tt.zone_of(t)) if t.base == "timestamp_tz" else sql
+
+
+def field_time(g: Writer, node: exp.Expression) -> str:
+    """`wall_time` as the argument of DuckDB's date_part: a timestamp as a microsecond TIMESTAMP
+    (DuckDB 2.0's date_part reads a TIMESTAMP_MS, _S or _NS as microseconds when the statistics of
+    its result feed an ORDER BY or GROUP BY: year 57577 for 2025); a nanosecond one floored."""
+    sql = wall_time(g, node)
+    t = ttype(node)
+    if t.base not in ("timestamp", "timestamp_tz"):
+        return sql
+    if (t.args[0] if t.args else 3) <= 6:
+        return f"CAST({sql} AS TIMESTAMP)"
+    nanos = f"epoch_ns({sql})"
+    return f"make_timestamp((({nanos}) - ((({nanos}) % 1000) + 1000) % 1000) // 1000)"
 
 
 @transform(exp.Substring)

@@ -41,9 +41,15 @@ def cast_operand(g: Writer, node: exp.Cast) -> tuple[str, TType]:
 
 @transform(exp.TryCast)
 def trino_try_cast(g: Writer, node: exp.TryCast) -> str:
+    # only the conversion yields NULL: a failure of the operand itself fails the query, as in Trino
+    # (a text literal read as a zoned timestamp's wall time is part of the conversion)
+    own = node.meta.get("local") is None
+    if own:
+        operand, source = cast_operand(g, node)
     g.in_try += 1
     try:
-        operand, source = cast_operand(g, node)
+        if not own:
+            operand, source = cast_operand(g, node)
         target = ttype(node)
         sql = cast_value(g, operand, source, target)
     finally:

@@ -16,6 +16,8 @@ import re
 import zoneinfo
 from functools import lru_cache
 
+from lakegate.dialect.errors import DialectError
+
 UTC = "UTC"
 
 #: The zone rules, as docs/functions.md lists them (tools/functions_doc.py).
@@ -105,8 +107,15 @@ def is_offset(zone: str) -> bool:
     return zone[:1] in ("+", "-")
 
 
-def _icu(zone: str) -> str:
-    """The zone as a DuckDB (ICU) string literal: ICU reads offsets as `GMT+05:45`."""
+def _icu(zone: str | None) -> str:
+    """The zone as a DuckDB (ICU) string literal: ICU reads offsets as `GMT+05:45`; refused for None
+    (values that may carry different zones, whose local times lakegate cannot compute)."""
+    if zone is None:
+        raise DialectError(
+            "unsupported in lakegate: the local date or time of timestamp with time zone values that may carry "
+            "different zones (a CASE, COALESCE, UNION, VALUES, greatest or least mixing zones)",
+            error_name="NOT_SUPPORTED",
+        )
     return f"'GMT{zone}'" if is_offset(zone) else f"'{zone}'"
 
 

@@ -601,7 +601,8 @@ def install() -> None:
         "aggregate",
         "geometric_mean(x) -> double",
         as_double("number"),
-        agg_as("geometric_mean"),
+        # DuckDB's geometric_mean is this macro, which takes no FILTER, DISTINCT or OVER
+        lambda g, node, args: f"exp({g.agg(node, 'avg', [f'ln(CAST({g.sql(args[0])} AS DOUBLE))'])})",
         kind="aggregate",
     )
 

@@ -107,10 +107,12 @@ def _array_distinct(call: Call) -> TType:
 
 def _render_array_distinct(g, node, args) -> str:
     arr = g.sql(args[0])
+    # NULL of a NULL array (DuckDB's list_zip of NULLs is an empty list)
     return (
+        f"CASE WHEN ({arr}) IS NULL THEN NULL ELSE "
         f"list_transform(list_filter(list_zip({arr}, range(1, len({arr}) + 1)), "
         f'lambda "_p": list_position({arr}, struct_extract("_p", 1)) = struct_extract("_p", 2)), '
-        f'lambda "_p": struct_extract("_p", 1))'
+        f'lambda "_p": struct_extract("_p", 1)) END'
     )
 
 

@@ -295,7 +295,7 @@ def _render_field(g, node, args) -> str:
     name = node.name.lower()
     if ttype(args[0]).base in intervals.FIELDS:
         return intervals.field(g.sql(args[0]), ttype(args[0]).base, name)
-    value = tf.wall_time(g, args[0])
+    value = tf.field_time(g, args[0])
     part = _FIELD_OF[name]
     if ttype(args[0]).base == "unknown":  # a NULL literal: DuckDB cannot choose date_part's overload
         return "CAST(NULL AS BIGINT)"

@@ -185,8 +185,10 @@ def _render_json_array_contains(g, node, args) -> str:
     text = _json_text(g, args[0])
     needle = g.sql(args[1]) if value.is_integral or not value.is_numeric else f"CAST({g.sql(args[1])} AS DOUBLE)"
     matches = _element_matches(value, '"_e"', needle)
+    # a NaN or infinite double is in no JSON value, array or not (false before the JSON is read)
+    infinite = "" if value.is_integral or not value.is_numeric else f"WHEN NOT isfinite({needle}) THEN false "
     return (
-        f"CASE WHEN ({needle}) IS NULL THEN NULL WHEN json_type({text}) = 'ARRAY' THEN "
+        f"CASE WHEN ({needle}) IS NULL OR ({text}) IS NULL THEN NULL {infinite}WHEN json_type({text}) = 'ARRAY' THEN "
         f'len(list_filter({jv.elements(text)}, lambda "_e": {matches})) > 0 END'
     )
 

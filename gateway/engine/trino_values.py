@@ -11,6 +11,7 @@ from __future__ import annotations
 import base64
 import datetime as dt
 import math
+import re
 import struct
 import uuid
 from collections.abc import Callable, Sequence
@@ -71,6 +72,13 @@ def _signature(t: TType) -> dict:
     else:
         arguments = []
     return {"rawType": raw, "arguments": arguments}
+
+
+def protocol_type(trino_type: str) -> str:
+    """A column's `type` text in the client protocol: the type name with the interval types in
+    capitals, at any depth (`array(INTERVAL DAY TO SECOND)`), as Trino 476 writes it; typeof()
+    and the typeSignature keep the lower-case name."""
+    return re.sub(r"\binterval (day to second|year to month)\b", lambda m: m.group(0).upper(), trino_type)
 
 
 def type_signature(trino_type: str) -> dict:

@@ -19,7 +19,7 @@ import orjson
 
 from lakegate.dialect.errors import DialectError
 from lakegate.gateway.engine.planner import TRINO_VERSION
-from lakegate.gateway.engine.trino_values import type_signature
+from lakegate.gateway.engine.trino_values import protocol_type, type_signature
 
 ENVIRONMENT = "lakegate"
 
@@ -157,7 +157,8 @@ _ID_ALPHABET = string.ascii_lowercase + string.digits
 def columns_document(columns: Sequence[tuple[str, str]]) -> list[dict]:
     """QueryResults `columns`: name, Trino type name and full typeSignature of each column."""
     return [
-        {"name": name, "type": trino_type, "typeSignature": type_signature(trino_type)} for name, trino_type in columns
+        {"name": name, "type": protocol_type(trino_type), "typeSignature": type_signature(trino_type)}
+        for name, trino_type in columns
     ]
 
 

@@ -308,3 +308,21 @@ def test_unnest_with_ordinality(run):
         "SELECT id, tag, n FROM t CROSS JOIN UNNEST(arr) WITH ORDINALITY AS u(tag, n) WHERE id = 1 ORDER BY n"
     )
     assert rows == [(1, "x", 1), (1, "y", 2)] and types == ["bigint", "varchar", "bigint"]
+
+
+def test_fields_of_a_millisecond_timestamp_under_order_by():
+    """DuckDB 2.0's date_part misreads a TIMESTAMP_MS (a lake's timestamp(3) column) as microseconds
+    when its result's statistics feed an ORDER BY (year 57577 for 2024); the field functions read it
+    as a microsecond TIMESTAMP. Expected: the real Trino 476 over the same three timestamps."""
+    con = duckdb.connect()
+    con.execute(
+        "CREATE TABLE t AS SELECT CAST(TIMESTAMP '2024-01-02 03:04:05.123' + to_days(CAST(i AS INTEGER)) "
+        "AS TIMESTAMP_MS) AS ts FROM range(3) r(i)"
+    )
+    sql = "SELECT year(ts), day_of_year(ts), yow(ts), EXTRACT(DOY FROM ts), millisecond(ts) FROM t ORDER BY 2 DESC"
+    translation = translate(sql, {"t": {"ts": "timestamp(3)"}})
+    assert con.execute(translation.duckdb_sql).fetchall() == [
+        (2024, 4, 2024, 4, 123),
+        (2024, 3, 2024, 3, 123),
+        (2024, 2, 2024, 2, 123),
+    ]

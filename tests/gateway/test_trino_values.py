@@ -16,7 +16,7 @@ import pytest
 from trino.mapper import RowMapperFactory
 
 from lakegate.dialect.trino_types import parse_type
-from lakegate.gateway.engine.trino_values import arrow_type, encode_rows, encoder, type_signature
+from lakegate.gateway.engine.trino_values import arrow_type, encode_rows, encoder, protocol_type, type_signature
 from lakegate.lake.schema import ARROW_TYPES
 
 VARCHAR = {"rawType": "varchar", "arguments": [{"kind": "LONG", "value": 2147483647}]}
@@ -311,3 +311,13 @@ def test_encode_rows_checks_the_column_count():
 @pytest.mark.parametrize("trino_type", list(ARROW_TYPES))
 def test_the_engine_carries_each_lake_type_as_the_lake_stores_it(trino_type):
     assert arrow_type(parse_type(trino_type)) == ARROW_TYPES[trino_type]
+
+
+def test_protocol_type_writes_interval_types_as_trino_does():
+    # the real Trino 476's `type` of SELECT INTERVAL '1' DAY, ARRAY[INTERVAL '1' DAY],
+    # MAP(ARRAY['a'], ARRAY[INTERVAL '1' MONTH]), CAST(ROW(INTERVAL '1' DAY) AS row(x interval day to second))
+    assert protocol_type("interval day to second") == "INTERVAL DAY TO SECOND"
+    assert protocol_type("array(interval day to second)") == "array(INTERVAL DAY TO SECOND)"
+    assert protocol_type("map(varchar(1), interval year to month)") == "map(varchar(1), INTERVAL YEAR TO MONTH)"
+    assert protocol_type("row(x interval day to second)") == "row(x INTERVAL DAY TO SECOND)"
+    assert protocol_type("timestamp(3) with time zone") == "timestamp(3) with time zone"

@@ -66,6 +66,17 @@ def judge(query: Query, mine: Outcome, theirs: Outcome) -> Verdict:
     return Verdict(query, "mismatched" if why else "equal", mine, theirs, why or "")
 
 
+def record(verdict: Verdict) -> dict:
+    """A mismatch as written to --out: the query and both answers."""
+    return {
+        "query": verdict.query.sql,
+        "ordered": verdict.query.ordered,
+        "why": verdict.why,
+        "lakegate": verdict.lakegate.as_dict(),
+        "trino": verdict.trino.as_dict(),
+    }
+
+
 def summary(counts: Counter) -> str:
     tried = sum(counts.values())
     return (
@@ -92,6 +103,7 @@ def fuzz(
     drop_orphans(trino, SCHEMA_PREFIX)
     register(trino, lake, schema_prefix)
     mine = Lakegate(lake)
+    handle = out.open("w") if out is not None else None  # each mismatch is written as it is found
     counts: Counter = Counter()
     mismatches: list[Verdict] = []
 
@@ -100,6 +112,9 @@ def fuzz(
         counts[verdict.kind] += 1
         if verdict.kind == "mismatched":
             mismatches.append(verdict)
+            if handle is not None:
+                handle.write(json.dumps(record(verdict), ensure_ascii=False) + "\n")
+                handle.flush()
         if progress and sum(counts.values()) % PROGRESS == 0:
             print(f"... {summary(counts)}", file=sys.stderr, flush=True)
 
@@ -121,17 +136,8 @@ def fuzz(
     finally:
         mine.close()
         unregister(trino, f"{schema_prefix}main")
-    if out is not None:
-        with out.open("w") as handle:
-            for v in mismatches:
-                record = {
-                    "query": v.query.sql,
-                    "ordered": v.query.ordered,
-                    "why": v.why,
-                    "lakegate": v.lakegate.as_dict(),
-                    "trino": v.trino.as_dict(),
-                }
-                handle.write(json.dumps(record, ensure_ascii=False) + "\n")
+        if handle is not None:
+            handle.close()
     return counts, mismatches
 
 
@@ -164,7 +170,14 @@ def main(argv: list[str] | None = None) -> int:
     )
     args = parser.parse_args(argv)
     counts, mismatches = fuzz(
-        args.queries, args.seed, args.trino, args.lake, args.out, args.jobs, progress=True, seconds=args.seconds
+        args.queries,
+        args.seed,
+        args.trino,
+        args.lake,
+        args.out,
+        args.jobs,
+        progress=True,
+        seconds=args.seconds,
     )
     print(summary(counts))
     if mismatches:

@@ -19,7 +19,7 @@ from lakegate.dialect.errors import DialectError
 from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.engine.trino_ddl import ddl
-from lakegate.gateway.engine.trino_values import encode_rows
+from lakegate.gateway.engine.trino_values import encode_rows, protocol_type
 
 #: Seconds one query may run on either side.
 QUERY_SECONDS = 20.0
@@ -56,7 +56,7 @@ class Lakegate:
             return Outcome(error=error.error_name, message=error.message)
         except Exception as error:  # noqa: BLE001 - an internal failure is an answer to report, not a crash
             return Outcome(error="LAKEGATE_INTERNAL", message=f"{type(error).__name__}: {error}")
-        return Outcome(types=[t for _, t in result.columns], rows=[list(r) for r in rows])
+        return Outcome(types=[protocol_type(t) for _, t in result.columns], rows=[list(r) for r in rows])
 
     def close(self) -> None:
         self.engine.close()

@@ -18,7 +18,7 @@ from lakegate.gateway.cli.errors import UserError
 from lakegate.gateway.engine.arrow_output import write_arrow, write_parquet
 from lakegate.gateway.engine.backend import QueryResult
 from lakegate.gateway.engine.trino_backend import TrinoBackend
-from lakegate.gateway.engine.trino_values import encode_rows
+from lakegate.gateway.engine.trino_values import encode_rows, protocol_type
 
 
 def _where(error: DialectError) -> str:
@@ -96,10 +96,10 @@ def _text(value: Any, null: str) -> str:
 
 
 def write_json(result: QueryResult, out: TextIO) -> None:
-    """`{"columns": [{"name", "type"}], "rows": [[...]]}`, values encoded as the Trino protocol does."""
+    """`{"columns": [{"name", "type"}], "rows": [[...]]}`, types and values written as the Trino protocol does."""
     rows = list(_encoded_rows(result))  # all rows first: an error mid-way must not leave half a document
     columns = json.dumps(
-        [{"name": name, "type": trino_type} for name, trino_type in result.columns], ensure_ascii=False
+        [{"name": name, "type": protocol_type(trino_type)} for name, trino_type in result.columns], ensure_ascii=False
     )
     out.write(f'{{"columns": {columns}, "rows": [')
     for i, row in enumerate(rows):

@@ -228,7 +228,7 @@ class Planner:
                     error_name="INVALID_PARAMETER_USAGE",
                 )
             statement.check()
-            return static_result(self.metadata.show(statement.text, session))
+            return static_result(self.metadata.show(statement, session))
         if kind in ("query", "explain"):
             return self._query(statement, session, params)
         if kind in ("session", "call"):

@@ -1,11 +1,12 @@
 """The read-only guard: only queries reach DuckDB.
 
-`check_text` runs on the raw text before parsing (encoding, size, nesting depth, statement kind,
-one statement only); `check` runs on the parsed Trino AST (no writes, no file or DuckDB-internal
-functions, no table functions but UNNEST). `statement_kind` is the table of statement words that
-`statements.read` (the one reader) decides a statement's kind with: 'query', 'show', 'describe',
-'explain', 'session' (SET SESSION, USE, PREPARE, EXECUTE, START TRANSACTION, ...), 'call', or
-'other' (refused).
+`read_text` reads the raw text once before parsing, for `statements.read` (the one reader): its kind
+from `statement_kind`, the table of statement words ('query', 'show', 'describe', 'explain',
+'session' (SET SESSION, USE, PREPARE, EXECUTE, START TRANSACTION, ...), 'call', or 'other'), and
+its refusal as a query (encoding, size, nesting depth, statement kind, one statement only), which
+the statement's owner raises. `check_text` is that refusal for a caller with text only. `check`
+runs on the parsed Trino AST (no writes, no file or DuckDB-internal functions, no table functions
+but UNNEST).
 """
 
 from __future__ import annotations
@@ -281,11 +282,13 @@ def _explain_parts(sql: str, start: int) -> tuple[int, bool]:
     return (options.end() if options else rest), analyze
 
 
-def explained_query(sql: str) -> tuple[str, bool]:
-    """For an EXPLAIN statement: the text of the query it explains and whether it is EXPLAIN ANALYZE."""
-    kind, _, start = statement_kind(sql)
-    if kind != "explain":
-        raise DialectError("not an EXPLAIN of a query", error_name="GENERIC_USER_ERROR")
+def explained_query(sql: str, start: int | None = None) -> tuple[str, bool]:
+    """For an EXPLAIN statement (its first word at `start`, if the caller read it): the text of the
+    query it explains and whether it is EXPLAIN ANALYZE."""
+    if start is None:
+        kind, _, start = statement_kind(sql)
+        if kind != "explain":
+            raise DialectError("not an EXPLAIN of a query", error_name="GENERIC_USER_ERROR")
     rest, analyze = _explain_parts(sql, start)
     return sql[rest:].strip(), analyze
 
@@ -383,25 +386,26 @@ def _check_single_statement(sql: str) -> None:
             )
 
 
-def check_text(sql: str | bytes) -> str:
-    """Check a query text before parsing and return it as `str`.
+def decoded(sql: str | bytes) -> str:
+    """A query text as `str`: bytes are decoded as UTF-8 (SYNTAX_ERROR at the first bad byte)."""
+    if not isinstance(sql, (bytes, bytearray)):
+        return sql
+    try:
+        return bytes(sql).decode("utf-8")
+    except UnicodeDecodeError as error:
+        good = bytes(sql[: error.start]).decode("utf-8")
+        line, column = _where(good, len(good))
+        raise DialectError(
+            f"the query text is not valid UTF-8 (byte {error.start})",
+            line=line,
+            column=column,
+            error_name="SYNTAX_ERROR",
+        ) from None
 
-    Refuses invalid UTF-8, NUL characters, texts over MAX_TEXT_BYTES or MAX_TOKENS, brackets and CASE
-    nested deeper than MAX_NESTING, more than one statement, and every statement that is not a query (SHOW, DESCRIBE
-    and EXPLAIN of a query pass; session statements get NOT_SUPPORTED, the rest PERMISSION_DENIED).
-    """
-    if isinstance(sql, (bytes, bytearray)):
-        try:
-            sql = bytes(sql).decode("utf-8")
-        except UnicodeDecodeError as error:
-            good = bytes(sql[: error.start]).decode("utf-8")
-            line, column = _where(good, len(good))
-            raise DialectError(
-                f"the query text is not valid UTF-8 (byte {error.start})",
-                line=line,
-                column=column,
-                error_name="SYNTAX_ERROR",
-            ) from None
+
+def _check_text_size(sql: str) -> None:
+    """Refuse lone surrogates, texts over MAX_TEXT_BYTES or MAX_TOKENS, NUL characters and brackets and CASE
+    nested deeper than MAX_NESTING."""
     try:
         size = len(sql.encode("utf-8"))
     except UnicodeEncodeError as error:
@@ -424,7 +428,11 @@ def check_text(sql: str | bytes) -> str:
             "the query text contains a NUL character", line=line, column=column, error_name="SYNTAX_ERROR"
         )
     _check_size(sql)
-    kind, name, start = statement_kind(sql)
+
+
+def _refuse(sql: str, kind: str, name: str, start: int) -> None:
+    """Refuse, in Trino's terms, a text of `kind` (as `statement_kind` read it) run as a query."""
+    _check_text_size(sql)
     if kind == "other" and not name:
         _refuse_no_statement(sql)
     if kind == "other" and name == "FROM":
@@ -438,6 +446,32 @@ def check_text(sql: str | bytes) -> str:
     if kind in ("session", "call", "other"):
         _refuse_statement(kind, name, sql, start)
     _check_single_statement(sql)
+
+
+def read_text(sql: str) -> tuple[tuple[str, str, int], DialectError | None]:
+    """One reading of a statement text: its (kind, name, start) from the table of statement words
+    (`statement_kind`) and the refusal of running it as a query (None: it may run).
+
+    The refusal covers lone surrogates, texts over MAX_TEXT_BYTES or MAX_TOKENS, NUL characters,
+    brackets and CASE nested deeper than MAX_NESTING, more than one statement, and every statement that
+    is not a query (SHOW, DESCRIBE and EXPLAIN of a query pass; session statements and CALL get
+    NOT_SUPPORTED, the rest PERMISSION_DENIED; a text with no statement's first word, SYNTAX_ERROR).
+    """
+    kind = statement_kind(sql)
+    try:
+        _refuse(sql, *kind)
+    except DialectError as error:
+        return kind, error
+    return kind, None
+
+
+def check_text(sql: str | bytes) -> str:
+    """Check a query text before parsing (`read_text`'s refusal raised) and return it as `str`; for a
+    caller that has only the text (`statements.read` reads it once for everyone else)."""
+    sql = decoded(sql)
+    _, refusal = read_text(sql)
+    if refusal is not None:
+        raise refusal
     return sql
 
 

@@ -41,7 +41,7 @@ def _where(sql: str, offset: int) -> tuple[int, int]:
     return sql.count("\n", 0, offset) + 1, offset - (sql.rfind("\n", 0, offset) + 1) + 1
 
 
-def _check_text(sql: str) -> int | None:
+def _first_session_function(sql: str) -> int | None:
     """Refuse `current_user()` and its siblings as Trino's parser does; the offset of the first
     special form in `sql` (None: none)."""
     first = None
@@ -90,7 +90,7 @@ def bind(tree: exp.Expression, sql: str, names: SessionNames | None) -> bool:
     any was replaced. Without `names` (a translation outside any session) they are refused."""
     if not used(sql):
         return False
-    offset = _check_text(sql)
+    offset = _first_session_function(sql)
     found = [(node, name) for node in list(tree.walk()) if (name := _special(node)) is not None]
     if not found:
         return False

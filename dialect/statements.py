@@ -1,9 +1,12 @@
 """The one reader of statements: each statement text is read once into a `Statement` (its kind,
 its text and, for a query or EXPLAIN, its parsed tree), which every later step is handed.
 
-`read(sql)` decides the kind once, from the statement's first words (`guard.statement_kind`, the
-table of statement words), and refines it into one of `KINDS`, each with the one owner that
-answers it. `Reader` walks the non-query statements (SHOW, DESCRIBE, USE, SET / RESET SESSION,
+`read(sql)` reads the text once (`guard.read_text`): it decides the kind from the statement's first
+words (`guard.statement_kind`, the table of statement words) and refines it into one of `KINDS`,
+each with the one owner that answers it, and keeps the refusal of running the text as a query
+(size, nesting, writes, unknown statements), which the owner raises (`Statement.check`).
+
+`Reader` walks the non-query statements (SHOW, DESCRIBE, USE, SET / RESET SESSION,
 PREPARE, DEALLOCATE PREPARE, START TRANSACTION / COMMIT / ROLLBACK, CALL) token by token (sqlglot's
 Trino tokenizer, every statement read word by word), reading names as Trino does (unquoted parts
 lower-cased) and reporting a syntax error with the line and column of the token it did not expect.
@@ -68,6 +71,14 @@ class Statement:
     analyze: bool = False  # EXPLAIN ANALYZE
     planned: exp.Expression | None = None
     edits: tuple[tuple[int, int, str], ...] = ()
+    refusal: DialectError | None = None
+
+    def check(self) -> None:
+        """Raise the refusal of running this text as a query, decided when it was read (`guard.read_text`):
+        too large or too deep, more than one statement, a write or another statement that is not a query."""
+        if self.refusal is not None:
+            refusal = self.refusal
+            raise DialectError(refusal.message, line=refusal.line, column=refusal.column, error_name=refusal.error_name)
 
     @property
     def tree(self) -> exp.Expression:
@@ -108,9 +119,11 @@ def parsed(text: str) -> exp.Expression:
     return parse(text)
 
 
-def read(sql: str) -> Statement:
-    """Read one statement text: its kind (one of `KINDS`) and name; the tree is parsed when asked."""
-    kind, name, start = guard.statement_kind(sql)
+def read(sql: str | bytes) -> Statement:
+    """Read one statement text, once: its kind (one of `KINDS`), name and refusal as a query
+    (`Statement.check`); the tree is parsed when asked. Bytes are decoded (SYNTAX_ERROR if not UTF-8)."""
+    sql = guard.decoded(sql)
+    (kind, name, start), refusal = guard.read_text(sql)
     words = guard.first_words(sql, 2)
     first, second = (words + ["", ""])[:2]
     body, offset, analyze = sql, 0, False
@@ -122,11 +135,11 @@ def read(sql: str) -> Statement:
     elif kind == "describe" and second in ("INPUT", "OUTPUT") and _names_prepared(sql):
         kind = "describe_prepared"
     elif kind == "explain":
-        body, analyze = guard.explained_query(sql)
+        body, analyze = guard.explained_query(sql, start)
         offset = sql.rfind(body)
     elif kind == "unknown":
         kind = "other"
-    return Statement(sql, kind, name, body, offset, analyze)
+    return Statement(sql, kind, name, body, offset, analyze, refusal=refusal)
 
 
 def _names_prepared(sql: str) -> bool:

@@ -668,7 +668,8 @@ def _translate(
     session: session_functions.SessionNames | None = None,
     given: exp.Expression | None = None,
 ) -> Translation:
-    sql = guard.check_text(sql)
+    if given is None:  # text only: checked here; a tree comes from its reader, which checked its text
+        sql = guard.check_text(sql)
     tree = parse(sql) if given is None else given.copy()
     guard.check(tree)
     if scope is not None:

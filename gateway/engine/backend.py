@@ -42,7 +42,6 @@ import duckdb
 import pyarrow as pa
 from sqlglot import exp
 
-from lakegate.dialect import guard
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
 from lakegate.dialect.scope_values import translate_in_scope
@@ -608,8 +607,11 @@ class DuckDBBackend:
         time_zone: str = "UTC",
         session: SessionNames | None = None,
     ) -> QueryResult:
-        # a text is checked before it is parsed; a Statement comes from the planner, which checked it
-        statement = sql if isinstance(sql, Statement) else read(guard.check_text(sql))
+        # a text is read (and its refusal raised) before it is parsed; a Statement comes from the planner,
+        # which raised its refusal
+        statement = sql if isinstance(sql, Statement) else read(sql)
+        if statement is not sql:
+            statement.check()
         state = self._state(branch, views=not self._scoped(scope))
         if statement.kind == "explain":
             translation = self._explain(statement, state, scope, params, time_zone, session)

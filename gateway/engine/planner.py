@@ -25,7 +25,6 @@ from sqlglot import exp
 from sqlglot.dialects.trino import Trino
 from sqlglot.tokens import TokenType
 
-from lakegate.dialect import guard
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.params import parse_execute
@@ -122,9 +121,10 @@ def _version_call(node: exp.Expression, query: str) -> tuple[int, int] | None:
 
 def query_names(statement: Statement) -> _Names:
     """What the planner reads of a query's text, for a backend that plans it in another process
-    (`Backend.query_names`): the text checked (`guard.check_text`) and parsed, in that order, as the
-    planner does (the same errors), then its table references, qualified columns, CTEs and `version()`."""
-    guard.check_text(statement.text)
+    (`Backend.query_names`): the refusal its reading decided raised (`Statement.check`), then its text
+    parsed, in that order, as the planner does (the same errors), then its table references, qualified
+    columns, CTEs and `version()`."""
+    statement.check()
     statement.tree  # noqa: B018 -- parse errors, positioned in the statement's text
     return _names_of(statement.body)
 
@@ -227,14 +227,15 @@ class Planner:
                     f"Incorrect number of parameters: expected 0 but found {len(params)}",
                     error_name="INVALID_PARAMETER_USAGE",
                 )
-            return static_result(self.metadata.show(guard.check_text(statement.text), session))
+            statement.check()
+            return static_result(self.metadata.show(statement, session))
         if kind in ("query", "explain"):
             return self._query(statement, session, params)
         if kind in ("session", "call"):
             raise DialectError(
                 "a session statement or CALL cannot be run by EXECUTE; send it on its own", error_name="NOT_SUPPORTED"
             )
-        guard.check_text(statement.text)  # refuses writes and unknown statements with Trino's message
+        statement.check()  # refuses writes and unknown statements with Trino's message
         _check_statement_start(statement.text)
         raise DialectError("unsupported in lakegate: this statement", line=1, column=1, error_name="NOT_SUPPORTED")
 
@@ -243,7 +244,7 @@ class Planner:
     def _query(self, statement: Statement, session: Session, params: Sequence[object]) -> QueryResult:
         remote = len(statement.text) > REMOTE_PARSE_CHARS and hasattr(self.backend, "query_names")
         if not remote:
-            guard.check_text(statement.text)
+            statement.check()
         plan = self._plan(statement, session, remote=remote)
         branch = plan.branch if plan.branch is not None or plan.system else self._default_branch(session)
         names = _session_names(session)

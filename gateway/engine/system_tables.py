@@ -560,10 +560,11 @@ class SystemCatalog:
 
     # -- SHOW and DESCRIBE ------------------------------------------------------------------
 
-    def show(self, sql: str, session: Session) -> Answer:
-        """Answer SHOW CATALOGS / SCHEMAS / TABLES / COLUMNS / SESSION and DESCRIBE t, with Trino's
-        result columns, sorted as Trino sorts them."""
-        reader = Reader(sql)
+    def show(self, statement: Statement, session: Session) -> Answer:
+        """Answer SHOW CATALOGS / SCHEMAS / TABLES / COLUMNS / SESSION and DESCRIBE t (a statement
+        of kind show or describe, its refusal raised), with Trino's result columns, sorted as Trino
+        sorts them."""
+        reader = Reader(statement.text)
         if reader.take("DESCRIBE", "DESC"):
             parts = reader.parts()
             reader.end()

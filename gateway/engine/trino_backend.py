@@ -142,8 +142,9 @@ def forwarded_sql(
     rewrote it: its text edits spliced in): guard-checked (read-only: queries, SHOW, DESCRIBE,
     EXPLAIN), every lake table in `tables` restricted to `scope`, `?` bound to `params`. `tables`
     may be a function of the parsed query. Raises DialectError with the position in `sql`."""
-    statement = sql if isinstance(sql, Statement) else read(guard.check_text(sql))
-    text = guard.check_text(statement.edited_text())
+    statement = sql if isinstance(sql, Statement) else read(sql)
+    statement.check()
+    text = statement.edited_text()  # the planner's edits keep length, lines and tokens: nothing to check again
     kind, start = statement.kind, statement.offset
     body = text[start : start + len(statement.body)]
     tree = statement.tree.copy()  # the shared tree stays as read
@@ -495,7 +496,8 @@ class TrinoBackend:
                 f"unsupported in lakegate: session time zone '{time_zone}' with the Trino backend (it reads in UTC)",
                 error_name="NOT_SUPPORTED",
             )
-        statement = sql if isinstance(sql, Statement) else read(guard.check_text(sql))
+        statement = sql if isinstance(sql, Statement) else read(sql)
+        statement.check()
         called = session_functions.called(statement.tree) if session_functions.used(statement.text) else []
         if called:
             raise DialectError(

@@ -1,6 +1,6 @@
 """The read-only guard: only queries reach DuckDB.
 
-`read_text` reads the raw text once before parsing, for `statements.read` (the one reader): its kind
+`examine_text` reads the raw text once before parsing, for `statements.read` (the one reader): its kind
 from `statement_kind`, the table of statement words ('query', 'show', 'describe', 'explain',
 'session' (SET SESSION, USE, PREPARE, EXECUTE, START TRANSACTION, ...), 'call', or 'other'), and
 its refusal as a query (encoding, size, nesting depth, statement kind, one statement only), which
@@ -448,7 +448,7 @@ def _refuse(sql: str, kind: str, name: str, start: int) -> None:
     _check_single_statement(sql)
 
 
-def read_text(sql: str) -> tuple[tuple[str, str, int], DialectError | None]:
+def examine_text(sql: str) -> tuple[tuple[str, str, int], DialectError | None]:
     """One reading of a statement text: its (kind, name, start) from the table of statement words
     (`statement_kind`) and the refusal of running it as a query (None: it may run).
 
@@ -466,10 +466,10 @@ def read_text(sql: str) -> tuple[tuple[str, str, int], DialectError | None]:
 
 
 def check_text(sql: str | bytes) -> str:
-    """Check a query text before parsing (`read_text`'s refusal raised) and return it as `str`; for a
+    """Check a query text before parsing (`examine_text`'s refusal raised) and return it as `str`; for a
     caller that has only the text (`statements.read` reads it once for everyone else)."""
     sql = decoded(sql)
-    _, refusal = read_text(sql)
+    _, refusal = examine_text(sql)
     if refusal is not None:
         raise refusal
     return sql

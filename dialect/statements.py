@@ -1,7 +1,7 @@
 """The one reader of statements: each statement text is read once into a `Statement` (its kind,
 its text and, for a query or EXPLAIN, its parsed tree), which every later step is handed.
 
-`read(sql)` reads the text once (`guard.read_text`): it decides the kind from the statement's first
+`read(sql)` reads the text once (`guard.examine_text`): it decides the kind from the statement's first
 words (`guard.statement_kind`, the table of statement words) and refines it into one of `KINDS`,
 each with the one owner that answers it, and keeps the refusal of running the text as a query
 (size, nesting, writes, unknown statements), which the owner raises (`Statement.check`).
@@ -74,7 +74,7 @@ class Statement:
     refusal: DialectError | None = None
 
     def check(self) -> None:
-        """Raise the refusal of running this text as a query, decided when it was read (`guard.read_text`):
+        """Raise the refusal of running this text as a query, decided when it was read (`guard.examine_text`):
         too large or too deep, more than one statement, a write or another statement that is not a query."""
         if self.refusal is not None:
             refusal = self.refusal
@@ -123,7 +123,7 @@ def read(sql: str | bytes) -> Statement:
     """Read one statement text, once: its kind (one of `KINDS`), name and refusal as a query
     (`Statement.check`); the tree is parsed when asked. Bytes are decoded (SYNTAX_ERROR if not UTF-8)."""
     sql = guard.decoded(sql)
-    (kind, name, start), refusal = guard.read_text(sql)
+    (kind, name, start), refusal = guard.examine_text(sql)
     words = guard.first_words(sql, 2)
     first, second = (words + ["", ""])[:2]
     body, offset, analyze = sql, 0, False

@@ -307,6 +307,10 @@ POINT_JS = """([id, index]) => {
     const x = chart._fullLayout.xaxis, y = chart._fullLayout.yaxis, point = chart.calcdata[0][index];
     return [box.left + x._offset + x.c2p(point.x), box.top + y._offset + y.c2p(point.y)];
 }"""
+HOVERED_JS = """([id, index]) => {
+    const hovered = document.getElementById(id)._hoverdata;
+    return Boolean(hovered && hovered.length && hovered[0].pointNumber === index);
+}"""
 
 
 def test_two_clicks_on_the_trends_chart_open_their_comparison(page, served, tmp_path):
@@ -320,14 +324,19 @@ def test_two_clicks_on_the_trends_chart_open_their_comparison(page, served, tmp_
     builds = page.evaluate(f"() => document.getElementById('{chart_id}').data[0].x")
     assert builds == ["1.4.0", "1.4.1", "1.4.2"]
     chart.scroll_into_view_if_needed()
-    page.mouse.click(*page.evaluate(POINT_JS, [chart_id, 2]))  # 1.4.2: the demo's batch nav-regression-1
+
+    def click_point(index: int) -> None:
+        """As a user's pointer: Plotly's click reports the point it last hovered, so wait for that hover."""
+        at = page.evaluate(POINT_JS, [chart_id, index])
+        page.mouse.move(*at)
+        page.wait_for_function(HOVERED_JS, arg=[chart_id, index])
+        page.mouse.click(*at)
+
+    click_point(2)  # 1.4.2: the demo's batch nav-regression-1
     picked = "Picked nav-regression-1 (build 1.4.2): click a point of another batch to compare the two."
     assert page.locator("#compare-pick").inner_text() == picked  # above the charts, and under the chart clicked
     assert page.locator(f"#{chart_id} + #compare-picked").inner_text() == picked
-    second = page.evaluate(POINT_JS, [chart_id, 0])  # 1.4.0: nightly-1.4.0
-    page.mouse.move(*second)  # as a user's pointer: Plotly picks the point it hovers
-    chart.locator(".hoverlayer .hovertext").first.wait_for()
-    page.mouse.click(*second)
+    click_point(0)  # 1.4.0: nightly-1.4.0
     page.wait_for_url("**/dashboard/compare/?*")
     assert page.url == f"{url}/dashboard/compare/?branch=main&base=nightly-1.4.0&batch=nav-regression-1"
     page.wait_for_selector(".js-plotly-plot .main-svg")

@@ -48,6 +48,7 @@ from typing import Any
 import orjson
 
 from lakegate.lake.config import Topic, load_config
+from lakegate.lake.series_lines import SeriesLines
 from lakegate.lake.types import MAX_JSON_DEPTH, MAX_LINE_BYTES, check_value, is_utf8, json_too_deep
 
 DEFAULT_OUTPUT_PATH = Path("/tmp/resim/outputs/emissions.resim.jsonl")
@@ -192,15 +193,17 @@ class _Codec:
     `series(end, timestamps, *columns)` takes one list per field, in schema order, and returns
     the list of lines (an error names the index). `end` closes `$metadata`: `_PLAIN_END` or
     `_EVENT_END`. The code is generated (as dataclasses do) so that the common case runs
-    without per-field loops or calls.
+    without per-field loops or calls. `blocks(stamps, columns)` builds a whole series column by
+    column (`SeriesLines.encode`), or returns None for `series` to check it record by record.
     """
 
-    __slots__ = ("topic", "fields", "line", "series")
+    __slots__ = ("topic", "fields", "line", "series", "blocks")
 
     def __init__(self, topic: Topic):
         self.topic = topic
         self.fields = tuple(topic.fields)
         self.line, self.series = self._compile()
+        self.blocks = SeriesLines(topic.name, topic.fields).encode
 
     def _record(self, indent: str) -> list[str]:
         """Source lines that check `ts` and `v0`, `v1`, ... and build the JSON line `text`."""
@@ -509,7 +512,12 @@ class Emitter:
         codec = self._codecs.get(topic_name)
         if codec is not None:
             check_field_names(codec.topic, columns)
-            lines = codec.series(_PLAIN_END, stamps, *(columns[name] for name in codec.fields))
+            ordered = [columns[name] for name in codec.fields]
+            blocks = codec.blocks(stamps, ordered) if stamps else None
+            if blocks is not None:
+                self._append_blocks(blocks, len(stamps))
+                return
+            lines = codec.series(_PLAIN_END, stamps, *ordered)
         else:
             lines = []
             try:
@@ -544,6 +552,19 @@ class Emitter:
         if len(self._queue) >= self._chunk_lines:
             self._chunk_ready()
 
+    def _append_blocks(self, blocks: list[bytes], count: int) -> None:
+        """Queue `count` lines given as blocks of whole lines; a chunk or more is written now."""
+        if self._stopped:
+            self._raise_stopped()
+        if count < self._chunk_lines:
+            self._append(b"".join(blocks).splitlines(keepends=True))  # JSON text holds no raw \r or \n
+            return
+        self._queue.extend(blocks)
+        try:
+            self.flush()  # this thread writes: the series is built, so writing it bounds the queue
+        except OSError as exc:
+            self._fail(exc)
+
     def _raise_stopped(self) -> None:
         """ValueError once closed; else the flusher thread's pending write error (raised once)."""
         if self._closed:
@@ -571,11 +592,10 @@ class Emitter:
         """Append the queued lines to the file; call with _write_lock held.
 
         Only whole lines stay in the file: after a short write the partial line is cut off.
-        On OSError the lines not written go back to the front of the queue.
+        On OSError the lines not written go back to the front of the queue (as one block).
         """
         queue = self._queue
-        lines = [queue.popleft() for _ in range(len(queue))]
-        data = b"".join(lines)
+        data = b"".join([queue.popleft() for _ in range(len(queue))])
         done = 0
         try:
             while done < len(data):
@@ -585,12 +605,12 @@ class Emitter:
             if partial:
                 with contextlib.suppress(OSError):  # with O_APPEND the file offset is where our write ended
                     os.ftruncate(self._fd, os.lseek(self._fd, 0, os.SEEK_CUR) - partial)
-            unwritten = lines[data.count(b"\n", 0, done) :]
-            queue.extendleft(reversed(unwritten))
+            unwritten = data[done - partial :]
+            queue.appendleft(unwritten)
+            count = unwritten.count(b"\n")
             raise OSError(
                 exc.errno,
-                f"the Emitter could not write {self.output_path}: {exc.strerror} "
-                f"({len(unwritten)} line(s) not written)",
+                f"the Emitter could not write {self.output_path}: {exc.strerror} ({count} line(s) not written)",
             ) from exc
 
     def flush(self) -> None:

@@ -87,7 +87,9 @@ class SeriesLines:
     def __init__(self, topic_name: str, fields: dict[str, str]):
         self.types = tuple(fields.values())
         self.start = f'{{"$metadata": {{"topic": {json_str(topic_name)}, "timestamp": '.encode()
-        texts = [f'}}, "$data": {{{json_str(name)}: ' if i == 0 else f", {json_str(name)}: " for i, name in enumerate(fields)]
+        texts = [
+            f'}}, "$data": {{{json_str(name)}: ' if i == 0 else f", {json_str(name)}: " for i, name in enumerate(fields)
+        ]
         end = "}}\n" if fields else '}, "$data": {}}\n'
         # one row: ts, then per field its separator and value, then the end and next line's start
         self.row: list[Any] = [None]

@@ -385,7 +385,8 @@ class Emitter:
     Flush policy: validated lines are queued in memory and appended to the file in
     whole-line chunks, in emission order, by a daemon flusher thread every `flush_interval`
     seconds and as soon as 8192 lines are queued (by the emitting thread itself if 65536 are
-    waiting), and on `flush()`, `close()`, garbage collection and interpreter exit (atexit).
+    waiting, or when one `emit_series` call brings 8192 or more), and on `flush()`, `close()`,
+    garbage collection and interpreter exit (atexit).
     So a crash of the emitting process, even SIGKILL, loses at most the lines of the last
     `flush_interval`; a record with an error raises before anything of it is queued (for
     `emit_series`, before any of its records is). Data is handed to the OS, not synced to

@@ -48,12 +48,14 @@ from typing import Any
 import orjson
 
 from lakegate.lake.config import Topic, load_config
+from lakegate.lake.series_lines import SeriesLines
 from lakegate.lake.types import MAX_JSON_DEPTH, MAX_LINE_BYTES, check_value, is_utf8, json_too_deep
 
 DEFAULT_OUTPUT_PATH = Path("/tmp/resim/outputs/emissions.resim.jsonl")
 DEFAULT_FLUSH_INTERVAL = 0.5  # seconds
 MAX_TIMESTAMP = 2**63 - 1  # timestamps are BIGINT nanoseconds
 _CHUNK_LINES = 8192  # this many queued lines wake the flusher thread to write them
+_IOV_MAX = 1024  # buffers per os.writev call (Linux's IOV_MAX)
 _MAX_QUEUED = 8 * _CHUNK_LINES  # past this the emitting thread writes itself (the flusher is behind)
 
 
@@ -192,15 +194,17 @@ class _Codec:
     `series(end, timestamps, *columns)` takes one list per field, in schema order, and returns
     the list of lines (an error names the index). `end` closes `$metadata`: `_PLAIN_END` or
     `_EVENT_END`. The code is generated (as dataclasses do) so that the common case runs
-    without per-field loops or calls.
+    without per-field loops or calls. `blocks(stamps, columns)` builds a whole series column by
+    column (`SeriesLines.encode`), or returns None for `series` to check it record by record.
     """
 
-    __slots__ = ("topic", "fields", "line", "series")
+    __slots__ = ("topic", "fields", "line", "series", "blocks")
 
     def __init__(self, topic: Topic):
         self.topic = topic
         self.fields = tuple(topic.fields)
         self.line, self.series = self._compile()
+        self.blocks = SeriesLines(topic.name, topic.fields).encode
 
     def _record(self, indent: str) -> list[str]:
         """Source lines that check `ts` and `v0`, `v1`, ... and build the JSON line `text`."""
@@ -382,7 +386,8 @@ class Emitter:
     Flush policy: validated lines are queued in memory and appended to the file in
     whole-line chunks, in emission order, by a daemon flusher thread every `flush_interval`
     seconds and as soon as 8192 lines are queued (by the emitting thread itself if 65536 are
-    waiting), and on `flush()`, `close()`, garbage collection and interpreter exit (atexit).
+    waiting, or when one `emit_series` call brings 8192 or more), and on `flush()`, `close()`,
+    garbage collection and interpreter exit (atexit).
     So a crash of the emitting process, even SIGKILL, loses at most the lines of the last
     `flush_interval`; a record with an error raises before anything of it is queued (for
     `emit_series`, before any of its records is). Data is handed to the OS, not synced to
@@ -509,7 +514,12 @@ class Emitter:
         codec = self._codecs.get(topic_name)
         if codec is not None:
             check_field_names(codec.topic, columns)
-            lines = codec.series(_PLAIN_END, stamps, *(columns[name] for name in codec.fields))
+            ordered = [columns[name] for name in codec.fields]
+            blocks = codec.blocks(stamps, ordered) if stamps else None
+            if blocks is not None:
+                self._append_blocks(blocks, len(stamps))
+                return
+            lines = codec.series(_PLAIN_END, stamps, *ordered)
         else:
             lines = []
             try:
@@ -544,6 +554,19 @@ class Emitter:
         if len(self._queue) >= self._chunk_lines:
             self._chunk_ready()
 
+    def _append_blocks(self, blocks: list[bytes], count: int) -> None:
+        """Queue `count` lines given as blocks of whole lines; a chunk or more is written now."""
+        if self._stopped:
+            self._raise_stopped()
+        if count < self._chunk_lines:
+            self._append(b"".join(blocks).splitlines(keepends=True))  # JSON text holds no raw \r or \n
+            return
+        self._queue.extend(blocks)
+        try:
+            self.flush()  # this thread writes: the series is built, so writing it bounds the queue
+        except OSError as exc:
+            self._fail(exc)
+
     def _raise_stopped(self) -> None:
         """ValueError once closed; else the flusher thread's pending write error (raised once)."""
         if self._closed:
@@ -570,28 +593,40 @@ class Emitter:
     def _write_queued(self) -> None:
         """Append the queued lines to the file; call with _write_lock held.
 
-        Only whole lines stay in the file: after a short write the partial line is cut off.
-        On OSError the lines not written go back to the front of the queue.
+        The queued items (lines, or blocks of whole lines) are handed to `os.writev` up to
+        IOV_MAX at a time, without copying them into one buffer first. Only whole lines stay
+        in the file: after a short write the partial line is cut off. On OSError the lines
+        not written go back to the front of the queue.
         """
         queue = self._queue
-        lines = [queue.popleft() for _ in range(len(queue))]
-        data = b"".join(lines)
-        done = 0
-        try:
-            while done < len(data):
-                done += os.write(self._fd, memoryview(data)[done:])
-        except OSError as exc:
-            partial = done - (data.rfind(b"\n", 0, done) + 1)
-            if partial:
-                with contextlib.suppress(OSError):  # with O_APPEND the file offset is where our write ended
-                    os.ftruncate(self._fd, os.lseek(self._fd, 0, os.SEEK_CUR) - partial)
-            unwritten = lines[data.count(b"\n", 0, done) :]
-            queue.extendleft(reversed(unwritten))
-            raise OSError(
-                exc.errno,
-                f"the Emitter could not write {self.output_path}: {exc.strerror} "
-                f"({len(unwritten)} line(s) not written)",
-            ) from exc
+        items = [queue.popleft() for _ in range(len(queue))]
+        for first in range(0, len(items), _IOV_MAX):
+            group = items[first : first + _IOV_MAX]
+            done = 0
+            data = b""
+            try:
+                done = os.writev(self._fd, group)
+                size = sum(map(len, group))
+                if done < size:  # a short write: the rest goes byte-exactly, or fails
+                    data = b"".join(group)
+                    while done < size:
+                        done += os.write(self._fd, memoryview(data)[done:])
+            except OSError as exc:
+                self._write_failed(exc, data or b"".join(group), done, items[first + _IOV_MAX :])
+
+    def _write_failed(self, exc: OSError, data: bytes, done: int, rest: list[bytes]) -> None:
+        """Cut off a partial line after `done` bytes of `data`, requeue the lines not written, raise."""
+        partial = done - (data.rfind(b"\n", 0, done) + 1)
+        if partial:
+            with contextlib.suppress(OSError):  # with O_APPEND the file offset is where our write ended
+                os.ftruncate(self._fd, os.lseek(self._fd, 0, os.SEEK_CUR) - partial)
+        unwritten = [data[done - partial :], *rest]
+        self._queue.extendleft(reversed(unwritten))
+        count = sum(item.count(b"\n") for item in unwritten)
+        raise OSError(
+            exc.errno,
+            f"the Emitter could not write {self.output_path}: {exc.strerror} ({count} line(s) not written)",
+        ) from exc
 
     def flush(self) -> None:
         """Append every queued line to the file now; OSError if that fails (the lines stay queued)."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import gc
+import gzip
 import json
 import os
 import signal
@@ -819,3 +820,75 @@ def test_full_disk_leaves_only_whole_lines_and_keeps_the_rest_queued(tiny_disk: 
     filler.unlink()  # space again: the lines kept in the queue are written, in order, once
     em.close()
     assert [line["$metadata"]["timestamp"] for line in read_lines(out)] == list(range(count))
+
+
+# --- byte identity with the reference Emitters ------------------------------------------------
+
+
+def test_series_are_byte_identical_to_the_references_and_take_the_column_path(tmp_path: Path, monkeypatch):
+    """emit_series writes, byte for byte, what resim-open-core 1.6.0 and signalflag 1.8.0 wrote for the same
+    calls (fixtures/emitter_series_shapes.jsonl.gz, made by tests/lake/emitter_series_shapes.py under their
+    venvs), and every shape of scalar fields is built by the column-by-column path, not record by record."""
+    import importlib.util
+
+    from lakegate.lake import emitter as emitter_module
+
+    spec = importlib.util.spec_from_file_location("shapes", Path(__file__).with_name("emitter_series_shapes.py"))
+    shapes = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(shapes)
+
+    by_record = []
+    original = emitter_module.SeriesLines.encode
+
+    def spy(self, stamps, columns):
+        blocks = original(self, stamps, columns)
+        if blocks is None:
+            by_record.append(len(stamps))
+        return blocks
+
+    monkeypatch.setattr(emitter_module.SeriesLines, "encode", spy)
+    out = tmp_path / "emissions.resim.jsonl"
+    shapes.main("lakegate.lake.emitter", str(out))
+    pinned = gzip.decompress((FIXTURE_CONFIG.parent / "emitter_series_shapes.jsonl.gz").read_bytes())
+    assert out.read_bytes() == pinned
+    assert by_record == [3]  # only the string[]/metric[] series
+
+
+def test_series_the_column_path_declines_are_checked_record_by_record(emitter: Emitter, out: Path):
+    """A NaN, a negative timestamp, a lone surrogate: the error names the first bad index; an int in a float
+    field is written as the record-by-record path writes it."""
+    n = 10_000
+    speeds: list[object] = [0.5] * n
+    speeds[7_000] = float("nan")
+    error = rejected(emitter, "robot_speed", {"speed": speeds}, list(range(n)), method="emit_series")
+    assert (error.field, error.index) == ("speed", 7_000)
+    stamps = list(range(n))
+    stamps[9_999] = -1
+    assert rejected(emitter, "robot_speed", {"speed": [0.5] * n}, stamps, method="emit_series").index == 9_999
+    states = ["WAITING"] * n
+    states[4_321] = LONE
+    error = rejected(emitter, "goal_status", {"state": states}, list(range(n)), method="emit_series")
+    assert (error.field, error.index) == ("state", 4_321)
+    speeds[7_000] = 3
+    emitter.emit_series("robot_speed", {"speed": speeds}, list(range(n)))
+    emitter.close()
+    lines = out.read_bytes().splitlines()
+    assert len(lines) == n and lines[7_000].endswith(b'"$data": {"speed": 3.0}}')
+
+
+def test_full_disk_during_a_long_series_leaves_only_whole_lines(tiny_disk: Path):
+    filler = tiny_disk / "filler"
+    filler.write_bytes(b"x" * 32 * 1024)
+    out = tiny_disk / "emissions.resim.jsonl"
+    em = Emitter(FIXTURE_CONFIG, out, flush_interval=3600)
+    count = 10_000  # a series this long is written by the emitting thread, in blocks of lines
+    em.emit_series("robot_speed", {"speed": [i / 7 for i in range(count)]}, list(range(count)))
+    with pytest.raises(OSError, match="No space left on device") as info:
+        em.flush()
+    text = out.read_bytes()
+    written = len(text.splitlines())
+    assert 0 < written < count and text.endswith(b"\n")
+    assert f"({count - written} line(s) not written)" in str(info.value)
+    assert [line["$metadata"]["timestamp"] for line in read_lines(out)] == list(range(written))
+    with pytest.raises(OSError, match="not written"):
+        em.close()

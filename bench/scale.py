@@ -319,7 +319,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--batch-jobs", type=int, default=40, help="jobs of the evaluated batch nav-40")
     parser.add_argument("--branches", type=int, default=20, help="branches open at once in the memory measure")
     parser.add_argument("--branch-jobs", type=int, default=1000, help="jobs of each of those branches")
-    args = parse_args(parser, argv, sizes="4,8", runs=1, batch_jobs=2, branches=2, branch_jobs=4)
+    args = parse_args(parser, argv, sizes="4", runs=1, batch_jobs=2, branches=2, branch_jobs=4)
     sizes = [int(size) for size in args.sizes.split(",")]
     load_before = os.getloadavg()
     source_lake, jobs = source(args.batch_jobs)

@@ -3,7 +3,9 @@ values (in the Trino protocol's JSON encoding), the same error message at the sa
 every conformance case and for SHOW / DESCRIBE / information_schema / system statements.
 
 Both run over the server tests' lake (conftest.py): the query command in this process through its
-real entry point (`lakegate.gateway.cli.main.main`, `--format json`), the server as a real
+real entry point (`lakegate.gateway.cli.main.main`, `--format json`), its query workers taken from
+one pool kept for the module (as the server keeps its pool) instead of one started per query: the
+command's own start-up is tested by test_query_command.py, the answers are what is compared here. The server as a real
 `lakegate serve` subprocess read by the official `trino` client with raw protocol values
 (`legacy_primitive_types`). The expected side is the server: neither answer is written here.
 """
@@ -16,7 +18,9 @@ import pytest
 import trino
 from functions_doc import load_cases
 
+from lakegate.gateway.cli import backends
 from lakegate.gateway.cli.main import main
+from lakegate.gateway.engine.isolated_backend import IsolatedBackend
 
 #: What both sides must answer alike beyond the conformance cases: the lake's names, as Trino shows them.
 INTROSPECTION = [
@@ -55,6 +59,21 @@ INTROSPECTION = [
     "INSERT INTO metadata VALUES (1)",
     "SELEC 1",
 ]
+
+
+@pytest.fixture(scope="module")
+def worker_pool(server_lake):
+    """The query workers of the module's `lakegate query` runs: those of one backend as the command
+    makes it (`IsolatedBackend(lake)`), closed at the end of the module."""
+    backend = IsolatedBackend(server_lake)
+    yield backend.pool
+    backend.close()
+
+
+@pytest.fixture(autouse=True)
+def query_command_on_shared_workers(worker_pool, monkeypatch):
+    """`lakegate query` makes its backend as it always does, over the module's workers."""
+    monkeypatch.setattr(backends, "IsolatedBackend", lambda lake: IsolatedBackend(lake, pool=worker_pool))
 
 
 def cli_answer(lake, sql: str, capsys, time_zone: str = "UTC") -> str:

@@ -366,7 +366,17 @@ def varchar_of(g: Writer, sql: str, source: TType) -> str:
         return timestamp_text(zones.local(sql, zone), source.args[0]) + f" || {string(' ' + zone)}"
     if source.base in ("interval_ds", "interval_ym"):
         return interval_text(sql, source)
+    if source.base == "date":
+        return date_text(sql)
     return f"CAST({sql} AS VARCHAR)"
+
+
+def date_text(sql: str) -> str:
+    """Trino's text of a date: `uuuu-MM-dd`, a year before year 0 of four digits after its sign (`-0500`;
+    DuckDB writes `0501-06-01 (BC)`), one past 9999 unsigned."""
+    year = f"year({sql})"
+    before_zero = f"printf('%05d', {year}) || strftime({sql}, '-%m-%d')"
+    return f"CASE WHEN {year} < 0 THEN {before_zero} ELSE strftime({sql}, '%Y-%m-%d') END"
 
 
 def interval_text(sql: str, source: TType) -> str:
@@ -390,11 +400,18 @@ _CLOCK = ((3_600_000, 24), (60_000, 60), (1000, 60))
 
 
 def timestamp_text(sql: str, precision: int) -> str:
-    formats = {0: "%Y-%m-%d %H:%M:%S", 3: "%Y-%m-%d %H:%M:%S.%g", 6: "%Y-%m-%d %H:%M:%S.%f", 9: "%Y-%m-%d %H:%M:%S.%n"}
+    """Trino's text of a timestamp(p): exactly p fractional digits, and the year as java.time writes it,
+    of four digits at least, signed past 9999 and before year 0 (`+10000-06-01`, `-0500-06-01`)."""
+    formats = {0: "-%m-%d %H:%M:%S", 3: "-%m-%d %H:%M:%S.%g", 6: "-%m-%d %H:%M:%S.%f", 9: "-%m-%d %H:%M:%S.%n"}
+    year = f"CAST(strftime({sql}, '%Y') AS BIGINT)"  # year() of a TIMESTAMP_NS just before 1970 says 1970
+    year_text = (
+        f"CASE WHEN {year} > 9999 THEN '+' || CAST({year} AS VARCHAR) "
+        f"ELSE printf(CASE WHEN {year} < 0 THEN '%05d' ELSE '%04d' END, {year}) END"
+    )
     if precision in formats:
-        return f"strftime({sql}, {string(formats[precision])})"
+        return f"{year_text} || strftime({sql}, {string(formats[precision])})"
     digits = 6 if precision < 6 else 9
-    return f"left(strftime({sql}, {string(formats[digits])}), {20 + precision})"
+    return f"{year_text} || left(strftime({sql}, {string(formats[digits])}), {16 + precision})"
 
 
 def approx_text(sql: str, source: TType) -> str:

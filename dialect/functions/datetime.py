@@ -357,7 +357,7 @@ def _render_to_iso8601(g, node, args) -> str:
     io.trino.operator.scalar.timestamptz.ToIso8601)."""
     t = ttype(args[0])
     if t.base in ("date", "unknown"):
-        return f"strftime(CAST({g.sql(args[0])} AS DATE), '%Y-%m-%d')"
+        return casts.date_text(f"CAST({g.sql(args[0])} AS DATE)")
     if t.base == "timestamp":
         return f"replace({casts.timestamp_text(g.sql(args[0]), t.args[0])}, ' ', 'T')"
     sql, zone = g.sql(args[0]), tt.zone_of(t)

@@ -372,7 +372,7 @@ def _temporal_texts(
     there is one."""
     unit = _UNITS.get(precision)
     if unit is None:
-        texts = _fit_fraction(to_text(column).to_pylist(), precision)
+        texts = _fit_fraction(_signed_years(to_text(column)).to_pylist(), precision)
         return [None if text is None else text + suffix for text in texts] if suffix else texts
     if column.type.unit != unit:
         if pa.types.is_timestamp(column.type):
@@ -380,10 +380,17 @@ def _temporal_texts(
         else:
             target = pa.time32(unit) if unit in ("s", "ms") else pa.time64(unit)
         column = column.cast(target, safe=False)
-    texts = to_text(column)
+    texts = _signed_years(to_text(column))
     if suffix:
         texts = pc.binary_join_element_wise(texts, pa.scalar(suffix), "")
     return texts.to_pylist()
+
+
+def _signed_years(texts: pa.Array) -> pa.Array:
+    """Texts of dates or timestamps with a year past 9999 signed as java.time writes them (`+10000-06-01`)."""
+    if not pc.any(pc.match_substring_regex(texts, "^[0-9]{5}")).as_py():
+        return texts
+    return pc.replace_substring_regex(texts, "^([0-9]{5})", "+\\1")
 
 
 def _as_string(column: pa.Array) -> pa.Array:
@@ -420,7 +427,7 @@ def _column(t: TType, column: pa.Array) -> list:
             column, t.args[0], lambda c: pc.strftime(c, format="%Y-%m-%d %H:%M:%S"), " " + _zone_name(zone)
         )
     if base == "date" and pa.types.is_date(arrow_type):
-        return column.cast(pa.string()).to_pylist()
+        return _signed_years(column.cast(pa.string())).to_pylist()
     if base == "time" and pa.types.is_time(arrow_type):
         return _temporal_texts(column, t.args[0], _as_string)
     encode = encoder(str(t))

@@ -55,7 +55,7 @@ DEFAULT_OUTPUT_PATH = Path("/tmp/resim/outputs/emissions.resim.jsonl")
 DEFAULT_FLUSH_INTERVAL = 0.5  # seconds
 MAX_TIMESTAMP = 2**63 - 1  # timestamps are BIGINT nanoseconds
 _CHUNK_LINES = 8192  # this many queued lines wake the flusher thread to write them
-_IOV_MAX = 1024  # buffers per os.writev call (Linux's IOV_MAX)
+_WRITEV_ITEMS = 64  # up to this many queued items are written by one os.writev, more are joined first
 _MAX_QUEUED = 8 * _CHUNK_LINES  # past this the emitting thread writes itself (the flusher is behind)
 
 
@@ -593,36 +593,36 @@ class Emitter:
     def _write_queued(self) -> None:
         """Append the queued lines to the file; call with _write_lock held.
 
-        The queued items (lines, or blocks of whole lines) are handed to `os.writev` up to
-        IOV_MAX at a time, without copying them into one buffer first. Only whole lines stay
-        in the file: after a short write the partial line is cut off. On OSError the lines
-        not written go back to the front of the queue.
+        A few queued items (blocks of whole lines of `emit_series`) are handed to `os.writev`
+        as they are; many (single lines of `emit`) are joined into one buffer first. Only
+        whole lines stay in the file: after a short write the partial line is cut off. On
+        OSError the lines not written go back to the front of the queue.
         """
         queue = self._queue
         items = [queue.popleft() for _ in range(len(queue))]
-        for first in range(0, len(items), _IOV_MAX):
-            group = items[first : first + _IOV_MAX]
-            done = 0
-            data = b""
-            try:
-                done = os.writev(self._fd, group)
-                size = sum(map(len, group))
-                if done < size:  # a short write: the rest goes byte-exactly, or fails
-                    data = b"".join(group)
-                    while done < size:
-                        done += os.write(self._fd, memoryview(data)[done:])
-            except OSError as exc:
-                self._write_failed(exc, data or b"".join(group), done, items[first + _IOV_MAX :])
+        if len(items) > _WRITEV_ITEMS:
+            items = [b"".join(items)]
+        done = 0
+        data = b""
+        try:
+            done = os.writev(self._fd, items)
+            size = sum(map(len, items))
+            if done < size:  # a short write: the rest goes byte-exactly, or fails
+                data = b"".join(items)
+                while done < size:
+                    done += os.write(self._fd, memoryview(data)[done:])
+        except OSError as exc:
+            self._write_failed(exc, data or b"".join(items), done)
 
-    def _write_failed(self, exc: OSError, data: bytes, done: int, rest: list[bytes]) -> None:
+    def _write_failed(self, exc: OSError, data: bytes, done: int) -> None:
         """Cut off a partial line after `done` bytes of `data`, requeue the lines not written, raise."""
         partial = done - (data.rfind(b"\n", 0, done) + 1)
         if partial:
             with contextlib.suppress(OSError):  # with O_APPEND the file offset is where our write ended
                 os.ftruncate(self._fd, os.lseek(self._fd, 0, os.SEEK_CUR) - partial)
-        unwritten = [data[done - partial :], *rest]
-        self._queue.extendleft(reversed(unwritten))
-        count = sum(item.count(b"\n") for item in unwritten)
+        unwritten = data[done - partial :]
+        self._queue.appendleft(unwritten)
+        count = unwritten.count(b"\n")
         raise OSError(
             exc.errno,
             f"the Emitter could not write {self.output_path}: {exc.strerror} ({count} line(s) not written)",

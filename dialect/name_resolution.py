@@ -466,9 +466,13 @@ class Relations:
             or join.args.get("match_condition")
         ):
             self.unsupported(f"{kind or join.args.get('method')} JOIN", join)
+        beside = {source.qualifier for source in scope.sources}
         self.relation(
             join.this, scope, lateral_scope=scope if isinstance(join.this, (exp.Unnest, exp.Lateral)) else None
         )
+        side = (join.args.get("side") or "").upper()
+        if side in ("RIGHT", "FULL") and isinstance(join.this, (exp.Unnest, exp.Lateral)):
+            self._check_outer_lateral(join, side, beside)
         on = join.args.get("on")
         if on is not None:
             self.condition(on, scope, "JOIN ON")
@@ -546,6 +550,18 @@ class Relations:
                     return self._fields(node, col[2], parts[split + 1 :], quoted[split + 1 :])
             search = search.outer
         self.fail(f"Column '{'.'.join(parts)}' cannot be resolved", node, "COLUMN_NOT_FOUND")
+
+    def _check_outer_lateral(self, join: exp.Join, side: str, beside: set[str]) -> None:
+        """A RIGHT or FULL JOIN LATERAL (or UNNEST) may not use the columns beside it
+        (INVALID_COLUMN_REFERENCE at the first such column), and a FULL one joins only ON TRUE
+        (StatementAnalyzer, as the real Trino 476 says)."""
+        for column in join.this.find_all(exp.Column):
+            if column._meta and column.meta.get("ref", (None,))[0] in beside:
+                self.fail(f"LATERAL reference not allowed in {side} JOIN", column, "INVALID_COLUMN_REFERENCE")
+        on = join.args.get("on")
+        if side == "FULL" and isinstance(join.this, exp.Lateral) and on is not None and on != exp.true():
+            message = "FULL JOIN involving LATERAL relation is only supported with condition ON TRUE"
+            self.fail(message, on, "NOT_SUPPORTED")
 
     def _check_correlated_rows(self, node: exp.Lateral, scope: NameScope) -> None:
         """A LATERAL subquery whose UNION, INTERSECT, EXCEPT or VALUES of several rows uses the columns

@@ -414,11 +414,18 @@ def timestamp_text(sql: str, precision: int) -> str:
     return f"{year_text} || left(strftime({sql}, {string(formats[digits])}), {16 + precision})"
 
 
-def approx_text(sql: str, source: TType) -> str:
+#: The smallest normal double and real: below them (subnormal) Java's digits are not the shortest.
+MIN_NORMAL = {"double": "2.2250738585072014E-308", "real": "1.17549435E-38"}
+
+
+def approx_text(sql: str, source: TType, *, json: bool = False) -> str:
     """A double or real as Trino prints it: Java's DecimalFormat("0.0###E0") of the shortest digits that
     round-trip (1.5E0, 1.0E10, -2.5E-4, 0E0, NaN, Infinity). For a real, as the real Trino 476 prints
     it: one digit becomes the two nearest the value (REAL '1.4E-45', not 1.0E-45), and more than 7
-    are rounded to 7 (REAL '3.4028235E38' is 3.402823E38)."""
+    are rounded to 7 (REAL '3.4028235E38' is 3.402823E38). With `json`, a double's digits as Jackson
+    writes them (Java 24's Double.toString: one digit becomes the two nearest, 4.9E-324). Otherwise a
+    subnormal double is refused at run time: Trino's digits for it are not the shortest
+    (CAST(4.9E-324 AS VARCHAR) is 4.9E-324, and 1.0E-323 for twice as much)."""
     value = f"CAST({sql} AS {'FLOAT' if source.base == 'real' else 'DOUBLE'})"
     exact = f"CAST(abs({value}) AS DOUBLE)"
     text = f"CAST(abs({value}) AS VARCHAR)"
@@ -429,19 +436,35 @@ def approx_text(sql: str, source: TType) -> str:
         digits = f"regexp_replace(replace(split_part({rounded}, 'e', 1), '.', ''), '0+$', '')"
         return digits, f"CAST(split_part({rounded}, 'e', 2) AS INTEGER)"
 
-    digits, exponent = shortest, nearest(17)[1]
-    if source.base == "real":
+    digits, exponent = shortest, _shortest_exponent(text)
+    if source.base == "real" or json:
         (two, two_exponent), (seven, seven_exponent) = nearest(2), nearest(7)
-        one, long = f"length({shortest}) = 1", f"length({shortest}) > 7"
+        one, long = f"length({shortest}) = 1", f"length({shortest}) > 7" if source.base == "real" else "false"
         digits = f"CASE WHEN {one} THEN {two} WHEN {long} THEN {seven} ELSE {digits} END"
         exponent = f"CASE WHEN {one} THEN {two_exponent} WHEN {long} THEN {seven_exponent} ELSE {exponent} END"
     mantissa = f"left({digits}, 1) || '.' || coalesce(nullif(substr({digits}, 2), ''), '0')"
+    subnormal = ""
+    if source.base == "double" and not json:
+        what = "the text of a subnormal double (VARCHAR): Java's digits differ"
+        refuse = f"error({string('NOT_SUPPORTED: unsupported in lakegate: ' + what)})"
+        subnormal = f"WHEN abs({value}) < {MIN_NORMAL[source.base]} THEN {refuse} "
     return (
         f"CASE WHEN isnan({value}) THEN 'NaN' "
         f"WHEN isinf({value}) THEN CASE WHEN {value} > 0 THEN 'Infinity' ELSE '-Infinity' END "
         f"WHEN {value} = 0 THEN CASE WHEN starts_with(CAST({value} AS VARCHAR), '-') THEN '-0E0' ELSE '0E0' END "
+        f"{subnormal}"
         f"ELSE CASE WHEN {value} < 0 THEN '-' ELSE '' END || {mantissa} || 'E' || CAST({exponent} AS VARCHAR) END"
     )
+
+
+def _shortest_exponent(text: str) -> str:
+    """The decimal exponent of DuckDB's shortest text of a positive number (`1e+23`, `0.00012`, `123.5`):
+    where its first digit stands (the 17-digit rounding of 1e23, 9.99...E22, has another)."""
+    mantissa = f"split_part({text}, 'e', 1)"
+    power = f"coalesce(TRY_CAST(nullif(split_part({text}, 'e', 2), '') AS INTEGER), 0)"
+    whole, fraction = f"ltrim(split_part({mantissa}, '.', 1), '0')", f"split_part({mantissa}, '.', 2)"
+    leading = f"(length({fraction}) - length(ltrim({fraction}, '0')))"
+    return f"({power} + CASE WHEN length({whole}) > 0 THEN length({whole}) - 1 ELSE -{leading} - 1 END)"
 
 
 @transform(FloorMicros)

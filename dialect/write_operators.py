@@ -331,9 +331,19 @@ def eager_constant_in_list(g: Writer, node: exp.In) -> str:
     common = node.meta.get("compare")
     if items and common is not None and common.is_approx:
         sql = _nan_in_list(g, node, common, sql)
+    elif items and common is not None and common.base in ("array", "map", "row"):
+        sql = _nested_in_list(g, node, common)
     if node.find(exp.Column) is not None or all(isinstance(i, (exp.Literal, exp.Null)) for i in items):
         return sql
     return f"CASE WHEN len([{', '.join(g.coerce(i, common) for i in items)}]) >= 0 THEN {sql} END"
+
+
+def _nested_in_list(g: Writer, node: exp.In, common: TType) -> str:
+    """An array, map or row IN a list: Trino's `=` with each item, ORed (NULL when no item is equal and
+    a comparison reaches a NULL inside, `ARRAY[1, NULL] IN (ARRAY[1, 2])`), where DuckDB's IN compares
+    NULL inside arrays and rows as a value."""
+    value = g.coerce(node.this, common)
+    return "(" + " OR ".join(f"({trino_equal(value, g.coerce(i, common), common)})" for i in node.expressions) + ")"
 
 
 def _nan_in_list(g: Writer, node: exp.In, common: TType, sql: str) -> str:

@@ -7,6 +7,7 @@ from sqlglot import exp
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect import write_casts as casts
+from lakegate.dialect import write_operators as ops
 from lakegate.dialect.functions.arguments import VARBINARY, array_arg, binary_args, literal_int, need
 from lakegate.dialect.functions.rendering import (
     call_as,
@@ -50,7 +51,49 @@ def _contains(call: Call) -> TType:
     return tt.BOOLEAN
 
 
+def _nested_common(args) -> TType | None:
+    """The common type of the elements and the value when it is an array, map or row, else None."""
+    common = tt.common_super_type(ttype(args[0]).element, ttype(args[1]))
+    return common if common is not None and common.base in ("array", "map", "row") else None
+
+
+#: Names bound in the SQL of `_matches`: the per-element flags, the array and the value.
+FLAGS, ARRAY, VALUE = '"_flags"', '"_arr"', '"_value"'
+
+
+def _matches(g, args, common: TType, body: str) -> str:
+    """`body` with FLAGS bound to, per element of the array, Trino's `=` of it and the value: 0 for a
+    NULL element (never compared), 1 equal, 2 unequal, 3 indeterminate (a NULL inside reached), and
+    ARRAY to the array; NULL when the array or the value is NULL. Trino's contains, array_position
+    and array_remove fail on an indeterminate comparison they reach (io.trino.operator.scalar.
+    ArrayContains, ArrayPositionFunction, ArrayRemoveFunction), where DuckDB compares NULL inside
+    arrays and rows as a value."""
+    arr, value = g.coerce(args[0], tt.array(common)), g.coerce(args[1], common)
+    e = '"_elem"'
+    equal = ops.trino_equal(e, VALUE, common)
+    flag = f"CASE WHEN {e} IS NULL THEN 0 ELSE CASE ({equal}) WHEN true THEN 1 WHEN false THEN 2 ELSE 3 END END"
+    flags = f"list_transform({ARRAY}, lambda {e}: {flag})"
+    bound = let_bound(arr, ARRAY, let_bound(value, VALUE, let_bound(flags, FLAGS, body)))
+    return f"CASE WHEN ({arr}) IS NULL OR ({value}) IS NULL THEN NULL ELSE {bound} END"
+
+
+def _indeterminate(name: str) -> str:
+    """SQL raising Trino's NOT_SUPPORTED for function `name` reaching an indeterminate comparison (not
+    an error try() catches)."""
+    message = f"NOT_SUPPORTED: {name} does not support arrays with elements that are null or contain null"
+    return f"error({tf.string(message)})"
+
+
 def _render_contains(g, node, args) -> str:
+    if (common := _nested_common(args)) is not None:
+        stop = f'list_filter({FLAGS}, lambda "_f": "_f" IN (1, 3))[1]'
+        return _matches(
+            g,
+            args,
+            common,
+            f"CASE {stop} WHEN 3 THEN {_indeterminate('contains')} WHEN 1 THEN true "
+            f"ELSE CASE WHEN list_contains({FLAGS}, 0) THEN NULL ELSE false END END",
+        )
     arr, value = g.sql(args[0]), g.sql(args[1])
     found = f"list_contains({arr}, {value})"
     if ttype(args[1]).is_approx:  # Trino's EQUAL: NaN is never found (io.trino.operator.scalar.ArrayContains)
@@ -67,6 +110,15 @@ def _array_position(call: Call) -> TType:
 
 
 def _render_array_position(g, node, args) -> str:
+    if (common := _nested_common(args)) is not None:
+        at = f'list_position(list_transform({FLAGS}, lambda "_f": "_f" IN (1, 3)), true)'
+        return _matches(
+            g,
+            args,
+            common,
+            f"CAST(CASE WHEN {at} IS NULL THEN 0 WHEN {FLAGS}[{at}] = 3 THEN {_indeterminate('array_position')} "
+            f"ELSE {at} END AS BIGINT)",
+        )
     arr, value = g.sql(args[0]), g.sql(args[1])
     return (
         f"CASE WHEN ({arr}) IS NULL OR ({value}) IS NULL THEN NULL "
@@ -281,6 +333,14 @@ def _array_remove(call: Call) -> TType:
 
 
 def _render_array_remove(g, node, args) -> str:
+    if (common := _nested_common(args)) is not None:
+        kept = f'list_filter({ARRAY}, lambda "_e", "_i": {FLAGS}["_i"] <> 1)'
+        return _matches(
+            g,
+            args,
+            common,
+            f"CASE WHEN list_contains({FLAGS}, 3) THEN {_indeterminate('array_remove')} ELSE {kept} END",
+        )
     arr, value = g.coerce(args[0], ttype(node)), g.sql(args[1])
     # Trino's EQUAL: a NaN is unequal to everything and stays (io.trino.operator.scalar.ArrayRemoveFunction)
     keep_nan = ' OR isnan("_e")' if ttype(args[1]).is_approx else ""

@@ -16,7 +16,7 @@ WITH_TRINO = {"vs_trino", "trino_visibility"}
 
 
 def test_every_bench_is_listed():
-    assert {"emit", "metrics", "server", "translate", "scale"} <= set(SCRIPTS)
+    assert {"emit", "metrics", "server", "translate", "scale", "peer"} <= set(SCRIPTS)
 
 
 @pytest.mark.slow

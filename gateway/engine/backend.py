@@ -61,6 +61,8 @@ from lakegate.lake.storage import LOCAL
 BATCH_ROWS = 65_536
 #: How often a query starts again when a file it listed was replaced before its first row.
 RETRIES = 3
+#: Cursors a branch keeps for reuse: a new cursor and its `USE` cost a fast query much of its CPU.
+IDLE_CURSORS = 4
 #: Parsed DuckDB statements kept per branch (parsing costs about 0.4 ms).
 STATEMENT_CACHE = 256
 #: Scopes whose views (over only their files) are kept per branch, beyond those used in the last
@@ -158,8 +160,11 @@ class Run:
         timeout: float | None = None,
         remaining: float = 0.0,
         failure: Callable[[BaseException], DialectError] = duckdb_failure,
+        recycle: Callable[[duckdb.DuckDBPyConnection], None] | None = None,
     ):
         self.cursor, self._produce, self._release, self._failure = cursor, produce, release, failure
+        self._recycle = recycle  # takes the cursor back once every batch was read (else it closes)
+        self._done = False  # the cursor is recycled or closed: nothing may interrupt it any more
         self.timeout = timeout
         self.reason: DialectError | None = None  # why the query was stopped, if it was
         self._lock = threading.Lock()
@@ -174,9 +179,10 @@ class Run:
         return next(self._batches)
 
     def close(self) -> None:
-        """Stop reading: the cursor closes and the slot is free."""
+        """Stop reading: the cursor closes (unless every batch was read and it was recycled) and the
+        slot is free."""
         self._batches.close()
-        self.cursor.close()
+        self._finish(completed=False)
         self._free()
 
     def cancel(self) -> None:
@@ -184,7 +190,10 @@ class Run:
 
     def stop(self, reason: DialectError) -> None:
         """Interrupt the query: reading on raises `reason` (the first one given)."""
-        self.reason = self.reason or reason
+        with self._lock:  # with `reason` set first, `_finish` closes the cursor rather than recycle it
+            self.reason = self.reason or reason
+            if self._done:
+                return  # ended: the cursor may already serve another query
         try:
             self.cursor.interrupt()
         except duckdb.Error:
@@ -203,6 +212,7 @@ class Run:
             self._release()
 
     def _read(self) -> Iterator[pa.RecordBatch]:
+        completed = False
         try:
             try:
                 for batch in self._produce():
@@ -213,9 +223,23 @@ class Run:
                 raise self.reason or self._failure(error) from None
             if self.reason is not None:
                 raise self.reason
+            completed = True
         finally:
-            self.cursor.close()
+            self._finish(completed=completed)
             self._free()
+
+    def _finish(self, *, completed: bool) -> None:
+        """End the cursor once: recycled if every batch was read and nothing stopped the query (no
+        open result, no interrupt pending), otherwise closed."""
+        with self._lock:
+            if self._done:
+                return
+            self._done = True
+            reuse = completed and self.reason is None and self._recycle is not None
+        if reuse:
+            self._recycle(self.cursor)
+        else:
+            self.cursor.close()
 
 
 @dataclass
@@ -233,12 +257,31 @@ class _Branch:
     loaded: bool = False  # whether they are those of the stamp's generation
     #: (generation, batch, job) -> [DuckDB schema, last use, reader path -> "table T, batch B, job J"]
     scopes: OrderedDict = field(default_factory=OrderedDict)
+    idle: list = field(default_factory=list)  # cursors kept for reuse (`recycle`); list ops are atomic
 
     def cursor(self) -> duckdb.DuckDBPyConnection:
-        """A new cursor whose table names resolve in the branch's attached database."""
+        """A cursor whose table names resolve in the branch's attached database: a recycled one, or
+        a new one."""
+        try:
+            return self.idle.pop()
+        except IndexError:
+            pass
         cursor = self.database.cursor()
         cursor.execute(f"USE {self.name}")
         return cursor
+
+    def recycle(self, cursor: duckdb.DuckDBPyConnection) -> None:
+        """Keep a cursor whose query read all its rows on the branch's own views (no scope views, no
+        settings of its own) for the next query, up to IDLE_CURSORS."""
+        if len(self.idle) < IDLE_CURSORS:
+            self.idle.append(cursor)
+        else:
+            cursor.close()
+
+    def close_idle(self) -> None:
+        """Close the cursors kept for reuse."""
+        while self.idle:
+            self.idle.pop().close()
 
     def failure(self, error: BaseException, *, vanished: bool = False) -> DialectError:
         """The DialectError for a DuckDB error: a listed file is named by its table, batch and job
@@ -417,6 +460,7 @@ class DuckDBBackend:
         for branch, state in list(self._branches.items()):
             if state.used < limit:
                 del self._branches[branch]
+                state.close_idle()
                 state.database.execute(f"DETACH {state.name}")
                 self._records.pop(branch).close()
 
@@ -667,6 +711,7 @@ class DuckDBBackend:
             timeout=timeout,
             remaining=max(0.0, deadline - time.monotonic()),
             failure=lambda error: self._for_client(state.failure(error)),
+            recycle=state.recycle if explain is None and not self._scoped(scope) else None,
         )
         self._runs.add(run)
         return QueryResult(columns=columns, batches=run, duckdb_sql=translation.duckdb_sql, _cancel=run.cancel)

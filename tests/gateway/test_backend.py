@@ -219,6 +219,23 @@ def test_queries_run_concurrently(backend):
     assert all(results[10 + i] == [[(9, 10.0)]] * 20 for i in range(3))
 
 
+def test_a_cursor_is_reused_only_after_a_query_read_all_its_rows(backend):
+    assert backend.execute("SELECT count(*) FROM odom").rows() == [(9,)]
+    idle = backend._branches["main"].idle
+    kept = list(idle)
+    assert kept and backend.execute("SELECT sum(x) FROM odom").rows() == [(10.0,)]
+    assert idle == kept  # the same cursor served the second query and came back
+    run = backend.execute("SELECT x FROM odom ORDER BY x").batches
+    next(run)  # one batch read, then abandoned: its open result must not reach another query
+    run.close()
+    assert backend.execute("SELECT count(*) FROM odom").rows() == [(9,)]
+    refused(backend, "SELECT CAST('a' AS integer) FROM odom")  # a failed query's cursor closes
+    scope = Scope(batch_id="b1")
+    assert backend.execute("SELECT count(*) FROM odom", scope=scope).rows() == [(5,)]
+    assert backend.execute("SELECT count(*) FROM odom").rows() == [(9,)]  # not the scoped views
+    assert 1 <= len(idle) <= 4
+
+
 def test_views_follow_new_topics_and_jobs(tmp_path):
     lake = build_lake(tmp_path, jobs=[("b1", "j1", 2)])
     backend = DuckDBBackend(lake)

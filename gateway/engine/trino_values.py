@@ -386,6 +386,11 @@ def _temporal_texts(
     return texts.to_pylist()
 
 
+def _signed_years(texts: pa.Array) -> pa.Array:
+    """Dates and timestamps as Trino writes them past year 9999: with a `+` (`+12025-07-01`)."""
+    return pc.replace_substring_regex(texts, pattern=r"^(\d{5,})", replacement=r"+\1")
+
+
 def _as_string(column: pa.Array) -> pa.Array:
     return column.cast(pa.string())
 
@@ -413,14 +418,17 @@ def _column(t: TType, column: pa.Array) -> list:
             return texts.to_pylist()
         return [format(Decimal(s), "f") if s is not None and "E" in s else s for s in texts.to_pylist()]
     if base == "timestamp" and pa.types.is_timestamp(arrow_type) and arrow_type.tz is None:
-        return _temporal_texts(column, t.args[0], _as_string)
+        return _temporal_texts(column, t.args[0], lambda c: _signed_years(_as_string(c)))
     if base == "timestamp_tz" and pa.types.is_timestamp(arrow_type):
         zone = arrow_type.tz or "UTC"  # a timestamp(p > 6) with time zone is its UTC instant (dialect/zoned_nanos.py)
         return _temporal_texts(
-            column, t.args[0], lambda c: pc.strftime(c, format="%Y-%m-%d %H:%M:%S"), " " + _zone_name(zone)
+            column,
+            t.args[0],
+            lambda c: _signed_years(pc.strftime(c, format="%Y-%m-%d %H:%M:%S")),
+            " " + _zone_name(zone),
         )
     if base == "date" and pa.types.is_date(arrow_type):
-        return column.cast(pa.string()).to_pylist()
+        return _signed_years(column.cast(pa.string())).to_pylist()
     if base == "time" and pa.types.is_time(arrow_type):
         return _temporal_texts(column, t.args[0], _as_string)
     encode = encoder(str(t))

@@ -334,7 +334,10 @@ def test_years_past_9999_are_written_with_a_sign_as_trino_does():
                CAST(TIMESTAMP '2025-07-01 12:00:00.123' + INTERVAL 10000 YEAR AS TIMESTAMP_MS),
                TIMESTAMPTZ '2025-07-01 12:00:00.123+00' + INTERVAL 10000 YEAR,
                CAST(TIMESTAMP '2025-07-01 12:00:00.123' - INTERVAL 12000 YEAR AS TIMESTAMP_MS),
-               DATE '9999-12-31'
+               DATE '9999-12-31',
+               make_timestamp(-1099511627776000000),
+               make_timestamp(1099511627776000000)::TIMESTAMPTZ,
+               CAST(DATE '0001-01-01' - INTERVAL 10000 YEAR AS DATE)
     """)
         .to_arrow_table()
         .to_batches()[0]
@@ -345,6 +348,9 @@ def test_years_past_9999_are_written_with_a_sign_as_trino_does():
         ("c", "timestamp(3) with time zone"),
         ("d", "timestamp(3)"),
         ("e", "date"),
+        ("f", "timestamp(6)"),
+        ("g", "timestamp(3) with time zone"),
+        ("h", "date"),
     ]
     assert encode_rows(columns, batch) == [
         [
@@ -353,5 +359,8 @@ def test_years_past_9999_are_written_with_a_sign_as_trino_does():
             "+12025-07-01 12:00:00.123 UTC",
             "-9975-07-01 12:00:00.123",
             "9999-12-31",
+            "-32873-11-12 23:23:44.000000",  # from_unixtime(-1099511627776) and (1099511627776), in Trino
+            "+36812-02-20 00:36:16.000 UTC",
+            "-9999-01-01",
         ]
     ]

@@ -10,11 +10,14 @@ a listed one that is gone (then take it off the list), unless the entry says why
 from __future__ import annotations
 
 import json
+from collections import Counter
 from pathlib import Path
 
 import pytest
 from trino_fuzz.compare import differ
-from trino_fuzz.run import fuzz, summary
+from trino_fuzz.functions import Shape
+from trino_fuzz.queries import Generator
+from trino_fuzz.run import add_slices, fuzz, record_slice, summary
 from trino_fuzz.sides import Outcome
 
 #: The CI run: seed and size.
@@ -43,6 +46,37 @@ def test_comparison_tells_answers_apart():
     assert differ(shuffled, close, ordered=False) is None
     other = Outcome(types=close.types, rows=[[[1.7500000005e18]], [[1.7500000005e18]], [[1.75e18]]])
     assert differ(other, close, ordered=False) is not None
+
+
+def test_query_i_of_a_seed_depends_only_on_the_seed_and_i():
+    tables = {"t": [("x", "double"), ("n", "bigint"), ("s", "varchar")], "u": [("k", "bigint"), ("d", "date")]}
+    shapes = [
+        Shape("abs", "scalar", ("x",), ("double",), "double"),
+        Shape("upper", "scalar", ("string",), ("varchar",), "varchar"),
+        Shape("sum", "aggregate", ("x",), ("bigint",), "bigint"),
+        Shape("max", "aggregate", ("x",), ("double",), "double"),
+        Shape("rank", "window", (), (), "bigint"),
+    ]
+    run = Generator(7, shapes, tables)
+    whole = [run.query(i).sql for i in range(30)]
+    assert Generator(7, shapes, tables).query(17).sql == whole[17]  # a slice starting at 17 sees the same query
+    assert len(set(whole)) > 20
+    assert Generator(8, shapes, tables).query(17).sql != whole[17]
+
+
+def test_slices_add_up_to_the_run_and_must_be_of_one_run(tmp_path):
+    first, second, other = tmp_path / "a.json", tmp_path / "b.json", tmp_path / "c.json"
+    record_slice(first, 5, 0, 10, "g1", Counter(equal=7, refused=1, both_errored=2))
+    record_slice(second, 5, 20, 25, "g1", Counter(equal=4, mismatched=1))
+    counts, coverage = add_slices([second, first])
+    assert summary(counts) == "tried 15, equal 11, lakegate refused 1, both errored 2, mismatched 1"
+    assert coverage == "queries 0..25 of seed 5, generator g1; not run yet: queries 10..20"
+    record_slice(other, 5, 20, 25, "g2", Counter(equal=5))
+    with pytest.raises(ValueError, match="different runs"):
+        add_slices([first, other])
+    record_slice(other, 5, 5, 15, "g1", Counter(equal=10))
+    with pytest.raises(ValueError, match="overlaps"):
+        add_slices([first, other])
 
 
 @pytest.mark.slow

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from sqlglot import exp
+
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.functions.arguments import VARBINARY, binary_args, binary_in, fixed, need
@@ -134,16 +136,40 @@ def _render_hmac(duck: str) -> Render:
             return f"unhex(array_to_string({xored}, ''))"
 
         inner = f"unhex({duck}({padded(0x36)} || {message}))"
-        return hmac_key_checked(key, f"unhex({duck}({padded(0x5C)} || {inner}))")
+        return hmac_key_checked(message, key, f"unhex({duck}({padded(0x5C)} || {inner}))")
 
     return render
 
 
-def hmac_key_checked(key: str, sql: str) -> str:
+def hmac_key_checked(message: str, key: str, sql: str) -> str:
     """`sql`, or the error the real Trino 476 raises for an empty HMAC key (javax.crypto's
-    SecretKeySpec: GENERIC_INTERNAL_ERROR 'Empty key'), not caught by try()."""
+    SecretKeySpec: GENERIC_INTERNAL_ERROR 'Empty key'), not caught by try(); NULL for a NULL
+    message (the call is null-propagating: the key is never looked at)."""
     empty = f"error({tf.string('GENERIC_INTERNAL_ERROR: Empty key')})"
-    return f"CASE WHEN octet_length(CAST({key} AS BLOB)) = 0 THEN {empty} ELSE {sql} END"
+    return (
+        f"CASE WHEN {message} IS NULL THEN NULL WHEN octet_length(CAST({key} AS BLOB)) = 0 THEN {empty} ELSE {sql} END"
+    )
+
+
+#: What a message Trino's planner folds may be made of: literals and to_utf8 of literals (no NULL).
+_FOLDED = (exp.Literal, exp.HexString, exp.Encode, exp.Paren)
+
+
+def _folded(node: exp.Expression) -> bool:
+    return isinstance(node, _FOLDED) or (isinstance(node, exp.Anonymous) and node.name.lower() == "to_utf8")
+
+
+def _hmac_args(call: Call) -> TType:
+    """Two varbinary arguments. A call of constants with the literal key X'' fails while planning, as
+    in Trino, whose planner folds it (the 'Empty key' error is not one it defers): even over no rows."""
+    if not binary_args(call, 2):
+        call.mismatch()
+    key = call.args[1]
+    while isinstance(key, exp.Paren):
+        key = key.this
+    if isinstance(key, exp.HexString) and not key.this and all(_folded(n) for n in call.args[0].walk()):
+        call.fail("Empty key", "GENERIC_INTERNAL_ERROR")
+    return VARBINARY
 
 
 def _render_from_big_endian(size: int, duck: str) -> Render:
@@ -295,7 +321,7 @@ def _render(name: str) -> Render:
     def render(g, node, args) -> str:
         values = sqls(g, args)
         sql = f"{UDF_PREFIX}{name}({', '.join(values)})"
-        return hmac_key_checked(values[1], sql) if name.startswith("hmac_") else sql
+        return hmac_key_checked(values[0], values[1], sql) if name.startswith("hmac_") else sql
 
     return render
 
@@ -329,7 +355,7 @@ def install() -> None:
             _name,
             "binary",
             f"{_name}(binary, key) -> varbinary",
-            lambda c: VARBINARY if binary_args(c, 2) else c.mismatch(),
+            _hmac_args,
             _render_hmac(_duck),
         )
     register(

@@ -241,7 +241,8 @@ def _from_unixtime(call: Call) -> TType:
 
 
 def _render_from_unixtime(g, node, args) -> str:
-    millis = f"CAST(round(CAST({g.sql(args[0])} AS DOUBLE) * 1000) AS BIGINT)"
+    seconds = f"CAST({g.sql(args[0])} AS DOUBLE)"  # as Java's Math.round: half up, NaN is 0
+    millis = f"CAST(CASE WHEN isnan({seconds}) THEN 0 ELSE floor({seconds} * 1000 + 0.5) END AS BIGINT)"
     return f"timezone('UTC', epoch_ms({millis}))"
 
 

@@ -386,11 +386,60 @@ def _temporal_texts(
     return texts.to_pylist()
 
 
-def _signed_years(texts: pa.Array) -> pa.Array:
-    """Texts of dates or timestamps with a year past 9999 signed as java.time writes them (`+10000-06-01`)."""
-    if not pc.any(pc.match_substring_regex(texts, "^[0-9]{5}")).as_py():
+#: Epoch seconds of 0001-01-01 and 10000-01-01: Arrow writes the text of the instants between them
+#: right (past them it writes a wrong year or "<value out of range>"), the others are written here.
+_NEAR = (-62135596800, 253402300800)
+_PER_SECOND = {"s": 1, "ms": 10**3, "us": 10**6, "ns": 10**9}
+
+
+def _civil(days: int) -> tuple[int, int, int]:
+    """The proleptic Gregorian (year, month, day) of a day number from 1970-01-01 (H. Hinnant's
+    civil_from_days)."""
+    z = days + 719468
+    era, doe = divmod(z, 146097)
+    yoe = (doe - doe // 1460 + doe // 36524 - doe // 146096) // 365
+    doy = doe - (365 * yoe + yoe // 4 - yoe // 100)
+    mp = (5 * doy + 2) // 153
+    month = mp + 3 if mp < 10 else mp - 9
+    return yoe + era * 400 + (month <= 2), month, doy - (153 * mp + 2) // 5 + 1
+
+
+def _day_text(days: int) -> str:
+    """A date as Trino writes it, ISO 8601's expanded years included (+12025-07-01, -9999-01-01)."""
+    year, month, day = _civil(days)
+    sign = "+" if year > 9999 else "-" if year < 0 else ""
+    return f"{sign}{abs(year):04d}-{month:02d}-{day:02d}"
+
+
+def _is_far(values: pa.Array, low: int, high: int) -> bool:
+    """Whether a value of `values` is outside [low, high)."""
+    least, most = (v.as_py() for v in pc.min_max(values).values())
+    return least is not None and (least < low or most >= high)
+
+
+def _far_timestamps(column: pa.Array, texts: list, precision: int, suffix: str = "") -> list:
+    """`texts` with the timestamps outside years 1..9999 written here (Arrow writes them wrong)."""
+    per_second = _PER_SECOND[column.type.unit]
+    values = column.cast(pa.int64())
+    low, high = _NEAR[0] * per_second, _NEAR[1] * per_second
+    if not len(column) or not _is_far(values, low, high):
         return texts
-    return pc.replace_substring_regex(texts, "^([0-9]{5})", "+\\1")
+    out = []
+    for value, text in zip(values.to_pylist(), texts):
+        if value is None or low <= value < high:
+            out.append(text)
+            continue
+        seconds, fraction = divmod(value, per_second)
+        days, second = divmod(seconds, 86400)
+        digits = f".{fraction * 10**precision // per_second:0{precision}d}" if precision else ""
+        clock = f"{second // 3600:02d}:{second // 60 % 60:02d}:{second % 60:02d}"
+        out.append(f"{_day_text(days)} {clock}{digits}{suffix}")
+    return out
+
+
+def _signed_years(texts: pa.Array) -> pa.Array:
+    """Dates and timestamps as Trino writes them past year 9999: with a `+` (`+12025-07-01`)."""
+    return pc.replace_substring_regex(texts, pattern=r"^(\d{5,})", replacement=r"+\1")
 
 
 def _as_string(column: pa.Array) -> pa.Array:
@@ -420,14 +469,24 @@ def _column(t: TType, column: pa.Array) -> list:
             return texts.to_pylist()
         return [format(Decimal(s), "f") if s is not None and "E" in s else s for s in texts.to_pylist()]
     if base == "timestamp" and pa.types.is_timestamp(arrow_type) and arrow_type.tz is None:
-        return _temporal_texts(column, t.args[0], _as_string)
+        texts = _temporal_texts(column, t.args[0], _as_string)
+        return _far_timestamps(column, texts, t.args[0])
     if base == "timestamp_tz" and pa.types.is_timestamp(arrow_type):
         zone = arrow_type.tz or "UTC"  # a timestamp(p > 6) with time zone is its UTC instant (dialect/zoned_nanos.py)
-        return _temporal_texts(
-            column, t.args[0], lambda c: pc.strftime(c, format="%Y-%m-%d %H:%M:%S"), " " + _zone_name(zone)
+        texts = _temporal_texts(
+            column,
+            t.args[0],
+            lambda c: pc.strftime(c, format="%Y-%m-%d %H:%M:%S"),
+            " " + _zone_name(zone),
         )
+        return _far_timestamps(column, texts, t.args[0], " UTC") if _zone_name(zone) == "UTC" else texts
     if base == "date" and pa.types.is_date(arrow_type):
-        return _signed_years(column.cast(pa.string())).to_pylist()
+        texts = _signed_years(column.cast(pa.string())).to_pylist()
+        low, high = _NEAR[0] // 86400, _NEAR[1] // 86400
+        if len(column) and _is_far(column.cast(pa.int32()), low, high):
+            days = column.cast(pa.int32()).to_pylist()
+            return [text if d is None or low <= d < high else _day_text(d) for d, text in zip(days, texts)]
+        return texts
     if base == "time" and pa.types.is_time(arrow_type):
         return _temporal_texts(column, t.args[0], _as_string)
     encode = encoder(str(t))

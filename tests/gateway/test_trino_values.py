@@ -321,3 +321,46 @@ def test_protocol_type_writes_interval_types_as_trino_does():
     assert protocol_type("map(varchar(1), interval year to month)") == "map(varchar(1), INTERVAL YEAR TO MONTH)"
     assert protocol_type("row(x interval day to second)") == "row(x INTERVAL DAY TO SECOND)"
     assert protocol_type("timestamp(3) with time zone") == "timestamp(3) with time zone"
+
+
+def test_years_past_9999_are_written_with_a_sign_as_trino_does():
+    """The real Trino 476 answers date_add('year', 10000, ...) with `+12025-07-01 ...` and
+    date_add('year', -12000, ...) with `-9975-07-01 ...` (ISO 8601's expanded years)."""
+    con = duckdb.connect()
+    con.execute("SET TimeZone = 'UTC'")
+    batch = (
+        con.sql("""
+        SELECT CAST(DATE '2025-07-01' + INTERVAL 10000 YEAR AS DATE),
+               CAST(TIMESTAMP '2025-07-01 12:00:00.123' + INTERVAL 10000 YEAR AS TIMESTAMP_MS),
+               TIMESTAMPTZ '2025-07-01 12:00:00.123+00' + INTERVAL 10000 YEAR,
+               CAST(TIMESTAMP '2025-07-01 12:00:00.123' - INTERVAL 12000 YEAR AS TIMESTAMP_MS),
+               DATE '9999-12-31',
+               make_timestamp(-1099511627776000000),
+               make_timestamp(1099511627776000000)::TIMESTAMPTZ,
+               CAST(DATE '0001-01-01' - INTERVAL 10000 YEAR AS DATE)
+    """)
+        .to_arrow_table()
+        .to_batches()[0]
+    )
+    columns = [
+        ("a", "date"),
+        ("b", "timestamp(3)"),
+        ("c", "timestamp(3) with time zone"),
+        ("d", "timestamp(3)"),
+        ("e", "date"),
+        ("f", "timestamp(6)"),
+        ("g", "timestamp(3) with time zone"),
+        ("h", "date"),
+    ]
+    assert encode_rows(columns, batch) == [
+        [
+            "+12025-07-01",
+            "+12025-07-01 12:00:00.123",
+            "+12025-07-01 12:00:00.123 UTC",
+            "-9975-07-01 12:00:00.123",
+            "9999-12-31",
+            "-32873-11-12 23:23:44.000000",  # from_unixtime(-1099511627776) and (1099511627776), in Trino
+            "+36812-02-20 00:36:16.000 UTC",
+            "-9999-01-01",
+        ]
+    ]

@@ -3,8 +3,9 @@ discovered shape, CASE / COALESCE / IF / NULLIF / TRY, casts, lambdas) inside qu
 joins of every kind, grouping sets, windows with ROWS / RANGE / GROUPS frames, set operations,
 ORDER BY / LIMIT / OFFSET, scalar, correlated and IN / EXISTS subqueries).
 
-`Generator(seed, shapes, tables).query()` gives a `Query`: its text and whether its ORDER BY fixes
-the order of every row (then results compare in order). Expressions are kept small, tables are
+`Generator(seed, shapes, tables).query(i)` gives query i of the seed, a `Query`: its text and whether
+its ORDER BY fixes the order of every row (then results compare in order). Query i depends only on
+(seed, i), so any slice of a run can be generated (and judged) on its own. Expressions are kept small, tables are
 small: every query is quick on both sides.
 """
 
@@ -140,6 +141,7 @@ class Generator:
     """Random queries over `tables` (table -> [(column, Trino type)]) calling `shapes`."""
 
     def __init__(self, seed: int, shapes: list[Shape], tables: dict[str, list[tuple[str, str]]]):
+        self.seed = seed
         self.rng = random.Random(seed)
         self.tables = tables
         self.scalar_by_result: dict[str, list[Shape]] = defaultdict(list)
@@ -632,7 +634,9 @@ class Generator:
             where = f" WHERE {self.expr(t, env, 0)} {self.pick(['>', '<=', '='])} {quantifier} ({inside})"
         return Query(f"SELECT {self.select_list(items)} FROM {source}{where}", False)
 
-    def query(self) -> Query:
+    def query(self, index: int) -> Query:
+        """Query `index` of the seed: its own random stream, whatever was generated before."""
+        self.rng = random.Random(f"{self.seed}:{index}")
         maker = self.rng.choices(
             [self.q_constant, self.q_scan, self.q_group, self.q_window, self.q_join, self.q_setop, self.q_subquery],
             weights=[4, 4, 2.5, 1.5, 2, 1, 1.5],

@@ -2,6 +2,8 @@
 real Trino reading the same Parquet files; every difference is a mismatch (`python3 dev.py fuzz`).
 
     python3 dev.py fuzz --queries N --seed S [--trino URL] [--out FILE] [--lake DIR] [--jobs K] [--seconds T]
+    python3 dev.py fuzz --queries N --seed S --from I --to J --slice FILE [--out FILE]   (one slice)
+    python3 dev.py fuzz --summary FILE...                                                (the slices' sum)
 
 Prints `tried T, equal E, lakegate refused R, both errored B, mismatched M`:
 equal: the same result types and rows; lakegate refused: lakegate said NOT_SUPPORTED (naming the
@@ -9,11 +11,19 @@ construct) or ran out of time where Trino answered; both errored: both raised an
 else (different values, types or row counts, lakegate answering where Trino raises, or lakegate
 failing with another error where Trino answers). Each mismatch is a JSON line in --out with the
 query and both answers. Exit status 1 when there was a mismatch.
+
+A long run spans sessions in slices: query i of seed S depends only on (S, i), so `--from I --to J`
+judges queries I..J-1 of the run alone and `--slice FILE` writes that slice's counts (JSON, once the
+slice is complete; an interrupted slice writes nothing and is run again). `--summary FILE...` adds
+the slices up into the run's one summary line, after checking that they are of one seed and one
+generator (a fingerprint of the generator's code, the functions it calls and the lake's tables) and
+do not overlap; it names the queries no slice covers yet.
 """
 
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import os
 import sys
@@ -25,6 +35,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from trino_fuzz import lake as fuzz_lake
+from trino_fuzz import queries as fuzz_queries
 from trino_fuzz.compare import differ
 from trino_fuzz.functions import discover
 from trino_fuzz.queries import Generator, Query
@@ -85,6 +96,13 @@ def summary(counts: Counter) -> str:
     )
 
 
+def fingerprint(shapes: list, tables: dict) -> str:
+    """What decides the queries of a seed: the generator's code, the function shapes it calls and the
+    lake's tables (slices of one run must share it)."""
+    text = Path(fuzz_queries.__file__).read_text() + repr(shapes) + repr(sorted(tables.items()))
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
 def fuzz(
     queries: int,
     seed: int,
@@ -94,9 +112,12 @@ def fuzz(
     jobs: int = 4,
     progress: bool = False,
     seconds: float | None = None,
+    start: int = 0,
+    slice_file: Path | None = None,
 ) -> tuple[Counter, list[Verdict]]:
-    """Generate and judge `queries` queries (fewer when `seconds` run out: the generator's order is
-    the same, so a bounded run is a prefix of the unbounded one); the counts and the mismatches."""
+    """Generate and judge queries `start`..`queries`-1 of `seed` (fewer when `seconds` run out: a
+    bounded run is a prefix of the unbounded one); the counts and the mismatches. With `slice_file`,
+    a completed run writes its counts there (JSON, see `add_slices`)."""
     lake = fuzz_lake.build(lake_dir)
     schema_prefix = f"{SCHEMA_PREFIX}{os.getpid()}_"  # runs at once (CI, a long run) keep apart
     trino = Trino(trino_url, f"{schema_prefix}main")
@@ -106,10 +127,15 @@ def fuzz(
     handle = out.open("w") if out is not None else None  # each mismatch is written as it is found
     counts: Counter = Counter()
     mismatches: list[Verdict] = []
+    spent: Counter = Counter()  # seconds summed over the queries, per side
+    began = time.monotonic()
 
     def settle(query: Query, theirs, ours) -> None:
         verdict = judge(query, ours.result(), theirs.result())
         counts[verdict.kind] += 1
+        for name, outcome in (("lakegate", verdict.lakegate), ("trino", verdict.trino)):
+            spent[f"{name}_seconds"] += outcome.seconds
+        spent["trino_cpu_seconds"] += verdict.trino.cpu_seconds
         if verdict.kind == "mismatched":
             mismatches.append(verdict)
             if handle is not None:
@@ -120,25 +146,80 @@ def fuzz(
 
     try:
         tables = {name: list(columns.items()) for name, columns in mine.engine.backend.schema("main").items()}
-        generator = Generator(seed, discover(), tables)
+        shapes = discover()
+        generator = Generator(seed, shapes, tables)
         deadline = time.monotonic() + seconds if seconds else None
         in_flight: deque = deque()
+        stop = queries
         with ThreadPoolExecutor(jobs) as pool, ThreadPoolExecutor(LAKEGATE_THREADS) as own:
-            for _ in range(queries):
+            for index in range(start, queries):
                 if deadline is not None and time.monotonic() > deadline:
+                    stop = index
                     break
-                query = generator.query()
+                query = generator.query(index)
                 in_flight.append((query, pool.submit(trino.run, query.sql), own.submit(mine.run, query.sql)))
                 while len(in_flight) > WINDOW or (in_flight and in_flight[0][1].done() and in_flight[0][2].done()):
                     settle(*in_flight.popleft())
             while in_flight:
                 settle(*in_flight.popleft())
+        if progress:
+            print(timing(counts, spent, time.monotonic() - began), file=sys.stderr, flush=True)
+        if slice_file is not None:
+            record_slice(slice_file, seed, start, stop, fingerprint(shapes, tables), counts)
     finally:
         mine.close()
         unregister(trino, f"{schema_prefix}main")
         if handle is not None:
             handle.close()
     return counts, mismatches
+
+
+def timing(counts: Counter, spent: Counter, wall: float) -> str:
+    """Where the queries' time went: the rate, and each side's seconds per query."""
+    tried = max(sum(counts.values()), 1)
+    return (
+        f"{60 * tried / max(wall, 1e-9):.0f} queries/min ({wall:.0f} s wall); per query: lakegate "
+        f"{1000 * spent['lakegate_seconds'] / tried:.0f} ms wall, Trino {1000 * spent['trino_seconds'] / tried:.0f} "
+        f"ms wall ({1000 * spent['trino_cpu_seconds'] / tried:.0f} ms CPU in its query stats)"
+    )
+
+
+KINDS = ("equal", "refused", "both_errored", "mismatched")
+
+
+def record_slice(path: Path, seed: int, start: int, stop: int, generator: str, counts: Counter) -> None:
+    """Write a completed slice's counts (whole or not at all: through a temporary file)."""
+    entry = {"seed": seed, "from": start, "to": stop, "generator": generator, **{k: counts[k] for k in KINDS}}
+    temporary = path.with_name(path.name + ".partial")
+    temporary.write_text(json.dumps(entry) + "\n")
+    temporary.replace(path)
+
+
+def add_slices(paths: list[Path]) -> tuple[Counter, str]:
+    """The counts of slice files added up, and what they cover ("queries 0..1000 of seed 5, generator
+    <fingerprint>", with any gaps); ValueError when they are of different runs or overlap."""
+    entries = sorted((json.loads(path.read_text()) | {"file": str(path)} for path in paths), key=lambda e: e["from"])
+    if not entries:
+        raise ValueError("no slice files given")
+    runs = {(e["seed"], e["generator"]) for e in entries}
+    if len(runs) > 1:
+        raise ValueError(f"slices of different runs (seed, generator): {sorted(runs)}")
+    counts: Counter = Counter()
+    covered, gaps = entries[0]["from"], [f"{0}..{entries[0]['from']}"] if entries[0]["from"] else []
+    for previous, entry in zip([None, *entries], entries):
+        if previous is not None and entry["from"] < previous["to"]:
+            raise ValueError(
+                f"{entry['file']} (from {entry['from']}) overlaps {previous['file']} (to {previous['to']})"
+            )
+        if entry["from"] > covered:
+            gaps.append(f"{covered}..{entry['from']}")
+        if sum(entry[k] for k in KINDS) != entry["to"] - entry["from"]:
+            raise ValueError(f"{entry['file']}: its counts do not add up to its {entry['to'] - entry['from']} queries")
+        counts.update({k: entry[k] for k in KINDS})
+        covered = entry["to"]
+    seed, generator = runs.pop()
+    missing = f"; not run yet: queries {', '.join(gaps)}" if gaps else ""
+    return counts, f"queries 0..{covered} of seed {seed}, generator {generator}{missing}"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -168,9 +249,34 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--seconds", type=float, metavar="T", help="stop generating after about T seconds (the summary counts what ran)"
     )
+    parser.add_argument(
+        "--from", dest="start", type=int, default=0, metavar="I", help="the slice's first query (default 0)"
+    )
+    parser.add_argument("--to", type=int, metavar="J", help="the slice ends before query J (default N)")
+    parser.add_argument(
+        "--slice", type=Path, metavar="FILE", help="write the completed slice's counts here (for --summary)"
+    )
+    parser.add_argument(
+        "--summary",
+        type=Path,
+        nargs="+",
+        metavar="FILE",
+        help="print the summary line of the slices' files added up (runs no query)",
+    )
     args = parser.parse_args(argv)
+    if args.summary:
+        try:
+            counts, coverage = add_slices(args.summary)
+        except (ValueError, KeyError, OSError) as error:
+            parser.error(f"--summary: {error}")
+        print(summary(counts))
+        print(coverage)
+        return 1 if counts["mismatched"] else 0
+    stop = args.queries if args.to is None else args.to
+    if not 0 <= args.start <= stop <= args.queries:
+        parser.error(f"--from {args.start} --to {stop}: need 0 <= I <= J <= N ({args.queries})")
     counts, mismatches = fuzz(
-        args.queries,
+        stop,
         args.seed,
         args.trino,
         args.lake,
@@ -178,6 +284,8 @@ def main(argv: list[str] | None = None) -> int:
         args.jobs,
         progress=True,
         seconds=args.seconds,
+        start=args.start,
+        slice_file=args.slice,
     )
     print(summary(counts))
     if mismatches:

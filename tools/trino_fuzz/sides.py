@@ -34,6 +34,10 @@ class Outcome:
     rows: list[list[Any]] = field(default_factory=list)
     error: str | None = None
     message: str = ""
+    #: Wall seconds the side took (lakegate: in its Engine; Trino: from submission to the last page)
+    #: and, for Trino, the CPU seconds its query stats report.
+    seconds: float = 0.0
+    cpu_seconds: float = 0.0
 
     def as_dict(self) -> dict:
         if self.error is not None:
@@ -49,6 +53,12 @@ class Lakegate:
         self.session = self.engine.session(branch="main", time_zone="UTC")
 
     def run(self, sql: str) -> Outcome:
+        began = time.monotonic()
+        outcome = self._answer(sql)
+        outcome.seconds = time.monotonic() - began
+        return outcome
+
+    def _answer(self, sql: str) -> Outcome:
         try:
             result = self.engine.execute(sql, self.session)
             rows = [row for batch in result.batches for row in encode_rows(result.columns, batch)]
@@ -90,18 +100,23 @@ class Trino:
         raise AssertionError("unreachable")
 
     def run(self, sql: str, *, schema: bool = True) -> Outcome:
+        began = time.monotonic()
         reply = self._request(f"{self.url}/v1/statement", sql.encode(), schema=schema)
         columns, rows = None, []
         while True:
             if "error" in reply:
                 error = reply["error"]
-                return Outcome(error=error.get("errorName", "UNKNOWN"), message=error.get("message", ""))
+                outcome = Outcome(error=error.get("errorName", "UNKNOWN"), message=error.get("message", ""))
+                break
             columns = reply.get("columns", columns)
             rows.extend(reply.get("data") or [])
             if "nextUri" not in reply:
+                outcome = Outcome(types=[c["type"] for c in columns or []], rows=rows)
                 break
             reply = self._request(reply["nextUri"])
-        return Outcome(types=[c["type"] for c in columns or []], rows=rows)
+        outcome.seconds = time.monotonic() - began
+        outcome.cpu_seconds = reply.get("stats", {}).get("cpuTimeMillis", 0) / 1000
+        return outcome
 
     def execute(self, sql: str) -> None:
         """Run a statement that must succeed (DDL), RuntimeError with Trino's message otherwise."""

@@ -28,8 +28,9 @@ from lakegate.dialect.session_functions import SessionNames
 from lakegate.dialect.statements import Reader, Statement
 from lakegate.dialect.translate import translate
 from lakegate.gateway.engine import udfs
-from lakegate.gateway.engine.backend import BATCH_ROWS, Backend, QueryResult, Run, in_zones
+from lakegate.gateway.engine.backend import BATCH_ROWS, Backend, QueryResult
 from lakegate.gateway.engine.catalog_name import CATALOG
+from lakegate.gateway.engine.query_run import Run, in_zones
 from lakegate.gateway.engine.session import PROPERTIES, Answer, Session
 from lakegate.gateway.engine.trino_values import arrow_type
 

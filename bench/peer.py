@@ -30,13 +30,12 @@ import statistics
 import subprocess
 import sys
 import time
-import urllib.request
 from pathlib import Path
 
 import trino
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from results import parse_args, write_section  # noqa: E402
+from results import parse_args, wait_serving, write_section  # noqa: E402
 from server import AGGREGATE, FETCH, THREADS, Server, client_rows, free_port  # noqa: E402
 from translate import build_lake  # noqa: E402
 
@@ -107,16 +106,7 @@ class Buenavista(Server):
         self.log = open(WORK / "buenavista.log", "w")
         command = [str(python), str(script), str(views), str(self.port), str(THREADS)]
         self.process = subprocess.Popen(command, stdout=self.log, stderr=subprocess.STDOUT)
-        deadline = time.monotonic() + 60
-        while True:
-            try:
-                with urllib.request.urlopen(f"http://127.0.0.1:{self.port}/v1/info", timeout=2):
-                    return
-            except OSError:
-                if self.process.poll() is not None or time.monotonic() > deadline:
-                    self.stop()
-                    raise SystemExit(f"buenavista did not start; see {self.log.name}") from None
-                time.sleep(0.2)
+        wait_serving(self.process, self.port, self.stop, "buenavista", self.log.name)
 
 
 def run_block(server: Server, connection: trino.dbapi.Connection, sql: str, count: int) -> tuple[list, float, set]:

@@ -11,6 +11,7 @@ import statistics
 import subprocess
 import sys
 import time
+import urllib.request
 from collections.abc import Callable, Iterable
 from importlib import metadata
 from pathlib import Path
@@ -73,6 +74,21 @@ def run_python(code: str, *args: str) -> dict:
 def run_times(results: Iterable[dict]) -> str:
     """The `seconds` of each run, for a results line."""
     return ", ".join(f"{r['seconds']:.2f}" for r in results)
+
+
+def wait_serving(process: subprocess.Popen, port: int, stop: Callable[[], None], what: str, log: str) -> None:
+    """Wait (at most 60 s) until the server `process` answers `/v1/info` on 127.0.0.1:`port`; if it
+    exits or the time is up, `stop` it and exit naming `what` and its `log`."""
+    deadline = time.monotonic() + 60
+    while True:
+        try:
+            with urllib.request.urlopen(f"http://127.0.0.1:{port}/v1/info", timeout=2):
+                return
+        except OSError:
+            if process.poll() is not None or time.monotonic() > deadline:
+                stop()
+                raise SystemExit(f"{what} did not start; see {log}") from None
+            time.sleep(0.2)
 
 
 def git_revision() -> str:

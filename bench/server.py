@@ -31,7 +31,6 @@ import subprocess
 import sys
 import threading
 import time
-import urllib.request
 from collections.abc import Callable
 from pathlib import Path
 
@@ -40,7 +39,7 @@ import requests
 import trino
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from results import median_of, parse_args, timed, write_section  # noqa: E402
+from results import median_of, parse_args, timed, wait_serving, write_section  # noqa: E402
 from translate import JOBS, TOPIC, build_lake  # noqa: E402
 
 from lakegate.lake.catalog import Catalog  # noqa: E402
@@ -133,16 +132,7 @@ class Server:
         ]
         self.log = open(ROOT / "bench" / ".work" / "server.log", "w")
         self.process = subprocess.Popen(command, stdout=self.log, stderr=subprocess.STDOUT)
-        deadline = time.monotonic() + 60
-        while True:
-            try:
-                with urllib.request.urlopen(f"http://127.0.0.1:{self.port}/v1/info", timeout=2):
-                    return
-            except OSError:
-                if self.process.poll() is not None or time.monotonic() > deadline:
-                    self.stop()
-                    raise SystemExit(f"lakegate serve did not start; see {self.log.name}") from None
-                time.sleep(0.2)
+        wait_serving(self.process, self.port, self.stop, "lakegate serve", self.log.name)
 
     def pids(self) -> list[int]:
         """The server process and its descendants."""

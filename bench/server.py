@@ -148,11 +148,14 @@ class Server:
         return found
 
     def memory(self, field: str) -> int:
-        """The sum of one /proc status field (VmRSS, VmHWM) over the server's processes, in bytes."""
+        """The sum of one /proc memory field over the server's processes, in bytes: "Pss" (the memory
+        they take, shared pages counted once; the query workers share the fork server's) or a status
+        field, "VmRSS" or "VmHWM" (summed, shared pages counted in each process)."""
         total = 0
+        source = "smaps_rollup" if field == "Pss" else "status"
         for pid in self.pids():
             try:
-                for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+                for line in Path(f"/proc/{pid}/{source}").read_text().splitlines():
                     if line.startswith(field + ":"):
                         total += int(line.split()[1]) * 1024
             except OSError:
@@ -404,7 +407,7 @@ def main() -> None:
     direct = direct_duckdb(lake)
     server = Server(lake, args.serve_arg)
     try:
-        idle_rss = server.memory("VmRSS")
+        idle_rss = server.memory("Pss")
         one = select_one(server, direct)
         floor_one, floor_two = client_floor()
         fetched = fetch(server, direct, args.runs)
@@ -435,7 +438,7 @@ def main() -> None:
         f"| {args.clients} concurrent clients, {load['elapsed']:.0f} s mix | {load['qps']:.1f} queries/s, p50 "
         f"{load['p50'] * 1e3:.0f} ms, p99 {load['p99'] * 1e3:.0f} ms, {len(load['errors'])} errors | | 0 errors | "
         f"{verdict(not load['errors'])} |",
-        f"| server memory while streaming | idle {mb(idle_rss)}; peak {mb(fetched['peak_1m'])} for 1M rows, "
+        f"| server memory while streaming | idle {mb(idle_rss)} (PSS); peak {mb(fetched['peak_1m'])} for 1M rows, "
         f"{mb(fetched['peak_4m'])} for {fetched['rows_4m']:,} rows ({fetched['rate_4m']:,.0f} rows/s) | | 4x the rows, "
         f"< 1.25x the peak "
         f"| {verdict(bounded)} |",

@@ -144,12 +144,12 @@ def _render_array_join(g, node, args) -> str:
     items = arr if text == '"_e"' else f'list_transform({arr}, lambda "_e": {text})'
     # NULL elements are skipped, so an all-NULL array joins to '' (io.trino.operator.scalar.ArrayJoin)
     if isinstance(args[1], exp.Literal):
-        return null_if_any_null(g, args[:2], f"coalesce(array_to_string({items}, {delim}), '')")
+        return null_if_any_null(g, args, f"coalesce(array_to_string({items}, {delim}), '')")
     # DuckDB's array_to_string takes a constant separator only: a separator of each row is put before
     # every element, and the first one cut off
     kept = f'list_filter({items}, lambda "_e": "_e" IS NOT NULL)'
     joined = f'list_reduce({kept}, lambda "_a", "_b": "_a" || {delim} || "_b", \'\')'
-    return null_if_any_null(g, args[:2], f"substr({joined}, length({delim}) + 1)")
+    return null_if_any_null(g, args, f"substr({joined}, length({delim}) + 1)")
 
 
 def _array_distinct(call: Call) -> TType:

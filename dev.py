@@ -91,9 +91,11 @@ def main(argv: list[str]) -> int:
         workers = [] if any(a.startswith("-n") for a in rest) else ["-n", "2", "--dist", "worksteal"]
         return _run([PY, "-m", "pytest", *workers, "--durations=30", *rest]) or linted  # the slowest, for the budget
     if command == "bench":
-        if not rest:
-            print("usage: python3 dev.py bench NAME [ARGS...]  (NAME is a file in bench/)")
-            return 2
+        names = sorted(p.stem for p in (ROOT / "bench").glob("*.py") if p.stem != "results")
+        if not rest or rest[0] not in names:
+            print("usage: python3 dev.py bench NAME [ARGS...] [--smoke]  (NAME --help for its options)")
+            print("benches: " + ", ".join(names))
+            return 0 if rest[:1] in (["--help"], ["-h"]) else 2
         return _run([PY, ROOT / "bench" / f"{rest[0]}.py", *rest[1:]])
     if command == "lakegate":
         return _run([BIN / "lakegate", *rest])

@@ -19,6 +19,8 @@ from pathlib import Path
 RESULTS = Path(__file__).resolve().parent / "RESULTS.md"
 #: Set by `parse_args(--smoke)`: tiny sizes, figures printed, RESULTS.md left alone.
 _smoke = False
+#: The load average when the bench started (its module was imported), stated beside the one at the end.
+_LOAD_AT_START = os.getloadavg()
 HEADER = "# Benchmark results\n\nEach section is written by the script it names; re-run it to refresh that section.\n"
 
 
@@ -91,6 +93,10 @@ def wait_serving(process: subprocess.Popen, port: int, stop: Callable[[], None],
             time.sleep(0.2)
 
 
+def _loads(loads: tuple[float, float, float]) -> str:
+    return ", ".join(f"{load:.2f}" for load in loads)
+
+
 def git_revision() -> str:
     try:
         return subprocess.check_output(["git", "rev-parse", "--short", "HEAD"], cwd=RESULTS.parent, text=True).strip()
@@ -125,6 +131,8 @@ def write_section(title: str, command: str, lines: Iterable[str]) -> None:
             f"- command: `{command}`",
             f"- machine: {machine()}",
             f"- revision: {git_revision()}, {time.strftime('%Y-%m-%d %H:%M', time.localtime())}",
+            f"- load average (1, 5, 15 min) at the start: {_loads(_LOAD_AT_START)};"
+            f" at the end: {_loads(os.getloadavg())} ({os.cpu_count()} cores)",
             "",
             *lines,
             "",

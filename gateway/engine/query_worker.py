@@ -17,6 +17,7 @@ The protocol is request/answer, one message each way (pickled tuples; batches as
 
 from __future__ import annotations
 
+import logging
 import pickle
 import resource
 import signal
@@ -38,6 +39,9 @@ from lakegate.lake.record import FileEntry
 _FATAL = ("FATAL Error", "INTERNAL Error")
 #: Backends over staged (pending) files kept per worker, beyond the lake's own.
 PENDING_BACKENDS = 2
+#: What a client reads when the engine failed inside: DuckDB's own text goes to the server's log only.
+INTERNAL_FAILURE = "internal error: the engine failed on this query (its worker was replaced; the server's log has why)"
+log = logging.getLogger("lakegate.worker")
 
 
 def _invalidating(error: BaseException) -> bool:
@@ -155,8 +159,8 @@ class Worker:
             self.drop()
             if error.message.startswith(_FATAL):  # DuckDB invalidated its database: this worker is done
                 self.broken = True
-                internal = DialectError(f"internal error: {error.message}", error_name="GENERIC_INTERNAL_ERROR")
-                return _error(internal, retire=True)
+                log.error("query worker: the engine failed: %s", error.message)
+                return _error(DialectError(INTERNAL_FAILURE, error_name="GENERIC_INTERNAL_ERROR"), retire=True)
             if _invalidating(error):  # refused, but the database is no longer usable either
                 self.broken = True
                 return _error(error, retire=True)
@@ -165,10 +169,10 @@ class Worker:
             self.drop()
             message = f"Query exceeded per-node memory limit of {self.memory_limit}"
             return _error(DialectError(message, error_name="EXCEEDED_LOCAL_MEMORY_LIMIT"), retire=True)
-        except Exception as error:  # DuckDB failed inside (a FatalException invalidates its database): retire
+        except Exception:  # DuckDB failed inside (a FatalException invalidates its database): retire
             self.broken = True
-            first = (str(error).strip().splitlines() or [type(error).__name__])[0]
-            return _error(DialectError(f"internal error: {first}", error_name="GENERIC_INTERNAL_ERROR"), retire=True)
+            log.exception("query worker: the engine failed")
+            return _error(DialectError(INTERNAL_FAILURE, error_name="GENERIC_INTERNAL_ERROR"), retire=True)
 
     def drop(self) -> None:
         """Close the result being read, if any (its DuckDB work stops)."""

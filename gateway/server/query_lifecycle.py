@@ -50,7 +50,7 @@ from lakegate.dialect.statements import Statement
 from lakegate.gateway.engine import session as sessions
 from lakegate.gateway.engine.backend import QueryResult
 from lakegate.gateway.engine.engine import Engine
-from lakegate.gateway.engine.failures import hide_paths, time_limit_error
+from lakegate.gateway.engine.failures import time_limit_error
 from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.engine.session import Session
 from lakegate.gateway.engine.trino_values import encode_columns
@@ -659,10 +659,7 @@ class QueryManager:
             query.fail(Failure.of(error))
         except Exception as error:  # a bug: the client gets GENERIC_INTERNAL_ERROR, the log the traceback
             log.exception("query %s failed", query.id)
-            failure = Failure.of(error)
-            query.fail(
-                Failure(hide_paths(failure.message, getattr(self.engine.backend, "lake", None)), failure.error_name)
-            )
+            query.fail(Failure.of(error))
         finally:
             close = getattr(batches, "close", None)
             if close is not None:

@@ -79,7 +79,7 @@ REAP_INTERVAL = 0.25
 #: Longest shutdown waits for workers to stop (they are daemon threads: the process may end without them).
 SHUTDOWN_GRACE = 1.0
 #: Payload bytes of spooled segments the server holds at once; past them pages are inlined.
-SPOOLED_BYTES = 256 * 1024 * 1024
+SPOOLED_BYTES = 64 * 1024 * 1024
 
 
 @dataclass

@@ -7,6 +7,8 @@ The protocol is request/answer, one message each way (pickled tuples; batches as
 - `("execute", sql, branch, scope, params, time_zone, session, pending)` starts a query and answers
   `("started", columns, duckdb_sql, schema, first, last)` or `("error", message, line, column, name,
   retire)` (`retire`: the worker ends after this answer, its state no longer to be trusted);
+- `("tables", duckdb_sql, tables, columns, zones)` starts a translated query over system tables
+  (`tables`: name -> Arrow table, materialised by the server) and answers as `execute` does;
 - `("names", statement)` answers `("names", names)`: what the planner reads of a large statement
   (`planner.query_names`: checked and parsed here, not in the server) or an error; a statement
   whose `edits` the planner made without a tree gets it here (`planner.with_edits_applied`);
@@ -29,10 +31,11 @@ import pyarrow as pa
 
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.statements import Statement
-from lakegate.gateway.engine.backend import DuckDBBackend
+from lakegate.gateway.engine.backend import DuckDBBackend, QueryResult
 from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.engine.planner import query_names, with_edits_applied
 from lakegate.gateway.engine.process_memory import statm
+from lakegate.gateway.engine.system_queries import SystemDatabase
 from lakegate.lake.record import FileEntry
 
 #: How DuckDB's errors begin when they invalidate its database (a later query cannot run on it).
@@ -89,6 +92,7 @@ class Worker:
         self.lake, self.memory_limit, self.threads, self.limits = lake, memory_limit, threads, limits
         self.backend = self._backend(())
         self.pending: dict[tuple[FileEntry, ...], DuckDBBackend] = {}
+        self.system: SystemDatabase | None = None  # for queries over system tables, made on first use
         self.result: _Ahead | None = None
         self.close_result: object = None
         self.broken = False  # its database can no longer be trusted: the process ends after answering
@@ -138,13 +142,13 @@ class Worker:
                 result = self.backend_for(pending).execute(
                     sql, branch=branch, scope=scope, params=params, time_zone=time_zone, session=session
                 )
-                self.close_result = getattr(result.batches, "close", None)
-                self.result = _Ahead(iter(result.batches))
-                first, last = self.result.next()
-                schema = None if first is None else first.schema.serialize().to_pybytes()
-                if last:
-                    self.drop()
-                return ("started", result.columns, result.duckdb_sql, schema, _encoded(first), last)
+                return self.started(result)
+            if kind == "tables":
+                self.drop()
+                _, sql, tables, columns, zones = request
+                if self.system is None:
+                    self.system = SystemDatabase(self.memory_limit)
+                return self.started(self.system.run(sql, tables, columns, zones, timeout=self.limits.query_timeout))
             if kind == "names":
                 return ("names", query_names(request[1]))
             if kind == "next":
@@ -173,6 +177,17 @@ class Worker:
             self.broken = True
             log.exception("query worker: the engine failed")
             return _error(DialectError(INTERNAL_FAILURE, error_name="GENERIC_INTERNAL_ERROR"), retire=True)
+
+    def started(self, result: QueryResult) -> tuple:
+        """The `started` answer of a query: its columns, DuckDB SQL and first batch (the result is kept
+        for the `next` requests unless that batch is the last)."""
+        self.close_result = getattr(result.batches, "close", None)
+        self.result = _Ahead(iter(result.batches))
+        first, last = self.result.next()
+        schema = None if first is None else first.schema.serialize().to_pybytes()
+        if last:
+            self.drop()
+        return ("started", result.columns, result.duckdb_sql, schema, _encoded(first), last)
 
     def drop(self) -> None:
         """Close the result being read, if any (its DuckDB work stops)."""

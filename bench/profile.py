@@ -6,7 +6,7 @@ of every process, grouped by what the code is doing.
 Workloads: `lakegate serve` answering `SELECT 1` and a GROUP BY over the translate bench's 10M-row
 topic (bench/.work/translate) through the official trino client, and `MetricsEngine.evaluate_batch`
 (as `lakegate metrics run` calls it) over the metrics bench's batch (bench/.work/metrics). py-spy
-(`pip install py-spy`; the bench installs it into the venv when missing) samples at 100 Hz with
+(in the test extras) samples at 100 Hz with
 `--subprocesses`, so query workers count too; samples of threads that wait are counted apart.
 
 Writes section "Profiles" of bench/RESULTS.md.
@@ -62,10 +62,7 @@ CATEGORIES = (
 
 
 def py_spy() -> str:
-    path = Path(sys.executable).parent / "py-spy"
-    if not path.exists():
-        subprocess.run([sys.executable, "-m", "pip", "install", "-q", "py-spy"], check=True)
-    return str(path)
+    return str(Path(sys.executable).parent / "py-spy")
 
 
 def categorize(raw: Path, first_pids: set[int] | None = None) -> tuple[collections.Counter, int, set[int]]:

@@ -497,6 +497,7 @@ class Emitter:
         self._write_lock = threading.Lock()  # held while lines are taken and written: keeps their order
         self._wake = threading.Event()  # set: the flusher thread should write now (or stop, once closed)
         self._chunk_lines, self._max_queued = chunk_lines, max_queued
+        self._wake_at = chunk_lines  # a queue this long is to be written (chunk_ready); max_queued once woken
         self._error: OSError | None = None  # a write error of the flusher thread, not yet raised
         self._stopped = False  # closed, or _error set: emit must look before queuing
         if max_queued > 1:
@@ -520,7 +521,7 @@ class Emitter:
             self._raise_stopped()
         queue = self._queue
         queue.append(item)
-        if len(queue) >= self._chunk_lines:
+        if len(queue) >= self._wake_at:
             self._chunk_ready()
 
     def emit_event(self, topic_name: str, data: dict[str, Any], timestamp: int) -> None:
@@ -594,7 +595,7 @@ class Emitter:
         if self._stopped:
             self._raise_stopped()
         self._queue.extend(lines)
-        if len(self._queue) >= self._chunk_lines:
+        if len(self._queue) >= self._wake_at:
             self._chunk_ready()
 
     def _append_blocks(self, blocks: list[bytes], count: int) -> None:
@@ -624,13 +625,15 @@ class Emitter:
 
     def _chunk_ready(self) -> None:
         """Have a full chunk written: by the flusher thread (file writes release the GIL, so
-        emitting goes on meanwhile), or right here when the flusher is far behind (or absent)."""
+        emitting goes on meanwhile), or right here when the flusher is far behind (or absent).
+        Once the flusher is woken, emit looks again only at `_max_queued` lines or after a flush."""
         if len(self._queue) >= self._max_queued:
             try:
                 self.flush()
             except OSError as exc:
                 self._fail(exc)
-        elif not self._wake.is_set():
+        else:
+            self._wake_at = self._max_queued  # before waking it: its flush sets it back
             self._wake.set()
 
     def _write_queued(self) -> None:
@@ -683,6 +686,7 @@ class Emitter:
             if self._closed:
                 return
             error, self._error, self._stopped = self._error, None, False
+            self._wake_at = self._chunk_lines
             if self._queue:
                 self._write_queued()
             elif error is not None:

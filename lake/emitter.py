@@ -174,6 +174,7 @@ _FAST = {
     "string": ("type(@) is str and @.isascii()", "_json_str(@).encode()", None),
 }
 _FAST.update({t: _FAST["string"] for t in ("status", "image", "video")})
+_TIMESTAMP_CHECK = "if type(ts) is not int or not 0 <= ts <= 0x7FFFFFFFFFFFFFFF: ts = _check_timestamp(TOPIC, ts)"
 _PLAIN_END = b'}, "$data": '
 _EVENT_END = b', "event": true}, "$data": '
 
@@ -224,7 +225,7 @@ class _Codec:
 
     def _record(self, indent: str) -> list[str]:
         """Source lines that check `ts` and `v0`, `v1`, ... and build the JSON line `text`."""
-        checks = ["if type(ts) is not int or not 0 <= ts <= 0x7FFFFFFFFFFFFFFF: ts = _check_timestamp(TOPIC, ts)"]
+        checks = [_TIMESTAMP_CHECK]
         template = _percent(f'{{"$metadata": {{"topic": {_json_str(self.topic.name)}, "timestamp": ') + b"%d%b{"
         texts = ["ts", "end"]
         for i, (name, field_type) in enumerate(self.topic.fields.items()):
@@ -268,7 +269,7 @@ class _Codec:
         longest = self.layout.constant_length + 24 * (len(types) + 1)  # 24: the longest number text
         if not all(t in _ROW for t in types) or longest > MAX_LINE_BYTES + 1:
             return []
-        source = ["def row(data, ts):", *self._unpack(), "    " + self._record("")[0]]
+        source = ["def row(data, ts):", *self._unpack(), "    " + _TIMESTAMP_CHECK]
         items = ["P0", "ts"]
         for i, (name, field_type) in enumerate(self.topic.fields.items()):
             test, slow = (part.replace("@", f"v{i}").replace("NAME", repr(name)) for part in _ROW[field_type])
@@ -277,7 +278,9 @@ class _Codec:
         items.append(f"P{len(types) + 1}")
         return [*source, f"    return ({', '.join(items)})"]
 
-    def _compile(self) -> tuple[Callable[..., bytes], Callable[..., list[bytes]], Callable[..., tuple] | None]:
+    def _compile(
+        self,
+    ) -> tuple[Callable[..., bytes], Callable[..., list[bytes]], Callable[..., tuple[Any, ...]] | None]:
         names = "".join(f"v{i}, " for i in range(len(self.fields)))
         columns = "".join(f"c{i}, " for i in range(len(self.fields)))
         source = [
@@ -425,7 +428,9 @@ class Emitter:
     raises `ConfigError`. Lines are appended to `output_path` (parent folders are created).
 
     Flush policy: validated lines are queued in memory and appended to the file in
-    whole-line chunks, in emission order, by a daemon flusher thread every `flush_interval`
+    whole-line chunks, in emission order (a record of a topic whose fields are all float, int
+    or boolean is queued as its checked values, which are immutable, and becomes its line
+    when written), by a daemon flusher thread every `flush_interval`
     seconds and as soon as 8192 lines are queued (by the emitting thread itself if 65536 are
     waiting, or when one `emit_series` call brings 8192 or more), and on `flush()`, `close()`,
     garbage collection and interpreter exit (atexit).

@@ -17,7 +17,6 @@ from lakegate.dialect.functions.rendering import (
     grouped_values,
     let_bound,
     map_entries,
-    not_nan,
 )
 from lakegate.dialect.registry import Render, overload, register
 from lakegate.dialect.trino_types import TType
@@ -69,12 +68,13 @@ def _minmax(call: Call) -> TType:
 
 # Trino's max, max_by, greatest and array_max order NaN below every number, min and friends above
 # (io.trino.util.MinMaxCompare: COMPARISON_UNORDERED_FIRST / _LAST), so NaN wins only when all values
-# are NaN; DuckDB orders NaN above every number, which is right for the min side only.
+# are NaN; DuckDB orders NaN above every number, which is right for the min side only. So max is the
+# negated min of the negated values: one aggregate (about as fast as DuckDB's max), exact negation
+# keeps -0.0's sign, and ties keep the first value seen, as Trino's max does.
 def _render_max(g, node, args) -> str:
     if len(args) == 2 or not ttype(args[0]).is_approx:
         return agg_as("max")(g, node, args)
-    value = g.sql(args[0])
-    return f"coalesce({g.agg(node, 'max', [not_nan(value)])}, {g.agg(node, 'max', [value])})"
+    return f"-({g.agg(node, 'min', [f'-({g.sql(args[0])})'])})"
 
 
 def _render_max_by(g, node, args) -> str:

@@ -54,10 +54,29 @@ def trino_try_cast(g: Writer, node: exp.TryCast) -> str:
         sql = cast_value(g, operand, source, target)
     finally:
         g.in_try -= 1
-    if target.base == source.base == "array" and target.args[0].base not in ("array", "map", "row"):
-        # Trino's TRY_CAST of an array is NULL when any element fails (not the element alone)
-        sql = f"CASE WHEN list_count({operand}) = list_count({sql}) THEN {sql} END"
     return try_wrap(sql)
+
+
+def row_whole_in_try(g: Writer, present: list[str], row: str, target: TType) -> str:
+    """Inside try() a row whose field conversion fails (a NULL field where `present`, one SQL
+    condition per field, says the source has a value) is NULL, as Trino's whole conversion fails."""
+    if not g.in_try:
+        return row
+    checks = [
+        f"(({condition}) IS NOT TRUE OR struct_extract({row}, {string(name or f'field{index}')}) IS NOT NULL)"
+        for index, (condition, (name, t)) in enumerate(zip(present, target.args))
+        if t.base != "json"
+    ]
+    return f"CASE WHEN {' AND '.join(checks)} THEN {row} END" if checks else row
+
+
+def whole_in_try(g: Writer, expected: str, elements: str) -> str:
+    """Inside try() an element whose conversion fails is NULL; Trino's conversion of the whole array
+    fails there, so the array is NULL when it holds fewer non-NULL elements than `expected` (outside
+    try() a failing element raises)."""
+    if not g.in_try:
+        return elements
+    return f"CASE WHEN list_count({elements}) = {expected} THEN {elements} END"
 
 
 def try_wrap(sql: str) -> str:
@@ -176,14 +195,15 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
         inner = cast_value(g, '"_e"', source.element, target.element)
         if inner == cast('"_e"', target.element):
             return cast(sql, target)
-        return f'list_transform({sql}, lambda "_e": {inner})'
+        return whole_in_try(g, f"list_count({sql})", f'list_transform({sql}, lambda "_e": {inner})')
     if target.base == "row":
-        fields = []
+        fields, present = [], []
         for index, ((_, s), (name, t)) in enumerate(zip(source.args, target.args)):
             src_name = source.args[index][0]
             value = f"struct_extract({sql}, {string(src_name) if src_name else index + 1})"
             fields.append(f"{quote(name or f'field{index}')} := {cast_value(g, value, s, t)}")
-        return f"struct_pack({', '.join(fields)})"
+            present.append(f"{value} IS NOT NULL")
+        return row_whole_in_try(g, present, f"struct_pack({', '.join(fields)})", target)
     return cast(sql, target)
 
 

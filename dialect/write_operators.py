@@ -179,13 +179,18 @@ def decimal_overflow(g: Writer) -> str:
     return g.fail(string("Decimal overflow"), "NUMERIC_VALUE_OUT_OF_RANGE")
 
 
+def approx_remainder(left: str, right: str) -> str:
+    """Java's DOUBLE/REAL remainder: NaN for a zero divisor, NULL when either side is NULL."""
+    return f"CASE WHEN {right} = 0 THEN {left} * CAST('NaN' AS DOUBLE) ELSE {left} % {right} END"
+
+
 @transform(exp.Mod)
 def modulus(g: Writer, node: exp.Mod) -> str:
     """Remainder with the dividend's sign; integer and decimal zero divisors fail, doubles give NaN."""
     t = ttype(node)
     left, right = _operands(g, node)
     if t.is_approx:
-        return cast(f"CASE WHEN {right} = 0 THEN CAST('NaN' AS DOUBLE) ELSE {left} % {right} END", t)
+        return cast(approx_remainder(left, right), t)
     sql = f"({left} % {nonzero(g, right)})"
     return cast(sql, t) if t.is_decimal else sql
 

@@ -150,7 +150,7 @@ def _render_mod(g, node, args) -> str:
     t = ttype(node)
     left, right = g.sql(args[0]), g.sql(args[1])
     if t.is_approx:
-        return tf.cast(f"CASE WHEN {right} = 0 THEN CAST('NaN' AS DOUBLE) ELSE {left} % {right} END", t)
+        return tf.cast(ops.approx_remainder(left, right), t)
     return tf.cast(f"({left} % {ops.nonzero(g, right)})", t)
 
 

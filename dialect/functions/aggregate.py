@@ -229,7 +229,19 @@ def _render_bivariate(g, node, args) -> str:
     sql = g.agg(node, name, values)
     if name != "covar_samp" and name != "covar_pop":
         sql = f"CASE WHEN isfinite({sql}) THEN {sql} END"
+    elif ttype(node).base == "double":
+        # Trino's update multiplies the deviations first (NaN when that product overflows on a group's
+        # first row, where DuckDB's gives 0): finite values whose product overflows are refused
+        x, y = values
+        overflow = g.agg(node, "bool_or", [f"isfinite({x}) AND isfinite({y}) AND isinf({x} * {y})"])
+        sql = f"CASE WHEN {overflow} THEN error({tf.string(_COVARIANCE_OVERFLOW)}) ELSE {sql} END"
     return tf.cast(sql, ttype(node))
+
+
+_COVARIANCE_OVERFLOW = (
+    "NOT_SUPPORTED: unsupported in lakegate: covar_samp or covar_pop of values whose product overflows double "
+    "(Trino's answer depends on the order of the rows)"
+)
 
 
 #: ListaggAggregationFunction: the output limit (DEFAULT_MAX_PAGE_SIZE_IN_BYTES) and its error.

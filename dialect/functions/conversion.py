@@ -6,6 +6,7 @@ import re
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
+from lakegate.dialect import write_casts as casts
 from lakegate.dialect.functions.arguments import fixed, literal_str
 from lakegate.dialect.functions.rendering import MAX_PAD_LENGTH
 from lakegate.dialect.registry import register
@@ -170,12 +171,16 @@ def java_string(sql: str, t: TType) -> str:
 
 
 def java_double(sql: str, duck: str = "DOUBLE") -> str:
-    """Java's Double.toString: plain digits with at least one decimal for 1e-3 <= |x| < 1e7, else
-    computerized scientific notation (1.0E10), from the shortest round-trip digits."""
+    """Java's Double.toString (Float.toString for a FLOAT): plain digits with at least one decimal for
+    1e-3 <= |x| < 1e7, else computerized scientific notation (1.0E10), from the shortest round-trip
+    digits (a double's one digit becomes the two nearest: 4.9E-324)."""
     value = f"CAST({sql} AS {duck})"
-    text = f"CAST(abs({value}) AS VARCHAR)"
-    digits = f"regexp_replace(replace(split_part({text}, 'e', 1), '.', ''), '^0+|0+$', '', 'g')"
-    exponent = f"CAST(split_part(format('{{:.16e}}', CAST(abs({value}) AS DOUBLE)), 'e', 2) AS INTEGER)"
+    if duck == "DOUBLE":
+        digits, exponent = casts.java_digits(value)
+    else:
+        text = f"CAST(abs({value}) AS VARCHAR)"
+        digits = f"regexp_replace(replace(split_part({text}, 'e', 1), '.', ''), '^0+|0+$', '', 'g')"
+        exponent = f"CAST(split_part(format('{{:.16e}}', CAST(abs({value}) AS DOUBLE)), 'e', 2) AS INTEGER)"
     scientific = (
         f"left({digits}, 1) || '.' || coalesce(nullif(substr({digits}, 2), ''), '0') || 'E' || "
         f"CAST({exponent} AS VARCHAR)"

@@ -202,7 +202,7 @@ def _ranked(g, node, x: str, percentages: list[float]) -> str:
     picks = [f"{ranked}[least(floor({p!r} * len({ranked})), len({ranked}) - 1)::BIGINT + 1]" for p in percentages]
     value = f"[{', '.join(picks)}]" if t.base == "array" else picks[0]
     sorted_values = f'list_sort(list_filter({g.agg(node, "list", [x])}, lambda "_v": "_v" IS NOT NULL))'
-    sql = let_bound(sorted_values, ranked, f"CASE WHEN len({ranked}) = 0 THEN NULL ELSE {value} END")
+    sql = let_bound(sorted_values, ranked, f"CASE WHEN coalesce(len({ranked}), 0) = 0 THEN NULL ELSE {value} END")
     if not (t.element if t.base == "array" else t).is_approx:
         return sql
     infinite = g.agg(node, "min", [f"CASE WHEN NOT isfinite({x}) THEN CAST({x} AS VARCHAR) END"])

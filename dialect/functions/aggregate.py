@@ -367,25 +367,43 @@ def _bitwise_agg(call: Call) -> TType:
     return tt.BIGINT
 
 
-def _moment(g, node, args, minimum: int, value: str) -> str:
-    """CentralMomentsAggregation: NULL below `minimum` values, NaN when they are all equal (a zero
-    second moment divides zero by zero), else `value`."""
+_MOMENT_RANGE = "1e60"  # below it, a fourth power of n values stays finite
+_HUGE_MOMENT = (
+    "NOT_SUPPORTED: unsupported in lakegate: skewness or kurtosis of values of magnitude 1e60 or more (Trino's "
+    "moments overflow in an order of its own)"
+)
+
+
+def _moment(g, node, args, minimum: int, value) -> str:
+    """CentralMomentsAggregation: NULL below `minimum` values, NaN when one is NaN or infinite (as
+    the real Trino 476 answers; DuckDB fails) or when they are all equal (a zero second moment
+    divides zero by zero), else `value(x)` of the values; values of 1e60 or more are refused."""
     x = f"CAST({g.sql(args[0])} AS DOUBLE)"
-    count, spread = g.agg(node, "count", [x]), g.agg(node, "var_pop", [x])
-    return f"CASE WHEN {count} < {minimum} THEN NULL WHEN {spread} = 0 THEN CAST('NaN' AS DOUBLE) ELSE {value} END"
+    safe = f"CASE WHEN abs({x}) < {_MOMENT_RANGE} THEN {x} END"
+    count, spread = g.agg(node, "count", [x]), g.agg(node, "var_pop", [safe])
+    infinite = g.agg(node, "bool_or", [f"NOT isfinite({x})"])
+    huge = g.agg(node, "bool_or", [f"abs({x}) >= {_MOMENT_RANGE} AND isfinite({x})"])
+    return (
+        f"CASE WHEN {count} < {minimum} THEN NULL WHEN {infinite} THEN CAST('NaN' AS DOUBLE) "
+        f"WHEN {huge} THEN error({tf.string(_HUGE_MOMENT)}) "
+        f"WHEN {spread} = 0 THEN CAST('NaN' AS DOUBLE) ELSE {value(safe)} END"
+    )
 
 
 def _render_kurtosis(g, node, args) -> str:
     """Trino's estimator, (n-1)n(n+1)/((n-2)(n-3)) m4/m2^2 - 3(n-1)^2/((n-2)(n-3)), is DuckDB's."""
-    return _moment(g, node, args, 4, g.agg(node, "kurtosis", [f"CAST({g.sql(args[0])} AS DOUBLE)"]))
+    return _moment(g, node, args, 4, lambda x: g.agg(node, "kurtosis", [x]))
 
 
 def _render_skewness(g, node, args) -> str:
     """Trino's is the population skewness sqrt(n) m3 / m2^1.5; DuckDB's is the sample skewness,
     that times sqrt(n(n-1))/(n-2)."""
-    x = f"CAST({g.sql(args[0])} AS DOUBLE)"
-    n = g.agg(node, "count", [x])
-    return _moment(g, node, args, 3, f"{g.agg(node, 'skewness', [x])} * ({n} - 2) / sqrt({n} * ({n} - 1))")
+
+    def skewness(x: str) -> str:
+        n = g.agg(node, "count", [x])
+        return f"{g.agg(node, 'skewness', [x])} * ({n} - 2) / sqrt({n} * ({n} - 1))"
+
+    return _moment(g, node, args, 3, skewness)
 
 
 def _reduce_agg(call: Call) -> TType:

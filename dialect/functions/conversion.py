@@ -22,8 +22,15 @@ def _format(call: Call) -> TType:
         call.fail("format() needs a literal format string in lakegate", "NOT_SUPPORTED")
     if None in call.types:
         call.mismatch()
-    _format_parts(call, literal_str(call, 0), call.types[1:])
+    try:
+        _format_parts(call, literal_str(call, 0), call.types[1:])
+    except InvalidFormat as error:  # Trino fails when it formats a row, not over no rows
+        call.node.meta["format_error"] = str(error)
     return tt.VARCHAR
+
+
+class InvalidFormat(ValueError):
+    """A format string java.util.Formatter refuses: Trino's INVALID_FUNCTION_ARGUMENT, raised at run time."""
 
 
 _SPEC = re.compile(r"%(?:(\d+)\$)?([-#+ 0,(<]*)?(\d+)?(?:\.(\d+))?([tT][a-zA-Z]|[a-zA-Z%])")
@@ -59,11 +66,7 @@ def _format_parts(call: Call | None, fmt: str, types: list[TType]) -> list:
             raise ValueError(why)
 
         if "-" in flags and "0" in flags:  # java.util.Formatter: IllegalFormatFlagsException
-            if call is not None:
-                call.fail(
-                    f"Invalid format string: {fmt} (IllegalFormatFlags: Flags = '{flags}')", "INVALID_FUNCTION_ARGUMENT"
-                )
-            raise ValueError("illegal flags")
+            raise InvalidFormat(f"Invalid format string: {fmt} (IllegalFormatFlags: Flags = '{flags}')")
         if conversion not in "sdfxXe":
             reject("only %s, %d, %f, %e, %x, %% and %n are translated")
         if set(flags) - set("-0,") or ("0" in flags and conversion == "s") or ("," in flags and conversion not in "df"):
@@ -78,12 +81,9 @@ def _format_parts(call: Call | None, fmt: str, types: list[TType]) -> list:
         if not index:
             next_arg += 1
         if arg >= len(types):
-            if call is not None:
-                call.fail(
-                    f"Invalid format string: {fmt} (MissingFormatArgument: Format specifier '{match.group(0)}')",
-                    "INVALID_FUNCTION_ARGUMENT",
-                )
-            raise ValueError("missing argument")
+            raise InvalidFormat(
+                f"Invalid format string: {fmt} (MissingFormatArgument: Format specifier '{match.group(0)}')"
+            )
         t = types[arg]
         if conversion in "dxX" and not (t.is_integral or t.is_unknown):
             reject(f"%{conversion} needs an integer argument, got {t}")
@@ -101,14 +101,14 @@ def _format_parts(call: Call | None, fmt: str, types: list[TType]) -> list:
     if position < len(fmt):
         tail = fmt[position:]
         if "%" in tail:
-            if call is not None:
-                call.fail(f"Invalid format string: {fmt} (UnknownFormatConversion)", "INVALID_FUNCTION_ARGUMENT")
-            raise ValueError("dangling %")
+            raise InvalidFormat(f"Invalid format string: {fmt} (UnknownFormatConversion: Conversion = '%')")
         parts.append(tail)
     return parts
 
 
 def _render_format(g, node, args) -> str:
+    if node.meta.get("format_error"):
+        return g.fail(tf.string(node.meta["format_error"]))
     fmt = args[0].name
     values = args[1:]
     pieces = []

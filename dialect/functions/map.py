@@ -104,8 +104,8 @@ def _render_map(g, node, args) -> str:
     if not args:
         return "map()"
     keys, values = g.sql(args[0]), g.sql(args[1])
-    return (
-        f"CASE WHEN len({keys}) <> len({values}) THEN "
+    return (  # a NULL array of either side gives NULL before any key is checked
+        f"CASE WHEN ({keys}) IS NULL OR ({values}) IS NULL THEN NULL WHEN len({keys}) <> len({values}) THEN "
         f"{g.fail(tf.string('Key and value arrays must be the same length'))} "
         f"WHEN list_count({keys}) < len({keys}) THEN {g.fail(tf.string('map key cannot be null'))} "
         f"{_indeterminate_keys(g, keys, ttype(args[0]).element)}"

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from decimal import ROUND_HALF_UP, Decimal
 from pathlib import Path
 
+import orjson
 import pytest
 
 from lakegate.dialect.scope import Scope
@@ -25,6 +26,7 @@ from lakegate.gateway.metrics.evaluation import (
     worst,
 )
 from lakegate.gateway.metrics.results import read_results
+from lakegate.gateway.metrics.templates import render
 from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import Location, Metric, StatusCheck, load_config
 from lakegate.lake.ingest import ingest_job
@@ -700,3 +702,22 @@ def test_platform_tables_exist_empty_on_a_lake_without_their_files(nav, tmp_path
     result = nav.engine.evaluate(config.metrics["Peak memory"], BRANCH, Scope(BATCH, nav.jobs[0].job_id))
     assert result.status == "NO_DATA"
     assert result.error.message == "the query returned one row of NULLs; the status check does not run (NO_DATA)"
+
+
+def test_stored_figures_are_those_rendered_from_the_rows_of_each_query(nav):
+    """The run renders each query's Arrow table column by column (gateway/metrics/result_columns.py);
+    every figure it stored is, byte for byte, the figure rendered from the rows of the same query, as
+    the templates read results before."""
+    stored = {(row["metric_name"], row["job_id"]): row["figure_json"] for row in read_results(nav.lake, BRANCH, BATCH)}
+    compared = set()
+    for result in nav.evaluation.results():
+        metric = nav.config.metrics[result.metric]
+        if result.status == "ERROR" or metric.template_type == "custom" or metric.template_settings:
+            continue
+        scope = Scope(BATCH, result.job_id) if result.job_id else Scope(BATCH)
+        answer = nav.engine.query(metric.query_string, BRANCH, scope)
+        from_rows = render(metric.name, metric.template, answer.columns, answer.rows(), units=metric.units)
+        if from_rows.figure is not None:
+            assert stored[result.metric, result.job_id] == orjson.dumps(from_rows.figure).decode(), result.metric
+            compared.add(metric.template)
+    assert {"line", "histogram", "state_timeline", "bar", "table", "pie"} <= compared

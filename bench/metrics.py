@@ -103,8 +103,11 @@ queries.append([Scope(batch)] + [backend.translate(m.query_string, branch="main"
                                    for m in metrics if m.type != "test"])
 def run(sql_list):
     cursor = backend.connection("main")
-    # the scope's own views, over only its files, as lakegate reads them (made here, timed)
-    cursor.execute(f"SET search_path = '{backend._scope_views(backend._state('main'), 'main', sql_list[0])}'")
+    # the scope's own views of the tables its queries read, over only its files, as lakegate reads them
+    # (made here by the same code, timed)
+    state = backend._state("main")
+    tables = set().union(*(backend._tables(state, sql) for sql in sql_list[1:]))
+    cursor.execute(f"SET search_path = '{backend._scope_views(state, 'main', sql_list[0], tables)}'")
     rows = 0
     for sql in sql_list[1:]:
         rows += cursor.sql(sql).to_arrow_table().num_rows

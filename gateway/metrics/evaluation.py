@@ -622,10 +622,15 @@ class MetricsEngine:
         committed with the results (DuckDB backend; another backend gets them committed first)."""
         if writer is None:
             return self
-        for outcome in outcomes:
-            writer.stage_statuses(
-                outcome.job_id, job_metrics_status=outcome.metrics_status, job_conflated_status=outcome.conflated_status
-            )
+        writer.stage_statuses(
+            {
+                outcome.job_id: {
+                    "job_metrics_status": outcome.metrics_status,
+                    "job_conflated_status": outcome.conflated_status,
+                }
+                for outcome in outcomes
+            }
+        )
         if not isinstance(self.engine.backend, DuckDBBackend):  # a Trino cluster reads only committed files
             writer.commit_statuses()
             return self

@@ -12,8 +12,9 @@ alternating, each in a fresh process:
   batch metrics: a scalar, a bar chart joining metadata, the tag-group table) -- translation,
   per-job scopes, DuckDB, rendering, statuses, metadata updates and the stored results table;
 * baseline: the same queries (their DuckDB SQL, translated beforehand and not timed) run with the
-  same 2 threads, each job's on that job's own views over only its files (made by the same code
-  lakegate uses, timed), the batch metrics on the batch's views, each result fetched as Arrow;
+  same 2 threads, each job's on that job's own views (of the tables its queries read) over only its
+  files (made by the same code lakegate uses, timed), the batch metrics on the batch's views, each
+  result fetched as Arrow;
   nothing translated, rendered, judged or stored.
 
 Reports the median seconds of each, jobs per second, the ratio, and the peak RSS of the

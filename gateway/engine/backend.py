@@ -3,12 +3,13 @@
 `DuckDBBackend` is the embedded default: one in-memory DuckDB database per backend (one memory
 budget, one thread pool), in which each branch is an attached in-memory database with a view per
 lake table (`Catalog.view_sql`), released when idle; a scoped query (a batch or a job) reads views
-over only its scope's files, each made when a query first names its table. It is locked down
-before any user query runs (defence in depth behind the dialect guard): no file access outside the
-lake, no extension installing or loading, settings locked. Each query is translated by
+over only its scope's files, each made when a query first names its table. It is locked down before
+any user query runs (defence in depth behind the dialect guard): no file access outside the lake,
+no extension installing or loading, settings locked. Each query is translated by
 `lakegate.dialect.translate`, checked once more by DuckDB's own parser (exactly one SELECT), and
-run on its own cursor, so queries run concurrently and `QueryResult.cancel()` interrupts just one. EXPLAIN is answered with DuckDB's plan of the translated
-query; SHOW and DESCRIBE are the Engine's (its system tables), not a backend's.
+run on its own cursor, so queries run concurrently and `QueryResult.cancel()` interrupts just one.
+EXPLAIN is answered with DuckDB's plan of the translated query; SHOW and DESCRIBE are the Engine's
+(its system tables), not a backend's.
 
 Every caller (the server, the dashboard, metrics, `lakegate query`) gets the same `Limits`: at most
 `max_concurrent_queries` queries run DuckDB work at once (a query waits for a slot within its time),

@@ -154,6 +154,9 @@ class _Branch:
     views: set[str] = field(default_factory=set)  # the branch-wide views made
     loaded: bool = False  # whether they are those of the stamp's generation
     scopes: OrderedDict = field(default_factory=OrderedDict)  # (generation, batch, job) -> its _ScopeViews
+    #: The tables scoped queries named, of job scopes (True) and of batch scopes (False): a scope's
+    #: first views are made with them, in one transaction (one per view costs about twice as much).
+    scoped_tables: dict[bool, set[str]] = field(default_factory=lambda: {True: set(), False: set()})
     idle: list = field(default_factory=list)  # cursors kept for reuse (`recycle`); list ops are atomic
 
     def cursor(self) -> duckdb.DuckDBPyConnection:
@@ -447,7 +450,8 @@ class DuckDBBackend:
         """The DuckDB schema whose views of `tables` read only the files of `scope` (the job's files
         and its batch's batch-level files, found by the record's index). One schema per scope and
         generation, kept in an LRU; each view is made when a query first names its table (binding a
-        view reads its files' footers), outside the backend's lock, so other queries go on meanwhile."""
+        view reads its files' footers), with those of the tables queries of other scopes of its kind
+        (job or batch) named, outside the backend's lock, so other queries go on meanwhile."""
         key = (state.stamp[0], scope.batch_id, scope.job_id)
         while True:  # a writer may commit meanwhile: the scope's files are then those of its generation
             with self._lock:
@@ -476,6 +480,9 @@ class DuckDBBackend:
                 missing = set(tables).difference(made or ())
                 if made is not None and not missing:
                     return entry.name
+                learned = state.scoped_tables[scope.job_id is not None]
+                missing |= learned.difference(made or ())  # what the scope's next queries likely name
+                learned.update(tables)
                 if self._create_views(state, branch, entry.snapshot, schema=entry.name, tables=missing):
                     entry.made = missing.union(made or ())
                     return entry.name

@@ -701,7 +701,8 @@ def test_branches_share_one_database_and_idle_ones_are_released(tmp_path):
 def test_a_scope_has_views_only_of_the_tables_its_queries_name(tmp_path):
     """A scoped query's views are made when a query first names their tables (binding one reads its
     files' footers): a job scope that read odom holds only odom's view until a query joins metadata;
-    the same scope on other threads at once answers every query as the branch-wide views do."""
+    the next job scope makes those two with the table its first query names, in one transaction (as
+    a metrics run's jobs run the same queries); scopes on threads at once answer as the branch does."""
     lake = build_lake(tmp_path)
     backend = DuckDBBackend(lake, memory_limit="256MB", threads=2)
     views = "SELECT view_name FROM duckdb_views() WHERE schema_name LIKE 'scope_%' ORDER BY 1"
@@ -713,6 +714,12 @@ def test_a_scope_has_views_only_of_the_tables_its_queries_name(tmp_path):
         sql = "SELECT m.experience_name, count(*) FROM odom o JOIN metadata m ON o.job_id = m.job_id GROUP BY 1"
         assert backend.execute(sql, scope=scope).rows() == [("exp j1", 3)]
         assert con.execute(views).fetchall() == [("metadata",), ("odom",)]
+        assert backend.execute("SELECT count(*) FROM time_to_goal", scope=Scope("b1", "j2")).rows() == [(2,)]
+        assert con.execute(views).fetchall() == [("metadata",)] * 2 + [("odom",)] * 2 + [("time_to_goal",)]
+        assert backend.execute("SELECT count(*) FROM odom", scope=Scope("b1")).rows() == [(5,)]  # a batch's: its own
+        assert con.execute(views.replace("ORDER BY 1", "AND view_name = 'time_to_goal'")).fetchall() == [
+            ("time_to_goal",)
+        ]
         con.close()
         total = "SELECT sum(time_s) FROM time_to_goal"  # time_s = 1.5 * i of each job's i-th goal
         queries = [(sql, Scope("b1", "j1")), (sql, Scope("b1", "j2")), (total, None)]

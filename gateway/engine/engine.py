@@ -87,7 +87,7 @@ class Engine:
 
     def answer(self, statement: str | Statement, session: Session) -> Answer:
         """Answer a statement that needs no query: a session statement (USE, SET SESSION, PREPARE, ...:
-        `statements.SESSION_STATEMENTS`), or CALL system.runtime.kill_query (a server's query)."""
+        kind 'session' in `guard.STATEMENTS`), or CALL system.runtime.kill_query (a server's query)."""
         statement = statement if isinstance(statement, Statement) else read(statement)
         if statement.kind == "call":
             query_id, message = sessions.kill_query_arguments(statement.text, session)

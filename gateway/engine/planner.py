@@ -236,7 +236,6 @@ class Planner:
                 "a session statement or CALL cannot be run by EXECUTE; send it on its own", error_name="NOT_SUPPORTED"
             )
         statement.check()  # refuses writes and unknown statements with Trino's message
-        _check_statement_start(statement.text)
         raise DialectError("unsupported in lakegate: this statement", line=1, column=1, error_name="NOT_SUPPORTED")
 
     # -- queries ----------------------------------------------------------------------------
@@ -365,6 +364,8 @@ class Planner:
                 if tree is None
                 else statement.rewritten(_unqualified(tree, statement.body), tuple(edits))
             )
+        elif tree is not None:  # the tree travels with the statement: a query worker process does not parse it again
+            statement = statement.rewritten(tree, ())
         return _Plan(statement, branch, list(system.values()))
 
     # -- prepared statements ----------------------------------------------------------------
@@ -401,29 +402,6 @@ def _session_names(session: Session) -> SessionNames:
     catalog and schema names (as sent, whether they exist or not) and keeps the user as it is."""
     catalog, schema = session.catalog, session.schema
     return SessionNames(session.user, catalog and catalog.lower(), schema and schema.lower())
-
-
-#: The words a Trino 476 statement may start with, in the order its parser lists them when another
-#: word starts one (a query may also start with SELECT, VALUES, TABLE or a parenthesis).
-_STATEMENT_STARTS = (
-    "ALTER ANALYZE CALL COMMENT COMMIT CREATE DEALLOCATE DELETE DENY DESC DESCRIBE DROP EXECUTE EXPLAIN GRANT "
-    "INSERT MERGE PREPARE REFRESH RESET REVOKE ROLLBACK SET SHOW START TRUNCATE UPDATE USE WITH"
-).split()
-
-
-def _check_statement_start(sql: str) -> None:
-    """A statement whose first word starts no Trino statement is Trino's SYNTAX_ERROR at that word."""
-    tokens = [token for token in Trino().tokenize(sql) if token.token_type != TokenType.L_PAREN]
-    if not tokens or tokens[0].text.upper() in (*_STATEMENT_STARTS, "SELECT", "VALUES", "TABLE"):
-        return
-    line, column = _where(sql, tokens[0].start)
-    expecting = ", ".join(f"'{word}'" for word in _STATEMENT_STARTS)
-    raise DialectError(
-        f"mismatched input '{tokens[0].text}'. Expecting: {expecting}, <query>",
-        line=line,
-        column=column,
-        error_name="SYNTAX_ERROR",
-    )
 
 
 def _parameter_count(statement: Statement) -> int:

@@ -200,10 +200,10 @@ class _Plan:
 
 
 class Planner:
-    """Starts statements over `backend` and the system tables of `metadata`."""
+    """Starts statements over `backend` and the system tables of `system_catalog`."""
 
-    def __init__(self, backend: Backend, metadata: SystemCatalog):
-        self.backend, self.metadata = backend, metadata
+    def __init__(self, backend: Backend, system_catalog: SystemCatalog):
+        self.backend, self.system_catalog = backend, system_catalog
 
     def start(self, statement: Statement, session: Session, params: Sequence[object] = ()) -> QueryResult:
         """Start one statement (anything but a session statement or CALL); DialectError when it is
@@ -228,7 +228,7 @@ class Planner:
                     error_name="INVALID_PARAMETER_USAGE",
                 )
             statement.check()
-            return static_result(self.metadata.show(statement, session))
+            return static_result(self.system_catalog.show(statement, session))
         if kind in ("query", "explain"):
             return self._query(statement, session, params)
         if kind in ("session", "call"):
@@ -263,17 +263,17 @@ class Planner:
                 column=1,
                 error_name="NOT_SUPPORTED",
             )
-        return self.metadata.run(
+        return self.system_catalog.run(
             plan.statement, plan.system, params, user=session.user, time_zone=session.zone(), session=names
         )
 
     def _default_branch(self, session: Session) -> str | None:
         """Where a query that reads no table runs: the session's branch, else any branch (None: the
         lake has none)."""
-        branches = self.metadata.branches()
-        if session.schema is not None and (session.catalog or "").lower() == self.metadata.catalog:
+        branches = self.system_catalog.branches()
+        if session.schema is not None and (session.catalog or "").lower() == self.system_catalog.catalog:
             try:
-                schema = self.metadata.schema_name(self.metadata.catalog, session.schema)
+                schema = self.system_catalog.schema_name(self.system_catalog.catalog, session.schema)
             except DialectError:
                 schema = None
             if schema in branches:
@@ -298,7 +298,7 @@ class Planner:
             start = offset + reference.start
             line, column = _where(sql, start)
             try:
-                table = self.metadata.resolve(reference.parts, session, line=line, column=column)
+                table = self.system_catalog.resolve(reference.parts, session, line=line, column=column)
             except DialectError:
                 if len(reference.parts) == 1 and reference.parts[0].lower() in names.ctes:
                     continue  # a CTE's name
@@ -345,7 +345,7 @@ class Planner:
             start = offset + reference.start
             line, column = _where(sql, start)
             try:
-                table = self.metadata.resolve(reference.parts, session, line=line, column=column)
+                table = self.system_catalog.resolve(reference.parts, session, line=line, column=column)
             except DialectError:
                 table = None
             if table not in read_tables:

@@ -82,8 +82,7 @@ class Statement:
             raise shifted(error, self.text, self.offset) from None
 
     def rewritten(self, tree: exp.Expression, edits: tuple[tuple[int, int, str], ...]) -> Statement:
-        """This statement with `tree` (a changed copy of `tree`, or `tree` itself when `edits` are
-        none: the planner's tree, handed on with it) and the text `edits` that make it."""
+        """This statement with `tree` (a changed copy of `tree`) and the text `edits` that make it."""
         return replace(self, planned=tree, edits=edits)
 
     def with_edits(self, edits: tuple[tuple[int, int, str], ...]) -> Statement:

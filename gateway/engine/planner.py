@@ -364,8 +364,6 @@ class Planner:
                 if tree is None
                 else statement.rewritten(_unqualified(tree, statement.body), tuple(edits))
             )
-        elif tree is not None:  # the tree travels with the statement: a query worker process does not parse it again
-            statement = statement.rewritten(tree, ())
         return _Plan(statement, branch, list(system.values()))
 
     # -- prepared statements ----------------------------------------------------------------

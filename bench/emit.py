@@ -38,7 +38,11 @@ PROFILE_NOTE = (
     "and writing the lines about 25%; now, checking the columns (exact-type counts, min/max of the timest"
     "amps, NumPy finiteness and magnitude tests) about 25%, one `orjson.dumps` per block of 4,096 lines a"
     "bout 30%, one `bytes.translate` per block about 20%, laying out the blocks' flat lists about 6%, the"
-    " write about 15%"
+    " write about 15%. Validated `emit()` of the 3-float topic (CPU ns per emit, one process, best of 5):"
+    " before, 1,163 in `emit()` (three `orjson.dumps` and a %-format per record, ~250 in the wrapper) and"
+    " 156 writing; now, a topic of numbers only queues its checked values (~340 of checks, ~200 of"
+    " wrapper) and the writer encodes each run of such rows as one block (one `orjson.dumps`, one"
+    " `bytes.translate`: 367 writing)"
 )
 #: Each reference: its venv, the distribution pinned into it, and the module holding its Emitter.
 REFERENCES = {

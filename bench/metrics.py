@@ -11,9 +11,11 @@ alternating, each in a fresh process:
   two line charts, two scalars with status checks, a table, a state timeline, a histogram; 3
   batch metrics: a scalar, a bar chart joining metadata, the tag-group table) -- translation,
   per-job scopes, DuckDB, rendering, statuses, metadata updates and the stored results table;
-* baseline: the same queries (their DuckDB SQL, translated beforehand and not timed) run with the
-  same 2 threads, each job's on that job's own views over only its files (made by the same code
-  lakegate uses, timed), the batch metrics on the batch's views, each result fetched as Arrow;
+* baseline: the same queries (their DuckDB SQL, translated beforehand and not timed; a status check's
+  warn query when its block query finds no row, as lakegate judges it) run with the
+  same 2 threads, each job's on that job's own views (of the tables its queries read) over only its
+  files (made by the same code lakegate uses, timed), the batch metrics on the batch's views, each
+  result fetched as Arrow;
   nothing translated, rendered, judged or stored.
 
 Reports the median seconds of each, jobs per second, the ratio, and the peak RSS of the
@@ -95,19 +97,32 @@ for job in jobs:
         if m.type != "test":
             continue
         sql.append(backend.translate(m.query_string, branch="main", scope=scope).duckdb_sql)
-        if m.status is not None:
-            sql.append(backend.translate(m.status.query_string, branch="main", scope=scope,
-                                         params=(m.status.block,)).duckdb_sql)
+        if m.status is not None:  # (block query, warn query run when the block query finds no row)
+            block, warn = ((backend.translate(m.status.query_string, branch="main", scope=scope,
+                                              params=(threshold,)).duckdb_sql if threshold is not None else None)
+                           for threshold in (m.status.block, m.status.warn))
+            sql.append((block, warn))
     queries.append(sql)
 queries.append([Scope(batch)] + [backend.translate(m.query_string, branch="main", scope=Scope(batch)).duckdb_sql
                                    for m in metrics if m.type != "test"])
 def run(sql_list):
     cursor = backend.connection("main")
-    # the scope's own views, over only its files, as lakegate reads them (made here, timed)
-    cursor.execute(f"SET search_path = '{backend._scope_views(backend._state('main'), 'main', sql_list[0])}'")
+    # the scope's own views of the tables its queries read, over only its files, as lakegate reads them
+    # (made here by the same code, timed)
+    state = backend._state("main")
+    texts = [text for sql in sql_list[1:] for text in ([sql] if isinstance(sql, str) else sql) if text]
+    tables = set().union(*(backend._tables(state, text) for text in texts))
+    cursor.execute(f"SET search_path = '{backend._scope_views(state, 'main', sql_list[0], tables)}'")
     rows = 0
     for sql in sql_list[1:]:
-        rows += cursor.sql(sql).to_arrow_table().num_rows
+        if isinstance(sql, str):
+            rows += cursor.sql(sql).to_arrow_table().num_rows
+            continue
+        block, warn = sql  # a status check: the warn query runs when the block query found no row
+        found = cursor.sql(block).to_arrow_table().num_rows
+        if not found and warn is not None:
+            found = cursor.sql(warn).to_arrow_table().num_rows
+        rows += found
     cursor.close()
     return rows
 start = time.perf_counter()

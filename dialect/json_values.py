@@ -134,6 +134,8 @@ def from_json(g, sql: str, target: TType) -> str:
     if target.base == "array":
         inner = from_json(g, '"_j"', target.element)
         each = tf.cast(f'list_transform({elements(sql)}, lambda "_j": {inner})', target)
+        present = f'len(list_filter({elements(sql)}, lambda "_j": json_type("_j") <> \'NULL\'))'
+        each = casts.whole_in_try(g, present, each)
         return f"CASE {null} WHEN {kind_} = 'ARRAY' THEN {each} ELSE {bad} END"
     if target.base == "map":
         return f"CASE {null} WHEN {kind_} = 'OBJECT' THEN {_object_to_map(g, sql, target)} ELSE {bad} END"
@@ -166,6 +168,9 @@ def _object_to_map(g, sql: str, target: TType) -> str:
     value = from_json(g, _member("struct_extract(\"_e\", 'value')", target.args[1]), target.args[1])
     entry = f'struct_pack("key" := struct_extract("_e", \'key\'), "value" := {value})'
     each = tf.cast(f'map_from_entries(list_transform(map_entries({members}), lambda "_e": {entry}))', target)
+    if g.in_try and target.args[1].base != "json":  # a value that fails makes the whole map NULL
+        present = f'len(list_filter(map_values({members}), lambda "_v": "_v" IS NOT NULL))'
+        each = f"CASE WHEN list_count(map_values({each})) = {present} THEN {each} END"
     duplicate = g.fail(f"'Duplicate keys are not allowed: ' || CAST({sql} AS VARCHAR)", "INVALID_CAST_ARGUMENT")
     return f"CASE WHEN {members} IS NULL THEN {duplicate} ELSE {each} END"
 
@@ -185,7 +190,9 @@ def _array_to_row(g, sql: str, target: TType, bad: str) -> str:
     """A JSON array of exactly as many elements as the row has fields, field by field."""
     items = elements(sql)
     values = [from_json(g, f"{items}[{i + 1}]", t) for i, (_, t) in enumerate(target.args)]
-    return f"CASE WHEN json_array_length({sql}) <> {len(target.args)} THEN {bad} ELSE {_row(g, values, target)} END"
+    present = [f"json_type({items}[{i + 1}]) <> 'NULL'" for i in range(len(target.args))]
+    row = casts.row_whole_in_try(g, present, _row(g, values, target), target)
+    return f"CASE WHEN json_array_length({sql}) <> {len(target.args)} THEN {bad} ELSE {row} END"
 
 
 _REPEATED_MEMBER = "NOT_SUPPORTED: CAST of a JSON object with a repeated key to a row"
@@ -198,7 +205,7 @@ def _object_to_row(g, sql: str, target: TType, bad: str) -> str:
     if any(name is None for name, _ in target.args):
         return bad
     members = f"json_transform({sql}, '\"MAP(VARCHAR, JSON)\"')"
-    values = []
+    values, present = [], []
     for name, t in target.args:
         named = f"lower(struct_extract(\"_e\", 'key')) = {tf.string(name)}"
         matching = (
@@ -208,7 +215,9 @@ def _object_to_row(g, sql: str, target: TType, bad: str) -> str:
         duplicate = g.fail(f"'Duplicate field: {name}'", "INVALID_CAST_ARGUMENT")
         value = from_json(g, f"CASE WHEN len({matching}) > 0 THEN {_member(f'{matching}[1]', t)} END", t)
         values.append(f"CASE WHEN len({matching}) > 1 THEN {duplicate} ELSE {value} END")
-    return f"CASE WHEN {members} IS NULL THEN error({tf.string(_REPEATED_MEMBER)}) ELSE {_row(g, values, target)} END"
+        present.append(f"len({matching}) > 0 AND json_type({matching}[1]) <> 'NULL'")
+    row = casts.row_whole_in_try(g, present, _row(g, values, target), target)
+    return f"CASE WHEN {members} IS NULL THEN error({tf.string(_REPEATED_MEMBER)}) ELSE {row} END"
 
 
 def _exact(g, text: str, target: TType, bad: str) -> str:

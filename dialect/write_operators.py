@@ -179,13 +179,18 @@ def decimal_overflow(g: Writer) -> str:
     return g.fail(string("Decimal overflow"), "NUMERIC_VALUE_OUT_OF_RANGE")
 
 
+def approx_remainder(left: str, right: str) -> str:
+    """Java's DOUBLE/REAL remainder: NaN for a zero divisor, NULL when either side is NULL."""
+    return f"CASE WHEN {right} = 0 THEN {left} * CAST('NaN' AS DOUBLE) ELSE {left} % {right} END"
+
+
 @transform(exp.Mod)
 def modulus(g: Writer, node: exp.Mod) -> str:
     """Remainder with the dividend's sign; integer and decimal zero divisors fail, doubles give NaN."""
     t = ttype(node)
     left, right = _operands(g, node)
     if t.is_approx:
-        return cast(f"CASE WHEN {right} = 0 THEN CAST('NaN' AS DOUBLE) ELSE {left} % {right} END", t)
+        return cast(approx_remainder(left, right), t)
     sql = f"({left} % {nonzero(g, right)})"
     return cast(sql, t) if t.is_decimal else sql
 
@@ -346,6 +351,15 @@ def _nested_in_list(g: Writer, node: exp.In, common: TType) -> str:
     return "(" + " OR ".join(f"({trino_equal(value, g.coerce(i, common), common)})" for i in node.expressions) + ")"
 
 
+def _variable(node: exp.Expression) -> bool:
+    """A column or a lambda's parameter: what Trino's planner does not fold as a constant."""
+    return isinstance(node, exp.Column) or isinstance(node, exp.Identifier) and bool(node.meta.get("lambda"))
+
+
+def _holds_variable(node: exp.Expression) -> bool:
+    return any(_variable(n) for n in node.walk())
+
+
 def _nan_in_list(g: Writer, node: exp.In, common: TType, sql: str) -> str:
     """NaN IN (...) as the real Trino 476 answers: NaN equals no item (DuckDB's IN matches NaN with
     NaN), except where Trino's planner matches before comparing, in a list not wholly constant: the
@@ -353,11 +367,11 @@ def _nan_in_list(g: Writer, node: exp.In, common: TType, sql: str) -> str:
     (`nan() IN (x, sqrt(-1))`). NULL when nothing matches and an item is NULL."""
     value = g.coerce(node.this, common)
     matches = []
-    if node.find(exp.Column) is not None:
-        if isinstance(node.this, exp.Column) and any(item == node.this for item in node.expressions):
+    if _holds_variable(node):
+        if _variable(node.this) and any(item == node.this for item in node.expressions):
             matches.append("true")
-        if node.this.find(exp.Column) is None:
-            constants = [i for i in node.expressions if i.find(exp.Column) is None]
+        if not _holds_variable(node.this):
+            constants = [i for i in node.expressions if not _holds_variable(i)]
             matches += [f"isnan({g.coerce(i, common)})" for i in constants if not isinstance(i, exp.Null)]
     nulls = " OR ".join(f"({g.coerce(i, common)}) IS NULL" for i in node.expressions)
     matched = f"WHEN {' OR '.join(matches)} THEN true " if matches else ""

@@ -43,8 +43,15 @@ def jobs_rows(source: Path, job_ids: Sequence[str], *, v1: bool, position: int) 
     """The rows of each of `job_ids` in `source`, read once (a v1 file holds one job: `job_rows`)."""
     if v1:
         return {job_id: job_rows(source, job_id, v1=True, position=position) for job_id in job_ids}
-    table = LOCAL.read_parquet(source, filters=pc.field(JOB_ID).isin(list(job_ids)), partitioning=None)
+    table = jobs_table(source, job_ids, v1=False, position=position)
     return {job_id: table.filter(pc.field(JOB_ID) == job_id) for job_id in job_ids}
+
+
+def jobs_table(source: Path, job_ids: Sequence[str], *, v1: bool, position: int) -> pa.Table:
+    """The rows of `job_ids` in `source`, as one table in file order (a v1 file holds one job: `job_rows`)."""
+    if v1:
+        return pa.concat_tables(job_rows(source, job_id, v1=True, position=position) for job_id in job_ids)
+    return LOCAL.read_parquet(source, filters=pc.field(JOB_ID).isin(list(job_ids)), partitioning=None)
 
 
 def job_id_position(table: str, names: Sequence[str]) -> int:

@@ -40,6 +40,7 @@ import warnings
 import weakref
 from collections import deque
 from collections.abc import Callable, Iterable, Mapping
+from itertools import groupby, repeat, starmap
 from json.encoder import encode_basestring_ascii as _json_str
 from pathlib import Path
 from types import TracebackType
@@ -48,7 +49,7 @@ from typing import Any
 import orjson
 
 from lakegate.lake.config import Topic, load_config
-from lakegate.lake.series_lines import SeriesLines
+from lakegate.lake.series_lines import SeriesLines, rows_text
 from lakegate.lake.types import MAX_JSON_DEPTH, MAX_LINE_BYTES, check_value, is_utf8, json_too_deep
 
 DEFAULT_OUTPUT_PATH = Path("/tmp/resim/outputs/emissions.resim.jsonl")
@@ -173,6 +174,7 @@ _FAST = {
     "string": ("type(@) is str and @.isascii()", "_json_str(@).encode()", None),
 }
 _FAST.update({t: _FAST["string"] for t in ("status", "image", "video")})
+_TIMESTAMP_CHECK = "if type(ts) is not int or not 0 <= ts <= 0x7FFFFFFFFFFFFFFF: ts = _check_timestamp(TOPIC, ts)"
 _PLAIN_END = b'}, "$data": '
 _EVENT_END = b', "event": true}, "$data": '
 
@@ -182,15 +184,29 @@ def _float_json(topic: str, field: str, value: Any) -> bytes:
     return repr(_checked(topic, field, "float", value)).encode()
 
 
+# Per field type of a row (`_Codec.row`): the test under which the value @ goes to orjson as it
+# is (its text is then the same as `_FAST`'s), and the checked item otherwise.
+_ROW = {
+    "float": (
+        "type(@) is float and (1e-4 <= @ < 1e999 or -1e999 < @ <= -1e-4 or @ == 0.0)",  # NaN compares false
+        "_fragment(_float_json(TOPIC, NAME, @))",
+    ),
+    "int": (_FAST["int"][0], "_checked(TOPIC, NAME, 'int', @)"),
+    "boolean": (_FAST["boolean"][0], "_checked(TOPIC, NAME, 'boolean', @)"),
+}
+
+
 def _percent(text: str) -> bytes:
     """ASCII text as the literal part of a bytes %-format."""
     return text.replace("%", "%%").encode()
 
 
 class _Codec:
-    """A topic compiled into two functions that validate records and return their JSON lines.
+    """A topic compiled into functions that validate records and return their JSON lines.
 
     `line(data, timestamp, end)` takes one record as a dict and returns its line (bytes);
+    `row(data, timestamp)`, made for topics of float, int and boolean fields only (else None),
+    checks it the same way and returns the row that `rows_text` turns into the same line;
     `series(end, timestamps, *columns)` takes one list per field, in schema order, and returns
     the list of lines (an error names the index). `end` closes `$metadata`: `_PLAIN_END` or
     `_EVENT_END`. The code is generated (as dataclasses do) so that the common case runs
@@ -198,17 +214,18 @@ class _Codec:
     column (`SeriesLines.encode`), or returns None for `series` to check it record by record.
     """
 
-    __slots__ = ("topic", "fields", "line", "series", "blocks")
+    __slots__ = ("topic", "fields", "layout", "line", "series", "row", "blocks")
 
     def __init__(self, topic: Topic):
         self.topic = topic
         self.fields = tuple(topic.fields)
-        self.line, self.series = self._compile()
-        self.blocks = SeriesLines(topic.name, topic.fields).encode
+        self.layout = SeriesLines(topic.name, topic.fields)
+        self.line, self.series, self.row = self._compile()
+        self.blocks = self.layout.encode
 
     def _record(self, indent: str) -> list[str]:
         """Source lines that check `ts` and `v0`, `v1`, ... and build the JSON line `text`."""
-        checks = ["if type(ts) is not int or not 0 <= ts <= 0x7FFFFFFFFFFFFFFF: ts = _check_timestamp(TOPIC, ts)"]
+        checks = [_TIMESTAMP_CHECK]
         template = _percent(f'{{"$metadata": {{"topic": {_json_str(self.topic.name)}, "timestamp": ') + b"%d%b{"
         texts = ["ts", "end"]
         for i, (name, field_type) in enumerate(self.topic.fields.items()):
@@ -231,13 +248,12 @@ class _Codec:
         checks.append("if len(text) > MAX_TEXT: _check_length(TOPIC, text)")
         return [indent + check for check in checks]
 
-    def _compile(self) -> tuple[Callable[..., bytes], Callable[..., list[bytes]]]:
+    def _unpack(self) -> list[str]:
+        """Source lines that check the field names of `data` and set `v0`, `v1`, ... to its values."""
         names = "".join(f"v{i}, " for i in range(len(self.fields)))
-        columns = "".join(f"c{i}, " for i in range(len(self.fields)))
         get = f"{names}= {''.join(f'data[{f!r}], ' for f in self.fields)}" if names else "pass"
         unpack = f"{names}= _fields_of(data)" if names else "_fields_of(data)"
-        source = [
-            "def line(data, ts, end=PLAIN_END):",
+        return [
             f"    if type(data) is dict and len(data) == {len(self.fields)}:",
             "        try:",
             f"            {get}",
@@ -245,6 +261,31 @@ class _Codec:
             f"            {unpack}",
             "    else:",
             f"        {unpack}",
+        ]
+
+    def _row(self) -> list[str]:
+        """Source of `row`, or nothing if a field type has no row form or a line could be too long."""
+        types = self.topic.fields.values()
+        longest = self.layout.constant_length + 24 * (len(types) + 1)  # 24: the longest number text
+        if not all(t in _ROW for t in types) or longest > MAX_LINE_BYTES + 1:
+            return []
+        source = ["def row(data, ts):", *self._unpack(), "    " + _TIMESTAMP_CHECK]
+        items = ["P0", "ts"]
+        for i, (name, field_type) in enumerate(self.topic.fields.items()):
+            test, slow = (part.replace("@", f"v{i}").replace("NAME", repr(name)) for part in _ROW[field_type])
+            source.append(f"    if not ({test}): v{i} = {slow}")
+            items += [f"P{i + 1}", f"v{i}"]
+        items.append(f"P{len(types) + 1}")
+        return [*source, f"    return ({', '.join(items)})"]
+
+    def _compile(
+        self,
+    ) -> tuple[Callable[..., bytes], Callable[..., list[bytes]], Callable[..., tuple[Any, ...]] | None]:
+        names = "".join(f"v{i}, " for i in range(len(self.fields)))
+        columns = "".join(f"c{i}, " for i in range(len(self.fields)))
+        source = [
+            "def line(data, ts, end=PLAIN_END):",
+            *self._unpack(),
             *self._record("    "),
             "    return text",
             f"def series(end, stamps, {columns}):",
@@ -257,6 +298,7 @@ class _Codec:
             "    except ValidationError as exc:",
             "        raise exc.at(len(lines)) from None",
             "    return lines",
+            *self._row(),
         ]
         namespace: dict[str, Any] = {
             "_json_str": _json_str,
@@ -271,9 +313,11 @@ class _Codec:
             "PLAIN_END": _PLAIN_END,
             "MAX_TEXT": MAX_LINE_BYTES + 1,
             "_check_length": _check_length,
+            "_fragment": orjson.Fragment,
+            **{f"P{i}": part for i, part in enumerate(self.layout.parts)},
         }
         exec("\n".join(source), namespace)  # noqa: S102 - names and templates are repr()'d
-        return namespace["line"], namespace["series"]
+        return namespace["line"], namespace["series"], namespace.get("row")
 
     def fields_of(self, data: Any) -> list[Any]:
         """The values of `data` in schema order, or ValidationError for a non-mapping or wrong keys."""
@@ -384,7 +428,9 @@ class Emitter:
     raises `ConfigError`. Lines are appended to `output_path` (parent folders are created).
 
     Flush policy: validated lines are queued in memory and appended to the file in
-    whole-line chunks, in emission order, by a daemon flusher thread every `flush_interval`
+    whole-line chunks, in emission order (a record of a topic whose fields are all float, int
+    or boolean is queued as its checked values, which are immutable, and becomes its line
+    when written), by a daemon flusher thread every `flush_interval`
     seconds and as soon as 8192 lines are queued (by the emitting thread itself if 65536 are
     waiting, or when one `emit_series` call brings 8192 or more), and on `flush()`, `close()`,
     garbage collection and interpreter exit (atexit).
@@ -432,7 +478,8 @@ class Emitter:
         self.topics: dict[str, Topic] = self._load_topics()
         self.validation_enabled = bool(self.topics)
         self._codecs = {name: _Codec(topic) for name, topic in self.topics.items()}
-        self._lines = {name: codec.line for name, codec in self._codecs.items()}
+        # emit() queues a row where the topic has one (made into lines when written), else a line
+        self._emits = {name: codec.row or codec.line for name, codec in self._codecs.items()}
         self.output_path.parent.mkdir(parents=True, exist_ok=True)
         self._fd = os.open(self.output_path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o666)  # not inherited by exec
         self._closed = False
@@ -450,10 +497,12 @@ class Emitter:
 
     def _start(self, chunk_lines: int, max_queued: int) -> None:
         """Fresh queue and lock, and the flusher thread unless every emit writes (`max_queued` 1)."""
-        self._queue: deque[bytes] = deque()  # appends and pops are atomic: emitting threads take no lock
+        # lines, blocks of lines and rows; appends and pops are atomic: emitting threads take no lock
+        self._queue: deque[bytes | tuple[Any, ...]] = deque()
         self._write_lock = threading.Lock()  # held while lines are taken and written: keeps their order
         self._wake = threading.Event()  # set: the flusher thread should write now (or stop, once closed)
         self._chunk_lines, self._max_queued = chunk_lines, max_queued
+        self._wake_at = chunk_lines  # a queue this long is to be written (chunk_ready); max_queued once woken
         self._error: OSError | None = None  # a write error of the flusher thread, not yet raised
         self._stopped = False  # closed, or _error set: emit must look before queuing
         if max_queued > 1:
@@ -468,16 +517,16 @@ class Emitter:
 
     def emit(self, topic_name: str, data: dict[str, Any], timestamp: int | None = None) -> None:
         """Emit one record of `topic_name` at `timestamp` (int nanoseconds, required)."""
-        encode = self._lines.get(topic_name)
+        encode = self._emits.get(topic_name)
         if encode is not None:
-            line = encode(data, timestamp)
+            item = encode(data, timestamp)
         else:
-            line = self._unvalidated_line(topic_name, data, timestamp, _PLAIN_END)
+            item = self._unvalidated_line(topic_name, data, timestamp, _PLAIN_END)
         if self._stopped:
             self._raise_stopped()
         queue = self._queue
-        queue.append(line)
-        if len(queue) >= self._chunk_lines:
+        queue.append(item)
+        if len(queue) >= self._wake_at:
             self._chunk_ready()
 
     def emit_event(self, topic_name: str, data: dict[str, Any], timestamp: int) -> None:
@@ -551,7 +600,7 @@ class Emitter:
         if self._stopped:
             self._raise_stopped()
         self._queue.extend(lines)
-        if len(self._queue) >= self._chunk_lines:
+        if len(self._queue) >= self._wake_at:
             self._chunk_ready()
 
     def _append_blocks(self, blocks: list[bytes], count: int) -> None:
@@ -581,25 +630,33 @@ class Emitter:
 
     def _chunk_ready(self) -> None:
         """Have a full chunk written: by the flusher thread (file writes release the GIL, so
-        emitting goes on meanwhile), or right here when the flusher is far behind (or absent)."""
+        emitting goes on meanwhile), or right here when the flusher is far behind (or absent).
+        Once the flusher is woken, emit looks again only at `_max_queued` lines or after a flush."""
         if len(self._queue) >= self._max_queued:
             try:
                 self.flush()
             except OSError as exc:
                 self._fail(exc)
-        elif not self._wake.is_set():
+        else:
+            self._wake_at = self._max_queued  # before waking it: its flush sets it back
             self._wake.set()
 
     def _write_queued(self) -> None:
         """Append the queued lines to the file; call with _write_lock held.
 
-        A few queued items (blocks of whole lines of `emit_series`) are handed to `os.writev`
-        as they are; many (single lines of `emit`) are joined into one buffer first. Only
-        whole lines stay in the file: after a short write the partial line is cut off. On
-        OSError the lines not written go back to the front of the queue.
+        Each run of queued rows (of `emit`) becomes one block of their lines. A few items
+        (blocks of whole lines of `emit_series` or rows) are handed to `os.writev` as they are;
+        many (single lines) are joined into one buffer first. Only whole lines stay in the file:
+        after a short write the partial line is cut off. On OSError the lines not written go
+        back to the front of the queue.
         """
         queue = self._queue
-        items = [queue.popleft() for _ in range(len(queue))]
+        items: list[bytes] = []
+        for kind, run in groupby(starmap(queue.popleft, repeat((), len(queue))), type):
+            if kind is tuple:
+                items.append(rows_text(list(run)))
+            else:
+                items.extend(run)
         if len(items) > _WRITEV_ITEMS:
             items = [b"".join(items)]
         done = 0
@@ -634,6 +691,7 @@ class Emitter:
             if self._closed:
                 return
             error, self._error, self._stopped = self._error, None, False
+            self._wake_at = self._chunk_lines
             if self._queue:
                 self._write_queued()
             elif error is not None:

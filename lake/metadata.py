@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import datetime as dt
 import uuid
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -22,9 +23,9 @@ from ruamel.yaml import YAML
 from ruamel.yaml.nodes import MappingNode, Node, ScalarNode, SequenceNode
 
 from lakegate.lake import paths
-from lakegate.lake.batch_files import job_id_position, job_rows, write_jobs
+from lakegate.lake.batch_files import job_id_position, jobs_table, write_jobs
 from lakegate.lake.config_yaml import FileReader, RawProblem, describe, did_you_mean
-from lakegate.lake.record import Change, current_file
+from lakegate.lake.record import Change, Record
 from lakegate.lake.schema import METADATA_COLUMNS, file_schema
 from lakegate.lake.storage import LOCAL
 
@@ -280,17 +281,34 @@ def write_metadata_file(table: pa.Table, path: Path) -> None:
 
 def read_metadata_row(lake: Path, branch: str, batch_id: str, job_id: str) -> dict[str, Any] | None:
     """The metadata row of one job (every column, timestamps as naive UTC datetimes), or None."""
-    target = current_file(lake, branch, paths.METADATA_TABLE, batch_id, job_id)
-    if target is None:
-        return None
-    v1 = paths.is_v1_path(target.as_posix())
-    table = job_rows(target, job_id, v1=v1, position=job_id_position(paths.METADATA_TABLE, ()))
-    for field in FILE_SCHEMA:  # a file written before a column existed reads it as NULL, as the SQL side does
-        if field.name not in table.column_names:
-            table = table.append_column(field, pa.nulls(table.num_rows, field.type))
-    stored = table.select(FILE_SCHEMA.names).cast(FILE_SCHEMA).to_pylist()[0]
-    stored.update(batch_id=batch_id, job_id=job_id)
-    return {name: stored.get(name) for name in COLUMN_NAMES}
+    return read_metadata_rows(lake, branch, batch_id, [job_id]).get(job_id)
+
+
+def read_metadata_rows(lake: Path, branch: str, batch_id: str, job_ids: Sequence[str]) -> dict[str, dict[str, Any]]:
+    """The metadata rows of jobs of one batch, as `read_metadata_row` reads each (job id -> row; a job
+    without one is left out), each file read once (a compacted batch has one for every job)."""
+    record = Record(lake, branch)
+    try:
+        entries = {job_id: record.find(paths.METADATA_TABLE, batch_id, job_id) for job_id in job_ids}
+    finally:
+        record.close()
+    files: dict[Path, list[str]] = {}
+    for job_id, entry in entries.items():
+        if entry is not None:
+            files.setdefault(record.root / entry.path, []).append(job_id)
+    rows: dict[str, dict[str, Any]] = {}
+    for target, jobs in files.items():
+        v1 = paths.is_v1_path(target.as_posix())
+        table = jobs_table(target, jobs, v1=v1, position=job_id_position(paths.METADATA_TABLE, ()))
+        ids = table.column("job_id").to_pylist()
+        for field in FILE_SCHEMA:  # a file written before a column existed reads it as NULL, as the SQL side does
+            if field.name not in table.column_names:
+                table = table.append_column(field, pa.nulls(table.num_rows, field.type))
+        for job_id, stored in zip(ids, table.select(FILE_SCHEMA.names).cast(FILE_SCHEMA).to_pylist()):
+            if job_id not in rows:  # the first row of a job, as its one row
+                stored.update(batch_id=batch_id, job_id=job_id)
+                rows[job_id] = {name: stored.get(name) for name in COLUMN_NAMES}
+    return {job_id: rows[job_id] for job_id in job_ids if job_id in rows}
 
 
 def update_metadata_row(lake: Path, branch: str, batch_id: str, job_id: str, **changes: Any) -> dict[str, Any]:

@@ -19,6 +19,9 @@ cannot; text values are escaped first, and JSON escapes control characters).
 orjson writes floats with the shortest round-trip digits, as `repr` does, but in another
 notation below 1e-4 in magnitude (`0.00001` and `1e-7` for repr's `1e-05` and `1e-07`):
 those few values are given as fragments of their `repr`.
+
+`rows_text(rows)` does the same for records queued one by one by `Emitter.emit`: each row is a
+tuple of the topic's `parts` (separator fragments) interleaved with its checked values.
 """
 
 from __future__ import annotations
@@ -82,7 +85,7 @@ def _text_items(column: list[str]) -> tuple[list[orjson.Fragment], int] | None:
 class SeriesLines:
     """The line layout of one topic, ready to encode whole series of it."""
 
-    __slots__ = ("types", "start", "row", "last", "constant_length")
+    __slots__ = ("types", "start", "row", "last", "parts", "constant_length")
 
     def __init__(self, topic_name: str, fields: dict[str, str]):
         self.types = tuple(fields.values())
@@ -97,6 +100,8 @@ class SeriesLines:
             self.row += [_fragment(text), None]
         self.row.append(_fragment(end + self.start.decode()))
         self.last = _fragment(end)
+        # one record queued alone: parts[0], ts, parts[1], v0, parts[2], v1, ..., parts[-1]
+        self.parts = (_fragment(self.start.decode()), *(_fragment(text) for text in texts), self.last)
         self.constant_length = len(self.start) + sum(len(t.encode()) for t in texts) + len(end)
 
     def encode(self, stamps: list[Any], columns: list[list[Any]]) -> list[bytes] | None:
@@ -138,3 +143,11 @@ class SeriesLines:
             flat[2 * i :: width] = column[begin:end]
         flat[-1] = self.last
         return self.start + orjson.dumps(flat).translate(_TABLE, _PUNCTUATION)
+
+
+def rows_text(rows: list[tuple[Any, ...]]) -> bytes:
+    """The lines of rows laid out as `SeriesLines.parts` interleaved with checked values, as one block.
+
+    orjson writes the list of rows as a list of lists: the translate deletes their brackets too.
+    """
+    return orjson.dumps(rows).translate(_TABLE, _PUNCTUATION)

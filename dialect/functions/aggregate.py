@@ -8,6 +8,7 @@ from sqlglot import exp
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
+from lakegate.dialect import write_casts as casts
 from lakegate.dialect import write_operators as ops
 from lakegate.dialect.functions.arguments import as_double, fixed, literal_int, map_arg, need, plain_key, same
 from lakegate.dialect.functions.rendering import (
@@ -17,7 +18,6 @@ from lakegate.dialect.functions.rendering import (
     grouped_values,
     let_bound,
     map_entries,
-    not_nan,
 )
 from lakegate.dialect.registry import Render, overload, register
 from lakegate.dialect.trino_types import TType
@@ -69,12 +69,13 @@ def _minmax(call: Call) -> TType:
 
 # Trino's max, max_by, greatest and array_max order NaN below every number, min and friends above
 # (io.trino.util.MinMaxCompare: COMPARISON_UNORDERED_FIRST / _LAST), so NaN wins only when all values
-# are NaN; DuckDB orders NaN above every number, which is right for the min side only.
+# are NaN; DuckDB orders NaN above every number, which is right for the min side only. So max is the
+# negated min of the negated values: one aggregate (about as fast as DuckDB's max), exact negation
+# keeps -0.0's sign, and ties keep the first value seen, as Trino's max does.
 def _render_max(g, node, args) -> str:
     if len(args) == 2 or not ttype(args[0]).is_approx:
         return agg_as("max")(g, node, args)
-    value = g.sql(args[0])
-    return f"coalesce({g.agg(node, 'max', [not_nan(value)])}, {g.agg(node, 'max', [value])})"
+    return f"-({g.agg(node, 'min', [f'-({g.sql(args[0])})'])})"
 
 
 def _render_max_by(g, node, args) -> str:
@@ -181,10 +182,42 @@ def _constant_percentage(call: Call) -> bool:
 
 
 def _render_approx_percentile(g, node, args) -> str:
-    """DuckDB wants the percentage as a constant: a typed literal is written as its number."""
+    """Trino's t-digest keeps each of up to 39 values as its own centroid and answers the value of
+    rank floor(p * n) + 1 (of the n non-NULL values, at most n); the real Trino 476 answers so on
+    every input of up to 39 values asked. Past that it merges centroids and interpolates, in an
+    order that depends on how the rows reach it: lakegate answers the same rank there (within
+    Trino's documented error). NaN and infinities fail, as in Trino."""
     t = ttype(node)
-    percentage = _typed_number_literal(args[1]) or g.sql(args[1])
-    return tf.cast(g.agg(node, "quantile_disc", [g.sql(args[0]), percentage]), t)
+    element = t.element if t.base == "array" else t
+    return _ranked(g, node, tf.cast(g.sql(args[0]), element), _percentages(args[1]))
+
+
+def _ranked(g, node, x: str, percentages: list[float]) -> str:
+    """approx_percentile's value of rank floor(p * n) + 1 among the non-NULL values `x` (at most n)."""
+    t = ttype(node)
+    if any(not 0 <= p <= 1 for p in percentages):  # checked with the first input row, as Trino does
+        out_of_range = aggregate_failure(g, tf.string("Percentile must be between 0 and 1"))
+        return f"CASE WHEN {g.agg(node, 'count', ['*'])} > 0 THEN {out_of_range} END"
+    ranked = '"_ps"'
+    picks = [f"{ranked}[least(floor({p!r} * len({ranked})), len({ranked}) - 1)::BIGINT + 1]" for p in percentages]
+    value = f"[{', '.join(picks)}]" if t.base == "array" else picks[0]
+    sorted_values = f'list_sort(list_filter({g.agg(node, "list", [x])}, lambda "_v": "_v" IS NOT NULL))'
+    sql = let_bound(sorted_values, ranked, f"CASE WHEN coalesce(len({ranked}), 0) = 0 THEN NULL ELSE {value} END")
+    if not (t.element if t.base == "array" else t).is_approx:
+        return sql
+    infinite = g.agg(node, "min", [f"CASE WHEN NOT isfinite({x}) THEN CAST({x} AS VARCHAR) END"])
+    message = f"'value must be finite; was ' || replace(replace({infinite}, 'inf', 'Infinity'), 'nan', 'NaN')"
+    return f"CASE WHEN {infinite} IS NOT NULL THEN {aggregate_failure(g, message)} ELSE {sql} END"
+
+
+def aggregate_failure(g, message_sql: str) -> str:
+    """An aggregate's INVALID_FUNCTION_ARGUMENT: raised even inside try(), which Trino applies to the
+    projection over the aggregate's result, not to the aggregation."""
+    depth, g.in_try = g.in_try, 0
+    try:
+        return g.fail(message_sql)
+    finally:
+        g.in_try = depth
 
 
 def _render_count_if(g, node, args) -> str:
@@ -229,7 +262,19 @@ def _render_bivariate(g, node, args) -> str:
     sql = g.agg(node, name, values)
     if name != "covar_samp" and name != "covar_pop":
         sql = f"CASE WHEN isfinite({sql}) THEN {sql} END"
+    elif ttype(node).base == "double":
+        # Trino's update multiplies the deviations first (NaN when that product overflows on a group's
+        # first row, where DuckDB's gives 0): finite values whose product overflows are refused
+        x, y = values
+        overflow = g.agg(node, "bool_or", [f"isfinite({x}) AND isfinite({y}) AND isinf({x} * {y})"])
+        sql = f"CASE WHEN {overflow} THEN error({tf.string(_COVARIANCE_OVERFLOW)}) ELSE {sql} END"
     return tf.cast(sql, ttype(node))
+
+
+_COVARIANCE_OVERFLOW = (
+    "NOT_SUPPORTED: unsupported in lakegate: covar_samp or covar_pop of values whose product overflows double "
+    "(Trino's answer depends on the order of the rows)"
+)
 
 
 #: ListaggAggregationFunction: the output limit (DEFAULT_MAX_PAGE_SIZE_IN_BYTES) and its error.
@@ -322,25 +367,43 @@ def _bitwise_agg(call: Call) -> TType:
     return tt.BIGINT
 
 
-def _moment(g, node, args, minimum: int, value: str) -> str:
-    """CentralMomentsAggregation: NULL below `minimum` values, NaN when they are all equal (a zero
-    second moment divides zero by zero), else `value`."""
+_MOMENT_RANGE = "1e60"  # below it, a fourth power of n values stays finite
+_HUGE_MOMENT = (
+    "NOT_SUPPORTED: unsupported in lakegate: skewness or kurtosis of values of magnitude 1e60 or more (Trino's "
+    "moments overflow in an order of its own)"
+)
+
+
+def _moment(g, node, args, minimum: int, value) -> str:
+    """CentralMomentsAggregation: NULL below `minimum` values, NaN when one is NaN or infinite (as
+    the real Trino 476 answers; DuckDB fails) or when they are all equal (a zero second moment
+    divides zero by zero), else `value(x)` of the values; values of 1e60 or more are refused."""
     x = f"CAST({g.sql(args[0])} AS DOUBLE)"
-    count, spread = g.agg(node, "count", [x]), g.agg(node, "var_pop", [x])
-    return f"CASE WHEN {count} < {minimum} THEN NULL WHEN {spread} = 0 THEN CAST('NaN' AS DOUBLE) ELSE {value} END"
+    safe = f"CASE WHEN abs({x}) < {_MOMENT_RANGE} THEN {x} END"
+    count, spread = g.agg(node, "count", [x]), g.agg(node, "var_pop", [safe])
+    infinite = g.agg(node, "bool_or", [f"NOT isfinite({x})"])
+    huge = g.agg(node, "bool_or", [f"abs({x}) >= {_MOMENT_RANGE} AND isfinite({x})"])
+    return (
+        f"CASE WHEN {count} < {minimum} THEN NULL WHEN {infinite} THEN CAST('NaN' AS DOUBLE) "
+        f"WHEN {huge} THEN error({tf.string(_HUGE_MOMENT)}) "
+        f"WHEN {spread} = 0 THEN CAST('NaN' AS DOUBLE) ELSE {value(safe)} END"
+    )
 
 
 def _render_kurtosis(g, node, args) -> str:
     """Trino's estimator, (n-1)n(n+1)/((n-2)(n-3)) m4/m2^2 - 3(n-1)^2/((n-2)(n-3)), is DuckDB's."""
-    return _moment(g, node, args, 4, g.agg(node, "kurtosis", [f"CAST({g.sql(args[0])} AS DOUBLE)"]))
+    return _moment(g, node, args, 4, lambda x: g.agg(node, "kurtosis", [x]))
 
 
 def _render_skewness(g, node, args) -> str:
     """Trino's is the population skewness sqrt(n) m3 / m2^1.5; DuckDB's is the sample skewness,
     that times sqrt(n(n-1))/(n-2)."""
-    x = f"CAST({g.sql(args[0])} AS DOUBLE)"
-    n = g.agg(node, "count", [x])
-    return _moment(g, node, args, 3, f"{g.agg(node, 'skewness', [x])} * ({n} - 2) / sqrt({n} * ({n} - 1))")
+
+    def skewness(x: str) -> str:
+        n = g.agg(node, "count", [x])
+        return f"{g.agg(node, 'skewness', [x])} * ({n} - 2) / sqrt({n} * ({n} - 1))"
+
+    return _moment(g, node, args, 3, skewness)
 
 
 def _reduce_agg(call: Call) -> TType:
@@ -399,37 +462,31 @@ def weighted_percentile(call: Call) -> TType:
     return tt.array(t) if p is not None and p.base == "array" else t
 
 
-def _weighted_rank(g, entries: str, total: str, percentage: float, t: TType) -> str:
-    """The first value (in ascending order) at which the running weight reaches ceil(total *
-    percentage), at least 1: the nearest rank of the data with each value repeated `weight` times,
-    as quantile_disc answers the unweighted form."""
-    rank = f"greatest(ceil({total} * {percentage!r}), 1)"
-    reached = f"struct_extract(\"_s\", 'c') + struct_extract_at({ENTRY}, 2)"
-    step = (
-        f'CASE WHEN struct_extract("_s", \'v\') IS NOT NULL THEN "_s" ELSE struct_pack(c := {reached}, '
-        f"v := CASE WHEN {reached} >= {rank} THEN struct_extract_at({ENTRY}, 1) END) END"
-    )
-    start = f"struct_pack(c := CAST(0 AS HUGEINT), v := {tf.cast('NULL', t)})"
-    return f"struct_extract(list_reduce(list_sort({entries}), lambda \"_s\", {ENTRY}: {step}, {start}), 'v')"
+_HEAVY_WEIGHT = (
+    "NOT_SUPPORTED: unsupported in lakegate: approx_percentile with a weight above 1 (Trino's t-digest "
+    "interpolates between weighted values)"
+)
 
 
 def render_weighted_percentile(g, node, args) -> str:
+    """Weights of 1 answer as the unweighted form, and percentiles 0 and 1 are the minimum and maximum;
+    otherwise a weight above 1 is refused: the real Trino 476 interpolates there (weights 1, 1, 2 of
+    values 1, 2, 3 give 2 at 0.5, not a rank's 3)."""
     t = ttype(node).element if ttype(node).base == "array" else ttype(node)
-    percentages = node.meta["percentages"]
-    if any(not 0 <= p <= 1 for p in percentages):  # checked with the first input row, as Trino does
-        out_of_range = g.fail(tf.string("Percentile must be between 0 and 1"))
-        return f"CASE WHEN {g.agg(node, 'count', ['*'])} > 0 THEN {out_of_range} END"
     x, w = g.sql(args[0]), f"CAST({g.sql(args[1])} AS BIGINT)"
-    included = f"{x} IS NOT NULL AND {w} IS NOT NULL"  # the input function takes neither as NULL
-    rows = g.agg(node, "list", [f"CASE WHEN {included} THEN row({tf.cast(x, t)}, {w}) END"])
-    entries = f"list_filter({rows}, lambda {ENTRY}: {ENTRY} IS NOT NULL)"
-    total = g.agg(node, "sum", [f"CASE WHEN {included} THEN {w} END"])
-    values = [_weighted_rank(g, '"_es"', total, p, t) for p in percentages]
-    value = f"[{', '.join(values)}]" if ttype(node).base == "array" else values[0]
-    lightest = g.agg(node, "min", [f"CASE WHEN {included} THEN {w} END"])
-    weight_error = g.fail(tf.string("Percentile weight must be positive"))
-    weighted = let_bound(entries, '"_es"', f'CASE WHEN len("_es") = 0 THEN NULL ELSE {value} END')
-    return f"CASE WHEN {lightest} <= 0 THEN {weight_error} ELSE {weighted} END"
+    included = f"CASE WHEN {w} IS NOT NULL THEN {tf.cast(x, t)} END"  # the input function takes neither as NULL
+    ranked = _ranked(g, node, included, node.meta["percentages"])
+    lightest = g.agg(node, "min", [f"CASE WHEN {x} IS NOT NULL THEN {w} END"])
+    heaviest = g.agg(node, "max", [f"CASE WHEN {x} IS NOT NULL THEN {w} END"])
+    as_double = casts.approx_text(f"CAST({lightest} AS DOUBLE)", tt.DOUBLE)  # Java's Double.toString
+    weight_text = f"CASE WHEN abs({lightest}) < 10000000 THEN CAST({lightest} AS VARCHAR) || '.0' ELSE {as_double} END"
+    weight_error = aggregate_failure(g, f"'weight must be >= 1, was ' || {weight_text}")
+    if all(p in (0.0, 1.0) for p in node.meta["percentages"]):  # the minimum and maximum, whatever the weights
+        return f"CASE WHEN {lightest} <= 0 THEN {weight_error} ELSE {ranked} END"
+    return (
+        f"CASE WHEN {lightest} <= 0 THEN {weight_error} WHEN {heaviest} > 1 THEN error({tf.string(_HEAVY_WEIGHT)}) "
+        f"ELSE {ranked} END"
+    )
 
 
 def install() -> None:
@@ -542,8 +599,9 @@ def install() -> None:
         _approx_percentile,
         _render_approx_percentile,
         kind="aggregate",
-        notes="Returns the exact nearest-rank value (DuckDB quantile_disc; with weights, of the data with each value "
-        "repeated w times), which is within Trino's documented approximation error; the accuracy variant is rejected.",
+        notes="The value of rank floor(p * n) + 1, as Trino's t-digest answers up to 39 values (past that Trino "
+        "interpolates, lakegate keeps the rank: within Trino's documented error); NaN and infinities fail; weights "
+        "of 1 only (a weight above 1 is refused, except for percentiles 0 and 1); the accuracy variant is rejected.",
     )
     register(
         "bool_and",

@@ -219,7 +219,7 @@ def _render_array_minmax(g, node, args) -> str:
     if name == "list_max" and ttype(node).is_approx:  # NaN only when all are NaN (ArrayMaxFunction)
         nan = tf.cast("'NaN'", ttype(node))
         return (
-            f"CASE WHEN list_count({arr}) < len({arr}) OR len({arr}) = 0 THEN NULL ELSE "
+            f"CASE WHEN list_count({arr}) < len({arr}) OR coalesce(len({arr}), 0) = 0 THEN NULL ELSE "
             f'coalesce(list_max(list_filter({arr}, lambda "_x": NOT isnan("_x"))), {nan}) END'
         )
     return f"CASE WHEN list_count({arr}) < len({arr}) THEN NULL ELSE {name}({arr}) END"

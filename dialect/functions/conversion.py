@@ -6,6 +6,7 @@ import re
 
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
+from lakegate.dialect import write_casts as casts
 from lakegate.dialect.functions.arguments import fixed, literal_str
 from lakegate.dialect.functions.rendering import MAX_PAD_LENGTH
 from lakegate.dialect.registry import register
@@ -21,8 +22,15 @@ def _format(call: Call) -> TType:
         call.fail("format() needs a literal format string in lakegate", "NOT_SUPPORTED")
     if None in call.types:
         call.mismatch()
-    _format_parts(call, literal_str(call, 0), call.types[1:])
+    try:
+        _format_parts(call, literal_str(call, 0), call.types[1:])
+    except InvalidFormat as error:  # Trino fails when it formats a row, not over no rows
+        call.node.meta["format_error"] = str(error)
     return tt.VARCHAR
+
+
+class InvalidFormat(ValueError):
+    """A format string java.util.Formatter refuses: Trino's INVALID_FUNCTION_ARGUMENT, raised at run time."""
 
 
 _SPEC = re.compile(r"%(?:(\d+)\$)?([-#+ 0,(<]*)?(\d+)?(?:\.(\d+))?([tT][a-zA-Z]|[a-zA-Z%])")
@@ -58,11 +66,7 @@ def _format_parts(call: Call | None, fmt: str, types: list[TType]) -> list:
             raise ValueError(why)
 
         if "-" in flags and "0" in flags:  # java.util.Formatter: IllegalFormatFlagsException
-            if call is not None:
-                call.fail(
-                    f"Invalid format string: {fmt} (IllegalFormatFlags: Flags = '{flags}')", "INVALID_FUNCTION_ARGUMENT"
-                )
-            raise ValueError("illegal flags")
+            raise InvalidFormat(f"Invalid format string: {fmt} (IllegalFormatFlags: Flags = '{flags}')")
         if conversion not in "sdfxXe":
             reject("only %s, %d, %f, %e, %x, %% and %n are translated")
         if set(flags) - set("-0,") or ("0" in flags and conversion == "s") or ("," in flags and conversion not in "df"):
@@ -77,12 +81,9 @@ def _format_parts(call: Call | None, fmt: str, types: list[TType]) -> list:
         if not index:
             next_arg += 1
         if arg >= len(types):
-            if call is not None:
-                call.fail(
-                    f"Invalid format string: {fmt} (MissingFormatArgument: Format specifier '{match.group(0)}')",
-                    "INVALID_FUNCTION_ARGUMENT",
-                )
-            raise ValueError("missing argument")
+            raise InvalidFormat(
+                f"Invalid format string: {fmt} (MissingFormatArgument: Format specifier '{match.group(0)}')"
+            )
         t = types[arg]
         if conversion in "dxX" and not (t.is_integral or t.is_unknown):
             reject(f"%{conversion} needs an integer argument, got {t}")
@@ -100,14 +101,14 @@ def _format_parts(call: Call | None, fmt: str, types: list[TType]) -> list:
     if position < len(fmt):
         tail = fmt[position:]
         if "%" in tail:
-            if call is not None:
-                call.fail(f"Invalid format string: {fmt} (UnknownFormatConversion)", "INVALID_FUNCTION_ARGUMENT")
-            raise ValueError("dangling %")
+            raise InvalidFormat(f"Invalid format string: {fmt} (UnknownFormatConversion: Conversion = '%')")
         parts.append(tail)
     return parts
 
 
 def _render_format(g, node, args) -> str:
+    if node.meta.get("format_error"):
+        return g.fail(tf.string(node.meta["format_error"]))
     fmt = args[0].name
     values = args[1:]
     pieces = []
@@ -170,12 +171,16 @@ def java_string(sql: str, t: TType) -> str:
 
 
 def java_double(sql: str, duck: str = "DOUBLE") -> str:
-    """Java's Double.toString: plain digits with at least one decimal for 1e-3 <= |x| < 1e7, else
-    computerized scientific notation (1.0E10), from the shortest round-trip digits."""
+    """Java's Double.toString (Float.toString for a FLOAT): plain digits with at least one decimal for
+    1e-3 <= |x| < 1e7, else computerized scientific notation (1.0E10), from the shortest round-trip
+    digits (a double's one digit becomes the two nearest: 4.9E-324)."""
     value = f"CAST({sql} AS {duck})"
-    text = f"CAST(abs({value}) AS VARCHAR)"
-    digits = f"regexp_replace(replace(split_part({text}, 'e', 1), '.', ''), '^0+|0+$', '', 'g')"
-    exponent = f"CAST(split_part(format('{{:.16e}}', CAST(abs({value}) AS DOUBLE)), 'e', 2) AS INTEGER)"
+    if duck == "DOUBLE":
+        digits, exponent = casts.java_digits(value)
+    else:
+        text = f"CAST(abs({value}) AS VARCHAR)"
+        digits = f"regexp_replace(replace(split_part({text}, 'e', 1), '.', ''), '^0+|0+$', '', 'g')"
+        exponent = f"CAST(split_part(format('{{:.16e}}', CAST(abs({value}) AS DOUBLE)), 'e', 2) AS INTEGER)"
     scientific = (
         f"left({digits}, 1) || '.' || coalesce(nullif(substr({digits}, 2), ''), '0') || 'E' || "
         f"CAST({exponent} AS VARCHAR)"

@@ -129,6 +129,17 @@ _INTERVAL_OF = {
 }
 
 
+def _int_amount(g, amount: str, t: TType) -> str:
+    """date_add's amount, which Trino takes as an integer: past its range a timestamp fails with
+    INVALID_FUNCTION_ARGUMENT (NULL inside try()), a date with GENERIC_INTERNAL_ERROR (try() lets it
+    through), both "integer overflow", as the real Trino 476 answers."""
+    if t.base == "date":
+        overflow = f"error({tf.string('GENERIC_INTERNAL_ERROR: integer overflow')})"
+    else:
+        overflow = g.fail(tf.string("integer overflow"))
+    return f"CASE WHEN ({amount}) NOT BETWEEN -2147483648 AND 2147483647 THEN {overflow} ELSE {amount} END"
+
+
 def _render_date_add(g, node, args) -> str:
     if ttype(node).base != "time" and (failure := _unit_failure(g, node, args, args[2:])) is not None:
         return failure
@@ -136,6 +147,7 @@ def _render_date_add(g, node, args) -> str:
     amount, value = g.sql(args[1]), g.sql(args[2])
     if ttype(node).base == "time":
         return times.add(unit, amount, value, ttype(node).args[0])
+    amount = _int_amount(g, amount, ttype(node))
     interval = (
         f"to_months(3 * CAST({amount} AS INTEGER))"
         if unit == "quarter"

@@ -195,17 +195,20 @@ def _render_json_array_contains(g, node, args) -> str:
 
 def _render_json_array_get(g, node, args) -> str:
     """The element at a 0-based index (negative: from the end); NULL outside the array and for a
-    JSON null element, and for a text that is not JSON (such as what an unquoted string element
-    is: the real Trino 476 answers NULL). A string element comes back unquoted, as Trino
-    documents ("broken")."""
+    JSON null element (reached from the end, Trino fails: "string is null"), and for a text that
+    is not JSON (such as what an unquoted string element is: the real Trino 476 answers NULL). A
+    string element comes back unquoted, as Trino documents ("broken")."""
     text = _json_text(g, args[0])
     items, index = jv.elements(text), g.sql(args[1])
     position = f"CASE WHEN {index} >= 0 THEN {index} + 1 ELSE len({items}) + {index} + 1 END"
     element = f"CASE WHEN {position} >= 1 THEN {items}[{position}] END"
     kind = f"json_type({element})"
     unquoted = f"json_extract_string({element}, '$')"
+    # a JSON null reached from the end fails as in the real Trino 476 (not caught by try())
+    null_from_end = f"error({tf.string('GENERIC_INTERNAL_ERROR: string is null')})"
     return (
-        f"CASE WHEN NOT json_valid({text}) OR json_type({text}) <> 'ARRAY' THEN NULL WHEN {kind} = 'NULL' THEN NULL "
+        f"CASE WHEN NOT json_valid({text}) OR json_type({text}) <> 'ARRAY' THEN NULL WHEN {kind} = 'NULL' THEN "
+        f"CASE WHEN {index} < 0 THEN {null_from_end} END "
         f"WHEN {kind} = 'VARCHAR' THEN {unquoted} ELSE {jv.exact_numbers(element)} END"
     )
 

@@ -150,8 +150,17 @@ def _render_mod(g, node, args) -> str:
     t = ttype(node)
     left, right = g.sql(args[0]), g.sql(args[1])
     if t.is_approx:
-        return tf.cast(f"CASE WHEN {right} = 0 THEN CAST('NaN' AS DOUBLE) ELSE {left} % {right} END", t)
+        return tf.cast(ops.approx_remainder(left, right), t)
     return tf.cast(f"({left} % {ops.nonzero(g, right)})", t)
+
+
+def _render_power(g, node, args) -> str:
+    """Java's Math.pow: a base of 1 or -1 to an infinite power, and 1 to NaN, are NaN (C's pow gives 1)."""
+    base, power = (f"CAST({g.sql(a)} AS DOUBLE)" for a in args)
+    return (
+        f"CASE WHEN abs({base}) = 1 AND (isinf({power}) OR isnan({power})) THEN CAST('NaN' AS DOUBLE) "
+        f"ELSE pow({base}, {power}) END"
+    )
 
 
 def double_fn(duck: str) -> Render:
@@ -428,7 +437,7 @@ def install() -> None:
         "math",
         "power(x, p) -> double",
         as_double("number", "number"),
-        lambda g, node, args: f"pow(CAST({g.sql(args[0])} AS DOUBLE), CAST({g.sql(args[1])} AS DOUBLE))",
+        _render_power,
         aliases=("pow",),
     )
     for _name in ("sin", "cos", "tan", "atan", "sinh", "cosh", "tanh", "degrees", "radians"):

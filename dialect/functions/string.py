@@ -14,6 +14,7 @@ from sqlglot import exp
 from lakegate.dialect import chars
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
+from lakegate.dialect.functions import letter_case
 from lakegate.dialect.functions.arguments import (
     KINDS_BINARY,
     VARBINARY,
@@ -488,6 +489,11 @@ def _codepoint(call: Call) -> TType:
     return tt.INTEGER
 
 
+def _render_case(name: str):
+    """upper or lower as Java maps each code point (letter_case)."""
+    return lambda g, node, args: letter_case.render(name, g.sql(args[0]))
+
+
 def install() -> None:
     """Register the functions of this page (called by pages.py)."""
 
@@ -498,8 +504,8 @@ def install() -> None:
         fixed(tt.BIGINT, "string"),
         lambda g, node, args: f"CAST(length({g.sql(args[0])}) AS BIGINT)",
     )
-    register("lower", "string", "lower(string) -> varchar", _string_same, call_as("lower"))
-    register("upper", "string", "upper(string) -> varchar", _string_same, call_as("upper"))
+    register("lower", "string", "lower(string) -> varchar", _string_same, _render_case("lower"))
+    register("upper", "string", "upper(string) -> varchar", _string_same, _render_case("upper"))
     register("trim", "string", "trim(string) -> varchar", _string_same, _render_trim("trim"))
     register("ltrim", "string", "ltrim(string) -> varchar", _string_same, _render_trim("ltrim"))
     register("rtrim", "string", "rtrim(string) -> varchar", _string_same, _render_trim("rtrim"))
@@ -689,7 +695,7 @@ def install() -> None:
         overload(
             _name,
             _char_call(lambda t: t),
-            lambda g, node, args, name=_name: f"{name}({g.sql(args[0])})",
+            _render_case(_name),
             f"{_name}(char(x)) -> char(x)",
         )
     for _name in ("trim", "ltrim", "rtrim"):

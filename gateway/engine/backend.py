@@ -3,12 +3,13 @@
 `DuckDBBackend` is the embedded default: one in-memory DuckDB database per backend (one memory
 budget, one thread pool), in which each branch is an attached in-memory database with a view per
 lake table (`Catalog.view_sql`), released when idle; a scoped query (a batch or a job) reads views
-over only its scope's files. It is locked down before any user query runs (defence in depth behind
-the dialect guard): no file access outside the lake, no extension installing or loading, settings
-locked. Each query is translated by `lakegate.dialect.translate`, checked once more by DuckDB's own
-parser (exactly one SELECT), and run on its own cursor, so queries run concurrently and
-`QueryResult.cancel()` interrupts just one. EXPLAIN is answered with DuckDB's plan of the translated
-query; SHOW and DESCRIBE are the Engine's (its system tables), not a backend's.
+over only its scope's files, each made when a query first names its table. It is locked down before
+any user query runs (defence in depth behind the dialect guard): no file access outside the lake,
+no extension installing or loading, settings locked. Each query is translated by
+`lakegate.dialect.translate`, checked once more by DuckDB's own parser (exactly one SELECT), and
+run on its own cursor, so queries run concurrently and `QueryResult.cancel()` interrupts just one.
+EXPLAIN is answered with DuckDB's plan of the translated query; SHOW and DESCRIBE are the Engine's
+(its system tables), not a backend's.
 
 Every caller (the server, the dashboard, metrics, `lakegate query`) gets the same `Limits`: at most
 `max_concurrent_queries` queries run DuckDB work at once (a query waits for a slot within its time),
@@ -33,7 +34,7 @@ import threading
 import time
 import weakref
 from collections import OrderedDict
-from collections.abc import Callable, Iterable, Iterator, Sequence
+from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
@@ -127,6 +128,19 @@ def _quote_ident(name: str) -> str:
 
 
 @dataclass
+class _ScopeViews:
+    """The views of one scope at one generation of the record, in their own DuckDB schema: made
+    table by table as queries name them (`DuckDBBackend._scope_views`), all over one snapshot."""
+
+    name: str  # the DuckDB schema
+    snapshot: Snapshot  # the scope's files
+    files: dict[str, str]  # reader path -> "table T, batch B, job J"
+    used: float  # time.monotonic() of its last query
+    made: set[str] | None = None  # the tables whose views exist (None: not even the schema yet)
+    lock: threading.Lock = field(default_factory=threading.Lock)  # held while views are added
+
+
+@dataclass
 class _Branch:
     database: duckdb.DuckDBPyConnection  # the backend's one database
     name: str  # the branch's attached database in it
@@ -139,8 +153,10 @@ class _Branch:
     listed: dict[str, str] = field(default_factory=dict)  # the same, of the views' files only
     views: set[str] = field(default_factory=set)  # the branch-wide views made
     loaded: bool = False  # whether they are those of the stamp's generation
-    #: (generation, batch, job) -> [DuckDB schema, last use, reader path -> "table T, batch B, job J"]
-    scopes: OrderedDict = field(default_factory=OrderedDict)
+    scopes: OrderedDict = field(default_factory=OrderedDict)  # (generation, batch, job) -> its _ScopeViews
+    #: The tables scoped queries named, of job scopes (True) and of batch scopes (False): a scope's
+    #: first views are made with them, in one transaction (one per view costs about twice as much).
+    scoped_tables: dict[bool, set[str]] = field(default_factory=lambda: {True: set(), False: set()})
     idle: list = field(default_factory=list)  # cursors kept for reuse (`recycle`); list ops are atomic
 
     def cursor(self) -> duckdb.DuckDBPyConnection:
@@ -201,7 +217,10 @@ class _Branch:
 
     def known(self) -> dict[str, str]:
         """Every file the views list (branch-wide and scoped): reader path -> how messages name it."""
-        return {**self.files, **{path: where for entry in self.scopes.values() for path, where in entry[2].items()}}
+        return {
+            **self.files,
+            **{path: where for entry in list(self.scopes.values()) for path, where in entry.files.items()},
+        }
 
 
 class DuckDBBackend:
@@ -377,19 +396,27 @@ class DuckDBBackend:
         return snapshot
 
     def _create_views(
-        self, state: _Branch, branch: str, snapshot: Snapshot, old: Iterable[str] = (), schema: str | None = None
+        self,
+        state: _Branch,
+        branch: str,
+        snapshot: Snapshot,
+        old: Iterable[str] = (),
+        schema: str | None = None,
+        tables: Collection[str] | None = None,
     ) -> bool:
-        """Create the views of `snapshot` in one transaction (in DuckDB schema `schema`, default the
-        branch's own views, dropping the `old` views it no longer has). A file that cannot be read is
-        left out (queries of its job fail, `Catalog.view_sql`); False when one was replaced
-        meanwhile (a writer committed after the snapshot was read): take a newer snapshot."""
+        """Create the views of `snapshot` (only those of `tables` when given) in one transaction (in
+        DuckDB schema `schema`, default the branch's own views, dropping the `old` views it no longer
+        has). A file that cannot be read is left out (queries of its job fail, `Catalog.view_sql`);
+        False when one was replaced meanwhile (a writer committed after the snapshot was read): take
+        a newer snapshot."""
         root = str(paths.branch_dir(self.lake, branch))
         unreadable: set[str] = set()
-        while (
-            failed := self._swap_views(
-                state, self.catalog.view_sql(branch, snapshot, unreadable=unreadable), old, schema
-            )
-        ) is not None:
+        while True:
+            views = self.catalog.view_sql(branch, snapshot, unreadable=unreadable)
+            if tables is not None:
+                views = {name: select for name, select in views.items() if name in tables}
+            if (failed := self._swap_views(state, views, old, schema)) is None:
+                return True
             files = (paths.reader_file(root, e.path) for e in snapshot.files)
             named = {path for path in files if path in failed}
             if named <= unreadable:
@@ -397,7 +424,6 @@ class DuckDBBackend:
             if not all(map(LOCAL.exists, named)) and self._records[branch].generation() != snapshot.generation:
                 return False
             unreadable |= named  # corrupt, or missing although the record holds it
-        return True
 
     @staticmethod
     def _swap_views(state: _Branch, views: dict[str, str], old: Iterable[str], schema: str | None) -> str | None:
@@ -407,7 +433,7 @@ class DuckDBBackend:
         try:
             cursor.execute("BEGIN")
             if schema:
-                cursor.execute(f"CREATE SCHEMA {schema}")
+                cursor.execute(f"CREATE SCHEMA IF NOT EXISTS {schema}")
             for name in set(old) - set(views):
                 cursor.execute(f"DROP VIEW IF EXISTS {_quote_ident(name)}")
             for name, select in views.items():
@@ -420,30 +446,47 @@ class DuckDBBackend:
         finally:
             cursor.close()
 
-    def _scope_views(self, state: _Branch, branch: str, scope: Scope) -> str:
-        """The DuckDB schema whose views read only the files of `scope` (the job's files and its
-        batch's batch-level files, found by the record's index), made on first use at each
-        generation and kept in an LRU."""
-        with self._lock:
-            now = time.monotonic()
-            found = state.scopes.get((state.stamp[0], scope.batch_id, scope.job_id))
-            if found is not None:
-                state.scopes.move_to_end((state.stamp[0], scope.batch_id, scope.job_id))
-                found[1] = now
-                return found[0]
-            name = f"{state.name}.scope_{next(self._scope_ids)}"
-            while True:  # a writer may commit meanwhile: the scope's files are then those of its generation
-                snapshot = self.catalog.snapshot(
-                    branch, self._records[branch], batch_id=scope.batch_id, job_id=scope.job_id
-                )
-                if self._create_views(state, branch, snapshot, schema=name):
-                    break
-            root = str(paths.branch_dir(self.lake, branch))
-            files = {paths.reader_file(root, e.path): e.where for e in snapshot.files}
-            state.scopes[(snapshot.generation, scope.batch_id, scope.job_id)] = [name, now, files]
-            while len(state.scopes) > SCOPE_VIEWS and next(iter(state.scopes.values()))[1] < now - SCOPE_GRACE:
-                state.database.execute(f"DROP SCHEMA {state.scopes.popitem(last=False)[1][0]} CASCADE")
-            return name
+    def _scope_views(self, state: _Branch, branch: str, scope: Scope, tables: Collection[str]) -> str:
+        """The DuckDB schema whose views of `tables` read only the files of `scope` (the job's files
+        and its batch's batch-level files, found by the record's index). One schema per scope and
+        generation, kept in an LRU; each view is made when a query first names its table (binding a
+        view reads its files' footers), with those of the tables queries of other scopes of its kind
+        (job or batch) named, outside the backend's lock, so other queries go on meanwhile."""
+        key = (state.stamp[0], scope.batch_id, scope.job_id)
+        while True:  # a writer may commit meanwhile: the scope's files are then those of its generation
+            with self._lock:
+                now = time.monotonic()
+                entry = state.scopes.get(key)
+                if entry is None:
+                    snapshot = self.catalog.snapshot(
+                        branch, self._records[branch], batch_id=scope.batch_id, job_id=scope.job_id
+                    )
+                    key = (snapshot.generation, scope.batch_id, scope.job_id)
+                    entry = state.scopes.get(key)
+                if entry is None:
+                    root = str(paths.branch_dir(self.lake, branch))
+                    files = {paths.reader_file(root, e.path): e.where for e in snapshot.files}
+                    entry = state.scopes[key] = _ScopeViews(
+                        f"{state.name}.scope_{next(self._scope_ids)}", snapshot, files, now
+                    )
+                    while (
+                        len(state.scopes) > SCOPE_VIEWS and next(iter(state.scopes.values())).used < now - SCOPE_GRACE
+                    ):
+                        state.database.execute(f"DROP SCHEMA {state.scopes.popitem(last=False)[1].name} CASCADE")
+                state.scopes.move_to_end(key)
+                entry.used = now
+            with entry.lock:
+                made = entry.made
+                missing = set(tables).difference(made or ())
+                if made is not None and not missing:
+                    return entry.name
+                learned = state.scoped_tables[scope.job_id is not None]
+                missing |= learned.difference(made or ())  # what the scope's next queries likely name
+                learned.update(tables)
+                if self._create_views(state, branch, entry.snapshot, schema=entry.name, tables=missing):
+                    entry.made = missing.union(made or ())
+                    return entry.name
+            key = (None, scope.batch_id, scope.job_id)  # the snapshot is outdated: take the record's current one
 
     def _scoped(self, scope: Scope | None) -> bool:
         """Whether a query of `scope` reads the scope's own views (`_scope_views`)."""
@@ -580,7 +623,9 @@ class DuckDBBackend:
                 columns = list(translation.columns)
             else:
                 if self._scoped(scope):
-                    self._use_views(cursor, self._scope_views(state, branch, scope))
+                    self._use_views(
+                        cursor, self._scope_views(state, branch, scope, self._tables(state, translation.duckdb_sql))
+                    )
                 self._single_select(cursor, translation.duckdb_sql)
                 produce = functools.partial(self._plan_batches, cursor, explain + translation.duckdb_sql)
                 columns = [("Query Plan", "varchar")]
@@ -611,7 +656,9 @@ class DuckDBBackend:
         def bind(attempt: _Branch, retries: int) -> duckdb.DuckDBPyRelation:
             try:
                 if self._scoped(scope):
-                    self._use_views(cursor, self._scope_views(attempt, branch, scope))
+                    self._use_views(
+                        cursor, self._scope_views(attempt, branch, scope, self._tables(attempt, duckdb_sql))
+                    )
                 return cursor.sql(self._statement(attempt, cursor, duckdb_sql))
             except duckdb.Error as error:
                 return again(attempt, error, retries)
@@ -640,6 +687,13 @@ class DuckDBBackend:
                     relation, retries = again(state, error, retries), retries - 1
 
         return read
+
+    @staticmethod
+    def _tables(state: _Branch, duckdb_sql: str) -> set[str]:
+        """The branch's tables a translated query names (the DuckDB writer quotes every identifier;
+        a column of the same name adds its table too): the views its scope needs."""
+        text = duckdb_sql.lower()
+        return {table for table in state.schema if _quote_ident(table.lower()) in text}
 
     @staticmethod
     def _use_views(cursor: duckdb.DuckDBPyConnection, schema: str) -> None:

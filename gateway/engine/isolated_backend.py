@@ -15,7 +15,7 @@ from __future__ import annotations
 import threading
 import time
 import weakref
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 
 import pyarrow as pa
@@ -214,8 +214,11 @@ class IsolatedBackend(DuckDBBackend):
     ) -> QueryResult:
         """Run one Trino-dialect query in a worker (waiting for a free one within the time limit);
         as `DuckDBBackend.execute`."""
+        return self._started(("execute", sql, branch, scope, tuple(params), time_zone, session, self.pending))
+
+    def _started(self, request: tuple) -> QueryResult:
+        """The result of a query `request` started in a free worker (waiting for one within the time limit)."""
         stream = self._stream()
-        request = ("execute", sql, branch, scope, tuple(params), time_zone, session, self.pending)
         columns, duckdb_sql = stream.start(request)
         return QueryResult(
             columns=columns,
@@ -223,6 +226,17 @@ class IsolatedBackend(DuckDBBackend):
             duckdb_sql=duckdb_sql,
             _cancel=lambda: stream.stop(DialectError("Query was canceled", error_name="USER_CANCELED")),
         )
+
+    def run_over_tables(
+        self,
+        duckdb_sql: str,
+        tables: Mapping[str, pa.Table],
+        columns: Sequence[tuple[str, str]],
+        zones: Sequence[str | None],
+    ) -> QueryResult:
+        """Run a translated query over materialised system tables in a worker (waiting for a free one
+        within the time limit), with the same memory and time limits as any query."""
+        return self._started(("tables", duckdb_sql, dict(tables), list(columns), list(zones)))
 
     def query_names(self, statement: Statement) -> object:
         """`planner.query_names(statement)` run in a worker (waiting for a free one within the time

@@ -7,6 +7,8 @@ The protocol is request/answer, one message each way (pickled tuples; batches as
 - `("execute", sql, branch, scope, params, time_zone, session, pending)` starts a query and answers
   `("started", columns, duckdb_sql, schema, first, last)` or `("error", message, line, column, name,
   retire)` (`retire`: the worker ends after this answer, its state no longer to be trusted);
+- `("tables", duckdb_sql, tables, columns, zones)` starts a translated query over system tables
+  (`tables`: name -> Arrow table, materialised by the server) and answers as `execute` does;
 - `("names", statement)` answers `("names", names)`: what the planner reads of a large statement
   (`planner.query_names`: checked and parsed here, not in the server) or an error; a statement
   whose `edits` the planner made without a tree gets it here (`planner.with_edits_applied`);
@@ -17,6 +19,7 @@ The protocol is request/answer, one message each way (pickled tuples; batches as
 
 from __future__ import annotations
 
+import logging
 import pickle
 import resource
 import signal
@@ -28,16 +31,20 @@ import pyarrow as pa
 
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.statements import Statement
-from lakegate.gateway.engine.backend import DuckDBBackend
+from lakegate.gateway.engine.backend import DuckDBBackend, QueryResult
 from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.engine.planner import query_names, with_edits_applied
 from lakegate.gateway.engine.process_memory import statm
+from lakegate.gateway.engine.system_queries import SystemDatabase
 from lakegate.lake.record import FileEntry
 
 #: How DuckDB's errors begin when they invalidate its database (a later query cannot run on it).
 _FATAL = ("FATAL Error", "INTERNAL Error")
 #: Backends over staged (pending) files kept per worker, beyond the lake's own.
 PENDING_BACKENDS = 2
+#: What a client reads when the engine failed inside: DuckDB's own text goes to the server's log only.
+INTERNAL_FAILURE = "internal error: the engine failed on this query (its worker was replaced; the server's log has why)"
+log = logging.getLogger("lakegate.worker")
 
 
 def _invalidating(error: BaseException) -> bool:
@@ -85,6 +92,7 @@ class Worker:
         self.lake, self.memory_limit, self.threads, self.limits = lake, memory_limit, threads, limits
         self.backend = self._backend(())
         self.pending: dict[tuple[FileEntry, ...], DuckDBBackend] = {}
+        self.system: SystemDatabase | None = None  # for queries over system tables, made on first use
         self.result: _Ahead | None = None
         self.close_result: object = None
         self.broken = False  # its database can no longer be trusted: the process ends after answering
@@ -134,13 +142,13 @@ class Worker:
                 result = self.backend_for(pending).execute(
                     sql, branch=branch, scope=scope, params=params, time_zone=time_zone, session=session
                 )
-                self.close_result = getattr(result.batches, "close", None)
-                self.result = _Ahead(iter(result.batches))
-                first, last = self.result.next()
-                schema = None if first is None else first.schema.serialize().to_pybytes()
-                if last:
-                    self.drop()
-                return ("started", result.columns, result.duckdb_sql, schema, _encoded(first), last)
+                return self.started(result)
+            if kind == "tables":
+                self.drop()
+                _, sql, tables, columns, zones = request
+                if self.system is None:
+                    self.system = SystemDatabase(self.memory_limit)
+                return self.started(self.system.run(sql, tables, columns, zones, timeout=self.limits.query_timeout))
             if kind == "names":
                 return ("names", query_names(request[1]))
             if kind == "next":
@@ -155,8 +163,8 @@ class Worker:
             self.drop()
             if error.message.startswith(_FATAL):  # DuckDB invalidated its database: this worker is done
                 self.broken = True
-                internal = DialectError(f"internal error: {error.message}", error_name="GENERIC_INTERNAL_ERROR")
-                return _error(internal, retire=True)
+                log.error("query worker: the engine failed: %s", error.message)
+                return _error(DialectError(INTERNAL_FAILURE, error_name="GENERIC_INTERNAL_ERROR"), retire=True)
             if _invalidating(error):  # refused, but the database is no longer usable either
                 self.broken = True
                 return _error(error, retire=True)
@@ -165,10 +173,21 @@ class Worker:
             self.drop()
             message = f"Query exceeded per-node memory limit of {self.memory_limit}"
             return _error(DialectError(message, error_name="EXCEEDED_LOCAL_MEMORY_LIMIT"), retire=True)
-        except Exception as error:  # DuckDB failed inside (a FatalException invalidates its database): retire
+        except Exception:  # DuckDB failed inside (a FatalException invalidates its database): retire
             self.broken = True
-            first = (str(error).strip().splitlines() or [type(error).__name__])[0]
-            return _error(DialectError(f"internal error: {first}", error_name="GENERIC_INTERNAL_ERROR"), retire=True)
+            log.exception("query worker: the engine failed")
+            return _error(DialectError(INTERNAL_FAILURE, error_name="GENERIC_INTERNAL_ERROR"), retire=True)
+
+    def started(self, result: QueryResult) -> tuple:
+        """The `started` answer of a query: its columns, DuckDB SQL and first batch (the result is kept
+        for the `next` requests unless that batch is the last)."""
+        self.close_result = getattr(result.batches, "close", None)
+        self.result = _Ahead(iter(result.batches))
+        first, last = self.result.next()
+        schema = None if first is None else first.schema.serialize().to_pybytes()
+        if last:
+            self.drop()
+        return ("started", result.columns, result.duckdb_sql, schema, _encoded(first), last)
 
     def drop(self) -> None:
         """Close the result being read, if any (its DuckDB work stops)."""

@@ -8,8 +8,9 @@ identifier is written quoted (`"feature/x".odom`). Unquoted names are lower-case
 and a schema name that matches no branch exactly matches the one branch equal to it ignoring case.
 
 System tables are small: a query over them runs on an in-memory DuckDB database (one thread,
-`memory_limit`) in which the referenced tables are materialised from the lake's catalog (as Arrow
-tables) for that query, after the same Trino-to-DuckDB translation as any query.
+`memory_limit`: `system_queries.SystemDatabase`) in which the referenced tables are materialised
+from the lake's catalog (as Arrow tables) for that query, after the same Trino-to-DuckDB translation
+as any query; in a query worker process when the backend runs queries in them (`IsolatedBackend`).
 """
 
 from __future__ import annotations
@@ -19,19 +20,17 @@ import threading
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
-import duckdb
 import pyarrow as pa
 
 from lakegate.dialect import trino_types as tt
-from lakegate.dialect.errors import DialectError, runtime_error
+from lakegate.dialect.errors import DialectError
 from lakegate.dialect.session_functions import SessionNames
 from lakegate.dialect.statements import Reader, Statement
 from lakegate.dialect.translate import translate
-from lakegate.gateway.engine import udfs
-from lakegate.gateway.engine.backend import BATCH_ROWS, Backend, QueryResult
+from lakegate.gateway.engine.backend import Backend, QueryResult
 from lakegate.gateway.engine.catalog_name import CATALOG
-from lakegate.gateway.engine.query_run import Run, in_zones
 from lakegate.gateway.engine.session import PROPERTIES, Answer, Session
+from lakegate.gateway.engine.system_queries import SystemDatabase
 from lakegate.gateway.engine.trino_values import arrow_type
 
 INFORMATION_SCHEMA = "information_schema"
@@ -350,20 +349,8 @@ class SystemCatalog:
         memory_limit: str = "1GB",
     ):
         self.backend, self.catalog, self.queries = backend, catalog, queries
-        self._db = duckdb.connect(
-            ":memory:",
-            config={
-                "threads": 1,
-                "memory_limit": memory_limit,
-                "autoinstall_known_extensions": False,
-                "autoload_known_extensions": False,
-                "python_enable_replacements": False,
-            },
-        )
-        udfs.install(self._db)
-        self._db.execute("SET TimeZone = 'UTC'")
-        self._db.execute("SET enable_external_access = false")
-        self._db.execute("SET lock_configuration = true")
+        self._memory_limit = memory_limit
+        self._db: SystemDatabase | None = None  # made on first use, when the backend runs no such query
         self._lock = threading.Lock()
 
     # -- names ----------------------------------------------------------------------------
@@ -542,22 +529,19 @@ class SystemCatalog:
             tree=statement.tree,
             rewrite=statement.edits,
         )
+        tables = {ref.table: self.arrow(ref, user) for ref in refs}
+        columns, zones = list(translation.columns), list(translation.zones)
+        in_worker = getattr(self.backend, "run_over_tables", None)  # an isolated backend: in a query worker
+        if in_worker is not None:
+            return in_worker(translation.duckdb_sql, tables, columns, zones)
         with self._lock:
-            cursor = self._db.cursor()
-        try:
-            for ref in refs:
-                cursor.register(ref.table, self.arrow(ref, user))
-            relation = cursor.sql(translation.duckdb_sql)
-        except BaseException as error:
-            cursor.close()
-            raise runtime_error(str(error)) if isinstance(error, duckdb.Error) else error from None
-        run = Run(cursor, in_zones(lambda: relation.to_arrow_reader(BATCH_ROWS), translation.zones))
-        return QueryResult(
-            columns=list(translation.columns), batches=run, duckdb_sql=translation.duckdb_sql, _cancel=run.cancel
-        )
+            if self._db is None:
+                self._db = SystemDatabase(self._memory_limit)
+        return self._db.run(translation.duckdb_sql, tables, columns, zones)
 
     def close(self) -> None:
-        self._db.close()
+        if self._db is not None:
+            self._db.close()
 
     # -- SHOW and DESCRIBE ------------------------------------------------------------------
 

@@ -58,6 +58,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import pyarrow as pa
 from tqdm import tqdm
 
 from lakegate.dialect.errors import DialectError
@@ -67,6 +68,7 @@ from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.metrics.custom import CUSTOM, render_custom
 from lakegate.gateway.metrics.job_media import names_jobs, render_job_media
 from lakegate.gateway.metrics.metric_result import MetricError, MetricResult
+from lakegate.gateway.metrics.result_columns import result_table, table_rows
 from lakegate.gateway.metrics.results import ResultsWriter
 from lakegate.gateway.metrics.statuses import BLOCKER, ERROR, NO_DATA, NOT_RUN, PASSED, SEVERITY, WARNING
 from lakegate.gateway.metrics.template_settings import apply_template_settings, unused_settings
@@ -226,9 +228,11 @@ def select_metrics(config: Config, metrics_set: str | None = None, *, all_metric
     return config.metrics_in_set(metrics_set)
 
 
-def no_data(rows: Sequence[tuple]) -> bool:
+def no_data(rows: Sequence[tuple] | pa.Table) -> bool:
     """SignalFlag's NO_DATA: a query that returns no rows, or one row of NULLs only (an aggregate
     such as MIN(x) over no rows). COUNT(*) over no rows is a row with a value (0): data."""
+    if isinstance(rows, pa.Table):
+        return rows.num_rows == 0 or (rows.num_rows == 1 and all(column.null_count == 1 for column in rows.columns))
     return not rows or (len(rows) == 1 and all(value is None for value in rows[0]))
 
 
@@ -355,7 +359,7 @@ class MetricsEngine:
     def _run(self, metric: Metric, branch: str, scope: Scope, logs_dir: Path | None, result: MetricResult) -> None:
         try:
             answer = self.query(metric.query_string, branch, scope)
-            rows = answer.rows()
+            rows = result_table(answer.batches)
         except DialectError as error:
             result.status, result.error = (
                 ERROR,
@@ -373,9 +377,9 @@ class MetricsEngine:
             return
         try:
             if metric.template_type == CUSTOM:
-                result.rendered = render_custom(metric, answer.columns, rows)
+                result.rendered = render_custom(metric, answer.columns, table_rows(rows))
             elif scope.job_id is None and names_jobs(metric.template, answer.columns):
-                result.rendered = self._job_media(metric, branch, scope, rows)
+                result.rendered = self._job_media(metric, branch, scope, table_rows(rows))
             else:
                 result.rendered = render(
                     metric.name, metric.template or "", answer.columns, rows, units=metric.units, logs_dir=logs_dir
@@ -618,10 +622,15 @@ class MetricsEngine:
         committed with the results (DuckDB backend; another backend gets them committed first)."""
         if writer is None:
             return self
-        for outcome in outcomes:
-            writer.stage_statuses(
-                outcome.job_id, job_metrics_status=outcome.metrics_status, job_conflated_status=outcome.conflated_status
-            )
+        writer.stage_statuses(
+            {
+                outcome.job_id: {
+                    "job_metrics_status": outcome.metrics_status,
+                    "job_conflated_status": outcome.conflated_status,
+                }
+                for outcome in outcomes
+            }
+        )
         if not isinstance(self.engine.backend, DuckDBBackend):  # a Trino cluster reads only committed files
             writer.commit_statuses()
             return self

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import contextlib
 import datetime as dt
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +29,7 @@ import pyarrow as pa
 
 from lakegate.gateway.metrics.metric_result import MetricResult
 from lakegate.lake import paths
-from lakegate.lake.metadata import read_metadata_row, stage_metadata_rows
+from lakegate.lake.metadata import read_metadata_rows, stage_metadata_rows
 from lakegate.lake.record import Change, FileEntry, JobVersions, Record, current_file
 from lakegate.lake.schema import METRIC_RESULTS_COLUMNS, file_schema
 from lakegate.lake.storage import LOCAL
@@ -112,13 +112,16 @@ class ResultsWriter:
         rows = [result_row(r, **self._row) for r in results]
         self._writer.write_table(pa.Table.from_pylist(rows, schema=SCHEMA))
 
-    def stage_statuses(self, job_id: str, **statuses: str) -> None:
-        """Stage new status columns of a job's metadata row (shown with the results at `commit`)."""
-        row = read_metadata_row(self.lake, self.branch, self.batch_id, job_id)
-        if row is None:
-            raise LookupError(f"job {job_id!r} of batch {self.batch_id!r} has no metadata row any more")
-        row.update(statuses)
-        self._statuses[job_id] = row
+    def stage_statuses(self, statuses: Mapping[str, Mapping[str, str]]) -> None:
+        """Stage new status columns of jobs' metadata rows (job id -> columns; shown with the results at
+        `commit`)."""
+        rows = read_metadata_rows(self.lake, self.branch, self.batch_id, list(statuses))
+        for job_id, columns in statuses.items():
+            row = rows.get(job_id)
+            if row is None:
+                raise LookupError(f"job {job_id!r} of batch {self.batch_id!r} has no metadata row any more")
+            row.update(columns)
+            self._statuses[job_id] = row
 
     def _publish_statuses(self) -> None:
         """Publish the staged rows as one `metadata` file of the batch (one file, however many jobs)."""

@@ -21,7 +21,9 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pyarrow as pa
 
+from lakegate.gateway.metrics.result_columns import NOT_A_NUMBER, ResultColumns, TemplateError, number, plural
 from lakegate.lake.config_schema import TEMPLATES  # the kinds this module renders, listed once
 from lakegate.lake.storage import LOCAL
 
@@ -98,21 +100,18 @@ class Rendered:
     files_missing: bool = False
 
 
-class TemplateError(ValueError):
-    """The result does not fit the template; the message names the metric, the template and what it got."""
-
-
 def render(
     metric_name: str,
     template: str,
     columns: list[tuple[str, str]],
-    rows: list[tuple],
+    rows: Sequence[tuple] | pa.Table,
     *,
     units: str | None = None,
     logs_dir: Path | None = None,
 ) -> Rendered:
-    """Render a query result (`columns` as (name, Trino type) pairs, `rows` of Python values)
-    with a system template (custom templates are `custom.render_custom`).
+    """Render a query result (`columns` as (name, Trino type) pairs, `rows` of Python values or the
+    query's Arrow table, `result_columns`) with a system template (custom templates are
+    `custom.render_custom`).
 
     `units` are shown after a scalar; `logs_dir` is where the image, video and artifact
     templates find files.
@@ -121,7 +120,7 @@ def render(
         raise TemplateError(
             f"metric {metric_name!r}: unknown template {template!r} (expected one of {', '.join(TEMPLATES)})"
         )
-    result = _Result(metric_name, template, columns, rows)
+    result = ResultColumns(metric_name, template, columns, rows)
     if template == "scalar":
         return _scalar(result, units)
     if template in FILE_TEMPLATES:
@@ -253,88 +252,11 @@ def json_value(value: Any) -> Any:
     return display_value(value)
 
 
-class _Result:
-    """A query result being rendered by one template, with the checks templates share."""
-
-    def __init__(self, metric: str, template: str, columns: list[tuple[str, str]], rows: list[tuple]):
-        self.metric = metric
-        self.template = template
-        self.names = [name for name, _ in columns]
-        self.types = [type_name for _, type_name in columns]
-        self.rows = rows
-        for number, row in enumerate(rows, 1):
-            if len(row) != len(columns):
-                raise self.error(f"got row {number} with {len(row)} values for {len(columns)} columns")
-
-    def error(self, what: str) -> TemplateError:
-        return TemplateError(f"metric {self.metric!r}: template {self.template!r} {what}")
-
-    def need_columns(self, counts: tuple[int, ...], shape: str) -> None:
-        """Fail unless the result has one of `counts` columns; `shape` names them, e.g. "[series, x, y]"."""
-        if len(self.names) in counts:
-            return
-        if len(counts) == 1:
-            wanted = f"exactly {counts[0]} column{'s' if counts[0] != 1 else ''}"
-        else:
-            wanted = " or ".join(map(str, counts)) + " columns"
-        raise self.error(f"needs {wanted} {shape}, got {len(self.names)} ({', '.join(self.names)})")
-
-    def numbers(self, column: int, wanted: str) -> tuple[list[int | float | None], list[str]]:
-        """The column's values as plottable numbers, NULL as None, and problems: NaN and
-        infinities (JSON has neither) are not drawn. Fails naming the row on a non-number."""
-        values: list[int | float | None] = []
-        undrawable = 0
-        for number, row in enumerate(self.rows, 1):
-            value = row[column]
-            if type(value) is not float:  # the common case first: this runs for every point
-                value = _number(value)
-                if value is _NOT_A_NUMBER:
-                    raise self.bad_value(number, column, wanted)
-            if type(value) is float and not math.isfinite(value):
-                value = None
-                undrawable += 1
-            values.append(value)
-        problems = []
-        if undrawable:
-            problems.append(
-                f'{_plural(undrawable, "value")} of "{self.names[column]}" '
-                f"{'is' if undrawable == 1 else 'are'} NaN or infinite and not drawn"
-            )
-        return values, problems
-
-    def bad_value(self, row_number: int, column: int, wanted: str) -> TemplateError:
-        value = self.rows[row_number - 1][column]
-        got = "NULL" if value is None else f"{value!r} ({self.types[column]})"
-        return self.error(
-            f'needs {wanted} in column {column + 1} "{self.names[column]}", but row {row_number} has {got}'
-        )
-
-
-_NOT_A_NUMBER = object()
-
-
-def _number(value: Any) -> Any:
-    """int or float for a number, None for NULL, _NOT_A_NUMBER for anything else (booleans too)."""
-    if value is None:
-        return None
-    if isinstance(value, (bool, np.bool_)):
-        return _NOT_A_NUMBER
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, Decimal, np.floating)):
-        return float(value)
-    return _NOT_A_NUMBER
-
-
 def _plot_time(value: dt.date) -> str:
     """A date or timestamp as Plotly's date axis reads it (wall-clock time, zone dropped)."""
     if isinstance(value, dt.datetime):
         return value.replace(tzinfo=None).isoformat(sep=" ")
     return value.isoformat()
-
-
-def _plural(count: int, word: str, plural: str | None = None) -> str:
-    return f"{count} {word if count == 1 else (plural or word + 's')}"
 
 
 def _layout(x_title: str | None = None, y_title: str | None = None, **extra: Any) -> dict:
@@ -347,15 +269,37 @@ def _layout(x_title: str | None = None, y_title: str | None = None, **extra: Any
     return layout
 
 
-def _series(result: _Result, column: int | None) -> dict[str, list[int]]:
+#: The row indexes of one series: every row (a range), or some rows in order.
+Indexes = range | Sequence[int]
+
+
+def _series(result: ResultColumns, column: int | None) -> dict[str, Indexes]:
     """Row indexes per distinct series label, in first-appearance order (one series when column is None)."""
     if column is None:
-        return {"": list(range(len(result.rows)))}
-    groups: dict[str, list[int]] = {}
-    label = _labeller()
-    for index, row in enumerate(result.rows):
-        groups.setdefault(label(row[column]), []).append(index)
-    return groups
+        return {"": range(result.count)}
+    encoded = result.codes(column)
+    if encoded is None:
+        groups: dict[str, list[int]] = {}
+        label = _labeller()
+        for index, value in enumerate(result.values(column)):
+            groups.setdefault(label(value), []).append(index)
+        return groups
+    distinct, codes = encoded  # distinct values in order of first appearance, so are their labels
+    numbers: dict[str, int] = {}  # label -> its series' number (values with one label make one series)
+    series_of = np.array([numbers.setdefault(display_value(value), len(numbers)) for value in distinct], np.intp)
+    if len(numbers) == 1:
+        return {next(iter(numbers)): range(result.count)}
+    of_rows = series_of[codes]
+    order = np.argsort(of_rows, kind="stable")  # each series' rows, in row order
+    bounds = np.cumsum(np.bincount(of_rows, minlength=len(numbers)))[:-1]
+    return {label: part.tolist() for label, part in zip(numbers, np.split(order, bounds))}
+
+
+def _pick(values: list, indexes: Indexes) -> list:
+    """The values at `indexes`."""
+    if isinstance(indexes, range) and len(indexes) == len(values):
+        return list(values)
+    return list(map(values.__getitem__, indexes))
 
 
 def _labeller() -> Callable[[Any], str]:
@@ -378,7 +322,7 @@ def _labeller() -> Callable[[Any], str]:
 LINK_PATH = "link_path"
 
 
-def _chart_columns(result: _Result, *, two: bool) -> tuple[int | None, int, int]:
+def _chart_columns(result: ResultColumns, *, two: bool) -> tuple[int | None, int, int]:
     """(series, x, y) column indexes of a bar or line result: `[series, x, y]`, with an optional 4th
     `link_path` column; a bar may also be `[x, y]` (one unnamed series), or `[x, y, link_path]`."""
     names = [name.lower() for name in result.names]
@@ -395,27 +339,28 @@ def _chart_columns(result: _Result, *, two: bool) -> tuple[int | None, int, int]
     raise result.error(f"needs {wanted} (and an optional {LINK_PATH} column), {got}")
 
 
-def _link_meta(result: _Result, groups: dict[str, list[int]]) -> dict:
+def _link_meta(result: ResultColumns, groups: dict[str, Indexes]) -> dict:
     """The `link_path` values of each trace's points, for the pages to link (figures_html)."""
     if result.names[-1].lower() != LINK_PATH or len(result.names) < 3:
         return {}
-    column = len(result.names) - 1
-    return {"meta": {LINK_PATH: [[json_value(result.rows[i][column]) for i in indexes] for indexes in groups.values()]}}
+    links = [json_value(value) for value in result.values(len(result.names) - 1)]
+    return {"meta": {LINK_PATH: [_pick(links, indexes) for indexes in groups.values()]}}
 
 
-def _line(result: _Result) -> Rendered:
+def _line(result: ResultColumns) -> Rendered:
     series, x, y = _chart_columns(result, two=False)
     ys, problems = result.numbers(y, "numeric y values")
     categorical = _is_text(result.types[x])  # ReSim draws text x values as categories
-    dates = not categorical and any(isinstance(row[x], dt.date) for row in result.rows)
+    raw_x = result.values(x)
+    dates = not categorical and not result.is_numeric(x) and any(isinstance(v, dt.date) for v in raw_x)
     xs: list[Any]
     if categorical:
-        xs = [row[x] for row in result.rows]
+        xs = raw_x
     elif dates:
-        xs = [_plot_time(row[x]) if isinstance(row[x], dt.date) else None for row in result.rows]
-        for number, row in enumerate(result.rows, 1):
-            if row[x] is not None and not isinstance(row[x], dt.date):
-                raise result.bad_value(number, x, "numeric or timestamp x values")
+        xs = [_plot_time(v) if isinstance(v, dt.date) else None for v in raw_x]
+        for row_number, v in enumerate(raw_x, 1):
+            if v is not None and not isinstance(v, dt.date):
+                raise result.bad_value(row_number, x, "numeric or timestamp x values")
     else:
         xs, x_problems = result.numbers(x, "numeric or timestamp x values")
         problems += x_problems
@@ -427,8 +372,8 @@ def _line(result: _Result) -> Rendered:
                 "type": "scatter",
                 "mode": "lines" if len(indexes) > 1 else "markers",
                 "name": name,
-                "x": [xs[i] for i in indexes],
-                "y": [ys[i] for i in indexes],
+                "x": _pick(xs, indexes),
+                "y": _pick(ys, indexes),
             }
         )
     _colour_statuses(traces, "line")
@@ -438,7 +383,7 @@ def _line(result: _Result) -> Rendered:
     return Rendered(
         template="line",
         figure={"data": traces, "layout": layout},
-        text=f"{_plural(len(traces), 'series', 'series')}, {_plural(len(result.rows), 'point')}",
+        text=f"{plural(len(traces), 'series', 'series')}, {plural(result.count, 'point')}",
         problems=problems,
     )
 
@@ -450,11 +395,11 @@ def _colour_statuses(traces: list[dict], part: str) -> None:
         trace[part] = {"color": colour}
 
 
-def _bar(result: _Result) -> Rendered:
+def _bar(result: ResultColumns) -> Rendered:
     series, x, y = _chart_columns(result, two=True)
     ys, problems = result.numbers(y, "numeric y values")
-    raw_x = [row[x] for row in result.rows]
-    categorical = any(v is not None and _number(v) is _NOT_A_NUMBER and not isinstance(v, dt.date) for v in raw_x)
+    raw_x = result.values(x)
+    categorical = any(v is not None and number(v) is NOT_A_NUMBER and not isinstance(v, dt.date) for v in raw_x)
     if categorical:
         xs: list[Any] = [display_value(v) for v in raw_x]
     elif any(isinstance(v, dt.date) for v in raw_x):
@@ -464,7 +409,7 @@ def _bar(result: _Result) -> Rendered:
         problems += x_problems
     groups = _series(result, series)
     traces = [
-        {"type": "bar", "name": name, "x": [xs[i] for i in indexes], "y": [ys[i] for i in indexes]}
+        {"type": "bar", "name": name, "x": _pick(xs, indexes), "y": _pick(ys, indexes)}
         for name, indexes in groups.items()
     ]
     _colour_statuses(traces, "marker")
@@ -476,15 +421,15 @@ def _bar(result: _Result) -> Rendered:
     return Rendered(
         template="bar",
         figure={"data": traces, "layout": layout},
-        text=f"{_plural(len(traces), 'series', 'series')}, {_plural(len(result.rows), 'bar')}",
+        text=f"{plural(len(traces), 'series', 'series')}, {plural(result.count, 'bar')}",
         problems=problems,
     )
 
 
-def _table(result: _Result) -> Rendered:
+def _table(result: ResultColumns) -> Rendered:
     if not result.names:
         raise result.error("needs at least 1 column, got 0")
-    cells = [[display_value(row[c]) for row in result.rows] for c in range(len(result.names))]
+    cells = [[display_value(v) for v in result.values(c)] for c in range(len(result.names))]
     figure = {
         "data": [
             {
@@ -500,11 +445,11 @@ def _table(result: _Result) -> Rendered:
         figure=figure,
         table={"columns": list(result.names), "rows": [[json_value(v) for v in row] for row in result.rows]},
         text=(len(result.names) == 2 and _inline([tuple(row) for row in result.rows]))
-        or f"{_plural(len(result.rows), 'row')}, {_plural(len(result.names), 'column')}",
+        or f"{plural(len(result.rows), 'row')}, {plural(len(result.names), 'column')}",
     )
 
 
-def _scalar(result: _Result, units: str | None) -> Rendered:
+def _scalar(result: ResultColumns, units: str | None) -> Rendered:
     if not result.names:
         raise result.error("needs at least 1 column, got 0")
     if not result.rows:
@@ -515,14 +460,14 @@ def _scalar(result: _Result, units: str | None) -> Rendered:
     problems = []
     if len(result.rows) > 1 or len(result.names) > 1:
         problems.append(
-            f"the query returned {_plural(len(result.rows), 'row')} and {_plural(len(result.names), 'column')}; "
+            f"the query returned {plural(len(result.rows), 'row')} and {plural(len(result.names), 'column')}; "
             f"only the first value is shown"
         )
     text = display_value(value)
     return Rendered(template="scalar", scalar=value, text=f"{text} {units}" if units else text, problems=problems)
 
 
-def _log_files(result: _Result, logs_dir: Path | None) -> Rendered:
+def _log_files(result: ResultColumns, logs_dir: Path | None) -> Rendered:
     """Image, video or artifact: the files of the job's logs the one column names; files that
     cannot be shown are problems grouped by cause (never fatal)."""
     wanted, mime_of, unshowable = _FILE_KINDS[result.template]
@@ -530,12 +475,12 @@ def _log_files(result: _Result, logs_dir: Path | None) -> Rendered:
     root = logs_dir.resolve() if logs_dir is not None else None
     found: list[list[Any]] = []  # FILE_COLUMNS
     failed: dict[str, list[str]] = {}  # what went wrong -> the files (or rows) it went wrong for
-    for number, (name,) in enumerate(result.rows, 1):
+    for row_number, (name,) in enumerate(result.rows, 1):
         if name is None:
-            failed.setdefault("NULL file name", []).append(f"row {number}")
+            failed.setdefault("NULL file name", []).append(f"row {row_number}")
             continue
         if not isinstance(name, str):
-            raise result.bad_value(number, 0, f"{wanted}s")
+            raise result.bad_value(row_number, 0, f"{wanted}s")
         if root is None:
             failed.setdefault("no log directory to look in", []).append(name)
             continue
@@ -550,10 +495,10 @@ def _log_files(result: _Result, logs_dir: Path | None) -> Rendered:
             found.append([name, str(path), LOCAL.stat(path).size, mime])
     files_missing = bool(result.rows) and not found and unshowable not in failed
     noun = {"image": "image", "video": "video", "artifact": "file"}[result.template]
-    text = _plural(len(found), noun)
+    text = plural(len(found), noun)
     count = sum(len(names) for names in failed.values())
     if count:
-        text += f", {_plural(count, 'problem')}"
+        text += f", {plural(count, 'problem')}"
     return Rendered(
         template=result.template,
         table={"columns": FILE_COLUMNS, "rows": found},
@@ -578,20 +523,20 @@ def _nanoseconds(value: Any) -> int | float | None:
         if value.tzinfo is not None:
             value = value.astimezone(dt.UTC).replace(tzinfo=None)
         return (value - _EPOCH) // dt.timedelta(microseconds=1) * 1000
-    number = _number(value)
-    if number is None or number is _NOT_A_NUMBER or not math.isfinite(number):
+    found = number(value)
+    if found is None or found is NOT_A_NUMBER or not math.isfinite(found):
         return None
-    return number
+    return found
 
 
-def _state_timeline(result: _Result) -> Rendered:
+def _state_timeline(result: ResultColumns) -> Rendered:
     result.need_columns((3,), "[system, timestamp, state]")
     samples: dict[str, list[tuple[int | float, str]]] = {}
     label = _labeller()
-    for number, (system, timestamp, state) in enumerate(result.rows, 1):
+    for row_number, (system, timestamp, state) in enumerate(result.rows, 1):
         ns = timestamp if type(timestamp) is int else _nanoseconds(timestamp)
         if ns is None:
-            raise result.bad_value(number, 1, "timestamps in nanoseconds")
+            raise result.bad_value(row_number, 1, "timestamps in nanoseconds")
         samples.setdefault(label(system), []).append((ns, label(state)))
     if not samples:
         figure = {"data": [], "layout": _layout("Elapsed time (s)", result.names[0])}
@@ -653,7 +598,7 @@ def _state_timeline(result: _Result) -> Rendered:
         template="state_timeline",
         figure={"data": list(traces.values()), "layout": layout},
         table={"columns": [result.names[0], "state", "start (s)", "end (s)"], "rows": segments},
-        text=f"{_plural(len(systems), 'system')}, {_plural(len(segments), 'segment')}, {_plural(len(traces), 'state')}",
+        text=f"{plural(len(systems), 'system')}, {plural(len(segments), 'segment')}, {plural(len(traces), 'state')}",
     )
 
 
@@ -661,7 +606,7 @@ def _is_text(type_name: str) -> bool:
     return type_name.startswith(("varchar", "char"))
 
 
-def _histogram_columns(result: _Result) -> tuple[int, int | None]:
+def _histogram_columns(result: ResultColumns) -> tuple[int, int | None]:
     """(value column, series column): [value], [value, series], or [group, value] as ReSim's
     own examples write it (`group_name` first), told apart by the columns' types."""
     if len(result.names) == 1:
@@ -671,7 +616,7 @@ def _histogram_columns(result: _Result) -> tuple[int, int | None]:
     return 0, 1
 
 
-def _histogram(result: _Result) -> Rendered:
+def _histogram(result: ResultColumns) -> Rendered:
     result.need_columns((1, 2), "[value], [value, series] or [group, value]")
     value_column, series_column = _histogram_columns(result)
     values, problems = result.numbers(value_column, "numeric values")
@@ -679,36 +624,36 @@ def _histogram(result: _Result) -> Rendered:
     groups = _series(result, series_column)
     traces = []
     for name, indexes in groups.items():
-        trace = {"type": "histogram", "x": [values[i] for i in indexes]}
+        trace = {"type": "histogram", "x": _pick(values, indexes)}
         if with_series:
             trace.update(name=name, opacity=0.6)
         traces.append(trace)
     if with_series:
         _colour_statuses(traces, "marker")
-    counted = sum(1 for value in values if value is not None)
-    nulls = sum(1 for row in result.rows if row[value_column] is None)
+    counted = len(values) - values.count(None)
+    nulls = result.values(value_column).count(None)
     if nulls:
-        problems.append(f"{_plural(nulls, 'NULL value')} not counted")
+        problems.append(f"{plural(nulls, 'NULL value')} not counted")
     return Rendered(
         template="histogram",
         figure={"data": traces, "layout": _layout(result.names[value_column], "Count", barmode="overlay")},
-        text=_plural(counted, "value") + (f" in {_plural(len(groups), 'series', 'series')}" if with_series else ""),
+        text=plural(counted, "value") + (f" in {plural(len(groups), 'series', 'series')}" if with_series else ""),
         problems=problems,
     )
 
 
-def _pie(result: _Result) -> Rendered:
+def _pie(result: ResultColumns) -> Rendered:
     result.need_columns((2,), "[label, value]")
     labels: list[str] = []
     values: list[int | float] = []
     problems: list[str] = []
-    for number, (label, raw) in enumerate(result.rows, 1):
-        value = _number(raw)
+    for row_number, (label, raw) in enumerate(result.rows, 1):
+        value = number(raw)
         if value is None:
-            problems.append(f"row {number}: NULL value, slice {display_value(label)!r} left out")
+            problems.append(f"row {row_number}: NULL value, slice {display_value(label)!r} left out")
             continue
-        if value is _NOT_A_NUMBER or not math.isfinite(value) or value < 0:
-            raise result.bad_value(number, 1, "non-negative numeric values")
+        if value is NOT_A_NUMBER or not math.isfinite(value) or value < 0:
+            raise result.bad_value(row_number, 1, "non-negative numeric values")
         labels.append(display_value(label))
         values.append(value)
     trace: dict[str, Any] = {"type": "pie", "labels": labels, "values": values, "sort": False, "name": result.names[1]}
@@ -716,7 +661,7 @@ def _pie(result: _Result) -> Rendered:
     if colours is not None:
         trace["marker"] = {"colors": colours}
     figure = {"data": [trace], "layout": _layout()}
-    text = _inline(list(zip(labels, values))) or _plural(len(labels), "slice")
+    text = _inline(list(zip(labels, values))) or plural(len(labels), "slice")
     return Rendered(template="pie", figure=figure, text=text, problems=problems)
 
 
@@ -733,7 +678,7 @@ def _inline(pairs: list[tuple[Any, Any]]) -> str:
 
 
 #: Renderers of the templates that need nothing but the result.
-_CHARTS: dict[str, Callable[[_Result], Rendered]] = {
+_CHARTS: dict[str, Callable[[ResultColumns], Rendered]] = {
     "line": _line,
     "bar": _bar,
     "table": _table,

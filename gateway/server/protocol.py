@@ -97,7 +97,7 @@ class Failure:
             if error.error_name == "EXCEEDED_GLOBAL_MEMORY_LIMIT":  # DuckDB adds tuning hints
                 message = f"{message.splitlines()[0].strip()} (lakegate serve --memory-limit)"
             return cls(message, error.error_name, error.line, error.column)
-        return cls(f"internal error: {type(error).__name__}: {error}", "GENERIC_INTERNAL_ERROR")
+        return cls("internal error: lakegate failed on this query (the server's log has why)", "GENERIC_INTERNAL_ERROR")
 
     @property
     def error_type(self) -> str:

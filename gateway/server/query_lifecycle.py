@@ -50,7 +50,7 @@ from lakegate.dialect.statements import Statement
 from lakegate.gateway.engine import session as sessions
 from lakegate.gateway.engine.backend import QueryResult
 from lakegate.gateway.engine.engine import Engine
-from lakegate.gateway.engine.failures import hide_paths, time_limit_error
+from lakegate.gateway.engine.failures import time_limit_error
 from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.engine.session import Session
 from lakegate.gateway.engine.trino_values import encode_columns
@@ -79,7 +79,7 @@ REAP_INTERVAL = 0.25
 #: Longest shutdown waits for workers to stop (they are daemon threads: the process may end without them).
 SHUTDOWN_GRACE = 1.0
 #: Payload bytes of spooled segments the server holds at once; past them pages are inlined.
-SPOOLED_BYTES = 256 * 1024 * 1024
+SPOOLED_BYTES = 64 * 1024 * 1024
 
 
 @dataclass
@@ -508,6 +508,8 @@ class QueryManager:
         self._queries: dict[str, Query] = {}
         self._lock = threading.Lock()
         self._waiting = 0  # queries created and not yet running or failed
+        self._waiting_chars = 0  # characters of their statement texts
+        self.queued_text_chars = QUEUED_BODIES * limits.max_body  # the most they may hold
         self._queue: deque[Query] = deque()  # queries given to `start`, waiting for a worker
         self._running = 0  # workers of queries that have not ended
         self._zombies = 0  # workers of ended queries that still run
@@ -523,14 +525,19 @@ class QueryManager:
     def create(self, statement: Statement, session: Session, encoding: str | None = None) -> Query:
         """A new query for one statement, queued (`start` hands it to a worker), or failed with
         QUERY_QUEUE_FULL when too many wait. `encoding`: the spooling protocol's, if the client chose one."""
+        size = len(statement.text)
         with self._lock:
             full = self._waiting >= self.limits.max_queued_queries
-            self._waiting += 0 if full else 1
+            too_much_text = not full and self._waiting_chars + size > self.queued_text_chars
+            admitted = not (full or too_much_text)
+            if admitted:
+                self._waiting += 1
+                self._waiting_chars += size
         query = Query(
             self.ids.next(),
             statement,
             session,
-            dequeued=(lambda: None) if full else self._dequeued,
+            dequeued=(lambda: self._dequeued(size)) if admitted else (lambda: None),
             encoding=encoding,
             segments=self.segments,
         )
@@ -541,11 +548,20 @@ class QueryManager:
             query.fail(SHUTTING_DOWN)
         elif full:
             query.fail(Failure('Too many queued queries for "global"', "QUERY_QUEUE_FULL"))
+        elif too_much_text:
+            query.fail(
+                Failure(
+                    'Too many queued queries for "global": the statements waiting hold '
+                    f"{self._waiting_chars:,} characters of text",
+                    "QUERY_QUEUE_FULL",
+                )
+            )
         return query
 
-    def _dequeued(self) -> None:
+    def _dequeued(self, size: int) -> None:
         with self._lock:
             self._waiting -= 1
+            self._waiting_chars -= size
 
     def start(self, query: Query) -> None:
         """Give a queued query to the next free worker."""
@@ -659,10 +675,7 @@ class QueryManager:
             query.fail(Failure.of(error))
         except Exception as error:  # a bug: the client gets GENERIC_INTERNAL_ERROR, the log the traceback
             log.exception("query %s failed", query.id)
-            failure = Failure.of(error)
-            query.fail(
-                Failure(hide_paths(failure.message, getattr(self.engine.backend, "lake", None)), failure.error_name)
-            )
+            query.fail(Failure.of(error))
         finally:
             close = getattr(batches, "close", None)
             if close is not None:
@@ -759,6 +772,10 @@ SHUTTING_DOWN = Failure("The server is shutting down", "SERVER_SHUTTING_DOWN")
 #: A statement text longer than this (characters) is large: parsing and translating it takes long
 #: enough that only `QueryManager.large_slots` of them run at once.
 LARGE_TEXT_BYTES = 64 * 1024
+#: The statement text the queries waiting to run may hold together, in largest bodies
+#: (`Limits.max_body`): the server's memory for its queue is bounded by bytes, not only by
+#: `Limits.max_queued_queries`; a statement past it fails with QUERY_QUEUE_FULL.
+QUEUED_BODIES = 32
 #: Seconds a queued query's client may go without polling beyond `Limits.wait` (a polling client
 #: asks again at least every `Limits.wait` seconds) before the query is dropped as abandoned.
 QUEUED_SILENCE = 4.0

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import pyarrow.compute as pc
 from tqdm import tqdm
 
 from lakegate.lake import paths, platform_tables
@@ -165,7 +166,7 @@ def ingest_job(
             staged_logs = scratch / "logs"
             LOCAL.put(Path(logs), staged_logs)
         version = BranchConfigs(lake, branch).store_config(config)
-        published = _publish(lake, branch, batch_id, job_id, staged, progress, staged_logs)
+        published = _publish(lake, branch, batch_id, job_id, staged, progress, staged_logs, scratch)
         quarantine_target = paths.quarantine_file(lake, branch, batch_id, job_id)
         if bad:
             paths.publish(quarantine, quarantine_target)
@@ -198,13 +199,35 @@ def _publish(
     staged: dict[str, Path],
     progress: bool,
     staged_logs: Path | None,
+    scratch: Path,
 ) -> list[Path]:
     """Make the staged files the job's tables, and `staged_logs` its logs, all at once (one record
-    commit); the old files go (`progress`: a bar on standard error if a layout v1 branch is migrated first)."""
+    commit); the old files go (`progress`: a bar on standard error if a layout v1 branch is migrated
+    first), and so do the batch's metric results this ingest makes stale (`_stale_results_dropped`)."""
     change = Change(lake, branch, progress=progress)
     for name, file in staged.items():
         change.add(name, batch_id, job_id, file)
     if staged_logs is not None:
         change.set_logs(batch_id, job_id, staged_logs)
     change.replace_job(batch_id, job_id)
-    return change.commit(f"ingest {batch_id}/{job_id}")
+    with change.hold([batch_id]):  # no other commit between reading the results and replacing them
+        _stale_results_dropped(change, batch_id, job_id, scratch)
+        return change.commit(f"ingest {batch_id}/{job_id}")
+
+
+def _stale_results_dropped(change: Change, batch_id: str, job_id: str, scratch: Path) -> None:
+    """Stage the batch's `metric_results` without the rows computed on the data this ingest replaces:
+    the job's own and the batch metrics' (they read every job: the old version of this one, or the
+    batch without it). Its metadata row's statuses start empty as well, so no verdict stays on data
+    it was not computed from; the other jobs keep theirs (their data did not change)."""
+    current = change.record.find(paths.METRIC_RESULTS_TABLE, batch_id, "")
+    if current is None:
+        return
+    results = LOCAL.read_parquet(change.record.root / current.path, partitioning=None)
+    job_ids = results.column("job_id")
+    kept = results.filter(pc.fill_null(pc.not_equal(job_ids, job_id), False))
+    if kept.num_rows == results.num_rows:
+        return
+    staged = scratch / "metric_results.parquet"
+    LOCAL.write_parquet(kept, staged, compression="zstd")
+    change.add(paths.METRIC_RESULTS_TABLE, batch_id, None, staged)

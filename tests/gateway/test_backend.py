@@ -11,6 +11,7 @@ import subprocess
 import sys
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import duckdb
@@ -695,3 +696,37 @@ def test_branches_share_one_database_and_idle_ones_are_released(tmp_path):
     finally:
         backend.close()
         expected.close()
+
+
+def test_a_scope_has_views_only_of_the_tables_its_queries_name(tmp_path):
+    """A scoped query's views are made when a query first names their tables (binding one reads its
+    files' footers): a job scope that read odom holds only odom's view until a query joins metadata;
+    the next job scope makes those two with the table its first query names, in one transaction (as
+    a metrics run's jobs run the same queries); scopes on threads at once answer as the branch does."""
+    lake = build_lake(tmp_path)
+    backend = DuckDBBackend(lake, memory_limit="256MB", threads=2)
+    views = "SELECT view_name FROM duckdb_views() WHERE schema_name LIKE 'scope_%' ORDER BY 1"
+    try:
+        scope = Scope(batch_id="b1", job_id="j1")
+        assert backend.execute("SELECT count(*) FROM odom", scope=scope).rows() == [(3,)]
+        con = backend.connection()
+        assert con.execute(views).fetchall() == [("odom",)]
+        sql = "SELECT m.experience_name, count(*) FROM odom o JOIN metadata m ON o.job_id = m.job_id GROUP BY 1"
+        assert backend.execute(sql, scope=scope).rows() == [("exp j1", 3)]
+        assert con.execute(views).fetchall() == [("metadata",), ("odom",)]
+        assert backend.execute("SELECT count(*) FROM time_to_goal", scope=Scope("b1", "j2")).rows() == [(2,)]
+        assert con.execute(views).fetchall() == [("metadata",)] * 2 + [("odom",)] * 2 + [("time_to_goal",)]
+        assert backend.execute("SELECT count(*) FROM odom", scope=Scope("b1")).rows() == [(5,)]  # a batch's: its own
+        assert con.execute(views.replace("ORDER BY 1", "AND view_name = 'time_to_goal'")).fetchall() == [
+            ("time_to_goal",)
+        ]
+        con.close()
+        total = "SELECT sum(time_s) FROM time_to_goal"  # time_s = 1.5 * i of each job's i-th goal
+        queries = [(sql, Scope("b1", "j1")), (sql, Scope("b1", "j2")), (total, None)]
+        queries += [(total, Scope(batch, job)) for batch, job, _ in JOBS]
+        with ThreadPoolExecutor(4) as pool:
+            answers = list(pool.map(lambda query: backend.execute(query[0], scope=query[1]).rows(), queries * 4))
+        assert answers[: len(queries)] == [[("exp j1", 3)], [("exp j2", 2)], [(15.0,)], [(4.5,)], [(1.5,)], [(9.0,)]]
+        assert answers == answers[: len(queries)] * 4
+    finally:
+        backend.close()

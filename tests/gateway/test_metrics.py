@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from decimal import ROUND_HALF_UP, Decimal
 from pathlib import Path
 
+import orjson
 import pytest
 
 from lakegate.dialect.scope import Scope
@@ -24,7 +25,9 @@ from lakegate.gateway.metrics.evaluation import (
     select_metrics,
     worst,
 )
+from lakegate.gateway.metrics.result_columns import result_table, table_rows
 from lakegate.gateway.metrics.results import read_results
+from lakegate.gateway.metrics.templates import FILE_TEMPLATES, render
 from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import Location, Metric, StatusCheck, load_config
 from lakegate.lake.ingest import ingest_job
@@ -700,3 +703,25 @@ def test_platform_tables_exist_empty_on_a_lake_without_their_files(nav, tmp_path
     result = nav.engine.evaluate(config.metrics["Peak memory"], BRANCH, Scope(BATCH, nav.jobs[0].job_id))
     assert result.status == "NO_DATA"
     assert result.error.message == "the query returned one row of NULLs; the status check does not run (NO_DATA)"
+
+
+def test_figures_from_arrow_columns_are_those_from_rows_on_a_real_run(nav):
+    """A run renders each query's Arrow table column by column (gateway/metrics/result_columns.py): for
+    every metric of the run, in every job, the figure, table and text are byte for byte those rendered
+    from the rows of the same answer, as the templates read results before. (Each query runs once:
+    without ORDER BY, two runs may give their rows in another order.)"""
+    compared = set()
+    for result in nav.evaluation.results():
+        metric = nav.config.metrics[result.metric]
+        if result.status == "ERROR" or metric.template_type == "custom" or metric.template in FILE_TEMPLATES:
+            continue
+        scope = Scope(BATCH, result.job_id) if result.job_id else Scope(BATCH)
+        answer = nav.engine.query(metric.query_string, BRANCH, scope)
+        table = result_table(answer.batches)
+        shown = [
+            render(metric.name, metric.template, answer.columns, rows, units=metric.units)
+            for rows in (table, table_rows(table))
+        ]
+        assert len({orjson.dumps([s.figure, s.table, s.text, s.problems], default=str) for s in shown}) == 1
+        compared.add(metric.template)
+    assert {"line", "histogram", "state_timeline", "bar", "table", "pie", "scalar"} <= compared

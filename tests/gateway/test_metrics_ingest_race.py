@@ -1,6 +1,7 @@
 """A `lakegate metrics run` racing a re-ingest of one of its jobs, as real processes: the statuses
 and results stored are always those of the data the job holds (or the job has none yet, when the
-re-ingest came last); never a verdict computed on the version the re-ingest replaced.
+re-ingest came last: a re-ingest drops the job's results and the batch metrics'); never a verdict
+computed on the version the re-ingest replaced.
 
 Some rounds are made to hit the window every time: the run stops just before its record commit
 (lake.record's PAUSE_ENV hook), the job is re-ingested, and the run goes on. The others start the
@@ -41,6 +42,21 @@ def _finish(process: subprocess.Popen) -> tuple[int, str, str]:
     return process.returncode, out, err
 
 
+def job_results(lake: Path) -> dict[str, list[tuple]]:
+    """Each job's stored (metric, status, value) rows (batch metrics under ''), from `lakegate query`."""
+    query = _lakegate(
+        "query", "--lake", lake, "--format", "csv",
+        "SELECT coalesce(job_id, '') AS job, metric_name, status, scalar_value, value_text FROM metric_results "
+        "ORDER BY 1, 2",
+    )  # fmt: skip
+    code, out, err = _finish(query)
+    assert code == 0, err
+    found: dict[str, list[tuple]] = {}
+    for row in csv.DictReader(io.StringIO(out)):
+        found.setdefault(row.pop("job"), []).append(tuple(row.values()))
+    return found
+
+
 @pytest.mark.slow
 def test_a_metrics_run_never_stores_a_verdict_on_data_it_did_not_read(nav_jobs, tmp_path: Path) -> None:
     lake = tmp_path / "lake"
@@ -59,7 +75,8 @@ def test_a_metrics_run_never_stores_a_verdict_on_data_it_did_not_read(nav_jobs, 
         env = None if marker is None else {PAUSE_ENV: f"commit:{marker}"}
         return _lakegate("metrics", "run", *common, "--batch", "nightly", "--metrics-set", NAV_SET, env=env)
 
-    for job_id, version in (("racer", "passes"), ("steady", "blocks")):
+    # the steady jobs hold each version's data for good: racer's results must equal those of its version's
+    for job_id, version in (("racer", "passes"), ("steady-blocks", "blocks"), ("steady-passes", "passes")):
         assert _finish(ingest(job_id, version))[0] == 0
     assert _finish(_lakegate("metrics", "sync", *common, "--metrics-config-path", nav_jobs.config))[0] == 0
 
@@ -99,7 +116,19 @@ def test_a_metrics_run_never_stores_a_verdict_on_data_it_did_not_read(nav_jobs, 
         expected = versions[row["experience_name"]][1]
         # the status is of the data the job holds now, or none yet (the re-ingest came after the run)
         assert row["job_conflated_status"] in ("", expected), (round_number, row)
+        if row["job_conflated_status"]:  # and its metric results are those of that data, metric by metric
+            stored = job_results(lake)
+            assert stored["racer"] == stored[f"steady-{row['experience_name']}"], round_number
+        else:  # the re-ingest came last: it dropped the results of the data it replaced
+            assert "racer" not in job_results(lake), round_number
         if paused:  # the run evaluated the new version after the re-ingest, said so, and stored its verdict
             assert row == {"experience_name": version, "job_conflated_status": versions[version][1]}
             assert "job(s) 'racer'" in said and "of batch 'nightly' changed" in said and "evaluated again" in said
     assert restarts >= 2
+    # a re-ingest with no run after it: no verdict stays on the new data, nor batch metrics computed
+    # over the old; the steady jobs keep theirs
+    before = job_results(lake)
+    assert _finish(ingest("racer", "passes"))[0] == 0
+    after = job_results(lake)
+    assert "racer" not in after and "" not in after  # '': the batch metrics' rows
+    assert after["steady-blocks"] == before["steady-blocks"] and after["steady-passes"] == before["steady-passes"]

@@ -1,7 +1,8 @@
 """Fair to every client, on a real `lakegate serve` with 2 query slots: a free slot goes to the user
 with the fewest running queries (one user's flood cannot keep another's SELECT 1 behind it), queued
-queries of a client that stopped polling are dropped without running, and a client that stops
-reading a large result frees its slot once its heartbeat lapses."""
+queries of a client that stopped polling are dropped without running, the queue holds a bounded
+amount of statement text, and a client that stops reading a large result frees its slot once its
+heartbeat lapses."""
 
 from __future__ import annotations
 
@@ -62,8 +63,15 @@ def test_one_users_flood_does_not_keep_another_users_query_waiting(two_slots, en
             poller.join(timeout=30)
 
 
-def test_queued_queries_of_a_vanished_client_are_dropped_without_running(start_server, endless):
-    two_slots = start_server("--max-concurrent-queries", "2", "--query-timeout", "60")
+@pytest.fixture(scope="module")
+def patient_slots(start_server):
+    """Two slots whose queries may run a minute (an endless query holds its slot for the whole test),
+    and bodies of at most 100 KB (the queue holds 32 of them)."""
+    return start_server("--max-concurrent-queries", "2", "--query-timeout", "60", "--max-body", "100000")
+
+
+def test_queued_queries_of_a_vanished_client_are_dropped_without_running(patient_slots, endless):
+    two_slots = patient_slots
     vanished = [post(two_slots, endless, "carol") for _ in range(6)]  # never polled again
     queued = [d for d in vanished if info(two_slots, d["id"])["state"] == "QUEUED"]
     assert len(queued) >= 3
@@ -73,6 +81,44 @@ def test_queued_queries_of_a_vanished_client_are_dropped_without_running(start_s
         assert error["errorName"] == "ABANDONED_QUERY" and "stopped polling while queued" in error["message"]
     for d in vanished:
         requests.delete(f"{two_slots.url}/v1/query/{d['id']}", timeout=30)
+
+
+def test_the_queue_holds_a_bounded_amount_of_statement_text(patient_slots, endless):
+    """Queued statements of the largest size a body may have (polled, so none is dropped): the 33rd
+    finds the queue's 32 bodies' worth of text taken and fails with QUERY_QUEUE_FULL at once; the queue
+    takes more once they left."""
+    from lakegate.gateway.server.query_lifecycle import QUEUED_BODIES
+
+    running = [post(patient_slots, endless, "frank") for _ in range(2)]  # both slots busy: the rest queue
+    large = "SELECT 1 -- " + "x" * 98_988  # 99,000 characters (--max-body 100,000)
+    stop = threading.Event()
+    queued: list[dict] = []
+
+    def keep_polling(document: dict) -> None:
+        while "nextUri" in document and not stop.is_set():
+            document = requests.get(document["nextUri"], timeout=30).json()
+
+    pollers = []
+    try:
+        for _ in range(QUEUED_BODIES):
+            queued.append(post(patient_slots, large, "frank"))
+            pollers.append(threading.Thread(target=keep_polling, args=(queued[-1],)))
+            pollers[-1].start()
+        assert all(info(patient_slots, d["id"])["state"] == "QUEUED" for d in queued)
+        refused = post(patient_slots, large, "frank")
+        assert refused["error"]["errorName"] == "QUERY_QUEUE_FULL", refused
+        assert "the statements waiting hold 3,168,000 characters of text" in refused["error"]["message"]
+        small = post(patient_slots, "SELECT 2", "frank")  # a small statement still finds room
+        assert info(patient_slots, small["id"])["state"] in ("QUEUED", "RUNNING", "FINISHED")
+    finally:
+        stop.set()
+        for d in [*running, *queued]:
+            requests.delete(f"{patient_slots.url}/v1/query/{d['id']}", timeout=30)
+        for poller in pollers:
+            poller.join(timeout=30)
+    queued_again = post(patient_slots, large, "frank")  # the canceled statements left the queue
+    assert "error" not in queued_again, queued_again
+    requests.delete(f"{patient_slots.url}/v1/query/{queued_again['id']}", timeout=30)
 
 
 def test_a_client_that_stops_reading_frees_its_slot_when_its_heartbeat_lapses(two_slots):

@@ -130,6 +130,20 @@ def test_odd_topic_and_field_names_are_escaped(out: Path, tmp_path: Path):
     assert read_lines(out) == [{"$metadata": {"topic": topic, "timestamp": 3}, "$data": {field: "{v}", "n": 1.0}}]
 
 
+def test_odd_names_of_a_numeric_topic_are_escaped(out: Path, tmp_path: Path):
+    """Records of float, int and boolean fields are queued as rows and joined into lines later: names holding
+    JSON punctuation and non-ASCII characters come out as json.dumps writes them."""
+    topic = 'odd, "topic" é'  # a table folder: no brackets
+    fields = {'a, [b] "c": 0.00001': "float", "],[": "int", "é ✓ 😀": "boolean", "e-5": "float"}
+    config = write_config(tmp_path / "c.yaml", {topic: {"schema": fields}})
+    records = [dict(zip(fields, values)) for values in [(1e-5, -(2**63), True, -0.0), (2.5, 2**63 - 1, False, 1e22)]]
+    with Emitter(config, out) as em:
+        for i, record in enumerate(records):
+            em.emit(topic, record, timestamp=i)
+    expected = [json.dumps({"$metadata": {"topic": topic, "timestamp": i}, "$data": r}) for i, r in enumerate(records)]
+    assert out.read_text().splitlines() == expected
+
+
 def test_output_is_appended_and_folders_created(out: Path):
     for ts in (1, 2):
         with Emitter(FIXTURE_CONFIG, out) as em:
@@ -536,9 +550,12 @@ def test_threads_share_one_emitter_without_loss_or_interleaving(out: Path):
     threads, per_thread = 8, 50_000
     with Emitter(FIXTURE_CONFIG, out, flush_interval=0.01) as em:
 
-        def work(k: int) -> None:
+        def work(k: int) -> None:  # half the threads emit lines of a text topic, half rows of a numeric one
             for i in range(per_thread):
-                em.emit("goal_distance", {"goal_name": f"thread-{k}", "distance_m": float(i)}, i)
+                if k % 2:
+                    em.emit("covariance_accuracy", {"error_m": float(k), "sigma_m": 1.0, "within_1_sigma": i}, i)
+                else:
+                    em.emit("goal_distance", {"goal_name": f"thread-{k}", "distance_m": float(i)}, i)
 
         workers = [threading.Thread(target=work, args=(k,)) for k in range(threads)]
         for worker in workers:
@@ -549,7 +566,8 @@ def test_threads_share_one_emitter_without_loss_or_interleaving(out: Path):
     with out.open() as lines:
         for line in lines:
             record = strict_loads(line)
-            seen[record["$data"]["goal_name"]].append(record["$metadata"]["timestamp"])
+            thread = record["$data"].get("goal_name") or f"thread-{record['$data']['error_m']:.0f}"
+            seen[thread].append(record["$metadata"]["timestamp"])
     assert all(stamps == list(range(per_thread)) for stamps in seen.values())
 
 
@@ -714,13 +732,14 @@ FORK_SCRIPT = """
 import multiprocessing, os, sys
 from lakegate.lake.emitter import Emitter
 
-mode, lines = sys.argv[3], 1000
+mode, lines = sys.argv[3], 500
 em = Emitter(sys.argv[1], sys.argv[2], flush_interval=3600)  # only exit paths write, never the interval
 
 
 def work(k):
-    for i in range(lines):
+    for i in range(lines):  # a line of a text topic and a row of a numeric one
         em.emit("goal_distance", {"goal_name": f"child-{k}", "distance_m": float(i)}, i)
+        em.emit("covariance_accuracy", {"error_m": float(k), "sigma_m": 1.0, "within_1_sigma": i}, i)
     return k
 
 
@@ -756,8 +775,11 @@ def test_lines_of_forked_children_are_all_written(out: Path, mode: str):
     assert child.wait(timeout=60) == 0
     seen: dict[str, list[int]] = {}
     for line in read_lines(out):
-        seen.setdefault(line["$data"]["goal_name"], []).append(line["$metadata"]["timestamp"])
-    assert seen == {"parent": [0], **{f"child-{k}": list(range(1000)) for k in range(8)}}
+        data = line["$data"]
+        who = data["goal_name"] if "goal_name" in data else f"child-{data['error_m']:.0f} rows"
+        seen.setdefault(who, []).append(line["$metadata"]["timestamp"])
+    children = {f"child-{k}{kind}": list(range(500)) for k in range(8) for kind in ("", " rows")}
+    assert seen == {"parent": [0], **children}
 
 
 # --- write errors: a full disk ---------------------------------------------------------------
@@ -825,18 +847,28 @@ def test_full_disk_leaves_only_whole_lines_and_keeps_the_rest_queued(tiny_disk: 
 # --- byte identity with the reference Emitters ------------------------------------------------
 
 
-def test_series_are_byte_identical_to_the_references_and_take_the_column_path(tmp_path: Path, monkeypatch):
-    """emit_series writes, byte for byte, what resim-open-core 1.6.0 and signalflag 1.8.0 wrote for the same
-    calls (fixtures/emitter_series_shapes.jsonl.gz, made by tests/lake/emitter_series_shapes.py under their
-    venvs), and every shape of scalar fields is built by the column-by-column path, not record by record."""
+def load_shapes():
+    """tests/lake/emitter_series_shapes.py as a module (a script the references' venvs run too)."""
     import importlib.util
-
-    from lakegate.lake import emitter as emitter_module
 
     spec = importlib.util.spec_from_file_location("shapes", Path(__file__).with_name("emitter_series_shapes.py"))
     shapes = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(shapes)
+    return shapes
 
+
+def pinned_shape_lines() -> bytes:
+    """What resim-open-core 1.6.0 and signalflag 1.8.0 wrote for the shapes."""
+    return gzip.decompress((FIXTURE_CONFIG.parent / "emitter_series_shapes.jsonl.gz").read_bytes())
+
+
+def test_series_are_byte_identical_to_the_references_and_take_the_column_path(tmp_path: Path, monkeypatch):
+    """emit_series writes, byte for byte, what resim-open-core 1.6.0 and signalflag 1.8.0 wrote for the same
+    calls (fixtures/emitter_series_shapes.jsonl.gz, made by tests/lake/emitter_series_shapes.py under their
+    venvs), and every shape of scalar fields is built by the column-by-column path, not record by record."""
+    from lakegate.lake import emitter as emitter_module
+
+    shapes = load_shapes()
     by_record = []
     original = emitter_module.SeriesLines.encode
 
@@ -849,9 +881,43 @@ def test_series_are_byte_identical_to_the_references_and_take_the_column_path(tm
     monkeypatch.setattr(emitter_module.SeriesLines, "encode", spy)
     out = tmp_path / "emissions.resim.jsonl"
     shapes.main("lakegate.lake.emitter", str(out))
-    pinned = gzip.decompress((FIXTURE_CONFIG.parent / "emitter_series_shapes.jsonl.gz").read_bytes())
-    assert out.read_bytes() == pinned
+    assert out.read_bytes() == pinned_shape_lines()
     assert by_record == [3]  # only the string[]/metric[] series
+
+
+def test_emit_of_interleaved_topics_is_byte_identical_to_the_references(tmp_path: Path, monkeypatch):
+    """emit() of every record of the shapes writes the references' lines (their emit_series writes each record
+    as their emit does). The shapes' records are emitted round robin, so that the rows queued by the numeric
+    topics and the lines of the text and list topics share every chunk; each numeric record takes the row path."""
+    from lakegate.lake import emitter as emitter_module
+
+    shapes = load_shapes()
+    rows_written = []
+    original = emitter_module.rows_text
+
+    def spy(rows):
+        rows_written.append(len(rows))
+        return original(rows)
+
+    monkeypatch.setattr(emitter_module, "rows_text", spy)
+    calls = shapes.shapes()
+    pinned = pinned_shape_lines().splitlines(keepends=True)
+    records, expected, at = [], [], 0
+    for topic, columns, stamps in calls:
+        records.append([(topic, {k: v[i] for k, v in columns.items()}, stamp) for i, stamp in enumerate(stamps)])
+        expected.append(pinned[at : at + len(stamps)])
+        at += len(stamps)
+    assert at == len(pinned)
+    config = tmp_path / "config.resim.yaml"
+    config.write_text(shapes.CONFIG)
+    out = tmp_path / "emissions.resim.jsonl"
+    order = [(k, i) for i in range(max(map(len, records))) for k in range(len(records)) if i < len(records[k])]
+    with Emitter(config, out, flush_interval=3600) as em:
+        for k, i in order:
+            em.emit(*records[k][i])
+    assert out.read_bytes() == b"".join(expected[k][i] for k, i in order)
+    numeric = sum(len(stamps) for topic, _, stamps in calls if topic in ("floats", "ints", "flags"))
+    assert sum(rows_written) == numeric and len(rows_written) > 3  # runs of rows between the other topics' lines
 
 
 def test_series_the_column_path_declines_are_checked_record_by_record(emitter: Emitter, out: Path):
@@ -874,6 +940,30 @@ def test_series_the_column_path_declines_are_checked_record_by_record(emitter: E
     emitter.close()
     lines = out.read_bytes().splitlines()
     assert len(lines) == n and lines[7_000].endswith(b'"$data": {"speed": 3.0}}')
+
+
+def test_full_disk_with_queued_rows_leaves_only_whole_lines(tiny_disk: Path):
+    """Rows of a numeric topic become lines when written: on a full disk too, only whole lines, in order."""
+    filler = tiny_disk / "filler"
+    filler.write_bytes(b"x" * 32 * 1024)
+    out = tiny_disk / "emissions.resim.jsonl"
+    em = Emitter(FIXTURE_CONFIG, out, flush_interval=3600)
+    count = 400  # about 46 KB: more than the free space, less than the disk
+    for i in range(count):
+        em.emit(ODOM, {"x": i / 3, "y": -i / 7, "z": 1e-5 * i}, timestamp=i)
+    with pytest.raises(OSError, match="No space left on device") as info:
+        em.flush()
+    text = out.read_bytes()
+    written = len(text.splitlines())
+    assert 0 < written < count and text.endswith(b"\n")
+    assert f"({count - written} line(s) not written)" in str(info.value)
+    filler.unlink()
+    em.close()
+    expected = [
+        json.dumps({"$metadata": {"topic": ODOM, "timestamp": i}, "$data": {"x": i / 3, "y": -i / 7, "z": 1e-5 * i}})
+        for i in range(count)
+    ]
+    assert out.read_text().splitlines() == expected
 
 
 def test_full_disk_during_a_long_series_leaves_only_whole_lines(tiny_disk: Path):

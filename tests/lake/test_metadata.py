@@ -18,10 +18,12 @@ from lakegate.lake.metadata import (
     build_metadata_row,
     load_metadata_file,
     read_metadata_row,
+    read_metadata_rows,
+    stage_metadata_rows,
     update_metadata_row,
     write_metadata_row,
 )
-from lakegate.lake.record import current_file
+from lakegate.lake.record import Change, current_file
 
 
 def row_for(tmp_path, values, **kw):
@@ -217,3 +219,26 @@ def test_a_row_written_before_a_column_existed_reads_it_as_null_and_updates(tmp_
     assert read["experience_name"] == "sunny"
     updated = update_metadata_row(tmp_path, "main", "b1", "j1", job_metrics_status="PASSED")
     assert updated["job_metrics_status"] == "PASSED" and updated["run_counter"] is None
+
+
+def test_rows_of_many_jobs_are_read_at_once_from_one_file_or_their_own(tmp_path):
+    """`read_metadata_rows` reads each file once: three jobs written as one file of the batch (as a
+    metrics run stages their statuses) and one job in its own file read as `read_metadata_row` reads
+    each; a job without a row is left out."""
+    rows = {
+        job: build_metadata_row(
+            {"experience_name": f"exp {job}"}, lake=tmp_path, branch="main", batch_id="b1", job_id=job
+        )
+        for job in ("j1", "j2", "j3", "j4")
+    }
+    change = Change(tmp_path, "main")
+    with paths.staging(tmp_path, "main") as scratch:
+        stage_metadata_rows(change, scratch, "b1", {job: rows[job] for job in ("j3", "j1", "j2")})
+    change.commit("three jobs")
+    write_metadata_row(tmp_path, "main", "b1", "j4", rows["j4"])
+    read = read_metadata_rows(tmp_path, "main", "b1", ["j4", "j2", "nope", "j1", "j3"])
+    assert list(read) == ["j4", "j2", "j1", "j3"] and read == {job: rows[job] for job in read}
+    assert read == {job: read_metadata_row(tmp_path, "main", "b1", job) for job in read}
+    assert current_file(tmp_path, "main", "metadata", "b1", "j1") == current_file(
+        tmp_path, "main", "metadata", "b1", "j3"
+    )

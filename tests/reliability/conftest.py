@@ -27,7 +27,8 @@ ADDRESS_SPACE = 3 << 30
 QUERY_TIMEOUT = 3
 
 
-def _capped() -> None:
+def capped() -> None:
+    """Cap this process's address space at ADDRESS_SPACE (a subprocess's `preexec_fn`)."""
     resource.setrlimit(resource.RLIMIT_AS, (ADDRESS_SPACE, ADDRESS_SPACE))
 
 
@@ -60,6 +61,14 @@ def held_mb(pid: int) -> float:
         except OSError:
             pass  # ended meanwhile
     return total / 1024
+
+
+def peak_of(pid: int) -> float:
+    """The peak resident memory (VmHWM) of process `pid` alone, in MB."""
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) / 1024
+    raise AssertionError(f"no VmHWM for process {pid}")
 
 
 class MemoryWatch:
@@ -103,7 +112,7 @@ def start_server(tmp_path: Path, *options: str) -> Iterator[tuple[subprocess.Pop
         *options,
     ]
     with open(tmp_path / "stderr.log", "w") as stderr:
-        process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=stderr, text=True, preexec_fn=_capped)
+        process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=stderr, text=True, preexec_fn=capped)
     line = Output(process).wait_for(" at ", 60)
     try:
         assert line is not None, (tmp_path / "stderr.log").read_text()

@@ -1,11 +1,12 @@
 """Hostile load against one real `lakegate serve` with small limits: the two
 out-of-memory queries, 8 nested-ARRAY queries that take the parser minutes, an EXPLAIN ANALYZE of a
-cross-join bomb and two 50 MB bodies, all at once; after that `SELECT 1` answers in under a second,
+cross-join bomb, two 50 MB bodies and 8 statements of almost 1 MB (the most a body may hold), all at
+once; after that `SELECT 1` answers in under a second,
 the memory the server's processes (the server and its query workers) held together stayed under its
 memory limit plus the documented margin (docs/sql-endpoint.md), and SIGTERM stops it within 5 s.
 
 The server runs under a hard address-space cap (RLIMIT_AS), so that a limit that fails can never
-take the test machine's memory. Bounded: 13 requests, each ending within the query time limit.
+take the test machine's memory. Bounded: 21 requests, each ending within the query time limit.
 
 Trino semantics (trinodb/trino): `repeat(element, count)` refuses a count above 10,000
 (`core/trino-main/src/main/java/io/trino/operator/scalar/RepeatFunction.java`); a query longer than
@@ -29,6 +30,9 @@ from tests.reliability.conftest import HEADERS, MEMORY_LIMIT_MB, RSS_MARGIN_MB, 
 NESTED = "SELECT " + "ARRAY[" * 22 + "1" + "]" * 22
 TOO_DEEP = "SELECT " + "ARRAY[" * 40 + "1" + "]" * 40
 BODY = b"SELECT 1 -- " + b"x" * 50_000_000
+#: A statement of 976 KB the server accepts and answers: a count with an IN list of 8,000 job ids.
+LARGE = ("SELECT count(*) FROM odom_linear_velocity WHERE job_id IN (" + ", ".join(
+    f"'{i:0118d}'" for i in range(8000)) + ")").encode()  # fmt: skip
 #: (request body, the Trino error names that refuse it clearly)
 HOSTILE = [
     *[(NESTED.encode(), {"FINISHED", "EXCEEDED_TIME_LIMIT"})] * 4,
@@ -38,6 +42,7 @@ HOSTILE = [
     (b"SELECT repeat('x', 1000000000)", {"INVALID_FUNCTION_ARGUMENT", "EXCEEDED_GLOBAL_MEMORY_LIMIT"}),
     (BODY, {"QUERY_TEXT_TOO_LARGE"}),
     (BODY.replace(b"-- ", b", '", 1) + b"'", {"QUERY_TEXT_TOO_LARGE"}),
+    *[(LARGE, {"FINISHED", "EXCEEDED_TIME_LIMIT"})] * 8,
 ]
 
 

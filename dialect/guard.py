@@ -1,17 +1,18 @@
 """The read-only guard: only queries reach DuckDB.
 
-`examine_text` reads the raw text once before parsing, for `statements.read` (the one reader): its kind
-from `statement_kind`, the table of statement words ('query', 'show', 'describe', 'explain',
-'session' (SET SESSION, USE, PREPARE, EXECUTE, START TRANSACTION, ...), 'call', or 'other'), and
-its refusal as a query (encoding, size, nesting depth, statement kind, one statement only), which
-the statement's owner raises. `check_text` is that refusal for a caller with text only. `check`
-runs on the parsed Trino AST (no writes, no file or DuckDB-internal functions, no table functions
-but UNNEST).
+`STATEMENTS` is the one table of statement kinds: a statement's first words -> its kind and how
+running it as a query is refused. `examine_text` reads a raw text once, before parsing, for
+`statements.read` (the one reader): its kind (`statement_kind`) and its refusal as a query
+(encoding, size, nesting depth, statement kind, one statement only, a first word that starts no
+Trino statement), which the statement's owner raises. `check_text` is that refusal for a caller
+with text only (`translate(sql)`). `check` runs on the parsed Trino AST (no writes, no file or
+DuckDB-internal functions, no table functions but UNNEST).
 """
 
 from __future__ import annotations
 
 import re
+from typing import NamedTuple
 
 from sqlglot import exp
 from sqlglot.dialects.trino import Trino
@@ -31,9 +32,6 @@ MAX_NESTING = 32
 #: 250,000 tokens, which would take sqlglot over 10 s).
 MAX_TOKENS = 20_000
 
-_QUERY_WORDS = {"SELECT", "WITH", "VALUES", "TABLE"}
-_SESSION_WORDS = {"USE", "PREPARE", "EXECUTE", "DEALLOCATE", "COMMIT", "ROLLBACK"}
-_SESSION_SET = {"SESSION", "TIME", "PATH", "ROLE"}  # SET SESSION / SET TIME ZONE / SET PATH / SET ROLE
 #: First words of statements that change something or reach outside the lake: refused by name.
 _REFUSED_WORDS = {
     "INSERT",
@@ -72,6 +70,47 @@ _REFUSED_WORDS = {
     "UNPIVOT",
     "FROM",
 }
+#: The one table of statement kinds: a statement's name (its first word, or first two or three) ->
+#: its kind (one of `statements.KINDS`, each with its one owner) and how running its text as a query
+#: is refused: "session" (NOT_SUPPORTED: a session statement, the server's to answer), "denied"
+#: (PERMISSION_DENIED: not read-only), None (it runs). The longest name matching the first two words
+#: wins; EXPLAIN of anything but a query is refused by the explained statement's name; a first word
+#: not here starts no statement lakegate knows (Trino's SYNTAX_ERROR at it, unless Trino's grammar
+#: starts a statement with it: `_STATEMENT_STARTS`).
+STATEMENTS: dict[str, tuple[str, str | None]] = {
+    **dict.fromkeys(("SELECT", "WITH", "VALUES", "TABLE"), ("query", None)),
+    "SHOW": ("show", None),
+    "DESCRIBE": ("describe", None),  # DESCRIBE INPUT / OUTPUT of a prepared statement: "describe_prepared"
+    "DESC": ("describe", None),
+    "EXPLAIN": ("explain", None),
+    **dict.fromkeys(
+        (
+            "USE",
+            "SET SESSION",
+            "RESET SESSION",
+            "SET TIME ZONE",
+            "PREPARE",
+            "DEALLOCATE PREPARE",
+            "START TRANSACTION",
+            "COMMIT",
+            "ROLLBACK",
+        ),
+        ("session", "session"),
+    ),
+    "EXECUTE": ("execute", "session"),
+    **dict.fromkeys(("SET PATH", "SET ROLE", "DEALLOCATE"), ("other", "session")),  # session statements not answered
+    "CALL": ("call", "denied"),
+    **dict.fromkeys(sorted(_REFUSED_WORDS), ("other", "denied")),
+}
+#: The names of `STATEMENTS` by their first two words.
+_BY_WORDS = {tuple(name.split()[:2]): name for name in STATEMENTS}
+#: The words a Trino 476 statement may start with, in the order its parser lists them when another
+#: word starts one (a query may also start with SELECT, VALUES, TABLE or a parenthesis).
+_STATEMENT_STARTS = (
+    "ALTER ANALYZE CALL COMMENT COMMIT CREATE DEALLOCATE DELETE DENY DESC DESCRIBE DROP EXECUTE EXPLAIN GRANT "
+    "INSERT MERGE PREPARE REFRESH RESET REVOKE ROLLBACK SET SHOW START TRUNCATE UPDATE USE WITH"
+).split()
+
 #: Second words that belong to a statement's name in messages (CREATE TABLE, SET SESSION, ...).
 _NAME_WORDS = {
     "TABLE",
@@ -226,47 +265,38 @@ def _words(sql: str, offset: int, count: int) -> list[tuple[str, int]]:
     return words
 
 
-def first_words(sql: str, count: int) -> list[str]:
-    """The statement's first `count` words (fewer if it has fewer), upper-cased, blanks, comments and
-    opening parentheses skipped: what the reader (`statements.read`) tells statements apart by."""
-    return [word for word, _ in _words(sql, 0, count)]
+class Kind(NamedTuple):
+    """A statement's kind as the table of statement kinds (`STATEMENTS`) gives it."""
+
+    kind: str  # one of statements.KINDS
+    name: str  # the statement's name as its owner reads it (USE, SET TIME ZONE, SHOW TABLES, ...)
+    start: int  # the offset of its first word
+    refused: str | None  # how running it as a query is refused: "session", "denied", "syntax", or None
+    said: str  # its name in refusal messages (the first word, and the second when it names the statement)
 
 
-def statement_kind(sql: str, offset: int = 0) -> tuple[str, str, int]:
-    """(kind, statement name, offset of its first word) of the statement starting at `offset`: the
-    one table of statement words ('query', 'show', 'describe', 'explain', 'session', 'call', 'other'
-    or 'unknown'), which `statements.read` refines."""
+def statement_kind(sql: str, offset: int = 0) -> Kind:
+    """The kind of the statement starting at `offset`, from its first words (blanks, comments and
+    opening parentheses skipped) and the one table of statement kinds, `STATEMENTS`."""
     words = _words(sql, offset, 2)
     if not words:
-        return "other", "", offset
+        return Kind("other", "", offset, "syntax", "")
     first, start = words[0]
     second = words[1][0] if len(words) > 1 else ""
-    name = f"{first} {second}" if second in _NAME_WORDS else first
-    name = "SET TIME ZONE" if name == "SET TIME" else name
-    if first in _QUERY_WORDS:
-        return "query", first, start
-    if first == "SHOW":
-        return "show", name, start
-    if first in ("DESCRIBE", "DESC"):
-        return "describe", name, start
-    if first == "EXPLAIN":
+    said = f"{first} {second}" if second in _NAME_WORDS else first
+    said = "SET TIME ZONE" if said == "SET TIME" else said
+    key = _BY_WORDS.get((first, second)) or _BY_WORDS.get((first,))
+    if key is None:
+        return Kind("other", said, start, "syntax", said)
+    if key == "EXPLAIN":
         rest, _ = _explain_parts(sql, start)
-        kind, inner, inner_start = statement_kind(sql, rest)
-        if kind != "query":
-            return "other", f"EXPLAIN {inner}".strip(), inner_start
-        return "explain", "EXPLAIN", start
-    if (
-        first in _SESSION_WORDS
-        or (first == "START" and second == "TRANSACTION")
-        or (first == "SET" and second in _SESSION_SET)
-        or (first == "RESET" and second == "SESSION")
-    ):
-        return "session", name, start
-    if first == "CALL":
-        return "call", name, start
-    if first in _REFUSED_WORDS:
-        return "other", name, start
-    return "unknown", name, start
+        inner = statement_kind(sql, rest)
+        if inner.kind != "query":
+            said = f"EXPLAIN {inner.said}".strip()
+            return Kind("other", said, inner.start, "denied", said)
+    kind, refused = STATEMENTS[key]
+    said = first if kind in ("query", "explain") else said
+    return Kind(kind, key if kind in ("session", "execute") else said, start, refused, said)
 
 
 def _explain_parts(sql: str, start: int) -> tuple[int, bool]:
@@ -286,16 +316,17 @@ def explained_query(sql: str, start: int | None = None) -> tuple[str, bool]:
     """For an EXPLAIN statement (its first word at `start`, if the caller read it): the text of the
     query it explains and whether it is EXPLAIN ANALYZE."""
     if start is None:
-        kind, _, start = statement_kind(sql)
+        kind, _, start, _, _ = statement_kind(sql)
         if kind != "explain":
             raise DialectError("not an EXPLAIN of a query", error_name="GENERIC_USER_ERROR")
     rest, analyze = _explain_parts(sql, start)
     return sql[rest:].strip(), analyze
 
 
-def _refuse_statement(kind: str, name: str, sql: str, start: int) -> None:
+def _refuse_statement(refused: str, name: str, sql: str, start: int) -> None:
+    """Refuse statement `name` at `start` of `sql`: "session" (a session statement) or "denied" (not read-only)."""
     line, column = _where(sql, start)
-    if kind == "session":
+    if refused == "session":
         raise DialectError(
             f"{name} is a session statement, handled by the server, not a query",
             line=line,
@@ -430,36 +461,65 @@ def _check_text_size(sql: str) -> None:
     _check_size(sql)
 
 
-def _refuse(sql: str, kind: str, name: str, start: int) -> None:
+def _refuse_unknown_statement(sql: str, word: str, start: int) -> None:
+    """Trino's SYNTAX_ERROR for a statement whose first word (`word` at `start`, as the table of kinds read
+    it) starts no Trino statement: the message names the token Trino's parser stops at, and what it
+    expected there (after an opening parenthesis, a query)."""
+    try:
+        tokens = Trino().tokenize(sql)
+    except TokenError:
+        tokens = []
+    first = next((token for token in tokens if token.token_type != TokenType.L_PAREN), None)
+    if first is not None:
+        word, start = first.text, first.start
+    if word.upper() in (*_STATEMENT_STARTS, "SELECT", "VALUES", "TABLE"):
+        return
+    line, column = _where(sql, start)
+    opened = bool(tokens) and tokens[0].token_type == TokenType.L_PAREN
+    expecting = (
+        "'(', 'SELECT', 'TABLE', 'VALUES'" if opened else ", ".join(f"'{w}'" for w in _STATEMENT_STARTS) + ", <query>"
+    )
+    raise DialectError(
+        f"mismatched input '{word}'. Expecting: {expecting}",
+        line=line,
+        column=column,
+        error_name="SYNTAX_ERROR",
+    )
+
+
+def _refuse(sql: str, kind: Kind) -> None:
     """Refuse, in Trino's terms, a text of `kind` (as `statement_kind` read it) run as a query."""
     _check_text_size(sql)
-    if kind == "other" and not name:
+    if not kind.said:
         _refuse_no_statement(sql)
-    if kind == "other" and name == "FROM":
-        line, column = _where(sql, start)
+    if kind.kind == "other" and kind.said == "FROM":
+        line, column = _where(sql, kind.start)
         raise DialectError(
             "syntax error: a query starts with SELECT, WITH, VALUES or TABLE, not FROM",
             line=line,
             column=column,
             error_name="SYNTAX_ERROR",
         )
-    if kind in ("session", "call", "other"):
-        _refuse_statement(kind, name, sql, start)
+    if kind.refused in ("session", "denied"):
+        _refuse_statement(kind.refused, kind.said, sql, kind.start)
     _check_single_statement(sql)
+    if kind.refused == "syntax":
+        _refuse_unknown_statement(sql, sql[kind.start : kind.start + len(kind.said.split()[0])], kind.start)
 
 
-def examine_text(sql: str) -> tuple[tuple[str, str, int], DialectError | None]:
-    """One reading of a statement text: its (kind, name, start) from the table of statement words
-    (`statement_kind`) and the refusal of running it as a query (None: it may run).
+def examine_text(sql: str) -> tuple[Kind, DialectError | None]:
+    """One reading of a statement text: its kind from the table of statement kinds (`statement_kind`)
+    and the refusal of running it as a query (None: it may run).
 
     The refusal covers lone surrogates, texts over MAX_TEXT_BYTES or MAX_TOKENS, NUL characters,
     brackets and CASE nested deeper than MAX_NESTING, more than one statement, and every statement that
-    is not a query (SHOW, DESCRIBE and EXPLAIN of a query pass; session statements and CALL get
-    NOT_SUPPORTED, the rest PERMISSION_DENIED; a text with no statement's first word, SYNTAX_ERROR).
+    is not a query (SHOW, DESCRIBE and EXPLAIN of a query pass; session statements get NOT_SUPPORTED,
+    writes, CALL and the rest PERMISSION_DENIED; a text with no statement's first word, or a first
+    word that starts no Trino statement, SYNTAX_ERROR).
     """
     kind = statement_kind(sql)
     try:
-        _refuse(sql, *kind)
+        _refuse(sql, kind)
     except DialectError as error:
         return kind, error
     return kind, None
@@ -528,6 +588,29 @@ def _fail(message: str, node: exp.Expression, error_name: str = "PERMISSION_DENI
     raise DialectError(message, line=line, column=column, error_name=error_name)
 
 
+#: Statement nodes of session statements (their refusal is NOT_SUPPORTED, as the table of kinds says).
+_SESSION_NODES = (exp.Use, exp.Transaction, exp.Commit, exp.Rollback)
+
+
+def refuse_statement_tree(tree: exp.Expression) -> None:
+    """Refuse a parsed statement that is not a query, named by its node (WITH ... INSERT: INSERT); SHOW,
+    DESCRIBE and EXPLAIN pass (they are not queries, but read-only). A statement sqlglot keeps as text
+    (`exp.Command`) is named by that text's first words, as the table of kinds names it."""
+    if isinstance(tree, (exp.Describe, exp.Show)):
+        return
+    if isinstance(tree, exp.Command):
+        kind = statement_kind(tree.sql(dialect="trino"))
+        if kind.kind in ("show", "describe", "explain") or not kind.said:
+            return
+        name, refused = kind.said, kind.refused
+    else:
+        session = isinstance(tree, _SESSION_NODES) or (
+            isinstance(tree, exp.Set) and any(item.text("kind").upper() == "SESSION" for item in tree.expressions)
+        )
+        name, refused = tree.key.upper(), "session" if session else "denied"
+    _refuse_statement("session" if refused == "session" else "denied", name, "", 0)
+
+
 def check(expression: exp.Expression) -> None:
     """Refuse a parsed statement unless it is a read-only query over tables, UNNEST and Trino functions.
 
@@ -536,15 +619,9 @@ def check(expression: exp.Expression) -> None:
     (read_csv, read_parquet, glob, query, getenv, duckdb_settings, ...) anywhere in the query, and
     every table function except UNNEST (`FROM read_csv('x')`, `FROM TABLE(...)`).
     """
-    if isinstance(expression, (exp.Describe, exp.Show)):
-        return
     if not isinstance(expression, (exp.Query, exp.Values)):
-        kind, name, _ = statement_kind(expression.sql(dialect="trino"))
-        if kind in ("show", "describe", "explain"):
-            return
-        if not isinstance(expression, exp.Command):  # the statement's node names it (WITH ... INSERT: INSERT)
-            name = expression.key.upper()
-        _refuse_statement("session" if kind == "session" else "other", name, "", 0)
+        refuse_statement_tree(expression)
+        return
     for node in expression.walk():
         if isinstance(node, _STATEMENT_NODES):
             _fail(f"Access Denied: {node.key.upper()} is not allowed inside a query", node)

@@ -1,10 +1,11 @@
 """The one reader of statements: each statement text is read once into a `Statement` (its kind,
 its text and, for a query or EXPLAIN, its parsed tree), which every later step is handed.
 
-`read(sql)` reads the text once (`guard.examine_text`): it decides the kind from the statement's first
-words (`guard.statement_kind`, the table of statement words) and refines it into one of `KINDS`,
-each with the one owner that answers it, and keeps the refusal of running the text as a query
-(size, nesting, writes, unknown statements), which the owner raises (`Statement.check`).
+`read(sql)` reads the text once (`guard.examine_text`): its kind comes from the statement's first
+words and the one table of statement kinds (`guard.STATEMENTS`), each kind with the one owner that
+answers it (`KINDS`), and the refusal of running the text as a query (size, nesting, writes,
+unknown statements) is kept for that owner to raise (`Statement.check`); nothing reads the text
+for its kind or checks it again.
 
 `Reader` walks the non-query statements (SHOW, DESCRIBE, USE, SET / RESET SESSION,
 PREPARE, DEALLOCATE PREPARE, START TRANSACTION / COMMIT / ROLLBACK, CALL) token by token (sqlglot's
@@ -35,22 +36,10 @@ KINDS = {
     "describe": "the engine's system tables (SystemCatalog.show)",
     "describe_prepared": "the planner: DESCRIBE INPUT / OUTPUT of a prepared statement",
     "execute": "the planner: EXECUTE / EXECUTE IMMEDIATE, the prepared statement with its values",
-    "session": "the engine's sessions (session.answer): one of SESSION_STATEMENTS",
+    "session": "the engine's sessions (session.answer): USE, SET / RESET SESSION, PREPARE, COMMIT, ...",
     "call": "the server's queries (CALL system.runtime.kill_query)",
     "other": "nobody: refused in Trino's terms (writes, DDL, SET ROLE, unknown statements)",
 }
-#: The session statements lakegate answers (its client keeps their effect), as Trino names them.
-SESSION_STATEMENTS = (
-    "USE",
-    "SET SESSION",
-    "RESET SESSION",
-    "SET TIME ZONE",
-    "PREPARE",
-    "DEALLOCATE PREPARE",
-    "START TRANSACTION",
-    "COMMIT",
-    "ROLLBACK",
-)
 
 
 @dataclass(frozen=True, eq=False)
@@ -115,30 +104,26 @@ class Statement:
 
 @lru_cache(maxsize=512)
 def parsed(text: str) -> exp.Expression:
-    """The parse of one query text, shared by every reader of the same text (do not change it)."""
-    return parse(text)
+    """The parse of one query text, shared by every reader of the same text (do not change it); a
+    statement that is not a query behind a query's first words (WITH ... INSERT) is refused by its name."""
+    tree = parse(text)
+    if not isinstance(tree, (exp.Query, exp.Values)):
+        guard.refuse_statement_tree(tree)
+    return tree
 
 
 def read(sql: str | bytes) -> Statement:
-    """Read one statement text, once: its kind (one of `KINDS`), name and refusal as a query
-    (`Statement.check`); the tree is parsed when asked. Bytes are decoded (SYNTAX_ERROR if not UTF-8)."""
+    """Read one statement text, once: its kind (one of `KINDS`, from the table of statement kinds,
+    `guard.STATEMENTS`), name and refusal as a query (`Statement.check`); the tree is parsed when
+    asked. Bytes are decoded (SYNTAX_ERROR if not UTF-8)."""
     sql = guard.decoded(sql)
-    (kind, name, start), refusal = guard.examine_text(sql)
-    words = guard.first_words(sql, 2)
-    first, second = (words + ["", ""])[:2]
+    (kind, name, start, _, _), refusal = guard.examine_text(sql)
     body, offset, analyze = sql, 0, False
-    if kind == "session":
-        session_name = next((n for n in SESSION_STATEMENTS if n.split()[:2] in ([first], [first, second])), None)
-        kind, name = ("execute", "EXECUTE") if first == "EXECUTE" else ("session", session_name or name)
-        if session_name is None and first != "EXECUTE":
-            kind = "other"
-    elif kind == "describe" and second in ("INPUT", "OUTPUT") and _names_prepared(sql):
+    if kind == "describe" and name.split()[1:] in (["INPUT"], ["OUTPUT"]) and _names_prepared(sql):
         kind = "describe_prepared"
     elif kind == "explain":
         body, analyze = guard.explained_query(sql, start)
         offset = sql.rfind(body)
-    elif kind == "unknown":
-        kind = "other"
     return Statement(sql, kind, name, body, offset, analyze, refusal=refusal)
 
 

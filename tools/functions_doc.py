@@ -480,9 +480,11 @@ def generate(
 
 def render_current(cases_dir: Path = CASES_DIR) -> str:
     """generate() with the installed registry and the case files in `cases_dir`."""
-    # imported here, as load_cases needs no registry; translate imports every module that fills it
-    from lakegate.dialect import constructs, registry, translate  # noqa: F401
+    # imported here, as load_cases needs no registry
+    from lakegate.dialect import constructs, registry
     from lakegate.dialect.functions import pages
+
+    pages.install()  # the registry, from the one list of function modules
 
     return generate(
         load_families(cases_dir), registry.SUPPORTED, registry.REJECTED, constructs.CONSTRUCTS, pages.PAGE_OF

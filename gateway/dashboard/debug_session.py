@@ -469,7 +469,7 @@ class DashboardSession:
     def tables(self, scope: Scope) -> list[dict[str, Any]]:
         """Every table of the branch with its columns and its row count in `scope`."""
         engine = self.evaluator.engine
-        schema = engine.metadata.tables(engine.catalog, self.branch)
+        schema = engine.system_catalog.tables(engine.catalog, self.branch)
         names = list(schema)
         counts = (
             dict(self.evaluator.query(_row_counts(names).sql(dialect="trino"), self.branch, scope).rows())

@@ -46,8 +46,10 @@ class Engine:
         owns_backend: bool = False,
     ):
         self.backend, self.catalog, self.limits = backend, catalog, limits
-        self.metadata = SystemCatalog(backend, catalog=catalog, memory_limit=getattr(backend, "memory_limit", "1GB"))
-        self._planner = Planner(backend, self.metadata)
+        self.system_catalog = SystemCatalog(
+            backend, catalog=catalog, memory_limit=getattr(backend, "memory_limit", "1GB")
+        )
+        self._planner = Planner(backend, self.system_catalog)
         self._owns_backend = owns_backend
         self._kill: Kill | None = None
 
@@ -70,7 +72,7 @@ class Engine:
         has no such branch), restricted to `scope` (its batch and job also shown as session properties), in
         the zone `time_zone` (None: UTC)."""
         if branch is not None:
-            branch = self.metadata.schema_name(self.catalog, branch)
+            branch = self.system_catalog.schema_name(self.catalog, branch)
         properties = {
             name: value
             for name, value in (("batch_id", scope and scope.batch_id), ("job_id", scope and scope.job_id))
@@ -87,7 +89,7 @@ class Engine:
 
     def answer(self, statement: str | Statement, session: Session) -> Answer:
         """Answer a statement that needs no query: a session statement (USE, SET SESSION, PREPARE, ...:
-        `statements.SESSION_STATEMENTS`), or CALL system.runtime.kill_query (a server's query)."""
+        kind 'session' in `guard.STATEMENTS`), or CALL system.runtime.kill_query (a server's query)."""
         statement = statement if isinstance(statement, Statement) else read(statement)
         if statement.kind == "call":
             query_id, message = sessions.kill_query_arguments(statement.text, session)
@@ -95,7 +97,7 @@ class Engine:
                 raise sessions.query_not_found(query_id)
             self._kill(query_id, message, session)
             return Answer([], [], update_type="CALL")
-        return sessions.answer(statement, session, self.metadata.resolve_schema)
+        return sessions.answer(statement, session, self.system_catalog.resolve_schema)
 
     def execute(self, sql: str | Statement, session: Session, params: Sequence[object] = ()) -> QueryResult:
         """Run one statement (its text, or as `statements.read` read it) as the server would answer
@@ -112,7 +114,7 @@ class Engine:
 
     def list_queries(self, queries: Callable[[str | None], list[tuple]]) -> None:
         """Let system.runtime.queries list `queries(user)`: the server's running queries."""
-        self.metadata.queries = queries
+        self.system_catalog.queries = queries
 
     def with_pending(self, pending: Sequence[FileEntry]) -> Engine:
         """An engine that also sees `pending` files (staged, not yet committed: DuckDB backend only)."""
@@ -120,6 +122,6 @@ class Engine:
         return Engine(backend, catalog=self.catalog, limits=self.limits, owns_backend=True)
 
     def close(self) -> None:
-        self.metadata.close()
+        self.system_catalog.close()
         if self._owns_backend:
             self.backend.close()

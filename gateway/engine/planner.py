@@ -200,10 +200,10 @@ class _Plan:
 
 
 class Planner:
-    """Starts statements over `backend` and the system tables of `metadata`."""
+    """Starts statements over `backend` and the system tables of `system_catalog`."""
 
-    def __init__(self, backend: Backend, metadata: SystemCatalog):
-        self.backend, self.metadata = backend, metadata
+    def __init__(self, backend: Backend, system_catalog: SystemCatalog):
+        self.backend, self.system_catalog = backend, system_catalog
 
     def start(self, statement: Statement, session: Session, params: Sequence[object] = ()) -> QueryResult:
         """Start one statement (anything but a session statement or CALL); DialectError when it is
@@ -228,7 +228,7 @@ class Planner:
                     error_name="INVALID_PARAMETER_USAGE",
                 )
             statement.check()
-            return static_result(self.metadata.show(statement, session))
+            return static_result(self.system_catalog.show(statement, session))
         if kind in ("query", "explain"):
             return self._query(statement, session, params)
         if kind in ("session", "call"):
@@ -236,7 +236,6 @@ class Planner:
                 "a session statement or CALL cannot be run by EXECUTE; send it on its own", error_name="NOT_SUPPORTED"
             )
         statement.check()  # refuses writes and unknown statements with Trino's message
-        _check_statement_start(statement.text)
         raise DialectError("unsupported in lakegate: this statement", line=1, column=1, error_name="NOT_SUPPORTED")
 
     # -- queries ----------------------------------------------------------------------------
@@ -264,17 +263,17 @@ class Planner:
                 column=1,
                 error_name="NOT_SUPPORTED",
             )
-        return self.metadata.run(
+        return self.system_catalog.run(
             plan.statement, plan.system, params, user=session.user, time_zone=session.zone(), session=names
         )
 
     def _default_branch(self, session: Session) -> str | None:
         """Where a query that reads no table runs: the session's branch, else any branch (None: the
         lake has none)."""
-        branches = self.metadata.branches()
-        if session.schema is not None and (session.catalog or "").lower() == self.metadata.catalog:
+        branches = self.system_catalog.branches()
+        if session.schema is not None and (session.catalog or "").lower() == self.system_catalog.catalog:
             try:
-                schema = self.metadata.schema_name(self.metadata.catalog, session.schema)
+                schema = self.system_catalog.schema_name(self.system_catalog.catalog, session.schema)
             except DialectError:
                 schema = None
             if schema in branches:
@@ -299,7 +298,7 @@ class Planner:
             start = offset + reference.start
             line, column = _where(sql, start)
             try:
-                table = self.metadata.resolve(reference.parts, session, line=line, column=column)
+                table = self.system_catalog.resolve(reference.parts, session, line=line, column=column)
             except DialectError:
                 if len(reference.parts) == 1 and reference.parts[0].lower() in names.ctes:
                     continue  # a CTE's name
@@ -346,7 +345,7 @@ class Planner:
             start = offset + reference.start
             line, column = _where(sql, start)
             try:
-                table = self.metadata.resolve(reference.parts, session, line=line, column=column)
+                table = self.system_catalog.resolve(reference.parts, session, line=line, column=column)
             except DialectError:
                 table = None
             if table not in read_tables:
@@ -401,29 +400,6 @@ def _session_names(session: Session) -> SessionNames:
     catalog and schema names (as sent, whether they exist or not) and keeps the user as it is."""
     catalog, schema = session.catalog, session.schema
     return SessionNames(session.user, catalog and catalog.lower(), schema and schema.lower())
-
-
-#: The words a Trino 476 statement may start with, in the order its parser lists them when another
-#: word starts one (a query may also start with SELECT, VALUES, TABLE or a parenthesis).
-_STATEMENT_STARTS = (
-    "ALTER ANALYZE CALL COMMENT COMMIT CREATE DEALLOCATE DELETE DENY DESC DESCRIBE DROP EXECUTE EXPLAIN GRANT "
-    "INSERT MERGE PREPARE REFRESH RESET REVOKE ROLLBACK SET SHOW START TRUNCATE UPDATE USE WITH"
-).split()
-
-
-def _check_statement_start(sql: str) -> None:
-    """A statement whose first word starts no Trino statement is Trino's SYNTAX_ERROR at that word."""
-    tokens = [token for token in Trino().tokenize(sql) if token.token_type != TokenType.L_PAREN]
-    if not tokens or tokens[0].text.upper() in (*_STATEMENT_STARTS, "SELECT", "VALUES", "TABLE"):
-        return
-    line, column = _where(sql, tokens[0].start)
-    expecting = ", ".join(f"'{word}'" for word in _STATEMENT_STARTS)
-    raise DialectError(
-        f"mismatched input '{tokens[0].text}'. Expecting: {expecting}, <query>",
-        line=line,
-        column=column,
-        error_name="SYNTAX_ERROR",
-    )
 
 
 def _parameter_count(statement: Statement) -> int:

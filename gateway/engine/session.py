@@ -142,7 +142,7 @@ def answer(
     session: Session,
     resolve_schema: Callable[[str | None, tuple[str, bool]], tuple[str, str]],
 ) -> Answer:
-    """Answer a session statement (one of `statements.SESSION_STATEMENTS`, its kind 'session').
+    """Answer a session statement (kind 'session' in the table of statement kinds, `guard.STATEMENTS`).
     `resolve_schema(catalog, (schema, quoted))` checks a USE target and returns the (catalog,
     schema) names to set (DialectError when either does not exist)."""
     tokens = Reader(statement.text)

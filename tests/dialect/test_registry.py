@@ -6,7 +6,10 @@ from __future__ import annotations
 import duckdb
 import pytest
 
-from lakegate.dialect import registry, translate  # noqa: F401  (translate fills the registry)
+from lakegate.dialect import registry, translate
+from lakegate.dialect.functions import pages
+
+pages.install()  # the registry, filled from the one list of function modules (translate does the same)
 
 
 def test_a_function_registered_twice_is_an_error():

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from lakegate.dialect import statements
+from lakegate.dialect import guard, statements
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.statements import read
 
@@ -42,6 +42,14 @@ def test_each_statement_has_one_kind(sql, kind, name):
     statement = read(sql)
     assert (statement.kind, statement.name) == (kind, name)
     assert statement.kind in statements.KINDS
+
+
+def test_one_table_decides_every_kind():
+    """Every kind the table of statement kinds gives has its owner in `KINDS`; the reader adds only the
+    prepared statement's DESCRIBE (told from a table named input or output by its tokens)."""
+    given = {kind for kind, _ in guard.STATEMENTS.values()}
+    assert given <= statements.KINDS.keys()
+    assert statements.KINDS.keys() - given == {"describe_prepared"}
 
 
 def test_explain_reads_the_query_it_explains():

@@ -1,6 +1,7 @@
 """One statement path: a query's text is checked (encoding, size, nesting), classified (its kind from
-the table of statement words) and parsed once on its way through the server, `lakegate query` /
-`metrics run` (`Engine.execute`) and forwarding (`forwarded_sql`), however many steps hand it on.
+the table of statement kinds) and parsed once on its way through the server, `lakegate query` /
+`metrics run` (`Engine.execute`, in process or over query worker processes, as the commands run it) and
+forwarding (`forwarded_sql`), however many steps hand it on.
 
 The counts come from wrapping the three readers of a text (guard's lexeme scan, the statement-word
 table, sqlglot's parser) and counting the calls that see this test's own text (a unique marker)."""
@@ -8,15 +9,19 @@ table, sqlglot's parser) and counting the calls that see this test's own text (a
 from __future__ import annotations
 
 import itertools
+import pickle
 from collections import Counter
 from types import SimpleNamespace
 
 import pytest
 import requests
 
-from lakegate.dialect import guard, translate
+from lakegate.dialect import guard, statements, translate
+from lakegate.dialect.errors import DialectError
+from lakegate.gateway.engine import isolated_backend, query_worker
 from lakegate.gateway.engine.backend import DuckDBBackend
 from lakegate.gateway.engine.engine import Engine
+from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.engine.trino_backend import forwarded_sql
 from lakegate.gateway.server.app import create_app
 
@@ -29,6 +34,14 @@ _serial = itertools.count()
 @pytest.fixture(scope="module")
 def engine(server_lake):
     engine = Engine(DuckDBBackend(server_lake, memory_limit="512MB", threads=1), owns_backend=True)
+    yield engine
+    engine.close()
+
+
+@pytest.fixture(scope="module")
+def isolated(server_lake):
+    """An engine over query worker processes, as `lakegate query` and `lakegate serve` run one."""
+    engine = Engine.open(server_lake, limits=Limits(max_concurrent_queries=1, query_timeout=60), isolated=True)
     yield engine
     engine.close()
 
@@ -119,3 +132,63 @@ def test_a_refused_write_is_refused_from_the_one_reading(server, counted):
     assert document["error"]["errorName"] == "PERMISSION_DENIED"
     assert "INSERT" in document["error"]["message"]
     assert counted.counts == {"checked": 1, "classified": 1}
+
+
+@pytest.mark.parametrize("qualified", [False, True], ids=["as-sent", "rewritten"])
+def test_a_query_run_by_a_worker_process_is_checked_and_classified_once(
+    isolated, counted, monkeypatch, server_lake, qualified
+):
+    """This process reads the text once; the worker it is sent to (`lakegate query`, `lakegate serve`)
+    checks and classifies nothing, and parses the text at most once (a statement the planner rewrote
+    arrives with its tree; one sent as it came is parsed there, once per text: unpickling a tree costs
+    about what parsing it does, and a worker's parse of a repeated text is cached). Shown by replaying
+    the request it was sent, pickled as on the pipe, twice through a worker's own code in this process."""
+    sql = f"SELECT count(*) AS {counted.sql.split()[-1]} FROM " + ("lake.main.metadata" if qualified else "metadata")
+    sent: list[tuple] = []
+    real_send = isolated_backend.send
+
+    def recording(connection, message):
+        sent.append(message)
+        real_send(connection, message)
+
+    monkeypatch.setattr(isolated_backend, "send", recording)
+    rows = isolated.execute(sql, isolated.session(branch="main")).rows()
+    assert rows and rows[0][0] > 0
+    assert counted.counts == {"checked": 1, "classified": 1, "parsed": 1}
+    (request,) = [message for message in sent if message[0] == "execute"]
+    statements.parsed.cache_clear()  # a worker process has caches of its own: empty, as this text never reached it
+    translate.clear_cache()
+    worker = query_worker.Worker(server_lake, "256MB", 1, Limits())
+    try:
+        for replay in ("first", "again"):
+            counted.counts.clear()
+            answer = worker.answer(pickle.loads(pickle.dumps(request)))
+            worker.drop()
+            assert answer[0] == "started", answer
+            assert counted.counts == ({"parsed": 1} if replay == "first" and not qualified else {}), replay
+    finally:
+        worker.backend.close()
+
+
+@pytest.mark.parametrize(
+    "sql",
+    [
+        "frobnicate everything",  # no statement starts so: SYNTAX_ERROR at the word, decided when read
+        "(  frob)",
+        "WITH a AS (SELECT 1 AS x) INSERT INTO no_such_table SELECT * FROM a",  # a write behind a query's words
+        "SET ROLE admin",
+    ],
+)
+def test_a_statement_is_refused_alike_by_translate_and_the_engine(engine, sql):
+    """One reading, one answer: `translate(sql)` (what `metrics validate` runs) and the engine (the
+    server, `lakegate query`) refuse a statement that is not a query with the same error."""
+
+    def refusal(run) -> tuple:
+        with pytest.raises(DialectError) as caught:
+            run()
+        error = caught.value
+        return error.error_name, error.message, error.line, error.column
+
+    by_engine = refusal(lambda: engine.execute(sql, engine.session(branch="main")))
+    assert by_engine == refusal(lambda: translate.translate(sql, {}))
+    assert by_engine[0] in ("SYNTAX_ERROR", "PERMISSION_DENIED", "NOT_SUPPORTED")

@@ -21,7 +21,10 @@ RESULTS = Path(__file__).resolve().parent / "RESULTS.md"
 _smoke = False
 #: The load average when the bench started (its module was imported), stated beside the one at the end.
 _LOAD_AT_START = os.getloadavg()
-HEADER = "# Benchmark results\n\nEach section is written by the script it names; re-run it to refresh that section.\n"
+HEADER = (
+    "# Benchmark results\n\nEach section is written by the script it names; re-run it to refresh that section."
+    " The first section is\nwritten by hand from them.\n"
+)
 
 
 def machine() -> str:

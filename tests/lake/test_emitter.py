@@ -821,23 +821,35 @@ def tiny_disk(tmp_path: Path):
         subprocess.run(["umount", "-l", str(mount_point)], timeout=10, check=True)  # lazy: even if a file is open
 
 
-def test_full_disk_leaves_only_whole_lines_and_keeps_the_rest_queued(tiny_disk: Path):
+def _half_full(tiny_disk: Path) -> tuple[Path, Path, Emitter]:
+    """A filler of 32 KiB on the tiny disk, and an Emitter writing there that flushes only when asked."""
     filler = tiny_disk / "filler"
     filler.write_bytes(b"x" * 32 * 1024)
     out = tiny_disk / "emissions.resim.jsonl"
-    em = Emitter(FIXTURE_CONFIG, out, flush_interval=3600)
+    return filler, out, Emitter(FIXTURE_CONFIG, out, flush_interval=3600)
+
+
+def _flush_onto_the_full_disk(em: Emitter, out: Path, count: int) -> int:
+    """Flush `count` queued lines onto the full disk: a prefix of whole lines is written (nothing glued)
+    and the error counts the rest; how many were written."""
+    with pytest.raises(OSError, match="No space left on device") as info:
+        em.flush()
+    text = out.read_bytes()
+    written = len(text.splitlines())
+    assert 0 < written < count and text.endswith(b"\n")
+    assert f"({count - written} line(s) not written)" in str(info.value)
+    return written
+
+
+def test_full_disk_leaves_only_whole_lines_and_keeps_the_rest_queued(tiny_disk: Path):
+    filler, out, em = _half_full(tiny_disk)
     count = 450  # about 43 KB: more than the free space, less than the disk
     em.emit_series(
         "goal_distance",
         {"goal_name": [f"goal-{i:04}" for i in range(count)], "distance_m": [float(i) for i in range(count)]},
         list(range(count)),
     )
-    with pytest.raises(OSError, match="No space left on device") as info:
-        em.flush()
-    text = out.read_bytes()
-    written = len(text.splitlines())
-    assert 0 < written < count and text.endswith(b"\n")  # a prefix of whole lines, nothing glued
-    assert f"({count - written} line(s) not written)" in str(info.value)
+    written = _flush_onto_the_full_disk(em, out, count)
     assert [line["$metadata"]["timestamp"] for line in read_lines(out)] == list(range(written))
     filler.unlink()  # space again: the lines kept in the queue are written, in order, once
     em.close()
@@ -944,19 +956,11 @@ def test_series_the_column_path_declines_are_checked_record_by_record(emitter: E
 
 def test_full_disk_with_queued_rows_leaves_only_whole_lines(tiny_disk: Path):
     """Rows of a numeric topic become lines when written: on a full disk too, only whole lines, in order."""
-    filler = tiny_disk / "filler"
-    filler.write_bytes(b"x" * 32 * 1024)
-    out = tiny_disk / "emissions.resim.jsonl"
-    em = Emitter(FIXTURE_CONFIG, out, flush_interval=3600)
+    filler, out, em = _half_full(tiny_disk)
     count = 400  # about 46 KB: more than the free space, less than the disk
     for i in range(count):
         em.emit(ODOM, {"x": i / 3, "y": -i / 7, "z": 1e-5 * i}, timestamp=i)
-    with pytest.raises(OSError, match="No space left on device") as info:
-        em.flush()
-    text = out.read_bytes()
-    written = len(text.splitlines())
-    assert 0 < written < count and text.endswith(b"\n")
-    assert f"({count - written} line(s) not written)" in str(info.value)
+    _flush_onto_the_full_disk(em, out, count)
     filler.unlink()
     em.close()
     expected = [
@@ -967,18 +971,10 @@ def test_full_disk_with_queued_rows_leaves_only_whole_lines(tiny_disk: Path):
 
 
 def test_full_disk_during_a_long_series_leaves_only_whole_lines(tiny_disk: Path):
-    filler = tiny_disk / "filler"
-    filler.write_bytes(b"x" * 32 * 1024)
-    out = tiny_disk / "emissions.resim.jsonl"
-    em = Emitter(FIXTURE_CONFIG, out, flush_interval=3600)
+    filler, out, em = _half_full(tiny_disk)
     count = 10_000  # a series this long is written by the emitting thread, in blocks of lines
     em.emit_series("robot_speed", {"speed": [i / 7 for i in range(count)]}, list(range(count)))
-    with pytest.raises(OSError, match="No space left on device") as info:
-        em.flush()
-    text = out.read_bytes()
-    written = len(text.splitlines())
-    assert 0 < written < count and text.endswith(b"\n")
-    assert f"({count - written} line(s) not written)" in str(info.value)
+    written = _flush_onto_the_full_disk(em, out, count)
     assert [line["$metadata"]["timestamp"] for line in read_lines(out)] == list(range(written))
     with pytest.raises(OSError, match="not written"):
         em.close()

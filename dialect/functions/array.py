@@ -120,10 +120,18 @@ def _render_array_position(g, node, args) -> str:
             f"ELSE {at} END AS BIGINT)",
         )
     arr, value = g.sql(args[0]), g.sql(args[1])
+    # NaN equals nothing in Trino, not even a NaN element (DuckDB finds it)
+    nan = f"WHEN isnan(CAST({value} AS DOUBLE)) THEN 0 " if _approx(args[0], args[1]) else ""
     return (
-        f"CASE WHEN ({arr}) IS NULL OR ({value}) IS NULL THEN NULL "
+        f"CASE WHEN ({arr}) IS NULL OR ({value}) IS NULL THEN NULL {nan}"
         f"ELSE CAST(coalesce(list_position({arr}, {value}), 0) AS BIGINT) END"
     )
+
+
+def _approx(array: exp.Expression, value: exp.Expression) -> bool:
+    """Whether an array's element or a value is a double or real (a value that may be NaN)."""
+    element = ttype(array).element if ttype(array).base == "array" else tt.UNKNOWN
+    return element.is_approx or ttype(value).is_approx
 
 
 def _array_join(call: Call) -> TType:

@@ -87,6 +87,17 @@ def _ceil_floor(call: Call) -> TType:
     return t
 
 
+def _render_ceil_floor(duck: str) -> Render:
+    """DuckDB's ceil/floor, except for integers, which are their own ceiling and floor (DuckDB's go
+    through a double and lose a bigint's last digits)."""
+    as_duck = call_as(duck, cast_result=True)
+
+    def render(g, node, args) -> str:
+        return tf.cast(g.sql(args[0]), ttype(node)) if ttype(args[0]).is_integral else as_duck(g, node, args)
+
+    return render
+
+
 def _truncate(call: Call) -> TType:
     if len(call.args) == 2:
         return _truncate_n(call)
@@ -377,7 +388,7 @@ def install() -> None:
         "math",
         "ceiling(x) -> same (decimal(p-s+min(s,1),0) for decimals)",
         _ceil_floor,
-        call_as("ceil", cast_result=True),
+        _render_ceil_floor("ceil"),
         aliases=("ceil",),
     )
     register(
@@ -385,7 +396,7 @@ def install() -> None:
         "math",
         "floor(x) -> same (decimal(p-s+min(s,1),0) for decimals)",
         _ceil_floor,
-        call_as("floor", cast_result=True),
+        _render_ceil_floor("floor"),
     )
     register(
         "round",

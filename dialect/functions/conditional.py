@@ -4,12 +4,11 @@ try.
 
 from __future__ import annotations
 
-from sqlglot import exp
-
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect import write_casts as casts
 from lakegate.dialect import write_operators as ops
+from lakegate.dialect.errors import DialectError
 from lakegate.dialect.functions.arguments import common, need, same
 from lakegate.dialect.functions.rendering import sqls
 from lakegate.dialect.registry import register
@@ -48,13 +47,23 @@ def _render_nullif(g, node, args) -> str:
 
 
 def _render_typeof(g, node, args) -> str:
+    """The type's name, known when the query is translated; the argument is still evaluated, as
+    Trino does: its failure is the query's (or NULL under TRY), and an aggregate in it keeps the
+    query an aggregation."""
     name = tf.string(str(ttype(args[0])))
-    aggregate = any(
-        isinstance(n, exp.Anonymous) and n.meta.get("spec") is not None and n.meta["spec"].kind != "scalar"
-        for n in args[0].walk()
-    )
-    # the argument stays in the query when it holds an aggregate, so the query stays an aggregation
-    return f"CASE WHEN ({g.sql(args[0])}) IS NULL THEN {name} ELSE {name} END" if aggregate else name
+    value = g.sql(args[0])
+    if g.in_try:  # inside try() a failure is a NULL: it must make try() NULL, a NULL value must not
+        g.in_try, depth = 0, g.in_try
+        try:
+            can_fail = g.sql(args[0]) != value
+        finally:
+            g.in_try = depth
+        if can_fail:
+            raise DialectError(
+                "unsupported in lakegate: typeof() inside try() of an expression that can fail",
+                error_name="NOT_SUPPORTED",
+            )
+    return f"CASE WHEN ({value}) IS NULL THEN {name} ELSE {name} END"
 
 
 def _render_try(g, node, args) -> str:
@@ -86,7 +95,7 @@ def install() -> None:
         "typeof(expression) -> varchar",
         lambda c: tt.VARCHAR if len(c.args) == 1 and c.types[0] is not None else c.mismatch(),
         lambda g, node, args: _render_typeof(g, node, args),
-        notes="The Trino type name, computed when the query is translated.",
+        notes="The Trino type name, computed when the query is translated; the argument is evaluated as in Trino.",
     )
     register(
         "row",

@@ -17,7 +17,7 @@ from __future__ import annotations
 from sqlglot import exp
 from sqlglot.generators.duckdb import DuckDBGenerator
 
-from lakegate.dialect import chars, intervals, zones
+from lakegate.dialect import chars, intervals, null_folding, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.trino_types import TType
@@ -252,7 +252,10 @@ def duck_cast(g: Writer, node: DuckCast) -> str:
 # --- function calls ------------------------------------------------------------------------------
 @transform(exp.Anonymous)
 def registered_function(g: Writer, node: exp.Anonymous) -> str:
-    """Every function call is written by its registry entry (registry.SUPPORTED)."""
+    """Every function call is written by its registry entry (registry.SUPPORTED), except a call that
+    Trino folds to NULL, whose other arguments are not evaluated (null_folding.py)."""
+    if node.meta["spec"].kind == "scalar" and null_folding.folds_to_null(node):
+        return cast("NULL", ttype(node))
     return node.meta["spec"].render(g, node, node.meta["args"])
 
 

@@ -151,24 +151,87 @@ def hmac_key_checked(message: str, key: str, sql: str) -> str:
     )
 
 
-#: What a message Trino's planner folds may be made of: literals and to_utf8 of literals (no NULL).
-_FOLDED = (exp.Literal, exp.HexString, exp.Encode, exp.Paren)
+#: Functions of bytes that never fail nor give NULL for a non-NULL argument: a call of them over
+#: constants is a constant Trino's planner folds.
+_PURE_BYTES = frozenset(
+    "to_utf8 reverse md5 sha1 sha256 sha512 xxhash64 murmur3 spooky_hash_v2_32 spooky_hash_v2_64".split()
+)
+#: Nodes of a condition that is a constant which cannot fail (literals, NULL, logic and comparisons).
+_SAFE_CONDITION = (
+    exp.Literal,
+    exp.Null,
+    exp.Boolean,
+    exp.Paren,
+    exp.Not,
+    exp.And,
+    exp.Or,
+    exp.Is,
+    exp.Neg,
+    exp.DataType,
+    exp.EQ,
+    exp.NEQ,
+    exp.GT,
+    exp.GTE,
+    exp.LT,
+    exp.LTE,
+)
 
 
-def _folded(node: exp.Expression) -> bool:
-    return isinstance(node, _FOLDED) or (isinstance(node, exp.Anonymous) and node.name.lower() == "to_utf8")
+def _safe_condition(node: exp.Expression) -> bool:
+    return all(
+        isinstance(n, _SAFE_CONDITION) or (isinstance(n, exp.Cast) and isinstance(n.this, exp.Null))
+        for n in node.walk()
+    )
+
+
+def _branches(node: exp.Expression) -> list[exp.Expression] | None:
+    """The results a CASE or IF of safe constant conditions (and operand) may give, None otherwise
+    (one without ELSE may give NULL)."""
+    if isinstance(node, exp.If) and _safe_condition(node.this) and node.args.get("false") is not None:
+        return [node.args["true"], node.args["false"]]
+    if isinstance(node, exp.Case) and node.args.get("default") is not None:
+        operand = node.this
+        if (operand is None or _safe_condition(operand)) and all(_safe_condition(i.this) for i in node.args["ifs"]):
+            return [*(i.args["true"] for i in node.args["ifs"]), node.args["default"]]
+    return None
+
+
+def _constant_bytes(node: exp.Expression) -> bool:
+    """Whether `node` is a non-NULL constant that Trino's planner folds without failing."""
+    while isinstance(node, exp.Paren):
+        node = node.this
+    if isinstance(node, exp.HexString) or (isinstance(node, exp.Literal) and node.is_string):
+        return True
+    if isinstance(node, exp.Anonymous) and node.name.lower() in _PURE_BYTES:
+        return len(node.expressions) == 1 and _constant_bytes(node.expressions[0])
+    branches = _branches(node)
+    return branches is not None and all(map(_constant_bytes, branches))
+
+
+def _empty_key(node: exp.Expression) -> bool:
+    """Whether `node` is a constant that is X'' whatever branch is taken."""
+    while isinstance(node, exp.Paren):
+        node = node.this
+    if isinstance(node, exp.HexString):
+        return not node.this
+    if isinstance(node, exp.Anonymous) and node.name.lower() == "coalesce" and node.expressions:
+        return _empty_key(node.expressions[0])
+    branches = _branches(node)
+    return branches is not None and all(map(_empty_key, branches))
+
+
+def _planning_failure(call: Call) -> None:
+    """An HMAC of a constant message with a constant empty key fails while planning, as in Trino, whose
+    planner folds it (the 'Empty key' error is not one it defers): even over no rows."""
+    if _empty_key(call.args[1]) and _constant_bytes(call.args[0]):
+        call.fail("Empty key", "GENERIC_INTERNAL_ERROR")
 
 
 def _hmac_args(call: Call) -> TType:
-    """Two varbinary arguments. A call of constants with the literal key X'' fails while planning, as
-    in Trino, whose planner folds it (the 'Empty key' error is not one it defers): even over no rows."""
+    """Two varbinary arguments (see `_planning_failure`)."""
     if not binary_args(call, 2):
         call.mismatch()
-    key = call.args[1]
-    while isinstance(key, exp.Paren):
-        key = key.this
-    if isinstance(key, exp.HexString) and not key.this and all(_folded(n) for n in call.args[0].walk()):
-        call.fail("Empty key", "GENERIC_INTERNAL_ERROR")
+    _planning_failure(call)
     return VARBINARY
 
 
@@ -312,6 +375,8 @@ def _udf_binary_args(count: int) -> Infer:
     def infer(call: Call) -> tt.TType:
         if len(call.args) != count or any(t is None or t.base not in ("varbinary", "unknown") for t in call.types):
             call.mismatch()
+        if call.name.startswith("hmac_"):
+            _planning_failure(call)
         return tt.VARBINARY
 
     return infer

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from sqlglot import exp
+
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect import write_operators as ops
@@ -145,11 +147,43 @@ def _render_sign(g, node, args) -> str:
     return tf.cast(sql, ttype(node))
 
 
+#: The largest magnitude `_constant_integer` computes (past it Trino's arithmetic may overflow).
+_SMALL = 2**31 - 1
+
+
+def _constant_integer(node: exp.Expression) -> int | None:
+    """The value of an integer constant Trino's planner folds without failing: integer literals (typed
+    or not), -, +, * and casts of them, and the ceiling, floor and abs of them; None otherwise."""
+    value: int | None = None
+    if isinstance(node, exp.Paren):
+        value = _constant_integer(node.this)
+    elif isinstance(node, exp.Literal):
+        text = node.name.strip()
+        value = int(text) if text.lstrip("+-").isdigit() else None
+    elif isinstance(node, exp.Cast) and node.to.is_type(*exp.DataType.INTEGER_TYPES):
+        value = _constant_integer(node.this)
+    elif isinstance(node, exp.Neg):
+        inner = _constant_integer(node.this)
+        value = None if inner is None else -inner
+    elif isinstance(node, (exp.Add, exp.Sub, exp.Mul)):
+        left, right = _constant_integer(node.this), _constant_integer(node.expression)
+        if left is not None and right is not None:
+            value = {exp.Add: left + right, exp.Sub: left - right, exp.Mul: left * right}[type(node)]
+    elif isinstance(node, exp.Anonymous) and node.name.lower() in ("abs", "ceil", "ceiling", "floor"):
+        inner = _constant_integer(node.expressions[0]) if len(node.expressions) == 1 else None
+        value = None if inner is None else abs(inner) if node.name.lower() == "abs" else inner
+    return value if value is not None and abs(value) <= _SMALL else None
+
+
 def _mod(call: Call) -> TType:
+    """mod(n, m). Of integers by zero it is Java's ArithmeticException (GENERIC_INTERNAL_ERROR '/ by
+    zero', which try() does not catch), raised while planning when both are constants."""
     a, b = need(call, "number", "number")
     result = tt.arithmetic_type("%", a, b)
     if result is None:
         call.mismatch()
+    if result.is_integral and _constant_integer(call.args[1]) == 0 and _constant_integer(call.args[0]) is not None:
+        call.fail("/ by zero", "GENERIC_INTERNAL_ERROR")
     if not remainder_fits(a, b, result):
         call.fail(
             f"unsupported in lakegate: mod({a}, {b}) (the operands at a common scale exceed 38 digits)", "NOT_SUPPORTED"
@@ -162,6 +196,9 @@ def _render_mod(g, node, args) -> str:
     left, right = g.sql(args[0]), g.sql(args[1])
     if t.is_approx:
         return tf.cast(ops.approx_remainder(left, right), t)
+    if t.is_integral:  # Java's ArithmeticException, even inside try()
+        divisor = f"CASE WHEN {right} = 0 THEN error({tf.string('GENERIC_INTERNAL_ERROR: / by zero')}) ELSE {right} END"
+        return tf.cast(f"({left} % {divisor})", t)
     return tf.cast(f"({left} % {ops.nonzero(g, right)})", t)
 
 

@@ -390,6 +390,18 @@ def _moment(g, node, args, minimum: int, value) -> str:
     )
 
 
+def _render_population(duck: str) -> Render:
+    """var_pop and stddev_pop: of one value that is NaN or infinite, NaN (Trino's running update
+    multiplies it by x - x, NaN; DuckDB's gives 0)."""
+
+    def render(g, node, args) -> str:
+        x = f"CAST({g.sql(args[0])} AS DOUBLE)"
+        one, infinite = g.agg(node, "count", [x]), g.agg(node, "bool_or", [f"NOT isfinite({x})"])
+        return f"CASE WHEN {one} = 1 AND {infinite} THEN CAST('NaN' AS DOUBLE) ELSE {g.agg(node, duck, [x])} END"
+
+    return render
+
+
 def _render_kurtosis(g, node, args) -> str:
     """Trino's estimator, (n-1)n(n+1)/((n-2)(n-3)) m4/m2^2 - 3(n-1)^2/((n-2)(n-3)), is DuckDB's."""
     return _moment(g, node, args, 4, lambda x: g.agg(node, "kurtosis", [x]))
@@ -623,12 +635,19 @@ def install() -> None:
     for _name, _duck in (
         ("stddev", "stddev_samp"),
         ("stddev_samp", "stddev_samp"),
-        ("stddev_pop", "stddev_pop"),
         ("variance", "var_samp"),
         ("var_samp", "var_samp"),
-        ("var_pop", "var_pop"),
     ):
         register(_name, "aggregate", f"{_name}(x) -> double", as_double("number"), agg_as(_duck), kind="aggregate")
+    for _name in ("stddev_pop", "var_pop"):
+        register(
+            _name,
+            "aggregate",
+            f"{_name}(x) -> double",
+            as_double("number"),
+            _render_population(_name),
+            kind="aggregate",
+        )
 
     for _name in ("corr", "covar_samp", "covar_pop", "regr_slope", "regr_intercept"):
         register(

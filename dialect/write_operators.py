@@ -99,20 +99,22 @@ def integer_division(g: Writer, node: exp.Div) -> str:
     t = ttype(node)
     left, right = _operands(g, node)
     if t.is_integral:
-        return f"({left} // {nonzero(g, right)})"
+        return f"({left} // {nonzero(g, right, left)})"
     if t.is_decimal:
         return decimal_division(g, node.this, node.expression, t)
     sql = f"{cast(left, t)} / {cast(right, t)}" if t.base == "real" else f"{left} / {right}"
     return cast(sql, t) if t.base == "real" else sql
 
 
-def nonzero(g: Writer, sql: str) -> str:
-    """A divisor that fails with DIVISION_BY_ZERO (NULL inside try()) when it is zero."""
+def nonzero(g: Writer, sql: str, dividend: str | None = None) -> str:
+    """A divisor that fails with DIVISION_BY_ZERO (NULL inside try()) when it is zero, unless the
+    `dividend` is NULL (Trino's operators are NULL on a NULL operand: nothing is divided)."""
     if sql.lstrip("-").isdigit() and int(sql) != 0:
         return sql
     if g.in_try:
         return f"NULLIF({sql}, 0)"
-    return f"CASE WHEN {sql} = 0 THEN {g.fail(string('Division by zero'), 'DIVISION_BY_ZERO')} ELSE {sql} END"
+    present = f" AND ({dividend}) IS NOT NULL" if dividend is not None else ""
+    return f"CASE WHEN {sql} = 0{present} THEN {g.fail(string('Division by zero'), 'DIVISION_BY_ZERO')} ELSE {sql} END"
 
 
 def unscaled(g: Writer, node: exp.Expression) -> str:
@@ -135,7 +137,7 @@ def rounded_quotient(g: Writer, numerator: str, denominator: str, result: TType,
     """numerator / denominator (HUGEINT unscaled values) rounded HALF_UP, as a decimal of type
     `result` whose unscaled value is the quotient; `checked`: a quotient past 38 digits fails with
     Trino's 'Decimal overflow' (DecimalOperators.divide*)."""
-    denominator = nonzero(g, denominator)
+    denominator = nonzero(g, denominator, numerator)
     quotient = (
         f"({numerator}) // ({denominator}) + CASE WHEN 2 * abs(({numerator}) % ({denominator})) >= "
         f"abs({denominator}) THEN sign({numerator}) * sign({denominator}) ELSE 0 END"
@@ -191,7 +193,7 @@ def modulus(g: Writer, node: exp.Mod) -> str:
     left, right = _operands(g, node)
     if t.is_approx:
         return cast(approx_remainder(left, right), t)
-    sql = f"({left} % {nonzero(g, right)})"
+    sql = f"({left} % {nonzero(g, right, left)})"
     return cast(sql, t) if t.is_decimal else sql
 
 

@@ -197,9 +197,10 @@ def _render_mod(g, node, args) -> str:
     if t.is_approx:
         return tf.cast(ops.approx_remainder(left, right), t)
     if t.is_integral:  # Java's ArithmeticException, even inside try()
-        divisor = f"CASE WHEN {right} = 0 THEN error({tf.string('GENERIC_INTERNAL_ERROR: / by zero')}) ELSE {right} END"
+        failure = f"error({tf.string('GENERIC_INTERNAL_ERROR: / by zero')})"
+        divisor = f"CASE WHEN {right} = 0 AND ({left}) IS NOT NULL THEN {failure} ELSE {right} END"
         return tf.cast(f"({left} % {divisor})", t)
-    return tf.cast(f"({left} % {ops.nonzero(g, right)})", t)
+    return tf.cast(f"({left} % {ops.nonzero(g, right, left)})", t)
 
 
 def _render_power(g, node, args) -> str:

@@ -163,6 +163,7 @@ class Relations:
         node.meta["outputs"] = outputs
         self._modifiers(node, outputs, scope)
         self.check_grouping(node, scope)
+        self.check_time_tz_keys(node)
         if distinct is not None and node.args.get("order") is not None:
             self.check_distinct_order(node)
         return outputs
@@ -292,6 +293,8 @@ class Relations:
             outputs.append((a[0], a[1], common))
         if node.args.get("distinct") or isinstance(node, (exp.Intersect, exp.Except)):
             for col in outputs:
+                if col[2].base == "time_tz":  # DuckDB would tell apart one instant in two offsets
+                    self.unsupported(f"{node.key.upper()} of {col[2]}", node)
                 if col[2].base in UNORDERABLE[:3]:
                     self.fail(
                         f"Type {col[2]} is not comparable, and therefore cannot be used in {node.key.upper()}",

@@ -7,12 +7,12 @@ from __future__ import annotations
 
 from sqlglot import exp
 
-from lakegate.dialect import chars, wide_decimals, zones
+from lakegate.dialect import chars, wide_decimals, zoned_times, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.transforms import Writer, cast, quote, string, ten, transform
 from lakegate.dialect.trino_types import TType
 from lakegate.dialect.type_rules import ttype
-from lakegate.dialect.write_casts import RANGES, floor_div, floor_micros, with_nanos
+from lakegate.dialect.write_casts import RANGES, cast_value, floor_div, floor_micros, with_nanos
 
 
 # --- arithmetic ----------------------------------------------------------------------------------
@@ -248,6 +248,9 @@ def ieee_comparison(g: Writer, node: exp.Binary) -> str:
             nulls = f"({left}) IS NULL OR ({right}) IS NULL"
         unordered = "true" if op == "<>" else "false"
         return f"CASE WHEN {nulls} THEN NULL WHEN {nan} THEN {unordered} ELSE {left} {op} {right} END"
+    if common.base == "time_tz":  # the times at offset +00:00 (dialect/zoned_times.py)
+        sides = [cast_value(g, g.sql(side), ttype(side), common) for side in (node.this, node.expression)]
+        return f"{zoned_times.utc(sides[0])} {op} {zoned_times.utc(sides[1])}"
     if common.base in ("array", "map", "row") and op in ("=", "<>"):
         equal = trino_equal(left, right, common)
         return equal if op == "=" else f"NOT ({equal})"

@@ -7,10 +7,11 @@ from __future__ import annotations
 
 from sqlglot import exp
 
-from lakegate.dialect import intervals
+from lakegate.dialect import intervals, zoned_times
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analysis_checks import check_range_offset, range_comparison_type
 from lakegate.dialect.analyzer import Analyzer
+from lakegate.dialect.trino_types import TType
 from lakegate.dialect.type_rules import floor_micros, handles, set, ttype
 
 
@@ -127,6 +128,10 @@ def _extract(a: Analyzer, node, scope, env):
         "MINUTE",
         "SECOND",
     }
+    if t.base == "time_tz":  # io.trino.operator.scalar.timetz: ExtractHour, ..., TimeZoneHour
+        if unit not in ("HOUR", "MINUTE", "SECOND", "TIMEZONE_HOUR", "TIMEZONE_MINUTE"):
+            a.fail(f"Cannot extract {unit} from {t}", node, "TYPE_MISMATCH")
+        return tt.BIGINT
     if unit in ("TIMEZONE_HOUR", "TIMEZONE_MINUTE") and t.base == "timestamp_tz":
         a.zone(t, node, f"EXTRACT({unit} FROM ...)")
         return tt.BIGINT
@@ -287,12 +292,26 @@ def _at_time_zone(a: Analyzer, node, scope, env):
     zone = node.args.get("zone")
     if not (isinstance(zone, exp.Literal) and zone.is_string):
         a.unsupported("AT TIME ZONE with a non-literal zone", node)
-    if t.base not in ("timestamp", "timestamp_tz"):
+    if t.base not in ("timestamp", "timestamp_tz", "time", "time_tz"):
         a.fail(
             f"Type of value must be a time or timestamp with or without time zone (actual {t})", node, "TYPE_MISMATCH"
         )
     a.expr(zone, scope, env)
+    if t.base in ("time", "time_tz"):
+        return _time_at_time_zone(a, node, t, a.zone_literal(zone))
     return tt.timestamp(t.args[0], True, a.zone_literal(zone))
+
+
+def _time_at_time_zone(a: Analyzer, node: exp.AtTimeZone, t: TType, zone: str) -> TType:
+    """A time with time zone at another offset, its instant kept (a time is first at the session zone's
+    offset); a region's offset depends on the date, which Trino takes from the session: refused."""
+    offsets = [zoned_times.offset_of(zone)] + ([zoned_times.offset_of(a.time_zone)] if t.base == "time" else [])
+    if None in offsets:
+        a.unsupported(f"{t} AT TIME ZONE a region (its offset depends on the session's date)", node)
+    if t.base == "time" and t.args[0] > 6:
+        a.unsupported(f"{t} (time with more than microsecond precision)", node)
+    node.meta["offset"] = offsets[0]
+    return TType("time_tz", t.args)
 
 
 @handles(exp.Substring)

@@ -52,7 +52,22 @@ def decimal_result_type(g: Writer, node: exp.Binary) -> str:
         return nanosecond_interval_arithmetic(g, node, op)
     if t == tt.INTERVAL_DS and ttype(node.this).base == "timestamp":
         return timestamp_difference(g, node)
+    if t.base == "time_tz" or t == tt.INTERVAL_DS and ttype(node.this).base == "time_tz":
+        return zoned_time_arithmetic(g, node, op)
     return sql
+
+
+def zoned_time_arithmetic(g: Writer, node: exp.Binary, op: str) -> str:
+    """time with time zone ± a day-to-second interval (the local time moved modulo a day, the offset
+    kept), and the difference of two (their times at +00:00, rounded HALF_UP to milliseconds):
+    TimeWithTimeZoneOperators."""
+    left, right = g.sql(node.this), g.sql(node.expression)
+    if ttype(node.this).base == ttype(node.expression).base == "time_tz":
+        millis = floor_div(f"{zoned_times.difference_picos(left, right)} + 500000000", 1_000_000_000)
+        return f"to_milliseconds({millis})"
+    value, interval = (left, right) if ttype(node.this).base == "time_tz" else (right, left)
+    delta = zoned_times.interval_picos(interval)
+    return zoned_times.add_picos(value, delta if op == "+" else f"-{delta}", ttype(node).args[0])
 
 
 def nanosecond_interval_arithmetic(g: Writer, node: exp.Binary, op: str) -> str:

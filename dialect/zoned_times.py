@@ -215,6 +215,27 @@ def truncate(unit: str, sql: str) -> str:
     return of_local(f"({local(sql)} // {size} * {size})", offset(sql))
 
 
+def field(sql: str, name: str) -> str:
+    """hour, minute, second, millisecond of the local time, timezone_hour and timezone_minute of the
+    offset (truncated toward zero: -00:35 is 0 and -35), as BIGINT."""
+    if name == "timezone_hour":
+        return f"CAST(trunc({offset(sql)} / 60) AS BIGINT)"
+    if name == "timezone_minute":
+        return f"CAST({offset(sql)} - trunc({offset(sql)} / 60) * 60 AS BIGINT)"
+    part = {
+        "hour": f"// {60 * PICOS_PER_MINUTE}",
+        "minute": f"// {PICOS_PER_MINUTE} % 60",
+        "second": f"// {PICOS_PER_SECOND} % 60",
+        "millisecond": f"% {PICOS_PER_SECOND} // 1000000000",
+    }[name]
+    return f"CAST({local(sql)} {part} AS BIGINT)"
+
+
+def interval_picos(interval_sql: str) -> str:
+    """A day-to-second interval (DuckDB INTERVAL of milliseconds) modulo a day, in picoseconds."""
+    return f"((epoch_us({interval_sql}) % 86400000000) * 1000000)"
+
+
 def add_picos(sql: str, delta_sql: str, precision: int) -> str:
     """The value moved by `delta_sql` picoseconds (any sign) modulo a day, rounded HALF_UP to the
     precision when it is under 3 (TimeWithTimeZoneOperators.add: milliseconds onto picoseconds)."""

@@ -50,7 +50,7 @@ _NANOSECOND_OPERATIONS = (
 #: values (on the struct, whose order is Trino's but for ties of one instant in two offsets), fields, units.
 _TIME_TZ_FUNCTIONS = frozenset(
     "min max min_by max_by count arbitrary any_value coalesce typeof hour minute second millisecond "
-    "timezone_hour timezone_minute date_trunc date_add date_diff".split()
+    "timezone_hour timezone_minute timezone date_trunc date_add date_diff".split()
 )
 
 #: The expressions written for time with time zone operands (functions: only _TIME_TZ_FUNCTIONS).
@@ -63,6 +63,8 @@ _TIME_TZ_OPERATIONS = (
     exp.GTE,
     exp.LT,
     exp.LTE,
+    exp.NullSafeEQ,
+    exp.NullSafeNEQ,
     exp.Is,
     exp.Case,
     exp.If,
@@ -353,7 +355,7 @@ class Checks:
             return
         self.unsupported(
             f"{trino_name(node)} of {zoned} (lakegate compares time with time zone values only in "
-            "=, <>, <, <=, >, >=, ORDER BY, min and max)",
+            "=, <>, <, <=, >, >=, IS DISTINCT FROM, ORDER BY, min and max)",
             node,
         )
 

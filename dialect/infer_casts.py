@@ -127,11 +127,17 @@ def _check_time_cast(a: Analyzer, node: exp.Cast, source: TType, target: TType) 
         a.unsupported(f"CAST({source} AS {target}) (more than microsecond precision)", node)
     if source.base in ("time", "time_tz") and target.base in ("timestamp", "timestamp_tz"):
         a.unsupported(f"CAST({source} AS {target}) (it depends on the session's date and zone)", node)
-    if target.base in ("time", "time_tz") and source.base in ("timestamp_tz", "date"):
+    if target.base == "time" and source.base in ("timestamp_tz", "time_tz") or source.base == "date":
         a.unsupported(f"CAST({source} AS {target})", node)
-    if target.base == "time_tz" and source.base == "timestamp":
-        a.unsupported(f"CAST({source} AS {target}) (it depends on the session's date and zone)", node)
-    if target.base == "time_tz" and source.base in ("time", "varchar") and zoned_times.offset_of(a.time_zone) is None:
+    if target.base == "time_tz" and source.base == "timestamp_tz":  # its zone's offset at the instant
+        a.zone(source, node, f"CAST to {target}")
+        if source.args[0] > 6:
+            a.unsupported(f"CAST({source} AS {target}) (more than microsecond precision)", node)
+    if (
+        target.base == "time_tz"
+        and source.base in ("time", "varchar", "timestamp")
+        and zoned_times.offset_of(a.time_zone) is None
+    ):
         a.unsupported(f"CAST({source} AS {target}) in the session zone {a.time_zone} (its offset changes)", node)
 
 
@@ -217,8 +223,8 @@ def castable(source: TType, target: TType) -> bool:
         return max(target.args[0], source.args[0] if source.base != "varchar" else 0) <= 6
     if source.base in ("time", "time_tz", "interval_ds", "interval_ym") and target.base == "varchar":
         return True
-    if target.base == "time_tz" and source.base in ("varchar", "time", "time_tz"):
-        return source.base != "time" or source.args[0] <= 6
+    if target.base == "time_tz" and source.base in ("varchar", "time", "time_tz", "timestamp", "timestamp_tz"):
+        return source.base not in ("time", "timestamp") or source.args[0] <= 6
     if target.base == "time" and source.base == "time_tz":
         return target.args[0] <= 6
     if source.base == target.base == "array":

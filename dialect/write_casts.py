@@ -212,13 +212,21 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
 
 
 def _zoned_time(g: Writer, sql: str, source: TType, target: TType) -> str:
-    """CAST between time with time zone and itself, or time (infer_casts.castable): the local time
-    rounded HALF_UP to the target's precision; a time takes the session zone's offset."""
+    """CAST between time with time zone and itself, or time, or from timestamp(p <= 6) [with time zone]
+    (infer_casts.castable): the local time rounded HALF_UP to the target's precision; a time or timestamp
+    takes the session zone's offset, a timestamp with time zone its zone's offset at its instant."""
     if source.base == "time":  # p <= 6, in a session zone of one offset (infer_casts._check_time_cast)
         zoned = zoned_times.of_time_micros(times.micros(sql), zoned_times.offset_of(g.time_zone))
         return zoned_times.round_to(zoned, target.args[0], source.args[0])
     if target.base == "time":  # p <= 6
         return times.of_micros(zoned_times.to_time_micros(sql, target.args[0]))
+    if source.base in ("timestamp", "timestamp_tz"):  # the time of day, rounded HALF_UP; the zone's offset then
+        wall, minutes = sql, str(zoned_times.offset_of(g.time_zone))
+        if source.base == "timestamp_tz":
+            wall = zones.local(sql, tt.zone_of(source))
+            minutes = f"((epoch_us({wall}) - epoch_us({sql})) // 60000000)"
+        picos = f"(((epoch_us({wall}) % {times.MICROS_PER_DAY}) + {times.MICROS_PER_DAY}) % {times.MICROS_PER_DAY} * 1000000)"
+        return zoned_times.of_local(zoned_times.rounded_picos(picos, target.args[0]), minutes)
     return zoned_times.round_to(sql, target.args[0], source.args[0])
 
 

@@ -274,6 +274,17 @@ def ieee_comparison(g: Writer, node: exp.Binary) -> str:
     return f"{left} {op} {right}"
 
 
+@transform(exp.NullSafeEQ, exp.NullSafeNEQ)
+def distinct_from(g: Writer, node: exp.Binary) -> str:
+    """IS [NOT] DISTINCT FROM; of time with time zone values, on their times at +00:00."""
+    op = "IS NOT DISTINCT FROM" if isinstance(node, exp.NullSafeEQ) else "IS DISTINCT FROM"
+    common = node.meta.get("compare")
+    if common is not None and common.base == "time_tz":
+        sides = [cast_value(g, g.sql(side), ttype(side), common) for side in (node.this, node.expression)]
+        return f"{zoned_times.utc(sides[0])} {op} {zoned_times.utc(sides[1])}"
+    return f"{g.sql(node.this)} {op} {g.sql(node.expression)}"
+
+
 def ordered_comparison(left: str, right: str, t: TType, op: str) -> str:
     """`<`, `<=`, `>`, `>=` on arrays and rows: element by element (then by length), failing as Trino
     does when the comparison reaches a NULL element (see `null_reached`)."""

@@ -1,5 +1,5 @@
 """Trino's functions/datetime.md, continued: the overloads for time(p) with time zone of hour, minute,
-second, millisecond, timezone_hour, timezone_minute, date_trunc, date_add and date_diff
+second, millisecond, timezone_hour, timezone_minute, timezone, date_trunc, date_add and date_diff
 (io.trino.operator.scalar.timetz: ExtractHour, ..., DateTrunc, DateAdd, DateDiff, TimeZoneHour,
 TimeZoneMinute), on values held as dialect/zoned_times.py describes. The local time gives the
 fields, truncation and addition (modulo a day, the offset kept); date_diff counts on the times at
@@ -32,7 +32,9 @@ def _unit(call: Call) -> str:
 
 
 def _field(call: Call) -> tt.TType | None:
-    return tt.BIGINT if len(call.types) == 1 and _zoned(call.types[0]) else None
+    if len(call.types) != 1 or not _zoned(call.types[0]):
+        return None
+    return tt.VARCHAR if call.name == "timezone" else tt.BIGINT
 
 
 def _date_trunc(call: Call) -> tt.TType | None:
@@ -80,6 +82,12 @@ def install() -> None:
             lambda g, node, args, name=name: zoned_times.field(g.sql(args[0]), name),
             f"{name}(time(p) with time zone) -> bigint",
         )
+    overload(
+        "timezone",
+        _field,
+        lambda g, node, args: zoned_times.offset_text(zoned_times.offset(g.sql(args[0]))),
+        "timezone(time(p) with time zone) -> varchar",
+    )
     overload(
         "date_trunc",
         _date_trunc,

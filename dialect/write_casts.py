@@ -225,7 +225,8 @@ def _zoned_time(g: Writer, sql: str, source: TType, target: TType) -> str:
         if source.base == "timestamp_tz":
             wall = zones.local(sql, tt.zone_of(source))
             minutes = f"((epoch_us({wall}) - epoch_us({sql})) // 60000000)"
-        picos = f"(((epoch_us({wall}) % {times.MICROS_PER_DAY}) + {times.MICROS_PER_DAY}) % {times.MICROS_PER_DAY} * 1000000)"
+        day = times.MICROS_PER_DAY
+        picos = f"(((epoch_us({wall}) % {day}) + {day}) % {day} * 1000000)"
         return zoned_times.of_local(zoned_times.rounded_picos(picos, target.args[0]), minutes)
     return zoned_times.round_to(sql, target.args[0], source.args[0])
 

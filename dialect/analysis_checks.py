@@ -342,14 +342,19 @@ class Checks:
         functions not written for them."""
         if t.base != "time_tz" and _holds_time_tz(t):
             self.unsupported(f"{t} (lakegate holds time with time zone only as a plain value)", node)
-        types = [child.meta.get("t") for child in node.iter_expressions() if child._meta]
+        children = list(node.iter_expressions())
+        if isinstance(node, exp.Anonymous) and children and isinstance(children[0], exp.Distinct):
+            children = list(children[0].expressions)  # f(DISTINCT x)
+        types = [child.meta.get("t") for child in children if child._meta]
         zoned = next((t for t in types if t is not None and _holds_time_tz(t)), None)
         if zoned is None:
             return
         simple_case = isinstance(node, exp.Case) and node.this is not None
+        distinct = isinstance(node, exp.Anonymous) and node.meta.get("distinct")  # compares whole structs
         if (
             isinstance(node, _TIME_TZ_OPERATIONS)
             and not simple_case
+            and not distinct
             and (not isinstance(node, exp.Anonymous) or node.name.lower() in _TIME_TZ_FUNCTIONS)
         ):
             return

@@ -65,6 +65,8 @@ _TIME_TZ_OPERATIONS = (
     exp.LTE,
     exp.NullSafeEQ,
     exp.NullSafeNEQ,
+    exp.Between,
+    exp.In,
     exp.Is,
     exp.Case,
     exp.If,
@@ -338,8 +340,8 @@ class Checks:
     def check_time_tz_use(self, node: exp.Expression, t: TType) -> None:
         """Refuse an operation on time with time zone values (DuckDB structs, dialect/zoned_times.py) that
         would compare whole structs, where Trino compares the time at +00:00 alone: values nested in
-        arrays, maps or rows, IN, BETWEEN, IS DISTINCT FROM, a simple CASE, DISTINCT inside a call, and the
-        functions not written for them."""
+        arrays, maps or rows, IN a subquery, a simple CASE, DISTINCT inside a call, and the functions not
+        written for them."""
         if t.base != "time_tz" and _holds_time_tz(t):
             self.unsupported(f"{t} (lakegate holds time with time zone only as a plain value)", node)
         children = list(node.iter_expressions())
@@ -350,17 +352,19 @@ class Checks:
         if zoned is None:
             return
         simple_case = isinstance(node, exp.Case) and node.this is not None
+        subquery = isinstance(node, exp.In) and node.args.get("query") is not None
         distinct = isinstance(node, exp.Anonymous) and node.meta.get("distinct")  # compares whole structs
         if (
             isinstance(node, _TIME_TZ_OPERATIONS)
             and not simple_case
+            and not subquery
             and not distinct
             and (not isinstance(node, exp.Anonymous) or node.name.lower() in _TIME_TZ_FUNCTIONS)
         ):
             return
         self.unsupported(
             f"{trino_name(node)} of {zoned} (lakegate compares time with time zone values only in "
-            "=, <>, <, <=, >, >=, IS DISTINCT FROM, ORDER BY, min and max)",
+            "=, <>, <, <=, >, >=, BETWEEN, IN a list, IS DISTINCT FROM, ORDER BY, min and max)",
             node,
         )
 

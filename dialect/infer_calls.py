@@ -5,6 +5,8 @@ ZONE and the special forms (SUBSTRING, TRIM, POSITION).
 
 from __future__ import annotations
 
+import re
+
 from sqlglot import exp
 
 from lakegate.dialect import intervals, zoned_times
@@ -135,6 +137,8 @@ def _extract(a: Analyzer, node, scope, env):
     if unit in ("TIMEZONE_HOUR", "TIMEZONE_MINUTE") and t.base == "timestamp_tz":
         a.zone(t, node, f"EXTRACT({unit} FROM ...)")
         return tt.BIGINT
+    if unit in ("TIMEZONE_HOUR", "TIMEZONE_MINUTE") and not t.is_unknown:  # only zoned values have an offset
+        a.fail(f"Cannot extract {unit} from {t}", node, "TYPE_MISMATCH")
     if t.base in intervals.FIELDS and unit.lower() in intervals.FIELDS[t.base]:
         return tt.BIGINT
     if unit not in allowed:
@@ -290,6 +294,9 @@ def _placeholder(a: Analyzer, node, scope, env):
 def _at_time_zone(a: Analyzer, node, scope, env):
     t = a.expr(node.this, scope, env)
     zone = node.args.get("zone")
+    if t.base in ("time", "time_tz") and isinstance(zone, exp.Interval):
+        a.expr(zone, scope, env)
+        return _time_at_time_zone(a, node, t, _offset_of_interval(a, zone))
     if not (isinstance(zone, exp.Literal) and zone.is_string):
         a.unsupported("AT TIME ZONE with a non-literal zone", node)
     if t.base not in ("timestamp", "timestamp_tz", "time", "time_tz"):
@@ -300,6 +307,23 @@ def _at_time_zone(a: Analyzer, node, scope, env):
     if t.base in ("time", "time_tz"):
         return _time_at_time_zone(a, node, t, a.zone_literal(zone))
     return tt.timestamp(t.args[0], True, a.zone_literal(zone))
+
+
+def _offset_of_interval(a: Analyzer, interval: exp.Interval) -> str:
+    """The offset zone (+hh:mm) of `AT TIME ZONE INTERVAL '10' HOUR`: a literal of whole minutes within
+    14 hours (Trino fails on seconds and past 14 hours; lakegate refuses those)."""
+    unit = interval.args.get("unit")
+    text = interval.this.name.strip()
+    if isinstance(unit, exp.IntervalSpan):
+        value = intervals.span_value(text, unit.name.upper(), unit.expression.name.upper())
+        millis = value[1] if value is not None and value[0] == "millis" else None
+    else:
+        scale = {"HOUR": 3_600_000, "MINUTE": 60_000}.get(unit.name.upper() if unit is not None else "")
+        millis = int(text) * scale if scale is not None and re.fullmatch(r"[+-]?[0-9]{1,4}", text) else None
+    if millis is None or millis % 60_000 or abs(millis) > zoned_times.MAX_OFFSET_MINUTES * 60_000:
+        a.unsupported("AT TIME ZONE an interval that is not whole minutes within 14 hours", interval)
+    minutes = millis // 60_000
+    return f"{'-' if minutes < 0 else '+'}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
 
 
 def _time_at_time_zone(a: Analyzer, node: exp.AtTimeZone, t: TType, zone: str) -> TType:

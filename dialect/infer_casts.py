@@ -127,9 +127,9 @@ def _check_time_cast(a: Analyzer, node: exp.Cast, source: TType, target: TType) 
         a.unsupported(f"CAST({source} AS {target}) (more than microsecond precision)", node)
     if source.base in ("time", "time_tz") and target.base in ("timestamp", "timestamp_tz"):
         a.unsupported(f"CAST({source} AS {target}) (it depends on the session's date and zone)", node)
-    if target.base == "time" and source.base == "timestamp_tz" or source.base == "date":
+    if source.base == "date":
         a.unsupported(f"CAST({source} AS {target})", node)
-    if target.base == "time_tz" and source.base == "timestamp_tz":  # its zone's offset at the instant
+    if target.base in ("time", "time_tz") and source.base == "timestamp_tz":  # its zone's offset at the instant
         a.zone(source, node, f"CAST to {target}")
         if source.args[0] > 6:
             a.unsupported(f"CAST({source} AS {target}) (more than microsecond precision)", node)
@@ -225,8 +225,8 @@ def castable(source: TType, target: TType) -> bool:
         return True
     if target.base == "time_tz" and source.base in ("varchar", "time", "time_tz", "timestamp", "timestamp_tz"):
         return source.base not in ("time", "timestamp") or source.args[0] <= 6
-    if target.base == "time" and source.base == "time_tz":
-        return target.args[0] <= 6
+    if target.base == "time" and source.base in ("time_tz", "timestamp_tz"):
+        return target.args[0] <= 6 and source.args[0] <= 6 or source.base == "time_tz"
     if source.base == target.base == "array":
         return castable(source.element, target.element)
     if source.base == target.base == "row" and len(source.args) == len(target.args):

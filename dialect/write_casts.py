@@ -169,6 +169,9 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
         return checked_cast(g, sql, source, target)
     if "time_tz" in (source.base, target.base):
         return _zoned_time(g, sql, source, target)
+    if target.base == "time" and source.base == "timestamp_tz":  # its time of day in its zone, rounded HALF_UP
+        zoned = TType("time_tz", source.args[:1])
+        return _zoned_time(g, _zoned_time(g, sql, source, zoned), zoned, target)
     if target.base == "time" and source.base in ("time", "timestamp"):  # p <= 6 (analyze._cast)
         if source.base == "time":
             return times.round_time(sql, target.args[0], source.args[0])
@@ -214,7 +217,9 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
 def _zoned_time(g: Writer, sql: str, source: TType, target: TType) -> str:
     """CAST between time with time zone and itself, or time, or from timestamp(p <= 6) [with time zone]
     (infer_casts.castable): the local time rounded HALF_UP to the target's precision; a time or timestamp
-    takes the session zone's offset, a timestamp with time zone its zone's offset at its instant."""
+    takes the session zone's offset, a timestamp with time zone its zone's offset at the instant its wall time
+    names in UTC (what the real Trino 476 answers: 09:00 on 2020-03-08 in Los Angeles is -08:00, though the
+    clocks moved to -07:00 at 02:00 that day)."""
     if source.base == "time":  # p <= 6, in a session zone of one offset (infer_casts._check_time_cast)
         zoned = zoned_times.of_time_micros(times.micros(sql), zoned_times.offset_of(g.time_zone))
         return zoned_times.round_to(zoned, target.args[0], source.args[0])
@@ -222,9 +227,10 @@ def _zoned_time(g: Writer, sql: str, source: TType, target: TType) -> str:
         return times.of_micros(zoned_times.to_time_micros(sql, target.args[0]))
     if source.base in ("timestamp", "timestamp_tz"):  # the time of day, rounded HALF_UP; the zone's offset then
         wall, minutes = sql, str(zoned_times.offset_of(g.time_zone))
-        if source.base == "timestamp_tz":
+        if source.base == "timestamp_tz":  # the offset at the instant that the wall time names in UTC (Trino 476)
             wall = zones.local(sql, tt.zone_of(source))
-            minutes = f"((epoch_us({wall}) - epoch_us({sql})) // 60000000)"
+            named = f"CAST({wall} AS TIMESTAMPTZ)"
+            minutes = f"((epoch_us({zones.local(named, tt.zone_of(source))}) - epoch_us({named})) // 60000000)"
         day = times.MICROS_PER_DAY
         picos = f"(((epoch_us({wall}) % {day}) + {day}) % {day} * 1000000)"
         return zoned_times.of_local(zoned_times.rounded_picos(picos, target.args[0]), minutes)

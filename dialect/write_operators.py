@@ -264,8 +264,7 @@ def ieee_comparison(g: Writer, node: exp.Binary) -> str:
         unordered = "true" if op == "<>" else "false"
         return f"CASE WHEN {nulls} THEN NULL WHEN {nan} THEN {unordered} ELSE {left} {op} {right} END"
     if common.base == "time_tz":  # the times at offset +00:00 (dialect/zoned_times.py)
-        sides = [cast_value(g, g.sql(side), ttype(side), common) for side in (node.this, node.expression)]
-        return f"{zoned_times.utc(sides[0])} {op} {zoned_times.utc(sides[1])}"
+        return f"{zoned_times.utc(_as(g, node.this, common))} {op} {zoned_times.utc(_as(g, node.expression, common))}"
     if common.base in ("array", "map", "row") and op in ("=", "<>"):
         equal = trino_equal(left, right, common)
         return equal if op == "=" else f"NOT ({equal})"
@@ -274,14 +273,18 @@ def ieee_comparison(g: Writer, node: exp.Binary) -> str:
     return f"{left} {op} {right}"
 
 
+def _as(g: Writer, node: exp.Expression, t: TType) -> str:
+    """`node` cast to `t` by Trino's CAST (a time or NULL to time with time zone)."""
+    return cast_value(g, g.sql(node), ttype(node), t)
+
+
 @transform(exp.NullSafeEQ, exp.NullSafeNEQ)
 def distinct_from(g: Writer, node: exp.Binary) -> str:
     """IS [NOT] DISTINCT FROM; of time with time zone values, on their times at +00:00."""
     op = "IS NOT DISTINCT FROM" if isinstance(node, exp.NullSafeEQ) else "IS DISTINCT FROM"
     common = node.meta.get("compare")
     if common is not None and common.base == "time_tz":
-        sides = [cast_value(g, g.sql(side), ttype(side), common) for side in (node.this, node.expression)]
-        return f"{zoned_times.utc(sides[0])} {op} {zoned_times.utc(sides[1])}"
+        return f"{zoned_times.utc(_as(g, node.this, common))} {op} {zoned_times.utc(_as(g, node.expression, common))}"
     return f"{g.sql(node.this)} {op} {g.sql(node.expression)}"
 
 
@@ -367,6 +370,9 @@ def eager_constant_in_list(g: Writer, node: exp.In) -> str:
         sql = _nan_in_list(g, node, common, sql)
     elif items and common is not None and common.base in ("array", "map", "row"):
         sql = _nested_in_list(g, node, common)
+    elif items and common is not None and common.base == "time_tz":  # the times at +00:00 (zoned_times.py)
+        value, *listed = (zoned_times.utc(_as(g, side, common)) for side in (node.this, *items))
+        sql = f"{value} IN ({', '.join(listed)})"
     if node.find(exp.Column) is not None or all(isinstance(i, (exp.Literal, exp.Null)) for i in items):
         return sql
     return f"CASE WHEN len([{', '.join(g.coerce(i, common) for i in items)}]) >= 0 THEN {sql} END"
@@ -443,6 +449,11 @@ def ieee_between(g: Writer, node: exp.Between) -> str:
         return f"({ordered_comparison(low, value, common, '<=')} AND {ordered_comparison(value, high, common, '<=')})"
     if common == tt.as_char(tt.VARCHAR):  # char and unbounded varchar
         return chars.between(g, node.this, node.args["low"], node.args["high"])
+    if common is not None and common.base == "time_tz":  # the times at +00:00 (zoned_times.py)
+        value, low, high = (
+            zoned_times.utc(_as(g, side, common)) for side in (node.this, node.args["low"], node.args["high"])
+        )
+        return f"{value} BETWEEN {low} AND {high}"
     sql = g.between_sql(node)
     if common is None or not common.is_approx:
         return sql

@@ -340,8 +340,8 @@ class Checks:
     def check_time_tz_use(self, node: exp.Expression, t: TType) -> None:
         """Refuse an operation on time with time zone values (DuckDB structs, dialect/zoned_times.py) that
         would compare whole structs, where Trino compares the time at +00:00 alone: values nested in
-        arrays, maps or rows, IN a subquery, a simple CASE, DISTINCT inside a call, and the functions not
-        written for them."""
+        arrays, maps or rows, IN a subquery, ANY / ALL, a simple CASE, DISTINCT inside a call, and the functions
+        not written for them."""
         if t.base != "time_tz" and _holds_time_tz(t):
             self.unsupported(f"{t} (lakegate holds time with time zone only as a plain value)", node)
         children = list(node.iter_expressions())
@@ -353,6 +353,7 @@ class Checks:
             return
         simple_case = isinstance(node, exp.Case) and node.this is not None
         subquery = isinstance(node, exp.In) and node.args.get("query") is not None
+        subquery = subquery or isinstance(node.args.get("expression"), (exp.Any, exp.All))  # = ANY (SELECT ...)
         distinct = isinstance(node, exp.Anonymous) and node.meta.get("distinct")  # compares whole structs
         if (
             isinstance(node, _TIME_TZ_OPERATIONS)

@@ -497,6 +497,15 @@ def explicit_null_order(g: Writer, node: exp.Ordered) -> str:
     direction = "DESC" if node.args.get("desc") else "ASC"
     nulls = "NULLS FIRST" if node.args.get("nulls_first") else "NULLS LAST"
     key, t = g.sql(node.this), node.meta.get("key")
+    zoned = node.this.meta.get("t") if node.this._meta else None
+    if isinstance(node.this, exp.Literal) and not node.this.is_string:  # ORDER BY 2: the output column's type
+        query = node.find_ancestor(exp.Select, exp.SetOperation)
+        outputs = query.meta.get("outputs") if query is not None and query._meta else None
+        index = int(node.this.name) - 1
+        if outputs and 0 <= index < len(outputs) and outputs[index][2].base == "time_tz":
+            key, zoned = quote(outputs[index][1]), outputs[index][2]
+    if zoned is not None and zoned.base == "time_tz":
+        key = zoned_times.utc(key)  # equal times at +00:00 are ties (a later key decides) and window peers
     if t is not None:  # an array or row key: Trino fails when sorting reaches a NULL element
         key = f"CASE WHEN {null_element(key, t)} THEN {null_reached(key, key, t)[1]} ELSE {key} END"
     return f"{key} {direction} {nulls}"

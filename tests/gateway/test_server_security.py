@@ -75,6 +75,7 @@ def test_listening_beyond_loopback_needs_users_and_tls(server_lake, users_file):
         (["--memory-limit", "lots"], ["--memory-limit", "lots"]),
         (["--catalog", "System"], ["--catalog", "lower-case identifier"]),
         (["--host", "::", "--users", "{users}"], ["without TLS"]),
+        (["--max-queries-per-user", "9"], ["--max-queries-per-user 9: at most --max-concurrent-queries (8)"]),
     ],
 )
 def test_bad_options_are_refused_in_one_line(server_lake, users_file, certificate, tmp_path, capsys, arguments, words):
@@ -86,6 +87,14 @@ def test_bad_options_are_refused_in_one_line(server_lake, users_file, certificat
     assert error.startswith("lakegate: ") and error.count("\n") == 1
     for word in words:
         assert word.format(**names) in error, error
+
+
+@pytest.mark.parametrize("value", ["0", "-1"])
+def test_a_per_user_cap_below_one_is_a_usage_error(server_lake, capsys, value):
+    with pytest.raises(SystemExit) as exited:
+        cli.main(["serve", "--lake", str(server_lake), "--max-queries-per-user", value])
+    assert exited.value.code == 2
+    assert f"argument --max-queries-per-user: expected a positive number, got '{value}'" in capsys.readouterr().err
 
 
 # --- users ------------------------------------------------------------------------------------------

@@ -15,8 +15,9 @@ Trino's `query.client.timeout`), and forgets finished queries.
 
 Each running query has a daemon worker thread of its own while it runs, at most
 `Limits.max_concurrent_queries` at once (a thread that ends a query waits for the next one), at
-most `Limits.user_slots` of one user's (more stay QUEUED, as behind a Trino resource group's
-per-user hardConcurrencyLimit), so that another user always finds a slot. A
+most `Limits.user_slots` of one user's, zombies (below) included (more stay QUEUED, as behind a Trino
+resource group's per-user hardConcurrencyLimit), so that another user always finds a slot and a
+query worker. A
 query that ends (time limit, cancel, abandoned) while its worker still works is stopped: its DuckDB
 work is interrupted, and Python work still planning it (parsing, translation) is abandoned by an
 exception raised in the worker. Its slot is free at once: the worker counts as a "zombie" until
@@ -594,7 +595,7 @@ class QueryManager:
         A statement text over LARGE_TEXT_BYTES waits while `large_slots` others are in the workers
         (zombies included: their parsing may still run), so that big texts cannot take every slot."""
         working = self._working
-        running = Counter(q.session.user for q in working if not q.zombie)
+        running = Counter(q.session.user for q in working)  # a user's zombies too: they hold query workers
         large_busy = sum(len(q.sql) > LARGE_TEXT_BYTES for q in working) >= self.large_slots
         chosen, user_slots = None, self.limits.user_slots
         for query in list(self._queue):

@@ -110,6 +110,31 @@ def test_queued_queries_of_a_vanished_client_are_dropped_without_running(patient
         requests.delete(f"{two_slots.url}/v1/query/{d['id']}", timeout=30)
 
 
+def test_a_freed_slot_goes_to_the_user_with_the_fewest_running_queries(patient_slots, endless):
+    """alice fills both slots (her cap here: a result of 5 MB that waits for her to read it, and an
+    endless query) and has two more queued before bob's; when she has read the result, its slot goes
+    to bob's query, not to her older queued ones (else bob would wait a minute)."""
+    wide = post(patient_slots, "SELECT rpad('x', 1000, 'y') FROM UNNEST(sequence(1, 5000)) AS t(i)", "alice")
+    alice = [post(patient_slots, endless, "alice") for _ in range(3)]
+    stop, _ = keep_polling(alice)
+    try:
+        wait_for(lambda: states(patient_slots, [wide, *alice]) == ["QUEUED", "QUEUED", "RUNNING", "RUNNING"])
+        bob = post(patient_slots, "SELECT 1", "bob")
+        assert info(patient_slots, bob["id"])["state"] == "QUEUED"
+        while "nextUri" in wide:  # alice reads her result: its query ends and frees its slot
+            wide = requests.get(wide["nextUri"], timeout=30).json()
+        assert "error" not in wide, wide
+        deadline = time.monotonic() + 20  # far less than the minute alice's query would hold the other slot
+        while "nextUri" in bob:
+            assert time.monotonic() < deadline, "bob's query waited behind alice's queue"
+            bob = requests.get(bob["nextUri"], timeout=30).json()
+        assert bob["data"] == [[1]]
+    finally:
+        stop.set()
+        for d in alice:
+            requests.delete(f"{patient_slots.url}/v1/query/{d['id']}", timeout=30)
+
+
 def test_the_queue_holds_a_bounded_amount_of_statement_text(patient_slots, endless):
     """Queued statements of the largest size a body may have (polled, so none is dropped): the 33rd
     finds the queue's 32 bodies' worth of text taken and fails with QUERY_QUEUE_FULL at once; the queue

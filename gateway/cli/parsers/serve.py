@@ -91,6 +91,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help=f"queries that run at once; more wait in a queue (default {_DEFAULTS.max_concurrent_queries})",
     )
     parser.add_argument(
+        "--max-queries-per-user",
+        type=_positive(int),
+        default=None,
+        metavar="N",
+        help="queries one user (X-Trino-User; with --users, the authenticated user) runs at once, as a Trino "
+        "resource group's per-user hardConcurrencyLimit; more stay QUEUED, also when no other user is there "
+        "(default: --max-concurrent-queries minus 1, at least 1, so that another user always finds a slot)",
+    )
+    parser.add_argument(
         "--client-timeout",
         type=_positive(float),
         default=_DEFAULTS.client_timeout,

@@ -330,8 +330,10 @@ def _time_at_time_zone(a: Analyzer, node: exp.AtTimeZone, t: TType, zone: str) -
     """A time with time zone at another offset, its instant kept (a time is first at the session zone's
     offset); a region's offset depends on the date, which Trino takes from the session: refused."""
     offsets = [zoned_times.offset_of(zone)] + ([zoned_times.offset_of(a.time_zone)] if t.base == "time" else [])
-    if None in offsets:
+    if offsets[0] is None:
         a.unsupported(f"{t} AT TIME ZONE a region (its offset depends on the session's date)", node)
+    if None in offsets:
+        a.unsupported(f"{t} AT TIME ZONE in the session zone {a.time_zone} (its offset depends on the date)", node)
     if t.base == "time" and t.args[0] > 6:
         a.unsupported(f"{t} (time with more than microsecond precision)", node)
     node.meta["offset"] = offsets[0]

@@ -137,8 +137,21 @@ def _check_time_cast(a: Analyzer, node: exp.Cast, source: TType, target: TType) 
         target.base == "time_tz"
         and source.base in ("time", "varchar", "timestamp")
         and zoned_times.offset_of(a.time_zone) is None
+        and not _names_its_offset(node)
     ):
         a.unsupported(f"CAST({source} AS {target}) in the session zone {a.time_zone} (its offset changes)", node)
+
+
+def _names_its_offset(node: exp.Cast) -> bool:
+    """A TIME literal with an offset, or a text literal whose time names its offset: no session offset needed."""
+    literal = node.this
+    if "time_tz" in node.meta:
+        return True
+    return (
+        isinstance(literal, exp.Literal)
+        and literal.is_string
+        and bool(re.search(r"[+-][0-9]{2}:[0-9]{2}\s*$", literal.name))
+    )
 
 
 def _check_json_cast(a: Analyzer, node: exp.Cast, source: TType, target: TType) -> None:

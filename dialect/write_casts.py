@@ -364,8 +364,9 @@ def parse_varchar(g: Writer, sql: str, target: TType) -> str:
         return times.parse(sql, target.args[0], g.fail(message, "INVALID_CAST_ARGUMENT"))
     if target.base == "time_tz":
         message = f"'Value cannot be cast to time with time zone: ' || {sql}"
-        offset = zoned_times.offset_of(g.time_zone)
-        return zoned_times.parse(sql, target.args[0], offset, g.fail(message, "INVALID_CAST_ARGUMENT"))
+        offset = zoned_times.offset_of(g.time_zone)  # None: only texts that name their offset (infer_casts)
+        session = str(offset) if offset is not None else g.fail(message, "INVALID_CAST_ARGUMENT")
+        return zoned_times.parse(sql, target.args[0], session, g.fail(message, "INVALID_CAST_ARGUMENT"))
     return cast(sql, target)
 
 

@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import re
 
+from lakegate.dialect.errors import DialectError
+
 PICOS_PER_SECOND = 10**12
 PICOS_PER_MINUTE = 60 * PICOS_PER_SECOND
 PICOS_PER_DAY = 86_400 * PICOS_PER_SECOND
@@ -142,10 +144,10 @@ def constant(value: tuple[int, int]) -> str:
     return make(str(value[0]), str(value[1]))
 
 
-def parse(sql: str, precision: int, session_offset: int, bad: str) -> str:
+def parse(sql: str, precision: int, session_offset: str, bad: str) -> str:
     """CAST(varchar AS time(precision) with time zone) (TimeWithTimeZoneOperators.castFromVarchar): the
-    fraction's digits rounded HALF_UP, 24:00 wrapped to 00:00, the session's offset when none is given;
-    `bad` otherwise."""
+    fraction's digits rounded HALF_UP, 24:00 wrapped to 00:00, `session_offset` (SQL of minutes) when the
+    text gives none; `bad` otherwise."""
     pattern = _string(TEXT_PATTERN)
 
     def part(index: int) -> str:
@@ -195,8 +197,14 @@ def to_time_micros(sql: str, precision: int) -> str:
     return f"({rounded_picos(local(sql), precision)} // 1000000)"
 
 
-def of_time_micros(micros_sql: str, offset_minutes: int) -> str:
-    """CAST(time(p <= 6) AS time with time zone) at a fixed session offset."""
+def of_time_micros(micros_sql: str, offset_minutes: int | None) -> str:
+    """CAST(time(p <= 6) AS time with time zone) at a fixed session offset; refused in a session zone whose
+    offset changes (Trino takes it at the session's start)."""
+    if offset_minutes is None:
+        raise DialectError(
+            "unsupported in lakegate: a time coerced to time with time zone in a session zone whose offset changes",
+            error_name="NOT_SUPPORTED",
+        )
     return of_local(f"(({micros_sql}) * 1000000)", str(offset_minutes))
 
 

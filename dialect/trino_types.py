@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 from sqlglot import exp
 
+from lakegate.dialect import zoned_times
+
 MAX_PRECISION = 38
 MAX_VARCHAR = 2147483647
 CHAR_MAX_LENGTH = 65536  # io.trino.spi.type.CharType.MAX_LENGTH
@@ -413,7 +415,7 @@ def duckdb_type(t: TType) -> str | None:
     if base == "timestamp_tz" and t.args[0] > 6:
         return "TIMESTAMP_NS"  # its UTC instant (dialect/zoned_nanos.py)
     if base == "time_tz":
-        return 'STRUCT("utc_ps" BIGINT, "offset_min" SMALLINT)'  # dialect/zoned_times.py
+        return zoned_times.DUCKDB_TYPE
     if base in _DUCK:
         return _DUCK[base]
     if base == "decimal":

@@ -9,7 +9,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from lakegate.gateway.cli.errors import UserError
+from lakegate.gateway.cli.command_errors import UserError
 from lakegate.gateway.engine.backend import Backend
 from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.isolated_backend import IsolatedBackend

@@ -1,4 +1,4 @@
-"""The backend the command-line options choose (`parsers.arguments.add_backend_arguments`): embedded
+"""The backend the command-line options choose (`parsers.shared_options.add_backend_arguments`): embedded
 DuckDB over the lake (default) or forwarding to a Trino cluster (`--backend trino --trino-url URL ...`),
 shared by the commands that run queries."""
 

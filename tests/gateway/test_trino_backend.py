@@ -29,7 +29,7 @@ from lakegate.dialect.translate import parse
 from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
 from lakegate.gateway.cli.backends import backend_from_args
 from lakegate.gateway.cli.command_errors import UserError
-from lakegate.gateway.cli.parsers.arguments import add_backend_arguments
+from lakegate.gateway.cli.parsers.shared_options import add_backend_arguments
 from lakegate.gateway.engine import trino_backend
 from lakegate.gateway.engine.backend import DuckDBBackend
 from lakegate.gateway.engine.engine import Engine

@@ -25,8 +25,8 @@ from lakegate.gateway.metrics.evaluation import (
     select_metrics,
     worst,
 )
-from lakegate.gateway.metrics.metric_results import read_results
 from lakegate.gateway.metrics.result_columns import result_table, table_rows
+from lakegate.gateway.metrics.results_table import read_results
 from lakegate.gateway.metrics.templates import FILE_TEMPLATES, render
 from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import Location, Metric, StatusCheck, load_config

@@ -35,7 +35,7 @@ from lakegate.gateway.engine.backend import DuckDBBackend
 from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.trino_backend import RemoteQueryError, TrinoBackend, forwarded_sql
 from lakegate.gateway.engine.trino_ddl import schema_name
-from lakegate.gateway.metrics.metric_results import read_results
+from lakegate.gateway.metrics.results_table import read_results
 from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job

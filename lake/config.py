@@ -91,9 +91,7 @@ class Metric:
     query_string: str
     description: str = ""
     template_type: str = "system"  # system | custom
-    template: str | None = (
-        None  # line | bar | table | scalar | image | state_timeline | histogram | pie | video | artifact
-    )
+    template: str | None = None  # a system template kind: lake/template_kinds.py TEMPLATES
     template_file: str | None = None
     template_settings: dict[str, Any] = field(default_factory=dict)
     units: str | None = None

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 #: How a rendered result is shown: a Plotly chart, a chart drawn as a timeline of states, a table,
 #: one value, or files of the job's logs (images, video players, download links).
 SHOWS = ("chart", "timeline", "table", "scalar", "images", "videos", "files")
+#: The ways of showing files of the job's logs.
+FILE_SHOWS = ("images", "videos", "files")
 #: What build comparison compares of a series kind's figure: the y of each trace, the x of each
 #: trace (a histogram's samples), or each segment's state (the trace's name) as a category.
 SERIES = ("y", "x", "states")
@@ -36,7 +38,7 @@ class TemplateKind:
     @property
     def files(self) -> bool:
         """Its result names files of the job's logs, which it shows ([name, path, bytes, MIME type])."""
-        return self.shows in ("images", "videos", "files")
+        return self.shows in FILE_SHOWS
 
     @property
     def figure(self) -> bool:

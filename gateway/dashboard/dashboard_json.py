@@ -11,7 +11,7 @@ from typing import Any
 from lakegate.gateway.metrics.metric_result import MetricResult
 from lakegate.gateway.metrics.templates import json_value, public_file_table
 from lakegate.lake.config import Metric
-from lakegate.lake.template_kinds import DEFAULT_SHOWS, shows
+from lakegate.lake.template_kinds import DEFAULT_SHOWS, FILE_SHOWS, shows
 
 # -- results as the page shows them ---------------------------------------------------------------
 
@@ -25,6 +25,11 @@ def _images(paths: list[str], root: Path | None) -> list[str]:
         except ValueError:
             names.append(Path(path).name)
     return names
+
+
+def _lists_files(shown: str) -> bool:
+    """Whether a result shown so is a table of files (images are listed by name instead)."""
+    return shown in FILE_SHOWS and shown != "images"
 
 
 def result_json(result: MetricResult, logs_dir: Path | None) -> dict[str, Any]:
@@ -46,7 +51,7 @@ def result_json(result: MetricResult, logs_dir: Path | None) -> dict[str, Any]:
             out["table"] = rendered.table
         elif rendered.shows == "images":
             out["images"] = _images(rendered.images, logs_dir.resolve() if logs_dir else None)
-        elif rendered.shows in ("videos", "files"):
+        elif _lists_files(rendered.shows):
             out["table"] = public_file_table(rendered.table)
         else:
             out["figure"] = rendered.figure
@@ -57,7 +62,7 @@ def stored_json(row: dict[str, Any], logs_dir: Path | None) -> dict[str, Any]:
     """A stored `metric_results` row in the shape of `result_json`."""
     details = json.loads(row["details_json"]) if row.get("details_json") else {}
     shown = shows(row.get("template"))
-    table = details.get("table") if shown in ("table", "videos", "files") else None
+    table = details.get("table") if shown == "table" or _lists_files(shown) else None
     error = None
     if row.get("error_message") is not None:
         error = {
@@ -73,7 +78,7 @@ def stored_json(row: dict[str, Any], logs_dir: Path | None) -> dict[str, Any]:
         "seconds": None,
         "error": error,
         "figure": json.loads(row["figure_json"]) if row.get("figure_json") and shown != "table" else None,
-        "table": public_file_table(table) if shown in ("videos", "files") else table,
+        "table": public_file_table(table) if _lists_files(shown) else table,
         "images": _images(details.get("images") or [], logs_dir.resolve() if logs_dir else None),
         "problems": details.get("problems") or [],
     }

@@ -157,31 +157,37 @@ class _Branch:
     #: The tables scoped queries named, of job scopes (True) and of batch scopes (False): a scope's
     #: first views are made with them, in one transaction (one per view costs about twice as much).
     scoped_tables: dict[bool, set[str]] = field(default_factory=lambda: {True: set(), False: set()})
-    idle: list = field(default_factory=list)  # cursors kept for reuse (`recycle`); list ops are atomic
+    idle: list = field(default_factory=list)  # (cursor, its scope schema or None) kept for reuse (`recycle`)
+    idle_lock: threading.Lock = field(default_factory=threading.Lock)
 
-    def cursor(self) -> duckdb.DuckDBPyConnection:
-        """A cursor whose table names resolve in the branch's attached database: a recycled one, or
-        a new one."""
-        try:
-            return self.idle.pop()
-        except IndexError:
-            pass
-        cursor = self.database.cursor()
-        cursor.execute(f"USE {self.name}")
+    def cursor(self, schema: str | None = None) -> duckdb.DuckDBPyConnection:
+        """A cursor whose table names resolve in `schema` (a scope's views), or by default in the
+        branch's attached database: a recycled one (one already there first), or a new one."""
+        with self.idle_lock:
+            kept = next((i for i in range(len(self.idle) - 1, -1, -1) if self.idle[i][1] == schema), -1)
+            cursor, where = self.idle.pop(kept) if self.idle else (None, None)
+        if cursor is None:
+            cursor, where = self.database.cursor(), None
+            cursor.execute(f"USE {self.name}")
+        if where != schema:
+            cursor.execute(f"USE {self.name}" if schema is None else f"SET search_path = '{schema}'")
         return cursor
 
-    def recycle(self, cursor: duckdb.DuckDBPyConnection) -> None:
-        """Keep a cursor whose query read all its rows on the branch's own views (no scope views, no
-        settings of its own) for the next query, up to IDLE_CURSORS."""
-        if len(self.idle) < IDLE_CURSORS:
-            self.idle.append(cursor)
-        else:
-            cursor.close()
+    def recycle(self, cursor: duckdb.DuckDBPyConnection, schema: str | None = None) -> None:
+        """Keep a cursor whose query read all its rows (no settings of its own but its table names:
+        the branch's views, or those of the scope `schema`) for the next query, up to IDLE_CURSORS."""
+        with self.idle_lock:
+            if len(self.idle) < IDLE_CURSORS:
+                self.idle.append((cursor, schema))
+                return
+        cursor.close()
 
     def close_idle(self) -> None:
         """Close the cursors kept for reuse."""
-        while self.idle:
-            self.idle.pop().close()
+        with self.idle_lock:
+            idle, self.idle = self.idle, []
+        for cursor, _ in idle:
+            cursor.close()
 
     def failure(self, error: BaseException, *, vanished: bool = False) -> DialectError:
         """The DialectError for a DuckDB error: a listed file is named by its table, batch and job
@@ -488,6 +494,16 @@ class DuckDBBackend:
                     return entry.name
             key = (None, scope.batch_id, scope.job_id)  # the snapshot is outdated: take the record's current one
 
+    def _known_views(self, state: _Branch, scope: Scope | None) -> str | None:
+        """The schema of the views a query of `scope` most likely reads (its scope's, when made at the
+        branch's current generation; None for the branch's own), so that a cursor already reading
+        them can be reused; `_rows` moves the cursor when the guess is wrong."""
+        if not self._scoped(scope):
+            return None
+        with self._lock:
+            entry = state.scopes.get((state.stamp[0], scope.batch_id, scope.job_id))
+        return entry.name if entry is not None else None
+
     def _scoped(self, scope: Scope | None) -> bool:
         """Whether a query of `scope` reads the scope's own views (`_scope_views`)."""
         return self.catalog is not None and scope is not None and bool(scope.conditions())
@@ -614,11 +630,12 @@ class DuckDBBackend:
         remaining = deadline - time.monotonic()
         if remaining <= 0 or not self._slots.acquire(timeout=remaining):
             raise time_limit_error(timeout)
-        cursor = state.cursor()
+        where = [self._known_views(state, scope) if explain is None else None]  # the views the cursor reads
+        cursor = state.cursor(where[0])
         try:
             if explain is None:
                 produce: Callable[[], Iterable[pa.RecordBatch]] = in_zones(
-                    self._rows(branch, state, cursor, translation.duckdb_sql, scope), translation.zones
+                    self._rows(branch, state, cursor, where, translation.duckdb_sql, scope), translation.zones
                 )
                 columns = list(translation.columns)
             else:
@@ -640,25 +657,33 @@ class DuckDBBackend:
             timeout=timeout,
             remaining=max(0.0, deadline - time.monotonic()),
             failure=lambda error: self._for_client(state.failure(error)),
-            recycle=state.recycle if explain is None and not self._scoped(scope) else None,
+            recycle=(lambda cursor: state.recycle(cursor, where[0])) if explain is None else None,
         )
         self._runs.add(run)
         return QueryResult(columns=columns, batches=run, duckdb_sql=translation.duckdb_sql, _cancel=run.cancel)
 
     def _rows(
-        self, branch: str, state: _Branch, cursor: duckdb.DuckDBPyConnection, duckdb_sql: str, scope: Scope | None
+        self,
+        branch: str,
+        state: _Branch,
+        cursor: duckdb.DuckDBPyConnection,
+        where: list[str | None],
+        duckdb_sql: str,
+        scope: Scope | None,
     ) -> Callable[[], Iterator[pa.RecordBatch]]:
-        """Bind the query on `cursor` now, over the views of its `scope`; the returned function reads
-        its record batches. A query that finds a listed file gone before its first row (a writer
-        replaced it after the query's views were read) starts again on the branch's views as they
-        are now, up to RETRIES times."""
+        """Bind the query on `cursor` now, over the views of its `scope` (`where` holds the schema of
+        views the cursor reads, kept up to date); the returned function reads its record batches. A
+        query that finds a listed file gone before its first row (a writer replaced it after the
+        query's views were read) starts again on the branch's views as they are now, up to RETRIES
+        times."""
 
         def bind(attempt: _Branch, retries: int) -> duckdb.DuckDBPyRelation:
             try:
                 if self._scoped(scope):
-                    self._use_views(
-                        cursor, self._scope_views(attempt, branch, scope, self._tables(attempt, duckdb_sql))
-                    )
+                    schema = self._scope_views(attempt, branch, scope, self._tables(attempt, duckdb_sql))
+                    if schema != where[0]:
+                        self._use_views(cursor, schema)
+                        where[0] = schema
                 return cursor.sql(self._statement(attempt, cursor, duckdb_sql))
             except duckdb.Error as error:
                 return again(attempt, error, retries)

@@ -27,7 +27,7 @@ import threading
 import time
 
 from lakegate.gateway.cli.backends import backend_from_args
-from lakegate.gateway.cli.errors import UserError
+from lakegate.gateway.cli.command_errors import UserError
 from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.server.auth import Users, UsersFileError, check_listen
 

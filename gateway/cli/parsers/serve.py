@@ -7,8 +7,8 @@ import os
 from pathlib import Path
 
 from lakegate.gateway.cli.parsers import Command
-from lakegate.gateway.cli.parsers.arguments import add_backend_arguments, port_number
-from lakegate.gateway.cli.parsers.arguments import positive as _positive
+from lakegate.gateway.cli.parsers.shared_options import add_backend_arguments, port_number
+from lakegate.gateway.cli.parsers.shared_options import positive as _positive
 from lakegate.gateway.engine.catalog_name import CATALOG
 from lakegate.gateway.engine.limits import Limits
 

@@ -315,3 +315,16 @@ def test_full_disk_during_a_long_series_leaves_only_whole_lines(tiny_disk: Path)
     assert [line["$metadata"]["timestamp"] for line in read_lines(out)] == list(range(written))
     with pytest.raises(OSError, match="not written"):
         em.close()
+
+
+def test_a_chunk_is_written_by_the_emit_that_fills_it(out: Path):
+    """The emit that queues the 1024th line writes the chunk itself, before it returns: no flusher needed."""
+    with Emitter(FIXTURE_CONFIG, out, flush_interval=3600) as em:
+        for i in range(1023):
+            em.emit(ODOM, {"x": i / 3, "y": 0.0, "z": -1.5}, timestamp=i)
+        assert out.read_bytes() == b""
+        em.emit(ODOM, {"x": 1.0, "y": 0.0, "z": -1.5}, timestamp=1023)
+        lines = out.read_bytes().splitlines()
+        assert len(lines) == 1024 and lines[-1].startswith(
+            b'{"$metadata": {"topic": "odom_linear_velocity", "timestamp": 1023}'
+        )

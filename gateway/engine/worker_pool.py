@@ -5,14 +5,19 @@ size is the number of queries that run at once). A worker is warm: forked from a
 that already imported DuckDB and lakegate, its database open and the branches' schemas read, so a
 query costs a round trip over a pipe and its batches in Arrow IPC, not a start.
 
-What a worker may use is held from outside: a watch thread reads every busy worker's resident set
-(`/proc/PID/statm`) every `WATCH_INTERVAL` seconds and kills a worker whose query grew it more than
-the memory limit (EXCEEDED_LOCAL_MEMORY_LIMIT), or, when the queries together grew their workers
-past the limit, the one that grew most (EXCEEDED_GLOBAL_MEMORY_LIMIT); each worker's address space
-is also capped (RLIMIT_AS) at its warm size plus the limit and `HEADROOM`, which stops an
-allocation faster than the watch looks. A query past its time that does not stop when DuckDB is
-interrupted (a Python function never returns to DuckDB) is ended by killing its worker. A killed
-worker is replaced in the background; a worker that kept much memory after its query is retired.
+What a worker may use is held from outside: while queries run, a watch thread reads every busy
+worker's resident set (`/proc/PID/statm`) every `WATCH_INTERVAL` seconds and kills a worker whose
+query grew it more than the memory limit (EXCEEDED_LOCAL_MEMORY_LIMIT), or, when the queries
+together grew their workers past the limit, the one that grew most (EXCEEDED_GLOBAL_MEMORY_LIMIT);
+each worker's address space is also capped (RLIMIT_AS) at its warm size plus the limit and
+`HEADROOM`, which stops an allocation faster than the watch looks. A query past its time that
+does not stop when DuckDB is interrupted (a Python function never returns to DuckDB) is ended by
+killing its worker. A killed worker is replaced in the background.
+
+What a worker keeps after its query (DuckDB's allocator holds on to freed memory, and reuses it
+for the next query at no cost) is counted against the same limit: the growth of every worker,
+busy or idle, stays within it. An idle worker is retired only when that total would pass the
+limit, the one that keeps most first, before any query is failed for the memory it holds.
 """
 
 from __future__ import annotations
@@ -35,11 +40,12 @@ from lakegate.gateway.engine.process_memory import resident
 
 #: Seconds between two looks at the busy workers' memory.
 WATCH_INTERVAL = 0.02
+#: Seconds between two looks at the idle workers (to end those idle for IDLE_SECONDS) while none is
+#: busy: an idle worker's memory does not grow, so the watch sleeps until a worker is taken.
+IDLE_LOOK = 1.0
 #: Bytes of address space a worker may take beyond its warm size and the memory limit (thread
 #: stacks and allocator arenas of a running query reserve address space they do not use).
 HEADROOM = 1 << 30
-#: A worker that holds this much more than when it was warm after a query is retired.
-RETIRE_BYTES = 64 << 20
 #: Seconds an idle worker beyond the warm ones lives.
 IDLE_SECONDS = 60.0
 #: Longest wait for a new worker to be ready.
@@ -73,6 +79,7 @@ class WorkerProcess:
     connection: Connection
     warm_rss: int = 0
     busy: bool = False
+    kept: int = 0  # bytes beyond its warm size when its last query ended (what it holds while idle)
     idle_since: float = field(default_factory=time.monotonic)
     killed: DialectError | None = None  # the query's error when the pool killed the worker
 
@@ -127,6 +134,7 @@ class WorkerPool:
         self._context = multiprocessing.get_context("forkserver")
         self._context.set_forkserver_preload(["lakegate.gateway.engine.query_worker"])
         self._lock = threading.Condition()
+        self._taken = threading.Condition(self._lock)  # the watch waits on it while no worker is busy
         self._idle: list[WorkerProcess] = []
         self._busy: set[WorkerProcess] = set()
         self._starting = 0  # workers being started
@@ -237,31 +245,64 @@ class WorkerPool:
         with self._lock:
             worker.busy, worker.killed = True, None
             self._busy.add(worker)
+            self._taken.notify()
         self._fill()
         return worker
 
     def give_back(self, worker: WorkerProcess, *, healthy: bool) -> None:
-        """Return a worker whose query ended; one that is not `healthy` (stopped mid-answer), that was
-        killed, or that kept much memory is ended, and a new one started if fewer than `warm` idle."""
-        keep = healthy and worker.killed is None and worker.process.is_alive() and worker.grown() < RETIRE_BYTES
+        """Return a worker whose query ended; one that is not `healthy` (stopped mid-answer) or that
+        was killed is ended, idle workers are retired while what they keep passes the memory limit,
+        and new ones started if fewer than `warm` are idle."""
+        keep = healthy and worker.killed is None and worker.process.is_alive()
+        kept = worker.grown() if keep else 0
         with self._lock:
             self._busy.discard(worker)
-            worker.busy = False
+            worker.busy, worker.kept = False, kept
             worker.idle_since = time.monotonic()
             if keep and not self._closed:
                 self._idle.append(worker)
+            else:
+                keep = False
+            retired = self._retire_idle(0)
             self._lock.notify_all()
-        if not keep:  # a large process takes a while to end: not on the caller's time
-            worker.kill()
-            threading.Thread(target=worker.dispose, name="lakegate-worker-end", daemon=True).start()
+        if not keep:
+            self._end(worker)
+        for idle in retired:
+            self._end(idle)
         self._fill()
+
+    def _retire_idle(self, busy_grown: int) -> list[WorkerProcess]:
+        """Take out of the pool the idle workers to end so that what they keep, with `busy_grown`
+        bytes of the busy workers' growth, stays within the memory limit (the ones that keep most
+        first; lock held)."""
+        held = busy_grown + sum(worker.kept for worker in self._idle)
+        retired = []
+        for worker in sorted(self._idle, key=lambda idle: idle.kept, reverse=True):
+            if held <= self.limit_bytes or worker.kept == 0:
+                break
+            self._idle.remove(worker)
+            retired.append(worker)
+            held -= worker.kept
+        return retired
+
+    @staticmethod
+    def _end(worker: WorkerProcess) -> None:
+        """Kill `worker` and collect it in the background (a large process takes a while to end:
+        not on the caller's time)."""
+        worker.kill()
+        threading.Thread(target=worker.dispose, name="lakegate-worker-end", daemon=True).start()
 
     # -- the watch ----------------------------------------------------------------------------
 
     def _watch_memory(self) -> None:
-        """Kill the workers past the memory limit; end idle workers beyond `warm` (and `keep` live)
-        after IDLE_SECONDS."""
-        while not self._closed:
+        """Kill the workers past the memory limit, after retiring the idle ones whose kept memory
+        takes the total past it; end idle workers beyond `warm` (and `keep` live) after IDLE_SECONDS."""
+        while True:
+            with self._lock:
+                if not self._busy and not self._closed:
+                    self._taken.wait(IDLE_LOOK)
+                if self._closed:
+                    return
             time.sleep(WATCH_INTERVAL)
             with self._lock:
                 busy = list(self._busy)
@@ -279,6 +320,12 @@ class WorkerPool:
                 if used > self.limit_bytes:
                     worker.kill(memory_error("EXCEEDED_LOCAL_MEMORY_LIMIT", self.memory_limit))
             alive = {worker: used for worker, used in grown.items() if worker.killed is None}
+            with self._lock:
+                retired = self._retire_idle(sum(alive.values()))
+            for worker in retired:
+                self._end(worker)
+            if retired:
+                self._fill()
             if alive and sum(alive.values()) > self.limit_bytes:
                 largest = max(alive, key=alive.__getitem__)
                 largest.kill(memory_error("EXCEEDED_GLOBAL_MEMORY_LIMIT", self.memory_limit))
@@ -295,6 +342,7 @@ class WorkerPool:
             workers, idle = list(self._launched), list(self._idle)
             self._idle.clear()
             self._lock.notify_all()
+            self._taken.notify_all()
         for worker in workers:
             worker.kill(DialectError("The server is shutting down", error_name="SERVER_SHUTTING_DOWN"))
         for worker in idle:

@@ -10,14 +10,10 @@ worker's resident set (`/proc/PID/statm`) every `WATCH_INTERVAL` seconds and kil
 query grew it more than the memory limit (EXCEEDED_LOCAL_MEMORY_LIMIT), or, when the queries
 together grew their workers past the limit, the one that grew most (EXCEEDED_GLOBAL_MEMORY_LIMIT);
 each worker's address space is also capped (RLIMIT_AS) at its warm size plus the limit and
-`HEADROOM`, which stops an allocation faster than the watch looks. A query past its time that
-does not stop when DuckDB is interrupted (a Python function never returns to DuckDB) is ended by
-killing its worker. A killed worker is replaced in the background.
-
-What a worker keeps after its query (DuckDB's allocator holds on to freed memory, and reuses it
-for the next query at no cost) is counted against the same limit: the growth of every worker,
-busy or idle, stays within it. An idle worker is retired only when that total would pass the
-limit, the one that keeps most first, before any query is failed for the memory it holds.
+`HEADROOM`, which stops an allocation faster than the watch looks. A query past its time that does
+not stop when DuckDB is interrupted (a Python function never returns to DuckDB) is ended by killing
+its worker. A killed worker is replaced in the background; a worker that kept much memory after its
+query is retired.
 """
 
 from __future__ import annotations
@@ -46,6 +42,8 @@ IDLE_LOOK = 1.0
 #: Bytes of address space a worker may take beyond its warm size and the memory limit (thread
 #: stacks and allocator arenas of a running query reserve address space they do not use).
 HEADROOM = 1 << 30
+#: A worker that holds this much more than when it was warm after a query is retired.
+RETIRE_BYTES = 64 << 20
 #: Seconds an idle worker beyond the warm ones lives.
 IDLE_SECONDS = 60.0
 #: Longest wait for a new worker to be ready.
@@ -79,7 +77,6 @@ class WorkerProcess:
     connection: Connection
     warm_rss: int = 0
     busy: bool = False
-    kept: int = 0  # bytes beyond its warm size when its last query ended (what it holds while idle)
     idle_since: float = field(default_factory=time.monotonic)
     killed: DialectError | None = None  # the query's error when the pool killed the worker
 
@@ -250,53 +247,26 @@ class WorkerPool:
         return worker
 
     def give_back(self, worker: WorkerProcess, *, healthy: bool) -> None:
-        """Return a worker whose query ended; one that is not `healthy` (stopped mid-answer) or that
-        was killed is ended, idle workers are retired while what they keep passes the memory limit,
-        and new ones started if fewer than `warm` are idle."""
-        keep = healthy and worker.killed is None and worker.process.is_alive()
-        kept = worker.grown() if keep else 0
+        """Return a worker whose query ended; one that is not `healthy` (stopped mid-answer), that was
+        killed, or that kept much memory is ended, and a new one started if fewer than `warm` idle."""
+        keep = healthy and worker.killed is None and worker.process.is_alive() and worker.grown() < RETIRE_BYTES
         with self._lock:
             self._busy.discard(worker)
-            worker.busy, worker.kept = False, kept
+            worker.busy = False
             worker.idle_since = time.monotonic()
             if keep and not self._closed:
                 self._idle.append(worker)
-            else:
-                keep = False
-            retired = self._retire_idle(0)
             self._lock.notify_all()
-        if not keep:
-            self._end(worker)
-        for idle in retired:
-            self._end(idle)
+        if not keep:  # a large process takes a while to end: not on the caller's time
+            worker.kill()
+            threading.Thread(target=worker.dispose, name="lakegate-worker-end", daemon=True).start()
         self._fill()
-
-    def _retire_idle(self, busy_grown: int) -> list[WorkerProcess]:
-        """Take out of the pool the idle workers to end so that what they keep, with `busy_grown`
-        bytes of the busy workers' growth, stays within the memory limit (the ones that keep most
-        first; lock held)."""
-        held = busy_grown + sum(worker.kept for worker in self._idle)
-        retired = []
-        for worker in sorted(self._idle, key=lambda idle: idle.kept, reverse=True):
-            if held <= self.limit_bytes or worker.kept == 0:
-                break
-            self._idle.remove(worker)
-            retired.append(worker)
-            held -= worker.kept
-        return retired
-
-    @staticmethod
-    def _end(worker: WorkerProcess) -> None:
-        """Kill `worker` and collect it in the background (a large process takes a while to end:
-        not on the caller's time)."""
-        worker.kill()
-        threading.Thread(target=worker.dispose, name="lakegate-worker-end", daemon=True).start()
 
     # -- the watch ----------------------------------------------------------------------------
 
     def _watch_memory(self) -> None:
-        """Kill the workers past the memory limit, after retiring the idle ones whose kept memory
-        takes the total past it; end idle workers beyond `warm` (and `keep` live) after IDLE_SECONDS."""
+        """Kill the workers past the memory limit; end idle workers beyond `warm` (and `keep` live)
+        after IDLE_SECONDS."""
         while True:
             with self._lock:
                 if not self._busy and not self._closed:
@@ -320,12 +290,6 @@ class WorkerPool:
                 if used > self.limit_bytes:
                     worker.kill(memory_error("EXCEEDED_LOCAL_MEMORY_LIMIT", self.memory_limit))
             alive = {worker: used for worker, used in grown.items() if worker.killed is None}
-            with self._lock:
-                retired = self._retire_idle(sum(alive.values()))
-            for worker in retired:
-                self._end(worker)
-            if retired:
-                self._fill()
             if alive and sum(alive.values()) > self.limit_bytes:
                 largest = max(alive, key=alive.__getitem__)
                 largest.kill(memory_error("EXCEEDED_GLOBAL_MEMORY_LIMIT", self.memory_limit))

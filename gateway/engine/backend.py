@@ -205,7 +205,7 @@ class DuckDBBackend:
                 error_name="SCHEMA_NOT_FOUND",
             )
         self._paths[branch] = found  # only branches that exist
-        record = self._records.setdefault(branch, Record(self.lake, branch))
+        record = self._records.get(branch) or self._records.setdefault(branch, Record(self.lake, branch))
         try:
             return record.generation(), LOCAL.stat(configs).mtime_ns
         except FileNotFoundError:

@@ -5,14 +5,15 @@ size is the number of queries that run at once). A worker is warm: forked from a
 that already imported DuckDB and lakegate, its database open and the branches' schemas read, so a
 query costs a round trip over a pipe and its batches in Arrow IPC, not a start.
 
-What a worker may use is held from outside: a watch thread reads every busy worker's resident set
-(`/proc/PID/statm`) every `WATCH_INTERVAL` seconds and kills a worker whose query grew it more than
-the memory limit (EXCEEDED_LOCAL_MEMORY_LIMIT), or, when the queries together grew their workers
-past the limit, the one that grew most (EXCEEDED_GLOBAL_MEMORY_LIMIT); each worker's address space
-is also capped (RLIMIT_AS) at its warm size plus the limit and `HEADROOM`, which stops an
-allocation faster than the watch looks. A query past its time that does not stop when DuckDB is
-interrupted (a Python function never returns to DuckDB) is ended by killing its worker. A killed
-worker is replaced in the background; a worker that kept much memory after its query is retired.
+What a worker may use is held from outside: while queries run, a watch thread reads every busy
+worker's resident set (`/proc/PID/statm`) every `WATCH_INTERVAL` seconds and kills a worker whose
+query grew it more than the memory limit (EXCEEDED_LOCAL_MEMORY_LIMIT), or, when the queries
+together grew their workers past the limit, the one that grew most (EXCEEDED_GLOBAL_MEMORY_LIMIT);
+each worker's address space is also capped (RLIMIT_AS) at its warm size plus the limit and
+`HEADROOM`, which stops an allocation faster than the watch looks. A query past its time that does
+not stop when DuckDB is interrupted (a Python function never returns to DuckDB) is ended by killing
+its worker. A killed worker is replaced in the background; a worker that kept much memory after its
+query is retired.
 """
 
 from __future__ import annotations
@@ -35,6 +36,9 @@ from lakegate.gateway.engine.process_memory import resident
 
 #: Seconds between two looks at the busy workers' memory.
 WATCH_INTERVAL = 0.02
+#: Seconds between two looks at the idle workers (to end those idle for IDLE_SECONDS) while none is
+#: busy: an idle worker's memory does not grow, so the watch sleeps until a worker is taken.
+IDLE_LOOK = 1.0
 #: Bytes of address space a worker may take beyond its warm size and the memory limit (thread
 #: stacks and allocator arenas of a running query reserve address space they do not use).
 HEADROOM = 1 << 30
@@ -127,6 +131,7 @@ class WorkerPool:
         self._context = multiprocessing.get_context("forkserver")
         self._context.set_forkserver_preload(["lakegate.gateway.engine.query_worker"])
         self._lock = threading.Condition()
+        self._taken = threading.Condition(self._lock)  # the watch waits on it while no worker is busy
         self._idle: list[WorkerProcess] = []
         self._busy: set[WorkerProcess] = set()
         self._starting = 0  # workers being started
@@ -237,6 +242,7 @@ class WorkerPool:
         with self._lock:
             worker.busy, worker.killed = True, None
             self._busy.add(worker)
+            self._taken.notify()
         self._fill()
         return worker
 
@@ -261,7 +267,12 @@ class WorkerPool:
     def _watch_memory(self) -> None:
         """Kill the workers past the memory limit; end idle workers beyond `warm` (and `keep` live)
         after IDLE_SECONDS."""
-        while not self._closed:
+        while True:
+            with self._lock:
+                if not self._busy and not self._closed:
+                    self._taken.wait(IDLE_LOOK)
+                if self._closed:
+                    return
             time.sleep(WATCH_INTERVAL)
             with self._lock:
                 busy = list(self._busy)
@@ -295,6 +306,7 @@ class WorkerPool:
             workers, idle = list(self._launched), list(self._idle)
             self._idle.clear()
             self._lock.notify_all()
+            self._taken.notify_all()
         for worker in workers:
             worker.kill(DialectError("The server is shutting down", error_name="SERVER_SHUTTING_DOWN"))
         for worker in idle:

@@ -7,6 +7,7 @@ worker encodes rows off the event loop) and is spliced in with `orjson.Fragment`
 
 from __future__ import annotations
 
+import functools
 import secrets
 import string
 import threading
@@ -156,10 +157,14 @@ _ID_ALPHABET = string.ascii_lowercase + string.digits
 
 def columns_document(columns: Sequence[tuple[str, str]]) -> list[dict]:
     """QueryResults `columns`: name, Trino type name and full typeSignature of each column."""
-    return [
-        {"name": name, "type": protocol_type(trino_type), "typeSignature": type_signature(trino_type)}
-        for name, trino_type in columns
-    ]
+    return [{"name": name, **_column_type(trino_type)} for name, trino_type in columns]
+
+
+@functools.lru_cache(maxsize=1024)
+def _column_type(trino_type: str) -> dict:
+    """A column's `type` and `typeSignature` (parsed once per type name: the caller copies the dict,
+    and the documents are only serialised)."""
+    return {"type": protocol_type(trino_type), "typeSignature": type_signature(trino_type)}
 
 
 @dataclass

@@ -9,6 +9,7 @@ workers), and a Trino that cannot be fetched or started fails the test.
 
 from __future__ import annotations
 
+import contextlib
 import os
 
 import pytest
@@ -27,6 +28,15 @@ def trino_url() -> str:
         return trino_server.start()  # or waits for the one being started, and takes it
     except trino_server.TrinoError as error:
         pytest.fail(f"CI needs a real Trino 476 and it could not start: {error}")
+
+
+def pytest_collection_finish(session: pytest.Session) -> None:
+    """A Trino being started now (`.ci/run` starts it in the background while the suite is collected)
+    is waited for here, before the first test: its fetch and start count against no test's timeout
+    (a failed start is reported by `trino_url`, which tries again)."""
+    if trino_server.starting():
+        with contextlib.suppress(trino_server.TrinoError):
+            trino_server.start()
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:

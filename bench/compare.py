@@ -6,7 +6,7 @@ Builds (once per size, cached in bench/.work/compare/) a lake with two batches o
 experiences run N/250 times each, builds 1.0 and 1.1). Each job has what `lakegate metrics run`
 stores: a metadata row and the rows of `metric_results` of 3 test metrics (a scalar with a status,
 a histogram of 200 values, a line of 200 points) plus a state timeline of 20 states, and 2 batch
-metrics, written with the lake's own writers (lake/metadata.py, gateway/metrics/results.py) from
+metrics, written with the lake's own writers (lake/metadata.py, gateway/metrics/results_table.py) from
 figures rendered by the templates. The new batch shifts some experiences' values and flips some
 statuses, so every tag and many significant tests occur. Then measures, alternating, each in a
 fresh process:
@@ -47,7 +47,7 @@ import datetime as dt, sys
 from pathlib import Path
 import numpy as np
 from lakegate.gateway.metrics.metric_result import MetricResult
-from lakegate.gateway.metrics.results import ResultsWriter
+from lakegate.gateway.metrics.results_table import ResultsWriter
 from lakegate.gateway.metrics.templates import render
 from lakegate.lake import paths
 from lakegate.lake.metadata import build_metadata_row, stage_metadata_rows

@@ -33,16 +33,22 @@ SERIES_GOAL = 10.0  # emit_series() points at least 10x each reference's rate
 #: Measured by hand (cProfile), not by this script: written under the table as it is.
 PROFILE_NOTE = (
     "- where the time goes in `emit_series()` of 200,000 3-float points (cProfile and per-phase timings, "
-    "measured once, not by this script): before the column path, the record-by-record loop (per-value typ"
-    "e checks, one `orjson.dumps` per value, one %-format per line) took about 75% and queueing, joining "
-    "and writing the lines about 25%; now, checking the columns (exact-type counts, min/max of the timest"
-    "amps, NumPy finiteness and magnitude tests) about 25%, one `orjson.dumps` per block of 4,096 lines a"
-    "bout 30%, one `bytes.translate` per block about 20%, laying out the blocks' flat lists about 6%, the"
-    " write about 15%. Validated `emit()` of the 3-float topic (CPU ns per emit, one process, best of 5):"
-    " before, 1,163 in `emit()` (three `orjson.dumps` and a %-format per record, ~250 in the wrapper) and"
-    " 156 writing; now, a topic of numbers only queues its checked values (~340 of checks, ~200 of"
-    " wrapper) and the writer encodes each run of such rows as one block (one `orjson.dumps`, one"
-    " `bytes.translate`: 367 writing)"
+    "measured once, not by this script): before the column path, the record-by-record loop (per-value "
+    "type checks, one `orjson.dumps` per value, one %-format per line) took about 75% and queueing, "
+    "joining and writing the lines about 25%; now, checking the columns (exact-type counts, min/max of "
+    "the timestamps, NumPy finiteness and magnitude tests) about 25%, one `orjson.dumps` per block of "
+    "4,096 lines about 30%, one `bytes.translate` per block about 20%, laying out the blocks' flat lists "
+    "about 6%, the write about 15%. Validated `emit()` of the 3-float topic (CPU ns per emit, all "
+    "threads, medians of 7 in one process): ~1,200 with chunks of 8,192 handed to the flusher thread: the"
+    " bench's own loop (the dict, the call) ~185; the emitting thread ~550 (checks ~220, of which the "
+    "three floats' type, finiteness and magnitude ~130; the calls `emit` -> the topic's row function "
+    "~100; queueing the row); the flusher thread ~465 (`orjson.dumps` of the rows ~175, `bytes.translate`"
+    " ~140, popping and grouping ~35, freeing the rows and the write the rest). In fresh processes, as "
+    "this script runs, the hand-over cost ~250 more (a chunk of 8,192 rows and its text outgrow the CPU's"
+    " cache: 4,096 was nearly as slow, 2,048 and 1,024 alike fast): chunks of 1,024 written by the "
+    "emitting thread itself take 1,470 -> 1,170 (5 alternating fresh runs each)."
+    " Not taken: checks inlined into one generated `emit` per Emitter (~50 less, but a reference cycle), "
+    "separators as `str` (~13 less), other block layouts (slower)"
 )
 #: Each reference: its venv, the distribution pinned into it, and the module holding its Emitter.
 REFERENCES = {

@@ -49,7 +49,7 @@ CATEGORIES = (
     ("planning and translating", ("dialect/", "sqlglot/", "planner.py", "statements.py")),
     ("rendering figures", ("metrics/templates.py", "metrics/custom.py", "plotly")),
     ("judging statuses", ("metrics/statuses.py", "metrics/gating.py")),
-    ("writing results, Arrow conversions", ("metrics/results.py", "lake/writer", "pyarrow/", "parquet")),
+    ("writing results, Arrow conversions", ("metrics/results_table.py", "lake/writer", "pyarrow/", "parquet")),
     ("HTTP and the client protocol", ("uvicorn/", "starlette/", "fastapi/", "gateway/server/", "httptools", "h11")),
     ("reading configs (YAML)", ("yaml/", "ruamel/", "lake/config")),
     (

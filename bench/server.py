@@ -14,7 +14,7 @@ metadata row per job), starts `lakegate serve` on 127.0.0.1 in a subprocess, and
   4,000,000 rows (the same job 4 times, read in chunks) to show it does not grow with the result;
 * a GROUP BY aggregate over all 10,000,000 rows: median of 11 alternating runs, ratio to direct
   DuckDB with the server's thread count;
-* N concurrent clients (threads, one connection each) running a mix of queries for S seconds:
+* N concurrent clients (threads, one connection and user each) running a mix of queries for S seconds:
   throughput, p50 / p99 latency, errors.
 
 Writes section "Server" of bench/RESULTS.md.
@@ -183,9 +183,9 @@ class Server:
         except OSError:
             return False
 
-    def connect(self, session: requests.Session | None = None) -> trino.dbapi.Connection:
+    def connect(self, session: requests.Session | None = None, user: str = "bench") -> trino.dbapi.Connection:
         return trino.dbapi.connect(
-            host="127.0.0.1", port=self.port, user="bench", catalog="lake", schema="main", http_session=session
+            host="127.0.0.1", port=self.port, user=user, catalog="lake", schema="main", http_session=session
         )
 
     def stop(self) -> None:
@@ -332,14 +332,14 @@ def aggregate(server: Server, direct: duckdb.DuckDBPyConnection, runs: int) -> d
 
 
 def concurrency(server: Server, clients: int, seconds: float) -> dict:
-    """`clients` threads, one connection each, running the mix for `seconds`."""
+    """`clients` threads, one connection and user each, running the mix for `seconds`."""
     latencies: dict[str, list[float]] = {name: [] for name, _, _ in MIX}
     errors: list[str] = []
     lock = threading.Lock()
     stop = time.monotonic() + seconds
 
     def client(index: int) -> None:
-        connection = server.connect()
+        connection = server.connect(user=f"bench{index}")  # a user of their own: the per-user cap is not measured
         turn = index
         while time.monotonic() < stop:
             name, sql, params = MIX[turn % len(MIX)]

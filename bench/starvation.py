@@ -125,7 +125,8 @@ def main(argv: list[str] | None = None) -> None:
         raise SystemExit(f"user A's statements failed: {errors[0]}")
 
     def summary(times: list[float]) -> str:
-        return f"median {statistics.median(times):.1f} ms, p90 {sorted(times)[int(len(times) * 0.9)]:.0f} ms"
+        p90 = sorted(times)[int(len(times) * 0.9)]
+        return f"median {statistics.median(times):.1f} ms, p90 {p90:.0f} ms, max {max(times):.0f} ms"
 
     ratio = statistics.median(flooded) / statistics.median(idle)
     large = f"median {statistics.median(answered):.1f} s" if answered else "none answered during the phases"

@@ -46,6 +46,48 @@ _NANOSECOND_OPERATIONS = (
 )
 
 
+#: The functions written for time with time zone operands (dialect/zoned_times.py): ordering and picking
+#: values (on the struct, whose order is Trino's but for ties of one instant in two offsets), fields, units.
+_TIME_TZ_FUNCTIONS = frozenset(
+    "min max min_by max_by count arbitrary any_value coalesce typeof hour minute second millisecond "
+    "timezone_hour timezone_minute timezone date_trunc date_add date_diff".split()
+)
+
+#: The expressions written for time with time zone operands (functions: only _TIME_TZ_FUNCTIONS).
+_TIME_TZ_OPERATIONS = (
+    exp.Cast,
+    exp.TryCast,
+    exp.EQ,
+    exp.NEQ,
+    exp.GT,
+    exp.GTE,
+    exp.LT,
+    exp.LTE,
+    exp.NullSafeEQ,
+    exp.NullSafeNEQ,
+    exp.Between,
+    exp.In,
+    exp.Is,
+    exp.Case,
+    exp.If,
+    exp.Add,
+    exp.Sub,
+    exp.Paren,
+    exp.Alias,
+    exp.Ordered,
+    exp.Window,
+    exp.Filter,
+    exp.Extract,
+    exp.AtTimeZone,
+    exp.Subquery,
+    exp.Anonymous,
+)
+
+
+def _holds_time_tz(t: TType | None) -> bool:
+    return t is not None and any(inner.base == "time_tz" for inner in (t, *tt.inner_types(t)))
+
+
 CHAR_TYPE = re.compile(r"(?<![a-z])char\(")
 
 
@@ -294,6 +336,56 @@ class Checks:
             return
         for child in node.iter_expressions():
             self._grouped(child, keys, qualifiers)
+
+    def check_time_tz_use(self, node: exp.Expression, t: TType) -> None:
+        """Refuse an operation on time with time zone values (DuckDB structs, dialect/zoned_times.py) that
+        would compare whole structs, where Trino compares the time at +00:00 alone: values nested in
+        arrays, maps or rows, IN a subquery, ANY / ALL, a simple CASE, DISTINCT inside a call, and the functions
+        not written for them."""
+        if t.base != "time_tz" and _holds_time_tz(t):
+            self.unsupported(f"{t} (lakegate holds time with time zone only as a plain value)", node)
+        children = list(node.iter_expressions())
+        if isinstance(node, exp.Anonymous) and children and isinstance(children[0], exp.Distinct):
+            children = list(children[0].expressions)  # f(DISTINCT x)
+        types = [child.meta.get("t") for child in children if child._meta]
+        zoned = next((t for t in types if t is not None and _holds_time_tz(t)), None)
+        if zoned is None:
+            return
+        simple_case = isinstance(node, exp.Case) and node.this is not None
+        subquery = isinstance(node, exp.In) and node.args.get("query") is not None
+        subquery = subquery or isinstance(node.args.get("expression"), (exp.Any, exp.All))  # = ANY (SELECT ...)
+        distinct = isinstance(node, exp.Anonymous) and node.meta.get("distinct")  # compares whole structs
+        if (
+            isinstance(node, _TIME_TZ_OPERATIONS)
+            and not simple_case
+            and not subquery
+            and not distinct
+            and (not isinstance(node, exp.Anonymous) or node.name.lower() in _TIME_TZ_FUNCTIONS)
+        ):
+            return
+        self.unsupported(
+            f"{trino_name(node)} of {zoned} (lakegate compares time with time zone values only in "
+            "=, <>, <, <=, >, >=, BETWEEN, IN a list, IS DISTINCT FROM, ORDER BY, min and max)",
+            node,
+        )
+
+    def check_time_tz_keys(self, node: exp.Select) -> None:
+        """Refuse GROUP BY, SELECT DISTINCT and PARTITION BY keys of time with time zone: DuckDB would
+        tell apart values of one instant in two offsets, which Trino groups together."""
+        items = [i.this if isinstance(i, exp.Alias) else i for i in node.expressions]
+        keys = list(items) if node.args.get("distinct") else []
+        for key in node.args["group"].expressions if node.args.get("group") else []:
+            if isinstance(key, (exp.Rollup, exp.Cube, exp.GroupingSets)):
+                keys.extend(grouping_keys(key))
+            elif isinstance(key, exp.Literal) and not key.is_string and 0 < int(key.name) <= len(items):
+                keys.append(items[int(key.name) - 1])
+            else:
+                keys.append(key)
+        for window in node.find_all(exp.Window):
+            keys += window.args.get("partition_by") or []
+        for key in keys:
+            if key._meta and _holds_time_tz(key.meta.get("t")):
+                self.unsupported(f"GROUP BY, DISTINCT or PARTITION BY of {key.meta['t']}", key)
 
     def _check_nanosecond_use(self, node: exp.Expression) -> None:
         """Refuse an operation on a timestamp(7..9) (DuckDB's TIMESTAMP_NS) that is not written for

@@ -112,6 +112,7 @@ class Analyzer(Relations, StarExpansion, Checks):
         if t.base == "timestamp" and t.args[0] > 9:
             self.unsupported(f"{t} (lakegate keeps nanoseconds at most; digits past them would be dropped)", node)
         self._check_nanosecond_use(node)
+        self.check_time_tz_use(node, t)
         check_char_use(self, node)
         return set(node, t)
 

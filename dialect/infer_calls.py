@@ -5,12 +5,15 @@ ZONE and the special forms (SUBSTRING, TRIM, POSITION).
 
 from __future__ import annotations
 
+import re
+
 from sqlglot import exp
 
-from lakegate.dialect import intervals
+from lakegate.dialect import intervals, zoned_times
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analysis_checks import check_range_offset, range_comparison_type
 from lakegate.dialect.analyzer import Analyzer
+from lakegate.dialect.trino_types import TType
 from lakegate.dialect.type_rules import floor_micros, handles, set, ttype
 
 
@@ -127,9 +130,15 @@ def _extract(a: Analyzer, node, scope, env):
         "MINUTE",
         "SECOND",
     }
+    if t.base == "time_tz":  # io.trino.operator.scalar.timetz: ExtractHour, ..., TimeZoneHour
+        if unit not in ("HOUR", "MINUTE", "SECOND", "TIMEZONE_HOUR", "TIMEZONE_MINUTE"):
+            a.fail(f"Cannot extract {unit} from {t}", node, "TYPE_MISMATCH")
+        return tt.BIGINT
     if unit in ("TIMEZONE_HOUR", "TIMEZONE_MINUTE") and t.base == "timestamp_tz":
         a.zone(t, node, f"EXTRACT({unit} FROM ...)")
         return tt.BIGINT
+    if unit in ("TIMEZONE_HOUR", "TIMEZONE_MINUTE") and not t.is_unknown:  # only zoned values have an offset
+        a.fail(f"Cannot extract {unit} from {t}", node, "TYPE_MISMATCH")
     if t.base in intervals.FIELDS and unit.lower() in intervals.FIELDS[t.base]:
         return tt.BIGINT
     if unit not in allowed:
@@ -285,14 +294,50 @@ def _placeholder(a: Analyzer, node, scope, env):
 def _at_time_zone(a: Analyzer, node, scope, env):
     t = a.expr(node.this, scope, env)
     zone = node.args.get("zone")
+    if t.base in ("time", "time_tz") and isinstance(zone, exp.Interval):
+        a.expr(zone, scope, env)
+        return _time_at_time_zone(a, node, t, _offset_of_interval(a, zone))
     if not (isinstance(zone, exp.Literal) and zone.is_string):
         a.unsupported("AT TIME ZONE with a non-literal zone", node)
-    if t.base not in ("timestamp", "timestamp_tz"):
+    if t.base not in ("timestamp", "timestamp_tz", "time", "time_tz"):
         a.fail(
             f"Type of value must be a time or timestamp with or without time zone (actual {t})", node, "TYPE_MISMATCH"
         )
     a.expr(zone, scope, env)
+    if t.base in ("time", "time_tz"):
+        return _time_at_time_zone(a, node, t, a.zone_literal(zone))
     return tt.timestamp(t.args[0], True, a.zone_literal(zone))
+
+
+def _offset_of_interval(a: Analyzer, interval: exp.Interval) -> str:
+    """The offset zone (+hh:mm) of `AT TIME ZONE INTERVAL '10' HOUR`: a literal of whole minutes within
+    14 hours (Trino fails on seconds and past 14 hours; lakegate refuses those)."""
+    unit = interval.args.get("unit")
+    text = interval.this.name.strip()
+    if isinstance(unit, exp.IntervalSpan):
+        value = intervals.span_value(text, unit.name.upper(), unit.expression.name.upper())
+        millis = value[1] if value is not None and value[0] == "millis" else None
+    else:
+        scale = {"HOUR": 3_600_000, "MINUTE": 60_000}.get(unit.name.upper() if unit is not None else "")
+        millis = int(text) * scale if scale is not None and re.fullmatch(r"[+-]?[0-9]{1,4}", text) else None
+    if millis is None or millis % 60_000 or abs(millis) > zoned_times.MAX_OFFSET_MINUTES * 60_000:
+        a.unsupported("AT TIME ZONE an interval that is not whole minutes within 14 hours", interval)
+    minutes = millis // 60_000
+    return f"{'-' if minutes < 0 else '+'}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
+
+
+def _time_at_time_zone(a: Analyzer, node: exp.AtTimeZone, t: TType, zone: str) -> TType:
+    """A time with time zone at another offset, its instant kept (a time is first at the session zone's
+    offset); a region's offset depends on the date, which Trino takes from the session: refused."""
+    offsets = [zoned_times.offset_of(zone)] + ([zoned_times.offset_of(a.time_zone)] if t.base == "time" else [])
+    if offsets[0] is None:
+        a.unsupported(f"{t} AT TIME ZONE a region (its offset depends on the session's date)", node)
+    if None in offsets:
+        a.unsupported(f"{t} AT TIME ZONE in the session zone {a.time_zone} (its offset depends on the date)", node)
+    if t.base == "time" and t.args[0] > 6:
+        a.unsupported(f"{t} (time with more than microsecond precision)", node)
+    node.meta["offset"] = offsets[0]
+    return TType("time_tz", t.args)
 
 
 @handles(exp.Substring)

@@ -8,7 +8,7 @@ from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
 
 from sqlglot import exp
 
-from lakegate.dialect import times, zones
+from lakegate.dialect import times, zoned_times, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analysis_checks import has_char
 from lakegate.dialect.analyzer import Analyzer
@@ -32,8 +32,6 @@ def _cast(a: Analyzer, node, scope, env):
     try:
         target = tt.from_datatype(node.args["to"])
     except ValueError as error:
-        if node.args["to"].this == exp.DataType.Type.TIMETZ:
-            a.unsupported(times.with_time_zone(node, _typed_literal(a, node)), node)
         a.unsupported(f"cast to {error}", node)
     if _typed_literal(a, node):
         text = node.this.name.strip()
@@ -50,6 +48,8 @@ def _cast(a: Analyzer, node, scope, env):
             a.unsupported("timestamp literal with a time zone", node)
         elif target.base == "time":
             target = _time_literal_type(a, node, text)
+        elif target.base == "time_tz":
+            target = _time_tz_literal_type(a, node)
     if source.base == "char" and target.base == "varchar":
         node.meta["from"] = source
         return target  # the padded text, cut to the varchar's length (CharacterStringCasts.charToVarcharCast)
@@ -65,9 +65,9 @@ def _cast(a: Analyzer, node, scope, env):
         return target  # the UTF-8 bytes of the text (VarcharOperators.castToVarbinary)
     if "json" in (source.base, target.base) and source != target:
         _check_json_cast(a, node, source, target)
-    elif "time" in (source.base, target.base):
+    elif "time" in (source.base, target.base) or "time_tz" in (source.base, target.base):
         _check_time_cast(a, node, source, target)
-    elif target.base in ("time_tz", "uuid", "varbinary", "map"):
+    elif target.base in ("uuid", "varbinary", "map"):
         a.unsupported(f"cast to {target}", node)
     if target.base == "timestamp_tz":
         target = tt.timestamp(target.args[0], True, _cast_zone(a, node, source))
@@ -97,18 +97,61 @@ def _time_literal_type(a: Analyzer, node: exp.Cast, text: str) -> TType:
     return TType("time", (len(match[6] or ""),))
 
 
+def _time_tz_literal_type(a: Analyzer, node: exp.Cast) -> TType:
+    """TIME '01:02:03.456 +05:45' is time(p) with time zone, p its fraction digits
+    (DateTimes.extractTimePrecision); its value is computed here (node.meta["time_tz"])."""
+    text = node.this.name
+    precision = zoned_times.literal_precision(text)
+    if precision is not None and precision > zoned_times.MAX_PRECISION:
+        a.fail(
+            f"TIME WITH TIME ZONE precision must be in range [0, 12]: {precision}", node, "NUMERIC_VALUE_OUT_OF_RANGE"
+        )
+    value = None if precision is None else zoned_times.literal(text, precision, None)
+    if value is None:
+        a.fail(f"'{text}' is not a valid TIME literal", node, "INVALID_LITERAL")
+    node.meta["time_tz"] = value
+    return TType("time_tz", (precision,))
+
+
 def _check_time_cast(a: Analyzer, node: exp.Cast, source: TType, target: TType) -> None:
     """time(p <= 6) from varchar, time and timestamp(p <= 6), and to varchar (TimeOperators,
-    TimestampToTimeCast); the casts that need the session's date or zone are refused."""
+    TimestampToTimeCast); time(p) with time zone from and to varchar, time and itself
+    (TimeWithTimeZoneOperators); the casts that need the session's date, or its zone's offset when
+    that changes, are refused."""
     for t in (source, target):
         if t.base == "time" and t.args[0] > 6:
             a.unsupported(f"{t} (time with more than microsecond precision)", node)
+        if t.base == "time_tz" and t.args[0] > zoned_times.MAX_PRECISION:
+            a.fail(f"Unknown type: {t}", node, "TYPE_MISMATCH")
     if source.base == "timestamp" and source.args[0] > 6:
         a.unsupported(f"CAST({source} AS {target}) (more than microsecond precision)", node)
-    if source.base == "time" and target.base in ("timestamp", "timestamp_tz", "time_tz"):
+    if source.base in ("time", "time_tz") and target.base in ("timestamp", "timestamp_tz"):
         a.unsupported(f"CAST({source} AS {target}) (it depends on the session's date and zone)", node)
-    if target.base == "time" and source.base in ("timestamp_tz", "time_tz"):
+    if source.base == "date":
         a.unsupported(f"CAST({source} AS {target})", node)
+    if target.base in ("time", "time_tz") and source.base == "timestamp_tz":  # its zone's offset at the instant
+        a.zone(source, node, f"CAST to {target}")
+        if source.args[0] > 6:
+            a.unsupported(f"CAST({source} AS {target}) (more than microsecond precision)", node)
+    if (
+        target.base == "time_tz"
+        and source.base in ("time", "varchar", "timestamp")
+        and zoned_times.offset_of(a.time_zone) is None
+        and not _names_its_offset(node)
+    ):
+        a.unsupported(f"CAST({source} AS {target}) in the session zone {a.time_zone} (its offset changes)", node)
+
+
+def _names_its_offset(node: exp.Cast) -> bool:
+    """A TIME literal with an offset, or a text literal whose time names its offset: no session offset needed."""
+    literal = node.this
+    if "time_tz" in node.meta:
+        return True
+    return (
+        isinstance(literal, exp.Literal)
+        and literal.is_string
+        and bool(re.search(r"[+-][0-9]{2}:[0-9]{2}\s*$", literal.name))
+    )
 
 
 def _check_json_cast(a: Analyzer, node: exp.Cast, source: TType, target: TType) -> None:
@@ -191,8 +234,12 @@ def castable(source: TType, target: TType) -> bool:
         return True
     if target.base == "time" and source.base in ("varchar", "time", "timestamp"):  # p <= 6 (times.py)
         return max(target.args[0], source.args[0] if source.base != "varchar" else 0) <= 6
-    if source.base in ("time", "interval_ds", "interval_ym") and target.base == "varchar":
+    if source.base in ("time", "time_tz", "interval_ds", "interval_ym") and target.base == "varchar":
         return True
+    if target.base == "time_tz" and source.base in ("varchar", "time", "time_tz", "timestamp", "timestamp_tz"):
+        return source.base not in ("time", "timestamp") or source.args[0] <= 6
+    if target.base == "time" and source.base in ("time_tz", "timestamp_tz"):
+        return target.args[0] <= 6 and source.args[0] <= 6 or source.base == "time_tz"
     if source.base == target.base == "array":
         return castable(source.element, target.element)
     if source.base == target.base == "row" and len(source.args) == len(target.args):

@@ -347,6 +347,12 @@ def _temporal_arithmetic(op: str, left: TType, right: TType) -> TType | None:
         time = left if left.base == "time" else right  # wraps around midnight (TimeOperators)
         if time.base == "time":
             return TType("time", (max(3, time.args[0]),))
+    if op in "+-" and left.base == "time_tz" and right.base == "interval_ds":
+        return TType("time_tz", (max(3, left.args[0]),))  # TimeWithTimeZoneOperators: wraps around midnight
+    if op == "+" and left.base == "interval_ds" and right.base == "time_tz":
+        return TType("time_tz", (max(3, right.args[0]),))
+    if op == "-" and left.base == right.base == "time_tz":
+        return tt.INTERVAL_DS  # of the times at +00:00, rounded HALF_UP to milliseconds
     if op in "+-" and left.base == right.base and left.base in intervals:
         return left
     if op == "*" and (left.base in intervals and right.is_integral or left.is_integral and right.base in intervals):

@@ -8,10 +8,6 @@ picoseconds modulo a day). The helpers return DuckDB SQL text from DuckDB SQL te
 
 from __future__ import annotations
 
-import re
-
-from sqlglot import exp
-
 MICROS_PER_DAY = 86_400_000_000
 
 #: Trino's DateTimes.TIME_PATTERN without the offset (parseTime refuses one): h:m[:s[.f]], then
@@ -112,21 +108,3 @@ def diff(unit: str, first: str, second: str) -> str:
     """date_diff(unit, time1, time2): whole units from time1 to time2, truncated toward zero
     (TimeFunctions.dateDiff)."""
     return f"(({micros(second)} - {micros(first)}) // {UNIT_MICROS[unit]})"
-
-
-def with_time_zone(node: exp.Cast, literal: bool) -> str:
-    """Why time(p) with time zone (a TIME literal with an offset, or a cast to it) is refused
-    (io.trino.spi.type.TimeWithTimeZoneTypes.normalize is what Trino compares and hashes). Its type:
-    a literal's precision is its fraction's digit count (DateTimes.extractTimePrecision), a cast's
-    default 3 (TimeWithTimeZoneType.DEFAULT_PRECISION)."""
-    if literal:
-        fraction = re.search(r"[.]([0-9]*)", node.this.name)
-        precision = len(fraction[1]) if fraction else 0
-    else:
-        params = [p.this for p in node.args["to"].expressions if isinstance(p, exp.DataTypeParam)]
-        precision = int(params[0].name) if params else 3
-    return (
-        f"time({precision}) with time zone (Trino compares, groups and orders its values by their time at "
-        "offset +00:00, modulo a day; DuckDB's TIMETZ tells such equal values of different offsets apart "
-        "and drops the offset in results)"
-    )

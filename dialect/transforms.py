@@ -17,7 +17,7 @@ from __future__ import annotations
 from sqlglot import exp
 from sqlglot.generators.duckdb import DuckDBGenerator
 
-from lakegate.dialect import chars, intervals, zones
+from lakegate.dialect import chars, intervals, times, zoned_times, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.trino_types import TType
@@ -306,6 +306,8 @@ def extract_field(g: Writer, node: exp.Extract) -> str:
     """EXTRACT with Trino's field meanings (DAY_OF_WEEK is ISO: Monday = 1)."""
     unit = node.this.name.upper()
     value = node.expression
+    if ttype(value).base == "time_tz":
+        return zoned_times.field(g.sql(value), unit.lower())
     if unit in ("TIMEZONE_HOUR", "TIMEZONE_MINUTE"):
         return zone_offset(g, value, unit.split("_")[1].lower())
     if ttype(value).base in intervals.FIELDS:
@@ -326,7 +328,12 @@ def interval_literal(g: Writer, node: exp.Interval) -> str:
 @transform(exp.AtTimeZone)
 def at_time_zone(g: Writer, node: exp.AtTimeZone) -> str:
     """The same instant, shown in another zone (the zone is the type's); a timestamp is first read in the
-    session zone."""
+    session zone. A time with time zone keeps its instant at the offset (infer_calls._time_at_time_zone)."""
+    if ttype(node).base == "time_tz":
+        sql, source = g.sql(node.this), ttype(node.this)
+        if source.base == "time":
+            sql = zoned_times.of_time_micros(times.micros(sql), zoned_times.offset_of(g.time_zone))
+        return zoned_times.make(zoned_times.utc(sql), str(node.meta["offset"]))
     return g.coerce(node.this, ttype(node))
 
 

@@ -12,6 +12,8 @@ from dataclasses import dataclass
 
 from sqlglot import exp
 
+from lakegate.dialect import zoned_times
+
 MAX_PRECISION = 38
 MAX_VARCHAR = 2147483647
 CHAR_MAX_LENGTH = 65536  # io.trino.spi.type.CharType.MAX_LENGTH
@@ -361,6 +363,8 @@ def from_datatype(dt: exp.DataType) -> TType:
         return timestamp(numbers[0] if numbers else 3, with_time_zone=True)
     if kind == _DTYPE.TIME:
         return TType("time", (numbers[0] if numbers else 3,))
+    if kind == _DTYPE.TIMETZ:
+        return TType("time_tz", (numbers[0] if numbers else 3,))
     if kind == _DTYPE.ARRAY and dt.expressions:
         return array(from_datatype(dt.expressions[0]))
     if kind == _DTYPE.MAP and len(dt.expressions) == 2:
@@ -410,6 +414,8 @@ def duckdb_type(t: TType) -> str | None:
     base = t.base
     if base == "timestamp_tz" and t.args[0] > 6:
         return "TIMESTAMP_NS"  # its UTC instant (dialect/zoned_nanos.py)
+    if base == "time_tz":
+        return zoned_times.DUCKDB_TYPE
     if base in _DUCK:
         return _DUCK[base]
     if base == "decimal":
@@ -482,6 +488,8 @@ def common_super_type(a: TType, b: TType) -> TType | None:
         return TType(a.base, (max(a.args[0], b.args[0]),))
     if a.base == b.base == "time":
         return TType("time", (max(a.args[0], b.args[0]),))
+    if {a.base, b.base} <= {"time", "time_tz"}:  # a time takes the session zone's offset
+        return TType("time_tz", (max(a.args[0], b.args[0]),))
     if a.base == b.base == "timestamp_tz":  # values of two zones: no one zone
         return timestamp(max(a.args[0], b.args[0]), True, zone_of(a) if zone_of(a) == zone_of(b) else None)
     if {a.base, b.base} == {"timestamp", "timestamp_tz"}:  # the timestamps take the session zone

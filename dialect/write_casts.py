@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from sqlglot import exp
 
-from lakegate.dialect import chars, registry, times, zoned_nanos, zones
+from lakegate.dialect import chars, registry, times, zoned_nanos, zoned_times, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.transforms import Writer, cast, quote, string, transform
 from lakegate.dialect.trino_types import TType
@@ -26,6 +26,8 @@ RANGES = {
 def trino_cast(g: Writer, node: exp.Cast) -> str:
     if node.meta.get("trimmed"):
         return chars.trimmed(g, node)
+    if "time_tz" in node.meta:  # a TIME literal with an offset, computed at analysis
+        return zoned_times.constant(node.meta["time_tz"])
     return cast_value(g, *cast_operand(g, node), ttype(node))
 
 
@@ -165,6 +167,11 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
         return checked_cast(g, f"CAST({sql} AS VARCHAR)", source, target)
     if target.is_integral and (source.is_integral or source.is_decimal) or target.is_decimal and source.is_numeric:
         return checked_cast(g, sql, source, target)
+    if "time_tz" in (source.base, target.base):
+        return _zoned_time(g, sql, source, target)
+    if target.base == "time" and source.base == "timestamp_tz":  # its time of day in its zone, rounded HALF_UP
+        zoned = TType("time_tz", source.args[:1])
+        return _zoned_time(g, _zoned_time(g, sql, source, zoned), zoned, target)
     if target.base == "time" and source.base in ("time", "timestamp"):  # p <= 6 (analyze._cast)
         if source.base == "time":
             return times.round_time(sql, target.args[0], source.args[0])
@@ -205,6 +212,29 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
             present.append(f"{value} IS NOT NULL")
         return row_whole_in_try(g, present, f"struct_pack({', '.join(fields)})", target)
     return cast(sql, target)
+
+
+def _zoned_time(g: Writer, sql: str, source: TType, target: TType) -> str:
+    """CAST between time with time zone and itself, or time, or from timestamp(p <= 6) [with time zone]
+    (infer_casts.castable): the local time rounded HALF_UP to the target's precision; a time or timestamp
+    takes the session zone's offset, a timestamp with time zone its zone's offset at the instant its wall time
+    names in UTC (what the real Trino 476 answers: 09:00 on 2020-03-08 in Los Angeles is -08:00, though the
+    clocks moved to -07:00 at 02:00 that day)."""
+    if source.base == "time":  # p <= 6, in a session zone of one offset (infer_casts._check_time_cast)
+        zoned = zoned_times.of_time_micros(times.micros(sql), zoned_times.offset_of(g.time_zone))
+        return zoned_times.round_to(zoned, target.args[0], source.args[0])
+    if target.base == "time":  # p <= 6
+        return times.of_micros(zoned_times.to_time_micros(sql, target.args[0]))
+    if source.base in ("timestamp", "timestamp_tz"):  # the time of day, rounded HALF_UP; the zone's offset then
+        wall, minutes = sql, str(zoned_times.offset_of(g.time_zone))
+        if source.base == "timestamp_tz":  # the offset at the instant that the wall time names in UTC (Trino 476)
+            wall = zones.local(sql, tt.zone_of(source))
+            named = f"CAST({wall} AS TIMESTAMPTZ)"
+            minutes = f"((epoch_us({zones.local(named, tt.zone_of(source))}) - epoch_us({named})) // 60000000)"
+        day = times.MICROS_PER_DAY
+        picos = f"(((epoch_us({wall}) % {day}) + {day}) % {day} * 1000000)"
+        return zoned_times.of_local(zoned_times.rounded_picos(picos, target.args[0]), minutes)
+    return zoned_times.round_to(sql, target.args[0], source.args[0])
 
 
 def _cast_name(t: TType) -> str:
@@ -332,6 +362,11 @@ def parse_varchar(g: Writer, sql: str, target: TType) -> str:
     if target.base == "time":
         message = f"'Value cannot be cast to time: ' || {sql}"
         return times.parse(sql, target.args[0], g.fail(message, "INVALID_CAST_ARGUMENT"))
+    if target.base == "time_tz":
+        message = f"'Value cannot be cast to time with time zone: ' || {sql}"
+        offset = zoned_times.offset_of(g.time_zone)  # None: only texts that name their offset (infer_casts)
+        session = str(offset) if offset is not None else g.fail(message, "INVALID_CAST_ARGUMENT")
+        return zoned_times.parse(sql, target.args[0], session, g.fail(message, "INVALID_CAST_ARGUMENT"))
     return cast(sql, target)
 
 
@@ -381,6 +416,8 @@ def varchar_of(g: Writer, sql: str, source: TType) -> str:
         return timestamp_text(sql, source.args[0])
     if source.base == "time":
         return times.text(sql, source.args[0])
+    if source.base == "time_tz":
+        return zoned_times.text(sql, source.args[0])
     if source.base == "timestamp_tz":
         zone = tt.zone_of(source)
         return timestamp_text(zones.local(sql, zone), source.args[0]) + f" || {string(' ' + zone)}"

@@ -7,12 +7,12 @@ from __future__ import annotations
 
 from sqlglot import exp
 
-from lakegate.dialect import chars, wide_decimals, zones
+from lakegate.dialect import chars, wide_decimals, zoned_times, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.transforms import Writer, cast, quote, string, ten, transform
 from lakegate.dialect.trino_types import TType
 from lakegate.dialect.type_rules import ttype
-from lakegate.dialect.write_casts import RANGES, floor_div, floor_micros, with_nanos
+from lakegate.dialect.write_casts import RANGES, cast_value, floor_div, floor_micros, with_nanos
 
 
 # --- arithmetic ----------------------------------------------------------------------------------
@@ -52,7 +52,22 @@ def decimal_result_type(g: Writer, node: exp.Binary) -> str:
         return nanosecond_interval_arithmetic(g, node, op)
     if t == tt.INTERVAL_DS and ttype(node.this).base == "timestamp":
         return timestamp_difference(g, node)
+    if t.base == "time_tz" or t == tt.INTERVAL_DS and ttype(node.this).base == "time_tz":
+        return zoned_time_arithmetic(g, node, op)
     return sql
+
+
+def zoned_time_arithmetic(g: Writer, node: exp.Binary, op: str) -> str:
+    """time with time zone ± a day-to-second interval (the local time moved modulo a day, the offset
+    kept), and the difference of two (their times at +00:00, rounded HALF_UP to milliseconds):
+    TimeWithTimeZoneOperators."""
+    left, right = g.sql(node.this), g.sql(node.expression)
+    if ttype(node.this).base == ttype(node.expression).base == "time_tz":
+        millis = floor_div(f"{zoned_times.difference_picos(left, right)} + 500000000", 1_000_000_000)
+        return f"to_milliseconds({millis})"
+    value, interval = (left, right) if ttype(node.this).base == "time_tz" else (right, left)
+    delta = zoned_times.interval_picos(interval)
+    return zoned_times.add_picos(value, delta if op == "+" else f"-{delta}", ttype(node).args[0])
 
 
 def nanosecond_interval_arithmetic(g: Writer, node: exp.Binary, op: str) -> str:
@@ -248,12 +263,29 @@ def ieee_comparison(g: Writer, node: exp.Binary) -> str:
             nulls = f"({left}) IS NULL OR ({right}) IS NULL"
         unordered = "true" if op == "<>" else "false"
         return f"CASE WHEN {nulls} THEN NULL WHEN {nan} THEN {unordered} ELSE {left} {op} {right} END"
+    if common.base == "time_tz":  # the times at offset +00:00 (dialect/zoned_times.py)
+        return f"{zoned_times.utc(_as(g, node.this, common))} {op} {zoned_times.utc(_as(g, node.expression, common))}"
     if common.base in ("array", "map", "row") and op in ("=", "<>"):
         equal = trino_equal(left, right, common)
         return equal if op == "=" else f"NOT ({equal})"
     if common.base in ("array", "row"):
         return ordered_comparison(left, right, common, op)
     return f"{left} {op} {right}"
+
+
+def _as(g: Writer, node: exp.Expression, t: TType) -> str:
+    """`node` cast to `t` by Trino's CAST (a time or NULL to time with time zone)."""
+    return cast_value(g, g.sql(node), ttype(node), t)
+
+
+@transform(exp.NullSafeEQ, exp.NullSafeNEQ)
+def distinct_from(g: Writer, node: exp.Binary) -> str:
+    """IS [NOT] DISTINCT FROM; of time with time zone values, on their times at +00:00."""
+    op = "IS NOT DISTINCT FROM" if isinstance(node, exp.NullSafeEQ) else "IS DISTINCT FROM"
+    common = node.meta.get("compare")
+    if common is not None and common.base == "time_tz":
+        return f"{zoned_times.utc(_as(g, node.this, common))} {op} {zoned_times.utc(_as(g, node.expression, common))}"
+    return f"{g.sql(node.this)} {op} {g.sql(node.expression)}"
 
 
 def ordered_comparison(left: str, right: str, t: TType, op: str) -> str:
@@ -338,6 +370,9 @@ def eager_constant_in_list(g: Writer, node: exp.In) -> str:
         sql = _nan_in_list(g, node, common, sql)
     elif items and common is not None and common.base in ("array", "map", "row"):
         sql = _nested_in_list(g, node, common)
+    elif items and common is not None and common.base == "time_tz":  # the times at +00:00 (zoned_times.py)
+        value, *listed = (zoned_times.utc(_as(g, side, common)) for side in (node.this, *items))
+        sql = f"{value} IN ({', '.join(listed)})"
     if node.find(exp.Column) is not None or all(isinstance(i, (exp.Literal, exp.Null)) for i in items):
         return sql
     return f"CASE WHEN len([{', '.join(g.coerce(i, common) for i in items)}]) >= 0 THEN {sql} END"
@@ -414,6 +449,11 @@ def ieee_between(g: Writer, node: exp.Between) -> str:
         return f"({ordered_comparison(low, value, common, '<=')} AND {ordered_comparison(value, high, common, '<=')})"
     if common == tt.as_char(tt.VARCHAR):  # char and unbounded varchar
         return chars.between(g, node.this, node.args["low"], node.args["high"])
+    if common is not None and common.base == "time_tz":  # the times at +00:00 (zoned_times.py)
+        value, low, high = (
+            zoned_times.utc(_as(g, side, common)) for side in (node.this, node.args["low"], node.args["high"])
+        )
+        return f"{value} BETWEEN {low} AND {high}"
     sql = g.between_sql(node)
     if common is None or not common.is_approx:
         return sql
@@ -457,6 +497,15 @@ def explicit_null_order(g: Writer, node: exp.Ordered) -> str:
     direction = "DESC" if node.args.get("desc") else "ASC"
     nulls = "NULLS FIRST" if node.args.get("nulls_first") else "NULLS LAST"
     key, t = g.sql(node.this), node.meta.get("key")
+    zoned = node.this.meta.get("t") if node.this._meta else None
+    if isinstance(node.this, exp.Literal) and not node.this.is_string:  # ORDER BY 2: the output column's type
+        query = node.find_ancestor(exp.Select, exp.SetOperation)
+        outputs = query.meta.get("outputs") if query is not None and query._meta else None
+        index = int(node.this.name) - 1
+        if outputs and 0 <= index < len(outputs) and outputs[index][2].base == "time_tz":
+            key, zoned = quote(outputs[index][1]), outputs[index][2]
+    if zoned is not None and zoned.base == "time_tz":
+        key = zoned_times.utc(key)  # equal times at +00:00 are ties (a later key decides) and window peers
     if t is not None:  # an array or row key: Trino fails when sorting reaches a NULL element
         key = f"CASE WHEN {null_element(key, t)} THEN {null_reached(key, key, t)[1]} ELSE {key} END"
     return f"{key} {direction} {nulls}"

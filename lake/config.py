@@ -23,7 +23,7 @@ from ruamel.yaml.nodes import MappingNode
 
 from lakegate.lake import paths
 from lakegate.lake.config_schema import FILE, TOPIC_NAME_RULES
-from lakegate.lake.config_yaml import Entry, FileReader, Named, RawProblem, RawWarning, did_you_mean
+from lakegate.lake.config_yaml import CheckedValue, FileReader, Named, RawProblem, RawWarning, did_you_mean
 
 #: Ends a warning that `strict` makes a problem.
 STRICT_NOTE = " (ReSim accepts this; refused because of --strict)"
@@ -91,9 +91,7 @@ class Metric:
     query_string: str
     description: str = ""
     template_type: str = "system"  # system | custom
-    template: str | None = (
-        None  # line | bar | table | scalar | image | state_timeline | histogram | pie | video | artifact
-    )
+    template: str | None = None  # a system template kind: lake/template_kinds.py TEMPLATES
     template_file: str | None = None
     template_settings: dict[str, Any] = field(default_factory=dict)
     units: str | None = None
@@ -326,7 +324,7 @@ class _Builder:
     def _warn(self, location: Location, message: str, instead: str) -> None:
         self.warnings.append((location.path, location.line, location.column, message, instead))
 
-    def add_file(self, reader: FileReader, entries: dict[str, Entry]) -> None:
+    def add_file(self, reader: FileReader, entries: dict[str, CheckedValue]) -> None:
         def at(node: Any) -> Location:
             return Location(reader.path, *reader.position(node))
 
@@ -353,7 +351,7 @@ class _Builder:
         if "dashboards" in entries:
             self._dashboards(entries["dashboards"], reader, at)
 
-    def _global(self, entry: Entry | None) -> bool | None:
+    def _global(self, entry: CheckedValue | None) -> bool | None:
         """The file's `global: {skip-if-no-data: B}` (SignalFlag's only global setting), or None."""
         if entry is None or not entry.value:
             return None
@@ -361,7 +359,7 @@ class _Builder:
         self.config.global_settings.update(settings)
         return settings.get(GLOBAL_SKIP)
 
-    def _dashboards(self, entry: Entry, reader: FileReader, at: Callable[[Any], Location]) -> None:
+    def _dashboards(self, entry: CheckedValue, reader: FileReader, at: Callable[[Any], Location]) -> None:
         if not entry.value:
             return
         if not isinstance(entry.value, dict):
@@ -453,7 +451,7 @@ class _Builder:
                 self._check_status_query(metric.name, query.value, at(query.node))
         return metric
 
-    def _units(self, metric: str, e: dict[str, Entry], at: Callable[[Any], Location]) -> str | None:
+    def _units(self, metric: str, e: dict[str, CheckedValue], at: Callable[[Any], Location]) -> str | None:
         """`units`, or `unit` as some ReSim configs write it; both differing: a warning, `units` wins."""
         units, unit = _value(e, "units", None), _value(e, "unit", None)
         if units is not None and unit is not None and units != unit:
@@ -506,6 +504,6 @@ def setting_names(settings: Any) -> list[str]:
     return names
 
 
-def _value(entries: dict[str, Entry], key: str, default: Any) -> Any:
+def _value(entries: dict[str, CheckedValue], key: str, default: Any) -> Any:
     entry = entries.get(key)
     return default if entry is None else entry.value

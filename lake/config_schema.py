@@ -12,13 +12,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from lakegate.lake.template_kinds import TEMPLATES
 from lakegate.lake.types import FIELD_TYPES, TYPE_ALIASES
 
 METRIC_TYPES = ("test", "batch", "dashboard", "report")
 #: Metric types a metrics set evaluates; ReSim's sets may also list dashboard and report metrics.
 SET_METRIC_TYPES = ("test", "batch")
 TEMPLATE_TYPES = ("system", "custom")
-TEMPLATES = ("line", "bar", "table", "scalar", "image", "state_timeline", "histogram", "pie", "video", "artifact")
 #: Tables ReSim's platform generates for every job (from resource_metrics.resim.jsonl and
 #: test_length_metric.resim.jsonl): SignalFlag's validator (open-core signalflag/demo/config_test.py,
 #: BUILTIN_TABLES) lets no topic shadow them.
@@ -134,7 +134,7 @@ METRIC = Section(
         "template_type": Key(
             "string", "system: a built-in template; custom: a template file.", choices=TEMPLATE_TYPES, default="system"
         ),
-        "template": Key("string", "How the query result is rendered.", choices=TEMPLATES),
+        "template": Key("string", "How the query result is rendered.", choices=tuple(TEMPLATES)),
         "template_file": Key("string", "The custom template file (with template_type: custom)."),
         "template_settings": Key(
             "data",

@@ -83,11 +83,11 @@ class Named:
 
     name: str
     key: ScalarNode
-    entries: dict[str, Entry]
+    entries: dict[str, CheckedValue]
 
 
 @dataclass
-class Entry:
+class CheckedValue:
     """A key's checked value (converted as its `Key.kind` says) and the value's node."""
 
     value: Any
@@ -203,7 +203,7 @@ class FileReader:
                 result.append((key, value))
         return result
 
-    def section(self, node: Node, section: Section, label: str, anchor: Node) -> dict[str, Entry]:
+    def section(self, node: Node, section: Section, label: str, anchor: Node) -> dict[str, CheckedValue]:
         """Check a mapping against `section`; returns its valid entries by key.
 
         `label` names the mapping in messages ("metric 'Robot Speed'"); missing keys are
@@ -212,7 +212,7 @@ class FileReader:
         if not isinstance(node, MappingNode):
             self.error(node, f"{label} must be a mapping, got {describe(node)}")
             return {}
-        entries: dict[str, Entry] = {}
+        entries: dict[str, CheckedValue] = {}
         present: set[str] = set()
         for key, value in self.items(node, "key", f" in {label}"):
             name = key.value
@@ -223,7 +223,7 @@ class FileReader:
             present.add(name)
             checked = self._value(spec, name, value, key, label)
             if checked is not _NOTHING:
-                entries[name] = Entry(checked, value)
+                entries[name] = CheckedValue(checked, value)
         for name, spec in section.keys.items():
             if spec.required and name not in present:
                 self.error(anchor, f"missing required key '{name}' in {label}")

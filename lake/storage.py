@@ -65,7 +65,7 @@ class LocalOnlyError(OSError):
 
 
 @dataclass(frozen=True)
-class Entry:
+class ListingEntry:
     """One file or directory of a listing."""
 
     path: str  # the path in the storage's file system
@@ -199,7 +199,7 @@ class LakeStorage:
     # -- what is there ------------------------------------------------------------------------
 
     @_plain_errors
-    def stat(self, path: StoragePath) -> Entry:
+    def stat(self, path: StoragePath) -> ListingEntry:
         """The file or directory at `path`; FileNotFoundError naming it if there is none."""
         info = self.filesystem.get_file_info(_text(path))
         if info.type == pafs.FileType.NotFound:
@@ -216,15 +216,15 @@ class LakeStorage:
         return self.filesystem.get_file_info(_text(path)).type == pafs.FileType.Directory
 
     @_plain_errors
-    def list(self, directory: StoragePath) -> list[Entry]:
+    def list(self, directory: StoragePath) -> list[ListingEntry]:
         """The entries of a directory, sorted by name; none for a missing directory."""
         selector = pafs.FileSelector(_text(directory), allow_not_found=True)
         return sorted((_entry(info) for info in self.filesystem.get_file_info(selector)), key=lambda e: e.name)
 
-    def glob(self, directory: StoragePath, pattern: str) -> list[Entry]:
+    def glob(self, directory: StoragePath, pattern: str) -> list[ListingEntry]:
         """The entries matching `pattern` (`fnmatch` per `/`-separated segment, as `Path.glob`
         without `**`) under `directory`, sorted; only directories on the way are listed."""
-        found = [Entry(_text(directory), "", True, None, None)]
+        found = [ListingEntry(_text(directory), "", True, None, None)]
         segments = pattern.split("/")
         for depth, segment in enumerate(segments):
             last = depth == len(segments) - 1
@@ -337,6 +337,6 @@ def _parent(path: StoragePath) -> str:
     return str(PurePosixPath(_text(path)).parent)
 
 
-def _entry(info: pafs.FileInfo) -> Entry:
+def _entry(info: pafs.FileInfo) -> ListingEntry:
     is_dir = info.type == pafs.FileType.Directory
-    return Entry(info.path, info.base_name, is_dir, None if is_dir else info.size, info.mtime_ns)
+    return ListingEntry(info.path, info.base_name, is_dir, None if is_dir else info.size, info.mtime_ns)

@@ -297,18 +297,128 @@ def test_every_allowed_file_operation_is_still_there() -> None:
 
 #: No hand-written module is longer than this many lines.
 MAX_MODULE_LINES = 800
-#: Modules longer than that because they are data (generated tables), by name, and why.
-_LONG_ALLOWED: dict[str, str] = {}
+
+
+def _scripts(*folders: str) -> list[str]:
+    """The Python files under `folders` (paths relative to the repository), skipping hidden folders
+    (bench/.work holds the benches' venvs)."""
+    return sorted(
+        str(p.relative_to(ROOT))
+        for folder in folders
+        for p in (ROOT / folder).rglob("*.py")
+        if not any(part.startswith(".") for part in p.relative_to(ROOT).parts)
+    )
 
 
 def test_no_module_is_too_long() -> None:
-    """The package's modules, and the repository's tools and benches (tests are not held to it)."""
-    tools = [
-        str(p.relative_to(ROOT))
-        for folder in ("tools", "bench")
-        for p in (ROOT / folder).rglob("*.py")
-        if not any(part.startswith(".") for part in p.relative_to(ROOT).parts)  # bench/.work: the benches' venvs
-    ]
-    paths = [*_sources(), *tools]
+    """The package's modules, the repository's tools and benches, and the test modules."""
+    paths = [*_sources(), *_scripts("tools", "bench", "tests")]
     long = {p for p in paths if len((ROOT / p).read_text(encoding="utf-8").splitlines()) > MAX_MODULE_LINES}
-    assert sorted(long - _LONG_ALLOWED.keys()) == []
+    assert sorted(long) == []
+
+
+# -- one name, one thing -----------------------------------------------------------------------------
+
+#: Module names held by more than one module because they are one thing seen from several sides: the
+#: name, the exact set of paths holding it, and why. A new module taking one of these names fails too.
+_SHARED_NAMES: dict[str, tuple[frozenset[str], str]] = {
+    "compare.py": (
+        frozenset({"gateway/metrics/compare.py", "gateway/cli/compare.py", "bench/compare.py"}),
+        "build comparison: its work (metrics), its `lakegate compare` command, its benchmark",
+    ),
+    "config.py": (
+        frozenset({"lake/config.py", "gateway/cli/config.py"}),
+        "the metrics config: its model (lake), its `lakegate config check|schema` command",
+    ),
+    "import_mcap.py": (
+        frozenset({"gateway/cli/import_mcap.py", "bench/import_mcap.py"}),
+        "MCAP import: its `lakegate import-mcap` command, its benchmark",
+    ),
+    "ingest.py": (
+        frozenset({"gateway/cli/ingest.py", "bench/ingest.py"}),
+        "ingestion (lake/ingest/): its `lakegate ingest` command, its benchmark",
+    ),
+    "metrics.py": (
+        frozenset({"gateway/cli/metrics.py", "bench/metrics.py"}),
+        "metrics evaluation (gateway/metrics/): its `lakegate metrics` command, its benchmark",
+    ),
+    "translate.py": (
+        frozenset({"dialect/translate.py", "bench/translate.py"}),
+        "translating Trino SQL: the dialect's entry point, its benchmark",
+    ),
+    "trino_ddl.py": (
+        frozenset({"gateway/engine/trino_ddl.py", "gateway/cli/trino_ddl.py"}),
+        "the lake's tables registered in a Trino cluster: the work (engine), its `lakegate trino-ddl` command",
+    ),
+    "session.py": (
+        frozenset({"gateway/engine/session.py", "dialect/functions/session.py"}),
+        "the client's session: read from the request headers (engine), reported by the functions of "
+        "Trino's functions/session.md (a page module, named for its page)",
+    ),
+    "run.py": (
+        frozenset({"tools/trino_fuzz/run.py", "tools/trino_corpus/run.py"}),
+        "the entry point of each differential tool package (`dev.py fuzz`, `dev.py corpus`), as __main__ would be",
+    ),
+}
+
+
+def _shared_names(paths: list[str]) -> dict[str, frozenset[str]]:
+    """Module basenames held by more than one path, but a command's parser (gateway/cli/parsers/X.py)
+    beside its command (gateway/cli/X.py) counts once: the two halves of one command, split so that
+    `--help` loads none of the work."""
+    holders: dict[str, set[str]] = {}
+    for path in paths:
+        name = path.rsplit("/", 1)[-1]
+        if name == "__init__.py":
+            continue
+        if path.startswith("gateway/cli/parsers/") and f"gateway/cli/{name}" in paths:
+            continue
+        holders.setdefault(name, set()).add(path)
+    return {name: frozenset(held) for name, held in holders.items() if len(held) > 1}
+
+
+def _clashes(paths: list[str]) -> list[str]:
+    return sorted(
+        f"{name}: {', '.join(sorted(held))} (rename to say what each is, or allow it in _SHARED_NAMES, saying why)"
+        for name, held in _shared_names(paths).items()
+        if _SHARED_NAMES.get(name, (frozenset(),))[0] != held
+    )
+
+
+def _every_module() -> list[str]:
+    return [*_sources(), *_scripts("tools", "bench")]
+
+
+def test_no_two_modules_share_a_name_for_different_things() -> None:
+    assert _clashes(_every_module()) == []
+
+
+def test_a_module_name_clash_is_reported() -> None:
+    paths = [*_every_module(), "gateway/server/errors.py", "gateway/cli/parsers/serve.py", "bench/config.py"]
+    assert _clashes(paths) == [
+        "config.py: bench/config.py, gateway/cli/config.py, lake/config.py (rename to say what each is, "
+        "or allow it in _SHARED_NAMES, saying why)",
+        "errors.py: dialect/errors.py, gateway/server/errors.py (rename to say what each is, "
+        "or allow it in _SHARED_NAMES, saying why)",
+    ]
+
+
+def test_every_shared_name_is_still_shared() -> None:
+    """No stale allowance: each allowed name is still held by exactly its paths."""
+    shared = _shared_names(_every_module())
+    assert sorted(name for name, (held, _) in _SHARED_NAMES.items() if shared.get(name) != held) == []
+
+
+def _public_classes() -> dict[str, list[str]]:
+    """Each public class name of the package (lake, dialect, gateway, sdk) and where it is defined."""
+    found: dict[str, list[str]] = {}
+    for path in _sources():
+        for node in ast.parse((ROOT / path).read_text(encoding="utf-8")).body:
+            if isinstance(node, ast.ClassDef) and not node.name.startswith("_"):
+                found.setdefault(node.name, []).append(f"{path}:{node.lineno}")
+    return found
+
+
+def test_no_two_classes_share_a_name() -> None:
+    """Within the package, a class name says one thing (tools/ and bench/ are programs of their own)."""
+    assert {name: where for name, where in _public_classes().items() if len(where) > 1} == {}

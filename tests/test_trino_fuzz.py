@@ -14,7 +14,7 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
-from trino_fuzz.compare import differ
+from trino_fuzz.answer_match import differ
 from trino_fuzz.functions import Shape
 from trino_fuzz.queries import Generator
 from trino_fuzz.run import add_slices, fuzz, record_slice, summary

@@ -57,27 +57,34 @@ class CaseFileError(ValueError):
 #: The decision on the time types lakegate refuses by name, with the figures it rests on.
 PRECISION = [
     "Answered exactly: timestamp(p) for p <= 9 (DuckDB's TIMESTAMP_NS for 7-9, within its range 1677-2262), "
-    "timestamp(p) with time zone for p <= 6 (and from_unixtime_nanos), time(p) for p <= 6. Refused by name "
-    "(NOT_SUPPORTED): timestamp(10-12), timestamp(p > 6) outside the nanosecond range, timestamp(7-12) with time "
-    "zone, time(7-12), and time with time zone of any precision.",
+    "timestamp(p) with time zone for p <= 6 (and from_unixtime_nanos), time(p) for p <= 6, and time(p) with time "
+    "zone for every p = 0..12. Refused by name (NOT_SUPPORTED): timestamp(10-12), timestamp(p > 6) outside the "
+    "nanosecond range, timestamp(7-12) with time zone and time(7-12).",
+    "Time with time zone (dialect/zoned_times.py): held in DuckDB as `STRUCT(utc_ps BIGINT, offset_min SMALLINT)`, "
+    "the time of day at offset +00:00 in picoseconds (Trino's TimeWithTimeZoneTypes.normalize: what it compares, "
+    "orders and subtracts) and the offset in minutes. Answered: literals of every precision, CAST to and from "
+    "varchar, time(p <= 6) and itself, from timestamp(p <= 6) and timestamp(p <= 6) with time zone (a time, "
+    "timestamp or text without an offset takes the session zone's, when the session zone has one offset), "
+    "=, <>, <, <=, >, >=, BETWEEN, IN a list, IS [NOT] DISTINCT FROM, ORDER BY, min, max, min_by, max_by, hour, "
+    "minute, second, millisecond, timezone_hour, timezone_minute, timezone, EXTRACT, date_trunc, date_add, "
+    "date_diff, ± interval day to second, the difference of two, AT TIME ZONE an offset or an interval of whole "
+    "minutes; the protocol's JSON shows Trino's text (`01:02:03.456-00:35`). Refused by name: GROUP BY, "
+    "DISTINCT, UNION / INTERSECT / EXCEPT, IN a subquery, PARTITION BY and greatest / least of it (DuckDB would "
+    "tell apart one instant in two offsets, which Trino takes as one value), arrays, maps and rows of it, AT "
+    "TIME ZONE a region and the casts to timestamp (they take the session's date), current_time, Arrow and "
+    "Parquet output (no such Arrow type). CAST of a timestamp(p <= 6) with time zone to time goes through it "
+    "(the time of day in the value's zone).",
+    "Why a struct and not DuckDB's TIMETZ (microseconds and an offset in seconds, compared with the offset): of "
+    "the 3,559 corpus queries of time with time zone the translator answers 2,038 now, 1,005 of them with p > 6, "
+    "which TIMETZ cannot hold, and its equality would still have to be rewritten. Cost: every comparison "
+    "reads one struct field (translation cold median below; no lake column has this type).",
     "Figures (`python3 dev.py corpus --refusals 40`, Trino 476's own function, type and query tests, 19,450 "
-    "queries, measured again on 2026-11-29): the translator refuses 8,389; time with time zone 2,844, "
-    "timestamp(7-12) with time zone 1,503, time(7-12) 1,078, timestamp past nanoseconds 851: together 6,276, 32 % "
-    "of the corpus and 75 % of its "
-    "refusals (casts between times and timestamps refused for the same reasons: 392 more). Without these "
-    "families the best lakegate can reach on Trino's tests is about 60 % exact, so Trino's 85 % needs them; on "
-    "the lake they never occur (the Emitter and ingestion write nanoseconds at most; these types come only from "
-    "literals and casts in the SQL text).",
-    "Decision: keep refusing them for now. Representing them exactly means a value of two parts in DuckDB (a STRUCT "
-    "of epoch microseconds and picoseconds of the microsecond; for time with time zone, picoseconds of the day and "
-    "the offset in minutes, compared and grouped by the instant at offset +00:00 modulo a day, as Trino does), "
-    "and every operator and function of the date and time page (48 rows of this page, casts to and from "
-    "varchar, timestamp and date, comparisons, ordering, interval arithmetic, formatting and the protocol "
-    "encoding) written again for the pair: a project of its own, best done family by family with the corpus run "
-    "as the judge (time with time zone first: the largest family, and one the Coverage list names). Re-examined on "
-    "2026-11-29 with the same figures: still refused by name (never a silently different value); dates and "
-    "timestamps of years past 9999 or before year 0 are answered and written as Trino writes them (+10000-06-01, "
-    "-0500-06-01).",
+    "queries, 2026-11-29): the translator refused 8,389 before time with time zone (2,844 of them time with "
+    "time zone), 6,299 after. The next families: timestamp(7-12) with time zone 1,503, time(7-12) 1,176, "
+    "timestamp past nanoseconds 851, and the casts of times to timestamps that take the session's date (744); "
+    "representing them means the same kind of two-part value (epoch microseconds and picoseconds of the "
+    "microsecond), family by family with the corpus run as the judge. Dates and timestamps of years past 9999 or "
+    "before year 0 are answered and written as Trino writes them (+10000-06-01, -0500-06-01).",
 ]
 
 

@@ -608,7 +608,7 @@ def install() -> None:
         "timezone(timestamp(p) with time zone) -> varchar",
         _timezone,
         _render_timezone,
-        notes="The zone of the value, which lakegate knows from its type (time with time zone is refused).",
+        notes="The zone of the value, which lakegate knows from its type; of a time with time zone, its offset.",
     )
     register(
         "with_timezone",

@@ -1,4 +1,4 @@
-"""The backend the command-line options choose (`parsers.arguments.add_backend_arguments`): embedded
+"""The backend the command-line options choose (`parsers.shared_options.add_backend_arguments`): embedded
 DuckDB over the lake (default) or forwarding to a Trino cluster (`--backend trino --trino-url URL ...`),
 shared by the commands that run queries."""
 
@@ -9,7 +9,7 @@ import os
 from pathlib import Path
 from typing import Any
 
-from lakegate.gateway.cli.errors import UserError
+from lakegate.gateway.cli.command_errors import UserError
 from lakegate.gateway.engine.backend import Backend
 from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.isolated_backend import IsolatedBackend

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from lakegate.gateway.cli.errors import UserError
+from lakegate.gateway.cli.command_errors import UserError
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.compaction import compact, migrate
 from lakegate.lake.paths import LakePathError

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from lakegate.dialect.errors import DialectError
 from lakegate.gateway.cli.backends import engine_from_args
-from lakegate.gateway.cli.errors import UserError, os_error_text
+from lakegate.gateway.cli.command_errors import UserError, os_error_text
 from lakegate.gateway.cli.metrics import format_alerts
 from lakegate.gateway.metrics.alerts import batch_checks
 from lakegate.gateway.metrics.compare import (

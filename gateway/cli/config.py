@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 
-from lakegate.gateway.cli.errors import UserError, print_config_warnings
+from lakegate.gateway.cli.command_errors import UserError, print_config_warnings
 from lakegate.lake.config import ConfigError, find_default_config, load_config
 from lakegate.lake.config_schema import json_schema
 

@@ -34,8 +34,8 @@ from pathlib import Path
 from tqdm import tqdm
 
 from lakegate.fixtures.generate import BUILD_TIME, BUILD_VERSION, EXPERIENCES, OUTCOMES, GeneratedJob, generate_batch
+from lakegate.gateway.cli.command_errors import writable_lake
 from lakegate.gateway.cli.compare import format_comparison
-from lakegate.gateway.cli.errors import writable_lake
 from lakegate.gateway.cli.metrics import format_table, format_trends
 from lakegate.gateway.cli.parsers.demo import METRICS_SET
 from lakegate.gateway.metrics.compare import compare_batches

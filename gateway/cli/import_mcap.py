@@ -10,7 +10,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from lakegate.gateway.cli.errors import UserError, existing_configs, writable_lake
+from lakegate.gateway.cli.command_errors import UserError, existing_configs, writable_lake
 from lakegate.gateway.cli.ingest import summary
 from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import ConfigError, load_config

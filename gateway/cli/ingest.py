@@ -8,7 +8,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from lakegate.gateway.cli.errors import (
+from lakegate.gateway.cli.command_errors import (
     UserError,
     existing_configs,
     print_config_warnings,

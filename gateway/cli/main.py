@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     parser = build_parser(argv[0] if argv and argv[0] in COMMANDS else None)
     args = parser.parse_args(argv)
-    from lakegate.gateway.cli.errors import UserError, os_error_text
+    from lakegate.gateway.cli.command_errors import UserError, os_error_text
 
     try:
         return int(args.func(args) or 0)

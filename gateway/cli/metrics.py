@@ -27,7 +27,7 @@ from typing import Any
 from lakegate.dialect.errors import DialectError
 from lakegate.gateway.cli import config as config_commands
 from lakegate.gateway.cli.backends import engine_from_args
-from lakegate.gateway.cli.errors import (
+from lakegate.gateway.cli.command_errors import (
     UserError,
     existing_configs,
     os_error_text,

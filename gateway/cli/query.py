@@ -14,7 +14,7 @@ import tzlocal
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.scope import Scope
 from lakegate.gateway.cli.backends import engine_from_args
-from lakegate.gateway.cli.errors import UserError
+from lakegate.gateway.cli.command_errors import UserError
 from lakegate.gateway.engine.arrow_output import write_arrow, write_parquet
 from lakegate.gateway.engine.backend import QueryResult
 from lakegate.gateway.engine.trino_backend import TrinoBackend

@@ -27,7 +27,7 @@ import threading
 import time
 
 from lakegate.gateway.cli.backends import backend_from_args
-from lakegate.gateway.cli.errors import UserError
+from lakegate.gateway.cli.command_errors import UserError
 from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.server.auth import Users, UsersFileError, check_listen
 
@@ -107,6 +107,11 @@ def _check_options(args: argparse.Namespace) -> Users | None:
         raise UserError(f"no lake at {args.lake} (not a directory)")
     if not re.fullmatch(r"[a-z_][a-z0-9_]*", args.catalog) or args.catalog == "system":
         raise UserError(f"--catalog {args.catalog!r}: a catalog name is a lower-case identifier other than 'system'")
+    if args.max_queries_per_user is not None and args.max_queries_per_user > args.max_concurrent_queries:
+        raise UserError(
+            f"--max-queries-per-user {args.max_queries_per_user}: at most --max-concurrent-queries "
+            f"({args.max_concurrent_queries}), the queries that run at once"
+        )
     if (args.tls_cert is None) != (args.tls_key is None):
         raise UserError("--tls-cert and --tls-key go together")
     if args.tls_cert is not None:
@@ -155,6 +160,7 @@ def serve_command(args: argparse.Namespace) -> int:
         query_timeout=args.query_timeout,
         max_rows=args.max_rows,
         max_concurrent_queries=args.max_concurrent_queries,
+        max_queries_per_user=args.max_queries_per_user,
         max_queued_queries=args.max_queued_queries,
         max_body=args.max_body,
         max_header_bytes=args.max_header_bytes,

@@ -7,7 +7,7 @@ import argparse
 import sys
 
 from lakegate.gateway.cli.backends import trino_connection
-from lakegate.gateway.cli.errors import UserError
+from lakegate.gateway.cli.command_errors import UserError
 from lakegate.gateway.engine.trino_ddl import DDLError, ddl
 from lakegate.gateway.engine.trino_registration import RegistrationError, register, unregister
 from lakegate.lake.paths import LakePathError

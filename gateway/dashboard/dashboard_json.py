@@ -11,6 +11,7 @@ from typing import Any
 from lakegate.gateway.metrics.metric_result import MetricResult
 from lakegate.gateway.metrics.templates import json_value, public_file_table
 from lakegate.lake.config import Metric
+from lakegate.lake.template_kinds import DEFAULT_SHOWS, FILE_SHOWS, shows
 
 # -- results as the page shows them ---------------------------------------------------------------
 
@@ -24,6 +25,11 @@ def _images(paths: list[str], root: Path | None) -> list[str]:
         except ValueError:
             names.append(Path(path).name)
     return names
+
+
+def _lists_files(shown: str) -> bool:
+    """Whether a result shown so is a table of files (images are listed by name instead)."""
+    return shown in FILE_SHOWS and shown != "images"
 
 
 def result_json(result: MetricResult, logs_dir: Path | None) -> dict[str, Any]:
@@ -41,11 +47,11 @@ def result_json(result: MetricResult, logs_dir: Path | None) -> dict[str, Any]:
     }
     if rendered is not None:
         out["problems"] = list(rendered.problems)
-        if rendered.template == "table":
+        if rendered.shows == "table":
             out["table"] = rendered.table
-        elif rendered.template == "image":
+        elif rendered.shows == "images":
             out["images"] = _images(rendered.images, logs_dir.resolve() if logs_dir else None)
-        elif rendered.template in ("video", "artifact"):
+        elif _lists_files(rendered.shows):
             out["table"] = public_file_table(rendered.table)
         else:
             out["figure"] = rendered.figure
@@ -55,8 +61,8 @@ def result_json(result: MetricResult, logs_dir: Path | None) -> dict[str, Any]:
 def stored_json(row: dict[str, Any], logs_dir: Path | None) -> dict[str, Any]:
     """A stored `metric_results` row in the shape of `result_json`."""
     details = json.loads(row["details_json"]) if row.get("details_json") else {}
-    template = row.get("template")
-    table = details.get("table") if template in ("table", "video", "artifact") else None
+    shown = shows(row.get("template"))
+    table = details.get("table") if shown == "table" or _lists_files(shown) else None
     error = None
     if row.get("error_message") is not None:
         error = {
@@ -71,8 +77,8 @@ def stored_json(row: dict[str, Any], logs_dir: Path | None) -> dict[str, Any]:
         "text": row.get("value_text"),
         "seconds": None,
         "error": error,
-        "figure": json.loads(row["figure_json"]) if row.get("figure_json") and template != "table" else None,
-        "table": public_file_table(table) if template in ("video", "artifact") else table,
+        "figure": json.loads(row["figure_json"]) if row.get("figure_json") and shown != "table" else None,
+        "table": public_file_table(table) if _lists_files(shown) else table,
         "images": _images(details.get("images") or [], logs_dir.resolve() if logs_dir else None),
         "problems": details.get("problems") or [],
     }
@@ -85,6 +91,7 @@ def metric_json(metric: Metric, origin: str) -> dict[str, Any]:
         "name": metric.name,
         "type": metric.type,
         "template": metric.template,
+        "shows": shows(metric.template) if metric.template_type == "system" else DEFAULT_SHOWS,
         "template_type": metric.template_type,
         "description": metric.description,
         "units": metric.units,

@@ -44,11 +44,12 @@ from lakegate.gateway.dashboard.config_edits import (
 )
 from lakegate.gateway.dashboard.dashboard_json import cell, metric_json, result_json, stored_json
 from lakegate.gateway.metrics.evaluation import EVALUATED_TYPES, MetricsEngine, conflated_status, worst
-from lakegate.gateway.metrics.results import read_results
-from lakegate.gateway.metrics.templates import TEMPLATES, json_value
+from lakegate.gateway.metrics.results_table import read_results
+from lakegate.gateway.metrics.templates import json_value
 from lakegate.lake.config import Config, ConfigError, Metric, load_config
 from lakegate.lake.config_schema import SET_METRIC_TYPES
 from lakegate.lake.storage import LOCAL
+from lakegate.lake.template_kinds import TEMPLATES
 
 #: Rows an ad hoc query shows (the total is always counted).
 QUERY_ROWS = 1000

@@ -66,7 +66,7 @@ from lakegate.gateway.metrics.compare import compare_batches, previous_build_bat
 from lakegate.gateway.metrics.compare_page import compare_html
 from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.gateway.metrics.figures_html import IMAGE_CSS, ORIGINAL_IMAGE_JS, page_html
-from lakegate.gateway.metrics.results import read_results
+from lakegate.gateway.metrics.results_table import read_results
 from lakegate.gateway.metrics.trends import (
     BatchInfo,
     Window,

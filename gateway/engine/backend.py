@@ -27,13 +27,11 @@ from __future__ import annotations
 import functools
 import hashlib
 import itertools
-import re
 import shutil
 import tempfile
 import threading
 import time
 import weakref
-from collections import OrderedDict
 from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -50,6 +48,7 @@ from lakegate.dialect.session_functions import SessionNames
 from lakegate.dialect.statements import Statement, read, shifted
 from lakegate.dialect.translate import Translation
 from lakegate.gateway.engine import udfs
+from lakegate.gateway.engine.branch_state import BranchState, ScopeViews
 from lakegate.gateway.engine.failures import duckdb_failure, hide_paths, time_limit_error
 from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.engine.query_run import Run, in_zones
@@ -62,8 +61,6 @@ from lakegate.lake.storage import LOCAL
 BATCH_ROWS = 65_536
 #: How often a query starts again when a file it listed was replaced before its first row.
 RETRIES = 3
-#: Cursors a branch keeps for reuse: a new cursor and its `USE` cost a fast query much of its CPU.
-IDLE_CURSORS = 4
 #: Parsed DuckDB statements kept per branch (parsing costs about 0.4 ms).
 STATEMENT_CACHE = 256
 #: Scopes whose views (over only their files) are kept per branch, beyond those used in the last
@@ -118,109 +115,8 @@ class Backend(Protocol):
         is refused or fails."""
 
 
-#: DuckDB's words for a Parquet file it could not decode without naming the file (a damaged page
-#: header reaches its Thrift reader).
-_PARQUET_DAMAGE = re.compile(r"TProtocolException|don't know what type|[Pp]arquet|[Tt]hrift|[Cc]orrupt")
-
-
 def _quote_ident(name: str) -> str:
     return '"' + name.replace('"', '""') + '"'
-
-
-@dataclass
-class _ScopeViews:
-    """The views of one scope at one generation of the record, in their own DuckDB schema: made
-    table by table as queries name them (`DuckDBBackend._scope_views`), all over one snapshot."""
-
-    name: str  # the DuckDB schema
-    snapshot: Snapshot  # the scope's files
-    files: dict[str, str]  # reader path -> "table T, batch B, job J"
-    used: float  # time.monotonic() of its last query
-    made: set[str] | None = None  # the tables whose views exist (None: not even the schema yet)
-    lock: threading.Lock = field(default_factory=threading.Lock)  # held while views are added
-
-
-@dataclass
-class _Branch:
-    database: duckdb.DuckDBPyConnection  # the backend's one database
-    name: str  # the branch's attached database in it
-    stamp: object = None
-    used: float = 0.0  # time.monotonic() of its last query
-    schema: dict[str, dict[str, str]] = field(default_factory=dict)
-    version: str = ""
-    statements: OrderedDict = field(default_factory=OrderedDict)  # DuckDB SQL -> its checked Statement
-    files: dict[str, str] = field(default_factory=dict)  # reader path -> "table T, batch B, job J" (last 2 loads)
-    listed: dict[str, str] = field(default_factory=dict)  # the same, of the views' files only
-    views: set[str] = field(default_factory=set)  # the branch-wide views made
-    loaded: bool = False  # whether they are those of the stamp's generation
-    scopes: OrderedDict = field(default_factory=OrderedDict)  # (generation, batch, job) -> its _ScopeViews
-    #: The tables scoped queries named, of job scopes (True) and of batch scopes (False): a scope's
-    #: first views are made with them, in one transaction (one per view costs about twice as much).
-    scoped_tables: dict[bool, set[str]] = field(default_factory=lambda: {True: set(), False: set()})
-    idle: list = field(default_factory=list)  # cursors kept for reuse (`recycle`); list ops are atomic
-
-    def cursor(self) -> duckdb.DuckDBPyConnection:
-        """A cursor whose table names resolve in the branch's attached database: a recycled one, or
-        a new one."""
-        try:
-            return self.idle.pop()
-        except IndexError:
-            pass
-        cursor = self.database.cursor()
-        cursor.execute(f"USE {self.name}")
-        return cursor
-
-    def recycle(self, cursor: duckdb.DuckDBPyConnection) -> None:
-        """Keep a cursor whose query read all its rows on the branch's own views (no scope views, no
-        settings of its own) for the next query, up to IDLE_CURSORS."""
-        if len(self.idle) < IDLE_CURSORS:
-            self.idle.append(cursor)
-        else:
-            cursor.close()
-
-    def close_idle(self) -> None:
-        """Close the cursors kept for reuse."""
-        while self.idle:
-            self.idle.pop().close()
-
-    def failure(self, error: BaseException, *, vanished: bool = False) -> DialectError:
-        """The DialectError for a DuckDB error: a listed file is named by its table, batch and job
-        (HIVE_BAD_DATA when it cannot be read, HIVE_FILE_NOT_FOUND when writers kept replacing
-        it), never by its path."""
-        message = str(error)
-        files = self.known()
-        named = [path for path in files if path in message]
-        if not named and _PARQUET_DAMAGE.search(message):  # a damaged file the message does not name
-            damaged = [path for path in files if LOCAL.damage(path) is not None]
-            if damaged:
-                return DialectError(
-                    f"Cannot read the Parquet file of {files[damaged[0]]}: it is corrupt (ingest the job again)",
-                    error_name="HIVE_BAD_DATA",
-                )
-        if not named:
-            return duckdb_failure(error)
-        for path in named:
-            message = message.replace(f"'{path}'", path).replace(f'"{path}"', path).replace(path, files[path])
-        if vanished:
-            return DialectError(
-                f"The data of {files[named[0]]} was replaced while the query read it, "
-                "again and again; run the query again",
-                error_name="HIVE_FILE_NOT_FOUND",
-            )
-        first = message.strip().splitlines()[0].split(": ", 1)[-1]
-        return DialectError(f"Cannot read the Parquet file of {files[named[0]]}: {first}", error_name="HIVE_BAD_DATA")
-
-    def vanished(self, error: BaseException) -> bool:
-        """Whether the error is about a listed file that is gone (a writer replaced it)."""
-        message = str(error)
-        return any(path in message and not LOCAL.exists(path) for path in self.known())
-
-    def known(self) -> dict[str, str]:
-        """Every file the views list (branch-wide and scoped): reader path -> how messages name it."""
-        return {
-            **self.files,
-            **{path: where for entry in list(self.scopes.values()) for path, where in entry.files.items()},
-        }
 
 
 class DuckDBBackend:
@@ -254,7 +150,7 @@ class DuckDBBackend:
         self._branch_ids = itertools.count(1)
         self._slots = threading.BoundedSemaphore(limits.max_concurrent_queries)
         self._runs: weakref.WeakSet[Run] = weakref.WeakSet()  # queries started and not collected
-        self._branches: dict[str, _Branch] = {}
+        self._branches: dict[str, BranchState] = {}
         self._paths: dict[str, tuple[str, str]] = {}  # branch -> its directory and configs directory
         self._records: dict[str, Record] = {}
         self._listed: tuple[object, list[str]] = (None, [])  # (the lake directory's mtime, its branches)
@@ -341,7 +237,7 @@ class DuckDBBackend:
         connection.execute("SET enable_external_access = false")
         connection.execute("SET lock_configuration = true")
 
-    def _state(self, branch: str, *, views: bool = False) -> _Branch:
+    def _state(self, branch: str, *, views: bool = False) -> BranchState:
         """The branch at its record's current generation: its schema, and with `views` its branch-wide
         views (a query without a scope reads them; a scoped one reads `_scope_views`)."""
         with self._lock:
@@ -351,7 +247,7 @@ class DuckDBBackend:
             if state is None:
                 database, name = self._connect(), f"branch_{next(self._branch_ids)}"
                 database.execute(f"ATTACH ':memory:' AS {name}")
-                state = self._branches[branch] = _Branch(database, name, stamp=object())
+                state = self._branches[branch] = BranchState(database, name, stamp=object())
             state.used = time.monotonic()
             if state.stamp != stamp or (views and not state.loaded):
                 self._load(state, branch, stamp, views)
@@ -367,7 +263,7 @@ class DuckDBBackend:
                 state.database.execute(f"DETACH {state.name}")
                 self._records.pop(branch).close()
 
-    def _load(self, state: _Branch, branch: str, stamp: object, views: bool) -> None:
+    def _load(self, state: BranchState, branch: str, stamp: object, views: bool) -> None:
         """Take the schema of the record's current generation; with `views`, replace the branch-wide
         views by those of its snapshot (otherwise only the record's tables are read, no file list)."""
         if self.catalog is None:
@@ -381,7 +277,7 @@ class DuckDBBackend:
             repr(sorted((t, sorted(c.items())) for t, c in schema.items())).encode()
         ).hexdigest()
 
-    def _load_views(self, state: _Branch, branch: str) -> Snapshot:
+    def _load_views(self, state: BranchState, branch: str) -> Snapshot:
         """Replace the branch-wide views by those of the record's current snapshot (a newer one when
         a writer replaced one of its files meanwhile, `_create_views`); returns the snapshot."""
         root = str(paths.branch_dir(self.lake, branch))
@@ -397,7 +293,7 @@ class DuckDBBackend:
 
     def _create_views(
         self,
-        state: _Branch,
+        state: BranchState,
         branch: str,
         snapshot: Snapshot,
         old: Iterable[str] = (),
@@ -426,7 +322,7 @@ class DuckDBBackend:
             unreadable |= named  # corrupt, or missing although the record holds it
 
     @staticmethod
-    def _swap_views(state: _Branch, views: dict[str, str], old: Iterable[str], schema: str | None) -> str | None:
+    def _swap_views(state: BranchState, views: dict[str, str], old: Iterable[str], schema: str | None) -> str | None:
         """Replace views in one transaction; the error text if one cannot be made."""
         prefix = f"{schema}." if schema else ""
         cursor = state.cursor()
@@ -446,7 +342,7 @@ class DuckDBBackend:
         finally:
             cursor.close()
 
-    def _scope_views(self, state: _Branch, branch: str, scope: Scope, tables: Collection[str]) -> str:
+    def _scope_views(self, state: BranchState, branch: str, scope: Scope, tables: Collection[str]) -> str:
         """The DuckDB schema whose views of `tables` read only the files of `scope` (the job's files
         and its batch's batch-level files, found by the record's index). One schema per scope and
         generation, kept in an LRU; each view is made when a query first names its table (binding a
@@ -466,7 +362,7 @@ class DuckDBBackend:
                 if entry is None:
                     root = str(paths.branch_dir(self.lake, branch))
                     files = {paths.reader_file(root, e.path): e.where for e in snapshot.files}
-                    entry = state.scopes[key] = _ScopeViews(
+                    entry = state.scopes[key] = ScopeViews(
                         f"{state.name}.scope_{next(self._scope_ids)}", snapshot, files, now
                     )
                     while (
@@ -487,6 +383,16 @@ class DuckDBBackend:
                     entry.made = missing.union(made or ())
                     return entry.name
             key = (None, scope.batch_id, scope.job_id)  # the snapshot is outdated: take the record's current one
+
+    def _known_views(self, state: BranchState, scope: Scope | None) -> str | None:
+        """The schema of the views a query of `scope` most likely reads (its scope's, when made at the
+        branch's current generation; None for the branch's own), so that a cursor already reading
+        them can be reused; `_rows` moves the cursor when the guess is wrong."""
+        if not self._scoped(scope):
+            return None
+        with self._lock:
+            entry = state.scopes.get((state.stamp[0], scope.batch_id, scope.job_id))
+        return entry.name if entry is not None else None
 
     def _scoped(self, scope: Scope | None) -> bool:
         """Whether a query of `scope` reads the scope's own views (`_scope_views`)."""
@@ -527,7 +433,7 @@ class DuckDBBackend:
 
     @staticmethod
     def _translate(
-        state: _Branch,
+        state: BranchState,
         statement: Statement,
         tree: exp.Expression,
         scope: Scope | None,
@@ -600,7 +506,7 @@ class DuckDBBackend:
     def _start(
         self,
         branch: str,
-        state: _Branch,
+        state: BranchState,
         translation: Translation,
         deadline: float,
         scope: Scope | None,
@@ -614,11 +520,12 @@ class DuckDBBackend:
         remaining = deadline - time.monotonic()
         if remaining <= 0 or not self._slots.acquire(timeout=remaining):
             raise time_limit_error(timeout)
-        cursor = state.cursor()
+        where = [self._known_views(state, scope) if explain is None else None]  # the views the cursor reads
+        cursor = state.cursor(where[0])
         try:
             if explain is None:
                 produce: Callable[[], Iterable[pa.RecordBatch]] = in_zones(
-                    self._rows(branch, state, cursor, translation.duckdb_sql, scope), translation.zones
+                    self._rows(branch, state, cursor, where, translation.duckdb_sql, scope), translation.zones
                 )
                 columns = list(translation.columns)
             else:
@@ -640,30 +547,38 @@ class DuckDBBackend:
             timeout=timeout,
             remaining=max(0.0, deadline - time.monotonic()),
             failure=lambda error: self._for_client(state.failure(error)),
-            recycle=state.recycle if explain is None and not self._scoped(scope) else None,
+            recycle=(lambda cursor: state.recycle(cursor, where[0])) if explain is None else None,
         )
         self._runs.add(run)
         return QueryResult(columns=columns, batches=run, duckdb_sql=translation.duckdb_sql, _cancel=run.cancel)
 
     def _rows(
-        self, branch: str, state: _Branch, cursor: duckdb.DuckDBPyConnection, duckdb_sql: str, scope: Scope | None
+        self,
+        branch: str,
+        state: BranchState,
+        cursor: duckdb.DuckDBPyConnection,
+        where: list[str | None],
+        duckdb_sql: str,
+        scope: Scope | None,
     ) -> Callable[[], Iterator[pa.RecordBatch]]:
-        """Bind the query on `cursor` now, over the views of its `scope`; the returned function reads
-        its record batches. A query that finds a listed file gone before its first row (a writer
-        replaced it after the query's views were read) starts again on the branch's views as they
-        are now, up to RETRIES times."""
+        """Bind the query on `cursor` now, over the views of its `scope` (`where` holds the schema of
+        views the cursor reads, kept up to date); the returned function reads its record batches. A
+        query that finds a listed file gone before its first row (a writer replaced it after the
+        query's views were read) starts again on the branch's views as they are now, up to RETRIES
+        times."""
 
-        def bind(attempt: _Branch, retries: int) -> duckdb.DuckDBPyRelation:
+        def bind(attempt: BranchState, retries: int) -> duckdb.DuckDBPyRelation:
             try:
                 if self._scoped(scope):
-                    self._use_views(
-                        cursor, self._scope_views(attempt, branch, scope, self._tables(attempt, duckdb_sql))
-                    )
+                    schema = self._scope_views(attempt, branch, scope, self._tables(attempt, duckdb_sql))
+                    if schema != where[0]:
+                        self._use_views(cursor, schema)
+                        where[0] = schema
                 return cursor.sql(self._statement(attempt, cursor, duckdb_sql))
             except duckdb.Error as error:
                 return again(attempt, error, retries)
 
-        def again(attempt: _Branch, error: BaseException, retries: int) -> duckdb.DuckDBPyRelation:
+        def again(attempt: BranchState, error: BaseException, retries: int) -> duckdb.DuckDBPyRelation:
             if not attempt.vanished(error):
                 raise error
             if retries == 0:
@@ -689,7 +604,7 @@ class DuckDBBackend:
         return read
 
     @staticmethod
-    def _tables(state: _Branch, duckdb_sql: str) -> set[str]:
+    def _tables(state: BranchState, duckdb_sql: str) -> set[str]:
         """The branch's tables a translated query names (the DuckDB writer quotes every identifier;
         a column of the same name adds its table too): the views its scope needs."""
         text = duckdb_sql.lower()
@@ -719,7 +634,7 @@ class DuckDBBackend:
             return error
         return DialectError(message, line=error.line, column=error.column, error_name=error.error_name)
 
-    def _statement(self, state: _Branch, cursor: duckdb.DuckDBPyConnection, duckdb_sql: str) -> object:
+    def _statement(self, state: BranchState, cursor: duckdb.DuckDBPyConnection, duckdb_sql: str) -> object:
         """The checked DuckDB Statement of the translated SQL, parsed once per text."""
         with self._lock:
             statement = state.statements.get(duckdb_sql)
@@ -748,7 +663,7 @@ class DuckDBBackend:
     def _explain(
         self,
         statement: Statement,
-        state: _Branch,
+        state: BranchState,
         scope: Scope | None,
         params: Sequence[object],
         time_zone: str,

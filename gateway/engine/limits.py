@@ -12,6 +12,7 @@ class Limits:
     query_timeout: float = 300.0  # seconds a query may run (queued time not counted)
     max_rows: int = 10_000_000  # rows a result may have
     max_concurrent_queries: int = 8  # queries running at once; more wait in a queue
+    max_queries_per_user: int | None = None  # queries one user runs at once; None: all slots but one
     max_queued_queries: int = 200  # queries waiting to run; more fail with QUERY_QUEUE_FULL
     client_timeout: float = 30.0  # a query whose client stops polling for this long is abandoned
     heartbeat_timeout: float = 10.0  # a query waiting for its client to read is abandoned after this silence
@@ -24,3 +25,12 @@ class Limits:
     request_timeout: float = 30.0  # seconds a request's headers and body may take to arrive; then 408
     keep_alive: int = 5  # seconds an idle keep-alive connection stays open
     max_connections: int = 1000  # open connections; more are answered 503 and closed
+
+    @property
+    def user_slots(self) -> int:
+        """Queries one user may run at once, as a Trino resource group's per-user (`${USER}`) subgroup
+        with a hardConcurrencyLimit: `max_queries_per_user`, by default every slot but one (at least
+        one), so that another user always finds a slot free."""
+        if self.max_queries_per_user is not None:
+            return self.max_queries_per_user
+        return max(1, self.max_concurrent_queries - 1)

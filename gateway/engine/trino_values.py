@@ -119,6 +119,8 @@ def arrow_type(t: TType) -> pa.DataType:
         return pa.timestamp("ms" if args[0] <= 3 else "us", tz="UTC")
     if base == "time":
         return pa.time64("us")
+    if base == "time_tz":  # dialect/zoned_times.py
+        return pa.struct([("utc_ps", pa.int64()), ("offset_min", pa.int16())])
     if base == "array":
         return pa.list_(arrow_type(args[0]))
     if base == "map":
@@ -183,11 +185,6 @@ def _zone(value: dt.datetime | dt.time) -> str:
     return f"{'+' if minutes >= 0 else '-'}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
 
 
-def _offset(value: dt.time | dt.datetime) -> str:
-    minutes = int((value.utcoffset() or dt.timedelta(0)).total_seconds() // 60)
-    return f"{'+' if minutes >= 0 else '-'}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
-
-
 def _timestamp(precision: int, with_zone: bool) -> Encoder:
     def encode(value: Any) -> Any:
         if value is None:
@@ -200,12 +197,33 @@ def _timestamp(precision: int, with_zone: bool) -> Encoder:
     return encode
 
 
-def _time(precision: int, with_zone: bool) -> Encoder:
+def _time(precision: int) -> Encoder:
     def encode(value: Any) -> Any:
         if value is None:
             return None
-        text = value.strftime("%H:%M:%S") + _fraction(value.microsecond, 0, precision)
-        return text + _offset(value) if with_zone else text
+        return value.strftime("%H:%M:%S") + _fraction(value.microsecond, 0, precision)
+
+    return encode
+
+
+_PICOS_PER_DAY = 86_400 * 10**12
+
+
+def _time_with_time_zone(precision: int) -> Encoder:
+    """A time with time zone held as DuckDB's {utc_ps, offset_min} (dialect/zoned_times.py):
+    HH:MM:SS, p fraction digits, then the offset as +hh:mm (TimeWithTimeZoneOperators.castToVarchar)."""
+
+    def encode(value: Any) -> Any:
+        if value is None:
+            return None
+        minutes = value["offset_min"]
+        local = (value["utc_ps"] + minutes * 60 * 10**12) % _PICOS_PER_DAY
+        seconds, picos = divmod(local, 10**12)
+        text = f"{seconds // 3600:02d}:{seconds // 60 % 60:02d}:{seconds % 60:02d}"
+        if precision:
+            text += "." + f"{picos:012d}"[:precision]
+        sign = "-" if minutes < 0 else "+"
+        return f"{text}{sign}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
 
     return encode
 
@@ -295,8 +313,10 @@ def _make_encoder(t: TType) -> Encoder:
         return _decimal(args[1])
     if base in ("timestamp", "timestamp_tz"):
         return _timestamp(args[0], base == "timestamp_tz")
-    if base in ("time", "time_tz"):
-        return _time(args[0], base == "time_tz")
+    if base == "time":
+        return _time(args[0])
+    if base == "time_tz":
+        return _time_with_time_zone(args[0])
     if base == "date":
         return _date
     if base == "varbinary":

@@ -42,6 +42,7 @@ from lakegate.gateway.metrics.defaults import ALPHA, FLAKE_WINDOW
 from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.gateway.metrics.flakes import Flake, find_flakes, flaky_experiences, has_results
 from lakegate.gateway.metrics.trends import branch_batches
+from lakegate.lake.template_kinds import kinds_where, series
 
 NEW_FAILURE, FLAKY, STILL_FAILING, GONE, NEW, FIXED, SAME = (
     "new failure",
@@ -55,7 +56,7 @@ NEW_FAILURE, FLAKY, STILL_FAILING, GONE, NEW, FIXED, SAME = (
 #: Tags from the most to the least severe.
 TAGS = (NEW_FAILURE, FLAKY, STILL_FAILING, GONE, NEW, FIXED, SAME)
 #: Templates whose values are compared with a two-sample test.
-SERIES_TEMPLATES = ("line", "bar", "histogram", "state_timeline")
+SERIES_TEMPLATES = kinds_where("series")
 
 #: The worst status of a group, as a rank (0 NOT_RUN or NULL .. 4 ERROR), in SQL.
 _RANK = "MAX(CASE {c} WHEN 'PASSED' THEN 1 WHEN 'WARNING' THEN 2 WHEN 'BLOCKER' THEN 3 WHEN 'ERROR' THEN 4 ELSE 0 END)"
@@ -276,11 +277,12 @@ def series_values(template: str, figure: dict) -> list:
     """The values a series metric's figure compares: y of line and bar traces, x of histograms, and for
     state timelines one state name per segment."""
     values: list = []
+    compared = series(template)
     for trace in figure.get("data", []):
-        if template == "state_timeline":
+        if compared == "states":
             values += [trace.get("name")] * len(trace.get("y", []))
         else:
-            key = "x" if template == "histogram" else "y"
+            key = "x" if compared == "x" else "y"
             values += [v for v in trace.get(key, []) if isinstance(v, (int, float)) and not isinstance(v, bool)]
     return values
 
@@ -291,7 +293,7 @@ def two_sample_test(template: str, base: Sequence, new: Sequence) -> SeriesTest 
 
     if not base or not new:
         return None
-    if template == "state_timeline":
+    if series(template) == "states":
         states = sorted({*base, *new}, key=str)
         if len(states) < 2:
             return SeriesTest("chi-square", 0.0, 1.0, len(base), len(new))

@@ -16,6 +16,7 @@ from typing import Any
 from lakegate.gateway.metrics.compare import TAGS, Comparison, MetricChange
 from lakegate.gateway.metrics.figures_html import report_html
 from lakegate.gateway.metrics.templates import Rendered, format_number, render
+from lakegate.lake.template_kinds import series
 
 #: At most this many changed metrics are drawn (the rest are in the table); the page stays usable.
 MAX_FIGURES = 200
@@ -81,9 +82,10 @@ def _metrics_table(changed: list[MetricChange]) -> tuple[str, Rendered, dict[str
 
 def _side_traces(change: MetricChange, side: str, values: list) -> list[dict]:
     colour = _COLOURS[side]
-    if change.template == "histogram":
+    compared = series(change.template)
+    if compared == "x":
         return [{"type": "histogram", "x": values, "name": side, "opacity": 0.55, "marker": {"color": colour}}]
-    if change.template == "state_timeline":
+    if compared == "states":
         counts = Counter(values)
         return [{"type": "bar", "x": sorted(counts), "y": [counts[s] for s in sorted(counts)], "name": side}]
     return [{"type": "scatter", "mode": "lines+markers", "y": values, "name": side, "line": {"color": colour}}]
@@ -93,8 +95,9 @@ def change_figure(change: MetricChange) -> dict:
     """Base and new in one Plotly figure."""
     if change.series is not None:
         data = _side_traces(change, "base", change.base_values) + _side_traces(change, "new", change.new_values)
-        layout: dict[str, Any] = {"barmode": "overlay" if change.template == "histogram" else "group"}
-        if change.template == "state_timeline":
+        compared = series(change.template)
+        layout: dict[str, Any] = {"barmode": "overlay" if compared == "x" else "group"}
+        if compared == "states":
             layout["yaxis"] = {"title": {"text": "segments"}}
         else:
             layout["xaxis"] = {"title": {"text": "sample"}}

@@ -69,7 +69,7 @@ from lakegate.gateway.metrics.custom import CUSTOM, render_custom
 from lakegate.gateway.metrics.job_media import names_jobs, render_job_media
 from lakegate.gateway.metrics.metric_result import MetricError, MetricResult
 from lakegate.gateway.metrics.result_columns import result_table, table_rows
-from lakegate.gateway.metrics.results import ResultsWriter
+from lakegate.gateway.metrics.results_table import ResultsWriter
 from lakegate.gateway.metrics.statuses import BLOCKER, ERROR, NO_DATA, NOT_RUN, PASSED, SEVERITY, WARNING
 from lakegate.gateway.metrics.template_settings import apply_template_settings, unused_settings
 from lakegate.gateway.metrics.templates import Rendered, TemplateError, render

@@ -260,24 +260,24 @@ def _metric_article(name: str, rendered: Rendered | None, info: dict, div_id: st
 
 
 def _has_chart(rendered: Rendered) -> bool:
-    return rendered.figure is not None and rendered.template != "table"
+    return rendered.figure is not None and rendered.shows != "table"
 
 
 def _metric_body(rendered: Rendered, div_id: str, links: tuple[Linker, Sequence[str]] | None = None) -> str:
     """The result itself: a chart, a table (cells of `links`' columns linked), a scalar or images,
     then any problems."""
     problems = list(rendered.problems)
-    if rendered.template == "table" and rendered.table is not None:
+    if rendered.shows == "table" and rendered.table is not None:
         body = _table(rendered, links)
     elif _has_chart(rendered):
         body = _chart(rendered.figure, div_id, links[0] if links is not None else None)
-    elif rendered.template == "image":
+    elif rendered.shows == "images":
         body, image_problems = _images(rendered.images)
         problems += image_problems
-    elif rendered.template == "video":
+    elif rendered.shows == "videos":
         body, video_problems = _videos(rendered.table["rows"])
         problems += video_problems
-    elif rendered.template == "artifact":
+    elif rendered.shows == "files":
         body = _artifacts(rendered.table["rows"])
     else:
         body = f'<div class="lg-scalar">{html.escape(rendered.text)}</div>'

@@ -14,14 +14,13 @@ from pathlib import Path
 from typing import Any
 
 from lakegate.gateway.metrics.templates import FILE_COLUMNS, Rendered, TemplateError, display_value, render
-
-#: Templates whose results may name jobs: `[label, job_id]`.
-MEDIA_TEMPLATES = ("image", "video")
+from lakegate.lake.template_kinds import TEMPLATES
 
 
 def names_jobs(template: str | None, columns: Sequence[tuple[str, str]]) -> bool:
     """Whether a result of `template` with these (name, type) columns is `[label, job_id]`."""
-    return template in MEDIA_TEMPLATES and len(columns) == 2 and columns[1][0].lower() == "job_id"
+    kind = TEMPLATES.get(template or "")
+    return kind is not None and kind.names_jobs and len(columns) == 2 and columns[1][0].lower() == "job_id"
 
 
 def render_job_media(
@@ -58,7 +57,7 @@ def render_job_media(
         found += [[f"{caption}: {row[0]}", *row[1:]] for row in shown.table["rows"]]
         images += shown.images
         problems += [f"{caption}: {problem}" for problem in shown.problems]
-    noun = "image" if template == "image" else "video"
+    noun = "image" if TEMPLATES[template].shows == "images" else "video"
     text = f"{len(found)} {noun}{'' if len(found) == 1 else 's'} of {len(rows)} job{'' if len(rows) == 1 else 's'}"
     return Rendered(
         template=template,

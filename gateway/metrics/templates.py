@@ -24,12 +24,12 @@ import numpy as np
 import pyarrow as pa
 
 from lakegate.gateway.metrics.result_columns import NOT_A_NUMBER, ResultColumns, TemplateError, number, plural
-from lakegate.lake.config_schema import TEMPLATES  # the kinds this module renders, listed once
+from lakegate.lake import template_kinds
 from lakegate.lake.storage import LOCAL
+from lakegate.lake.template_kinds import TEMPLATES
 
-#: Templates that show files of the job's logs named by the result's one column; their
-#: `Rendered.table` lists the files found: [name, path, bytes, MIME type].
-FILE_TEMPLATES = ("image", "video", "artifact")
+#: The columns of `Rendered.table` of a kind that shows files of the job's logs named by the result's
+#: one column (`TemplateKind.files`): the files found.
 FILE_COLUMNS = ["file", "path", "bytes", "type"]
 
 #: Badge colours of metric and job statuses; every chart whose categories are statuses (a pie of
@@ -99,6 +99,11 @@ class Rendered:
     #: Image, video and artifact: the query named files and none of them is in the job's logs.
     files_missing: bool = False
 
+    @property
+    def shows(self) -> str:
+        """How the result is shown: its kind's `TemplateKind.shows` (a chart for a custom figure)."""
+        return template_kinds.shows(self.template)
+
 
 def render(
     metric_name: str,
@@ -120,12 +125,7 @@ def render(
         raise TemplateError(
             f"metric {metric_name!r}: unknown template {template!r} (expected one of {', '.join(TEMPLATES)})"
         )
-    result = ResultColumns(metric_name, template, columns, rows)
-    if template == "scalar":
-        return _scalar(result, units)
-    if template in FILE_TEMPLATES:
-        return _log_files(result, logs_dir)
-    return _CHARTS[template](result)
+    return _RENDERERS[template](ResultColumns(metric_name, template, columns, rows), units, logs_dir)
 
 
 def state_colours(states: Iterable[str]) -> dict[str, str]:
@@ -181,13 +181,16 @@ def video_mime(path: Path) -> str | None:
     return "image/gif" if head.startswith((b"GIF87a", b"GIF89a")) else None
 
 
-#: Per file template: (what a value of its column is, the MIME type of a file it shows or None
-#: when the file cannot be shown, what such a file is not).
-_FILE_KINDS: dict[str, tuple[str, Callable[[Path], str | None], str]] = {
-    "image": ("image file name", image_mime, "not a PNG, GIF or JPEG image"),
-    "video": ("video file name", video_mime, "not an MP4, WebM or GIF video"),
-    "artifact": ("artifact file name", lambda path: "application/octet-stream", ""),
-}
+@dataclass(frozen=True)
+class _LogFileKind:
+    """What a kind showing files of the job's logs expects: what a value of its column is, the MIME
+    type of a file it can show (None when it cannot), what a file it cannot show is not, and the noun
+    counting the files found."""
+
+    wanted: str
+    mime_of: Callable[[Path], str | None]
+    unshowable: str
+    noun: str
 
 
 def format_number(value: int | float | Decimal) -> str:
@@ -467,10 +470,10 @@ def _scalar(result: ResultColumns, units: str | None) -> Rendered:
     return Rendered(template="scalar", scalar=value, text=f"{text} {units}" if units else text, problems=problems)
 
 
-def _log_files(result: ResultColumns, logs_dir: Path | None) -> Rendered:
+def _log_files(result: ResultColumns, logs_dir: Path | None, kind: _LogFileKind) -> Rendered:
     """Image, video or artifact: the files of the job's logs the one column names; files that
     cannot be shown are problems grouped by cause (never fatal)."""
-    wanted, mime_of, unshowable = _FILE_KINDS[result.template]
+    wanted, mime_of, unshowable = kind.wanted, kind.mime_of, kind.unshowable
     result.need_columns((1,), f"[{wanted}]")
     root = logs_dir.resolve() if logs_dir is not None else None
     found: list[list[Any]] = []  # FILE_COLUMNS
@@ -494,8 +497,7 @@ def _log_files(result: ResultColumns, logs_dir: Path | None) -> Rendered:
         else:
             found.append([name, str(path), LOCAL.stat(path).size, mime])
     files_missing = bool(result.rows) and not found and unshowable not in failed
-    noun = {"image": "image", "video": "video", "artifact": "file"}[result.template]
-    text = plural(len(found), noun)
+    text = plural(len(found), kind.noun)
     count = sum(len(names) for names in failed.values())
     if count:
         text += f", {plural(count, 'problem')}"
@@ -503,7 +505,7 @@ def _log_files(result: ResultColumns, logs_dir: Path | None) -> Rendered:
         template=result.template,
         table={"columns": FILE_COLUMNS, "rows": found},
         text=text,
-        images=[path for _, path, _, _ in found] if result.template == "image" else [],
+        images=[path for _, path, _, _ in found] if template_kinds.shows(result.template) == "images" else [],
         problems=[_grouped_problem(what, names) for what, names in failed.items()],
         files_missing=files_missing,
     )
@@ -677,12 +679,34 @@ def _inline(pairs: list[tuple[Any, Any]]) -> str:
     return "; ".join(f"{display_value(label)}: {display_value(value)}" for label, value in pairs)
 
 
-#: Renderers of the templates that need nothing but the result.
-_CHARTS: dict[str, Callable[[ResultColumns], Rendered]] = {
-    "line": _line,
-    "bar": _bar,
-    "table": _table,
-    "state_timeline": _state_timeline,
-    "histogram": _histogram,
-    "pie": _pie,
+#: A renderer: the result, the metric's units, the job's logs folder.
+Renderer = Callable[[ResultColumns, "str | None", "Path | None"], Rendered]
+
+
+def _of_result(renderer: Callable[[ResultColumns], Rendered]) -> Renderer:
+    """A renderer that needs nothing but the result."""
+    return lambda result, units, logs_dir: renderer(result)
+
+
+def _scalar_with_units(result: ResultColumns, units: str | None, logs_dir: Path | None) -> Rendered:
+    return _scalar(result, units)
+
+
+def _files_in_logs(kind: _LogFileKind) -> Renderer:
+    """A renderer of files of the job's logs of `kind`."""
+    return lambda result, units, logs_dir: _log_files(result, logs_dir, kind)
+
+
+#: The renderer of each kind of `template_kinds.TEMPLATES` (the one dispatch on a kind's name).
+_RENDERERS: dict[str, Renderer] = {
+    "line": _of_result(_line),
+    "bar": _of_result(_bar),
+    "table": _of_result(_table),
+    "scalar": _scalar_with_units,
+    "image": _files_in_logs(_LogFileKind("image file name", image_mime, "not a PNG, GIF or JPEG image", "image")),
+    "state_timeline": _of_result(_state_timeline),
+    "histogram": _of_result(_histogram),
+    "pie": _of_result(_pie),
+    "video": _files_in_logs(_LogFileKind("video file name", video_mime, "not an MP4, WebM or GIF video", "video")),
+    "artifact": _files_in_logs(_LogFileKind("artifact file name", lambda path: "application/octet-stream", "", "file")),
 }

@@ -14,7 +14,10 @@ fails queries whose client stopped polling for `Limits.client_timeout` seconds (
 Trino's `query.client.timeout`), and forgets finished queries.
 
 Each running query has a daemon worker thread of its own while it runs, at most
-`Limits.max_concurrent_queries` at once (a thread that ends a query waits for the next one). A
+`Limits.max_concurrent_queries` at once (a thread that ends a query waits for the next one), at
+most `Limits.user_slots` of one user's, zombies (below) included (more stay QUEUED, as behind a Trino
+resource group's per-user hardConcurrencyLimit), so that another user always finds a slot and a
+query worker. A
 query that ends (time limit, cancel, abandoned) while its worker still works is stopped: its DuckDB
 work is interrupted, and Python work still planning it (parsing, translation) is abandoned by an
 exception raised in the worker. Its slot is free at once: the worker counts as a "zombie" until
@@ -571,8 +574,9 @@ class QueryManager:
 
     def _dispatch(self) -> None:
         """Start a worker for each queued query a slot is free for (lock held): the oldest query of
-        the user with the fewest running queries, so that one user's many queries cannot keep
-        another's waiting; a query whose client stopped polling is left to the reaper to drop."""
+        the user with the fewest running queries, none of a user already running `Limits.user_slots`,
+        so that one user's many queries cannot keep another's waiting; a query whose client stopped
+        polling is left to the reaper to drop."""
         while self._running < self.limits.max_concurrent_queries and self._queue and not self._closing:
             query = self._next_queued()
             if query is None:
@@ -591,14 +595,15 @@ class QueryManager:
         A statement text over LARGE_TEXT_BYTES waits while `large_slots` others are in the workers
         (zombies included: their parsing may still run), so that big texts cannot take every slot."""
         working = self._working
-        running = Counter(q.session.user for q in working if not q.zombie)
+        running = Counter(q.session.user for q in working)  # a user's zombies too: they hold query workers
         large_busy = sum(len(q.sql) > LARGE_TEXT_BYTES for q in working) >= self.large_slots
-        chosen = None
+        chosen, user_slots = None, self.limits.user_slots
         for query in list(self._queue):
             if query.done:
                 self._queue.remove(query)  # failed while queued
             elif (
-                not _silent_while_queued(query, self.limits)
+                running[query.session.user] < user_slots
+                and not _silent_while_queued(query, self.limits)
                 and not (large_busy and len(query.sql) > LARGE_TEXT_BYTES)
                 and (chosen is None or running[query.session.user] < running[chosen.session.user])
             ):

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from lakegate.gateway.metrics.evaluation import MetricsEngine
-from lakegate.gateway.metrics.results import read_results
+from lakegate.gateway.metrics.results_table import read_results
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job
 from tests.compat.test_resim_configs import CONFIGS, lakegate

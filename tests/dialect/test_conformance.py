@@ -179,7 +179,13 @@ def to_protocol(value, ttype: tuple):
         if base == "timestamp_tz":
             text += " " + _zone_name(value)
         return text
-    if base in ("time", "time_tz") and isinstance(value, dt.time):
+    if base == "time_tz" and isinstance(value, dict):  # {utc_ps, offset_min} (dialect/zoned_times.py)
+        minutes = value["offset_min"]
+        seconds, picos = divmod((value["utc_ps"] + minutes * 60 * 10**12) % (86_400 * 10**12), 10**12)
+        text = (dt.datetime(1970, 1, 1) + dt.timedelta(seconds=seconds)).strftime("%H:%M:%S")
+        text += "." + f"{picos:012d}"[: args[0]] if args[0] else ""
+        return f"{text}{'-' if minutes < 0 else '+'}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
+    if base == "time" and isinstance(value, dt.time):
         precision = args[0] if args else 3
         text = value.strftime("%H:%M:%S")
         return text + ("." + f"{value.microsecond:06d}".ljust(precision, "0")[:precision] if precision else "")

@@ -233,7 +233,14 @@ def test_a_cursor_is_reused_only_after_a_query_read_all_its_rows(backend):
     refused(backend, "SELECT CAST('a' AS integer) FROM odom")  # a failed query's cursor closes
     scope = Scope(batch_id="b1")
     assert backend.execute("SELECT count(*) FROM odom", scope=scope).rows() == [(5,)]
+    scoped = [entry for entry in idle if entry[1] is not None]
+    assert len(scoped) == 1  # a scoped query's cursor comes back with the views it reads
+    assert backend.execute("SELECT sum(x) FROM odom", scope=scope).rows() == [(4.0,)]
+    assert [entry for entry in idle if entry[1] is not None] == scoped  # and serves the scope's next query
     assert backend.execute("SELECT count(*) FROM odom").rows() == [(9,)]  # not the scoped views
+    assert backend.execute("SELECT count(*) FROM odom", scope=Scope(batch_id="b2")).rows() == [(4,)]
+    assert backend.execute("SELECT count(*) FROM odom", scope=scope).rows() == [(5,)]
+    assert backend.execute("SELECT count(*) FROM odom").rows() == [(9,)]
     assert 1 <= len(idle) <= 4
 
 

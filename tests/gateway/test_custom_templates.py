@@ -17,7 +17,7 @@ import pytest
 
 from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
 from lakegate.gateway.metrics.custom import render_custom
-from lakegate.gateway.metrics.results import read_results
+from lakegate.gateway.metrics.results_table import read_results
 from lakegate.gateway.metrics.templates import TemplateError
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job

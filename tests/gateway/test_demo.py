@@ -15,7 +15,7 @@ import yaml
 
 from lakegate.gateway.cli.demo import BATCH, BRANCH
 from lakegate.gateway.engine.backend import DuckDBBackend
-from lakegate.gateway.metrics.results import read_results
+from lakegate.gateway.metrics.results_table import read_results
 from lakegate.lake.catalog import Catalog
 
 CLI = [sys.executable, "-m", "lakegate.gateway.cli"]

@@ -16,7 +16,7 @@ import pytest
 
 from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
 from lakegate.gateway.metrics.evaluation import worst
-from lakegate.gateway.metrics.results import read_results
+from lakegate.gateway.metrics.results_table import read_results
 from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job

@@ -44,8 +44,8 @@ def test_json_format_encodes_values_as_the_trino_protocol():
         "--format",
         "json",
         "SELECT 7 / 2 AS a, nan() AS b, DECIMAL '1.50' AS c, "
-        "TIMESTAMP '2024-01-02 03:04:05.1' AS t, ARRAY['x'] AS arr UNION ALL "
-        "SELECT NULL, 2.5E0, NULL, NULL, ARRAY[]",
+        "TIMESTAMP '2024-01-02 03:04:05.1' AS t, ARRAY['x'] AS arr, TIME '01:02:03.456 -00:35' AS z UNION ALL "
+        "SELECT NULL, 2.5E0, NULL, NULL, ARRAY[], NULL",
     )
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout) == {
@@ -55,8 +55,12 @@ def test_json_format_encodes_values_as_the_trino_protocol():
             {"name": "c", "type": "decimal(3,2)"},
             {"name": "t", "type": "timestamp(1)"},
             {"name": "arr", "type": "array(varchar(1))"},
+            {"name": "z", "type": "time(3) with time zone"},
         ],
-        "rows": [[3, "NaN", "1.50", "2024-01-02 03:04:05.1", ["x"]], [None, 2.5, None, None, []]],
+        "rows": [
+            [3, "NaN", "1.50", "2024-01-02 03:04:05.1", ["x"], "01:02:03.456-00:35"],
+            [None, 2.5, None, None, [], None],
+        ],
     }
 
 

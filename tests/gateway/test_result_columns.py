@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 
 from lakegate.gateway.metrics.result_columns import result_table, table_rows
 from lakegate.gateway.metrics.templates import TemplateError, render
+from lakegate.lake.template_kinds import TEMPLATES
 
 #: Arrow type, its Trino type name, and values of it (None is NULL).
 FLOATS = st.one_of(
@@ -42,7 +43,8 @@ KINDS = {
     "date": (pa.date32(), "date", st.one_of(st.none(), st.dates(dt.date(1970, 1, 1), dt.date(2100, 1, 1)))),
     "boolean": (pa.bool_(), "boolean", st.one_of(st.none(), st.booleans())),
 }
-TEMPLATES = ["line", "bar", "histogram", "table", "pie", "scalar", "state_timeline"]
+#: The kinds rendered from the result alone (a kind showing files also reads the job's logs).
+RESULT_KINDS = [name for name, kind in TEMPLATES.items() if not kind.files]
 
 
 def outcome(template: str, columns: list[tuple[str, str]], rows) -> tuple:
@@ -62,7 +64,7 @@ def outcome(template: str, columns: list[tuple[str, str]], rows) -> tuple:
 
 @st.composite
 def results(draw) -> tuple[str, list[tuple[str, str]], pa.Table]:
-    template = draw(st.sampled_from(TEMPLATES))
+    template = draw(st.sampled_from(RESULT_KINDS))
     kinds = draw(st.lists(st.sampled_from(sorted(KINDS)), min_size=1, max_size=4))
     rows = draw(st.integers(1, 12))
     names = [f"c{i}" for i in range(len(kinds))]

@@ -33,10 +33,11 @@ SLOW_MARKER = "runaway-planning"
 NESTED = f"SELECT '{SLOW_MARKER}'"
 
 
-def run(server: Server, sql: str, within: float = 30) -> dict:
-    """The last document of one query, following nextUri; fails if it does not end `within` seconds."""
+def run(server: Server, sql: str, within: float = 30, user: str = "tester") -> dict:
+    """The last document of one query of `user`, following nextUri; fails if it does not end `within` seconds."""
     deadline = time.monotonic() + within
-    document = requests.post(f"{server.url}/v1/statement", data=sql.encode(), headers=HEADERS, timeout=within).json()
+    headers = {**HEADERS, "X-Trino-User": user}
+    document = requests.post(f"{server.url}/v1/statement", data=sql.encode(), headers=headers, timeout=within).json()
     while "nextUri" in document:
         assert time.monotonic() < deadline, f"{sql[:40]!r} did not end within {within}s"
         document = requests.get(document["nextUri"], timeout=within).json()
@@ -90,8 +91,8 @@ def start(server_lake, tmp_path, monkeypatch):
 def test_queries_past_their_time_limit_while_planning_free_their_workers(start):
     server = start("--query-timeout", "1", "--max-concurrent-queries", "2")
     assert run(server, "SELECT 1")["data"] == [[1]]  # warm: what follows measures the server, not its start
-    with ThreadPoolExecutor(4) as pool:
-        documents = list(pool.map(lambda _: run(server, NESTED), range(4)))
+    with ThreadPoolExecutor(4) as pool:  # four clients, each its own user: two run at once
+        documents = list(pool.map(lambda n: run(server, NESTED, user=f"client{n}"), range(4)))
     assert [d["error"]["errorName"] for d in documents] == ["EXCEEDED_TIME_LIMIT"] * 4
     started = time.monotonic()
     assert run(server, "SELECT 1", within=5)["data"] == [[1]]
@@ -102,8 +103,11 @@ def test_queries_past_their_time_limit_while_planning_free_their_workers(start):
 
 def test_sigterm_stops_the_server_while_workers_plan(start):
     server = start("--max-concurrent-queries", "2")
-    posted = [
-        requests.post(f"{server.url}/v1/statement", data=NESTED, headers=HEADERS, timeout=30).json() for _ in range(4)
+    posted = [  # four clients, each its own user: two run at once
+        requests.post(
+            f"{server.url}/v1/statement", data=NESTED, headers={**HEADERS, "X-Trino-User": f"client{n}"}, timeout=30
+        ).json()
+        for n in range(4)
     ]
     deadline = time.monotonic() + 10
     while time.monotonic() < deadline and requests.get(posted[1]["infoUri"], timeout=30).json()["state"] != "RUNNING":

@@ -1,8 +1,14 @@
-"""Fair to every client, on a real `lakegate serve` with 2 query slots: a free slot goes to the user
-with the fewest running queries (one user's flood cannot keep another's SELECT 1 behind it), queued
-queries of a client that stopped polling are dropped without running, the queue holds a bounded
-amount of statement text, and a client that stops reading a large result frees its slot once its
-heartbeat lapses."""
+"""Fair to every client, on real `lakegate serve` processes with 2 query slots: one user runs at most
+`--max-queries-per-user` queries at once (by default all slots but one), so another user's SELECT 1
+runs at once while the first user's queries wait QUEUED (the user is X-Trino-User; with --users the
+authenticated one, tests/gateway/test_server_security.py); queued queries of a client that stopped
+polling are dropped without running, the queue holds a bounded amount of statement text, and a
+client that stops reading a large result frees its slot once its heartbeat lapses.
+
+Trino semantics (trino.io/docs/current/admin/resource-groups.html): a query that a resource group
+(here a per-user `${USER}` subgroup with a hardConcurrencyLimit) cannot run yet becomes queued, not
+failed; the real Trino shows a queued query as `stats.state` QUEUED with `stats.queued` true.
+"""
 
 from __future__ import annotations
 
@@ -18,15 +24,17 @@ BIG = "SELECT a.x, b.y, 'padding padding padding padding' AS p FROM UNNEST(seque
 
 @pytest.fixture(scope="module")
 def two_slots(start_server):
-    return start_server("--max-concurrent-queries", "2", "--query-timeout", "4", "--heartbeat-timeout", "2")
+    """Two slots, one query per user at once (the default: all slots but one)."""
+    return start_server("--max-concurrent-queries", "2", "--query-timeout", "60", "--heartbeat-timeout", "2")
 
 
-def post(server, sql: str, user: str) -> dict:
-    return requests.post(f"{server.url}/v1/statement", data=sql, headers={"X-Trino-User": user}, timeout=30).json()
+def post(server, sql: str, user: str | None, auth: tuple[str, str] | None = None) -> dict:
+    headers = {} if user is None else {"X-Trino-User": user}
+    return requests.post(f"{server.url}/v1/statement", data=sql, headers=headers, auth=auth, timeout=30).json()
 
 
-def info(server, query_id: str) -> dict:
-    return requests.get(f"{server.url}/v1/query/{query_id}", timeout=30).json()
+def info(server, query_id: str, auth: tuple[str, str] | None = None) -> dict:
+    return requests.get(f"{server.url}/v1/query/{query_id}", auth=auth, timeout=30).json()
 
 
 def wait_for(condition, timeout: float = 30) -> None:
@@ -36,38 +44,57 @@ def wait_for(condition, timeout: float = 30) -> None:
         time.sleep(0.1)
 
 
-def test_one_users_flood_does_not_keep_another_users_query_waiting(two_slots, endless):
-    stop = threading.Event()
-    flood = [post(two_slots, endless, "alice") for _ in range(8)]  # 2 run (until the time limit), 6 wait
+def keep_polling(documents: list[dict], auth: tuple[str, str] | None = None) -> tuple[threading.Event, dict]:
+    """Poll each query's nextUri in a thread of its own until the event is set (a client still there:
+    its queued queries must not be dropped); returns the event and the last document seen of each."""
+    stop, seen = threading.Event(), {}
 
-    def keep_polling(document: dict) -> None:  # alice is still there: her queued queries must not be dropped
+    def poll(document: dict) -> None:
         while "nextUri" in document and not stop.is_set():
-            document = requests.get(document["nextUri"], timeout=30).json()
+            seen[document["id"]] = document = requests.get(document["nextUri"], auth=auth, timeout=30).json()
 
-    pollers = [threading.Thread(target=keep_polling, args=(d,)) for d in flood]
-    for poller in pollers:
-        poller.start()
+    for document in documents:
+        threading.Thread(target=poll, args=(document,), daemon=True).start()
+    return stop, seen
+
+
+def run(server, sql: str, user: str | None, auth: tuple[str, str] | None = None) -> dict:
+    document = post(server, sql, user, auth)
+    while "nextUri" in document:
+        document = requests.get(document["nextUri"], auth=auth, timeout=30).json()
+    return document
+
+
+def states(server, documents: list[dict], auth: tuple[str, str] | None = None) -> list[str]:
+    return sorted(info(server, d["id"], auth)["state"] for d in documents)
+
+
+def test_a_user_at_the_cap_waits_queued_while_another_users_select_runs_at_once(two_slots, endless):
+    flood = [post(two_slots, endless, "alice") for _ in range(4)]  # queries that run until canceled
+    stop, seen = keep_polling(flood)
     try:
-        document = post(two_slots, "SELECT 1", "bob")
-        while "nextUri" in document:
-            document = requests.get(document["nextUri"], timeout=30).json()
-        assert document["data"] == [[1]]
-        states = [info(two_slots, d["id"])["state"] for d in flood]
-        # bob's query ran in the first slot freed (an alice query past its 4 s limit), ahead of alice's queue
-        assert states.count("QUEUED") >= 3, states
+        # alone on the server, alice still runs one query: the cap holds whoever else is there
+        wait_for(lambda: states(two_slots, flood) == ["QUEUED", "QUEUED", "QUEUED", "RUNNING"])
+        wait_for(lambda: len(seen) == 4)
+        queued = [seen[d["id"]] for d in flood if info(two_slots, d["id"])["state"] == "QUEUED"]
+        # what her client sees of a query held back by the cap is what Trino shows of a queued query
+        assert {(d["stats"]["state"], d["stats"]["queued"]) for d in queued} == {("QUEUED", True)}
+        assert run(two_slots, "SELECT 1", "bob")["data"] == [[1]]
+        # bob's query ran in the slot kept free: alice's query still runs, hers still wait
+        assert states(two_slots, flood) == ["QUEUED", "QUEUED", "QUEUED", "RUNNING"]
     finally:
         stop.set()
         for d in flood:
             requests.delete(f"{two_slots.url}/v1/query/{d['id']}", timeout=30)
-        for poller in pollers:
-            poller.join(timeout=30)
 
 
 @pytest.fixture(scope="module")
 def patient_slots(start_server):
     """Two slots whose queries may run a minute (an endless query holds its slot for the whole test),
-    and bodies of at most 100 KB (the queue holds 32 of them)."""
-    return start_server("--max-concurrent-queries", "2", "--query-timeout", "60", "--max-body", "100000")
+    both of which one user may fill, and bodies of at most 100 KB (the queue holds 32 of them)."""
+    return start_server(
+        "--max-concurrent-queries", "2", "--max-queries-per-user", "2", "--query-timeout", "60", "--max-body", "100000"
+    )  # fmt: skip
 
 
 def test_queued_queries_of_a_vanished_client_are_dropped_without_running(patient_slots, endless):
@@ -83,6 +110,31 @@ def test_queued_queries_of_a_vanished_client_are_dropped_without_running(patient
         requests.delete(f"{two_slots.url}/v1/query/{d['id']}", timeout=30)
 
 
+def test_a_freed_slot_goes_to_the_user_with_the_fewest_running_queries(patient_slots, endless):
+    """alice fills both slots (her cap here: a result of 5 MB that waits for her to read it, and an
+    endless query) and has two more queued before bob's; when she has read the result, its slot goes
+    to bob's query, not to her older queued ones (else bob would wait a minute)."""
+    wide = post(patient_slots, "SELECT rpad('x', 1000, 'y') FROM UNNEST(sequence(1, 5000)) AS t(i)", "alice")
+    alice = [post(patient_slots, endless, "alice") for _ in range(3)]
+    stop, _ = keep_polling(alice)
+    try:
+        wait_for(lambda: states(patient_slots, [wide, *alice]) == ["QUEUED", "QUEUED", "RUNNING", "RUNNING"])
+        bob = post(patient_slots, "SELECT 1", "bob")
+        assert info(patient_slots, bob["id"])["state"] == "QUEUED"
+        while "nextUri" in wide:  # alice reads her result: its query ends and frees its slot
+            wide = requests.get(wide["nextUri"], timeout=30).json()
+        assert "error" not in wide, wide
+        deadline = time.monotonic() + 20  # far less than the minute alice's query would hold the other slot
+        while "nextUri" in bob:
+            assert time.monotonic() < deadline, "bob's query waited behind alice's queue"
+            bob = requests.get(bob["nextUri"], timeout=30).json()
+        assert bob["data"] == [[1]]
+    finally:
+        stop.set()
+        for d in alice:
+            requests.delete(f"{patient_slots.url}/v1/query/{d['id']}", timeout=30)
+
+
 def test_the_queue_holds_a_bounded_amount_of_statement_text(patient_slots, endless):
     """Queued statements of the largest size a body may have (polled, so none is dropped): the 33rd
     finds the queue's 32 bodies' worth of text taken and fails with QUERY_QUEUE_FULL at once; the queue
@@ -94,7 +146,7 @@ def test_the_queue_holds_a_bounded_amount_of_statement_text(patient_slots, endle
     stop = threading.Event()
     queued: list[dict] = []
 
-    def keep_polling(document: dict) -> None:
+    def poll(document: dict) -> None:
         while "nextUri" in document and not stop.is_set():
             document = requests.get(document["nextUri"], timeout=30).json()
 
@@ -102,7 +154,7 @@ def test_the_queue_holds_a_bounded_amount_of_statement_text(patient_slots, endle
     try:
         for _ in range(QUEUED_BODIES):
             queued.append(post(patient_slots, large, "frank"))
-            pollers.append(threading.Thread(target=keep_polling, args=(queued[-1],)))
+            pollers.append(threading.Thread(target=poll, args=(queued[-1],)))
             pollers[-1].start()
         assert all(info(patient_slots, d["id"])["state"] == "QUEUED" for d in queued)
         refused = post(patient_slots, large, "frank")

@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import threading
+import time
 
 import bcrypt
 import pytest
@@ -73,6 +75,7 @@ def test_listening_beyond_loopback_needs_users_and_tls(server_lake, users_file):
         (["--memory-limit", "lots"], ["--memory-limit", "lots"]),
         (["--catalog", "System"], ["--catalog", "lower-case identifier"]),
         (["--host", "::", "--users", "{users}"], ["without TLS"]),
+        (["--max-queries-per-user", "9"], ["--max-queries-per-user 9: at most --max-concurrent-queries (8)"]),
     ],
 )
 def test_bad_options_are_refused_in_one_line(server_lake, users_file, certificate, tmp_path, capsys, arguments, words):
@@ -86,12 +89,21 @@ def test_bad_options_are_refused_in_one_line(server_lake, users_file, certificat
         assert word.format(**names) in error, error
 
 
+@pytest.mark.parametrize("value", ["0", "-1"])
+def test_a_per_user_cap_below_one_is_a_usage_error(server_lake, capsys, value):
+    with pytest.raises(SystemExit) as exited:
+        cli.main(["serve", "--lake", str(server_lake), "--max-queries-per-user", value])
+    assert exited.value.code == 2
+    assert f"argument --max-queries-per-user: expected a positive number, got '{value}'" in capsys.readouterr().err
+
+
 # --- users ------------------------------------------------------------------------------------------
 
 
 @pytest.fixture(scope="module")
 def auth_server(start_server, users_file):
-    return start_server("--users", str(users_file))
+    """Logins of alice and bob; one query of each user runs at once."""
+    return start_server("--users", str(users_file), "--max-queries-per-user", "1")
 
 
 def _post(server, sql: str, auth=None, **headers) -> requests.Response:
@@ -153,6 +165,39 @@ def test_the_session_user_is_the_authenticated_one(auth_server, endless):
         assert cursor.fetchall() == [["bob"]]  # alice's queries (and their SQL text) are hidden from bob
         cursor.execute("SELECT current_timezone()")
         assert cursor.fetchall() == [["UTC"]]
+
+
+def test_the_per_user_cap_counts_the_authenticated_user(auth_server, endless):
+    alice, bob, stop = ("alice", "wonderland"), ("bob", "builder"), threading.Event()
+    mine = [
+        _post(auth_server, endless, alice).json(),
+        _post(auth_server, endless, alice, **{"X-Trino-User": "alice"}).json(),
+    ]
+
+    def poll(document: dict) -> None:  # alice is still there: her queued query is not dropped
+        while "nextUri" in document and not stop.is_set():
+            document = requests.get(document["nextUri"], auth=alice, timeout=30).json()
+
+    def states() -> list[str]:
+        return sorted(requests.get(d["infoUri"], auth=alice, timeout=30).json()["state"] for d in mine)
+
+    for document in mine:
+        threading.Thread(target=poll, args=(document,), daemon=True).start()
+    try:
+        deadline = time.monotonic() + 30
+        while states() != ["QUEUED", "RUNNING"]:  # with a header naming her or none, both are alice's
+            assert time.monotonic() < deadline, states()
+            time.sleep(0.1)
+        # naming another user to get past her cap is refused (Trino's impersonation check)
+        assert _post(auth_server, endless, alice, **{"X-Trino-User": "bob"}).status_code == 403
+        document = _post(auth_server, "SELECT 1", bob).json()
+        while "nextUri" in document:
+            document = requests.get(document["nextUri"], auth=bob, timeout=30).json()
+        assert document["data"] == [[1]] and states() == ["QUEUED", "RUNNING"]  # bob did not wait for alice
+    finally:
+        stop.set()
+        for d in mine:
+            requests.delete(d["infoUri"], auth=alice, timeout=30)
 
 
 def test_tls_with_the_trino_client(start_server, users_file, certificate, monkeypatch):

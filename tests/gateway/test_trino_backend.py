@@ -28,14 +28,14 @@ from lakegate.dialect.scope import Scope
 from lakegate.dialect.translate import parse
 from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
 from lakegate.gateway.cli.backends import backend_from_args
-from lakegate.gateway.cli.errors import UserError
-from lakegate.gateway.cli.parsers.arguments import add_backend_arguments
+from lakegate.gateway.cli.command_errors import UserError
+from lakegate.gateway.cli.parsers.shared_options import add_backend_arguments
 from lakegate.gateway.engine import trino_backend
 from lakegate.gateway.engine.backend import DuckDBBackend
 from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.trino_backend import RemoteQueryError, TrinoBackend, forwarded_sql
 from lakegate.gateway.engine.trino_ddl import schema_name
-from lakegate.gateway.metrics.results import read_results
+from lakegate.gateway.metrics.results_table import read_results
 from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.config import load_config
 from lakegate.lake.ingest import ingest_job

@@ -32,7 +32,7 @@ from lakegate.dialect.translate import parse
 from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
 from lakegate.gateway.engine.backend import DuckDBBackend
 from lakegate.gateway.engine.trino_registration import RECORD, read_registration
-from lakegate.gateway.metrics.results import read_results
+from lakegate.gateway.metrics.results_table import read_results
 from lakegate.lake import paths
 from lakegate.lake.catalog import Catalog
 from lakegate.lake.config import load_config

@@ -364,3 +364,25 @@ def test_years_past_9999_are_written_with_a_sign_as_trino_does():
             "-9999-01-01",
         ]
     ]
+
+
+def test_time_with_time_zone_is_written_as_trino_writes_it():
+    """Values translated and computed by DuckDB ({utc_ps, offset_min} structs, dialect/zoned_times.py),
+    encoded as the real Trino 476 answers this query (offsets at -14:00 and +14:00, the last picosecond of a
+    day, a negative offset under an hour, NULL)."""
+    from lakegate.dialect.translate import translate
+
+    query = translate(
+        "SELECT x FROM (VALUES TIME '23:59:59.999999999999 +14:00', TIME '00:00:00 -14:00', "
+        "TIME '01:02:03.5 -00:35', NULL) t(x)",
+        {},
+    )
+    assert query.columns == (("x", "time(12) with time zone"),)
+    batch = duckdb.connect().sql(query.duckdb_sql).to_arrow_table().combine_chunks().to_batches()[0]
+    assert arrow_type(parse_type("time(12) with time zone")) == batch.schema.field(0).type
+    assert encode_rows(query.columns, batch) == [
+        ["23:59:59.999999999999+14:00"],
+        ["00:00:00.000000000000-14:00"],
+        ["01:02:03.500000000000-00:35"],
+        [None],
+    ]

@@ -11,7 +11,7 @@ import pyarrow as pa
 import pyarrow.fs as pafs
 import pytest
 
-from lakegate.gateway.cli.errors import os_error_text
+from lakegate.gateway.cli.command_errors import os_error_text
 from lakegate.lake.storage import LakeStorage, LocalOnlyError
 
 KINDS = ["path", "file-uri", "mock", "subtree"]

@@ -129,11 +129,12 @@ def server(tmp_path):
     yield from start_server(tmp_path)
 
 
-def run_statement(url: str, body: bytes, lake: Path, *, seconds: float = 60) -> dict:
-    """The last document of a statement, followed to its end (at most `seconds`), after checking its
-    error message tells no traceback or server path."""
+def run_statement(url: str, body: bytes, lake: Path, *, seconds: float = 60, user: str = "tester") -> dict:
+    """The last document of a statement of `user`, followed to its end (at most `seconds`), after
+    checking its error message tells no traceback or server path."""
     deadline = time.monotonic() + seconds
-    response = requests.post(f"{url}/v1/statement", data=body, headers=HEADERS, timeout=seconds)
+    headers = {**HEADERS, "X-Trino-User": user}
+    response = requests.post(f"{url}/v1/statement", data=body, headers=headers, timeout=seconds)
     if response.status_code == 413:
         return {"error": {"errorName": "QUERY_TEXT_TOO_LARGE"}, "stats": {"state": "FAILED"}}
     document = response.json()
@@ -144,14 +145,14 @@ def run_statement(url: str, body: bytes, lake: Path, *, seconds: float = 60) -> 
     return document
 
 
-def outcome(url: str, body: bytes, lake: Path) -> str:
-    """The Trino error name a statement ends with (its state when it ends without one)."""
-    document = run_statement(url, body, lake)
+def outcome(url: str, body: bytes, lake: Path, user: str = "tester") -> str:
+    """The Trino error name a statement of `user` ends with (its state when it ends without one)."""
+    document = run_statement(url, body, lake, user=user)
     return document.get("error", {}).get("errorName", document["stats"]["state"])
 
 
-def select_one_seconds(url: str, lake: Path) -> float:
-    """Seconds `SELECT 1` takes to answer, after checking it answers 1."""
+def select_one_seconds(url: str, lake: Path, user: str = "tester") -> float:
+    """Seconds `SELECT 1` of `user` takes to answer, after checking it answers 1."""
     started = time.monotonic()
-    assert run_statement(url, b"SELECT 1", lake, seconds=10).get("data") == [[1]]
+    assert run_statement(url, b"SELECT 1", lake, seconds=10, user=user).get("data") == [[1]]
     return time.monotonic() - started

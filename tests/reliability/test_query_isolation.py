@@ -111,19 +111,19 @@ def test_memory_bombs_fail_and_the_server_stays_under_its_limit(memory_server):
 def test_a_query_that_never_returns_to_duckdb_frees_its_slot(small_server):
     process, url, lake = small_server
     started = time.monotonic()
-    with ThreadPoolExecutor(4) as pool:
-        names = list(pool.map(lambda _: outcome(url, UNINTERRUPTIBLE.encode(), lake), range(4)))
+    with ThreadPoolExecutor(4) as pool:  # four clients, each its own user
+        names = list(pool.map(lambda n: outcome(url, UNINTERRUPTIBLE.encode(), lake, f"client{n}"), range(4)))
     assert names == ["EXCEEDED_TIME_LIMIT"] * 4
     # two slots, four queries of the time limit each, a second of grace per query: no slot outlives its query
     assert time.monotonic() - started < 2 * (QUERY_TIMEOUT + 2)
     with ThreadPoolExecutor(4) as pool:
-        assert max(pool.map(lambda _: select_one_seconds(url, lake), range(4))) < AT_ONCE
+        assert max(pool.map(lambda n: select_one_seconds(url, lake, f"client{n}"), range(4))) < AT_ONCE
 
 
 def test_nested_lambdas_are_bounded(small_server):
     process, url, lake = small_server
     with MemoryWatch(process.pid) as memory, ThreadPoolExecutor(4) as pool:
-        names = list(pool.map(lambda _: outcome(url, NESTED_LAMBDAS.encode(), lake), range(4)))
+        names = list(pool.map(lambda n: outcome(url, NESTED_LAMBDAS.encode(), lake, f"client{n}"), range(4)))
     assert set(names) <= BOUNDED | {"FINISHED"}, names
     assert select_one_seconds(url, lake) < AT_ONCE
     print(f"peak memory of the server's processes: {memory.peak:.0f} MB")  # shown with -s: docs/sql-endpoint.md

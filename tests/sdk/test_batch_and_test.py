@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from lakegate.gateway.metrics.results import read_results
+from lakegate.gateway.metrics.results_table import read_results
 from lakegate.lake.config import ConfigError
 from lakegate.lake.metadata import read_metadata_row
 from lakegate.lake.record import job_logs_dir

@@ -19,7 +19,7 @@ import sys
 import textwrap
 from pathlib import Path
 
-from lakegate.gateway.metrics.results import read_results
+from lakegate.gateway.metrics.results_table import read_results
 from lakegate.lake.record import job_logs_dir
 from lakegate.sdk import Batch, Test
 

@@ -36,7 +36,7 @@ from pathlib import Path
 
 from trino_fuzz import lake as fuzz_lake
 from trino_fuzz import queries as fuzz_queries
-from trino_fuzz.compare import differ
+from trino_fuzz.answer_match import differ
 from trino_fuzz.functions import discover
 from trino_fuzz.queries import Generator, Query
 from trino_fuzz.sides import Lakegate, Outcome, Trino, drop_orphans, register, unregister

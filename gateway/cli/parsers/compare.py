@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from lakegate.gateway.cli.parsers import Command
-from lakegate.gateway.cli.parsers.arguments import add_alert_arguments, add_backend_arguments, positive
+from lakegate.gateway.cli.parsers.shared_options import add_alert_arguments, add_backend_arguments, positive
 from lakegate.gateway.metrics.defaults import ALPHA, CV_THRESHOLD, FLAKE_WINDOW
 
 FAIL_ON = ("new-failures", "regression")

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from lakegate.gateway.cli.parsers import Command
-from lakegate.gateway.cli.parsers.arguments import add_strict_option
+from lakegate.gateway.cli.parsers.shared_options import add_strict_option
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from lakegate.gateway.cli.parsers import Command
-from lakegate.gateway.cli.parsers.arguments import add_strict_option, port_number
+from lakegate.gateway.cli.parsers.shared_options import add_strict_option, port_number
 
 #: The branch of the debug job unless --branch says otherwise.
 BRANCH = "debug"

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 
 from lakegate.gateway.cli.parsers import Command, compact
-from lakegate.gateway.cli.parsers.arguments import CONFIG_PATHS_HELP, add_strict_option
+from lakegate.gateway.cli.parsers.shared_options import CONFIG_PATHS_HELP, add_strict_option
 
 #: The raw job statuses `--job-status` takes (the product guide's `job_status` values).
 JOB_STATUSES = ("SUCCEEDED", "FAILED")

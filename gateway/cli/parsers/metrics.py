@@ -7,14 +7,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from lakegate.gateway.cli.parsers import Command
-from lakegate.gateway.cli.parsers.arguments import (
+from lakegate.gateway.cli.parsers.debug import add_debug_parser
+from lakegate.gateway.cli.parsers.shared_options import (
     CONFIG_PATHS_HELP,
     add_alert_arguments,
     add_backend_arguments,
     add_strict_option,
     positive,
 )
-from lakegate.gateway.cli.parsers.debug import add_debug_parser
 from lakegate.gateway.metrics.gating import FAIL_STATES, parse_fail_on_states
 
 if TYPE_CHECKING:

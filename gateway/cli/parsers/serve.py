@@ -7,8 +7,8 @@ import os
 from pathlib import Path
 
 from lakegate.gateway.cli.parsers import Command
-from lakegate.gateway.cli.parsers.arguments import add_backend_arguments, port_number
-from lakegate.gateway.cli.parsers.arguments import positive as _positive
+from lakegate.gateway.cli.parsers.shared_options import add_backend_arguments, port_number
+from lakegate.gateway.cli.parsers.shared_options import positive as _positive
 from lakegate.gateway.engine.catalog_name import CATALOG
 from lakegate.gateway.engine.limits import Limits
 
@@ -89,6 +89,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default=_DEFAULTS.max_concurrent_queries,
         metavar="N",
         help=f"queries that run at once; more wait in a queue (default {_DEFAULTS.max_concurrent_queries})",
+    )
+    parser.add_argument(
+        "--max-queries-per-user",
+        type=_positive(int),
+        default=None,
+        metavar="N",
+        help="queries one user (X-Trino-User; with --users, the authenticated user) runs at once, as a Trino "
+        "resource group's per-user hardConcurrencyLimit; more stay QUEUED, also when no other user is there "
+        "(default: --max-concurrent-queries minus 1, at least 1, so that another user always finds a slot)",
     )
     parser.add_argument(
         "--client-timeout",

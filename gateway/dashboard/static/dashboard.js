@@ -209,10 +209,10 @@
     return `${API}${sessionPath(`/logs/${encodeURIComponent(app.jobId)}/${encodeURIComponent(name)}`)}`;
   }
 
-  // video: an HTML5 player per file (a GIF as an image); artifact: a download link per file, with its size
+  // videos: an HTML5 player per file (a GIF as an image); files: a download link per file, with its size
   function filesBody(metric, table) {
     return el("div", { class: "files" }, table.rows.map(([name, bytes, type]) => {
-      if (metric.template === "video") {
+      if (metric.shows === "videos") {
         const media = String(type).startsWith("video/")
           ? el("video", { src: logUrl(name), controls: "", preload: "metadata" })
           : el("img", { src: logUrl(name), alt: name });
@@ -225,17 +225,17 @@
 
   function resultBody(metric, result) {
     if (result.error) return null;
-    if (result.table && ["video", "artifact"].includes(metric.template) && app.jobId) return filesBody(metric, result.table);
+    if (result.table && ["videos", "files"].includes(metric.shows) && app.jobId) return filesBody(metric, result.table);
     if (result.table) return dataTable(result.table.columns, result.table.rows);
     if (result.figure) {
-      const timeline = metric.template === "state_timeline";
+      const timeline = metric.shows === "timeline";
       const height = (result.figure.layout || {}).height;
       const node = el("div", { class: `chart${timeline ? " timeline" : ""}` });
       if (height) node.style.height = `${height}px`;
       node.lgFigure = result.figure;
       return node;
     }
-    if (metric.template === "image") {
+    if (metric.shows === "images") {
       return el("div", { class: "lg-images" }, result.images.map((name) => el("figure", {},
         el("img", { src: logUrl(name), alt: name }),
         el("figcaption", { text: name }))));
@@ -252,14 +252,14 @@
       el("span", { class: "chip", text: `${metric.type} · ${metric.template || metric.template_type}` }),
       metric.origin !== "config" ? el("span", { class: `chip ${metric.origin}`, text: metric.origin }) : null));
     if (metric.description) card.append(el("p", { class: "desc", text: metric.description }));
-    if (metric.units && metric.template !== "scalar") card.append(el("p", { class: "meta", text: `Units: ${metric.units}` }));
+    if (metric.units && metric.shows !== "scalar") card.append(el("p", { class: "meta", text: `Units: ${metric.units}` }));
     if (result.error) card.append(errorBox(result.error));
     const body = resultBody(metric, result);
     if (body) card.append(body);
     if (result.problems && result.problems.length) {
       card.append(el("ul", { class: "problems" }, result.problems.map((p) => el("li", { text: p }))));
     }
-    if (metric.template === "table" && result.table) {  // its summary may be its values: the size instead
+    if (metric.shows === "table" && result.table) {  // its summary may be its values: the size instead
       card.append(el("p", { class: "meta", text: `${plural(result.table.rows.length, "row")}, ${plural(result.table.columns.length, "column")}` }));
     } else if (result.text && body && !body.classList.contains("scalar")) {
       card.append(el("p", { class: "meta", text: result.text }));
@@ -333,7 +333,7 @@
         entry = { card, signature, fresh: true };
         app.cards.set(metric.name, entry);
       }
-      groups[metric.template === "scalar" ? `${group}-scalar` : group].append(entry.card);
+      groups[metric.shows === "scalar" ? `${group}-scalar` : group].append(entry.card);
       seen.add(metric.name);
     }
     for (const [name, entry] of app.cards) {

@@ -10,6 +10,7 @@ workers), and a Trino that cannot be fetched or started fails the test.
 from __future__ import annotations
 
 import contextlib
+import itertools
 import os
 
 import pytest
@@ -43,25 +44,26 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """Tests marked `slow` (a minute or more of end-to-end work) run first, on every worker: under
     xdist (`python3 dev.py test`: workers that steal work from each other) none of them starts last
     while another worker sits idle, and they do not all queue on one worker (together they take
-    longer than half the suite)."""
-    slow = [item for item in items if item.get_closest_marker("slow") is not None]
+    longer than half the suite). A module's slow tests stay together (its module fixtures are made
+    once), the cases of a parametrized one are shared out."""
+    slow: dict[str, list[pytest.Item]] = {}
+    for item in items:
+        if item.get_closest_marker("slow") is not None:
+            slow.setdefault(item.nodeid if hasattr(item, "callspec") else item.path.as_posix(), []).append(item)
     rest = [item for item in items if item.get_closest_marker("slow") is None]
-    items[:] = [
-        item
-        for chunk in worker_chunks(slow, rest, int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", 1)))
-        for item in chunk
-    ]
+    workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", 1))
+    items[:] = [item for chunk in worker_chunks(list(slow.values()), rest, workers) for item in chunk]
 
 
-def worker_chunks(slow: list, rest: list, workers: int) -> list[list]:
+def worker_chunks(slow: list[list], rest: list, workers: int) -> list[list]:
     """The run order as the consecutive chunks `--dist worksteal` first hands each of `workers` (the
     first worker gets the pending tests // workers, the next what is left // (workers - 1), ...),
-    each starting with its share of `slow` (dealt in turn), then filled with `rest` in order."""
-    chunks, left, remaining = [], len(slow) + len(rest), iter(rest)
+    each starting with its share of the `slow` groups (dealt in turn), then filled with `rest` in order."""
+    chunks, left, remaining = [], sum(map(len, slow)) + len(rest), iter(rest)
     for index in range(workers):
         size = left // (workers - index)
         left -= size
-        chunk = slow[index::workers]
-        chunks.append(chunk + [next(remaining) for _ in range(max(0, size - len(chunk)))])
+        chunk = [item for group in slow[index::workers] for item in group]
+        chunks.append(chunk + list(itertools.islice(remaining, max(0, size - len(chunk)))))
     chunks[-1] += list(remaining)
     return chunks

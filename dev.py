@@ -4,6 +4,7 @@
     python3 dev.py demo [ARGS...]   create .venv, install lakegate (only what it needs), run `lakegate demo`
     python3 dev.py test [ARGS...]   create .venv, install lakegate[test], lint (ruff), run the test suite
     python3 dev.py lint             only the lint: `ruff check` and `ruff format --check`
+    python3 dev.py install          only create .venv and install lakegate[test] (what `test` needs)
     python3 dev.py bench NAME       run bench/NAME.py (results go to bench/RESULTS.md)
     python3 dev.py trino start|stop|status
                                     a real Trino 476 on 127.0.0.1, the judge the tests compare with
@@ -17,8 +18,8 @@
                                     one summary line per group, a report file (tools/trino_corpus/)
     python3 dev.py lakegate ARGS    run any lakegate command inside .venv
 
-`demo`, `lakegate` and `trino` install lakegate alone; `test`, `lint`, `bench` and `fuzz` add the test
-extras (pytest, Playwright, pandas, ...). The virtual environment is reinstalled only when
+`demo`, `lakegate` and `trino` install lakegate alone; `install`, `test`, `lint`, `bench` and `fuzz` add
+the test extras (pytest, Playwright, pandas, ...). The virtual environment is reinstalled only when
 pyproject.toml changes or a command needs extras it lacks.
 """
 
@@ -84,6 +85,8 @@ def main(argv: list[str]) -> int:
         return _run([PY, "-m", "trino_corpus.run", *rest], env={**os.environ, "PYTHONPATH": str(ROOT / "tools")})
     if command == "demo":
         return _run([BIN / "lakegate", "demo", *rest])
+    if command == "install":
+        return 0  # installed above
     if command == "lint":
         return lint()
     if command == "test":

@@ -60,8 +60,15 @@ def test_a_changed_pyproject_installs_again(dev, monkeypatch, tmp_path):
     assert dev.main(["test"]) == 0 and installs(dev) == [".[test]"]  # the extras of the old file do not count
 
 
+def test_install_makes_the_environment_of_test_and_trino(dev):
+    """`.ci/run` installs once, then starts Trino and runs the suite without another install."""
+    assert dev.main(["install"]) == 0 and len(dev.calls) == 1 and installs(dev) == [".[test]"]  # nothing else runs
+    assert dev.main(["trino", "start"]) == 0 and dev.main(["test"]) == 0 and installs(dev) == []
+
+
 def test_the_readme_commands_and_ci_use_these_commands():
     readme = (ROOT / "README.md").read_text()
     assert "python3 dev.py demo" in readme and "python3 dev.py test" in readme
     ci = (ROOT / ".ci" / "run").read_text()
     assert "python3 dev.py trino start" in ci and "python3 dev.py test" in ci
+    assert ci.index("python3 dev.py install") < ci.index("python3 dev.py trino start")

@@ -27,6 +27,7 @@ Standard library only: dev.py runs it before any virtual environment exists.
 from __future__ import annotations
 
 import argparse
+import fcntl
 import json
 import os
 import re
@@ -246,7 +247,28 @@ def _launcher(*args: str, java: Path | None = None) -> subprocess.CompletedProce
 
 
 def start(root: Path = Path("/"), port: int | None = None) -> str:
-    """Start Trino (fetching it first if needed) unless it already runs; returns its URL."""
+    """Start Trino (fetching it first if needed) unless it already runs; returns its URL. One start at
+    a time per cache folder (a file lock): a second caller waits for the first's Trino and takes it
+    (`.ci/run` starts it in the background while the test suite begins, whose fixture calls this too)."""
+    HOME.mkdir(parents=True, exist_ok=True)
+    with open(HOME / "start.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        return _start(root, port)
+
+
+def starting() -> bool:
+    """Whether a `start` (of any process) is under way now: it holds the start lock."""
+    if not (HOME / "start.lock").exists():
+        return False
+    with open(HOME / "start.lock", "w") as lock:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return True
+        return False
+
+
+def _start(root: Path, port: int | None) -> str:
     state = running()
     if state and state["root"] == str(root) and (port is None or state["port"] == port):
         return state["url"]

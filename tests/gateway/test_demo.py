@@ -89,8 +89,12 @@ def check_next_hints(out: str, cwd: Path) -> None:
     assert len(hints) >= 6 and all(" -m lakegate.gateway.cli " in hint for hint in hints)  # how this test ran it
     for hint in hints:
         if " serve " in hint:
-            server = subprocess.Popen(
-                hint.replace("--lake", "--port 0 --lake"), shell=True, cwd=cwd, stdout=subprocess.PIPE, text=True
+            server = subprocess.Popen(  # `exec`: the shell becomes the server, so terminate() stops the server
+                "exec " + hint.replace("--lake", "--port 0 --lake"),
+                shell=True,
+                cwd=cwd,
+                stdout=subprocess.PIPE,
+                text=True,
             )
             try:
                 assert "lakegate: serving" in server.stdout.readline()

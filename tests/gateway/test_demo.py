@@ -99,8 +99,8 @@ def check_next_hints(out: str, cwd: Path) -> None:
             try:
                 assert "lakegate: serving" in server.stdout.readline()
             finally:
-                server.terminate()
-                server.wait(timeout=30)
+                server.terminate()  # right after start-up: its query workers may still be starting under load
+                server.wait(timeout=120)
             continue
         done = subprocess.run(hint, shell=True, cwd=cwd, capture_output=True, text=True, timeout=120)
         # exit codes of a gate: 2 a metric blocks (metrics run), 4 a new failure (compare --fail-on)

@@ -24,8 +24,9 @@ MICROS_READERS = frozenset(
 
 _NANOSECOND_FUNCTIONS = MICROS_READERS | {"min", "max", "count", "arbitrary", "coalesce", "typeof"}
 
-#: The expressions written for timestamp(7..9) operands (functions: only _NANOSECOND_FUNCTIONS).
-_NANOSECOND_OPERATIONS = (
+#: The expressions written for operands of the time types held in more than DuckDB's own types (casts,
+#: comparisons, conditions, arithmetic, ordering, fields).
+_WIDE_TIME_OPERATIONS = (
     exp.Cast,
     exp.TryCast,
     *COMPARISONS,
@@ -42,6 +43,11 @@ _NANOSECOND_OPERATIONS = (
     exp.Window,
     exp.Filter,
     exp.Extract,
+)
+
+#: The expressions written for timestamp(7..9) operands (functions: only _NANOSECOND_FUNCTIONS).
+_NANOSECOND_OPERATIONS = (
+    *_WIDE_TIME_OPERATIONS,
     exp.Anonymous,
 )
 
@@ -55,22 +61,7 @@ _TIME_TZ_FUNCTIONS = frozenset(
 
 #: The expressions written for time with time zone operands (functions: only _TIME_TZ_FUNCTIONS).
 _TIME_TZ_OPERATIONS = (
-    exp.Cast,
-    exp.TryCast,
-    *COMPARISONS,
-    exp.Between,
-    exp.In,
-    exp.Is,
-    exp.Case,
-    exp.If,
-    exp.Add,
-    exp.Sub,
-    exp.Paren,
-    exp.Alias,
-    exp.Ordered,
-    exp.Window,
-    exp.Filter,
-    exp.Extract,
+    *_WIDE_TIME_OPERATIONS,
     exp.AtTimeZone,
     exp.Subquery,
     exp.Anonymous,

@@ -48,6 +48,9 @@ RETIRE_BYTES = 64 << 20
 IDLE_SECONDS = 60.0
 #: Longest wait for a new worker to be ready.
 START_SECONDS = 60.0
+#: Longest wait at close for workers being started to be handed their task (a process that
+#: exits while one is, leaves it a traceback to print).
+CLOSE_SECONDS = 10.0
 _UNITS = {"": 1, "B": 1, "KB": 10**3, "MB": 10**6, "GB": 10**9, "TB": 10**12}
 _UNITS.update({"KIB": 1 << 10, "MIB": 1 << 20, "GIB": 1 << 30, "TIB": 1 << 40})
 
@@ -311,4 +314,8 @@ class WorkerPool:
             worker.kill(DialectError("The server is shutting down", error_name="SERVER_SHUTTING_DOWN"))
         for worker in idle:
             worker.dispose()  # a busy or starting one is disposed by its reader, which sees it end
+        deadline = time.monotonic() + CLOSE_SECONDS
+        with self._lock:  # a starting worker is killed as soon as it has started (see _start)
+            while self._starting and (remaining := deadline - time.monotonic()) > 0:
+                self._lock.wait(remaining)
         self._watch.join(timeout=1)

@@ -39,8 +39,20 @@ DELIVERY_GRACE = 1.0
 WORKERS_READY_SECONDS = 60.0
 
 
-def _interrupt(signum: int, frame: object) -> None:
-    raise KeyboardInterrupt
+class _StopSignals:
+    """The stop signals (SIGINT, SIGTERM) from the moment the server says it serves: one that comes
+    before uvicorn takes them over is kept and stops the server as soon as it exists. (Raising
+    KeyboardInterrupt from the handler lost the signal when it landed in a weakref callback, where
+    Python ignores exceptions, and the server kept serving.)"""
+
+    def __init__(self) -> None:
+        self.received: int | None = None
+        self.server = None  # the uvicorn.Server, once its stop is set up
+
+    def __call__(self, signum: int, frame: object) -> None:
+        self.received = signum
+        if self.server is not None:
+            self.server.handle_exit(signum, frame)
 
 
 def _force_exit() -> None:
@@ -204,21 +216,24 @@ def serve_command(args: argparse.Namespace) -> int:
         shown = f"[{host}]" if ":" in host else host
         scheme = "https" if args.tls_cert else "http"
         url = f"{scheme}://{shown}:{port}"
+        # uvicorn shuts down gracefully on SIGINT / SIGTERM (its handlers, while it runs), then raises the
+        # signal again: before and after, these handlers take it
+        signals = _StopSignals()
+        previous = {number: signal.signal(number, signals) for number in (signal.SIGINT, signal.SIGTERM)}
         print(
             f"lakegate: serving {args.lake.resolve()} at {url} (catalog {args.catalog}); "
             f"dashboard {url}/dashboard/; Ctrl-C stops",
             flush=True,
         )
-        # uvicorn shuts down gracefully on SIGINT / SIGTERM, then raises the signal again: both end here
-        previous = signal.signal(signal.SIGTERM, _interrupt)
         try:
             server = uvicorn.Server(config)
             _with_stop_deadline(server, backend, app.state.manager)
-            server.run(sockets=[sock])
-        except KeyboardInterrupt:
-            pass
+            signals.server = server
+            if signals.received is None:
+                server.run(sockets=[sock])
         finally:
-            signal.signal(signal.SIGTERM, previous)
+            for number, handler in previous.items():
+                signal.signal(number, handler)
         stuck = app.state.manager.working()
     finally:
         if stuck == 0:  # closing the engine under query work that still runs could crash the process

@@ -13,7 +13,7 @@ from urllib.parse import urlencode
 from fastapi import APIRouter, Request
 from fastapi.responses import HTMLResponse
 
-from lakegate.gateway.dashboard.routes import SERVED_NAV, DashboardState, dashboard_router
+from lakegate.gateway.dashboard.routes import SERVED_NAV, DashboardState, admission, dashboard_router
 from lakegate.gateway.metrics.figures_html import page_html, status_badge
 from lakegate.gateway.metrics.trends import BatchInfo, branch_batches
 
@@ -33,7 +33,7 @@ def landing_router(state: DashboardState) -> APIRouter:
     """The route of `/` over the dashboard's lake and engine."""
     router = APIRouter()
 
-    @router.get("/", include_in_schema=False)
+    @router.get("/", include_in_schema=False, dependencies=[admission(state)])
     def landing(request: Request) -> HTMLResponse:
         base = str(request.base_url).rstrip("/")
         return HTMLResponse(landing_html(state, base), headers={"Cache-Control": "no-cache"})

@@ -46,19 +46,20 @@ import re
 import secrets
 import threading
 from collections import OrderedDict
-from collections.abc import Sequence
+from collections.abc import AsyncIterator, Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Any
 from urllib.parse import quote, urlencode
 
-from fastapi import APIRouter, Body, HTTPException, Query, Request
+from fastapi import APIRouter, Body, Depends, HTTPException, Query, Request
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, RedirectResponse, Response
 
 from lakegate.dialect.errors import DialectError
 from lakegate.gateway.dashboard.compare_picker import compare_picker
 from lakegate.gateway.dashboard.config_edits import BranchConfig, SessionError
 from lakegate.gateway.dashboard.debug_session import DashboardSession
+from lakegate.gateway.dashboard.user_slots import UserSlots
 from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.failures import hide_paths
 from lakegate.gateway.metrics.alerts import HISTORY, K, alerts_html, trend_checks
@@ -107,6 +108,7 @@ class DashboardState:
         self._owns_engine = engine is None
         self.engine = engine if engine is not None else Engine.open(self.lake)
         self.evaluator = MetricsEngine(self.lake, self.engine)
+        self.slots = UserSlots(self.engine.limits.user_slots, self.engine.limits.query_timeout)
         self.catalog = Catalog(self.lake)
         self.sessions: OrderedDict[str, DashboardSession] = OrderedDict()
         self.owners: dict[str, str | None] = {}  # session id -> the user who opened it
@@ -344,9 +346,20 @@ def _without_paths(value: Any, lake: Path) -> Any:
     return value
 
 
+def admission(state: DashboardState) -> Any:
+    """The dependency of a route that runs queries: it holds one of its user's slots (user_slots.py)."""
+
+    async def admitted(request: Request) -> AsyncIterator[None]:
+        async with state.slots.held(_user(request)):
+            yield
+
+    return Depends(admitted)
+
+
 def dashboard_router(state: DashboardState) -> APIRouter:
     """The page and its API (see the module docstring), to mount on the gateway's app."""
     router = APIRouter(prefix="/dashboard")
+    queries = [admission(state)]
 
     def call(function: Any, *args: Any, **kwargs: Any) -> Any:
         try:
@@ -377,7 +390,7 @@ def dashboard_router(state: DashboardState) -> APIRouter:
     def trends_redirect() -> RedirectResponse:
         return RedirectResponse("/dashboard/trends/")
 
-    @router.get("/trends/", include_in_schema=False)
+    @router.get("/trends/", include_in_schema=False, dependencies=queries)
     def trends(
         branch: str | None = None,
         window: str | None = None,
@@ -398,7 +411,7 @@ def dashboard_router(state: DashboardState) -> APIRouter:
     def compare_redirect() -> RedirectResponse:
         return RedirectResponse("/dashboard/compare/")
 
-    @router.get("/compare/", include_in_schema=False)
+    @router.get("/compare/", include_in_schema=False, dependencies=queries)
     def compare(branch: str | None = None, batch: str | None = None, base: str | None = None) -> HTMLResponse:
         try:
             if branch is None:
@@ -408,11 +421,11 @@ def dashboard_router(state: DashboardState) -> APIRouter:
             return HTMLResponse(_error_page(str(error), "comparison"), status_code=400)
         return HTMLResponse(page, headers={"Cache-Control": "no-cache"})
 
-    @router.get("/api/lake")
+    @router.get("/api/lake", dependencies=queries)
     def lake() -> dict[str, Any]:
         return call(state.listing)
 
-    @router.post("/api/sessions")
+    @router.post("/api/sessions", dependencies=queries)
     def open_session(request: Request, body: dict[str, Any] = Body(...)) -> dict[str, Any]:
         session = call(
             state.open_batch,
@@ -423,19 +436,19 @@ def dashboard_router(state: DashboardState) -> APIRouter:
         )
         return call(state.view, session, body.get("job"))
 
-    @router.get("/api/sessions/{session_id}")
+    @router.get("/api/sessions/{session_id}", dependencies=queries)
     def session_state(request: Request, session_id: str, job: str | None = None) -> dict[str, Any]:
         session = state.session(session_id, _user(request))
         call(session.refresh)
         return call(state.view, session, job)
 
-    @router.post("/api/sessions/{session_id}/evaluate")
+    @router.post("/api/sessions/{session_id}/evaluate", dependencies=queries)
     def evaluate(request: Request, session_id: str, job: str | None = None) -> dict[str, Any]:
         session = state.session(session_id, _user(request))
         call(session.evaluate_all)
         return call(state.view, session, job)
 
-    @router.post("/api/sessions/{session_id}/metrics")
+    @router.post("/api/sessions/{session_id}/metrics", dependencies=queries)
     def add_metric(
         request: Request, session_id: str, body: dict[str, Any] = Body(...), job: str | None = None
     ) -> dict[str, Any]:
@@ -444,7 +457,7 @@ def dashboard_router(state: DashboardState) -> APIRouter:
         call(session.add_metric, str(body.get("name") or ""), spec)
         return call(state.view, session, job)
 
-    @router.put("/api/sessions/{session_id}/metrics/{name:path}")
+    @router.put("/api/sessions/{session_id}/metrics/{name:path}", dependencies=queries)
     def update_metric(
         request: Request, session_id: str, name: str, body: dict[str, Any] = Body(...), job: str | None = None
     ) -> dict[str, Any]:
@@ -452,7 +465,7 @@ def dashboard_router(state: DashboardState) -> APIRouter:
         call(session.update_metric, name, body)
         return call(state.view, session, job)
 
-    @router.delete("/api/sessions/{session_id}/metrics/{name:path}")
+    @router.delete("/api/sessions/{session_id}/metrics/{name:path}", dependencies=queries)
     def revert_metric(request: Request, session_id: str, name: str, job: str | None = None) -> dict[str, Any]:
         session = state.session(session_id, _user(request))
         call(session.revert_metric, name)
@@ -467,18 +480,18 @@ def dashboard_router(state: DashboardState) -> APIRouter:
             data, media_type="application/zip", headers={"Content-Disposition": attachment(f"{stem}-export.zip")}
         )
 
-    @router.get("/api/sessions/{session_id}/tables")
+    @router.get("/api/sessions/{session_id}/tables", dependencies=queries)
     def tables(request: Request, session_id: str, scope: str = "job", job: str | None = None) -> dict[str, Any]:
         session = state.session(session_id, _user(request))
         return {"tables": call(session.tables, call(session.scope, scope, job))}
 
-    @router.post("/api/sessions/{session_id}/query")
+    @router.post("/api/sessions/{session_id}/query", dependencies=queries)
     def query(request: Request, session_id: str, body: dict[str, Any] = Body(...)) -> JSONResponse:
         session = state.session(session_id, _user(request))
         scope = call(session.scope, str(body.get("scope", "job")), body.get("job"))
         return JSONResponse(call(session.query, str(body.get("sql", "")), scope))
 
-    @router.get("/api/sessions/{session_id}/events")
+    @router.get("/api/sessions/{session_id}/events", dependencies=queries)
     def events(request: Request, session_id: str, job: str) -> dict[str, Any]:
         session = state.session(session_id, _user(request))
         return {"events": call(session.events, job)}

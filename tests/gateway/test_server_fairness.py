@@ -218,3 +218,26 @@ def test_large_statement_texts_take_only_a_share_of_the_slots(start_server, monk
             requests.delete(f"{server.url}/v1/query/{d['id']}", timeout=30)
         for thread in clients:
             thread.join(timeout=30)
+
+
+def test_the_dashboard_leaves_another_users_client_a_slot(start_server, endless):
+    """The dashboard's queries hold their user's share of the slots too: two endless ad hoc queries
+    of the dashboard (one user) take one of the two slots, and a client's SELECT 1 runs in the other
+    while both still wait for their answers."""
+    server = start_server("--max-concurrent-queries", "2", "--query-timeout", "30")
+    api = f"{server.url}/dashboard/api/sessions"
+    session = requests.post(api, json={"branch": "main", "batch": "b1"}, timeout=60).json()
+    answered: list[float] = []
+
+    def dashboard_query() -> None:
+        requests.post(f"{api}/{session['id']}/query", json={"sql": endless, "scope": "batch"}, timeout=60)
+        answered.append(time.monotonic())
+
+    for _ in range(2):
+        threading.Thread(target=dashboard_query, daemon=True).start()
+    time.sleep(3)  # both sent: one runs, the other waits for the dashboard's share
+    done: list[dict] = []
+    select = threading.Thread(target=lambda: done.append(run(server, "SELECT 1", "bob")))
+    select.start()
+    select.join(timeout=25)  # before either endless query reaches its time limit (30 s)
+    assert [d.get("data") for d in done] == [[[1]]] and answered == []

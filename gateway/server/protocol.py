@@ -179,29 +179,39 @@ class Progress:
 
 
 def stats_document(progress: Progress) -> dict:
-    """QueryResults `stats` (clients read `state`; Superset shows completedSplits / totalSplits)."""
-    done = progress.state in ("FINISHED", "FAILED")
-    return {
+    """QueryResults `stats` as Trino fills them for a query of one split (clients read `state`;
+    Superset shows completedSplits / totalSplits): a queued query has no node and no split yet, and
+    only a finished one has a progress percentage."""
+    queued, finished = progress.state == "QUEUED", progress.state == "FINISHED"
+    stats = {
         "state": progress.state,
-        "queued": progress.state == "QUEUED",
-        "scheduled": progress.state != "QUEUED",
-        "nodes": 1,
-        "totalSplits": 1,
-        "queuedSplits": int(progress.state == "QUEUED"),
+        "queued": queued,
+        "scheduled": not queued,
+        "nodes": int(not queued),
+        "totalSplits": int(not queued),
+        "queuedSplits": 0,
         "runningSplits": int(progress.state == "RUNNING"),
-        "completedSplits": int(done),
+        "completedSplits": int(progress.state in ("FINISHED", "FAILED")),
+        "planningTimeMillis": 0,
+        "analysisTimeMillis": 0,
         "cpuTimeMillis": 0,
         "wallTimeMillis": progress.elapsed_ms,
         "queuedTimeMillis": progress.queued_ms,
         "elapsedTimeMillis": progress.elapsed_ms,
+        "finishingTimeMillis": 0,
+        "physicalInputTimeMillis": 0,
         "processedRows": progress.rows,
         "processedBytes": progress.bytes,
         "physicalInputBytes": 0,
+        "physicalWrittenBytes": 0,
+        "internalNetworkInputBytes": 0,
         "peakMemoryBytes": 0,
         "spilledBytes": 0,
-        "progressPercentage": 100.0 if done else None,
         "rootStage": None,
     }
+    if finished:
+        stats.update(progressPercentage=100.0, runningPercentage=0.0)
+    return stats
 
 
 def results_document(

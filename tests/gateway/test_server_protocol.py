@@ -16,6 +16,7 @@ from lakegate.gateway.engine.backend import DuckDBBackend
 from lakegate.gateway.engine.engine import Engine
 from lakegate.gateway.engine.limits import Limits
 from lakegate.gateway.server.app import create_app
+from lakegate.gateway.server.protocol import Progress, stats_document
 
 from .conftest import served_in_thread
 
@@ -155,6 +156,23 @@ def test_slow_queries_and_results_of_several_pages_get_a_next_uri(lake_server, e
     documents = client.run("SELECT x FROM UNNEST(sequence(1, 5000)) AS t(x)")  # more than one reply holds
     assert "data" not in documents[0] and len(documents) > 2 and client.requests == len(documents)
     assert sorted(row[0] for document in documents for row in document.get("data", [])) == list(range(1, 5001))
+
+
+#: The stats counters of a query of one split that clients show (Superset: completedSplits / totalSplits).
+COUNTERS = ("queued", "scheduled", "nodes", "totalSplits", "queuedSplits", "runningSplits", "completedSplits")
+
+
+def test_stats_are_filled_as_the_real_trino_fills_them(lake_server, trino_url):
+    server = SimpleNamespace(url=trino_url)
+    theirs, _ = run(server, "SELECT 1")
+    ours, _ = run(lake_server, "SELECT 1")
+    assert set(ours[-1]["stats"]) == set(theirs[-1]["stats"])  # the finished query's: every field Trino sends
+    assert [ours[-1]["stats"][name] for name in COUNTERS] == [theirs[-1]["stats"][name] for name in COUNTERS]
+    assert ours[-1]["stats"]["progressPercentage"] == theirs[-1]["stats"]["progressPercentage"] == 100.0
+    queued = theirs[0]["stats"]  # Trino's first answer: queued, no node, no split, no progress yet
+    assert queued["state"] == "QUEUED"
+    assert [queued[name] for name in COUNTERS] == [stats_document(Progress("QUEUED"))[name] for name in COUNTERS]
+    assert "progressPercentage" not in stats_document(Progress("QUEUED"))
 
 
 def test_values_and_type_signatures_are_encoded_as_trino_does(lake_server):

@@ -41,6 +41,7 @@ from lakegate.dialect.scope import Scope
 from lakegate.gateway.metrics.defaults import ALPHA, FLAKE_WINDOW
 from lakegate.gateway.metrics.evaluation import MetricsEngine
 from lakegate.gateway.metrics.flakes import Flake, find_flakes, flaky_experiences, has_results
+from lakegate.gateway.metrics.plotly_arrays import plain
 from lakegate.gateway.metrics.trends import branch_batches
 from lakegate.lake.template_kinds import kinds_where, series
 
@@ -280,10 +281,10 @@ def series_values(template: str, figure: dict) -> list:
     compared = series(template)
     for trace in figure.get("data", []):
         if compared == "states":
-            values += [trace.get("name")] * len(trace.get("y", []))
+            values += [trace.get("name")] * len(plain(trace.get("y", [])))
         else:
             key = "x" if compared == "x" else "y"
-            values += [v for v in trace.get(key, []) if isinstance(v, (int, float)) and not isinstance(v, bool)]
+            values += [v for v in plain(trace.get(key, [])) if isinstance(v, (int, float)) and not isinstance(v, bool)]
     return values
 
 

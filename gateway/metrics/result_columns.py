@@ -25,6 +25,8 @@ Numbers = list[int | float | None]
 #: Arrow types whose values `to_pylist` gives as Python ints, and as Python floats.
 _INTEGERS = (pa.int8(), pa.int16(), pa.int32(), pa.int64(), pa.uint8(), pa.uint16(), pa.uint32(), pa.uint64())
 _FLOATS = (pa.float32(), pa.float64())
+#: Trino types whose values are numbers of NumPy's kinds: floating, and integers.
+_ARRAY_TYPES = {"double": "f", "real": "f", "tinyint": "i", "smallint": "i", "integer": "i", "bigint": "i"}
 
 
 class TemplateError(ValueError):
@@ -63,6 +65,17 @@ def table_rows(rows: pa.Table | Sequence[tuple]) -> list[tuple]:
     if not isinstance(rows, pa.Table):
         return list(rows)
     return list(zip(*(column.to_pylist() for column in rows.columns)))
+
+
+def _numpy(column: pa.ChunkedArray) -> np.ndarray:
+    """A numeric column without NULLs as one NumPy array, read as its buffers lie (`to_numpy` imports pandas)."""
+    dtype = np.dtype(column.type.to_pandas_dtype())
+    parts = [
+        np.frombuffer(chunk.buffers()[1], dtype)[chunk.offset : chunk.offset + len(chunk)]
+        for chunk in column.chunks
+        if len(chunk)
+    ]
+    return parts[0] if len(parts) == 1 else np.concatenate(parts)
 
 
 def plural(count: int, word: str, plural_word: str | None = None) -> str:
@@ -162,6 +175,28 @@ class ResultColumns:
                 undrawable += 1
             drawn.append(value)
         return drawn, undrawable
+
+    def array(self, column: int) -> np.ndarray | None:
+        """The column as a NumPy array when it is of a Trino floating or integer type and every value is
+        a finite number (no NULL, NaN or infinity); None otherwise. Its values are the ones `numbers`
+        gives, whether the result came as Arrow or as rows."""
+        kind = _ARRAY_TYPES.get(self.types[column])
+        if kind is None or not self.count:
+            return None
+        if self._table is not None:
+            data = self._table.column(column)
+            if data.null_count or data.type not in (_FLOATS if kind == "f" else _INTEGERS):
+                return None
+            found = _numpy(data)
+        else:
+            values = self.values(column)
+            if not all(type(value) is (float if kind == "f" else int) for value in values):
+                return None
+            try:
+                found = np.array(values, np.float64 if kind == "f" else np.int64)
+            except OverflowError:
+                return None
+        return found if kind == "i" or np.isfinite(found).all() else None
 
     def codes(self, column: int) -> tuple[list, np.ndarray] | None:
         """The column's distinct values in order of first appearance (NULL as None) and each row's index

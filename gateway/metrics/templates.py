@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 import pyarrow as pa
 
+from lakegate.gateway.metrics.plotly_arrays import typed_array
 from lakegate.gateway.metrics.result_columns import NOT_A_NUMBER, ResultColumns, TemplateError, number, plural
 from lakegate.lake import template_kinds
 from lakegate.lake.storage import LOCAL
@@ -273,7 +274,7 @@ def _layout(x_title: str | None = None, y_title: str | None = None, **extra: Any
 
 
 #: The row indexes of one series: every row (a range), or some rows in order.
-Indexes = range | Sequence[int]
+Indexes = range | Sequence[int] | np.ndarray
 
 
 def _series(result: ResultColumns, column: int | None) -> dict[str, Indexes]:
@@ -295,14 +296,33 @@ def _series(result: ResultColumns, column: int | None) -> dict[str, Indexes]:
     of_rows = series_of[codes]
     order = np.argsort(of_rows, kind="stable")  # each series' rows, in row order
     bounds = np.cumsum(np.bincount(of_rows, minlength=len(numbers)))[:-1]
-    return {label: part.tolist() for label, part in zip(numbers, np.split(order, bounds))}
+    return dict(zip(numbers, np.split(order, bounds)))
 
 
-def _pick(values: list, indexes: Indexes) -> list:
-    """The values at `indexes`."""
-    if isinstance(indexes, range) and len(indexes) == len(values):
+#: A column of a chart: a list of values, or a NumPy array of finite numbers (`ResultColumns.array`).
+Plotted = list | np.ndarray
+
+
+def _pick(values: Plotted, indexes: Indexes) -> list | dict:
+    """The values at `indexes`, as a figure holds them: a typed array of an array's numbers
+    (`plotly_arrays`), a list otherwise."""
+    whole = isinstance(indexes, range) and len(indexes) == len(values)
+    if isinstance(values, np.ndarray):
+        picked = values if whole else values[np.asarray(indexes, np.intp)]
+        typed = typed_array(picked)
+        return typed if typed is not None else picked.tolist()
+    if whole:
         return list(values)
+    if isinstance(indexes, np.ndarray):
+        indexes = indexes.tolist()
     return list(map(values.__getitem__, indexes))
+
+
+def _plotted(result: ResultColumns, column: int, wanted: str) -> tuple[Plotted, list[str]]:
+    """A column of numbers to plot, and its problems (`ResultColumns.numbers`): as an array when every
+    value is a finite number."""
+    found = result.array(column)
+    return (found, []) if found is not None else result.numbers(column, wanted)
 
 
 def _labeller() -> Callable[[Any], str]:
@@ -352,11 +372,12 @@ def _link_meta(result: ResultColumns, groups: dict[str, Indexes]) -> dict:
 
 def _line(result: ResultColumns) -> Rendered:
     series, x, y = _chart_columns(result, two=False)
-    ys, problems = result.numbers(y, "numeric y values")
+    ys, problems = _plotted(result, y, "numeric y values")
     categorical = _is_text(result.types[x])  # ReSim draws text x values as categories
-    raw_x = result.values(x)
-    dates = not categorical and not result.is_numeric(x) and any(isinstance(v, dt.date) for v in raw_x)
-    xs: list[Any]
+    numeric = result.is_numeric(x)
+    raw_x = [] if numeric else result.values(x)
+    dates = not categorical and not numeric and any(isinstance(v, dt.date) for v in raw_x)
+    xs: Plotted
     if categorical:
         xs = raw_x
     elif dates:
@@ -365,7 +386,7 @@ def _line(result: ResultColumns) -> Rendered:
             if v is not None and not isinstance(v, dt.date):
                 raise result.bad_value(row_number, x, "numeric or timestamp x values")
     else:
-        xs, x_problems = result.numbers(x, "numeric or timestamp x values")
+        xs, x_problems = _plotted(result, x, "numeric or timestamp x values")
         problems += x_problems
     traces = []
     groups = _series(result, series)
@@ -621,7 +642,7 @@ def _histogram_columns(result: ResultColumns) -> tuple[int, int | None]:
 def _histogram(result: ResultColumns) -> Rendered:
     result.need_columns((1, 2), "[value], [value, series] or [group, value]")
     value_column, series_column = _histogram_columns(result)
-    values, problems = result.numbers(value_column, "numeric values")
+    values, problems = _plotted(result, value_column, "numeric values")
     with_series = series_column is not None
     groups = _series(result, series_column)
     traces = []
@@ -632,8 +653,9 @@ def _histogram(result: ResultColumns) -> Rendered:
         traces.append(trace)
     if with_series:
         _colour_statuses(traces, "marker")
-    counted = len(values) - values.count(None)
-    nulls = result.values(value_column).count(None)
+    listed = isinstance(values, list)  # else every value is a finite number
+    counted = len(values) - values.count(None) if listed else len(values)
+    nulls = result.values(value_column).count(None) if listed else 0
     if nulls:
         problems.append(f"{plural(nulls, 'NULL value')} not counted")
     return Rendered(

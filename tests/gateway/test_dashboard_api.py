@@ -26,6 +26,7 @@ from lakegate.gateway.dashboard.config_edits import FileConfig
 from lakegate.gateway.dashboard.debug_session import DashboardSession
 from lakegate.gateway.dashboard.routes import DashboardState, dashboard_router
 from lakegate.gateway.metrics.evaluation import MetricsEngine
+from lakegate.gateway.metrics.plotly_arrays import plain_figure
 from lakegate.gateway.server.app import create_app
 from lakegate.lake import paths
 from lakegate.lake.branch_configs import BranchConfigs
@@ -137,7 +138,7 @@ def test_every_metric_of_the_set_renders_with_its_template(served, nav_jobs, tmp
         assert metric["description"] == config.metrics[metric["name"]].description
         assert metric["query_string"] == config.metrics[metric["name"]].query_string
 
-    speed = _metric(state, "Robot Speed")["result"]["figure"]
+    speed = plain_figure(_metric(state, "Robot Speed")["result"]["figure"])
     odom = _rows(emissions, "odom_linear_velocity")
     assert len(speed["data"]) == 1 and len(speed["data"][0]["y"]) == len(odom)
     assert speed["data"][0]["y"][0] == pytest.approx((odom[0]["x"] ** 2 + odom[0]["y"] ** 2) ** 0.5)
@@ -158,7 +159,7 @@ def test_every_metric_of_the_set_renders_with_its_template(served, nav_jobs, tmp
     timeline = _metric(state, "Goal Status")["result"]["figure"]
     states = {row["state"] for row in _rows(emissions, "goal_status")}
     assert sorted(trace["name"] for trace in timeline["data"]) == sorted(states)
-    histogram = _metric(state, "Speed Distribution")["result"]["figure"]
+    histogram = plain_figure(_metric(state, "Speed Distribution")["result"]["figure"])
     assert len(histogram["data"][0]["x"]) == len(_rows(emissions, "robot_speed"))
     pie = _metric(state, "Job Outcomes")["result"]["figure"]["data"][0]
     assert pie["labels"] == ["PASSED"] and pie["values"] == [1]  # the session wrote its job's status first

@@ -103,8 +103,8 @@ def test_dashboard_in_a_real_browser(tmp_path: Path, nav_jobs, debug_processes) 
                     assert card.get_attribute("data-status") == "PASSED", name
                     if kind in CHARTS:
                         card.locator(".js-plotly-plot .main-svg").first.wait_for()
-                        points = card.locator(".js-plotly-plot").evaluate(
-                            "el => el.data.reduce((n, t) => n + (t.x || t.values || []).length, 0)"
+                        points = card.locator(".js-plotly-plot").evaluate(  # as drawn: typed arrays decoded
+                            "el => el._fullData.reduce((n, t) => n + (t.x || t.values || []).length, 0)"
                         )
                         assert points > 0, name
                     elif kind == "table":

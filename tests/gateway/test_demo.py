@@ -15,6 +15,7 @@ import yaml
 
 from lakegate.gateway.cli.demo import BATCH, BRANCH
 from lakegate.gateway.engine.backend import DuckDBBackend
+from lakegate.gateway.metrics.plotly_arrays import plain_figure
 from lakegate.gateway.metrics.results_table import read_results
 from lakegate.lake.catalog import Catalog
 
@@ -169,7 +170,7 @@ def check_trends(out: str, lake: Path) -> None:
         if len(times) == 3:
             totals.setdefault(metadata["build_version"], []).append(sum(times))
     html = (lake / "trends.html").read_text()
-    data = json.loads(html.split('Plotly.newPlot("lg-figure-2", ', 1)[1].split(", {", 1)[0])
+    data = plain_figure(json.loads(html.split('Plotly.newPlot("lg-figure-2", ', 1)[1].split(", {", 1)[0]))
     assert data[0]["x"] == ["1.4.0", "1.4.1", "1.4.2"]
     assert data[0]["y"] == pytest.approx([sum(totals[b]) / len(totals[b]) for b in data[0]["x"]], rel=1e-12)
     for batch in ("nightly-1.4.0", "nightly-1.4.1", BATCH):  # the link_path column links to the served batch page

@@ -25,6 +25,7 @@ from lakegate.gateway.metrics.evaluation import (
     select_metrics,
     worst,
 )
+from lakegate.gateway.metrics.plotly_arrays import plain_figure
 from lakegate.gateway.metrics.result_columns import result_table, table_rows
 from lakegate.gateway.metrics.results_table import read_results
 from lakegate.gateway.metrics.templates import render
@@ -185,7 +186,7 @@ def test_worst_and_conflated_status():
 def test_robot_speed_line(nav):
     for job_id, topics in nav.emissions.items():
         result = nav.result("Robot Speed", job_id)
-        (trace,) = result.rendered.figure["data"]
+        (trace,) = plain_figure(result.rendered.figure)["data"]
         assert trace["name"] == "Speed"
         expected = [(t / 1e9, math.sqrt(d["x"] ** 2 + d["y"] ** 2)) for t, d in topics["odom_linear_velocity"]]
         assert flat(zip(trace["x"], trace["y"])) == pytest.approx(flat(expected), rel=1e-12)
@@ -207,7 +208,7 @@ def test_distance_to_goal_line_has_one_series_per_goal(nav):
         series = defaultdict(list)
         for t, d in topics["goal_distance"]:
             series[d["goal_name"]].append((t / 1e9, d["distance_m"]))
-        traces = nav.result("Distance to Goal", job_id).rendered.figure["data"]
+        traces = plain_figure(nav.result("Distance to Goal", job_id).rendered.figure)["data"]
         assert {t["name"]: flat(zip(t["x"], t["y"])) for t in traces} == {
             name: pytest.approx(flat(points), rel=1e-12) for name, points in series.items()
         }

@@ -14,10 +14,13 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
+import pyarrow as pa
 import pytest
 
-from lakegate.gateway.metrics.figures_html import MIN_IMAGE_WIDTH
-from lakegate.gateway.metrics.templates import STATUS_COLOURS, format_number
+from lakegate.gateway.metrics.figures_html import MIN_IMAGE_WIDTH, report_html
+from lakegate.gateway.metrics.plotly_arrays import is_typed, plain_figure
+from lakegate.gateway.metrics.templates import STATUS_COLOURS, Rendered, format_number, render
 
 from .test_dashboard_browser import ARGS, CHROMIUM, _artifacts, _require_browser
 
@@ -342,3 +345,32 @@ def test_two_clicks_on_the_trends_chart_open_their_comparison(page, served, tmp_
     page.wait_for_selector(".js-plotly-plot .main-svg")
     assert page.locator("h1").inner_text() == "Compare nightly-1.4.0 -> nav-regression-1 on branch main"
     page.screenshot(path=str(_artifacts(tmp_path) / "compare-from-clicks.png"))
+
+
+#: What Plotly drew of every chart of a page: the paths of its traces and the text of its axes' ticks.
+DRAWN_JS = """() => [...document.querySelectorAll('.js-plotly-plot')].map(plot => [
+    [...plot.querySelectorAll('.scatterlayer path, .barlayer path')].map(path => path.getAttribute('d')),
+    [...plot.querySelectorAll('.xtick text, .ytick text')].map(tick => tick.textContent)])"""
+
+
+def test_charts_of_typed_arrays_draw_what_their_lists_draw(page, tmp_path):
+    """A stored figure's numbers are Plotly typed arrays (docs/lake-format.md): the page draws the same
+    lines and bars as from the same numbers written as lists."""
+    rng = np.random.default_rng(5)
+    line = pa.table({"s": ["a"] * 3000 + ["b"] * 2000, "t": np.arange(5000) / 7, "v": rng.standard_normal(5000)})
+    histogram = pa.table({"v": rng.gamma(2.0, 1.5, 8000), "n": rng.integers(-50, 50, 8000)})
+    shown = [
+        render("Speed", "line", [("s", "varchar"), ("t", "double"), ("v", "double")], line),
+        render("Speeds", "histogram", [("v", "double")], histogram.select(["v"])),
+        render("Steps", "histogram", [("n", "bigint")], histogram.select(["n"])),
+    ]
+    assert all(is_typed(trace["x"]) for rendered in shown for trace in rendered.figure["data"])
+    drawn = []
+    for name, figure_of in (("typed", lambda r: r.figure), ("lists", lambda r: plain_figure(r.figure))):
+        metrics = [(r.template, Rendered(template=r.template, figure=figure_of(r)), {}) for r in shown]
+        (tmp_path / f"{name}.html").write_text(report_html(name, [("charts", metrics)]))
+        page.goto((tmp_path / f"{name}.html").as_uri())
+        page.wait_for_function("() => document.querySelectorAll('.js-plotly-plot .main-svg').length >= 3")
+        drawn.append(page.evaluate(DRAWN_JS))
+    assert drawn[0] == drawn[1]
+    assert len(drawn[0]) == 3 and all(paths and ticks for paths, ticks in drawn[0])

@@ -19,6 +19,7 @@ import pytest
 from plotly.offline import get_plotlyjs
 
 from lakegate.gateway.metrics.figures_html import figure_html, file_size, report_html
+from lakegate.gateway.metrics.plotly_arrays import plain
 from lakegate.gateway.metrics.templates import (
     PALETTE,
     STATUS_COLOURS,
@@ -485,7 +486,7 @@ def test_histogram_with_and_without_series():
         "Speed", "histogram", [("v", "double"), ("goal", "varchar")], [(1.0, "b"), (2.0, "a"), (3.0, "b")]
     )
     check_figure(rendered.figure)
-    assert [(t["name"], t["x"]) for t in rendered.figure["data"]] == [("b", [1.0, 3.0]), ("a", [2.0])]
+    assert [(t["name"], plain(t["x"])) for t in rendered.figure["data"]] == [("b", [1.0, 3.0]), ("a", [2.0])]
 
 
 def test_histogram_takes_resims_group_name_first_shape():
@@ -719,7 +720,7 @@ def test_link_path_is_an_optional_last_column_of_bar_and_line():
     rows = [("1.4", 1, 2.0, "b1"), ("1.5", 1, 3.0, "b2"), ("1.4", 2, 4.0, "b3")]
     for template in ("bar", "line"):
         rendered = render("M", template, columns, rows)
-        assert [(t["name"], t["x"], t["y"]) for t in rendered.figure["data"]] == [
+        assert [(t["name"], plain(t["x"]), plain(t["y"])) for t in rendered.figure["data"]] == [
             ("1.4", [1, 2], [2.0, 4.0]),
             ("1.5", [1], [3.0]),
         ]

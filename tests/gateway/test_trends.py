@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from lakegate.fixtures.generate import CONFIG_PATH, generate_batch
+from lakegate.gateway.metrics.plotly_arrays import plain_figure
 from lakegate.gateway.metrics.trends import Window, batch_link
 from lakegate.lake.branch_configs import BranchConfigs
 from lakegate.lake.ingest import ingest_job
@@ -120,7 +121,7 @@ def test_dashboard_metrics_run_over_every_batch_and_show_the_trend_by_build(tren
     assert trend["status"] == "PASSED" and trend["type"] == "dashboard"
     expected = expected_means(emissions, list(BATCHES))
     assert len(expected) >= 2  # some builds have jobs with 3 goals: a real trend
-    line = trend["figure"]["data"][0]
+    line = plain_figure(trend["figure"])["data"][0]
     builds = [build for build, _ in BATCHES.values() if build in expected]  # ORDER BY MIN(m.time)
     assert line["x"] == builds
     assert line["y"] == pytest.approx([expected[build] for build in builds], rel=1e-12)
@@ -143,7 +144,7 @@ def test_a_window_keeps_the_last_batches_or_days(trends_lake, window, batches):
     lake, emissions = trends_lake
     output = dashboard_json(lake, "--window", window)
     assert [b["batch_id"] for b in output["batches"]] == batches
-    line = metric(output, "Time to Final Goal by Build")["figure"]["data"][0]
+    line = plain_figure(metric(output, "Time to Final Goal by Build")["figure"])["data"][0]
     expected = expected_means(emissions, batches)
     assert dict(zip(line["x"], line["y"])) == pytest.approx(expected, rel=1e-12)
     assert [row[0] for row in metric(output, "Batches by Build")["table"]["rows"]] == batches
@@ -277,7 +278,7 @@ def test_the_served_trends_page_of_a_branch(trends_lake, trends_server):
     assert '<a href="/dashboard/?branch=main&amp;batch=nightly-2">nightly-2</a>' in page
     assert "nightly-1" not in page
     expected = expected_means(emissions, ["nightly-2", "nightly-3"])
-    data = json.loads(page.split('Plotly.newPlot("lg-figure-2", ', 1)[1].split(", {", 1)[0])
+    data = plain_figure(json.loads(page.split('Plotly.newPlot("lg-figure-2", ', 1)[1].split(", {", 1)[0]))
     assert dict(zip(data[0]["x"], data[0]["y"])) == pytest.approx(expected, rel=1e-12)
     status, page = _get(f"{trends_server.url}/dashboard/trends/?branch=main&window=soon")
     assert status == 400 and "expected a window like" in page

@@ -91,7 +91,9 @@ def main(argv: list[str]) -> int:
         return lint()
     if command == "test":
         linted = lint()
-        workers = [] if any(a.startswith("-n") for a in rest) else ["-n", "2", "--dist", "worksteal"]
+        # two workers by default; worksteal unless another --dist is asked for (tests/conftest.py orders for it)
+        workers = [] if any(a.startswith("-n") for a in rest) else ["-n", "2"]
+        workers += [] if any(a.startswith(("--dist", "-d")) for a in rest) else ["--dist", "worksteal"]
         return _run([PY, "-m", "pytest", *workers, "--durations=30", *rest]) or linted  # the slowest, for the budget
     if command == "bench":
         names = sorted(p.stem for p in (ROOT / "bench").glob("*.py") if p.stem != "results")

@@ -2,7 +2,7 @@
 
 The references are `resim.metrics.python.emissions.Emitter` of PyPI `resim-open-core` 1.6.0 and
 `signalflag.sdk.metrics.emissions.Emitter` of PyPI `signalflag` 1.8.0, each installed into its own
-venv under bench/.work/ (created on first run). Each measurement runs in a fresh subprocess, ours
+venv (created on first run, kept per machine: results.VENVS). Each measurement runs in a fresh subprocess, ours
 and the references' alternating, all validating against fixtures/config.resim.yaml and writing to
 a file under bench/.work/; a rate is the median of RUNS runs and includes close().
 
@@ -22,7 +22,7 @@ import time
 import venv
 from pathlib import Path
 
-from results import parse_args, write_section  # bench/ is on sys.path when this file runs as a script
+from results import VENVS, parse_args, venv_lock, write_section  # bench/ is on sys.path when this file runs as a script
 
 ROOT = Path(__file__).resolve().parents[1]
 WORK = ROOT / "bench" / ".work"
@@ -52,8 +52,8 @@ PROFILE_NOTE = (
 )
 #: Each reference: its venv, the distribution pinned into it, and the module holding its Emitter.
 REFERENCES = {
-    "resim": (WORK / "ref-venv", "resim-open-core==1.6.0", "resim.metrics.python.emissions"),
-    "signalflag": (WORK / "signalflag-venv", "signalflag==1.8.0", "signalflag.sdk.metrics.emissions"),
+    "resim": (VENVS / "resim-open-core-1.6.0", "resim-open-core==1.6.0", "resim.metrics.python.emissions"),
+    "signalflag": (VENVS / "signalflag-1.8.0", "signalflag==1.8.0", "signalflag.sdk.metrics.emissions"),
 }
 IMPLS = ("ours", *REFERENCES)
 
@@ -68,14 +68,15 @@ def ensure_reference(impl: str) -> str:
     dist = requirement.split("==")[0]
     python = python_of(impl)
     probe = [python, "-c", f"from importlib.metadata import version; import {module}; print(version({dist!r}))"]
-    if Path(python).exists():
-        found = subprocess.run(probe, capture_output=True, text=True)
-        if found.returncode == 0 and found.stdout.strip() == requirement.split("==")[1]:
-            return found.stdout.strip()
-    print(f"installing {requirement} into {venv_dir} ...", file=sys.stderr, flush=True)
-    venv.EnvBuilder(with_pip=True, clear=True).create(venv_dir)
-    subprocess.run([python, "-m", "pip", "install", "-q", "--disable-pip-version-check", requirement], check=True)
-    return subprocess.run(probe, capture_output=True, text=True, check=True).stdout.strip()
+    with venv_lock(venv_dir):
+        if Path(python).exists():
+            found = subprocess.run(probe, capture_output=True, text=True)
+            if found.returncode == 0 and found.stdout.strip() == requirement.split("==")[1]:
+                return found.stdout.strip()
+        print(f"installing {requirement} into {venv_dir} ...", file=sys.stderr, flush=True)
+        venv.EnvBuilder(with_pip=True, clear=True).create(venv_dir)
+        subprocess.run([python, "-m", "pip", "install", "-q", "--disable-pip-version-check", requirement], check=True)
+        return subprocess.run(probe, capture_output=True, text=True, check=True).stdout.strip()
 
 
 def worker(impl: str, mode: str, count: int, out: Path) -> None:

@@ -3,11 +3,11 @@ protocol) over the same Parquet lake, through the same official trino client.
 
     python3 dev.py bench peer [--rows 10000000] [--select1 300] [--aggregates 5] [--rounds 3]
 
-buenavista is installed by this bench into its own venv (bench/.work/peer/venv: pip, from PyPI,
-`buenavista==0.5.0 "duckdb>=1,<2" pyarrow uvicorn`) and served as its `examples/duckdb_http.py`
-shows (`http.main.quacko` with that example's Trino-to-DuckDB rewriter), on an in-memory DuckDB
-(2 threads, as lakegate's) whose catalog `lake` holds the lake's own views (`Catalog.view_sql`)
-over the same Parquet files. One patch, to the bench's copy only: buenavista's
+buenavista is installed by this bench into its own venv (results.VENVS/buenavista-0.5.0, kept per
+machine: pip, from PyPI, `buenavista==0.5.0 "duckdb>=1,<2" pyarrow uvicorn`) and served as its
+`examples/duckdb_http.py` shows (`http.main.quacko` with that example's Trino-to-DuckDB rewriter), on
+an in-memory DuckDB (2 threads, as lakegate's) whose catalog `lake` holds the lake's own views
+(`Catalog.view_sql`) over the same Parquet files. One patch, to the bench's copy only: buenavista's
 `http/schemas.py` declares `QueryResult`'s optional fields without defaults, which pydantic 2
 treats as required, so every answer fails validation; the bench gives them `= None`.
 
@@ -35,7 +35,7 @@ from pathlib import Path
 import trino
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from results import parse_args, wait_serving, write_section  # noqa: E402
+from results import VENVS, parse_args, venv_lock, wait_serving, write_section  # noqa: E402
 from server import AGGREGATE, FETCH, THREADS, Server, client_rows, free_port  # noqa: E402
 from translate import build_lake  # noqa: E402
 
@@ -71,12 +71,16 @@ OPTIONAL_FIELDS = ("partial_cancel_uri", "columns", "data", "update_type", "upda
 
 
 def install_buenavista() -> Path:
-    """The Python of bench/.work/peer/venv with buenavista installed and patched (once)."""
-    venv = WORK / "venv"
-    python = venv / "bin" / "python"
-    ready = WORK / "READY"
-    if ready.exists():
-        return python
+    """The Python of the bench's buenavista venv, installed and patched once per machine."""
+    with venv_lock(VENVS / f"buenavista-{VERSION}") as venv:
+        python, ready = venv / "bin" / "python", venv / "READY"
+        if not ready.exists():
+            _install(venv, python, ready)
+    return python
+
+
+def _install(venv: Path, python: Path, ready: Path) -> None:
+    """Create `venv` afresh, install PACKAGES into it, patch buenavista, then write `ready` (pip freeze)."""
     subprocess.run([sys.executable, "-m", "venv", "--clear", str(venv)], check=True)
     subprocess.run([str(python), "-m", "pip", "install", "-q", *PACKAGES], check=True)
     site = subprocess.check_output(
@@ -91,7 +95,6 @@ def install_buenavista() -> Path:
             text = text[:end] + " = None" + text[end:]
     schemas.write_text(text)
     ready.write_text(subprocess.check_output([str(python), "-m", "pip", "freeze"], text=True))
-    return python
 
 
 class Buenavista(Server):
@@ -180,7 +183,7 @@ def main(argv: list[str] | None = None) -> None:
             f"| {workload} (n={count}) | {' | '.join(cells)} | {ratio:.2f}x | "
             f"{'lakegate' if ratio > 1 else 'buenavista'} |"
         )
-    versions = (WORK / "READY").read_text().split()
+    versions = (python.parent.parent / "READY").read_text().split()
     peer_versions = ", ".join(
         v for v in versions if v.split("==")[0].lower() in {"buenavista", "duckdb", "fastapi", "pydantic", "uvicorn"}
     )

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import fcntl
 import json
 import os
 import platform
@@ -12,11 +14,17 @@ import subprocess
 import sys
 import time
 import urllib.request
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from importlib import metadata
 from pathlib import Path
 
 RESULTS = Path(__file__).resolve().parent / "RESULTS.md"
+#: The venvs of the implementations the benches compare with, installed once per machine (as the real
+#: Trino is), not per checkout: a fresh clone's smoke runs reuse them. `$LAKEGATE_BENCH_VENVS` moves them.
+VENVS = Path(
+    os.environ.get("LAKEGATE_BENCH_VENVS")
+    or Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "lakegate" / "bench-venvs"
+)
 #: Set by `parse_args(--smoke)`: tiny sizes, figures printed, RESULTS.md left alone.
 _smoke = False
 #: The load average when the bench started (its module was imported), stated beside the one at the end.
@@ -44,6 +52,16 @@ def machine() -> str:
         except metadata.PackageNotFoundError:
             pass
     return f"{cpu}, {os.cpu_count()} cores; Python {platform.python_version()}; " + ", ".join(versions)
+
+
+@contextlib.contextmanager
+def venv_lock(venv: Path) -> Iterator[Path]:
+    """Held while the venv `venv` (a folder of VENVS) is checked and, if need be, built: two runs at once
+    (two checkouts) build it once, and neither uses it half built."""
+    venv.parent.mkdir(parents=True, exist_ok=True)
+    with open(venv.parent / f"{venv.name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        yield venv
 
 
 def median_of(runs: int, fn: Callable[[], float]) -> tuple[float, list[float]]:

@@ -301,7 +301,7 @@ MAX_MODULE_LINES = 800
 
 def _scripts(*folders: str) -> list[str]:
     """The Python files under `folders` (paths relative to the repository), skipping hidden folders
-    (bench/.work holds the benches' venvs)."""
+    (bench/.work holds the benches' lakes)."""
     return sorted(
         str(p.relative_to(ROOT))
         for folder in folders

@@ -72,3 +72,15 @@ def test_the_readme_commands_and_ci_use_these_commands():
     ci = (ROOT / ".ci" / "run").read_text()
     assert "python3 dev.py trino start" in ci and "python3 dev.py test" in ci
     assert ci.index("python3 dev.py install") < ci.index("python3 dev.py trino start")
+
+
+def test_the_suite_runs_on_two_workers_that_steal_work_unless_told_otherwise(dev):
+    def pytest_args(*args: str) -> list[str]:
+        dev.calls.clear()
+        assert dev.main(["test", *args]) == 0
+        [call] = [call[3:] for call in dev.calls if call[1:3] == ["-m", "pytest"]]
+        return call
+
+    assert pytest_args()[:4] == ["-n", "2", "--dist", "worksteal"]
+    assert pytest_args("-n", "3")[:2] == ["--dist", "worksteal"]  # tests/conftest.py orders for worksteal
+    assert "worksteal" not in pytest_args("-n", "3", "--dist", "load")

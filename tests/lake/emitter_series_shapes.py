@@ -2,7 +2,8 @@
 
 Standard library only, so that the venvs of the references (bench/emit.py) can run it:
 
-    bench/.work/ref-venv/bin/python tests/lake/emitter_series_shapes.py resim.metrics.python.emissions OUT
+    ~/.cache/lakegate/bench-venvs/resim-open-core-1.6.0/bin/python \
+        tests/lake/emitter_series_shapes.py resim.metrics.python.emissions OUT
 
 writes the emissions of every shape (emit_series calls, validated against CONFIG) to OUT.
 fixtures/emitter_series_shapes.jsonl.gz is that file (gzipped) as resim-open-core 1.6.0 and signalflag 1.8.0

@@ -9,7 +9,7 @@ from typing import NoReturn
 
 from sqlglot import exp
 
-from lakegate.dialect import registry, zoned_nanos, zones
+from lakegate.dialect import registry, wide_timestamps, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analysis_checks import CHAR_TYPE, MICROS_READERS, Checks, check_char_use
 from lakegate.dialect.errors import DialectError
@@ -104,11 +104,7 @@ class Analyzer(Relations, StarExpansion, Checks):
         if handler is None:
             self.unsupported(trino_name(node), node)
         t = handler(self, node, scope, env)
-        zoned_nanos.check_use(self, node, t)
-        if zoned_nanos.is_zoned_nanos(t) and not zoned_nanos.produces(node):
-            self.unsupported(
-                f"{t} (lakegate keeps zoned timestamps in microseconds, past them only from_unixtime_nanos)", node
-            )
+        wide_timestamps.check_use(self, node, MICROS_READERS)
         if t.base == "timestamp" and t.args[0] > 9:
             self.unsupported(f"{t} (lakegate keeps nanoseconds at most; digits past them would be dropped)", node)
         self._check_nanosecond_use(node)

@@ -11,7 +11,7 @@ from lakegate.dialect import chars, registry
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.transforms import DuckCast
 from lakegate.dialect.trino_types import TType
-from lakegate.dialect.type_rules import ttype
+from lakegate.dialect.type_rules import ShownWide, ttype
 
 
 # --- final shape ---------------------------------------------------------------------------------
@@ -63,7 +63,12 @@ def _cast_outputs(tree: exp.Expression, types: list[TType], top: bool) -> None:
 def _wrap(item: exp.Alias, t: TType) -> None:
     duck = tt.duckdb_type(t)
     inner = item.this
-    if duck is None or isinstance(inner, DuckCast):
+    if duck is None or isinstance(inner, (DuckCast, ShownWide)):
+        return
+    if duck == tt.WIDE_TIMESTAMP_TZ:
+        shown = ShownWide(this=inner)
+        shown.meta["t"] = t
+        item.set("this", shown)
         return
     wrapped = DuckCast(this=inner, to=duck)
     wrapped.meta["t"] = t

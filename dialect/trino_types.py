@@ -408,12 +408,16 @@ _DUCK = {
 }
 
 
+#: The DuckDB type of a timestamp(7..12) with time zone (dialect/wide_timestamps.py).
+WIDE_TIMESTAMP_TZ = 'STRUCT("us" TIMESTAMPTZ, "ps" INTEGER)'
+
+
 def duckdb_type(t: TType) -> str | None:
     """The DuckDB type holding values of Trino type `t`; None for `unknown` (NULL) and rows with
     unnamed fields, which DuckDB cannot name in a CAST."""
     base = t.base
     if base == "timestamp_tz" and t.args[0] > 6:
-        return "TIMESTAMP_NS"  # its UTC instant (dialect/zoned_nanos.py)
+        return WIDE_TIMESTAMP_TZ
     if base == "time_tz":
         return zoned_times.DUCKDB_TYPE
     if base in _DUCK:

@@ -7,11 +7,12 @@ from __future__ import annotations
 
 from sqlglot import exp
 
-from lakegate.dialect import chars, registry, times, zoned_nanos, zoned_times, zones
+from lakegate.dialect import chars, registry, times, zoned_times, zones
 from lakegate.dialect import trino_types as tt
+from lakegate.dialect import wide_timestamps as wide
 from lakegate.dialect.transforms import Writer, cast, quote, string, transform
 from lakegate.dialect.trino_types import TType
-from lakegate.dialect.type_rules import FloorMicros, ttype
+from lakegate.dialect.type_rules import FloorMicros, ShownWide, ttype
 
 RANGES = {
     "tinyint": (-(2**7), 2**7 - 1),
@@ -37,6 +38,8 @@ def cast_operand(g: Writer, node: exp.Cast) -> tuple[str, TType]:
     local = node.meta.get("local")
     if local is None:
         return g.sql(node.this), node.meta["from"]
+    if wide.is_wide(ttype(node)):
+        return wide_literal(g, local, ttype(node)), ttype(node)
     wall = tt.timestamp(ttype(node).args[0])
     return parse_varchar(g, string(local), wall), wall
 
@@ -135,11 +138,8 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
         return sql
     if source.is_unknown:
         return cast("NULL", target)
-    if zoned_nanos.is_zoned_nanos(source):  # to timestamp, date or varchar (zoned_nanos.check_use)
-        wall = zoned_nanos.wall_time(sql, tt.zone_of(source))
-        if target.base == "varchar":
-            return varchar_of(g, wall, tt.timestamp(9)) + f" || {string(' ' + tt.zone_of(source))}"
-        return cast_value(g, wall, tt.timestamp(9), target)
+    if target.base in ("timestamp", "timestamp_tz", "date") and (wide.is_wide(source) or wide.is_wide(target)):
+        return wide_cast(g, sql, source, target)
     if target.base == "char":  # truncated or padded with spaces: the padded text the client gets
         return chars.pad(sql, target.args[0])
     if target.base == "json":
@@ -212,6 +212,42 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
             present.append(f"{value} IS NOT NULL")
         return row_whole_in_try(g, present, f"struct_pack({', '.join(fields)})", target)
     return cast(sql, target)
+
+
+def wide_cast(g: Writer, sql: str, source: TType, target: TType) -> str:
+    """CAST from or to timestamp(7..12) with time zone (wide_timestamps.py), other than to varchar:
+    rounded HALF_UP where the target holds fewer digits; a timestamp or date is a wall time in the
+    target's zone, and the wall time in the value's zone is its timestamp or date."""
+    if target.base == "timestamp_tz":
+        if source.base == "timestamp" and source.args[0] <= 6 or source.base == "date":
+            source, sql = tt.timestamp(6), cast(sql, tt.timestamp(6))
+        value = wide.coerce(sql, source, tt.zone_of(target))
+        return wide.round_to(value, target.args[0], max(source.args[0], 7) if source.base != "date" else 7)
+    wall = zones.local(wide.micros(sql), tt.zone_of(source))
+    if target.base == "date":
+        return f"CAST({wall} AS DATE)"
+    precision = target.args[0]
+    if precision > 6:  # timestamp(7..9): the picoseconds rounded to its digits, a carry moving the microsecond
+        unit = 10 ** (12 - precision)
+        nanos = f"(({wide.picos(sql)} + {unit // 2}) // {unit} * {unit} // 1000)"
+        return f"make_timestamp_ns(epoch_us({as_nanoseconds(g, wall)}) * 1000 + {nanos})"
+    return zones.local(wide.round_to(sql, precision, source.args[0]), tt.zone_of(source))
+
+
+def wide_literal(g: Writer, local: str, target: TType) -> str:
+    """A text literal's wall time (`local`, its zone stripped) as a timestamp(7..12) with time zone: the
+    seconds read as a timestamp, the fraction's digits rounded HALF_UP to the target's precision."""
+    value = wide.constant(local, target.args[0], tt.zone_of(target))
+    if value is not None:
+        return value
+    seconds, dot, digits = local.rpartition(".")
+    if not dot or not digits.isdigit() or len(digits) > 12:
+        seconds, digits = local, ""
+    unit = 10 ** (12 - target.args[0])
+    fraction = (int(digits.ljust(12, "0") or 0) + unit // 2) // unit * unit
+    wall = parse_varchar(g, string(seconds), tt.timestamp(0))
+    micros, picos = divmod(fraction, wide.PICOS_PER_MICRO)
+    return wide.of_wall(f"({wall} + to_microseconds({micros}))", str(picos), tt.zone_of(target))
 
 
 def _zoned_time(g: Writer, sql: str, source: TType, target: TType) -> str:
@@ -418,6 +454,10 @@ def varchar_of(g: Writer, sql: str, source: TType) -> str:
         return times.text(sql, source.args[0])
     if source.base == "time_tz":
         return zoned_times.text(sql, source.args[0])
+    if wide.is_wide(source):
+        zone, precision = tt.zone_of(source), source.args[0]
+        wall = timestamp_text(zones.local(wide.micros(sql), zone), 6)
+        return f"{wall} || {wide.fraction_digits(sql, precision)} || {string(' ' + zone)}"
     if source.base == "timestamp_tz":
         zone = tt.zone_of(source)
         return timestamp_text(zones.local(sql, zone), source.args[0]) + f" || {string(' ' + zone)}"
@@ -578,6 +618,16 @@ def _shortest_exponent(text: str) -> str:
     return f"({power} + CASE WHEN length({whole}) > 0 THEN length({whole}) - 1 ELSE -{leading} - 1 END)"
 
 
+@transform(ShownWide)
+def shown_wide(g: Writer, node: ShownWide) -> str:
+    """The value with its wall time (wide_timestamps.shown): the struct orders as the value where ORDER
+    BY names the result column."""
+    t = ttype(node)
+    return wide.shown(g.coerce(node.this, t), tt.zone_of(t))
+
+
 @transform(FloorMicros)
 def floored_micros(g: Writer, node: FloorMicros) -> str:
+    if wide.is_wide(ttype(node.this)):
+        return wide.micros(g.sql(node.this))
     return floor_micros(g.sql(node.this))

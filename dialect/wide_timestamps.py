@@ -1,0 +1,221 @@
+"""Trino's timestamp(p) with time zone for p = 7..12 in DuckDB, exactly: a STRUCT of the instant floored
+to the microsecond and the picoseconds of that microsecond.
+
+Trino holds such a value as a LongTimestampWithTimeZone (epoch milliseconds, picoseconds of the
+millisecond, zone). lakegate holds `STRUCT(us TIMESTAMPTZ, ps INTEGER)`: `us` the instant floored to the
+microsecond, a TIMESTAMPTZ as every timestamp(p <= 6) with time zone (so each zone-dependent operation of
+those applies to it unchanged: dialect/zones.py), and `ps` the picoseconds below it (0 .. 999,999, a
+multiple of 10^(12 - p)). The zone is static, in the expression's Trino type, as for every zoned
+timestamp. DuckDB compares and orders structs field by field, so =, <, BETWEEN, ORDER BY, GROUP BY,
+DISTINCT, min and max are Trino's on the instant. Trino's date and time functions read the microseconds
+of such a value (LongTimestampWithTimeZone's epoch micros, floored): the analysis gives them `us`
+(type_rules.FloorMicros). Casts round HALF_UP, ties toward the later instant (Timestamps.round). The
+helpers return DuckDB SQL text from DuckDB SQL text.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import re
+from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
+
+from sqlglot import exp
+
+from lakegate.dialect import zones
+from lakegate.dialect.guard import trino_name
+from lakegate.dialect.trino_types import WIDE_TIMESTAMP_TZ, TType
+from lakegate.dialect.type_rules import COMPARISONS, Analysis, FloorMicros
+
+PICOS_PER_MICRO = 1_000_000
+MAX_PRECISION = 12
+
+#: The DuckDB type holding a timestamp(7..12) with time zone.
+DUCKDB_TYPE = WIDE_TIMESTAMP_TZ
+
+
+def is_wide(t: TType | None) -> bool:
+    """Whether `t` is a timestamp(7..12) with time zone."""
+    return t is not None and t.base == "timestamp_tz" and t.args[0] > 6
+
+
+def make(micros_sql: str, picos_sql: str) -> str:
+    """The value of an instant (TIMESTAMPTZ) floored to the microsecond and the picoseconds below it;
+    NULL when the instant is NULL."""
+    if micros_sql.startswith("TIMESTAMPTZ '"):  # a constant
+        return f'struct_pack("us" := {micros_sql}, "ps" := CAST({picos_sql} AS INTEGER))'
+    return (
+        f"CASE WHEN ({micros_sql}) IS NOT NULL THEN struct_pack("
+        f'"us" := CAST({micros_sql} AS TIMESTAMPTZ), "ps" := CAST({picos_sql} AS INTEGER)) END'
+    )
+
+
+def shown(sql: str, zone: str) -> str:
+    """A result value: its instant and picoseconds (ordered as the value), its wall time in `zone` in
+    epoch microseconds and the zone's name, which gateway/engine/trino_values.py writes as Trino's text."""
+    wall = f"epoch_us({zones.local(micros(sql), zone)})"
+    return (
+        f'CASE WHEN ({sql}) IS NOT NULL THEN struct_pack("us" := {micros(sql)}, "ps" := {picos(sql)}, '
+        f'"wall" := {wall}, "zone" := \'{zone}\') END'
+    )
+
+
+def micros(sql: str) -> str:
+    """The instant floored to the microsecond (TIMESTAMPTZ): what Trino's functions read."""
+    return f"struct_extract({sql}, 'us')"
+
+
+def picos(sql: str) -> str:
+    """The picoseconds below the microsecond (0 .. 999,999)."""
+    return f"struct_extract({sql}, 'ps')"
+
+
+def widen(sql: str) -> str:
+    """A timestamp(p <= 6) with time zone (TIMESTAMPTZ) as a wide value."""
+    return make(sql, "0")
+
+
+def of_wall_nanos(sql: str, zone: str) -> str:
+    """The value of a timestamp(7..9) (TIMESTAMP_NS) read as a wall time in `zone`."""
+    nanos = f"epoch_ns({sql})"
+    floored = f"(({nanos}) - ((({nanos}) % 1000) + 1000) % 1000) // 1000"
+    return of_wall(f"make_timestamp({floored})", f"((({nanos}) % 1000) + 1000) % 1000 * 1000", zone)
+
+
+def coerce(sql: str, source: TType, zone: str) -> str:
+    """A value of `source` as a wide value: a wide one unchanged (its precision is the struct's), a
+    timestamp(p <= 6) with time zone with no picoseconds, a timestamp or date read as a wall time in
+    `zone` (the session zone, as Trino's implicit coercion)."""
+    if is_wide(source):
+        return sql
+    if source.base == "timestamp_tz":
+        return widen(sql)
+    if source.base == "timestamp" and source.args[0] > 6:
+        return of_wall_nanos(sql, zone)
+    return of_wall(sql, "0", zone)
+
+
+def of_nanoseconds(nanos_sql: str) -> str:
+    """The value of whole nanoseconds since the epoch (BIGINT)."""
+    floored = f"(({nanos_sql}) - ((({nanos_sql}) % 1000) + 1000) % 1000)"
+    return make(f"make_timestamp({floored} // 1000)", f"((({nanos_sql}) % 1000) + 1000) % 1000 * 1000")
+
+
+def round_to(sql: str, precision: int, source: int) -> str:
+    """CAST to timestamp(precision) with time zone: the picoseconds rounded HALF_UP to `precision` digits,
+    a carry moving the microsecond (TimestampWithTimeZoneToTimestampWithTimeZoneCast); for precision <= 6
+    the TIMESTAMPTZ of the rounded instant (the picoseconds then decide only a tie at the microsecond)."""
+    if precision >= source:
+        return sql
+    if precision >= 6:
+        unit = 10 ** (12 - precision)
+        rounded = f"(({picos(sql)} + {unit // 2}) // {unit} * {unit})"
+        carry = f"({rounded} // {PICOS_PER_MICRO})"
+        moved = f"({micros(sql)} + to_microseconds({carry}))"
+        if precision == 6:
+            return moved
+        return make(moved, f"{rounded} % {PICOS_PER_MICRO}")
+    # below microseconds a unit is a whole number of microseconds, and half of it too: the
+    # picoseconds never move the rounded value
+    unit = 10 ** (6 - precision)
+    epoch = f"epoch_us({micros(sql)})"
+    shifted = f"(({epoch}) + {unit // 2})"
+    return f"CAST(make_timestamp({shifted} - ({shifted} % {unit} + {unit}) % {unit}) AS TIMESTAMPTZ)"
+
+
+def fraction_digits(sql: str, precision: int) -> str:
+    """The 7th to `precision`th fraction digits of a value, as text."""
+    return f"left(lpad(CAST({picos(sql)} AS VARCHAR), 6, '0'), {precision - 6})"
+
+
+def to_unixtime(sql: str) -> str:
+    """to_unixtime: epoch milliseconds / 1000.0 + picoseconds of the millisecond / 1e12, in doubles
+    (DateTimeFunctions.toUnixTime of a LongTimestampWithTimeZone)."""
+    us = f"epoch_us({micros(sql)})"
+    millis = f"(({us}) - ((({us}) % 1000) + 1000) % 1000) // 1000"
+    below = f"(((({us}) % 1000) + 1000) % 1000 * {PICOS_PER_MICRO} + {picos(sql)})"
+    return f"(CAST({millis} AS DOUBLE) / 1000.0 + CAST({below} AS DOUBLE) / 1e12)"
+
+
+#: A wall time as Trino's timestamp literals write it (years 1..9999 here; others are read in SQL).
+_WALL = re.compile(
+    r"([0-9]{4})-([0-9]{1,2})-([0-9]{1,2})(?: ([0-9]{1,2}):([0-9]{1,2})(?::([0-9]{1,2})(?:[.]([0-9]{1,12}))?)?)?"
+)
+
+
+def constant(local: str, precision: int, zone: str) -> str | None:
+    """DuckDB SQL of the value a literal's wall time `local` names in `zone`, rounded HALF_UP to
+    `precision` digits, computed here (java.time's reading: a wall time in a gap moves forward by the
+    gap, one in an overlap is the earlier instant, as Python's fold=0); None when Python cannot read it."""
+    match = _WALL.fullmatch(local.strip())
+    if match is None:
+        return None
+    digits = match[7] or ""
+    unit = 10 ** (12 - precision)
+    fraction = (int(digits.ljust(12, "0") or 0) + unit // 2) // unit * unit
+    try:
+        wall = dt.datetime(*(int(part or 0) for part in match.groups()[:6]))
+        tzinfo = dt.UTC if zone == zones.UTC else _offset(zone) if zones.is_offset(zone) else ZoneInfo(zone)
+        moved = dt.timedelta(microseconds=fraction // PICOS_PER_MICRO)
+        instant = wall.replace(tzinfo=tzinfo).astimezone(dt.UTC) + moved
+    except (ValueError, OverflowError, ZoneInfoNotFoundError):
+        return None
+    text = instant.strftime("%Y-%m-%d %H:%M:%S.%f")
+    return make(f"TIMESTAMPTZ '{text}+00'", str(fraction % PICOS_PER_MICRO))
+
+
+def _offset(zone: str) -> dt.timezone:
+    minutes = int(zone[1:3]) * 60 + int(zone[4:6])
+    return dt.timezone(dt.timedelta(minutes=-minutes if zone[0] == "-" else minutes))
+
+
+def of_wall(wall_micros_sql: str, picos_sql: str, zone: str) -> str:
+    """The value of a wall time in `zone` (TIMESTAMP floored to the microsecond, and picoseconds)."""
+    return make(zones.instant(f"CAST({wall_micros_sql} AS TIMESTAMP)", zone), picos_sql)
+
+
+#: The functions written for such operands besides those that read their microseconds
+#: (analysis_checks.MICROS_READERS).
+FUNCTIONS = frozenset(
+    "min max count arbitrary any_value coalesce typeof to_unixtime from_unixtime_nanos at_timezone".split()
+)
+#: The expressions written for such operands (functions: only FUNCTIONS and the readers).
+OPERATIONS = (
+    exp.Cast,
+    exp.TryCast,
+    *COMPARISONS,
+    exp.Between,
+    exp.In,
+    exp.Is,
+    exp.Case,
+    exp.If,
+    exp.Add,
+    exp.Sub,
+    exp.Paren,
+    exp.Alias,
+    exp.Column,
+    exp.Ordered,
+    exp.Window,
+    exp.Filter,
+    exp.Extract,
+    exp.AtTimeZone,
+    exp.Distinct,
+    exp.Subquery,
+    FloorMicros,
+)
+
+
+def check_use(analyzer: Analysis, node: exp.Expression, readers: frozenset[str]) -> None:
+    """Refuse `node` when it takes a timestamp(7..12) with time zone operand in a way not written for it
+    (NOT_SUPPORTED naming the construct); `readers` are the functions that read its microseconds."""
+    if isinstance(node, OPERATIONS):
+        return
+    if isinstance(node, exp.Anonymous) and node.name.lower() in FUNCTIONS | readers:
+        return
+    for child in node.iter_expressions():
+        t = child.meta.get("t") if child._meta else None
+        if is_wide(t):
+            analyzer.unsupported(
+                f"{trino_name(node)} of {t} (lakegate translates casts, comparisons, ordering, min, max, "
+                "interval arithmetic, AT TIME ZONE and the date and time functions for p > 6)",
+                node,
+            )

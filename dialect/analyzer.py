@@ -105,8 +105,6 @@ class Analyzer(Relations, StarExpansion, Checks):
             self.unsupported(trino_name(node), node)
         t = handler(self, node, scope, env)
         wide_timestamps.check_use(self, node, MICROS_READERS)
-        if t.base == "timestamp" and t.args[0] > 9:
-            self.unsupported(f"{t} (lakegate keeps nanoseconds at most; digits past them would be dropped)", node)
         self._check_nanosecond_use(node)
         self.check_time_tz_use(node, t)
         check_char_use(self, node)

@@ -42,6 +42,9 @@ def _cast(a: Analyzer, node, scope, env):
                 target = tt.decimal_literal_type(text)
             except ValueError:
                 a.fail(f"'{text}' is not a valid decimal literal", node, "INVALID_LITERAL")
+        if target.base in ("timestamp", "timestamp_tz") and target.args[0] > 12:
+            name = "TIMESTAMP WITH TIME ZONE" if target.base == "timestamp_tz" else "TIMESTAMP"
+            a.fail(f"{name} precision must be in range [0, 12]: {target.args[0]}", node, "NUMERIC_VALUE_OUT_OF_RANGE")
         elif target.base == "timestamp" and re.search(
             r"[0-9]:[0-9]{2}(:[0-9]{2}([.][0-9]*)?)?\s*([A-Za-z]|[+-][0-9])", text
         ):

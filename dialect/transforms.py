@@ -106,7 +106,8 @@ class Writer(DuckDBGenerator):
         if target.base == "char":  # from char or varchar (chars.py)
             return chars.pad(sql, target.args[0])
         if wide_timestamps.is_wide(target):
-            return wide_timestamps.coerce(sql, source, self.time_zone)  # a timestamp read in the session zone
+            zoned = target.base == "timestamp_tz"  # a timestamp read in the session zone
+            return wide_timestamps.coerce(sql, source, self.time_zone, zoned)
         if target.base == "timestamp_tz" and source.base in ("timestamp", "date"):  # in the session zone
             return zones.instant(f"CAST({sql} AS TIMESTAMP)", self.time_zone)
         if self.time_zone != zones.UTC and _inside(target, "timestamp_tz") and _inside(source, "date", "timestamp"):
@@ -271,7 +272,7 @@ def registered_function(g: Writer, node: exp.Anonymous) -> str:
     finally:
         node.meta["t"] = t
     kept = wide_timestamps.picos(g.sql(floored)) if node.name.lower() == "date_add" else "0"
-    return wide_timestamps.make(sql, kept)
+    return wide_timestamps.make(sql, kept, zoned=t.base == "timestamp_tz")
 
 
 @transform(exp.Filter)

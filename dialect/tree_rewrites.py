@@ -65,7 +65,7 @@ def _wrap(item: exp.Alias, t: TType) -> None:
     inner = item.this
     if duck is None or isinstance(inner, (DuckCast, ShownWide)):
         return
-    if duck == tt.WIDE_TIMESTAMP_TZ:
+    if duck in (tt.WIDE_TIMESTAMP_TZ, tt.WIDE_TIMESTAMP):
         shown = ShownWide(this=inner)
         shown.meta["t"] = t
         item.set("this", shown)

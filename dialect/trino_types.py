@@ -408,8 +408,9 @@ _DUCK = {
 }
 
 
-#: The DuckDB type of a timestamp(7..12) with time zone (dialect/wide_timestamps.py).
+#: The DuckDB types of a timestamp(7..12) with time zone and a timestamp(10..12) (dialect/wide_timestamps.py).
 WIDE_TIMESTAMP_TZ = 'STRUCT("us" TIMESTAMPTZ, "ps" INTEGER)'
+WIDE_TIMESTAMP = 'STRUCT("us" TIMESTAMP, "ps" INTEGER)'
 
 
 def duckdb_type(t: TType) -> str | None:
@@ -425,7 +426,7 @@ def duckdb_type(t: TType) -> str | None:
     if base == "decimal":
         return f"DECIMAL({t.args[0]},{t.args[1]})"
     if base == "timestamp":
-        return "TIMESTAMP_NS" if t.args[0] > 6 else "TIMESTAMP"
+        return WIDE_TIMESTAMP if t.args[0] > 9 else "TIMESTAMP_NS" if t.args[0] > 6 else "TIMESTAMP"
     if base == "array":
         inner = duckdb_type(t.args[0])
         return None if inner is None else f"{inner}[]"

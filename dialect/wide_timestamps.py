@@ -23,39 +23,39 @@ from sqlglot import exp
 
 from lakegate.dialect import zones
 from lakegate.dialect.guard import trino_name
-from lakegate.dialect.trino_types import WIDE_TIMESTAMP_TZ, TType
+from lakegate.dialect.trino_types import TType
 from lakegate.dialect.type_rules import COMPARISONS, Analysis, FloorMicros
 
 PICOS_PER_MICRO = 1_000_000
 MAX_PRECISION = 12
 
-#: The DuckDB type holding a timestamp(7..12) with time zone.
-DUCKDB_TYPE = WIDE_TIMESTAMP_TZ
-
 
 def is_wide(t: TType | None) -> bool:
-    """Whether `t` is a timestamp(7..12) with time zone."""
-    return t is not None and t.base == "timestamp_tz" and t.args[0] > 6
+    """Whether `t` is held as a struct: a timestamp(7..12) with time zone or a timestamp(10..12)."""
+    return t is not None and (t.base == "timestamp_tz" and t.args[0] > 6 or t.base == "timestamp" and t.args[0] > 9)
 
 
-def make(micros_sql: str, picos_sql: str) -> str:
-    """The value of an instant (TIMESTAMPTZ) floored to the microsecond and the picoseconds below it;
-    NULL when the instant is NULL."""
-    if micros_sql.startswith("TIMESTAMPTZ '"):  # a constant
+def make(micros_sql: str, picos_sql: str, zoned: bool = True) -> str:
+    """The value of an instant (TIMESTAMPTZ; a wall time, TIMESTAMP, when not `zoned`) floored to the
+    microsecond and the picoseconds below it; NULL when the instant is NULL."""
+    duck = "TIMESTAMPTZ" if zoned else "TIMESTAMP"
+    if micros_sql.startswith(f"{duck} '"):  # a constant
         return f'struct_pack("us" := {micros_sql}, "ps" := CAST({picos_sql} AS INTEGER))'
     return (
         f"CASE WHEN ({micros_sql}) IS NOT NULL THEN struct_pack("
-        f'"us" := CAST({micros_sql} AS TIMESTAMPTZ), "ps" := CAST({picos_sql} AS INTEGER)) END'
+        f'"us" := CAST({micros_sql} AS {duck}), "ps" := CAST({picos_sql} AS INTEGER)) END'
     )
 
 
-def shown(sql: str, zone: str) -> str:
-    """A result value: its instant and picoseconds (ordered as the value), its wall time in `zone` in
-    epoch microseconds and the zone's name, which gateway/engine/trino_values.py writes as Trino's text."""
-    wall = f"epoch_us({zones.local(micros(sql), zone)})"
+def shown(sql: str, zone: str | None) -> str:
+    """A result value: its microseconds and picoseconds (ordered as the value), its wall time (in `zone`
+    when zoned) in epoch microseconds and the zone's name, which gateway/engine/trino_values.py writes as
+    Trino's text."""
+    wall = f"epoch_us({micros(sql) if zone is None else zones.local(micros(sql), zone)})"
+    name = "NULL" if zone is None else f"'{zone}'"
     return (
         f'CASE WHEN ({sql}) IS NOT NULL THEN struct_pack("us" := {micros(sql)}, "ps" := {picos(sql)}, '
-        f'"wall" := {wall}, "zone" := \'{zone}\') END'
+        f'"wall" := {wall}, "zone" := {name}) END'
     )
 
 
@@ -74,24 +74,33 @@ def widen(sql: str) -> str:
     return make(sql, "0")
 
 
-def of_wall_nanos(sql: str, zone: str) -> str:
-    """The value of a timestamp(7..9) (TIMESTAMP_NS) read as a wall time in `zone`."""
+def _nanos_parts(sql: str) -> tuple[str, str]:
+    """A TIMESTAMP_NS as its microseconds (TIMESTAMP, floored) and the picoseconds below them."""
     nanos = f"epoch_ns({sql})"
     floored = f"(({nanos}) - ((({nanos}) % 1000) + 1000) % 1000) // 1000"
-    return of_wall(f"make_timestamp({floored})", f"((({nanos}) % 1000) + 1000) % 1000 * 1000", zone)
+    return f"make_timestamp({floored})", f"((({nanos}) % 1000) + 1000) % 1000 * 1000"
 
 
-def coerce(sql: str, source: TType, zone: str) -> str:
-    """A value of `source` as a wide value: a wide one unchanged (its precision is the struct's), a
-    timestamp(p <= 6) with time zone with no picoseconds, a timestamp or date read as a wall time in
-    `zone` (the session zone, as Trino's implicit coercion)."""
-    if is_wide(source):
+def coerce(sql: str, source: TType, zone: str, zoned: bool = True) -> str:
+    """A value of `source` as a wide value (a zoned one, or a wall time when not `zoned`): a wide one of
+    that kind unchanged (its precision is the struct's), a timestamp or date as a wall time, read in
+    `zone` when zoned (the session zone, as Trino's implicit coercion and casts), a timestamp with time
+    zone as its wall time in its own zone when not (`zone` is then its zone)."""
+    if is_wide(source) and (source.base == "timestamp_tz") == zoned:
         return sql
     if source.base == "timestamp_tz":
-        return widen(sql)
-    if source.base == "timestamp" and source.args[0] > 6:
-        return of_wall_nanos(sql, zone)
-    return of_wall(sql, "0", zone)
+        if zoned:
+            return widen(sql)
+        if is_wide(source):
+            return make(zones.local(micros(sql), zone), picos(sql), zoned=False)
+        return make(zones.local(sql, zone), "0", zoned=False)
+    if is_wide(source):
+        wall, below = micros(sql), picos(sql)
+    elif source.base == "timestamp" and source.args[0] > 6:
+        wall, below = _nanos_parts(sql)
+    else:
+        wall, below = f"CAST({sql} AS TIMESTAMP)", "0"
+    return of_wall(wall, below, zone) if zoned else make(wall, below, zoned=False)
 
 
 def of_nanoseconds(nanos_sql: str) -> str:
@@ -100,10 +109,11 @@ def of_nanoseconds(nanos_sql: str) -> str:
     return make(f"make_timestamp({floored} // 1000)", f"((({nanos_sql}) % 1000) + 1000) % 1000 * 1000")
 
 
-def round_to(sql: str, precision: int, source: int) -> str:
-    """CAST to timestamp(precision) with time zone: the picoseconds rounded HALF_UP to `precision` digits,
-    a carry moving the microsecond (TimestampWithTimeZoneToTimestampWithTimeZoneCast); for precision <= 6
-    the TIMESTAMPTZ of the rounded instant (the picoseconds then decide only a tie at the microsecond)."""
+def round_to(sql: str, precision: int, source: int, zoned: bool = True) -> str:
+    """CAST to timestamp(precision) [with time zone]: the picoseconds rounded HALF_UP to `precision`
+    digits, a carry moving the microsecond (TimestampWithTimeZoneToTimestampWithTimeZoneCast,
+    TimestampToTimestampCast); for precision <= 6 the TIMESTAMPTZ (TIMESTAMP) of the rounded value (the
+    picoseconds then decide only a tie at the microsecond)."""
     if precision >= source:
         return sql
     if precision >= 6:
@@ -113,13 +123,14 @@ def round_to(sql: str, precision: int, source: int) -> str:
         moved = f"({micros(sql)} + to_microseconds({carry}))"
         if precision == 6:
             return moved
-        return make(moved, f"{rounded} % {PICOS_PER_MICRO}")
+        return make(moved, f"{rounded} % {PICOS_PER_MICRO}", zoned)
     # below microseconds a unit is a whole number of microseconds, and half of it too: the
     # picoseconds never move the rounded value
     unit = 10 ** (6 - precision)
     epoch = f"epoch_us({micros(sql)})"
     shifted = f"(({epoch}) + {unit // 2})"
-    return f"CAST(make_timestamp({shifted} - ({shifted} % {unit} + {unit}) % {unit}) AS TIMESTAMPTZ)"
+    duck = "TIMESTAMPTZ" if zoned else "TIMESTAMP"
+    return f"CAST(make_timestamp({shifted} - ({shifted} % {unit} + {unit}) % {unit}) AS {duck})"
 
 
 def fraction_digits(sql: str, precision: int) -> str:

@@ -138,7 +138,8 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
         return sql
     if source.is_unknown:
         return cast("NULL", target)
-    if target.base in ("timestamp", "timestamp_tz", "date") and (wide.is_wide(source) or wide.is_wide(target)):
+    wide_operand = wide.is_wide(source) or wide.is_wide(target)
+    if target.base in ("timestamp", "timestamp_tz", "date") and wide_operand and source.base != "varchar":
         return wide_cast(g, sql, source, target)
     if target.base == "char":  # truncated or padded with spaces: the padded text the client gets
         return chars.pad(sql, target.args[0])
@@ -215,23 +216,21 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
 
 
 def wide_cast(g: Writer, sql: str, source: TType, target: TType) -> str:
-    """CAST from or to timestamp(7..12) with time zone (wide_timestamps.py), other than to varchar:
-    rounded HALF_UP where the target holds fewer digits; a timestamp or date is a wall time in the
-    target's zone, and the wall time in the value's zone is its timestamp or date."""
-    if target.base == "timestamp_tz":
-        if source.base == "timestamp" and source.args[0] <= 6 or source.base == "date":
-            source, sql = tt.timestamp(6), cast(sql, tt.timestamp(6))
-        value = wide.coerce(sql, source, tt.zone_of(target))
-        return wide.round_to(value, target.args[0], max(source.args[0], 7) if source.base != "date" else 7)
-    wall = zones.local(wide.micros(sql), tt.zone_of(source))
+    """CAST from or to the timestamps held as structs (wide_timestamps.py), other than to varchar: the
+    value as one of the target's kind (a timestamp or date is a wall time in the target's zone, a
+    timestamp with time zone its wall time in its own zone), rounded HALF_UP where the target holds
+    fewer digits."""
     if target.base == "date":
-        return f"CAST({wall} AS DATE)"
-    precision = target.args[0]
-    if precision > 6:  # timestamp(7..9): the picoseconds rounded to its digits, a carry moving the microsecond
-        unit = 10 ** (12 - precision)
-        nanos = f"(({wide.picos(sql)} + {unit // 2}) // {unit} * {unit} // 1000)"
-        return f"make_timestamp_ns(epoch_us({as_nanoseconds(g, wall)}) * 1000 + {nanos})"
-    return zones.local(wide.round_to(sql, precision, source.args[0]), tt.zone_of(source))
+        micros = wide.micros(sql)
+        return f"CAST({micros if source.base == 'timestamp' else zones.local(micros, tt.zone_of(source))} AS DATE)"
+    zoned = target.base == "timestamp_tz"
+    zone = tt.zone_of(target) if zoned else tt.zone_of(source)
+    value = wide.coerce(sql, source, zone, zoned)
+    if target.base == "timestamp" and 6 < target.args[0] <= 9:  # DuckDB's TIMESTAMP_NS, within its range
+        unit = 10 ** (12 - target.args[0])
+        below = f"(({wide.picos(value)} + {unit // 2}) // {unit} * {unit} // 1000)"
+        return f"make_timestamp_ns(epoch_ns({as_nanoseconds(g, wide.micros(value))}) + {below})"
+    return wide.round_to(value, target.args[0], source.args[0] if source.base != "date" else 0, zoned)
 
 
 def wide_literal(g: Writer, local: str, target: TType) -> str:
@@ -428,7 +427,11 @@ def parse_timestamp(g: Writer, sql: str, precision: int, bad: str) -> str:
     )
     unit = 10 ** (12 - precision)  # of the fraction read as picoseconds
     fraction = f"((CAST(rpad(regexp_extract({text}, '[.]([0-9]*)$', 1), 12, '0') AS BIGINT) + {unit // 2}) // {unit})"
-    if precision > 6:
+    if precision > 9:  # held as a struct (wide_timestamps.py): the microseconds and the picoseconds below
+        picos = f"({fraction} * {unit})"
+        micros = f"{seconds} + to_microseconds({picos} // {wide.PICOS_PER_MICRO})"
+        value = wide.make(micros, f"{picos} % {wide.PICOS_PER_MICRO}", zoned=False)
+    elif precision > 6:
         value = f"make_timestamp_ns(epoch_ns({as_nanoseconds(g, seconds)}) + {fraction} * {10 ** (9 - precision)})"
     else:
         value = f"{seconds} + to_microseconds({fraction} * {10 ** (6 - precision)})"
@@ -448,6 +451,8 @@ def varchar_of(g: Writer, sql: str, source: TType) -> str:
         if precision == scale:
             return f"regexp_replace(CAST({sql} AS VARCHAR), '^(-?)[.]', '\\10.')"
         return f"CAST({sql} AS VARCHAR)"
+    if wide.is_wide(source) and source.base == "timestamp":
+        return f"{timestamp_text(wide.micros(sql), 6)} || {wide.fraction_digits(sql, source.args[0])}"
     if source.base == "timestamp":
         return timestamp_text(sql, source.args[0])
     if source.base == "time":
@@ -623,7 +628,7 @@ def shown_wide(g: Writer, node: ShownWide) -> str:
     """The value with its wall time (wide_timestamps.shown): the struct orders as the value where ORDER
     BY names the result column."""
     t = ttype(node)
-    return wide.shown(g.coerce(node.this, t), tt.zone_of(t))
+    return wide.shown(g.coerce(node.this, t), tt.zone_of(t) if t.base == "timestamp_tz" else None)
 
 
 @transform(FloorMicros)

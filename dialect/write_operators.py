@@ -78,16 +78,17 @@ def wide_interval_arithmetic(g: Writer, node: exp.Binary, op: str) -> str:
     time in the value's zone), the picoseconds below them stay (TimestampWithTimeZoneOperators)."""
     t = ttype(node)
     stamp, interval = node.this, node.expression
-    if ttype(stamp).base != "timestamp_tz":
+    if ttype(stamp).base.startswith("interval"):
         stamp, interval = interval, stamp
     sql, amount = g.sql(stamp), g.sql(interval)
     micros = wide.micros(sql)
-    if ttype(interval) == tt.INTERVAL_YM:
+    zoned = t.base == "timestamp_tz"
+    if ttype(interval) == tt.INTERVAL_YM and zoned:
         zone = tt.zone_of(t)
         moved = zones.instant(f"({zones.local(micros, zone)} {op} {amount})", zone)
     else:
         moved = f"({micros} {op} {amount})"
-    return wide.make(moved, wide.picos(sql))
+    return wide.make(moved, wide.picos(sql), zoned)
 
 
 def nanosecond_interval_arithmetic(g: Writer, node: exp.Binary, op: str) -> str:
@@ -110,6 +111,8 @@ def timestamp_difference(g: Writer, node: exp.Sub) -> str:
 
 def epoch_micros(sql: str, t: TType) -> str:
     """A timestamp's epoch microseconds (floored for a TIMESTAMP_NS, as LongTimestamp.getEpochMicros)."""
+    if wide.is_wide(t):
+        return f"epoch_us({wide.micros(sql)})"
     return floor_div(f"epoch_ns({sql})", 1000) if t.args[0] > 6 else f"epoch_us({sql})"
 
 

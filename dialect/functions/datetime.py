@@ -519,7 +519,8 @@ def _render_from_unixtime_nanos(g, node, args) -> str:
 
 
 def _to_unixtime_wide(call: Call) -> tt.TType | None:
-    return tt.DOUBLE if len(call.types) == 1 and wide.is_wide(call.types[0]) else None
+    zoned = len(call.types) == 1 and call.types[0] is not None and call.types[0].base == "timestamp_tz"
+    return tt.DOUBLE if zoned and wide.is_wide(call.types[0]) else None
 
 
 def _render_to_unixtime_wide(g, node, args) -> str:

@@ -167,10 +167,11 @@ def to_protocol(value, ttype: tuple):
         seconds, nanos = divmod(value, 10**9)
         text = (dt.datetime(1970, 1, 1) + dt.timedelta(seconds=seconds)).strftime("%Y-%m-%d %H:%M:%S")
         return text + ("." + f"{nanos:09d}"[: args[0]] if args[0] else "")
-    if base == "timestamp_tz" and isinstance(value, dict):  # {us, ps, wall, zone} (wide_timestamps.shown)
+    if base in ("timestamp", "timestamp_tz") and isinstance(value, dict):  # wide_timestamps.shown
         wall = dt.datetime(1970, 1, 1) + dt.timedelta(microseconds=value["wall"])
         fraction = f"{wall.microsecond:06d}{value['ps']:06d}"[: args[0]]
-        return f"{wall:%Y-%m-%d %H:%M:%S}.{fraction} {value['zone']}"
+        text = f"{wall:%Y-%m-%d %H:%M:%S}.{fraction}"
+        return text if value["zone"] is None else f"{text} {value['zone']}"
     if base == "timestamp_tz" and isinstance(value, tuple):  # (timestamp to the second, nanoseconds)
         stamp, nanos = value
         fraction = "." + f"{nanos:09d}"[: args[0]] if args[0] else ""

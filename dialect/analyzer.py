@@ -149,6 +149,6 @@ class Analyzer(Relations, StarExpansion, Checks):
             call.mismatch()
         if any(isinstance(a, exp.Lambda) and not (a._meta and "params" in a._meta) for a in args):
             call.mismatch()  # a lambda where the signature takes none
-        if name in MICROS_READERS:
+        if name in MICROS_READERS or name in wide_timestamps.ZONE_READERS:
             args[:] = [floor_micros(arg) for arg in args]
         return t

@@ -184,9 +184,11 @@ def of_wall(wall_micros_sql: str, picos_sql: str, zone: str) -> str:
     return make(zones.instant(f"CAST({wall_micros_sql} AS TIMESTAMP)", zone), picos_sql)
 
 
+#: The functions of a zone's offset at the instant: they read the microseconds too.
+ZONE_READERS = frozenset({"timezone_hour", "timezone_minute"})
 #: The functions written for such operands besides those that read their microseconds
-#: (analysis_checks.MICROS_READERS).
-FUNCTIONS = frozenset(
+#: (analysis_checks.MICROS_READERS and ZONE_READERS).
+FUNCTIONS = ZONE_READERS | frozenset(
     "min max count arbitrary any_value coalesce typeof to_unixtime from_unixtime_nanos at_timezone".split()
 )
 #: The expressions written for such operands (functions: only FUNCTIONS and the readers).

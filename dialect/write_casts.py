@@ -261,13 +261,18 @@ def _zoned_time(g: Writer, sql: str, source: TType, target: TType) -> str:
     if target.base == "time":  # p <= 6
         return times.of_micros(zoned_times.to_time_micros(sql, target.args[0]))
     if source.base in ("timestamp", "timestamp_tz"):  # the time of day, rounded HALF_UP; the zone's offset then
+        below = "0"  # the picoseconds below the microsecond of a timestamp(7..12)
+        if wide.is_wide(source):
+            sql, below = wide.micros(sql), wide.picos(sql)
+        elif source.base == "timestamp" and source.args[0] > 6:
+            sql, below = floor_micros(sql), f"((epoch_ns({sql}) % 1000) + 1000) % 1000 * 1000"
         wall, minutes = sql, str(zoned_times.offset_of(g.time_zone))
         if source.base == "timestamp_tz":  # the offset at the instant that the wall time names in UTC (Trino 476)
             wall = zones.local(sql, tt.zone_of(source))
             named = f"CAST({wall} AS TIMESTAMPTZ)"
             minutes = f"((epoch_us({zones.local(named, tt.zone_of(source))}) - epoch_us({named})) // 60000000)"
         day = times.MICROS_PER_DAY
-        picos = f"(((epoch_us({wall}) % {day}) + {day}) % {day} * 1000000)"
+        picos = f"(((epoch_us({wall}) % {day}) + {day}) % {day} * 1000000 + {below})"
         return zoned_times.of_local(zoned_times.rounded_picos(picos, target.args[0]), minutes)
     return zoned_times.round_to(sql, target.args[0], source.args[0])
 

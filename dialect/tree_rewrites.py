@@ -49,6 +49,10 @@ def _cast_branches(operation: exp.SetOperation, outputs: list) -> None:
             for item, (_, _, common) in zip(branch.expressions, outputs):
                 if common.base == "char":
                     chars.cast_to(item.this, common)
+                elif ttype(item.this) != common and tt.duckdb_type(common) in (tt.WIDE_TIMESTAMP_TZ, tt.WIDE_TIMESTAMP):
+                    converted = exp.Cast(this=item.this, to=exp.DataType.build("VARCHAR"))  # Trino's CAST to `common`
+                    converted.meta.update({"t": common, "from": ttype(item.this)})
+                    item.set("this", converted)
                 elif ttype(item.this) != common and not ttype(item.this).base == common.base == "varchar":
                     _wrap(item, common)
 

@@ -95,7 +95,8 @@ PRECISION = [
     "hold the zone's instant past 1677-2262 nor past nine digits, and the struct keeps the TIMESTAMPTZ code. "
     "Cost: a literal with a zone translates to a constant; a column value's SQL reads one struct field per "
     "use. Figures (`python3 dev.py corpus --refusals 40`, 19,450 queries, 2026-11-29): the translator refused "
-    "6,299 before, 5,215 with timestamp(7..12) with time zone, 4,584 with timestamp(10..12) too.",
+    "6,299 before, 5,215 with timestamp(7..12) with time zone, 4,584 with timestamp(10..12) too, 4,134 with "
+    "their casts to time with time zone.",
     "Figures (`python3 dev.py corpus --refusals 40`, Trino 476's own function, type and query tests, 19,450 "
     "queries, 2026-11-29): the translator refused 8,389 before time with time zone (2,844 of them time with "
     "time zone), 6,299 after. The next families: timestamp(7-12) with time zone 1,503, time(7-12) 1,176, "

@@ -1,5 +1,5 @@
-"""Trino's timestamp(p) with time zone for p = 7..12 in DuckDB, exactly: a STRUCT of the instant floored
-to the microsecond and the picoseconds of that microsecond.
+"""Trino's timestamp(p) with time zone for p = 7..12, and timestamp(p) for p = 10..12, in DuckDB, exactly: a
+STRUCT of the instant (the wall time) floored to the microsecond and the picoseconds of that microsecond.
 
 Trino holds such a value as a LongTimestampWithTimeZone (epoch milliseconds, picoseconds of the
 millisecond, zone). lakegate holds `STRUCT(us TIMESTAMPTZ, ps INTEGER)`: `us` the instant floored to the
@@ -9,8 +9,9 @@ multiple of 10^(12 - p)). The zone is static, in the expression's Trino type, as
 timestamp. DuckDB compares and orders structs field by field, so =, <, BETWEEN, ORDER BY, GROUP BY,
 DISTINCT, min and max are Trino's on the instant. Trino's date and time functions read the microseconds
 of such a value (LongTimestampWithTimeZone's epoch micros, floored): the analysis gives them `us`
-(type_rules.FloorMicros). Casts round HALF_UP, ties toward the later instant (Timestamps.round). The
-helpers return DuckDB SQL text from DuckDB SQL text.
+(type_rules.FloorMicros). Casts round HALF_UP, ties toward the later instant (Timestamps.round). A
+timestamp(10..12) is the same struct of its wall time, `STRUCT(us TIMESTAMP, ps INTEGER)` (timestamp(7..9)
+stays DuckDB's TIMESTAMP_NS). The helpers return DuckDB SQL text from DuckDB SQL text.
 """
 
 from __future__ import annotations
@@ -27,7 +28,6 @@ from lakegate.dialect.trino_types import TType
 from lakegate.dialect.type_rules import COMPARISONS, Analysis, FloorMicros
 
 PICOS_PER_MICRO = 1_000_000
-MAX_PRECISION = 12
 
 
 def is_wide(t: TType | None) -> bool:

@@ -48,6 +48,7 @@ _WIDE_TIME_OPERATIONS = (
 #: The expressions written for timestamp(7..9) operands (functions: only _NANOSECOND_FUNCTIONS).
 _NANOSECOND_OPERATIONS = (
     *_WIDE_TIME_OPERATIONS,
+    exp.AtTimeZone,
     exp.Anonymous,
 )
 

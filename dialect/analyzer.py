@@ -9,7 +9,7 @@ from typing import NoReturn
 
 from sqlglot import exp
 
-from lakegate.dialect import registry, zoned_nanos, zones
+from lakegate.dialect import registry, wide_timestamps, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analysis_checks import CHAR_TYPE, MICROS_READERS, Checks, check_char_use
 from lakegate.dialect.errors import DialectError
@@ -104,13 +104,7 @@ class Analyzer(Relations, StarExpansion, Checks):
         if handler is None:
             self.unsupported(trino_name(node), node)
         t = handler(self, node, scope, env)
-        zoned_nanos.check_use(self, node, t)
-        if zoned_nanos.is_zoned_nanos(t) and not zoned_nanos.produces(node):
-            self.unsupported(
-                f"{t} (lakegate keeps zoned timestamps in microseconds, past them only from_unixtime_nanos)", node
-            )
-        if t.base == "timestamp" and t.args[0] > 9:
-            self.unsupported(f"{t} (lakegate keeps nanoseconds at most; digits past them would be dropped)", node)
+        wide_timestamps.check_use(self, node, MICROS_READERS)
         self._check_nanosecond_use(node)
         self.check_time_tz_use(node, t)
         check_char_use(self, node)
@@ -155,6 +149,6 @@ class Analyzer(Relations, StarExpansion, Checks):
             call.mismatch()
         if any(isinstance(a, exp.Lambda) and not (a._meta and "params" in a._meta) for a in args):
             call.mismatch()  # a lambda where the signature takes none
-        if name in MICROS_READERS:
+        if name in MICROS_READERS or name in wide_timestamps.ZONE_READERS:
             args[:] = [floor_micros(arg) for arg in args]
         return t

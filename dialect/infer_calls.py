@@ -136,6 +136,7 @@ def _extract(a: Analyzer, node, scope, env):
         return tt.BIGINT
     if unit in ("TIMEZONE_HOUR", "TIMEZONE_MINUTE") and t.base == "timestamp_tz":
         a.zone(t, node, f"EXTRACT({unit} FROM ...)")
+        node.set("expression", floor_micros(node.expression))  # the offset at the microsecond
         return tt.BIGINT
     if unit in ("TIMEZONE_HOUR", "TIMEZONE_MINUTE") and not t.is_unknown:  # only zoned values have an offset
         a.fail(f"Cannot extract {unit} from {t}", node, "TYPE_MISMATCH")

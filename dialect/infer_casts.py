@@ -42,6 +42,9 @@ def _cast(a: Analyzer, node, scope, env):
                 target = tt.decimal_literal_type(text)
             except ValueError:
                 a.fail(f"'{text}' is not a valid decimal literal", node, "INVALID_LITERAL")
+        if target.base in ("timestamp", "timestamp_tz") and target.args[0] > 12:
+            name = "TIMESTAMP WITH TIME ZONE" if target.base == "timestamp_tz" else "TIMESTAMP"
+            a.fail(f"{name} precision must be in range [0, 12]: {target.args[0]}", node, "NUMERIC_VALUE_OUT_OF_RANGE")
         elif target.base == "timestamp" and re.search(
             r"[0-9]:[0-9]{2}(:[0-9]{2}([.][0-9]*)?)?\s*([A-Za-z]|[+-][0-9])", text
         ):
@@ -123,7 +126,7 @@ def _check_time_cast(a: Analyzer, node: exp.Cast, source: TType, target: TType) 
             a.unsupported(f"{t} (time with more than microsecond precision)", node)
         if t.base == "time_tz" and t.args[0] > zoned_times.MAX_PRECISION:
             a.fail(f"Unknown type: {t}", node, "TYPE_MISMATCH")
-    if source.base == "timestamp" and source.args[0] > 6:
+    if source.base == "timestamp" and source.args[0] > 6 and target.base != "time_tz":
         a.unsupported(f"CAST({source} AS {target}) (more than microsecond precision)", node)
     if source.base in ("time", "time_tz") and target.base in ("timestamp", "timestamp_tz"):
         a.unsupported(f"CAST({source} AS {target}) (it depends on the session's date and zone)", node)
@@ -131,7 +134,7 @@ def _check_time_cast(a: Analyzer, node: exp.Cast, source: TType, target: TType) 
         a.unsupported(f"CAST({source} AS {target})", node)
     if target.base in ("time", "time_tz") and source.base == "timestamp_tz":  # its zone's offset at the instant
         a.zone(source, node, f"CAST to {target}")
-        if source.args[0] > 6:
+        if source.args[0] > 6 and target.base != "time_tz":
             a.unsupported(f"CAST({source} AS {target}) (more than microsecond precision)", node)
     if (
         target.base == "time_tz"
@@ -237,7 +240,7 @@ def castable(source: TType, target: TType) -> bool:
     if source.base in ("time", "time_tz", "interval_ds", "interval_ym") and target.base == "varchar":
         return True
     if target.base == "time_tz" and source.base in ("varchar", "time", "time_tz", "timestamp", "timestamp_tz"):
-        return source.base not in ("time", "timestamp") or source.args[0] <= 6
+        return source.base != "time" or source.args[0] <= 6
     if target.base == "time" and source.base in ("time_tz", "timestamp_tz"):
         return target.args[0] <= 6 and source.args[0] <= 6 or source.base == "time_tz"
     if source.base == target.base == "array":

@@ -17,11 +17,11 @@ from __future__ import annotations
 from sqlglot import exp
 from sqlglot.generators.duckdb import DuckDBGenerator
 
-from lakegate.dialect import chars, intervals, null_folding, times, zoned_times, zones
+from lakegate.dialect import chars, intervals, null_folding, times, wide_timestamps, zoned_times, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.trino_types import TType
-from lakegate.dialect.type_rules import ttype
+from lakegate.dialect.type_rules import FloorMicros, ttype
 
 
 class DuckCast(exp.Expression):
@@ -105,6 +105,9 @@ class Writer(DuckDBGenerator):
             return cast("NULL", target)
         if target.base == "char":  # from char or varchar (chars.py)
             return chars.pad(sql, target.args[0])
+        if wide_timestamps.is_wide(target):
+            zoned = target.base == "timestamp_tz"  # a timestamp read in the session zone
+            return wide_timestamps.coerce(sql, source, self.time_zone, zoned)
         if target.base == "timestamp_tz" and source.base in ("timestamp", "date"):  # in the session zone
             return zones.instant(f"CAST({sql} AS TIMESTAMP)", self.time_zone)
         if self.time_zone != zones.UTC and _inside(target, "timestamp_tz") and _inside(source, "date", "timestamp"):
@@ -256,7 +259,20 @@ def registered_function(g: Writer, node: exp.Anonymous) -> str:
     Trino folds to NULL, whose other arguments are not evaluated (null_folding.py)."""
     if node.meta["spec"].kind == "scalar" and null_folding.folds_to_null(node):
         return cast("NULL", ttype(node))
-    return node.meta["spec"].render(g, node, node.meta["args"])
+    t, args = ttype(node), node.meta["args"]
+    floored = next(
+        (a.this for a in args if isinstance(a, FloorMicros) and wide_timestamps.is_wide(ttype(a.this))), None
+    )
+    if floored is None or not wide_timestamps.is_wide(t):
+        return node.meta["spec"].render(g, node, args)
+    # date_trunc, date_add: written on the microseconds (timestamp(6) with time zone), as Trino reads them
+    node.meta["t"] = tt.with_precision(t, 6)
+    try:
+        sql = node.meta["spec"].render(g, node, args)
+    finally:
+        node.meta["t"] = t
+    kept = wide_timestamps.picos(g.sql(floored)) if node.name.lower() == "date_add" else "0"
+    return wide_timestamps.make(sql, kept, zoned=t.base == "timestamp_tz")
 
 
 @transform(exp.Filter)

@@ -717,5 +717,5 @@ def _translate(
             "unsupported in lakegate: the query is nested too deeply", error_name="NOT_SUPPORTED"
         ) from None
     columns = tuple((name if name is not None else f"_col{i}", str(t)) for i, (name, _, t) in enumerate(outputs))
-    zones = tuple(tt.zone_of(t) if t.base == "timestamp_tz" else None for _, _, t in outputs)
+    zones = tuple(tt.zone_of(t) if t.base == "timestamp_tz" and t.args[0] <= 6 else None for _, _, t in outputs)
     return Translation(duckdb_sql=duckdb_sql, trino_sql=trino_sql, columns=columns, zones=zones)

@@ -11,7 +11,7 @@ from lakegate.dialect import chars, registry
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.transforms import DuckCast
 from lakegate.dialect.trino_types import TType
-from lakegate.dialect.type_rules import ttype
+from lakegate.dialect.type_rules import ShownWide, ttype
 
 
 # --- final shape ---------------------------------------------------------------------------------
@@ -49,6 +49,10 @@ def _cast_branches(operation: exp.SetOperation, outputs: list) -> None:
             for item, (_, _, common) in zip(branch.expressions, outputs):
                 if common.base == "char":
                     chars.cast_to(item.this, common)
+                elif ttype(item.this) != common and tt.duckdb_type(common) in (tt.WIDE_TIMESTAMP_TZ, tt.WIDE_TIMESTAMP):
+                    converted = exp.Cast(this=item.this, to=exp.DataType.build("VARCHAR"))  # Trino's CAST to `common`
+                    converted.meta.update({"t": common, "from": ttype(item.this)})
+                    item.set("this", converted)
                 elif ttype(item.this) != common and not ttype(item.this).base == common.base == "varchar":
                     _wrap(item, common)
 
@@ -63,7 +67,12 @@ def _cast_outputs(tree: exp.Expression, types: list[TType], top: bool) -> None:
 def _wrap(item: exp.Alias, t: TType) -> None:
     duck = tt.duckdb_type(t)
     inner = item.this
-    if duck is None or isinstance(inner, DuckCast):
+    if duck is None or isinstance(inner, (DuckCast, ShownWide)):
+        return
+    if duck in (tt.WIDE_TIMESTAMP_TZ, tt.WIDE_TIMESTAMP):
+        shown = ShownWide(this=inner)
+        shown.meta["t"] = t
+        item.set("this", shown)
         return
     wrapped = DuckCast(this=inner, to=duck)
     wrapped.meta["t"] = t

@@ -408,12 +408,17 @@ _DUCK = {
 }
 
 
+#: The DuckDB types of a timestamp(7..12) with time zone and a timestamp(10..12) (dialect/wide_timestamps.py).
+WIDE_TIMESTAMP_TZ = 'STRUCT("us" TIMESTAMPTZ, "ps" INTEGER)'
+WIDE_TIMESTAMP = 'STRUCT("us" TIMESTAMP, "ps" INTEGER)'
+
+
 def duckdb_type(t: TType) -> str | None:
     """The DuckDB type holding values of Trino type `t`; None for `unknown` (NULL) and rows with
     unnamed fields, which DuckDB cannot name in a CAST."""
     base = t.base
     if base == "timestamp_tz" and t.args[0] > 6:
-        return "TIMESTAMP_NS"  # its UTC instant (dialect/zoned_nanos.py)
+        return WIDE_TIMESTAMP_TZ
     if base == "time_tz":
         return zoned_times.DUCKDB_TYPE
     if base in _DUCK:
@@ -421,7 +426,7 @@ def duckdb_type(t: TType) -> str | None:
     if base == "decimal":
         return f"DECIMAL({t.args[0]},{t.args[1]})"
     if base == "timestamp":
-        return "TIMESTAMP_NS" if t.args[0] > 6 else "TIMESTAMP"
+        return WIDE_TIMESTAMP if t.args[0] > 9 else "TIMESTAMP_NS" if t.args[0] > 6 else "TIMESTAMP"
     if base == "array":
         inner = duckdb_type(t.args[0])
         return None if inner is None else f"{inner}[]"

@@ -151,19 +151,28 @@ COMPARISONS = (exp.EQ, exp.NEQ, exp.GT, exp.GTE, exp.LT, exp.LTE, exp.NullSafeEQ
 
 
 class FloorMicros(exp.Expression):
-    """A timestamp(7..9) argument floored to a microsecond timestamp(6): what Trino's date and time
-    functions read of a LongTimestamp (getEpochMicros). Added by the analysis, never written by users."""
+    """A timestamp(7..9) argument floored to a microsecond timestamp(6) (a zoned one to timestamp(6) with
+    time zone): what Trino's date and time functions read of a LongTimestamp (getEpochMicros). Added by
+    the analysis, never written by users."""
+
+    arg_types = {"this": True}
+
+
+class ShownWide(exp.Expression):
+    """A result column of timestamp(7..12) with time zone: its value and Trino's text of it (added by
+    `finalize`, never written by users)."""
 
     arg_types = {"this": True}
 
 
 def floor_micros(node: exp.Expression) -> exp.Expression:
-    """`node` read as Trino's functions read a timestamp(7..9): floored to microseconds."""
+    """`node` read as Trino's functions read a timestamp(7..9) or a timestamp(7..12) with time zone:
+    floored to microseconds (the zone kept)."""
     t = node.meta.get("t") if node._meta else None
-    if t is None or t.base != "timestamp" or t.args[0] <= 6:
+    if t is None or t.base not in ("timestamp", "timestamp_tz") or t.args[0] <= 6:
         return node
     floored = FloorMicros(this=node)
-    set(floored, tt.timestamp(6))
+    set(floored, tt.with_precision(t, 6) if t.base == "timestamp_tz" else tt.timestamp(6))
     return floored
 
 

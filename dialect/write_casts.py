@@ -7,11 +7,12 @@ from __future__ import annotations
 
 from sqlglot import exp
 
-from lakegate.dialect import chars, registry, times, zoned_nanos, zoned_times, zones
+from lakegate.dialect import chars, registry, times, zoned_times, zones
 from lakegate.dialect import trino_types as tt
+from lakegate.dialect import wide_timestamps as wide
 from lakegate.dialect.transforms import Writer, cast, quote, string, transform
 from lakegate.dialect.trino_types import TType
-from lakegate.dialect.type_rules import FloorMicros, ttype
+from lakegate.dialect.type_rules import FloorMicros, ShownWide, ttype
 
 RANGES = {
     "tinyint": (-(2**7), 2**7 - 1),
@@ -37,6 +38,8 @@ def cast_operand(g: Writer, node: exp.Cast) -> tuple[str, TType]:
     local = node.meta.get("local")
     if local is None:
         return g.sql(node.this), node.meta["from"]
+    if wide.is_wide(ttype(node)):
+        return wide_literal(g, local, ttype(node)), ttype(node)
     wall = tt.timestamp(ttype(node).args[0])
     return parse_varchar(g, string(local), wall), wall
 
@@ -135,11 +138,9 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
         return sql
     if source.is_unknown:
         return cast("NULL", target)
-    if zoned_nanos.is_zoned_nanos(source):  # to timestamp, date or varchar (zoned_nanos.check_use)
-        wall = zoned_nanos.wall_time(sql, tt.zone_of(source))
-        if target.base == "varchar":
-            return varchar_of(g, wall, tt.timestamp(9)) + f" || {string(' ' + tt.zone_of(source))}"
-        return cast_value(g, wall, tt.timestamp(9), target)
+    wide_operand = wide.is_wide(source) or wide.is_wide(target)
+    if target.base in ("timestamp", "timestamp_tz", "date") and wide_operand and source.base != "varchar":
+        return wide_cast(g, sql, source, target)
     if target.base == "char":  # truncated or padded with spaces: the padded text the client gets
         return chars.pad(sql, target.args[0])
     if target.base == "json":
@@ -214,6 +215,40 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
     return cast(sql, target)
 
 
+def wide_cast(g: Writer, sql: str, source: TType, target: TType) -> str:
+    """CAST from or to the timestamps held as structs (wide_timestamps.py), other than to varchar: the
+    value as one of the target's kind (a timestamp or date is a wall time in the target's zone, a
+    timestamp with time zone its wall time in its own zone), rounded HALF_UP where the target holds
+    fewer digits."""
+    if target.base == "date":
+        micros = wide.micros(sql)
+        return f"CAST({micros if source.base == 'timestamp' else zones.local(micros, tt.zone_of(source))} AS DATE)"
+    zoned = target.base == "timestamp_tz"
+    zone = tt.zone_of(target) if zoned else tt.zone_of(source)
+    value = wide.coerce(sql, source, zone, zoned)
+    if target.base == "timestamp" and 6 < target.args[0] <= 9:  # DuckDB's TIMESTAMP_NS, within its range
+        unit = 10 ** (12 - target.args[0])
+        below = f"(({wide.picos(value)} + {unit // 2}) // {unit} * {unit} // 1000)"
+        return f"make_timestamp_ns(epoch_ns({as_nanoseconds(g, wide.micros(value))}) + {below})"
+    return wide.round_to(value, target.args[0], source.args[0] if source.base != "date" else 0, zoned)
+
+
+def wide_literal(g: Writer, local: str, target: TType) -> str:
+    """A text literal's wall time (`local`, its zone stripped) as a timestamp(7..12) with time zone: the
+    seconds read as a timestamp, the fraction's digits rounded HALF_UP to the target's precision."""
+    value = wide.constant(local, target.args[0], tt.zone_of(target))
+    if value is not None:
+        return value
+    seconds, dot, digits = local.rpartition(".")
+    if not dot or not digits.isdigit() or len(digits) > 12:
+        seconds, digits = local, ""
+    unit = 10 ** (12 - target.args[0])
+    fraction = (int(digits.ljust(12, "0") or 0) + unit // 2) // unit * unit
+    wall = parse_varchar(g, string(seconds), tt.timestamp(0))
+    micros, picos = divmod(fraction, wide.PICOS_PER_MICRO)
+    return wide.of_wall(f"({wall} + to_microseconds({micros}))", str(picos), tt.zone_of(target))
+
+
 def _zoned_time(g: Writer, sql: str, source: TType, target: TType) -> str:
     """CAST between time with time zone and itself, or time, or from timestamp(p <= 6) [with time zone]
     (infer_casts.castable): the local time rounded HALF_UP to the target's precision; a time or timestamp
@@ -226,13 +261,18 @@ def _zoned_time(g: Writer, sql: str, source: TType, target: TType) -> str:
     if target.base == "time":  # p <= 6
         return times.of_micros(zoned_times.to_time_micros(sql, target.args[0]))
     if source.base in ("timestamp", "timestamp_tz"):  # the time of day, rounded HALF_UP; the zone's offset then
+        below = "0"  # the picoseconds below the microsecond of a timestamp(7..12)
+        if wide.is_wide(source):
+            sql, below = wide.micros(sql), wide.picos(sql)
+        elif source.base == "timestamp" and source.args[0] > 6:
+            sql, below = floor_micros(sql), f"((epoch_ns({sql}) % 1000) + 1000) % 1000 * 1000"
         wall, minutes = sql, str(zoned_times.offset_of(g.time_zone))
         if source.base == "timestamp_tz":  # the offset at the instant that the wall time names in UTC (Trino 476)
             wall = zones.local(sql, tt.zone_of(source))
             named = f"CAST({wall} AS TIMESTAMPTZ)"
             minutes = f"((epoch_us({zones.local(named, tt.zone_of(source))}) - epoch_us({named})) // 60000000)"
         day = times.MICROS_PER_DAY
-        picos = f"(((epoch_us({wall}) % {day}) + {day}) % {day} * 1000000)"
+        picos = f"(((epoch_us({wall}) % {day}) + {day}) % {day} * 1000000 + {below})"
         return zoned_times.of_local(zoned_times.rounded_picos(picos, target.args[0]), minutes)
     return zoned_times.round_to(sql, target.args[0], source.args[0])
 
@@ -392,7 +432,11 @@ def parse_timestamp(g: Writer, sql: str, precision: int, bad: str) -> str:
     )
     unit = 10 ** (12 - precision)  # of the fraction read as picoseconds
     fraction = f"((CAST(rpad(regexp_extract({text}, '[.]([0-9]*)$', 1), 12, '0') AS BIGINT) + {unit // 2}) // {unit})"
-    if precision > 6:
+    if precision > 9:  # held as a struct (wide_timestamps.py): the microseconds and the picoseconds below
+        picos = f"({fraction} * {unit})"
+        micros = f"{seconds} + to_microseconds({picos} // {wide.PICOS_PER_MICRO})"
+        value = wide.make(micros, f"{picos} % {wide.PICOS_PER_MICRO}", zoned=False)
+    elif precision > 6:
         value = f"make_timestamp_ns(epoch_ns({as_nanoseconds(g, seconds)}) + {fraction} * {10 ** (9 - precision)})"
     else:
         value = f"{seconds} + to_microseconds({fraction} * {10 ** (6 - precision)})"
@@ -412,12 +456,18 @@ def varchar_of(g: Writer, sql: str, source: TType) -> str:
         if precision == scale:
             return f"regexp_replace(CAST({sql} AS VARCHAR), '^(-?)[.]', '\\10.')"
         return f"CAST({sql} AS VARCHAR)"
+    if wide.is_wide(source) and source.base == "timestamp":
+        return f"{timestamp_text(wide.micros(sql), 6)} || {wide.fraction_digits(sql, source.args[0])}"
     if source.base == "timestamp":
         return timestamp_text(sql, source.args[0])
     if source.base == "time":
         return times.text(sql, source.args[0])
     if source.base == "time_tz":
         return zoned_times.text(sql, source.args[0])
+    if wide.is_wide(source):
+        zone, precision = tt.zone_of(source), source.args[0]
+        wall = timestamp_text(zones.local(wide.micros(sql), zone), 6)
+        return f"{wall} || {wide.fraction_digits(sql, precision)} || {string(' ' + zone)}"
     if source.base == "timestamp_tz":
         zone = tt.zone_of(source)
         return timestamp_text(zones.local(sql, zone), source.args[0]) + f" || {string(' ' + zone)}"
@@ -578,6 +628,16 @@ def _shortest_exponent(text: str) -> str:
     return f"({power} + CASE WHEN length({whole}) > 0 THEN length({whole}) - 1 ELSE -{leading} - 1 END)"
 
 
+@transform(ShownWide)
+def shown_wide(g: Writer, node: ShownWide) -> str:
+    """The value with its wall time (wide_timestamps.shown): the struct orders as the value where ORDER
+    BY names the result column."""
+    t = ttype(node)
+    return wide.shown(g.coerce(node.this, t), tt.zone_of(t) if t.base == "timestamp_tz" else None)
+
+
 @transform(FloorMicros)
 def floored_micros(g: Writer, node: FloorMicros) -> str:
+    if wide.is_wide(ttype(node.this)):
+        return wide.micros(g.sql(node.this))
     return floor_micros(g.sql(node.this))

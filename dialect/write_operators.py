@@ -9,6 +9,7 @@ from sqlglot import exp
 
 from lakegate.dialect import chars, wide_decimals, zoned_times, zones
 from lakegate.dialect import trino_types as tt
+from lakegate.dialect import wide_timestamps as wide
 from lakegate.dialect.transforms import Writer, cast, quote, string, ten, transform
 from lakegate.dialect.trino_types import TType
 from lakegate.dialect.type_rules import ttype
@@ -43,6 +44,8 @@ def decimal_result_type(g: Writer, node: exp.Binary) -> str:
         return cast(sql, t)
     if t.base == "date":
         return whole_days(g, node, sql)
+    if wide.is_wide(t):
+        return wide_interval_arithmetic(g, node, op)
     if t.base == "timestamp_tz" and tt.INTERVAL_YM in (ttype(node.this), ttype(node.expression)):
         # months move the wall time in the value's zone; a day-to-second interval moves the instant
         zone = tt.zone_of(t)
@@ -70,6 +73,24 @@ def zoned_time_arithmetic(g: Writer, node: exp.Binary, op: str) -> str:
     return zoned_times.add_picos(value, delta if op == "+" else f"-{delta}", ttype(node).args[0])
 
 
+def wide_interval_arithmetic(g: Writer, node: exp.Binary, op: str) -> str:
+    """timestamp(7..12) with time zone ± interval: the interval moves the microseconds (months the wall
+    time in the value's zone), the picoseconds below them stay (TimestampWithTimeZoneOperators)."""
+    t = ttype(node)
+    stamp, interval = node.this, node.expression
+    if ttype(stamp).base.startswith("interval"):
+        stamp, interval = interval, stamp
+    sql, amount = g.sql(stamp), g.sql(interval)
+    micros = wide.micros(sql)
+    zoned = t.base == "timestamp_tz"
+    if ttype(interval) == tt.INTERVAL_YM and zoned:
+        zone = tt.zone_of(t)
+        moved = zones.instant(f"({zones.local(micros, zone)} {op} {amount})", zone)
+    else:
+        moved = f"({micros} {op} {amount})"
+    return wide.make(moved, wide.picos(sql), zoned)
+
+
 def nanosecond_interval_arithmetic(g: Writer, node: exp.Binary, op: str) -> str:
     """timestamp(7..9) ± interval: the interval moves the microseconds, the nanoseconds below them stay
     (TimestampOperators on LongTimestamp); DuckDB would round the value to microseconds first."""
@@ -90,6 +111,8 @@ def timestamp_difference(g: Writer, node: exp.Sub) -> str:
 
 def epoch_micros(sql: str, t: TType) -> str:
     """A timestamp's epoch microseconds (floored for a TIMESTAMP_NS, as LongTimestamp.getEpochMicros)."""
+    if wide.is_wide(t):
+        return f"epoch_us({wide.micros(sql)})"
     return floor_div(f"epoch_ns({sql})", 1000) if t.args[0] > 6 else f"epoch_us({sql})"
 
 
@@ -267,6 +290,8 @@ def ieee_comparison(g: Writer, node: exp.Binary) -> str:
         return f"CASE WHEN {nulls} THEN NULL WHEN {nan} THEN {unordered} ELSE {left} {op} {right} END"
     if common.base == "time_tz":  # the times at offset +00:00 (dialect/zoned_times.py)
         return f"{zoned_times.utc(_as(g, node.this, common))} {op} {zoned_times.utc(_as(g, node.expression, common))}"
+    if wide.is_wide(common):  # structs ordered as the instants (wide_timestamps.py)
+        return f"{g.coerce(node.this, common)} {op} {g.coerce(node.expression, common)}"
     if common.base in ("array", "map", "row") and op in ("=", "<>"):
         equal = trino_equal(left, right, common)
         return equal if op == "=" else f"NOT ({equal})"
@@ -287,6 +312,8 @@ def distinct_from(g: Writer, node: exp.Binary) -> str:
     common = node.meta.get("compare")
     if common is not None and common.base == "time_tz":
         return f"{zoned_times.utc(_as(g, node.this, common))} {op} {zoned_times.utc(_as(g, node.expression, common))}"
+    if wide.is_wide(common):
+        return f"{g.coerce(node.this, common)} {op} {g.coerce(node.expression, common)}"
     return f"{g.sql(node.this)} {op} {g.sql(node.expression)}"
 
 
@@ -375,6 +402,9 @@ def eager_constant_in_list(g: Writer, node: exp.In) -> str:
     elif items and common is not None and common.base == "time_tz":  # the times at +00:00 (zoned_times.py)
         value, *listed = (zoned_times.utc(_as(g, side, common)) for side in (node.this, *items))
         sql = f"{value} IN ({', '.join(listed)})"
+    elif items and wide.is_wide(common):
+        value, *listed = (g.coerce(side, common) for side in (node.this, *items))
+        sql = f"{value} IN ({', '.join(listed)})"
     if node.find(exp.Column) is not None or all(isinstance(i, (exp.Literal, exp.Null)) for i in items):
         return sql
     return f"CASE WHEN len([{', '.join(g.coerce(i, common) for i in items)}]) >= 0 THEN {sql} END"
@@ -455,6 +485,9 @@ def ieee_between(g: Writer, node: exp.Between) -> str:
         value, low, high = (
             zoned_times.utc(_as(g, side, common)) for side in (node.this, node.args["low"], node.args["high"])
         )
+        return f"{value} BETWEEN {low} AND {high}"
+    if wide.is_wide(common):
+        value, low, high = (g.coerce(side, common) for side in (node.this, node.args["low"], node.args["high"]))
         return f"{value} BETWEEN {low} AND {high}"
     sql = g.between_sql(node)
     if common is None or not common.is_approx:

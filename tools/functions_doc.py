@@ -56,10 +56,10 @@ class CaseFileError(ValueError):
 
 #: The decision on the time types lakegate refuses by name, with the figures it rests on.
 PRECISION = [
-    "Answered exactly: timestamp(p) for p <= 9 (DuckDB's TIMESTAMP_NS for 7-9, within its range 1677-2262), "
-    "timestamp(p) with time zone for p <= 6 (and from_unixtime_nanos), time(p) for p <= 6, and time(p) with time "
-    "zone for every p = 0..12. Refused by name (NOT_SUPPORTED): timestamp(10-12), timestamp(p > 6) outside the "
-    "nanosecond range, timestamp(7-12) with time zone and time(7-12).",
+    "Answered exactly: timestamp(p) for every p = 0..12 (DuckDB's TIMESTAMP_NS for 7-9, within its range "
+    "1677-2262; a struct for 10-12), timestamp(p) with time zone for every p = 0..12, time(p) for p <= 6, and "
+    "time(p) with time zone for every p = 0..12. Refused by name (NOT_SUPPORTED): timestamp(7-9) outside the "
+    "nanosecond range and time(7-12).",
     "Time with time zone (dialect/zoned_times.py): held in DuckDB as `STRUCT(utc_ps BIGINT, offset_min SMALLINT)`, "
     "the time of day at offset +00:00 in picoseconds (Trino's TimeWithTimeZoneTypes.normalize: what it compares, "
     "orders and subtracts) and the offset in minutes. Answered: literals of every precision, CAST to and from "
@@ -78,6 +78,25 @@ PRECISION = [
     "the 3,559 corpus queries of time with time zone the translator answers 2,038 now, 1,005 of them with p > 6, "
     "which TIMETZ cannot hold, and its equality would still have to be rewritten. Cost: every comparison "
     "reads one struct field (translation cold median below; no lake column has this type).",
+    "Timestamp(7..12) with time zone (dialect/wide_timestamps.py): held as `STRUCT(us TIMESTAMPTZ, ps INTEGER)`, "
+    "the instant floored to the microsecond (what every zone-dependent operation of timestamp(p <= 6) with time "
+    "zone reads, so those apply unchanged) and the picoseconds below it; the zone stays static in the "
+    "expression's type, as for every zoned timestamp, and DuckDB orders the struct field by field, as Trino "
+    "orders the instants. Timestamp(10..12) is the same struct of the wall time (`us TIMESTAMP`). Answered: "
+    "literals (their instant computed at translation), CAST to and from varchar "
+    "(literals), timestamp(p), date and every precision (HALF_UP), =, <>, <, <=, >, >=, BETWEEN, IN, IS [NOT] "
+    "DISTINCT FROM, ORDER BY, GROUP BY, DISTINCT, min, max, count, arbitrary, coalesce, CASE, the date and time "
+    "functions that read the microseconds (fields, EXTRACT, date_trunc, date_add, which keeps the picoseconds, "
+    "date_diff, date_format), ± intervals, AT TIME ZONE, to_unixtime and from_unixtime_nanos; results show "
+    "Trino's text. Refused by name: the other functions of it, arrays, maps and rows of it, the difference of "
+    "two and casts to time (casts to time with time zone are answered). Why a struct: the epoch picoseconds "
+    "need 80 bits (no DuckDB integer type but "
+    "HUGEINT, whose every zone-dependent operation would have to be rewritten), DuckDB's TIMESTAMP_NS cannot "
+    "hold the zone's instant past 1677-2262 nor past nine digits, and the struct keeps the TIMESTAMPTZ code. "
+    "Cost: a literal with a zone translates to a constant; a column value's SQL reads one struct field per "
+    "use. Figures (`python3 dev.py corpus --refusals 40`, 19,450 queries, 2026-11-29): the translator refused "
+    "6,299 before, 5,215 with timestamp(7..12) with time zone, 4,584 with timestamp(10..12) too, 4,134 with "
+    "their casts to time with time zone.",
     "Figures (`python3 dev.py corpus --refusals 40`, Trino 476's own function, type and query tests, 19,450 "
     "queries, 2026-11-29): the translator refused 8,389 before time with time zone (2,844 of them time with "
     "time zone), 6,299 after. The next families: timestamp(7-12) with time zone 1,503, time(7-12) 1,176, "

@@ -2,7 +2,7 @@
 datetime_formats.py).
 
 from_unixtime_nanos: nanoseconds since the epoch as a timestamp(9) with time
-zone in the session zone, held as dialect/zoned_nanos.py describes.
+zone in the session zone, held as dialect/wide_timestamps.py describes.
 
 Source: trinodb/trino core/trino-main/src/main/java/io/trino/operator/scalar/DateTimeFunctions.java
 (fromUnixtimeNanosLong; FromUnixtimeNanosDecimal rounds a decimal HALF_UP to whole nanoseconds) and
@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import re
 
-from lakegate.dialect import intervals, times, zoned_nanos, zones
+from lakegate.dialect import intervals, times, zones
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
+from lakegate.dialect import wide_timestamps as wide
 from lakegate.dialect import write_casts as casts
 from lakegate.dialect.functions.arguments import KINDS, fixed, literal_int, literal_str, need
 from lakegate.dialect.registry import overload, register
@@ -504,10 +505,6 @@ def _render_from_iso8601_timestamp(g, node, args) -> str:
     )
 
 
-#: The largest magnitude of nanoseconds DuckDB's TIMESTAMP_NS holds (the bigints past it are its infinities).
-_LAST_NANOS = 2**63 - 2
-
-
 def _from_unixtime_nanos(call: Call) -> tt.TType:
     types = call.types
     if len(types) != 1 or types[0] is None or not (types[0].is_integral or types[0].is_decimal or types[0].is_unknown):
@@ -516,30 +513,18 @@ def _from_unixtime_nanos(call: Call) -> tt.TType:
 
 
 def _render_from_unixtime_nanos(g, node, args) -> str:
-    """make_timestamp_ns of the whole nanoseconds (DuckDB's CAST of a decimal to BIGINT rounds half away
-    from zero, as Trino's MathFunctions.Round.roundShort)."""
-    nanos = f"CAST({g.sql(args[0])} AS BIGINT)"
-    message = (
-        tf.string("unsupported in lakegate: from_unixtime_nanos of ")
-        + f" || {nanos} || "
-        + tf.string(" (DuckDB's TIMESTAMP_NS keeps its extreme values for its infinities)")
-    )
-    return (
-        f"CASE WHEN {nanos} NOT BETWEEN {-_LAST_NANOS} AND {_LAST_NANOS} THEN {g.fail(message, 'NOT_SUPPORTED')} "
-        f"ELSE make_timestamp_ns({nanos}) END"
-    )
+    """The whole nanoseconds (DuckDB's CAST of a decimal to BIGINT rounds half away from zero, as Trino's
+    MathFunctions.Round.roundShort) as a wide value (wide_timestamps.py)."""
+    return wide.of_nanoseconds(f"CAST({g.sql(args[0])} AS BIGINT)")
 
 
-def _to_unixtime_nanos(call: Call) -> tt.TType | None:
-    return tt.DOUBLE if len(call.types) == 1 and zoned_nanos.is_zoned_nanos(call.types[0]) else None
+def _to_unixtime_wide(call: Call) -> tt.TType | None:
+    zoned = len(call.types) == 1 and call.types[0] is not None and call.types[0].base == "timestamp_tz"
+    return tt.DOUBLE if zoned and wide.is_wide(call.types[0]) else None
 
 
-def _render_to_unixtime_nanos(g, node, args) -> str:
-    """ToUnixTime of a LongTimestampWithTimeZone: epochMillis / 1000.0 + picosOfMilli / 1e12, in doubles
-    (the milliseconds floored, the picoseconds of the millisecond never negative)."""
-    nanos = f"epoch_ns({g.sql(args[0])})"
-    millis = casts.floor_div(nanos, 1_000_000)
-    return f"(CAST({millis} AS DOUBLE) / 1000.0 + CAST(({nanos} - {millis} * 1000000) * 1000 AS DOUBLE) / 1e12)"
+def _render_to_unixtime_wide(g, node, args) -> str:
+    return wide.to_unixtime(g.sql(args[0]))
 
 
 def install() -> None:
@@ -695,14 +680,12 @@ def install() -> None:
         "from_unixtime_nanos(unixtime) -> timestamp(9) with time zone",
         _from_unixtime_nanos,
         _render_from_unixtime_nanos,
-        notes="In the session time zone. Such values can be shown, compared with each other, ordered, grouped, "
-        "aggregated with min / max / count / arbitrary, moved with AT TIME ZONE and cast to timestamp(p), date and "
-        "varchar; other uses are refused.",
+        notes="In the session time zone, held as every timestamp(p > 6) with time zone (dialect/wide_timestamps.py).",
     )
 
     overload(
         "to_unixtime",
-        _to_unixtime_nanos,
-        _render_to_unixtime_nanos,
-        "to_unixtime(timestamp(9) with time zone) -> double",
+        _to_unixtime_wide,
+        _render_to_unixtime_wide,
+        "to_unixtime(timestamp(p > 6) with time zone) -> double",
     )

@@ -113,6 +113,10 @@ def arrow_type(t: TType) -> pa.DataType:
         return simple[base]
     if base == "decimal":
         return pa.decimal128(args[0], args[1])
+    if base in ("timestamp", "timestamp_tz") and args[0] > (9 if base == "timestamp" else 6):  # wide_timestamps.py
+        zone = "UTC" if base == "timestamp_tz" else None
+        fields = [("us", pa.timestamp("us", tz=zone)), ("ps", pa.int32()), ("wall", pa.int64()), ("zone", pa.string())]
+        return pa.struct(fields)
     if base == "timestamp":
         return pa.timestamp("ms" if args[0] <= 3 else "us")
     if base == "timestamp_tz":
@@ -431,6 +435,19 @@ def _day_text(days: int) -> str:
     return f"{sign}{abs(year):04d}-{month:02d}-{day:02d}"
 
 
+def _wide_timestamp(value: Any, precision: int) -> str | None:
+    """A timestamp(7..12) with time zone or timestamp(10..12) result (dialect/wide_timestamps.shown): its
+    wall time in epoch microseconds and the picoseconds below it, then its zone, as Trino writes it."""
+    if value is None:
+        return None
+    seconds, micros = divmod(value["wall"], 1_000_000)
+    days, second = divmod(seconds, 86400)
+    clock = f"{second // 3600:02d}:{second // 60 % 60:02d}:{second % 60:02d}"
+    fraction = f"{micros:06d}{value['ps']:06d}"[:precision]
+    text = f"{_day_text(days)} {clock}.{fraction}"
+    return text if value["zone"] is None else f"{text} {value['zone']}"
+
+
 def _is_far(values: pa.Array, low: int, high: int) -> bool:
     """Whether a value of `values` is outside [low, high)."""
     least, most = (v.as_py() for v in pc.min_max(values).values())
@@ -491,8 +508,10 @@ def _column(t: TType, column: pa.Array) -> list:
     if base == "timestamp" and pa.types.is_timestamp(arrow_type) and arrow_type.tz is None:
         texts = _temporal_texts(column, t.args[0], _as_string)
         return _far_timestamps(column, texts, t.args[0])
+    if base in ("timestamp", "timestamp_tz") and pa.types.is_struct(arrow_type):  # dialect/wide_timestamps.py
+        return [_wide_timestamp(value, t.args[0]) for value in column.to_pylist()]
     if base == "timestamp_tz" and pa.types.is_timestamp(arrow_type):
-        zone = arrow_type.tz or "UTC"  # a timestamp(p > 6) with time zone is its UTC instant (dialect/zoned_nanos.py)
+        zone = arrow_type.tz or "UTC"
         texts = _temporal_texts(
             column,
             t.args[0],

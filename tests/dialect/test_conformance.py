@@ -167,6 +167,11 @@ def to_protocol(value, ttype: tuple):
         seconds, nanos = divmod(value, 10**9)
         text = (dt.datetime(1970, 1, 1) + dt.timedelta(seconds=seconds)).strftime("%Y-%m-%d %H:%M:%S")
         return text + ("." + f"{nanos:09d}"[: args[0]] if args[0] else "")
+    if base in ("timestamp", "timestamp_tz") and isinstance(value, dict):  # wide_timestamps.shown
+        wall = dt.datetime(1970, 1, 1) + dt.timedelta(microseconds=value["wall"])
+        fraction = f"{wall.microsecond:06d}{value['ps']:06d}"[: args[0]]
+        text = f"{wall:%Y-%m-%d %H:%M:%S}.{fraction}"
+        return text if value["zone"] is None else f"{text} {value['zone']}"
     if base == "timestamp_tz" and isinstance(value, tuple):  # (timestamp to the second, nanoseconds)
         stamp, nanos = value
         fraction = "." + f"{nanos:09d}"[: args[0]] if args[0] else ""
@@ -312,10 +317,12 @@ def _nanoseconds(ttype: tuple) -> bool:
 
 
 def _arrow_rows(table: pa.Table) -> list[tuple]:
-    """The rows of a result with timestamp(7..9) columns, read through Arrow with timestamps as epoch
-    nanoseconds (ints, which to_protocol formats): DuckDB's Python values stop at microseconds."""
+    """The rows of a result with timestamp(7..9) columns, read through Arrow with nanosecond timestamps as
+    epoch nanoseconds (ints, which to_protocol formats): DuckDB's Python values stop at microseconds."""
     columns = [
-        c.cast(pa.timestamp("ns")).cast(pa.int64()).to_pylist() if pa.types.is_timestamp(c.type) else c.to_pylist()
+        c.cast(pa.timestamp("ns")).cast(pa.int64()).to_pylist()
+        if pa.types.is_timestamp(c.type) and c.type.unit == "ns"
+        else c.to_pylist()
         for c in table.columns
     ]
     return list(zip(*columns))

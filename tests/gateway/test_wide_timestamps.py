@@ -1,6 +1,7 @@
-"""from_unixtime_nanos over a real Parquet column of nanosecond integers (robot data stores its
-timestamps as bigint nanoseconds), through a real `lakegate serve` and the official trino client:
-the values arrive as Trino's text with nine fraction digits, in the session zone."""
+"""Timestamps with time zone past microseconds through a real `lakegate serve` and the official trino
+client: from_unixtime_nanos over a real Parquet column of nanosecond integers (robot data stores its
+timestamps as bigint nanoseconds) arrives as Trino's text with nine fraction digits, in the session
+zone; literals of up to twelve digits as Trino writes them."""
 
 from __future__ import annotations
 
@@ -52,3 +53,15 @@ def test_comparisons_and_min_max_through_the_server(lake_server):
     )
     [(first, first_text, later)] = rows
     assert first_text == _trino_text(first, "UTC") and later > 0
+
+
+def test_picosecond_timestamps_with_time_zone_through_the_server(lake_server):
+    rows, types = _rows(
+        lake_server,
+        "SELECT TIMESTAMP '2020-05-01 12:34:56.123456789012 Asia/Kathmandu' AT TIME ZONE 'America/New_York', "
+        "CAST(TIMESTAMP '1500-05-01 12:34:56.99999999 +05:45' AS timestamp(7) with time zone) "
+        "FROM odom_linear_velocity ORDER BY 1 LIMIT 1",
+        "UTC",
+    )
+    assert types == ["timestamp(12) with time zone", "timestamp(7) with time zone"]
+    assert rows == [["2020-05-01 02:49:56.123456789012 America/New_York", "1500-05-01 12:34:57.0000000 +05:45"]]

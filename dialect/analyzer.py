@@ -9,7 +9,7 @@ from typing import NoReturn
 
 from sqlglot import exp
 
-from lakegate.dialect import registry, zoned_nanos, zones
+from lakegate.dialect import pico_times, registry, zoned_nanos, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analysis_checks import CHAR_TYPE, MICROS_READERS, Checks, check_char_use
 from lakegate.dialect.errors import DialectError
@@ -113,6 +113,7 @@ class Analyzer(Relations, StarExpansion, Checks):
             self.unsupported(f"{t} (lakegate keeps nanoseconds at most; digits past them would be dropped)", node)
         self._check_nanosecond_use(node)
         self.check_time_tz_use(node, t)
+        pico_times.check_use(self, node, t)
         check_char_use(self, node)
         return set(node, t)
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from sqlglot import exp
 
-from lakegate.dialect import chars, wide_decimals, zoned_times, zones
+from lakegate.dialect import chars, pico_times, wide_decimals, zoned_times, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.transforms import Writer, cast, quote, string, ten, transform
 from lakegate.dialect.trino_types import TType
@@ -54,6 +54,8 @@ def decimal_result_type(g: Writer, node: exp.Binary) -> str:
         return timestamp_difference(g, node)
     if t.base == "time_tz" or t == tt.INTERVAL_DS and ttype(node.this).base == "time_tz":
         return zoned_time_arithmetic(g, node, op)
+    if pico_times.is_wide(t) or t == tt.INTERVAL_DS and ttype(node.this).base == "time":
+        return time_picos_arithmetic(g, node, op)
     return sql
 
 
@@ -68,6 +70,19 @@ def zoned_time_arithmetic(g: Writer, node: exp.Binary, op: str) -> str:
     value, interval = (left, right) if ttype(node.this).base == "time_tz" else (right, left)
     delta = zoned_times.interval_picos(interval)
     return zoned_times.add_picos(value, delta if op == "+" else f"-{delta}", ttype(node).args[0])
+
+
+def time_picos_arithmetic(g: Writer, node: exp.Binary, op: str) -> str:
+    """time(p > 6) ± a day-to-second interval (moved modulo a day), and the difference of two times of
+    any precision (rounded HALF_UP to milliseconds): TimeOperators on picoseconds (pico_times.py)."""
+    left, right = g.sql(node.this), g.sql(node.expression)
+    if ttype(node.this).base == ttype(node.expression).base == "time":
+        return pico_times.difference(
+            pico_times.picos(left, ttype(node.this)), pico_times.picos(right, ttype(node.expression))
+        )
+    value, interval = (left, right) if ttype(node.this).base == "time" else (right, left)
+    delta = zoned_times.interval_picos(interval)
+    return pico_times.moved(value, delta if op == "+" else f"-{delta}")
 
 
 def nanosecond_interval_arithmetic(g: Writer, node: exp.Binary, op: str) -> str:
@@ -267,6 +282,8 @@ def ieee_comparison(g: Writer, node: exp.Binary) -> str:
         return f"CASE WHEN {nulls} THEN NULL WHEN {nan} THEN {unordered} ELSE {left} {op} {right} END"
     if common.base == "time_tz":  # the times at offset +00:00 (dialect/zoned_times.py)
         return f"{zoned_times.utc(_as(g, node.this, common))} {op} {zoned_times.utc(_as(g, node.expression, common))}"
+    if pico_times.is_wide(common):  # both sides as picoseconds
+        return f"{_as(g, node.this, common)} {op} {_as(g, node.expression, common)}"
     if common.base in ("array", "map", "row") and op in ("=", "<>"):
         equal = trino_equal(left, right, common)
         return equal if op == "=" else f"NOT ({equal})"
@@ -287,6 +304,8 @@ def distinct_from(g: Writer, node: exp.Binary) -> str:
     common = node.meta.get("compare")
     if common is not None and common.base == "time_tz":
         return f"{zoned_times.utc(_as(g, node.this, common))} {op} {zoned_times.utc(_as(g, node.expression, common))}"
+    if pico_times.is_wide(common):
+        return f"{_as(g, node.this, common)} {op} {_as(g, node.expression, common)}"
     return f"{g.sql(node.this)} {op} {g.sql(node.expression)}"
 
 
@@ -375,6 +394,9 @@ def eager_constant_in_list(g: Writer, node: exp.In) -> str:
     elif items and common is not None and common.base == "time_tz":  # the times at +00:00 (zoned_times.py)
         value, *listed = (zoned_times.utc(_as(g, side, common)) for side in (node.this, *items))
         sql = f"{value} IN ({', '.join(listed)})"
+    elif items and pico_times.is_wide(common):
+        value, *listed = (_as(g, side, common) for side in (node.this, *items))
+        sql = f"{value} IN ({', '.join(listed)})"
     if node.find(exp.Column) is not None or all(isinstance(i, (exp.Literal, exp.Null)) for i in items):
         return sql
     return f"CASE WHEN len([{', '.join(g.coerce(i, common) for i in items)}]) >= 0 THEN {sql} END"
@@ -455,6 +477,9 @@ def ieee_between(g: Writer, node: exp.Between) -> str:
         value, low, high = (
             zoned_times.utc(_as(g, side, common)) for side in (node.this, node.args["low"], node.args["high"])
         )
+        return f"{value} BETWEEN {low} AND {high}"
+    if pico_times.is_wide(common):
+        value, low, high = (_as(g, side, common) for side in (node.this, node.args["low"], node.args["high"]))
         return f"{value} BETWEEN {low} AND {high}"
     sql = g.between_sql(node)
     if common is None or not common.is_approx:

@@ -128,7 +128,7 @@ def _check_time_cast(a: Analyzer, node: exp.Cast, source: TType, target: TType) 
     for t in (source, target):
         if t.base in ("time", "time_tz") and t.args[0] > zoned_times.MAX_PRECISION:
             a.fail(f"Unknown type: {t}", node, "TYPE_MISMATCH")
-    if source.base == "timestamp" and source.args[0] > 6 and target.base != "time":
+    if source.base == "timestamp" and source.args[0] > 6 and target.base not in ("time", "time_tz"):
         a.unsupported(f"CAST({source} AS {target}) (more than microsecond precision)", node)
     if source.base in ("time", "time_tz") and target.base in ("timestamp", "timestamp_tz"):
         _check_time_to_timestamp(a, node, source, target)
@@ -255,7 +255,7 @@ def castable(source: TType, target: TType) -> bool:
     if source.base in ("time", "time_tz", "interval_ds", "interval_ym") and target.base == "varchar":
         return True
     if target.base == "time_tz" and source.base in ("varchar", "time", "time_tz", "timestamp", "timestamp_tz"):
-        return source.base != "timestamp" or source.args[0] <= 6
+        return source.base != "timestamp" or source.args[0] <= 9
     if target.base == "time" and source.base in ("time_tz", "timestamp_tz"):
         return source.args[0] <= 6 or source.base == "time_tz"
     if source.base == target.base == "array":

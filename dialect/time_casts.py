@@ -23,7 +23,7 @@ def handles(source: TType, target: TType) -> bool:
         return False
     if source.base in ("time", "time_tz") and target.base in ("timestamp", "timestamp_tz"):
         return True
-    if source.base == "timestamp" and source.args[0] > 6 and target.base == "time":
+    if source.base == "timestamp" and source.args[0] > 6 and target.base in ("time", "time_tz"):
         return True
     return pico_times.is_wide(source) or pico_times.is_wide(target)
 
@@ -68,8 +68,13 @@ def cast(g: Any, sql: str, source: TType, target: TType) -> str:
     if source.base == "varchar":
         message = f"'Value cannot be cast to time: ' || {sql}"
         return pico_times.parse(sql, precision, g.fail(message, "INVALID_CAST_ARGUMENT"))
-    if source.base == "time" and target.base == "time_tz":  # at the session zone's offset (infer_casts)
-        rounded = zoned_times.rounded_picos(pico_times.picos(sql, source), precision)
+    if source.base in ("time", "timestamp") and target.base == "time_tz":  # at the session zone's offset
+        of_day = (
+            pico_times.picos(sql, source)
+            if source.base == "time"
+            else zoned_times.modulo_day(_epoch_picos(sql, source))
+        )
+        rounded = zoned_times.rounded_picos(of_day, precision)
         return zoned_times.of_local(rounded, str(zoned_times.offset_of(g.time_zone)))
     if source.base == "time_tz":  # to time(p > 6): its local time
         return pico_times.of_picos(zoned_times.rounded_picos(zoned_times.local(sql), precision), precision)

@@ -17,7 +17,7 @@ from __future__ import annotations
 from sqlglot import exp
 from sqlglot.generators.duckdb import DuckDBGenerator
 
-from lakegate.dialect import chars, intervals, null_folding, pico_times, times, zoned_times, zones
+from lakegate.dialect import chars, intervals, null_folding, pico_times, time_casts, times, zoned_times, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.trino_types import TType
@@ -105,8 +105,8 @@ class Writer(DuckDBGenerator):
             return cast("NULL", target)
         if target.base == "char":  # from char or varchar (chars.py)
             return chars.pad(sql, target.args[0])
-        if pico_times.is_wide(target) and source.base == "time":  # picoseconds of a narrower time
-            return pico_times.round_time(sql, source, target.args[0])
+        if time_casts.handles(source, target):  # a time(7..12) or to one: DuckDB cannot cast the picoseconds
+            return time_casts.cast(self, sql, source, target)
         if target.base == "timestamp_tz" and source.base in ("timestamp", "date"):  # in the session zone
             return zones.instant(f"CAST({sql} AS TIMESTAMP)", self.time_zone)
         if self.time_zone != zones.UTC and _inside(target, "timestamp_tz") and _inside(source, "date", "timestamp"):

@@ -9,7 +9,7 @@ from typing import NoReturn
 
 from sqlglot import exp
 
-from lakegate.dialect import registry, wide_timestamps, zones
+from lakegate.dialect import pico_times, registry, wide_timestamps, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analysis_checks import CHAR_TYPE, MICROS_READERS, Checks, check_char_use
 from lakegate.dialect.errors import DialectError
@@ -107,6 +107,7 @@ class Analyzer(Relations, StarExpansion, Checks):
         wide_timestamps.check_use(self, node, MICROS_READERS)
         self._check_nanosecond_use(node)
         self.check_time_tz_use(node, t)
+        pico_times.check_use(self, node, t)
         check_char_use(self, node)
         return set(node, t)
 

@@ -130,6 +130,10 @@ def _extract(a: Analyzer, node, scope, env):
         "MINUTE",
         "SECOND",
     }
+    if t.base == "time":  # io.trino.operator.scalar.time: ExtractHour, ExtractMinute, ExtractSecond
+        if unit not in ("HOUR", "MINUTE", "SECOND"):
+            a.fail(f"Cannot extract {unit} from {t}", node, "TYPE_MISMATCH")
+        return tt.BIGINT
     if t.base == "time_tz":  # io.trino.operator.scalar.timetz: ExtractHour, ..., TimeZoneHour
         if unit not in ("HOUR", "MINUTE", "SECOND", "TIMEZONE_HOUR", "TIMEZONE_MINUTE"):
             a.fail(f"Cannot extract {unit} from {t}", node, "TYPE_MISMATCH")
@@ -335,8 +339,6 @@ def _time_at_time_zone(a: Analyzer, node: exp.AtTimeZone, t: TType, zone: str) -
         a.unsupported(f"{t} AT TIME ZONE a region (its offset depends on the session's date)", node)
     if None in offsets:
         a.unsupported(f"{t} AT TIME ZONE in the session zone {a.time_zone} (its offset depends on the date)", node)
-    if t.base == "time" and t.args[0] > 6:
-        a.unsupported(f"{t} (time with more than microsecond precision)", node)
     node.meta["offset"] = offsets[0]
     return TType("time_tz", t.args)
 

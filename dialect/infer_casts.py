@@ -8,7 +8,7 @@ from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
 
 from sqlglot import exp
 
-from lakegate.dialect import times, zoned_times, zones
+from lakegate.dialect import pico_times, times, zoned_times, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analysis_checks import has_char
 from lakegate.dialect.analyzer import Analyzer
@@ -94,10 +94,17 @@ def _cast(a: Analyzer, node, scope, env):
 
 def _time_literal_type(a: Analyzer, node: exp.Cast, text: str) -> TType:
     """TIME '01:02:03.456' is time(p), p its fraction digits (DateTimes.extractTimePrecision)."""
+    digits = re.fullmatch(r"\s*[0-9]{1,2}:[0-9]{1,2}:[0-9]{1,2}[.]([0-9]{13,})\s*", node.this.name)
+    if digits is not None:
+        message = f"TIME precision must be in range [0, 12]: {len(digits[1])}"
+        a.fail(message, node, "NUMERIC_VALUE_OUT_OF_RANGE")
     match = re.fullmatch(times.TIME_TEXT[1:-1], node.this.name)
     if match is None or int(match[1]) > 23 or int(match[2]) > 59 or int(match[4] or 0) > 59:
         a.fail(f"'{text}' is not a valid TIME literal", node, "INVALID_LITERAL")
-    return TType("time", (len(match[6] or ""),))
+    precision = len(match[6] or "")
+    if precision > 6:  # its picoseconds, computed here (pico_times.py)
+        node.meta["time_ps"] = pico_times.literal(node.this.name)
+    return TType("time", (precision,))
 
 
 def _time_tz_literal_type(a: Analyzer, node: exp.Cast) -> TType:
@@ -122,14 +129,16 @@ def _check_time_cast(a: Analyzer, node: exp.Cast, source: TType, target: TType) 
     (TimeWithTimeZoneOperators); the casts that need the session's date, or its zone's offset when
     that changes, are refused."""
     for t in (source, target):
-        if t.base == "time" and t.args[0] > 6:
-            a.unsupported(f"{t} (time with more than microsecond precision)", node)
-        if t.base == "time_tz" and t.args[0] > zoned_times.MAX_PRECISION:
+        if t.base in ("time", "time_tz") and t.args[0] > zoned_times.MAX_PRECISION:
             a.fail(f"Unknown type: {t}", node, "TYPE_MISMATCH")
-    if source.base == "timestamp" and source.args[0] > 6 and target.base != "time_tz":
+    if (
+        source.base == "timestamp"
+        and source.args[0] > 6
+        and not (target.base == "time_tz" or target.base == "time" and source.args[0] <= 9)
+    ):
         a.unsupported(f"CAST({source} AS {target}) (more than microsecond precision)", node)
     if source.base in ("time", "time_tz") and target.base in ("timestamp", "timestamp_tz"):
-        a.unsupported(f"CAST({source} AS {target}) (it depends on the session's date and zone)", node)
+        _check_time_to_timestamp(a, node, source, target)
     if source.base == "date":
         a.unsupported(f"CAST({source} AS {target})", node)
     if target.base in ("time", "time_tz") and source.base == "timestamp_tz":  # its zone's offset at the instant
@@ -143,6 +152,15 @@ def _check_time_cast(a: Analyzer, node: exp.Cast, source: TType, target: TType) 
         and not _names_its_offset(node)
     ):
         a.unsupported(f"CAST({source} AS {target}) in the session zone {a.time_zone} (its offset changes)", node)
+
+
+def _check_time_to_timestamp(a: Analyzer, node: exp.Cast, source: TType, target: TType) -> None:
+    """A time on the session's date (dialect/time_casts.py): to the timestamps lakegate holds, and to
+    timestamp with time zone from a time with time zone literal only (its offset is the value's zone)."""
+    if target.base == "timestamp_tz" and target.args[0] > 6 or target.args[0] > 9:
+        a.unsupported(f"CAST({source} AS {target}) (more than lakegate's timestamps hold)", node)
+    if target.base == "timestamp_tz" and source.base == "time_tz" and "time_tz" not in node.this.meta:
+        a.unsupported(f"CAST({source} AS {target}) of a value that is not a literal (its offset is its zone)", node)
 
 
 def _names_its_offset(node: exp.Cast) -> bool:
@@ -180,6 +198,8 @@ def _cast_zone(a: Analyzer, node: exp.Cast, source: TType) -> str | None:
     DateTimes.parseTimestampWithTimeZone)."""
     if source.base == "timestamp_tz":
         return tt.zone_of(source)
+    if source.base == "time_tz" and "time_tz" in node.this.meta:  # a literal's offset (time_casts.py)
+        return zones.canonical(zoned_times.offset_text_of(node.this.meta["time_tz"][1]))
     if source.base != "varchar":
         return a.time_zone
     if not (isinstance(node.this, exp.Literal) and node.this.is_string):
@@ -235,14 +255,16 @@ def castable(source: TType, target: TType) -> bool:
         "timestamp_tz",
     ):
         return True
-    if target.base == "time" and source.base in ("varchar", "time", "timestamp"):  # p <= 6 (times.py)
-        return max(target.args[0], source.args[0] if source.base != "varchar" else 0) <= 6
+    if target.base == "time" and source.base in ("varchar", "time", "timestamp"):  # times.py, pico_times.py
+        return source.base != "timestamp" or source.args[0] <= 9
+    if source.base in ("time", "time_tz") and target.base in ("timestamp", "timestamp_tz"):  # time_casts.py
+        return True
     if source.base in ("time", "time_tz", "interval_ds", "interval_ym") and target.base == "varchar":
         return True
     if target.base == "time_tz" and source.base in ("varchar", "time", "time_tz", "timestamp", "timestamp_tz"):
-        return source.base != "time" or source.args[0] <= 6
+        return True  # time(p <= 12) (pico_times.py), timestamp(p <= 9) (time_casts.py) and past (wide_timestamps.py)
     if target.base == "time" and source.base in ("time_tz", "timestamp_tz"):
-        return target.args[0] <= 6 and source.args[0] <= 6 or source.base == "time_tz"
+        return source.args[0] <= 6 or source.base == "time_tz"
     if source.base == target.base == "array":
         return castable(source.element, target.element)
     if source.base == target.base == "row" and len(source.args) == len(target.args):

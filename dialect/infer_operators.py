@@ -309,7 +309,7 @@ def _arithmetic(a: Analyzer, node, scope, env):
     if result is None:
         result = _temporal_arithmetic(op, left, right)
     if result is None and op == "-" and left.base == right.base == "time":
-        a.unsupported(f"{left} - {right} (the interval between two times)", node)
+        result = tt.INTERVAL_DS  # rounded HALF_UP to milliseconds (TimeOperators.subtract)
     if result is None:
         a.fail(f"Cannot apply operator: {left} {op} {right}", node, "TYPE_MISMATCH")
     if op == "-" and left.base == right.base == "timestamp_tz" and max(left.args[0], right.args[0]) > 3:

@@ -17,7 +17,17 @@ from __future__ import annotations
 from sqlglot import exp
 from sqlglot.generators.duckdb import DuckDBGenerator
 
-from lakegate.dialect import chars, intervals, null_folding, times, wide_timestamps, zoned_times, zones
+from lakegate.dialect import (
+    chars,
+    intervals,
+    null_folding,
+    pico_times,
+    time_casts,
+    times,
+    wide_timestamps,
+    zoned_times,
+    zones,
+)
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.trino_types import TType
@@ -108,6 +118,8 @@ class Writer(DuckDBGenerator):
         if wide_timestamps.is_wide(target):
             zoned = target.base == "timestamp_tz"  # a timestamp read in the session zone
             return wide_timestamps.coerce(sql, source, self.time_zone, zoned)
+        if time_casts.handles(source, target):  # a time(7..12) or to one: DuckDB cannot cast the picoseconds
+            return time_casts.cast(self, sql, source, target)
         if target.base == "timestamp_tz" and source.base in ("timestamp", "date"):  # in the session zone
             return zones.instant(f"CAST({sql} AS TIMESTAMP)", self.time_zone)
         if self.time_zone != zones.UTC and _inside(target, "timestamp_tz") and _inside(source, "date", "timestamp"):
@@ -327,6 +339,8 @@ def extract_field(g: Writer, node: exp.Extract) -> str:
     value = node.expression
     if ttype(value).base == "time_tz":
         return zoned_times.field(g.sql(value), unit.lower())
+    if ttype(value).base == "time":
+        return zoned_times.clock_field(pico_times.picos(g.sql(value), ttype(value)), unit.lower())
     if unit in ("TIMEZONE_HOUR", "TIMEZONE_MINUTE"):
         return zone_offset(g, value, unit.split("_")[1].lower())
     if ttype(value).base in intervals.FIELDS:
@@ -350,7 +364,9 @@ def at_time_zone(g: Writer, node: exp.AtTimeZone) -> str:
     session zone. A time with time zone keeps its instant at the offset (infer_calls._time_at_time_zone)."""
     if ttype(node).base == "time_tz":
         sql, source = g.sql(node.this), ttype(node.this)
-        if source.base == "time":
+        if pico_times.is_wide(source):
+            sql = zoned_times.of_local(sql, str(zoned_times.offset_of(g.time_zone)))
+        elif source.base == "time":
             sql = zoned_times.of_time_micros(times.micros(sql), zoned_times.offset_of(g.time_zone))
         return zoned_times.make(zoned_times.utc(sql), str(node.meta["offset"]))
     return g.coerce(node.this, ttype(node))

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from sqlglot import exp
 
-from lakegate.dialect import chars, registry
+from lakegate.dialect import chars, pico_times, registry
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.transforms import DuckCast
 from lakegate.dialect.trino_types import TType
@@ -53,6 +53,8 @@ def _cast_branches(operation: exp.SetOperation, outputs: list) -> None:
                     converted = exp.Cast(this=item.this, to=exp.DataType.build("VARCHAR"))  # Trino's CAST to `common`
                     converted.meta.update({"t": common, "from": ttype(item.this)})
                     item.set("this", converted)
+                elif pico_times.is_wide(common) and ttype(item.this).base == "time":  # to picoseconds
+                    pico_times.cast_to(item.this, common)
                 elif ttype(item.this) != common and not ttype(item.this).base == common.base == "varchar":
                     _wrap(item, common)
 

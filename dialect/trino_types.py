@@ -421,6 +421,8 @@ def duckdb_type(t: TType) -> str | None:
         return WIDE_TIMESTAMP_TZ
     if base == "time_tz":
         return zoned_times.DUCKDB_TYPE
+    if base == "time" and t.args[0] > 6:
+        return "BIGINT"  # picoseconds of the day (dialect/pico_times.py)
     if base in _DUCK:
         return _DUCK[base]
     if base == "decimal":

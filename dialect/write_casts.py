@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from sqlglot import exp
 
-from lakegate.dialect import chars, registry, times, zoned_times, zones
+from lakegate.dialect import chars, pico_times, registry, time_casts, times, zoned_times, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect import wide_timestamps as wide
 from lakegate.dialect.transforms import Writer, cast, quote, string, transform
@@ -29,6 +29,8 @@ def trino_cast(g: Writer, node: exp.Cast) -> str:
         return chars.trimmed(g, node)
     if "time_tz" in node.meta:  # a TIME literal with an offset, computed at analysis
         return zoned_times.constant(node.meta["time_tz"])
+    if "time_ps" in node.meta:  # a TIME literal of more than six fraction digits, computed at analysis
+        return f"CAST({node.meta['time_ps']} AS BIGINT)"
     return cast_value(g, *cast_operand(g, node), ttype(node))
 
 
@@ -158,6 +160,8 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
         return f"CASE WHEN length({text}) > {length} THEN {g.fail(message, 'INVALID_CAST_ARGUMENT')} ELSE {text} END"
     if target.base == "varbinary":
         return f"encode({sql})"  # varchar: its UTF-8 bytes
+    if time_casts.handles(source, target):  # time(7..12), and times to timestamps (the session's date)
+        return time_casts.cast(g, sql, source, target)
     if source.base == "varchar":
         return parse_varchar(g, sql, target)
     if target.is_integral and source.is_approx:
@@ -461,7 +465,7 @@ def varchar_of(g: Writer, sql: str, source: TType) -> str:
     if source.base == "timestamp":
         return timestamp_text(sql, source.args[0])
     if source.base == "time":
-        return times.text(sql, source.args[0])
+        return pico_times.text(sql, source.args[0]) if pico_times.is_wide(source) else times.text(sql, source.args[0])
     if source.base == "time_tz":
         return zoned_times.text(sql, source.args[0])
     if wide.is_wide(source):

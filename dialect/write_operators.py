@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from sqlglot import exp
 
-from lakegate.dialect import chars, wide_decimals, zoned_times, zones
+from lakegate.dialect import chars, pico_times, wide_decimals, zoned_times, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect import wide_timestamps as wide
 from lakegate.dialect.transforms import Writer, cast, quote, string, ten, transform
@@ -57,6 +57,8 @@ def decimal_result_type(g: Writer, node: exp.Binary) -> str:
         return timestamp_difference(g, node)
     if t.base == "time_tz" or t == tt.INTERVAL_DS and ttype(node.this).base == "time_tz":
         return zoned_time_arithmetic(g, node, op)
+    if pico_times.is_wide(t) or t == tt.INTERVAL_DS and ttype(node.this).base == "time":
+        return time_picos_arithmetic(g, node, op)
     return sql
 
 
@@ -89,6 +91,19 @@ def wide_interval_arithmetic(g: Writer, node: exp.Binary, op: str) -> str:
     else:
         moved = f"({micros} {op} {amount})"
     return wide.make(moved, wide.picos(sql), zoned)
+
+
+def time_picos_arithmetic(g: Writer, node: exp.Binary, op: str) -> str:
+    """time(p > 6) ± a day-to-second interval (moved modulo a day), and the difference of two times of
+    any precision (rounded HALF_UP to milliseconds): TimeOperators on picoseconds (pico_times.py)."""
+    left, right = g.sql(node.this), g.sql(node.expression)
+    if ttype(node.this).base == ttype(node.expression).base == "time":
+        return pico_times.difference(
+            pico_times.picos(left, ttype(node.this)), pico_times.picos(right, ttype(node.expression))
+        )
+    value, interval = (left, right) if ttype(node.this).base == "time" else (right, left)
+    delta = zoned_times.interval_picos(interval)
+    return pico_times.moved(value, delta if op == "+" else f"-{delta}")
 
 
 def nanosecond_interval_arithmetic(g: Writer, node: exp.Binary, op: str) -> str:
@@ -292,6 +307,8 @@ def ieee_comparison(g: Writer, node: exp.Binary) -> str:
         return f"{zoned_times.utc(_as(g, node.this, common))} {op} {zoned_times.utc(_as(g, node.expression, common))}"
     if wide.is_wide(common):  # structs ordered as the instants (wide_timestamps.py)
         return f"{g.coerce(node.this, common)} {op} {g.coerce(node.expression, common)}"
+    if pico_times.is_wide(common):  # both sides as picoseconds
+        return f"{_as(g, node.this, common)} {op} {_as(g, node.expression, common)}"
     if common.base in ("array", "map", "row") and op in ("=", "<>"):
         equal = trino_equal(left, right, common)
         return equal if op == "=" else f"NOT ({equal})"
@@ -314,6 +331,8 @@ def distinct_from(g: Writer, node: exp.Binary) -> str:
         return f"{zoned_times.utc(_as(g, node.this, common))} {op} {zoned_times.utc(_as(g, node.expression, common))}"
     if wide.is_wide(common):
         return f"{g.coerce(node.this, common)} {op} {g.coerce(node.expression, common)}"
+    if pico_times.is_wide(common):
+        return f"{_as(g, node.this, common)} {op} {_as(g, node.expression, common)}"
     return f"{g.sql(node.this)} {op} {g.sql(node.expression)}"
 
 
@@ -405,6 +424,9 @@ def eager_constant_in_list(g: Writer, node: exp.In) -> str:
     elif items and wide.is_wide(common):
         value, *listed = (g.coerce(side, common) for side in (node.this, *items))
         sql = f"{value} IN ({', '.join(listed)})"
+    elif items and pico_times.is_wide(common):
+        value, *listed = (_as(g, side, common) for side in (node.this, *items))
+        sql = f"{value} IN ({', '.join(listed)})"
     if node.find(exp.Column) is not None or all(isinstance(i, (exp.Literal, exp.Null)) for i in items):
         return sql
     return f"CASE WHEN len([{', '.join(g.coerce(i, common) for i in items)}]) >= 0 THEN {sql} END"
@@ -488,6 +510,9 @@ def ieee_between(g: Writer, node: exp.Between) -> str:
         return f"{value} BETWEEN {low} AND {high}"
     if wide.is_wide(common):
         value, low, high = (g.coerce(side, common) for side in (node.this, node.args["low"], node.args["high"]))
+        return f"{value} BETWEEN {low} AND {high}"
+    if pico_times.is_wide(common):
+        value, low, high = (_as(g, side, common) for side in (node.this, node.args["low"], node.args["high"]))
         return f"{value} BETWEEN {low} AND {high}"
     sql = g.between_sql(node)
     if common is None or not common.is_approx:

@@ -139,6 +139,11 @@ def offset_of(zone: str) -> int | None:
     return -minutes if zone[0] == "-" else minutes
 
 
+def offset_text_of(minutes: int) -> str:
+    """+hh:mm of an offset in minutes, as Python text."""
+    return f"{'-' if minutes < 0 else '+'}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
+
+
 def constant(value: tuple[int, int]) -> str:
     """DuckDB SQL of a constant (utc_ps, offset_min)."""
     return make(str(value[0]), str(value[1]))
@@ -230,13 +235,18 @@ def field(sql: str, name: str) -> str:
         return f"CAST(trunc({offset(sql)} / 60) AS BIGINT)"
     if name == "timezone_minute":
         return f"CAST({offset(sql)} - trunc({offset(sql)} / 60) * 60 AS BIGINT)"
+    return clock_field(local(sql), name)
+
+
+def clock_field(picos_sql: str, name: str) -> str:
+    """hour, minute, second or millisecond of a time of day in picoseconds, as BIGINT."""
     part = {
         "hour": f"// {60 * PICOS_PER_MINUTE}",
         "minute": f"// {PICOS_PER_MINUTE} % 60",
         "second": f"// {PICOS_PER_SECOND} % 60",
         "millisecond": f"% {PICOS_PER_SECOND} // 1000000000",
     }[name]
-    return f"CAST({local(sql)} {part} AS BIGINT)"
+    return f"CAST(({picos_sql}) {part} AS BIGINT)"
 
 
 def interval_picos(interval_sql: str) -> str:

@@ -57,9 +57,9 @@ class CaseFileError(ValueError):
 #: The decision on the time types lakegate refuses by name, with the figures it rests on.
 PRECISION = [
     "Answered exactly: timestamp(p) for every p = 0..12 (DuckDB's TIMESTAMP_NS for 7-9, within its range "
-    "1677-2262; a struct for 10-12), timestamp(p) with time zone for every p = 0..12, time(p) for p <= 6, and "
-    "time(p) with time zone for every p = 0..12. Refused by name (NOT_SUPPORTED): timestamp(7-9) outside the "
-    "nanosecond range and time(7-12).",
+    "1677-2262; a struct for 10-12), timestamp(p) with time zone for every p = 0..12, and time(p) and time(p) "
+    "with time zone for every p = 0..12. Refused by name (NOT_SUPPORTED): timestamp(7-9) outside the "
+    "nanosecond range.",
     "Time with time zone (dialect/zoned_times.py): held in DuckDB as `STRUCT(utc_ps BIGINT, offset_min SMALLINT)`, "
     "the time of day at offset +00:00 in picoseconds (Trino's TimeWithTimeZoneTypes.normalize: what it compares, "
     "orders and subtracts) and the offset in minutes. Answered: literals of every precision, CAST to and from "
@@ -71,9 +71,25 @@ PRECISION = [
     "minutes; the protocol's JSON shows Trino's text (`01:02:03.456-00:35`). Refused by name: GROUP BY, "
     "DISTINCT, UNION / INTERSECT / EXCEPT, IN a subquery, PARTITION BY and greatest / least of it (DuckDB would "
     "tell apart one instant in two offsets, which Trino takes as one value), arrays, maps and rows of it, AT "
-    "TIME ZONE a region and the casts to timestamp (they take the session's date), current_time, Arrow and "
+    "TIME ZONE a region, the casts of a value that is not a literal to timestamp with time zone (each value's "
+    "offset would be its zone), current_time, Arrow and "
     "Parquet output (no such Arrow type). CAST of a timestamp(p <= 6) with time zone to time goes through it "
     "(the time of day in the value's zone).",
+    "time(7-12) (dialect/pico_times.py): held in DuckDB as a BIGINT of picoseconds of the day (the unit of "
+    "time with time zone; time(p <= 6) stays DuckDB's TIME), so comparisons, ORDER BY, GROUP BY, DISTINCT, set "
+    "operations, min and max need nothing more. Answered: literals, CAST to and from varchar, between "
+    "precisions (HALF_UP, wrapping at midnight), to and from time(p <= 6), time with time zone and "
+    "timestamp(p <= 9), hour, minute, second, millisecond, EXTRACT, date_trunc, date_add, date_diff, ± "
+    "interval day to second, the difference of two times (of every precision: an interval rounded HALF_UP to "
+    "milliseconds), AT TIME ZONE, and Trino's text through the protocol. Refused by name: the other functions "
+    "of it (DuckDB would read the number) and arrays, maps and rows of it. Cost: none for time(p <= 6).",
+    "The casts of time and time with time zone to timestamp (dialect/time_casts.py) take the session's date, "
+    "the date the query starts on in the session zone, as the real Trino 476 does (asked in UTC, "
+    "Pacific/Kiritimati, Etc/GMT+12 and America/New_York): a time, or a time with time zone's local time, on "
+    "that date, rounded HALF_UP (24:00 is the next day); to timestamp with time zone a time is read in the "
+    "session zone, and a time with time zone literal is the instant of its time at +00:00 on that date, in its "
+    "own offset. Answered for the timestamps lakegate holds (timestamp(p <= 9), timestamp(p <= 6) with time "
+    "zone); the rest refused by name.",
     "Why a struct and not DuckDB's TIMETZ (microseconds and an offset in seconds, compared with the offset): of "
     "the 3,559 corpus queries of time with time zone the translator answers 2,038 now, 1,005 of them with p > 6, "
     "which TIMETZ cannot hold, and its equality would still have to be rewritten. Cost: every comparison "

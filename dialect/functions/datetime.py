@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import re
 
-from lakegate.dialect import intervals, times, zones
+from lakegate.dialect import intervals, pico_times, times, zones
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect import wide_timestamps as wide
@@ -94,6 +94,10 @@ def _render_date_diff(g, node, args) -> str:
     a, b = g.sql(args[1]), g.sql(args[2])
     first = ttype(args[1])
     common = tt.common_super_type(first, ttype(args[2]))
+    if pico_times.is_wide(common):  # whole units between the picoseconds, truncated toward zero
+        size = pico_times.UNIT_PICOS[unit]
+        first_picos, second_picos = pico_times.picos(a, first), pico_times.picos(b, ttype(args[2]))
+        return f"CAST(({second_picos} - {first_picos}) // {size} AS BIGINT)"
     if common is not None and common.base == "time":
         return f"CAST({times.diff(unit, a, b)} AS BIGINT)"
     if common is not None and common.base == "timestamp_tz":
@@ -146,6 +150,8 @@ def _render_date_add(g, node, args) -> str:
         return failure
     unit = args[0].name.lower()
     amount, value = g.sql(args[1]), g.sql(args[2])
+    if pico_times.is_wide(ttype(node)):
+        return pico_times.add(unit, amount, value)
     if ttype(node).base == "time":
         return times.add(unit, amount, value, ttype(node).args[0])
     amount = _int_amount(g, amount, ttype(node))
@@ -200,6 +206,8 @@ def _render_date_trunc(g, node, args) -> str:
         return failure
     unit, value = args[0].name.lower(), g.sql(args[1])
     t = ttype(node)
+    if pico_times.is_wide(t):
+        return pico_times.truncate(unit, value)
     if t.base == "time":
         return times.truncate(unit, value)
     if t.base == "timestamp_tz":  # on the wall time in the value's zone (Joda's ZonedDateTimeField.roundFloor)
@@ -309,6 +317,8 @@ def _render_field(g, node, args) -> str:
     name = node.name.lower()
     if ttype(args[0]).base in intervals.FIELDS:
         return intervals.field(g.sql(args[0]), ttype(args[0]).base, name)
+    if pico_times.is_wide(ttype(args[0])):
+        return pico_times.field(g.sql(args[0]), name)
     value = tf.field_time(g, args[0])
     part = _FIELD_OF[name]
     if ttype(args[0]).base == "unknown":  # a NULL literal: DuckDB cannot choose date_part's overload

@@ -122,7 +122,7 @@ def arrow_type(t: TType) -> pa.DataType:
     if base == "timestamp_tz":
         return pa.timestamp("ms" if args[0] <= 3 else "us", tz="UTC")
     if base == "time":
-        return pa.time64("us")
+        return pa.time64("us") if args[0] <= 6 else pa.int64()  # dialect/pico_times.py
     if base == "time_tz":  # dialect/zoned_times.py
         return pa.struct([("utc_ps", pa.int64()), ("offset_min", pa.int16())])
     if base == "array":
@@ -202,15 +202,26 @@ def _timestamp(precision: int, with_zone: bool) -> Encoder:
 
 
 def _time(precision: int) -> Encoder:
+    """A time(p <= 6) held as DuckDB's TIME; a time(p > 6) as picoseconds of the day (dialect/pico_times.py)."""
+
     def encode(value: Any) -> Any:
         if value is None:
             return None
+        if isinstance(value, int):
+            return _picos_text(value, precision)
         return value.strftime("%H:%M:%S") + _fraction(value.microsecond, 0, precision)
 
     return encode
 
 
 _PICOS_PER_DAY = 86_400 * 10**12
+
+
+def _picos_text(local: int, precision: int) -> str:
+    """HH:MM:SS and p fraction digits (truncated) of a time of day in picoseconds."""
+    seconds, picos = divmod(local, 10**12)
+    text = f"{seconds // 3600:02d}:{seconds // 60 % 60:02d}:{seconds % 60:02d}"
+    return text + "." + f"{picos:012d}"[:precision] if precision else text
 
 
 def _time_with_time_zone(precision: int) -> Encoder:
@@ -221,11 +232,7 @@ def _time_with_time_zone(precision: int) -> Encoder:
         if value is None:
             return None
         minutes = value["offset_min"]
-        local = (value["utc_ps"] + minutes * 60 * 10**12) % _PICOS_PER_DAY
-        seconds, picos = divmod(local, 10**12)
-        text = f"{seconds // 3600:02d}:{seconds // 60 % 60:02d}:{seconds % 60:02d}"
-        if precision:
-            text += "." + f"{picos:012d}"[:precision]
+        text = _picos_text((value["utc_ps"] + minutes * 60 * 10**12) % _PICOS_PER_DAY, precision)
         sign = "-" if minutes < 0 else "+"
         return f"{text}{sign}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
 

@@ -190,6 +190,10 @@ def to_protocol(value, ttype: tuple):
         text = (dt.datetime(1970, 1, 1) + dt.timedelta(seconds=seconds)).strftime("%H:%M:%S")
         text += "." + f"{picos:012d}"[: args[0]] if args[0] else ""
         return f"{text}{'-' if minutes < 0 else '+'}{abs(minutes) // 60:02d}:{abs(minutes) % 60:02d}"
+    if base == "time" and isinstance(value, int) and not isinstance(value, bool):  # picoseconds (pico_times.py)
+        seconds, picos = divmod(value, 10**12)
+        text = (dt.datetime(1970, 1, 1) + dt.timedelta(seconds=seconds)).strftime("%H:%M:%S")
+        return text + ("." + f"{picos:012d}"[: args[0]] if args[0] else "")
     if base == "time" and isinstance(value, dt.time):
         precision = args[0] if args else 3
         text = value.strftime("%H:%M:%S")

@@ -169,3 +169,27 @@ def test_query_command_time_zone():
     assert json.loads(done.stdout)["rows"] == [["America/New_York", "1969-12-31 19:00:00.000 America/New_York"]]
     done = lakegate_query("--time-zone", "Mars/Olympus", "SELECT 1")
     assert done.returncode == 1 and done.stderr == "lakegate: Time zone not supported: Mars/Olympus\n"
+
+
+def test_picosecond_times_and_the_session_date_through_the_protocol(lake_server):
+    """time(12) arrives as Trino's text, every digit kept (dialect/pico_times.py); a time cast to a
+    timestamp lands on the session's date in the session zone, the next day when it rounds up to 24:00."""
+    with trino.dbapi.connect(
+        host=lake_server.host,
+        port=lake_server.port,
+        user="tester",
+        catalog="lake",
+        timezone="Pacific/Kiritimati",
+        legacy_primitive_types=True,
+    ) as connection:
+        cursor = connection.cursor()
+        cursor.execute(
+            "SELECT TIME '12:34:56.123456789012', CAST(TIME '23:59:59.9999999' AS timestamp(6)), "
+            "CAST(TIME '01:02:03.1234567+05:45' AS timestamp(9)), CAST(current_date AS varchar)"
+        )
+        ((time, rounded, zoned, today),) = cursor.fetchall()
+        assert [column.type_code for column in cursor.description[:3]] == ["time(12)", "timestamp(6)", "timestamp(9)"]
+    day = dt.date.fromisoformat(today)
+    assert time == "12:34:56.123456789012"
+    assert rounded == f"{day + dt.timedelta(days=1)} 00:00:00.000000"
+    assert zoned == f"{day} 01:02:03.123456700"

@@ -89,7 +89,10 @@ PRECISION = [
     "that date, rounded HALF_UP (24:00 is the next day); to timestamp with time zone a time is read in the "
     "session zone, and a time with time zone literal is the instant of its time at +00:00 on that date, in its "
     "own offset. Answered for the timestamps lakegate holds (timestamp(p <= 9), timestamp(p <= 6) with time "
-    "zone); the rest refused by name.",
+    "zone); the rest refused by name. Figures (2026-11-29, `python3 dev.py corpus --refusals 40` and "
+    "`--sample 3000`): the translator refuses 4,420 of the 19,450 corpus queries (6,299 before); time(7-12) "
+    "1,176 -> 0, the casts of times to timestamps 744 -> 282 (all to timestamps lakegate does not hold); "
+    "functions and types of the sample 75.5 % equal (64.9 % before).",
     "Why a struct and not DuckDB's TIMETZ (microseconds and an offset in seconds, compared with the offset): of "
     "the 3,559 corpus queries of time with time zone the translator answers 2,038 now, 1,005 of them with p > 6, "
     "which TIMETZ cannot hold, and its equality would still have to be rewritten. Cost: every comparison "

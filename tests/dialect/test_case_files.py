@@ -16,6 +16,11 @@ REPO = Path(__file__).resolve().parents[2]
 BEFORE_THE_MOVE = "5160d1f415a65ee69131a715ce74da6fa3105ac3"
 #: (sql, session) pairs of the case files at BEFORE_THE_MOVE (1569 cases, 6 of them repeating a pair).
 PAIRS_BEFORE_THE_MOVE = 1563
+#: Cases of BEFORE_THE_MOVE whose SQL had to change since, each with the case that holds it now: a
+#: refusal whose answer, once translated, depends on the day the suite runs.
+REWRITTEN = {
+    ("SELECT CAST(TIME '01:02:03' AS timestamp)", "UTC"): "cast-time-to-timestamp-on-the-session-date (minus current_date)",
+}
 
 
 def _git(*args: str) -> str:
@@ -41,7 +46,7 @@ def test_no_case_was_lost_in_the_move(tmp_path):
     before = {(case.sql, case.time_zone) for case in load_cases(tmp_path)}
     now = {(case.sql, case.time_zone) for case in load_cases()}
     assert len(before) == PAIRS_BEFORE_THE_MOVE
-    assert sorted(before - now) == []
+    assert sorted(before - now - set(REWRITTEN)) == []
 
 
 def test_case_files_are_named_for_what_they_test():

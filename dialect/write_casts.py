@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from sqlglot import exp
 
-from lakegate.dialect import chars, registry, times, zoned_nanos, zoned_times, zones
+from lakegate.dialect import chars, ipaddresses, registry, times, zoned_nanos, zoned_times, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.transforms import Writer, cast, quote, string, transform
 from lakegate.dialect.trino_types import TType
@@ -28,6 +28,8 @@ def trino_cast(g: Writer, node: exp.Cast) -> str:
         return chars.trimmed(g, node)
     if "time_tz" in node.meta:  # a TIME literal with an offset, computed at analysis
         return zoned_times.constant(node.meta["time_tz"])
+    if "ip" in node.meta:  # an IPADDRESS literal, read at analysis
+        return ipaddresses.constant(node.meta["ip"])
     return cast_value(g, *cast_operand(g, node), ttype(node))
 
 
@@ -144,6 +146,8 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
         return chars.pad(sql, target.args[0])
     if target.base == "json":
         return registry.JSON_CASTS["to_json"](g, sql, source)
+    if "ipaddress" in (source.base, target.base):
+        return ipaddresses.cast(g, sql, source, target)
     if source.base == "json":
         return registry.JSON_CASTS["from_json"](g, sql, target)
     if target.base == "varchar":

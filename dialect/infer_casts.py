@@ -8,7 +8,7 @@ from zoneinfo import ZoneInfo, ZoneInfoNotFoundError
 
 from sqlglot import exp
 
-from lakegate.dialect import pico_times, times, zoned_times, zones
+from lakegate.dialect import ipaddresses, pico_times, times, zoned_times, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.analysis_checks import has_char
 from lakegate.dialect.analyzer import Analyzer
@@ -53,6 +53,12 @@ def _cast(a: Analyzer, node, scope, env):
             target = _time_literal_type(a, node, text)
         elif target.base == "time_tz":
             target = _time_tz_literal_type(a, node)
+        elif target.base == "ipaddress":  # computed here (node.meta["ip"])
+            node.meta["ip"] = ipaddresses.parse(node.this.name)
+            if node.meta["ip"] is None:
+                a.fail(f"'{node.this.name}' is not a valid IPADDRESS literal", node, "INVALID_LITERAL")
+    if "ipaddress" in (source.base, target.base) and not castable(source, target):
+        a.fail(f"Cannot cast {source} to {target}", node, "TYPE_MISMATCH")
     if source.base == "char" and target.base == "varchar":
         node.meta["from"] = source
         return target  # the padded text, cut to the varchar's length (CharacterStringCasts.charToVarcharCast)
@@ -70,7 +76,7 @@ def _cast(a: Analyzer, node, scope, env):
         _check_json_cast(a, node, source, target)
     elif "time" in (source.base, target.base) or "time_tz" in (source.base, target.base):
         _check_time_cast(a, node, source, target)
-    elif target.base in ("uuid", "varbinary", "map"):
+    elif target.base in ("uuid", "varbinary", "map") and source.base != "ipaddress":
         a.unsupported(f"cast to {target}", node)
     if target.base == "timestamp_tz":
         target = tt.timestamp(target.args[0], True, _cast_zone(a, node, source))
@@ -265,6 +271,9 @@ def castable(source: TType, target: TType) -> bool:
         return True  # time(p <= 12) (pico_times.py), timestamp(p <= 9) (time_casts.py) and past (wide_timestamps.py)
     if target.base == "time" and source.base in ("time_tz", "timestamp_tz"):
         return source.args[0] <= 6 or source.base == "time_tz"
+    if "ipaddress" in (source.base, target.base):  # from varchar and varbinary, to varchar and varbinary
+        sources = ("varchar", "varbinary") if target.base == "ipaddress" else ()
+        return source.base in sources or source.base == "ipaddress" and target in (tt.VARCHAR, tt.VARBINARY)
     if source.base == target.base == "array":
         return castable(source.element, target.element)
     if source.base == target.base == "row" and len(source.args) == len(target.args):

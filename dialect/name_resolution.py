@@ -310,8 +310,8 @@ class Relations:
         rows = []
         for row in node.expressions:
             cells = row.expressions if isinstance(row, exp.Tuple) else [row]
-            if len(cells) == 1 and self.expr(cells[0], scope, {}).base == "row":
-                cells = self._row_fields(row, cells[0])
+            if len(cells) == 1 and (_is_row_call(cells[0]) or self.expr(cells[0], scope, {}).base == "row"):
+                cells = self._row_fields(row, cells[0])  # ROW(...)'s fields, never typed as a row value
             rows.append([self.expr(c, scope, {}) for c in cells])
         width = len(rows[0])
         if any(len(r) != width for r in rows):
@@ -332,7 +332,7 @@ class Relations:
     def _row_fields(self, row: exp.Expression, cell: exp.Expression) -> list[exp.Expression]:
         """A VALUES item of a row type is one column per field in Trino (StatementAnalyzer.visitValues);
         written as ROW(...) it becomes those fields, any other row-typed item is refused."""
-        if not (isinstance(cell, exp.Anonymous) and cell.name.upper() == "ROW"):
+        if not _is_row_call(cell):
             self.unsupported("a VALUES item of a row type that is not ROW(...) (Trino makes each field a column)", cell)
         fields = list(cell.expressions)
         (row if isinstance(row, exp.Tuple) else cell).replace(exp.Tuple(expressions=fields))
@@ -598,3 +598,8 @@ class Relations:
             if field_name is not None and field_name.lower() == name.lower():
                 return field_type, field_name
         self.fail(f"Column '{name}' cannot be resolved", node, "COLUMN_NOT_FOUND")
+
+
+def _is_row_call(node: exp.Expression) -> bool:
+    """Whether `node` is written ROW(...)."""
+    return isinstance(node, exp.Anonymous) and node.name.upper() == "ROW"

@@ -107,6 +107,7 @@ DATE = TType("date")
 JSON = TType("json")
 VARBINARY = TType("varbinary")
 UUID = TType("uuid")
+IPADDRESS = TType("ipaddress")
 UNKNOWN = TType("unknown")
 INTERVAL_DS = TType("interval_ds")
 INTERVAL_YM = TType("interval_ym")
@@ -220,6 +221,7 @@ _SIMPLE = {
     "json": JSON,
     "varbinary": VARBINARY,
     "uuid": UUID,
+    "ipaddress": IPADDRESS,
     "unknown": UNKNOWN,
 }
 
@@ -333,6 +335,7 @@ _FROM_DTYPE = {
     _DTYPE.JSON: JSON,
     _DTYPE.VARBINARY: VARBINARY,
     _DTYPE.UUID: UUID,
+    _DTYPE.IPADDRESS: IPADDRESS,
     _DTYPE.UNKNOWN: UNKNOWN,
 }
 
@@ -401,6 +404,7 @@ _DUCK = {
     "json": "VARCHAR",  # the JSON text Trino holds, which DuckDB's JSON type would re-validate
     "varbinary": "BLOB",
     "uuid": "UUID",
+    "ipaddress": "BLOB",  # its 16-byte IPv6 form (dialect/ipaddresses.py)
     "interval_ds": "INTERVAL",
     "interval_ym": "INTERVAL",
     "time": "TIME",

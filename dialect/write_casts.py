@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from sqlglot import exp
 
-from lakegate.dialect import chars, pico_times, registry, time_casts, times, zoned_times, zones
+from lakegate.dialect import chars, ipaddresses, pico_times, registry, time_casts, times, zoned_times, zones
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect import wide_timestamps as wide
 from lakegate.dialect.transforms import Writer, cast, quote, string, transform
@@ -31,6 +31,8 @@ def trino_cast(g: Writer, node: exp.Cast) -> str:
         return zoned_times.constant(node.meta["time_tz"])
     if "time_ps" in node.meta:  # a TIME literal of more than six fraction digits, computed at analysis
         return f"CAST({node.meta['time_ps']} AS BIGINT)"
+    if "ip" in node.meta:  # an IPADDRESS literal, read at analysis
+        return ipaddresses.constant(node.meta["ip"])
     return cast_value(g, *cast_operand(g, node), ttype(node))
 
 
@@ -147,6 +149,8 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
         return chars.pad(sql, target.args[0])
     if target.base == "json":
         return registry.JSON_CASTS["to_json"](g, sql, source)
+    if "ipaddress" in (source.base, target.base):
+        return ipaddresses.cast(g, sql, source, target)
     if source.base == "json":
         return registry.JSON_CASTS["from_json"](g, sql, target)
     if target.base == "varchar":

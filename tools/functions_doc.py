@@ -125,6 +125,19 @@ PRECISION = [
     "before year 0 are answered and written as Trino writes them (+10000-06-01, -0500-06-01).",
 ]
 
+#: How lakegate holds Trino's IPADDRESS (dialect/ipaddresses.py).
+IP_ADDRESSES = [
+    "IPADDRESS is held in DuckDB as a BLOB of 16 bytes, the address's IPv6 form (an IPv4 address as "
+    "::ffff:a.b.c.d), as Trino holds it: DuckDB orders and compares BLOBs byte by byte, which is Trino's order "
+    "(ORDER BY, min, max, comparisons, DISTINCT, GROUP BY), and CAST to varbinary is the BLOB itself. Text is read "
+    "as Guava's InetAddresses.forString reads it (literals at translation, CAST from varchar in DuckDB SQL) and "
+    "written as InetAddresses.toAddrString writes it (CAST to varchar in DuckDB SQL; the protocol's JSON by "
+    "gateway/engine/trino_values.py): an IPv4-mapped address dotted, any other in lower-case hex with the longest "
+    "run of zero groups as `::`. A scope after `%` is dropped when it is a number; one naming a network interface "
+    "(Trino resolves it on its server) is refused as an invalid address. contains(network, address) as the real "
+    "Trino 476 answers it (tests/dialect/cases/ipaddress.yaml). IPPREFIX is not a type of Trino 476.",
+]
+
 
 @dataclass(frozen=True)
 class Case:
@@ -459,6 +472,7 @@ def generate(
         )
     out += ["", "## Time zones", "", *(f"- {rule}" for rule in zones.RULES)]
     out += ["", "## Fractional seconds past microseconds, and time with time zone", "", *PRECISION]
+    out += ["", "## IP addresses", "", *IP_ADDRESSES]
 
     counts = {"supported": 0, "rejected": 0, "not implemented": 0, "construct": 0}
     sections = []

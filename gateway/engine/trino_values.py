@@ -103,6 +103,7 @@ def arrow_type(t: TType) -> pa.DataType:
         "char": pa.string(),
         "json": pa.string(),
         "uuid": pa.string(),
+        "ipaddress": pa.binary(),
         "varbinary": pa.binary(),
         "date": pa.date32(),
         "unknown": pa.null(),
@@ -270,6 +271,31 @@ def _uuid(value: Any) -> Any:
     return str(uuid.UUID(bytes=bytes(value)) if isinstance(value, (bytes, bytearray)) else value)
 
 
+#: The first twelve bytes of an IPv4 address in its IPv6 form (::ffff:0:0/96).
+_IPV4_MAPPED = bytes(10) + b"\xff\xff"
+
+
+def ipaddress_text(value: Any) -> Any:
+    """An IPADDRESS (its 16 bytes, dialect/ipaddresses.py) as Trino writes it (Guava's
+    InetAddresses.toAddrString): an IPv4-mapped address dotted, any other as lower-case hex groups, the
+    longest run of two or more zero groups (the first of equal runs) written `::`."""
+    if value is None:
+        return None
+    data = bytes(value)
+    if data[:12] == _IPV4_MAPPED:
+        return ".".join(str(b) for b in data[12:])
+    groups = [int.from_bytes(data[i : i + 2], "big") for i in range(0, 16, 2)]
+    start, length = -1, 0
+    for i in range(8):
+        run = next((n for n in range(8 - i) if groups[i + n]), 8 - i) if not groups[i] else 0
+        if run > length and (i == 0 or groups[i - 1]):
+            start, length = i, run
+    words = [f"{g:x}" for g in groups]
+    if length < 2:
+        return ":".join(words)
+    return ":".join(words[:start]) + "::" + ":".join(words[start + length :])
+
+
 def _date(value: Any) -> Any:
     return None if value is None else value.isoformat()
 
@@ -334,6 +360,8 @@ def _make_encoder(t: TType) -> Encoder:
         return _varbinary
     if base == "uuid":
         return _uuid
+    if base == "ipaddress":
+        return ipaddress_text
     if base == "interval_ds":
         return _interval_day_to_second
     if base == "interval_ym":

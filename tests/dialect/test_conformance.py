@@ -29,7 +29,7 @@ from functions_doc import Case, called_names, load_cases
 from lakegate.dialect import registry
 from lakegate.dialect.errors import DialectError, runtime_error
 from lakegate.dialect.translate import translate
-from lakegate.gateway.engine.trino_values import shortest_float32
+from lakegate.gateway.engine.trino_values import ipaddress_text, shortest_float32
 
 CASES = load_cases()
 _INTEGRAL = {"tinyint", "smallint", "integer", "bigint"}
@@ -219,6 +219,8 @@ def to_protocol(value, ttype: tuple):
         return base64.b64encode(bytes(value)).decode()
     if base == "uuid" and isinstance(value, uuid.UUID):
         return str(value)
+    if base == "ipaddress" and isinstance(value, (bytes, bytearray)):
+        return ipaddress_text(value)
     if base == "unknown":
         return repr(value)
     return value

@@ -44,3 +44,23 @@ def test_scalar_functions_through_the_server(lake_server):
         "bitwise_left_shift(1, 2), human_readable_seconds(96), regexp_position('banana', 'n', 4)",
     )
     assert rows == [["trino.io", "Hello winter ☃ !", 4, "1 minute, 36 seconds", 5]]
+
+
+def test_ipaddress_reaches_the_trino_client_as_trino_writes_it(lake_server):
+    """IPADDRESS values (16 bytes in DuckDB, dialect/ipaddresses.py) are sent as Trino's text of them, which the
+    trino client passes on as text; nested ones and map keys too (the real Trino 476's answers)."""
+    rows, types = _query(
+        lake_server,
+        "SELECT IPADDRESS '10.0.0.1', IPADDRESS '2001:0db8:0:0:0:ff00:0042:8329', CAST(IPADDRESS '::1.2.3.4' AS "
+        "varchar), ARRAY[IPADDRESS '::ffff:1.2.3.4', NULL], MAP(ARRAY[IPADDRESS '0:0:1:0:0:0:1:0'], ARRAY[1])",
+    )
+    assert rows == [
+        [
+            "10.0.0.1",
+            "2001:db8::ff00:42:8329",
+            "::102:304",
+            ["1.2.3.4", None],
+            {"0:0:1::1:0": 1},
+        ]
+    ]
+    assert types == ["ipaddress", "ipaddress", "varchar", "array(ipaddress)", "map(ipaddress, integer)"]

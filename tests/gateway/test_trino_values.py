@@ -386,3 +386,28 @@ def test_time_with_time_zone_is_written_as_trino_writes_it():
         ["01:02:03.500000000000-00:35"],
         [None],
     ]
+
+
+def test_ipaddress_is_written_as_trino_writes_it():
+    """IPADDRESS values computed by DuckDB (16-byte BLOBs, dialect/ipaddresses.py), encoded as the real Trino
+    476 answers this query: IPv4-mapped addresses dotted, the longest run of zero groups (the first of two equal
+    ones) as ::, an IPv4-compatible address in hex, NULL."""
+    from lakegate.dialect.translate import translate
+
+    query = translate(
+        "SELECT x FROM (VALUES IPADDRESS '::ffff:1.2.3.4', IPADDRESS '0:0:1:0:0:0:1:0', IPADDRESS '1:0:0:1:0:0:1:1', "
+        "IPADDRESS '::1.2.3.4', IPADDRESS '::', IPADDRESS '1:2:3:4:5:6:7:8', NULL) t(x)",
+        {},
+    )
+    assert query.columns == (("x", "ipaddress"),)
+    batch = duckdb.connect().sql(query.duckdb_sql).to_arrow_table().combine_chunks().to_batches()[0]
+    assert arrow_type(parse_type("ipaddress")) == batch.schema.field(0).type
+    assert encode_rows(query.columns, batch) == [
+        ["1.2.3.4"],
+        ["0:0:1::1:0"],
+        ["1::1:0:0:1:1"],
+        ["::102:304"],
+        ["::"],
+        ["1:2:3:4:5:6:7:8"],
+        [None],
+    ]

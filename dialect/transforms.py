@@ -55,6 +55,9 @@ def ten(power: int, scale: int = 0) -> str:
 #: Longest DuckDB SQL a query may translate to. Some translations repeat an argument's SQL (a CASE
 #: that checks it, then uses it), so nesting such calls multiplies the text; this bounds it early.
 MAX_SQL_CHARS = 1_000_000
+#: A failure inside try() that DuckDB's TRY(...) catches (error() is volatile, which TRY refuses): a
+#: failing cast, typed NULL so that it fits where any value does.
+CAUGHT_FAILURE = "(CASE WHEN CAST('failure inside try()' AS INTEGER) IS NULL THEN NULL END)"
 
 
 def _inside(t: TType, *bases: str) -> bool:
@@ -69,6 +72,7 @@ class Writer(DuckDBGenerator):
         super().__init__(identify=True, comments=False, **kwargs)
         self.time_zone = time_zone  # the session zone
         self.in_try = 0
+        self.catching = 0  # the in_try depth of the try() whose failures DuckDB's TRY(...) catches
         self._written: dict[tuple, tuple[exp.Expression, str]] = {}
 
     def sql(self, expression, key=None, comment=True) -> str:
@@ -76,7 +80,7 @@ class Writer(DuckDBGenerator):
         otherwise write its subtree again, 2^depth times for nested calls), at most MAX_SQL_CHARS long."""
         if not isinstance(expression, exp.Expression):
             return super().sql(expression, key, comment)
-        memo = (id(expression), key, comment, self.in_try)
+        memo = (id(expression), key, comment, self.in_try, self.catching == self.in_try)
         if memo in self._written:
             return self._written[memo][1]
         text = super().sql(expression, key, comment)
@@ -92,8 +96,12 @@ class Writer(DuckDBGenerator):
     # --- helpers for transforms and the function registry ---------------------------------------
     def fail(self, message_sql: str, error_name: str = "INVALID_FUNCTION_ARGUMENT") -> str:
         """SQL that raises Trino's error `error_name` with message `message_sql` (a SQL string
-        expression) at run time, as `NAME: message` (see errors.runtime_error), or NULL inside try()."""
-        return "NULL" if self.in_try else f"error({string(error_name + ': ')} || {message_sql})"
+        expression) at run time, as `NAME: message` (see errors.runtime_error). Inside try() or
+        TRY_CAST it is NULL, except directly inside a try() that DuckDB's TRY(...) wraps: there it
+        is a failure TRY catches, so that the whole try() is NULL, as in Trino."""
+        if not self.in_try:
+            return f"error({string(error_name + ': ')} || {message_sql})"
+        return CAUGHT_FAILURE if self.catching == self.in_try else "NULL"
 
     def coerce(self, node: exp.Expression, target: TType) -> str:
         """`node` as SQL, cast to `target` when its Trino type differs (implicit coercion)."""

@@ -386,7 +386,8 @@ def field_time(g: Writer, node: exp.Expression) -> str:
 @transform(exp.Substring)
 def substring_from(g: Writer, node: exp.Substring) -> str:
     """substr(s, start[, length]): NULL on a NULL argument; then start 0 or a negative length give ''
-    (DuckDB counts them)."""
+    (DuckDB counts them); from a positive start, a length past the text's is the text's (DuckDB fails
+    past 2^32; Trino fails from a negative start when the end overflows an int, left to DuckDB)."""
     value, start = g.sql(node.this), g.sql(node.args["start"])
     length = node.args.get("length")
     nulls = f"({value}) IS NULL OR ({start}) IS NULL"
@@ -399,7 +400,8 @@ def substring_from(g: Writer, node: exp.Substring) -> str:
     return (
         f"CASE WHEN {nulls} OR ({length_sql}) IS NULL THEN NULL "
         f"WHEN ({start}) = 0 OR ({length_sql}) <= 0 OR abs({start}) > length({value}) THEN '' "
-        f"ELSE substr({value}, {start}, {length_sql}) END"
+        f"ELSE substr({value}, {start}, CASE WHEN ({start}) > 0 THEN least({length_sql}, length({value})) "
+        f"ELSE {length_sql} END) END"
     )
 
 

@@ -65,6 +65,9 @@ def ten(power: int, scale: int = 0) -> str:
 #: Longest DuckDB SQL a query may translate to. Some translations repeat an argument's SQL (a CASE
 #: that checks it, then uses it), so nesting such calls multiplies the text; this bounds it early.
 MAX_SQL_CHARS = 1_000_000
+#: A failure inside try() that DuckDB's TRY(...) catches (error() is volatile, which TRY refuses): a
+#: failing cast, typed NULL so that it fits where any value does.
+CAUGHT_FAILURE = "(CASE WHEN CAST('failure inside try()' AS INTEGER) IS NULL THEN NULL END)"
 
 
 def _inside(t: TType, *bases: str) -> bool:
@@ -79,6 +82,7 @@ class Writer(DuckDBGenerator):
         super().__init__(identify=True, comments=False, **kwargs)
         self.time_zone = time_zone  # the session zone
         self.in_try = 0
+        self.catching = 0  # the in_try depth of the try() whose failures DuckDB's TRY(...) catches
         self._written: dict[tuple, tuple[exp.Expression, str]] = {}
 
     def sql(self, expression, key=None, comment=True) -> str:
@@ -86,7 +90,7 @@ class Writer(DuckDBGenerator):
         otherwise write its subtree again, 2^depth times for nested calls), at most MAX_SQL_CHARS long."""
         if not isinstance(expression, exp.Expression):
             return super().sql(expression, key, comment)
-        memo = (id(expression), key, comment, self.in_try)
+        memo = (id(expression), key, comment, self.in_try, self.catching == self.in_try)
         if memo in self._written:
             return self._written[memo][1]
         text = super().sql(expression, key, comment)
@@ -102,8 +106,12 @@ class Writer(DuckDBGenerator):
     # --- helpers for transforms and the function registry ---------------------------------------
     def fail(self, message_sql: str, error_name: str = "INVALID_FUNCTION_ARGUMENT") -> str:
         """SQL that raises Trino's error `error_name` with message `message_sql` (a SQL string
-        expression) at run time, as `NAME: message` (see errors.runtime_error), or NULL inside try()."""
-        return "NULL" if self.in_try else f"error({string(error_name + ': ')} || {message_sql})"
+        expression) at run time, as `NAME: message` (see errors.runtime_error). Inside try() or
+        TRY_CAST it is NULL, except directly inside a try() that DuckDB's TRY(...) wraps: there it
+        is a failure TRY catches, so that the whole try() is NULL, as in Trino."""
+        if not self.in_try:
+            return f"error({string(error_name + ': ')} || {message_sql})"
+        return CAUGHT_FAILURE if self.catching == self.in_try else "NULL"
 
     def coerce(self, node: exp.Expression, target: TType) -> str:
         """`node` as SQL, cast to `target` when its Trino type differs (implicit coercion)."""
@@ -410,7 +418,8 @@ def field_time(g: Writer, node: exp.Expression) -> str:
 @transform(exp.Substring)
 def substring_from(g: Writer, node: exp.Substring) -> str:
     """substr(s, start[, length]): NULL on a NULL argument; then start 0 or a negative length give ''
-    (DuckDB counts them)."""
+    (DuckDB counts them); from a positive start, a length past the text's is the text's (DuckDB fails
+    past 2^32; Trino fails from a negative start when the end overflows an int, left to DuckDB)."""
     value, start = g.sql(node.this), g.sql(node.args["start"])
     length = node.args.get("length")
     nulls = f"({value}) IS NULL OR ({start}) IS NULL"
@@ -423,7 +432,8 @@ def substring_from(g: Writer, node: exp.Substring) -> str:
     return (
         f"CASE WHEN {nulls} OR ({length_sql}) IS NULL THEN NULL "
         f"WHEN ({start}) = 0 OR ({length_sql}) <= 0 OR abs({start}) > length({value}) THEN '' "
-        f"ELSE substr({value}, {start}, {length_sql}) END"
+        f"ELSE substr({value}, {start}, CASE WHEN ({start}) > 0 THEN least({length_sql}, length({value})) "
+        f"ELSE {length_sql} END) END"
     )
 
 

@@ -373,9 +373,10 @@ def parse_varchar(g: Writer, sql: str, target: TType) -> str:
     bad = g.fail(f"'Cannot cast ''' || {sql} || ''' to {name}'", "INVALID_CAST_ARGUMENT")
     if target.is_integral:
         pattern = "^[\\x00-\\x20]*([+-]?[0-9]+)[\\x00-\\x20]*$"
-        return (
-            f"CASE WHEN regexp_matches({sql}, {string(pattern)}) THEN "
-            f"{cast(f'regexp_extract({sql}, {string(pattern)}, 1)', target)} ELSE {bad} END"
+        converted = cast(f"regexp_extract({sql}, {string(pattern)}, 1)", target)
+        return (  # digits past the type's range fail as text that is no number does
+            f"CASE WHEN regexp_matches({sql}, {string(pattern)}) AND TRY_{converted} IS NOT NULL "
+            f"THEN {converted} ELSE {bad} END"
         )
     if target.is_approx or target.is_decimal:
         number = "[+-]?([0-9]+[.]?[0-9]*|[.][0-9]+)([eE][+-]?[0-9]+)?"

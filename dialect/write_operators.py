@@ -164,7 +164,7 @@ def nonzero(g: Writer, sql: str, dividend: str | None = None) -> str:
     `dividend` is NULL (Trino's operators are NULL on a NULL operand: nothing is divided)."""
     if sql.lstrip("-").isdigit() and int(sql) != 0:
         return sql
-    if g.in_try:
+    if g.in_try and g.catching != g.in_try:
         return f"NULLIF({sql}, 0)"
     present = f" AND ({dividend}) IS NOT NULL" if dividend is not None else ""
     return f"CASE WHEN {sql} = 0{present} THEN {g.fail(string('Division by zero'), 'DIVISION_BY_ZERO')} ELSE {sql} END"

@@ -67,12 +67,22 @@ def _render_typeof(g, node, args) -> str:
 
 
 def _render_try(g, node, args) -> str:
-    g.in_try += 1
-    try:
-        sql = g.sql(args[0])
-    finally:
-        g.in_try -= 1
-    return casts.try_wrap(sql)
+    """DuckDB's TRY(...) around the argument, whose failures it catches: any failure makes the whole
+    try() NULL, as in Trino. Where TRY cannot wrap it (aggregates, windows, subqueries), each
+    failure is a NULL where it happens."""
+    outer = g.catching
+    for catching in (g.in_try + 1, outer):
+        g.in_try += 1
+        g.catching = catching
+        try:
+            sql = g.sql(args[0])
+        finally:
+            g.in_try -= 1
+            g.catching = outer
+        wrapped = casts.try_wrap(sql)
+        if wrapped != sql:
+            return wrapped
+    return sql
 
 
 def install() -> None:

@@ -559,7 +559,8 @@ class Relations:
     def _check_outer_lateral(self, join: exp.Join, side: str, beside: set[str]) -> None:
         """A RIGHT or FULL JOIN LATERAL (or UNNEST) may not use the columns beside it
         (INVALID_COLUMN_REFERENCE at the first such column), and a FULL one joins only ON TRUE
-        (StatementAnalyzer, as the real Trino 476 says)."""
+        (StatementAnalyzer, as the real Trino 476 says); the rest is refused: over an empty left
+        side Trino gives no rows (the real Trino 476), which no outer join of DuckDB gives."""
         for column in join.this.find_all(exp.Column):
             if column._meta and column.meta.get("ref", (None,))[0] in beside:
                 self.fail(f"LATERAL reference not allowed in {side} JOIN", column, "INVALID_COLUMN_REFERENCE")
@@ -567,6 +568,12 @@ class Relations:
         if side == "FULL" and isinstance(join.this, exp.Lateral) and on is not None and on != exp.true():
             message = "FULL JOIN involving LATERAL relation is only supported with condition ON TRUE"
             self.fail(message, on, "NOT_SUPPORTED")
+        kind = "UNNEST" if isinstance(join.this, exp.Unnest) else "LATERAL"
+        self.unsupported(  # Trino 476 joins the right side per row of the left: none when the left has none
+            f"{side} JOIN {kind} (Trino gives no rows when the left side has none, where an outer join keeps the "
+            "right side's; write it as a join of a subquery)",
+            join.this,
+        )
 
     def _check_correlated_rows(self, node: exp.Lateral, scope: NameScope) -> None:
         """A LATERAL subquery whose UNION, INTERSECT, EXCEPT or VALUES of several rows uses the columns

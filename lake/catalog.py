@@ -256,10 +256,7 @@ class Catalog:
             selects += [_unreadable_sql(spec, entry) for entry in bad]
             if not selects:
                 columns = ", ".join(f"CAST(NULL AS {duckdb_type(t)}) AS {_quote_ident(c)}" for c, t in spec.columns)
-                # rows from range(0), not WHERE false: DuckDB's planner prunes what it knows to be
-                # empty (the other side of an EXCEPT or INTERSECT is then never evaluated), while
-                # Trino evaluates it over a table whose emptiness it learns only when reading it
-                selects = [f"SELECT {columns} FROM range(0)"]
+                selects = [f"SELECT {columns} WHERE false"]
             views[spec.name] = " UNION ALL ".join(selects)
         return views
 

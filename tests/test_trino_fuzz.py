@@ -1,8 +1,6 @@
 """The differential fuzzer (tools/trino_fuzz, `python3 dev.py fuzz`) against the real Trino 476:
 a fixed seed of random queries over a small lake answers the same on lakegate and on Trino (or is
-refused by lakegate, or fails on both). The comparison itself is checked first, without Trino. The
-run is judged in slices (`fuzz(start=...)`: query i depends only on the seed and i), which the xdist
-workers share out instead of one worker running it all.
+refused by lakegate, or fails on both). The comparison itself is checked first, without Trino.
 
 The differences found and not fixed yet are listed, query by query, in trino_fuzz_known.jsonl (each
 with its family: the one-line reason it is still there): a new difference fails the run, and so does
@@ -17,18 +15,13 @@ from pathlib import Path
 
 import pytest
 from trino_fuzz.answer_match import differ
-from trino_fuzz.functions import Shape, discover
+from trino_fuzz.functions import Shape
 from trino_fuzz.queries import Generator
 from trino_fuzz.run import add_slices, fuzz, record_slice, summary
 from trino_fuzz.sides import Outcome
 
-from lakegate.gateway.engine.backend import DuckDBBackend
-
-#: The CI run: seed and size, judged in slices that the xdist workers share out.
-SEED, QUERIES, SLICES = 19, 2000, 4
-#: Queries a slice has Trino run at once: two slices at once (two workers) ask Trino as much as the
-#: whole run did with `fuzz`'s default of 4, so no query comes nearer Trino's time limit than before.
-TRINO_JOBS = 2
+#: The CI run: seed and size.
+SEED, QUERIES = 19, 2000
 KNOWN = Path(__file__).with_name("trino_fuzz_known.jsonl")
 
 
@@ -86,46 +79,19 @@ def test_slices_add_up_to_the_run_and_must_be_of_one_run(tmp_path):
         add_slices([first, other])
 
 
-def slice_bounds(part: int) -> tuple[int, int]:
-    """Queries start..stop-1 of the run: slice `part` of SLICES."""
-    return part * QUERIES // SLICES, (part + 1) * QUERIES // SLICES
-
-
-def test_the_slices_cover_the_run_once():
-    assert [q for part in range(SLICES) for q in range(*slice_bounds(part))] == list(range(QUERIES))
-
-
-def run_queries(lake: Path, start: int, stop: int) -> set[str]:
-    """The SQL of queries start..stop-1 of the run (as `fuzz` generates them over `lake`)."""
-    backend = DuckDBBackend(lake)
-    try:
-        tables = {name: list(columns.items()) for name, columns in backend.schema("main").items()}
-    finally:
-        backend.close()
-    generator = Generator(SEED, discover(), tables)
-    return {generator.query(index).sql for index in range(start, stop)}
-
-
 @pytest.mark.slow
 @pytest.mark.timeout(1800)  # a few minutes on an idle 2-core machine; far more when it is shared
-@pytest.mark.parametrize("part", range(SLICES))
-def test_fuzzed_queries_answer_as_trino_does(part, trino_url, tmp_path):
-    """Slice `part` of the run (the workers share the slices out): its new mismatches, and the listed
-    ones among its queries that are gone; slice 0 also checks that every listed query is one of the run's."""
-    start, stop = slice_bounds(part)
+def test_fuzzed_queries_answer_as_trino_does(trino_url, tmp_path):
     known = {entry["query"]: entry for entry in map(json.loads, KNOWN.read_text().splitlines())}
-    lake, out = tmp_path / "lake", tmp_path / "mismatches.jsonl"
-    counts, mismatches = fuzz(stop, SEED, trino_url, lake, out, jobs=TRINO_JOBS, start=start)
+    counts, mismatches = fuzz(QUERIES, SEED, trino_url, tmp_path / "lake", tmp_path / "mismatches.jsonl")
     print(summary(counts))
-    assert sum(counts.values()) == stop - start
-    assert counts["equal"] > (stop - start) // 2, summary(counts)  # most queries are answered, not refused
+    assert sum(counts.values()) == QUERIES
+    assert counts["equal"] > QUERIES // 2, summary(counts)  # most queries are answered, not refused
     new = [v for v in mismatches if v.query.sql not in known]
     shown = "\n".join(json.dumps({"query": v.query.sql, "why": v.why}, ensure_ascii=False) for v in new[:10])
     assert not new, f"{summary(counts)}; {len(new)} new mismatches, the first:\n{shown}"
     steady = {query for query, entry in known.items() if "intermittent" not in entry}
-    gone = sorted(steady & run_queries(lake, start, stop) - {v.query.sql for v in mismatches})
-    if part == 0:  # and the listed queries that are none of the run's
-        gone += sorted(steady - run_queries(lake, 0, QUERIES))
+    gone = sorted(steady - {v.query.sql for v in mismatches})
     assert not gone, f"these listed mismatches now answer as Trino does: take them off {KNOWN.name}:\n" + "\n".join(
         gone[:10]
     )

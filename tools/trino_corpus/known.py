@@ -19,7 +19,4 @@ KNOWN: dict[str, str] = {
         "a correlated subquery with LIMIT whose correlation needs a cast: NOT_SUPPORTED "
         "(Given correlated subquery is not supported)"
     ),
-    "SELECT a FROM (SELECT 1 where 0 = 1) t(a) RIGHT JOIN LATERAL (VALUES 2) t2(b) ON true": (
-        "RIGHT JOIN LATERAL: Trino gives no row here (the outer LATERAL joins of the fidelity work)"
-    ),
 }

@@ -173,7 +173,8 @@ def cast_value(g: Writer, sql: str, source: TType, target: TType) -> str:
     if target.is_decimal and source.is_approx:
         # Trino converts the shortest decimal text of the float (BigDecimal.valueOf(double),
         # Float.toString: io.trino.type.DecimalCasts), HALF_UP; DuckDB would convert its binary value
-        return checked_cast(g, f"CAST({sql} AS VARCHAR)", source, target)
+        text = real_text(sql) if source.base == "real" else f"CAST({sql} AS VARCHAR)"
+        return checked_cast(g, fixed_text(text), source, target)
     if target.is_integral and (source.is_integral or source.is_decimal) or target.is_decimal and source.is_numeric:
         return checked_cast(g, sql, source, target)
     if "time_tz" in (source.base, target.base):
@@ -528,6 +529,25 @@ def timestamp_text(sql: str, precision: int) -> str:
         return f"{year_text} || strftime({sql}, {string(formats[precision])})"
     digits = 6 if precision < 6 else 9
     return f"{year_text} || left(strftime({sql}, {string(formats[digits])}), {16 + precision})"
+
+
+def real_text(sql: str) -> str:
+    """A real as Java's Float.toString digits (`d.ddde±xx`): the shortest that read back as it, at least
+    two. DuckDB's own text has every digit of a whole real from 2^24 up (-1234567936.0, where Java's
+    is -1.234568E9)."""
+    texts = f'list_transform(range(1, 9), lambda "_n": format(\'{{:.{{}}e}}\', CAST({sql} AS DOUBLE), "_n"))'
+    return f'list_filter({texts}, lambda "_t": CAST("_t" AS FLOAT) = {sql})[1]'
+
+
+def fixed_text(text: str) -> str:
+    """A number's text (`1.5e-38`) with a negative exponent written out (`0.000...15`): DuckDB's CAST
+    of such a text to a decimal fails when its digits reach past the scale, where it rounds written out."""
+    t = '"_t"'
+    power = f"TRY_CAST(split_part({t}, 'e', 2) AS INTEGER)"
+    digits = f"replace(replace(split_part({t}, 'e', 1), '-', ''), '.', '')"
+    sign = f"CASE WHEN starts_with({t}, '-') THEN '-' ELSE '' END"
+    written = f"CASE WHEN {power} < 0 THEN {sign} || '0.' || repeat('0', -{power} - 1) || {digits} ELSE {t} END"
+    return f"list_transform([{text}], lambda {t}: {written})[1]"
 
 
 #: The smallest normal double and real: below them (subnormal) Java's digits are not the shortest.

@@ -153,8 +153,10 @@ def _real(value: Any) -> Any:
 
 
 def shortest_float32(value: float) -> str:
-    """The shortest `%g` text that reads back as the float32 `value`."""
-    return next(t for t in (f"{value:.{n}g}" for n in range(1, 10)) if _as_float32(float(t)) == value)
+    """Java's Float.toString digits of the float32 `value` as `%g` text: the shortest that read back as
+    it, or when one digit does, the two nearest it (1.4e-45, not 1e-45: Java's at least two digits)."""
+    n = next(n for n in range(1, 10) if _as_float32(float(f"{value:.{n}g}")) == value)
+    return f"{value:.{max(n, 2)}g}"
 
 
 def _decimal(scale: int) -> Encoder:

@@ -13,7 +13,7 @@ from lakegate.dialect import trino_types as tt
 from lakegate.dialect.guard import COMPARISON_OPERATORS, trino_name
 from lakegate.dialect.name_resolution import grouping_keys, same_field_or_inside, same_value
 from lakegate.dialect.trino_types import TType
-from lakegate.dialect.type_rules import COMPARISONS, Analysis, NameScope, set, ttype
+from lakegate.dialect.type_rules import COMPARISONS, WIDE_TIME_OPERATIONS, Analysis, NameScope, set, ttype
 
 #: The functions that read a timestamp(7..9) through FloorMicros (as Trino's do), and those that handle
 #: nanoseconds themselves (date_add keeps them; min, max and count compare them).
@@ -24,30 +24,9 @@ MICROS_READERS = frozenset(
 
 _NANOSECOND_FUNCTIONS = MICROS_READERS | {"min", "max", "count", "arbitrary", "coalesce", "typeof"}
 
-#: The expressions written for operands of the time types held in more than DuckDB's own types (casts,
-#: comparisons, conditions, arithmetic, ordering, fields).
-_WIDE_TIME_OPERATIONS = (
-    exp.Cast,
-    exp.TryCast,
-    *COMPARISONS,
-    exp.Between,
-    exp.In,
-    exp.Is,
-    exp.Case,
-    exp.If,
-    exp.Add,
-    exp.Sub,
-    exp.Paren,
-    exp.Alias,
-    exp.Ordered,
-    exp.Window,
-    exp.Filter,
-    exp.Extract,
-)
-
 #: The expressions written for timestamp(7..9) operands (functions: only _NANOSECOND_FUNCTIONS).
 _NANOSECOND_OPERATIONS = (
-    *_WIDE_TIME_OPERATIONS,
+    *WIDE_TIME_OPERATIONS,
     exp.AtTimeZone,
     exp.Anonymous,
 )
@@ -62,7 +41,7 @@ _TIME_TZ_FUNCTIONS = frozenset(
 
 #: The expressions written for time with time zone operands (functions: only _TIME_TZ_FUNCTIONS).
 _TIME_TZ_OPERATIONS = (
-    *_WIDE_TIME_OPERATIONS,
+    *WIDE_TIME_OPERATIONS,
     exp.AtTimeZone,
     exp.Subquery,
     exp.Anonymous,
@@ -213,7 +192,9 @@ class Checks:
 
     def check_distinct_order(self, node: exp.Select) -> None:
         """SELECT DISTINCT orders only by what it selects (io.trino.sql.analyzer.StatementAnalyzer,
-        EXPRESSION_NOT_IN_DISTINCT); DuckDB would order by an arbitrary row of each group."""
+        EXPRESSION_NOT_IN_DISTINCT); DuckDB would order by an arbitrary row of each group. An
+        expression that names an output column is none of them, even one written as an item
+        (`SELECT DISTINCT a, -a ... ORDER BY -a`: its `a` is the output's, as the real Trino says)."""
         items = [i.this if isinstance(i, exp.Alias) else i for i in node.expressions]
         for ordered in node.args["order"].expressions:
             target = ordered.this
@@ -224,7 +205,8 @@ class Checks:
                 and target.meta.get("output")
             ):
                 continue
-            if not any(same_value(target, item) for item in items):
+            names_output = any(c._meta and c.meta.get("output") for c in target.find_all(exp.Column))
+            if names_output or not any(same_value(target, item) for item in items):
                 self.fail(
                     "For SELECT DISTINCT, ORDER BY expressions must appear in select list",
                     target,

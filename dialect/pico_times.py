@@ -19,6 +19,7 @@ from lakegate.dialect import times, zoned_times
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.guard import trino_name
 from lakegate.dialect.trino_types import TType
+from lakegate.dialect.type_rules import WIDE_TIME_OPERATIONS
 
 PICOS_PER_DAY = zoned_times.PICOS_PER_DAY
 PICOS_PER_MICRO = 1_000_000
@@ -131,31 +132,9 @@ def difference(left_picos: str, right_picos: str) -> str:
 
 #: The expressions written for time(p > 6) operands, and the functions.
 _OPERATIONS = (
-    exp.Cast,
-    exp.TryCast,
-    exp.EQ,
-    exp.NEQ,
-    exp.GT,
-    exp.GTE,
-    exp.LT,
-    exp.LTE,
-    exp.NullSafeEQ,
-    exp.NullSafeNEQ,
-    exp.Between,
-    exp.In,
-    exp.Is,
-    exp.Case,
-    exp.If,
+    *WIDE_TIME_OPERATIONS,
     exp.Coalesce,
-    exp.Add,
-    exp.Sub,
-    exp.Paren,
-    exp.Alias,
     exp.Column,
-    exp.Ordered,
-    exp.Window,
-    exp.Filter,
-    exp.Extract,
     exp.AtTimeZone,
     exp.Distinct,
     exp.Subquery,

@@ -236,7 +236,10 @@ class Reader:
         if not self.take("LIKE"):
             return None
         pattern = self.string()
-        return like_pattern(pattern, self.string() if self.take("ESCAPE") else None)
+        escape = self.string() if self.take("ESCAPE") else None
+        if escape is not None and len(escape) != 1:
+            raise DialectError("Escape string must be a single character", error_name="INVALID_FUNCTION_ARGUMENT")
+        return like_pattern(pattern, escape)
 
     def rest(self) -> str:
         """The text from the current token on (without a trailing `;`)."""

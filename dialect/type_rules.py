@@ -148,6 +148,26 @@ class Call:
 
 
 COMPARISONS = (exp.EQ, exp.NEQ, exp.GT, exp.GTE, exp.LT, exp.LTE, exp.NullSafeEQ, exp.NullSafeNEQ)
+#: The expressions written for operands of every time type held in more than DuckDB's own types
+#: (casts, comparisons, conditions, arithmetic, ordering, fields); each such type adds its own.
+WIDE_TIME_OPERATIONS = (
+    exp.Cast,
+    exp.TryCast,
+    *COMPARISONS,
+    exp.Between,
+    exp.In,
+    exp.Is,
+    exp.Case,
+    exp.If,
+    exp.Add,
+    exp.Sub,
+    exp.Paren,
+    exp.Alias,
+    exp.Ordered,
+    exp.Window,
+    exp.Filter,
+    exp.Extract,
+)
 
 
 class FloorMicros(exp.Expression):

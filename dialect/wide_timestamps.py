@@ -25,7 +25,7 @@ from sqlglot import exp
 from lakegate.dialect import zones
 from lakegate.dialect.guard import trino_name
 from lakegate.dialect.trino_types import TType
-from lakegate.dialect.type_rules import COMPARISONS, Analysis, FloorMicros
+from lakegate.dialect.type_rules import WIDE_TIME_OPERATIONS, Analysis, FloorMicros
 
 PICOS_PER_MICRO = 1_000_000
 
@@ -193,23 +193,8 @@ FUNCTIONS = ZONE_READERS | frozenset(
 )
 #: The expressions written for such operands (functions: only FUNCTIONS and the readers).
 OPERATIONS = (
-    exp.Cast,
-    exp.TryCast,
-    *COMPARISONS,
-    exp.Between,
-    exp.In,
-    exp.Is,
-    exp.Case,
-    exp.If,
-    exp.Add,
-    exp.Sub,
-    exp.Paren,
-    exp.Alias,
+    *WIDE_TIME_OPERATIONS,
     exp.Column,
-    exp.Ordered,
-    exp.Window,
-    exp.Filter,
-    exp.Extract,
     exp.AtTimeZone,
     exp.Distinct,
     exp.Subquery,

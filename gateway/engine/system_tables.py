@@ -558,7 +558,8 @@ class SystemCatalog:
         if reader.take("CATALOGS"):
             pattern = reader.like()
             reader.end()
-            return Answer([("Catalog", V)], _matching(self.catalogs(), pattern))
+            catalogs = self.catalogs()  # Trino's rewrite lists them as literals: varchar(longest name)
+            return Answer([("Catalog", f"varchar({max(map(len, catalogs))})")], _matching(catalogs, pattern))
         if reader.take("SCHEMAS"):
             catalog = reader.parts()[0] if reader.take("FROM", "IN") else session.catalog
             pattern = reader.like()

@@ -170,6 +170,11 @@ def test_show_and_describe_are_the_engines(backend):
     with pytest.raises(DialectError) as error:
         engine.execute("DESCRIBE nothing", session)
     assert error.value.error_name == "TABLE_NOT_FOUND"
+    for escape in ("''", "'$$'"):  # as the real Trino 476 answers
+        with pytest.raises(DialectError) as error:
+            engine.execute(f"SHOW SESSION LIKE 't$_%' ESCAPE {escape}", session)
+        assert error.value.error_name == "INVALID_FUNCTION_ARGUMENT"
+        assert str(error.value).startswith("Escape string must be a single character")
     assert refused(backend, "SHOW TABLES").error_name == "NOT_SUPPORTED"
 
 

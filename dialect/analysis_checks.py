@@ -190,6 +190,9 @@ class Checks:
     """The checks Trino makes at analysis: SELECT DISTINCT with ORDER BY, expressions not grouped,
     operations on timestamp(7..9) (a mixin of analyzer.Analyzer)."""
 
+    #: Whether the query has a value holding a time with time zone (check_time_tz_use saw its type).
+    time_tz_seen = False
+
     def check_distinct_order(self, node: exp.Select) -> None:
         """SELECT DISTINCT orders only by what it selects (io.trino.sql.analyzer.StatementAnalyzer,
         EXPRESSION_NOT_IN_DISTINCT); DuckDB would order by an arbitrary row of each group. An
@@ -309,8 +312,10 @@ class Checks:
         would compare whole structs, where Trino compares the time at +00:00 alone: values nested in
         arrays, maps or rows, IN a subquery, ANY / ALL, a simple CASE, DISTINCT inside a call, and the functions
         not written for them."""
-        if t.base != "time_tz" and _holds_time_tz(t):
-            self.unsupported(f"{t} (lakegate holds time with time zone only as a plain value)", node)
+        if _holds_time_tz(t):
+            self.time_tz_seen = True
+            if t.base != "time_tz":
+                self.unsupported(f"{t} (lakegate holds time with time zone only as a plain value)", node)
         children = list(node.iter_expressions())
         if isinstance(node, exp.Anonymous) and children and isinstance(children[0], exp.Distinct):
             children = list(children[0].expressions)  # f(DISTINCT x)
@@ -339,6 +344,8 @@ class Checks:
     def check_time_tz_keys(self, node: exp.Select) -> None:
         """Refuse GROUP BY, SELECT DISTINCT and PARTITION BY keys of time with time zone: DuckDB would
         tell apart values of one instant in two offsets, which Trino groups together."""
+        if not self.time_tz_seen:  # every key's type went through check_time_tz_use
+            return
         items = [i.this if isinstance(i, exp.Alias) else i for i in node.expressions]
         keys = list(items) if node.args.get("distinct") else []
         for key in node.args["group"].expressions if node.args.get("group") else []:

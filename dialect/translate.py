@@ -387,6 +387,7 @@ def clear_cache() -> None:
     with _lock:
         _cache.clear()
         _schemas.clear()
+    tt.parse_type.cache_clear()
 
 
 def _schema_key(schema: Mapping[str, Mapping[str, str]]) -> tuple:

@@ -7,6 +7,7 @@ A `TType` is immutable and hashable. Its `str()` is the Trino type name exactly 
 
 from __future__ import annotations
 
+import functools
 import re
 from dataclasses import dataclass
 
@@ -226,6 +227,7 @@ _SIMPLE = {
 }
 
 
+@functools.lru_cache(maxsize=4096)
 def parse_type(text: str) -> TType:
     """Parse a Trino type name (`bigint`, `array(row(name varchar, x double))`, `decimal(6,2)`,
     `timestamp(3) with time zone`, ...). Raises ValueError for anything else."""

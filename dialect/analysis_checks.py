@@ -212,9 +212,20 @@ class Checks:
             if names_output or not any(same_value(target, item) for item in items):
                 self.fail(
                     "For SELECT DISTINCT, ORDER BY expressions must appear in select list",
-                    target,
+                    self._select_keyword(node),
                     "EXPRESSION_NOT_IN_DISTINCT",
                 )
+
+    def _select_keyword(self, node: exp.Select) -> exp.Expression:
+        """A marker at the SELECT keyword of `node`, where the real Trino points a query specification's
+        errors: the last `select` in the text before the first select item's."""
+        starts = [s.meta["start"] for item in node.expressions for s in item.walk() if s._meta and "start" in s.meta]
+        keywords = list(re.finditer(r"(?i)\bselect\b", self.sql[: min(starts)])) if starts else []
+        if not keywords:
+            return node
+        marker = exp.Literal.number(0)
+        marker.meta["start"] = keywords[-1].start()
+        return marker
 
     def check_grouping(self, node: exp.Select, scope: NameScope) -> None:
         """In an aggregation, every column outside an aggregate must be a GROUP BY key, as Trino

@@ -177,7 +177,10 @@ by what it states (the conformance runner holds lakegate to it); an example is r
 same values and result types, or the same error; **refused**: lakegate refuses it by name, Trino
 answers (listed below); **both errored**: both raise, under different error names; **different** and
 **trino raises** (lakegate answers, or raises what Trino does not, where Trino answers otherwise or
-raises) fail the test, so they are 0 here.
+raises) fail the test, so they are 0 here. Trino's answers are recorded in
+`tests/dialect/trino_recorded/` (tools/trino_record.py): a test run asks the real Trino what the record
+lacks and a random sample of 100 of each file, and fails when a sampled answer changed;
+`LAKEGATE_WRITE_DIFFERENTIAL=1` asks every query again and rewrites record and page.
 """
 
 

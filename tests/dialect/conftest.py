@@ -14,6 +14,7 @@ The session time zone of every connection is UTC, as the conformance cases assum
 from __future__ import annotations
 
 import datetime as dt
+import hashlib
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -193,6 +194,8 @@ class FixtureLake:
 
     root: Path
     schema: dict[str, dict[str, str]]
+    #: What the tables hold, as a hash (recorded answers of the real Trino are of these rows).
+    fingerprint: str = hashlib.sha256(repr((_COLUMNS, _ROWS)).encode()).hexdigest()[:16]
     _shared: duckdb.DuckDBPyConnection | None = field(default=None, repr=False)
 
     def file(self, table: str) -> Path:

@@ -3,12 +3,16 @@ example also runs on the real Trino 476, over the very same Parquet files (the f
 registered as external tables of Trino's hive catalog in a schema of this test process). A test fails
 when lakegate answers and Trino answers otherwise (values or result types), or raises; the queries
 lakegate refuses and Trino answers are counted and listed in docs/trino-differential.md, which this
-test keeps true (`LAKEGATE_WRITE_DIFFERENTIAL=1` rewrites the page instead)."""
+test keeps true (`LAKEGATE_WRITE_DIFFERENTIAL=1` rewrites the page instead). Trino's answers are
+recorded in trino_recorded/ (tools/trino_record.py): a run asks the judge what the record lacks and
+a sample of what it holds, and fails when a sampled answer changed; `LAKEGATE_WRITE_DIFFERENTIAL=1`
+asks every query again and rewrites the record with the page."""
 
 from __future__ import annotations
 
 import os
 import uuid
+from pathlib import Path
 
 import pytest
 import trino_differential as differential
@@ -16,6 +20,7 @@ import yaml
 from functions_doc import Case, load_cases
 from trino_answers import Answer, TrinoAnswers, single_row_width
 from trino_doc_examples import EXAMPLES, answer
+from trino_record import RECORD_ENV, RecordedAnswers, StaleRecord
 
 from lakegate.dialect.errors import DialectError
 from lakegate.dialect.translate import translate
@@ -24,6 +29,7 @@ from lakegate.gateway.engine.engine import Engine
 #: Schemas of this test are `<PREFIX><pid>_<random>`; one left by a killed run is dropped later.
 PREFIX = "lakegate_conformance_"
 CASES_TITLE = "Conformance cases"
+RECORDED = Path(__file__).with_name("trino_recorded")
 EXAMPLES_TITLE = "Documented examples"
 
 
@@ -72,12 +78,16 @@ def test_every_case_states_what_trino_answers(trino_url, fixture_schema, fixture
             return f"{error.error_name}: {error}"
         return None
 
-    trino = TrinoAnswers(trino_url, schema=fixture_schema)
+    trino = RecordedAnswers(
+        TrinoAnswers(trino_url, schema=fixture_schema), RECORDED / "cases.jsonl", fixture_lake.fingerprint
+    )
     answer_of = {}
     for errors in (False, True):  # queries that fail are asked one by one: a failure spoils a batch
         asked = [case for case in cases if differential.not_on_trino(case) is None and bool(case.errors) == errors]
-        answers = trino.ask_all(((case.sql, case.time_zone) for case in asked), batch=not errors)
+        answers = trino.ask_all([(case.sql, case.time_zone) for case in asked], batch=not errors)
         answer_of.update((case.id, answer) for case, answer in zip(asked, answers))
+    trino.save()
+    print(f"asked the real Trino {trino.asked} of {len(answer_of)} queries (the rest from {RECORDED.name}/)")
     _check(CASES_TITLE, [differential.judge_case(case, answer_of.get(case.id), refuses) for case in cases])
 
 
@@ -90,7 +100,11 @@ def test_every_documented_example_answers_as_trino_does(trino_url):
         ours = [answer(engine, sql) for _, sql in examples]
     finally:
         engine.close()
-    answers = TrinoAnswers(trino_url, catalog="memory", schema="default").ask_all((sql, "UTC") for _, sql in examples)
+    trino = RecordedAnswers(
+        TrinoAnswers(trino_url, catalog="memory", schema="default"), RECORDED / "examples.jsonl", "no tables"
+    )
+    answers = trino.ask_all([(sql, "UTC") for _, sql in examples])
+    trino.save()
     verdicts = [differential.judge_answers(p, sql, o, t) for (p, sql), o, t in zip(examples, ours, answers)]
     _check(EXAMPLES_TITLE, verdicts)
 
@@ -139,3 +153,33 @@ def test_only_one_row_shapes_are_batched():
     assert single_row_width("SELECT 1 WHERE false") is None
     assert single_row_width("SELECT 1 UNION ALL SELECT 2") is None
     assert single_row_width("SELECT 1 LIMIT 0") is None
+
+
+class _Judge:
+    """Stands in for TrinoAnswers: answers each query with its `answers` entry, and counts the asking."""
+
+    def __init__(self, answers: dict[str, Answer]):
+        self.answers, self.asked = answers, []
+
+    def ask_all(self, queries, *, batch=True):
+        self.asked += [sql for sql, _ in queries]
+        return [self.answers[sql] for sql, _ in queries]
+
+
+def test_recorded_answers_are_asked_again_only_when_missing_or_sampled(tmp_path, monkeypatch):
+    one, two = Answer(columns=(("_col0", "integer"),), rows=([1],)), Answer(columns=(("x", "integer"),), rows=([2],))
+    queries = [("SELECT 1", "UTC"), ("SELECT 2 AS x", "UTC"), ("SELECT 1", "Asia/Tokyo")]
+    judge = _Judge({"SELECT 1": one, "SELECT 2 AS x": two})
+    monkeypatch.setenv(RECORD_ENV, "1")
+    writing = RecordedAnswers(judge, tmp_path / "r.jsonl", "data")
+    assert writing.ask_all(queries) == [one, two, one]
+    writing.save()
+    monkeypatch.delenv(RECORD_ENV)
+    judge.asked = []
+    assert RecordedAnswers(judge, tmp_path / "r.jsonl", "data", sample=0).ask_all(queries) == [one, two, one]
+    assert judge.asked == []  # all recorded, none sampled
+    RecordedAnswers(judge, tmp_path / "r.jsonl", "other data", sample=0).ask_all(queries[:1])
+    assert judge.asked == ["SELECT 1"]  # other tables: not recorded
+    judge.answers["SELECT 2 AS x"] = Answer(columns=(("x", "bigint"),), rows=([2],))
+    with pytest.raises(StaleRecord, match="SELECT 2 AS x"):
+        RecordedAnswers(judge, tmp_path / "r.jsonl", "data", sample=3).ask_all(queries)

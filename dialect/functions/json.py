@@ -235,6 +235,13 @@ def _element_matches(value: TType, element: str, needle: str) -> str:
     return f"{kind} = 'VARCHAR' AND json_extract_string({element}, '$') = {needle}"
 
 
+def _needle_kind(value: TType) -> str:
+    """Which streamed json_array_contains compares with a needle of this type."""
+    if value.base == "boolean":
+        return "boolean"
+    return "bigint" if value.is_integral else "double" if value.is_numeric else "varchar"
+
+
 def _render_json_array_contains(g, node, args) -> str:
     value = ttype(args[1])
     if value.is_unknown:
@@ -242,15 +249,7 @@ def _render_json_array_contains(g, node, args) -> str:
     text = g.sql(args[0])
     needle = g.sql(args[1]) if value.is_integral or not value.is_numeric else f"CAST({g.sql(args[1])} AS DOUBLE)"
     matches = _element_matches(value, '"_e"', needle)
-    kind = (
-        "boolean"
-        if value.base == "boolean"
-        else "bigint"
-        if value.is_integral
-        else "double"
-        if value.is_numeric
-        else "varchar"
-    )
+    kind = _needle_kind(value)
     needle_sql = f"CAST({needle} AS {'VARCHAR' if kind == 'varchar' else kind.upper()})"
     fast = (
         f"CASE WHEN json_type({text}) = 'ARRAY' THEN "

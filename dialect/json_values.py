@@ -107,11 +107,14 @@ def exact_numbers(sql: str) -> str:
     be written otherwise than by Trino's Jackson (Java's Double.toString): numbers with an exponent,
     and numbers outside 1e-3 <= |v| < 1e7 written with a fraction. Refused also inside try(): Trino
     answers there."""
-    bare = without_strings(sql)
+    return f"CASE WHEN {unsure_numbers(sql)} THEN error({tf.string(_UNSURE_NUMBER)}) ELSE {sql} END"
+
+
+def unsure_numbers(sql: str) -> str:
+    """Whether the JSON text DuckDB wrote holds a number Trino's Jackson may write otherwise (see
+    `exact_numbers`)."""
     unsure = "([0-9][eE])|([0-9]{8,}[.])|((^|[^0-9])0[.]000)"
-    return (
-        f"CASE WHEN regexp_matches({bare}, {tf.string(unsure)}) THEN error({tf.string(_UNSURE_NUMBER)}) ELSE {sql} END"
-    )
+    return f"regexp_matches({without_strings(sql)}, {tf.string(unsure)})"
 
 
 def _is_float(sql: str) -> str:

@@ -39,7 +39,6 @@ KINDS = ("equal", "refused", "both errored", "not run on Trino", "open", *FAILUR
 #: verdict on these is `open` (listed on the page) instead of a failure; a listed case that agrees
 #: with Trino again fails the test until it is taken off this list.
 OPEN: dict[str, str] = {
-    "json/trailing-comma-is-not-json": "json_extract_scalar('[1,]', '$[0]') is '1' (the parser stops at the value)",
     "select/trailing-semicolon": "SELECT 1; is a SYNTAX_ERROR",
 }
 

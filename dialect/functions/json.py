@@ -11,19 +11,14 @@ from sqlglot import exp
 
 from lakegate.dialect import json_path as jp
 from lakegate.dialect import json_values as jv
+from lakegate.dialect import jsonpath_steps as jps
 from lakegate.dialect import transforms as tf
 from lakegate.dialect import trino_types as tt
 from lakegate.dialect.functions.arguments import fixed, literal_str, need
+from lakegate.dialect.functions.binary import UDF_PREFIX
 from lakegate.dialect.registry import register
 from lakegate.dialect.trino_types import TType
 from lakegate.dialect.type_rules import Call, handles, ttype
-
-
-def _json_text(g, node: exp.Expression) -> str:
-    """The JSON text of a json or varchar argument, NULL where a varchar is not JSON Trino accepts
-    (the text functions answer NULL for invalid JSON)."""
-    sql = g.sql(node)
-    return sql if ttype(node).base == "json" else f"CASE WHEN {jv.valid(sql)} THEN {sql} END"
 
 
 # --- JSON literals and json_parse -----------------------------------------------------------------
@@ -94,7 +89,47 @@ def _json_format(call: Call) -> TType:
     return tt.VARCHAR
 
 
-# --- JSONPath functions (JsonExtract) --------------------------------------------------------------
+# --- JSONPath functions (JsonExtract) and JSON array functions (JsonFunctions) ---------------------
+#: The Python functions (lakegate.gateway.engine.json_functions, each registered as UDF_PREFIX + its
+#: name) that read JSON text as Trino does, with Jackson's streaming parser: each stops once it has
+#: read what it needs, so text malformed after that still answers. They answer for the text that is
+#: not JSON and where DuckDB's JSON functions do not give Trino's answer (numbers as written, ...).
+STREAMED = (
+    "json_extract_scalar",
+    "json_extract",
+    "json_size",
+    "json_array_length",
+    "json_array_get",
+    "json_array_contains_boolean",
+    "json_array_contains_bigint",
+    "json_array_contains_double",
+    "json_array_contains_varchar",
+)
+
+
+def _streamed(name: str, text: str, *args: str) -> str:
+    return f"{UDF_PREFIX}{name}({', '.join((f'CAST({text} AS VARCHAR)', *args))})"
+
+
+def _valid_else(text: str, fast: str, streamed: str) -> str:
+    """`fast` for a text that is JSON, `streamed` for another (DuckDB runs a CASE branch only on
+    the rows that take it). A json value is checked too: json_array_get gives a string element's
+    text unquoted, as json."""
+    return f"CASE WHEN {jv.valid(text)} THEN {fast} ELSE {streamed} END"
+
+
+def _located(node: exp.Expression, text: str) -> tuple[str, str] | None:
+    """The JSON document and DuckDB path that reach the value at the call's JSONPath (several paths
+    when a step may be an index or a name: the value one of them finds), None where DuckDB cannot."""
+    paths = jps.duckdb_paths(node.meta["steps"])
+    if paths is None:
+        return None
+    if len(paths) == 1:
+        return text, tf.string(paths[0])
+    found = f"json_extract({text}, [{', '.join(map(tf.string, paths))}])"
+    return f'list_filter({found}, lambda "_jp": "_jp" IS NOT NULL)[1]', "'$'"
+
+
 _EXACT_NUMBER_TARGETS = {
     exp.DataType.Type.TINYINT,
     exp.DataType.Type.SMALLINT,
@@ -107,50 +142,72 @@ _EXACT_NUMBER_TARGETS = {
 
 def _render_json_extract_scalar(g, node, args) -> str:
     """Trino returns a number's text as written; DuckDB re-prints numbers it parsed (2.50 -> 2.5,
-    1e3 -> 1000.0, -0 -> 0). Where that can differ, refuse at run time (also inside try: Trino
-    would answer there, so NULL would be a silently different answer)."""
-    value, path = g.sql(args[0]), g.sql(args[1])
-    kind, text = f"json_type({value}, {path})", f"json_extract_string({value}, {path})"
+    1e3 -> 1000.0, -0 -> 0): where that can differ, the streamed function answers."""
+    value = g.sql(args[0])
+    streamed = _streamed("json_extract_scalar", value, tf.string(jps.udf_path(node.meta["steps"])))
+    located = _located(node, value)
+    if located is None:
+        return streamed
+    kind, text = f"json_type({located[0]}, {located[1]})", f"json_extract_string({located[0]}, {located[1]})"
     parent = node.parent
     if isinstance(parent, (exp.Cast, exp.TryCast)) and parent.to.this in _EXACT_NUMBER_TARGETS:
         # Any spelling of a number casts to the same integer (or the same error) and the same double.
-        return f"CASE WHEN NOT {jv.valid(value)} THEN NULL WHEN {kind} IN ('OBJECT', 'ARRAY') THEN NULL ELSE {text} END"
-    refuse = tf.string(
-        "NOT_SUPPORTED: json_extract_scalar of a non-integer (or negative zero) JSON number "
-        "is not supported: its text as written is not kept"
-    )
-    return (
-        f"CASE WHEN NOT {jv.valid(value)} THEN NULL WHEN {kind} IN ('OBJECT', 'ARRAY') THEN NULL "
-        f"WHEN {kind} = 'DOUBLE' OR ({kind} = 'BIGINT' AND {text} = '0' AND contains({value}, '-0')) "
-        f"THEN error({refuse}) ELSE {text} END"
-    )
+        fast = f"CASE WHEN {kind} IN ('OBJECT', 'ARRAY') THEN NULL ELSE {text} END"
+    else:
+        fast = (
+            f"CASE WHEN {kind} IN ('OBJECT', 'ARRAY') THEN NULL "
+            f"WHEN {kind} = 'DOUBLE' OR ({kind} IN ('BIGINT', 'UBIGINT') AND {text} = '0' AND contains({value}, '-0')) "
+            f"THEN {streamed} ELSE {text} END"
+        )
+    return _valid_else(value, fast, streamed)
 
 
 def _json_path(call: Call, result: TType | None = None) -> TType:
     need(call, "json", "string")
     path = literal_str(call, 1)
-    if path is None or not re.fullmatch(r"\$((\.[A-Za-z_][A-Za-z0-9_]*)|(\[\d+\])|(\[\"[^\"]*\"\]))*", path):
+    names = None if path is None else jps.steps(path)
+    if names is None:
         call.fail("unsupported in lakegate: JSON path other than a literal $.key / [index] path", "NOT_SUPPORTED")
+    call.node.meta["steps"] = names
     if result is not None:
         return result
     source = call.types[0]
     return source if source.base == "varchar" else tt.VARCHAR
 
 
+def _render_json_extract(g, node, args) -> str:
+    """DuckDB's JSON text of the value, unless it may differ from what Trino's Jackson writes (a
+    number Java writes otherwise, a character outside the BMP, which Jackson escapes)."""
+    value = g.sql(args[0])
+    streamed = _streamed("json_extract", value, tf.string(jps.udf_path(node.meta["steps"])))
+    located = _located(node, value)
+    if located is None:
+        return streamed
+    found = f"CAST(json_extract({located[0]}, {located[1]}) AS VARCHAR)"
+    unsure = f"{jv.unsure_numbers(found)} OR regexp_matches({found}, '[\\x{{10000}}-\\x{{10FFFF}}]')"
+    return _valid_else(value, f"CASE WHEN {unsure} THEN {streamed} ELSE {found} END", streamed)
+
+
 def _render_json_size(g, node, args) -> str:
-    value, path = _json_text(g, args[0]), g.sql(args[1])
-    kind = f"json_type({value}, {path})"
-    return (
+    value = g.sql(args[0])
+    streamed = _streamed("json_size", value, tf.string(jps.udf_path(node.meta["steps"])))
+    located = _located(node, value)
+    if located is None:
+        return streamed
+    kind = f"json_type({located[0]}, {located[1]})"
+    fast = (
         f"CASE WHEN {kind} IS NULL THEN NULL "
-        f"WHEN {kind} = 'ARRAY' THEN CAST(json_array_length({value}, {path}) AS BIGINT) "
-        f"WHEN {kind} = 'OBJECT' THEN CAST(len(json_keys({value}, {path})) AS BIGINT) ELSE CAST(0 AS BIGINT) END"
+        f"WHEN {kind} = 'ARRAY' THEN CAST(json_array_length({located[0]}, {located[1]}) AS BIGINT) "
+        f"WHEN {kind} = 'OBJECT' THEN CAST(len(json_keys({located[0]}, {located[1]})) AS BIGINT) "
+        "ELSE CAST(0 AS BIGINT) END"
     )
+    return _valid_else(value, fast, streamed)
 
 
-# --- JSON array functions (JsonFunctions) ----------------------------------------------------------
 def _render_json_array_length(g, node, args) -> str:
-    value = _json_text(g, args[0])
-    return f"CASE WHEN json_type({value}) = 'ARRAY' THEN CAST(json_array_length({value}) AS BIGINT) END"
+    value = g.sql(args[0])
+    fast = f"CASE WHEN json_type({value}) = 'ARRAY' THEN CAST(json_array_length({value}) AS BIGINT) END"
+    return _valid_else(value, fast, _streamed("json_array_length", value))
 
 
 def _json_array_contains(call: Call) -> TType:
@@ -178,39 +235,54 @@ def _element_matches(value: TType, element: str, needle: str) -> str:
     return f"{kind} = 'VARCHAR' AND json_extract_string({element}, '$') = {needle}"
 
 
+def _needle_kind(value: TType) -> str:
+    """Which streamed json_array_contains compares with a needle of this type."""
+    if value.base == "boolean":
+        return "boolean"
+    return "bigint" if value.is_integral else "double" if value.is_numeric else "varchar"
+
+
 def _render_json_array_contains(g, node, args) -> str:
     value = ttype(args[1])
     if value.is_unknown:
         return "CAST(NULL AS BOOLEAN)"
-    text = _json_text(g, args[0])
+    text = g.sql(args[0])
     needle = g.sql(args[1]) if value.is_integral or not value.is_numeric else f"CAST({g.sql(args[1])} AS DOUBLE)"
     matches = _element_matches(value, '"_e"', needle)
-    # a NaN or infinite double is in no JSON value, array or not (false before the JSON is read)
-    infinite = "" if value.is_integral or not value.is_numeric else f"WHEN NOT isfinite({needle}) THEN false "
-    return (
-        f"CASE WHEN ({needle}) IS NULL OR ({text}) IS NULL THEN NULL {infinite}WHEN json_type({text}) = 'ARRAY' THEN "
+    kind = _needle_kind(value)
+    needle_sql = f"CAST({needle} AS {'VARCHAR' if kind == 'varchar' else kind.upper()})"
+    fast = (
+        f"CASE WHEN json_type({text}) = 'ARRAY' THEN "
         f'len(list_filter({jv.elements(text)}, lambda "_e": {matches})) > 0 END'
     )
+    # a NaN or infinite double is in no JSON value, array or not (false before the JSON is read)
+    infinite = "" if value.is_integral or not value.is_numeric else f"WHEN NOT isfinite({needle}) THEN false "
+    answer = _valid_else(text, fast, _streamed(f"json_array_contains_{kind}", text, needle_sql))
+    return f"CASE WHEN ({needle}) IS NULL OR ({text}) IS NULL THEN NULL {infinite}ELSE {answer} END"
 
 
 def _render_json_array_get(g, node, args) -> str:
     """The element at a 0-based index (negative: from the end); NULL outside the array and for a
-    JSON null element (reached from the end, Trino fails: "string is null"), and for a text that
-    is not JSON (such as what an unquoted string element is: the real Trino 476 answers NULL). A
-    string element comes back unquoted, as Trino documents ("broken")."""
-    text = _json_text(g, args[0])
-    items, index = jv.elements(text), g.sql(args[1])
+    JSON null element (reached from the end, Trino fails: "string is null"). A string element comes
+    back unquoted, as Trino documents ("broken"). DuckDB's answer is taken for a string, boolean or
+    integer element of a text that is JSON; otherwise the streamed function answers (a number as
+    written, an array or object as Jackson's tree writes it, text that is not JSON)."""
+    text, index = g.sql(args[0]), g.sql(args[1])
+    streamed = _streamed("json_array_get", text, f"CAST({index} AS BIGINT)")
+    items = jv.elements(text)
     position = f"CASE WHEN {index} >= 0 THEN {index} + 1 ELSE len({items}) + {index} + 1 END"
     element = f"CASE WHEN {position} >= 1 THEN {items}[{position}] END"
     kind = f"json_type({element})"
-    unquoted = f"json_extract_string({element}, '$')"
     # a JSON null reached from the end fails as in the real Trino 476 (not caught by try())
     null_from_end = f"error({tf.string('GENERIC_INTERNAL_ERROR: string is null')})"
-    return (
-        f"CASE WHEN NOT json_valid({text}) OR json_type({text}) <> 'ARRAY' THEN NULL WHEN {kind} = 'NULL' THEN "
+    fast = (
+        f"CASE WHEN json_type({text}) <> 'ARRAY' THEN NULL WHEN {kind} IS NULL THEN NULL WHEN {kind} = 'NULL' THEN "
         f"CASE WHEN {index} < 0 THEN {null_from_end} END "
-        f"WHEN {kind} = 'VARCHAR' THEN {unquoted} ELSE {jv.exact_numbers(element)} END"
+        f"WHEN {kind} = 'VARCHAR' THEN json_extract_string({element}, '$') "
+        f"WHEN {kind} = 'BOOLEAN' OR {kind} IN ('BIGINT', 'UBIGINT') AND NOT contains({text}, '-0') THEN {element} "
+        f"ELSE {streamed} END"
     )
+    return _valid_else(text, fast, streamed)
 
 
 # --- SQL/JSON path functions (json_exists, json_value, json_query) ---------------------------------
@@ -503,18 +575,19 @@ def install() -> None:
         "json_extract_scalar(json, json_path) -> varchar",
         _json_path,
         _render_json_extract_scalar,
-        notes="NULL for objects, arrays, missing keys and invalid JSON text, as in Trino. A non-integer "
-        "number is refused at run time (NOT_SUPPORTED): Trino returns its text as written "
-        "(2.50), which DuckDB does not keep.",
+        notes="NULL for objects, arrays and missing keys; a number's text as written (2.50). Text that is "
+        "not JSON is read as Trino's streaming parser reads it: the value is found if the text is "
+        "well-formed up to it ('[1,]' -> '1').",
     )
     register(
         "json_extract",
         "json",
         "json_extract(json, json_path) -> json",
         lambda call: _json_path(call, tt.JSON),
-        lambda g, node, args: jv.exact_numbers(f"json_extract({_json_text(g, args[0])}, {g.sql(args[1])})"),
-        notes="NULL for missing paths and invalid JSON text. A value holding a number Java would print in "
-        "scientific notation (or with an exponent as written) is refused at run time (NOT_SUPPORTED).",
+        _render_json_extract,
+        notes="NULL for missing paths; numbers written as Jackson writes them (1e3 -> 1000.0). Text that is "
+        "not JSON is read as Trino's streaming parser reads it: the value is found if the text is "
+        "well-formed up to its end.",
     )
 
     register(

@@ -130,6 +130,12 @@ def _located(node: exp.Expression, text: str) -> tuple[str, str] | None:
     return f'list_filter({found}, lambda "_jp": "_jp" IS NOT NULL)[1]', "'$'"
 
 
+def _path_call(name: str, g, node: exp.Expression, args) -> tuple[str, str, tuple[str, str] | None]:
+    """The JSON text's SQL, the streamed function `name` at the call's JSONPath, and `_located`."""
+    value = g.sql(args[0])
+    return value, _streamed(name, value, tf.string(jps.udf_path(node.meta["steps"]))), _located(node, value)
+
+
 _EXACT_NUMBER_TARGETS = {
     exp.DataType.Type.TINYINT,
     exp.DataType.Type.SMALLINT,
@@ -143,9 +149,7 @@ _EXACT_NUMBER_TARGETS = {
 def _render_json_extract_scalar(g, node, args) -> str:
     """Trino returns a number's text as written; DuckDB re-prints numbers it parsed (2.50 -> 2.5,
     1e3 -> 1000.0, -0 -> 0): where that can differ, the streamed function answers."""
-    value = g.sql(args[0])
-    streamed = _streamed("json_extract_scalar", value, tf.string(jps.udf_path(node.meta["steps"])))
-    located = _located(node, value)
+    value, streamed, located = _path_call("json_extract_scalar", g, node, args)
     if located is None:
         return streamed
     kind, text = f"json_type({located[0]}, {located[1]})", f"json_extract_string({located[0]}, {located[1]})"
@@ -178,9 +182,7 @@ def _json_path(call: Call, result: TType | None = None) -> TType:
 def _render_json_extract(g, node, args) -> str:
     """DuckDB's JSON text of the value, unless it may differ from what Trino's Jackson writes (a
     number Java writes otherwise, a character outside the BMP, which Jackson escapes)."""
-    value = g.sql(args[0])
-    streamed = _streamed("json_extract", value, tf.string(jps.udf_path(node.meta["steps"])))
-    located = _located(node, value)
+    value, streamed, located = _path_call("json_extract", g, node, args)
     if located is None:
         return streamed
     found = f"CAST(json_extract({located[0]}, {located[1]}) AS VARCHAR)"
@@ -189,9 +191,7 @@ def _render_json_extract(g, node, args) -> str:
 
 
 def _render_json_size(g, node, args) -> str:
-    value = g.sql(args[0])
-    streamed = _streamed("json_size", value, tf.string(jps.udf_path(node.meta["steps"])))
-    located = _located(node, value)
+    value, streamed, located = _path_call("json_size", g, node, args)
     if located is None:
         return streamed
     kind = f"json_type({located[0]}, {located[1]})"
